@@ -1,0 +1,226 @@
+//! Register-data value codecs: byte orders, versions and fixed-length ASCII.
+//!
+//! Modbus says a register is big-endian, but vendors place multi-register
+//! values in any of four byte orders. The letters name the bytes of the value
+//! from most to least significant as they appear on the wire: `ABCD` is plain
+//! big-endian, `DCBA` a little-endian memory image (Yosemitech's floats).
+
+use core::fmt;
+
+/// Wire order of a two-byte value.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum ByteOrder2 {
+    /// Most significant byte first (Modbus standard).
+    Ab,
+    /// Least significant byte first.
+    Ba,
+}
+
+/// Wire order of a four-byte value.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum ByteOrder4 {
+    /// Big-endian: most significant byte first.
+    Abcd,
+    /// Little-endian memory image (byte- and word-swapped); Yosemitech floats.
+    Dcba,
+    /// Big-endian registers, least significant register first (word swap).
+    Cdab,
+    /// Little-endian registers, most significant register first (byte swap).
+    Badc,
+}
+
+/// Decodes a two-byte value from wire bytes.
+#[inline]
+pub const fn u16_from_wire(order: ByteOrder2, b: [u8; 2]) -> u16 {
+    match order {
+        ByteOrder2::Ab => u16::from_be_bytes(b),
+        ByteOrder2::Ba => u16::from_le_bytes(b),
+    }
+}
+
+/// Encodes a two-byte value to wire bytes.
+#[inline]
+pub const fn u16_to_wire(order: ByteOrder2, v: u16) -> [u8; 2] {
+    match order {
+        ByteOrder2::Ab => v.to_be_bytes(),
+        ByteOrder2::Ba => v.to_le_bytes(),
+    }
+}
+
+/// Decodes a four-byte value from wire bytes.
+#[inline]
+pub const fn u32_from_wire(order: ByteOrder4, b: [u8; 4]) -> u32 {
+    let [w, x, y, z] = b;
+    match order {
+        ByteOrder4::Abcd => u32::from_be_bytes([w, x, y, z]),
+        ByteOrder4::Dcba => u32::from_be_bytes([z, y, x, w]),
+        ByteOrder4::Cdab => u32::from_be_bytes([y, z, w, x]),
+        ByteOrder4::Badc => u32::from_be_bytes([x, w, z, y]),
+    }
+}
+
+/// Encodes a four-byte value to wire bytes.
+#[inline]
+pub const fn u32_to_wire(order: ByteOrder4, v: u32) -> [u8; 4] {
+    let [a, b, c, d] = v.to_be_bytes();
+    match order {
+        ByteOrder4::Abcd => [a, b, c, d],
+        ByteOrder4::Dcba => [d, c, b, a],
+        ByteOrder4::Cdab => [c, d, a, b],
+        ByteOrder4::Badc => [b, a, d, c],
+    }
+}
+
+/// Decodes an IEEE 754 single from wire bytes, bit-exactly (NaN payloads kept).
+#[inline]
+pub const fn f32_from_wire(order: ByteOrder4, b: [u8; 4]) -> f32 {
+    f32::from_bits(u32_from_wire(order, b))
+}
+
+/// Encodes an IEEE 754 single to wire bytes, bit-exactly.
+#[inline]
+pub const fn f32_to_wire(order: ByteOrder4, v: f32) -> [u8; 4] {
+    u32_to_wire(order, v.to_bits())
+}
+
+/// A firmware or hardware revision sent as two bytes, major then minor.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Default)]
+pub struct Version {
+    /// The first byte.
+    pub major: u8,
+    /// The second byte.
+    pub minor: u8,
+}
+
+impl Version {
+    /// A version from its two bytes.
+    pub const fn new(major: u8, minor: u8) -> Self {
+        Self { major, minor }
+    }
+
+    /// The two wire bytes.
+    pub const fn to_wire(self) -> [u8; 2] {
+        [self.major, self.minor]
+    }
+
+    /// From the two wire bytes.
+    pub const fn from_wire(b: [u8; 2]) -> Self {
+        Self { major: b[0], minor: b[1] }
+    }
+}
+
+impl fmt::Display for Version {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{}.{}", self.major, self.minor)
+    }
+}
+
+/// A fixed-length text field of `N` bytes, padded with `pad` bytes at the end.
+///
+/// The raw bytes are kept as received: a device that sends bytes outside ASCII
+/// is shown, not trusted ([`Ascii::as_str`] returns `None`).
+#[derive(Clone, Copy, PartialEq, Eq, Hash)]
+pub struct Ascii<const N: usize> {
+    bytes: [u8; N],
+    pad: u8,
+}
+
+impl<const N: usize> Ascii<N> {
+    /// The field as received, padding included.
+    pub const fn from_wire(bytes: [u8; N], pad: u8) -> Self {
+        Self { bytes, pad }
+    }
+
+    /// The field from text: at most `N` ASCII bytes, padded with `pad`.
+    /// Returns `None` when `text` is too long or not ASCII.
+    pub fn from_text(text: &str, pad: u8) -> Option<Self> {
+        if text.len() > N || !text.is_ascii() {
+            return None;
+        }
+        let mut bytes = [pad; N];
+        for (slot, byte) in bytes.iter_mut().zip(text.bytes()) {
+            *slot = byte;
+        }
+        Some(Self { bytes, pad })
+    }
+
+    /// The raw wire bytes.
+    pub const fn to_wire(&self) -> [u8; N] {
+        self.bytes
+    }
+
+    /// The raw bytes, padding included.
+    pub const fn as_bytes(&self) -> &[u8; N] {
+        &self.bytes
+    }
+
+    /// The text without trailing padding, if it is printable ASCII.
+    pub fn as_str(&self) -> Option<&str> {
+        let end = self.bytes.iter().rposition(|&b| b != self.pad).map_or(0, |i| i + 1);
+        let text = self.bytes.get(..end)?;
+        if text.iter().all(|b| b.is_ascii_graphic() || *b == b' ') { core::str::from_utf8(text).ok() } else { None }
+    }
+}
+
+impl<const N: usize> fmt::Debug for Ascii<N> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self.as_str() {
+            Some(s) => write!(f, "{s:?}"),
+            None => write!(f, "Ascii({:02x?})", self.bytes),
+        }
+    }
+}
+
+impl<const N: usize> fmt::Display for Ascii<N> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self.as_str() {
+            Some(s) => f.write_str(s),
+            None => {
+                for b in self.bytes {
+                    if b.is_ascii_graphic() || b == b' ' {
+                        write!(f, "{}", char::from(b))?;
+                    } else {
+                        write!(f, "\\x{b:02x}")?;
+                    }
+                }
+                Ok(())
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn yosemitech_float_is_little_endian_image() {
+        // pH manual Fig 25: 7.6 = 33 33 F3 40.
+        assert_eq!(f32_from_wire(ByteOrder4::Dcba, [0x33, 0x33, 0xF3, 0x40]), 7.6);
+        assert_eq!(f32_to_wire(ByteOrder4::Abcd, 17.625), [0x41, 0x8D, 0x00, 0x00]);
+        assert_eq!(f32_to_wire(ByteOrder4::Cdab, 17.625), [0x00, 0x00, 0x41, 0x8D]);
+        assert_eq!(f32_to_wire(ByteOrder4::Badc, 17.625), [0x8D, 0x41, 0x00, 0x00]);
+    }
+
+    #[test]
+    fn all_orders_round_trip() {
+        for order in [ByteOrder4::Abcd, ByteOrder4::Dcba, ByteOrder4::Cdab, ByteOrder4::Badc] {
+            for v in [0u32, 1, 0x0102_0304, u32::MAX, 0x8000_0001] {
+                assert_eq!(u32_from_wire(order, u32_to_wire(order, v)), v);
+            }
+        }
+        for order in [ByteOrder2::Ab, ByteOrder2::Ba] {
+            assert_eq!(u16_from_wire(order, u16_to_wire(order, 0x1234)), 0x1234);
+        }
+        assert_eq!(u16_to_wire(ByteOrder2::Ab, 0x1234), [0x12, 0x34]);
+    }
+
+    #[test]
+    fn ascii_trims_padding_and_rejects_binary() {
+        let sn = Ascii::<4>::from_wire(*b"YL\0\0", 0);
+        assert_eq!(sn.as_str(), Some("YL"));
+        assert_eq!(Ascii::<2>::from_wire([0x59, 0x07], 0).as_str(), None);
+        assert_eq!(Ascii::<2>::from_text("YLX", 0), None);
+        assert_eq!(Ascii::<3>::from_text("YL", b' ').map(|a| a.to_wire()), Some(*b"YL "));
+    }
+}

@@ -1,0 +1,433 @@
+//! RTU framing shared by the generated codecs, the spec interpreter and the
+//! simulator: one implementation of every header, length, CRC and echo check.
+//!
+//! A frame is `slave, function, PDU data, CRC low, CRC high`. Reads (0x03)
+//! carry a byte count and register data in the reply; writes (0x10) carry a
+//! byte count and data in the request and an echo of address and count in the
+//! reply. Frames are delimited by length, never by their own byte count, so a
+//! firmware that misprints the byte count (pH manual Fig 54) still frames.
+
+use core::ops::Deref;
+
+use crate::crc::{crc_ok, crc16};
+use crate::error::{EchoField, EncodeError, FrameError};
+
+/// The largest RTU frame (address + PDU + CRC).
+pub const MAX_ADU: usize = 256;
+
+/// The highest unicast slave address.
+pub const MAX_SLAVE: u8 = 247;
+
+/// The broadcast address: writes only, never answered.
+pub const BROADCAST: u8 = 0;
+
+/// The bit set in the function code of an exception reply.
+pub const EXCEPTION_BIT: u8 = 0x80;
+
+/// Length of an exception reply: slave, function | 0x80, code, CRC.
+pub const EXCEPTION_LEN: usize = 5;
+
+/// The Modbus functions Yosemitech probes implement.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Function {
+    /// 0x03, read holding registers.
+    Read,
+    /// 0x10, write multiple registers.
+    Write,
+}
+
+impl Function {
+    /// The function code on the wire.
+    pub const fn code(self) -> u8 {
+        match self {
+            Self::Read => 0x03,
+            Self::Write => 0x10,
+        }
+    }
+
+    /// The function for a wire code.
+    pub const fn from_code(code: u8) -> Option<Self> {
+        match code {
+            0x03 => Some(Self::Read),
+            0x10 => Some(Self::Write),
+            _ => None,
+        }
+    }
+}
+
+/// Where a command sits on the wire: everything framing needs to know.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub struct Layout<'a> {
+    /// Read or write.
+    pub function: Function,
+    /// The first register, as sent on the wire (no 1-based offset).
+    pub address: u16,
+    /// Registers read or written; zero only for trigger writes.
+    pub count: u16,
+    /// A slave address the command must use in request and reply (get slave id: 0xFF).
+    pub fixed_slave: Option<u8>,
+    /// Byte counts a read reply may carry besides `2 * count` (documented firmware quirks).
+    pub extra_byte_counts: &'a [u8],
+}
+
+impl Layout<'_> {
+    /// Register data bytes: `2 * count`.
+    pub const fn data_len(&self) -> usize {
+        2 * self.count as usize
+    }
+
+    /// Bytes in a request frame.
+    pub const fn request_len(&self) -> usize {
+        match self.function {
+            Function::Read => 8,
+            Function::Write => 9 + self.data_len(),
+        }
+    }
+
+    /// Bytes in a normal (non-exception) reply frame.
+    pub const fn response_len(&self) -> usize {
+        match self.function {
+            Function::Read => 5 + self.data_len(),
+            Function::Write => 8,
+        }
+    }
+
+    /// Bytes of register data in the request (writes) or zero (reads).
+    pub const fn request_data_len(&self) -> usize {
+        match self.function {
+            Function::Read => 0,
+            Function::Write => self.data_len(),
+        }
+    }
+
+    /// Bytes of register data in the reply (reads) or zero (writes).
+    pub const fn response_data_len(&self) -> usize {
+        match self.function {
+            Function::Read => self.data_len(),
+            Function::Write => 0,
+        }
+    }
+
+    /// The slave address a reply to a request sent to `slave` must carry.
+    pub const fn reply_slave(&self, slave: u8) -> u8 {
+        match self.fixed_slave {
+            Some(fixed) => fixed,
+            None => slave,
+        }
+    }
+
+    /// Checks that `slave` may be used in a request for this command.
+    pub fn check_slave(&self, slave: u8) -> Result<(), EncodeError> {
+        let ok = match self.fixed_slave {
+            Some(fixed) => slave == fixed,
+            None => (1..=MAX_SLAVE).contains(&slave) || (slave == BROADCAST && self.function == Function::Write),
+        };
+        if ok { Ok(()) } else { Err(EncodeError::InvalidSlave { slave }) }
+    }
+
+    /// Writes the request frame to `out`. `data` is the register data of a
+    /// write (exactly [`Layout::request_data_len`] bytes) and empty for a read.
+    pub fn encode_request(&self, slave: u8, data: &[u8], out: &mut [u8]) -> Result<usize, EncodeError> {
+        self.check_slave(slave)?;
+        let len = self.request_len();
+        if data.len() != self.request_data_len() || len > MAX_ADU {
+            return Err(EncodeError::BufferTooSmall { needed: len });
+        }
+        let out = out.get_mut(..len).ok_or(EncodeError::BufferTooSmall { needed: len })?;
+        let mut w = Writer::new(out);
+        w.byte(slave);
+        w.byte(self.function.code());
+        w.word(self.address);
+        w.word(self.count);
+        if self.function == Function::Write {
+            // data_len() <= 2 * 0xFFFF is checked against MAX_ADU by `len` above.
+            w.byte(self.data_len() as u8);
+            w.bytes(data);
+        }
+        w.crc();
+        Ok(len)
+    }
+
+    /// Writes a normal reply to `out`. `data` is the register data of a read
+    /// reply (exactly [`Layout::response_data_len`] bytes) and empty for a write.
+    pub fn encode_response(&self, slave: u8, data: &[u8], out: &mut [u8]) -> Result<usize, EncodeError> {
+        let len = self.response_len();
+        if data.len() != self.response_data_len() || len > MAX_ADU {
+            return Err(EncodeError::BufferTooSmall { needed: len });
+        }
+        let out = out.get_mut(..len).ok_or(EncodeError::BufferTooSmall { needed: len })?;
+        let mut w = Writer::new(out);
+        w.byte(self.reply_slave(slave));
+        w.byte(self.function.code());
+        match self.function {
+            Function::Read => {
+                w.byte(self.data_len() as u8);
+                w.bytes(data);
+            }
+            Function::Write => {
+                w.word(self.address);
+                w.word(self.count);
+            }
+        }
+        w.crc();
+        Ok(len)
+    }
+
+    /// Checks a request frame and returns its slave address and register data.
+    pub fn decode_request<'f>(&self, frame: &'f [u8]) -> Result<(u8, &'f [u8]), FrameError> {
+        check_len(frame, self.request_len())?;
+        check_crc(frame)?;
+        let slave = byte(frame, 0);
+        if let Some(fixed) = self.fixed_slave
+            && slave != fixed
+        {
+            return Err(FrameError::WrongSlave { expected: fixed, actual: slave });
+        }
+        check_function(frame, self.function.code())?;
+        check_echo(frame, EchoField::Address, 2, self.address)?;
+        check_echo(frame, EchoField::Count, 4, self.count)?;
+        match self.function {
+            Function::Read => Ok((slave, &[])),
+            Function::Write => {
+                check_byte_count(byte(frame, 6), self.data_len(), &[])?;
+                Ok((slave, frame.get(7..7 + self.data_len()).unwrap_or(&[])))
+            }
+        }
+    }
+
+    /// Checks a reply to a request sent to `slave` and returns its register
+    /// data (exactly [`Layout::response_data_len`] bytes). An exception reply
+    /// becomes [`FrameError::Exception`].
+    pub fn decode_response<'f>(&self, slave: u8, frame: &'f [u8]) -> Result<&'f [u8], FrameError> {
+        let expected_slave = self.reply_slave(slave);
+        let function = self.function.code();
+        if frame.get(1) == Some(&(function | EXCEPTION_BIT)) {
+            check_len(frame, EXCEPTION_LEN)?;
+            check_crc(frame)?;
+            check_slave(frame, expected_slave)?;
+            return Err(FrameError::Exception { function, code: crate::ExceptionCode::from_u8(byte(frame, 2)) });
+        }
+        check_len(frame, self.response_len())?;
+        check_crc(frame)?;
+        check_slave(frame, expected_slave)?;
+        check_function(frame, function)?;
+        match self.function {
+            Function::Read => {
+                check_byte_count(byte(frame, 2), self.data_len(), self.extra_byte_counts)?;
+                Ok(frame.get(3..3 + self.data_len()).unwrap_or(&[]))
+            }
+            Function::Write => {
+                check_echo(frame, EchoField::Address, 2, self.address)?;
+                check_echo(frame, EchoField::Count, 4, self.count)?;
+                Ok(&[])
+            }
+        }
+    }
+}
+
+/// Writes an exception reply (`slave`, `function | 0x80`, `code`, CRC) to `out`.
+pub fn encode_exception(slave: u8, function: u8, code: u8, out: &mut [u8]) -> Result<usize, EncodeError> {
+    let out = out.get_mut(..EXCEPTION_LEN).ok_or(EncodeError::BufferTooSmall { needed: EXCEPTION_LEN })?;
+    let mut w = Writer::new(out);
+    w.byte(slave);
+    w.byte(function | EXCEPTION_BIT);
+    w.byte(code);
+    w.crc();
+    Ok(EXCEPTION_LEN)
+}
+
+/// The total length of a reply to `function`, known from its first `head`
+/// bytes (at least two): an exception reply is 5 bytes, a normal reply
+/// `normal_len`. Used by readers that must decide how much more to read.
+pub fn reply_len(head: &[u8], function: u8, normal_len: usize) -> Option<usize> {
+    match head.get(1) {
+        Some(&f) if f == function | EXCEPTION_BIT => Some(EXCEPTION_LEN),
+        Some(_) => Some(normal_len),
+        None => None,
+    }
+}
+
+fn byte(frame: &[u8], at: usize) -> u8 {
+    frame.get(at).copied().unwrap_or(0)
+}
+
+fn word(frame: &[u8], at: usize) -> u16 {
+    u16::from_be_bytes([byte(frame, at), byte(frame, at + 1)])
+}
+
+fn check_len(frame: &[u8], expected: usize) -> Result<(), FrameError> {
+    let actual = frame.len();
+    if actual < expected {
+        Err(FrameError::Truncated { expected, actual })
+    } else if actual > expected {
+        Err(FrameError::TooLong { expected, actual })
+    } else {
+        Ok(())
+    }
+}
+
+fn check_crc(frame: &[u8]) -> Result<(), FrameError> {
+    if crc_ok(frame) {
+        return Ok(());
+    }
+    let n = frame.len().saturating_sub(2);
+    let received = u16::from_le_bytes([byte(frame, n), byte(frame, n + 1)]);
+    let computed = crc16(frame.get(..n).unwrap_or(&[]));
+    Err(FrameError::Crc { received, computed })
+}
+
+fn check_slave(frame: &[u8], expected: u8) -> Result<(), FrameError> {
+    let actual = byte(frame, 0);
+    if actual == expected { Ok(()) } else { Err(FrameError::WrongSlave { expected, actual }) }
+}
+
+fn check_function(frame: &[u8], expected: u8) -> Result<(), FrameError> {
+    let actual = byte(frame, 1);
+    if actual == expected { Ok(()) } else { Err(FrameError::WrongFunction { expected, actual }) }
+}
+
+fn check_echo(frame: &[u8], field: EchoField, at: usize, expected: u16) -> Result<(), FrameError> {
+    let actual = word(frame, at);
+    if actual == expected { Ok(()) } else { Err(FrameError::EchoMismatch { field, expected, actual }) }
+}
+
+fn check_byte_count(actual: u8, data_len: usize, extra: &[u8]) -> Result<(), FrameError> {
+    if usize::from(actual) == data_len || extra.contains(&actual) {
+        Ok(())
+    } else {
+        Err(FrameError::ByteCount { expected: u8::try_from(data_len).unwrap_or(u8::MAX), actual })
+    }
+}
+
+/// A cursor over a buffer whose length the caller has already checked.
+struct Writer<'b> {
+    out: &'b mut [u8],
+    at: usize,
+}
+
+impl<'b> Writer<'b> {
+    fn new(out: &'b mut [u8]) -> Self {
+        Self { out, at: 0 }
+    }
+
+    fn byte(&mut self, b: u8) {
+        if let Some(slot) = self.out.get_mut(self.at) {
+            *slot = b;
+        }
+        self.at += 1;
+    }
+
+    fn word(&mut self, w: u16) {
+        self.bytes(&w.to_be_bytes());
+    }
+
+    fn bytes(&mut self, bytes: &[u8]) {
+        for &b in bytes {
+            self.byte(b);
+        }
+    }
+
+    fn crc(&mut self) {
+        let crc = crc16(self.out.get(..self.at).unwrap_or(&[]));
+        self.bytes(&crc.to_le_bytes());
+    }
+}
+
+/// An encoded frame on the stack.
+#[derive(Clone, Copy, PartialEq, Eq)]
+pub struct Frame {
+    bytes: [u8; MAX_ADU],
+    len: usize,
+}
+
+impl Frame {
+    /// An empty frame to encode into with [`Frame::fill`].
+    pub const fn empty() -> Self {
+        Self { bytes: [0; MAX_ADU], len: 0 }
+    }
+
+    /// Encodes with `encode` (which writes into a buffer and returns the length).
+    pub fn fill<E>(encode: impl FnOnce(&mut [u8]) -> Result<usize, E>) -> Result<Self, E> {
+        let mut frame = Self::empty();
+        frame.len = encode(&mut frame.bytes)?.min(MAX_ADU);
+        Ok(frame)
+    }
+
+    /// The frame's bytes.
+    pub fn as_bytes(&self) -> &[u8] {
+        self.bytes.get(..self.len).unwrap_or(&[])
+    }
+}
+
+impl Deref for Frame {
+    type Target = [u8];
+    fn deref(&self) -> &[u8] {
+        self.as_bytes()
+    }
+}
+
+impl core::fmt::Debug for Frame {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        write!(f, "Frame({})", crate::Hex(self.as_bytes()))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::ExceptionCode;
+
+    const GET_PH: Layout<'static> =
+        Layout { function: Function::Read, address: 0x2800, count: 2, fixed_slave: None, extra_byte_counts: &[] };
+    const START: Layout<'static> =
+        Layout { function: Function::Write, address: 0x1C00, count: 0, fixed_slave: None, extra_byte_counts: &[] };
+
+    #[test]
+    fn encodes_manual_requests() {
+        let f = Frame::fill(|b| GET_PH.encode_request(1, &[], b)).unwrap();
+        assert_eq!(f.as_bytes(), [0x01, 0x03, 0x28, 0x00, 0x00, 0x02, 0xCD, 0xAB]);
+        // Conductivity Fig 23: zero-register write with byte count 0.
+        let f = Frame::fill(|b| START.encode_request(1, &[], b)).unwrap();
+        assert_eq!(f.as_bytes(), [0x01, 0x10, 0x1C, 0x00, 0x00, 0x00, 0x00, 0xD8, 0x92]);
+        let f = Frame::fill(|b| START.encode_response(1, &[], b)).unwrap();
+        assert_eq!(f.as_bytes(), [0x01, 0x10, 0x1C, 0x00, 0x00, 0x00, 0xC7, 0x99]);
+    }
+
+    #[test]
+    fn decodes_and_rejects_replies() {
+        let ok = [0x01, 0x03, 0x04, 0x33, 0x33, 0xF3, 0x40, 0x40, 0x78];
+        assert_eq!(GET_PH.decode_response(1, &ok), Ok(&ok[3..7]));
+        assert_eq!(GET_PH.decode_response(2, &ok), Err(FrameError::WrongSlave { expected: 2, actual: 1 }));
+        assert!(matches!(GET_PH.decode_response(1, &ok[..8]), Err(FrameError::Truncated { expected: 9, actual: 8 })));
+        let mut bad = ok;
+        bad[4] ^= 1;
+        assert!(matches!(GET_PH.decode_response(1, &bad), Err(FrameError::Crc { .. })));
+        let mut exc = [0x01, 0x83, 0x02, 0, 0];
+        let crc = crc16(&exc[..3]).to_le_bytes();
+        exc[3..].copy_from_slice(&crc);
+        assert_eq!(
+            GET_PH.decode_response(1, &exc),
+            Err(FrameError::Exception { function: 0x03, code: ExceptionCode::IllegalDataAddress })
+        );
+    }
+
+    #[test]
+    fn slave_rules() {
+        assert!(GET_PH.check_slave(0).is_err(), "reads cannot broadcast");
+        assert!(GET_PH.check_slave(248).is_err());
+        assert!(START.check_slave(0).is_ok());
+        let fixed = Layout { fixed_slave: Some(0xFF), ..GET_PH };
+        assert!(fixed.check_slave(1).is_err());
+        assert!(fixed.check_slave(0xFF).is_ok());
+    }
+
+    proptest::proptest! {
+        #[test]
+        fn decoding_noise_never_panics(frame in proptest::collection::vec(proptest::num::u8::ANY, 0..300), slave in 0u8..=255) {
+            let _ = GET_PH.decode_response(slave, &frame);
+            let _ = START.decode_response(slave, &frame);
+            let _ = GET_PH.decode_request(&frame);
+            let _ = START.decode_request(&frame);
+        }
+    }
+}

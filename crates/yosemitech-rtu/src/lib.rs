@@ -1,0 +1,42 @@
+//! Hand-written Modbus RTU runtime for Yosemitech probes.
+//!
+//! Everything generated code relies on lives here once: the CRC, frame
+//! encoding and checking ([`frame::Layout`]), register value codecs
+//! ([`codec`]), the [`Command`] trait and typed errors. The core is `no_std`
+//! and allocation-free; the `std` feature adds transports and the client.
+#![cfg_attr(not(feature = "std"), no_std)]
+#![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used, clippy::panic, clippy::indexing_slicing))]
+
+pub mod codec;
+mod command;
+mod crc;
+mod error;
+pub mod frame;
+
+pub use codec::{Ascii, ByteOrder2, ByteOrder4, Version};
+pub use command::Command;
+pub use crc::{CRC_INIT, crc_ok, crc16, crc16_update};
+pub use error::{EchoField, EncodeError, ExceptionCode, FrameError};
+pub use frame::{Frame, Function, Layout};
+
+/// Shows bytes as space-separated upper-case hex (`01 03 28 00`).
+#[derive(Clone, Copy)]
+pub struct Hex<'a>(pub &'a [u8]);
+
+impl core::fmt::Display for Hex<'_> {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        for (i, b) in self.0.iter().enumerate() {
+            if i > 0 {
+                f.write_str(" ")?;
+            }
+            write!(f, "{b:02X}")?;
+        }
+        Ok(())
+    }
+}
+
+impl core::fmt::Debug for Hex<'_> {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        core::fmt::Display::fmt(self, f)
+    }
+}
