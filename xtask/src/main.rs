@@ -1,5 +1,56 @@
 //! `cargo xtask`: project automation.
+//!
+//! ```text
+//! cargo xtask validate [PATH...]   check spec files (default: spec/)
+//! cargo xtask schema [--check]     write spec/schema.json
+//! cargo xtask codegen [--check]    write the generated code where people can read it
+//! cargo xtask docs [--check]       write docs/sensors/<sensor>.md
+//! cargo xtask fuzz --seconds N     run every fuzz target for N seconds
+//! ```
 
-fn main() -> anyhow::Result<()> {
-    Ok(())
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+mod codegen;
+mod docs;
+mod fuzz;
+mod schema;
+mod validate;
+
+/// The workspace root (the parent of `xtask/`).
+pub fn root() -> PathBuf {
+    let here = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
+    here.parent().map(PathBuf::from).unwrap_or(here)
+}
+
+const USAGE: &str = "usage: cargo xtask <validate [PATH...] | schema [--check] | codegen [--check] | docs [--check] | fuzz --seconds N>";
+
+fn main() -> ExitCode {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let Some((task, rest)) = args.split_first() else {
+        eprintln!("{USAGE}");
+        return ExitCode::from(2);
+    };
+    let result = match task.as_str() {
+        "validate" => validate::run(rest),
+        "schema" => schema::run(rest),
+        "codegen" => codegen::run(rest),
+        "docs" => docs::run(rest),
+        "fuzz" => fuzz::run(rest),
+        "-h" | "--help" | "help" => {
+            println!("{USAGE}");
+            return ExitCode::SUCCESS;
+        }
+        other => {
+            eprintln!("error: unknown task `{other}`\n{USAGE}");
+            return ExitCode::from(2);
+        }
+    };
+    match result {
+        Ok(code) => code,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
 }

@@ -3,21 +3,37 @@
 //! Everything generated code relies on lives here once: the CRC, frame
 //! encoding and checking ([`frame::Layout`]), register value codecs
 //! ([`codec`]), the [`Command`] trait and typed errors. The core is `no_std`
-//! and allocation-free; the `std` feature adds transports and the client.
+//! and allocation-free; the `std` feature adds [`transport`]s (serial with
+//! the `serial` feature, RTU-over-TCP, in-memory) and the [`Client`].
 #![cfg_attr(not(feature = "std"), no_std)]
 #![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used, clippy::panic, clippy::indexing_slicing))]
 
+#[cfg(feature = "std")]
+pub mod client;
 pub mod codec;
 mod command;
 mod crc;
 mod error;
 pub mod frame;
+mod raw;
+pub mod timing;
+#[cfg(feature = "std")]
+pub mod transport;
 
 pub use codec::{Ascii, ByteOrder2, ByteOrder4, Version};
 pub use command::Command;
 pub use crc::{CRC_INIT, crc_ok, crc16, crc16_update};
 pub use error::{EchoField, EncodeError, ExceptionCode, FrameError};
 pub use frame::{Frame, Function, Layout};
+pub use raw::RawBytes;
+pub use timing::{CharFormat, DataBits, LineTiming, Parity, StopBits};
+
+#[cfg(feature = "std")]
+pub use client::{Client, ClientConfig, Error, RetryPolicy};
+#[cfg(feature = "std")]
+pub use transport::{MemoryTransport, Responder, ResponderTransport, TcpTransport, Transport};
+#[cfg(feature = "serial")]
+pub use transport::{SerialConfig, SerialTransport};
 
 /// Shows bytes as space-separated upper-case hex (`01 03 28 00`).
 #[derive(Clone, Copy)]

@@ -1,0 +1,1 @@
+//! Generates typed Rust codecs from Yosemitech spec files (a library for build.rs).

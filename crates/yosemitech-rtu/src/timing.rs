@@ -1,0 +1,238 @@
+//! Serial character format and Modbus RTU line timing (character time, t1.5, t3.5).
+//!
+//! A character on the line is one start bit, the data bits, an optional parity
+//! bit and one or two stop bits. Modbus over serial line (V1.02, 2.5.1.1) ends
+//! a frame with at least 3.5 character times of silence (t3.5) and forbids gaps
+//! longer than 1.5 character times (t1.5) inside one; above 19200 baud both are
+//! fixed, at 1750 µs and 750 µs.
+
+use core::fmt;
+use core::time::Duration;
+
+/// Data bits per character.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
+pub enum DataBits {
+    /// Seven data bits (Modbus ASCII; not RTU).
+    Seven,
+    /// Eight data bits, as Modbus RTU requires.
+    #[default]
+    Eight,
+}
+
+impl DataBits {
+    /// The number of bits.
+    pub const fn bits(self) -> u32 {
+        match self {
+            Self::Seven => 7,
+            Self::Eight => 8,
+        }
+    }
+}
+
+/// The parity bit of a character.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
+pub enum Parity {
+    /// No parity bit (Yosemitech probes: 8N1).
+    #[default]
+    None,
+    /// Even parity (the Modbus default).
+    Even,
+    /// Odd parity.
+    Odd,
+}
+
+impl Parity {
+    /// Parity bits per character: 0 or 1.
+    pub const fn bits(self) -> u32 {
+        match self {
+            Self::None => 0,
+            Self::Even | Self::Odd => 1,
+        }
+    }
+}
+
+/// Stop bits per character.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
+pub enum StopBits {
+    /// One stop bit.
+    #[default]
+    One,
+    /// Two stop bits.
+    Two,
+}
+
+impl StopBits {
+    /// The number of bits.
+    pub const fn bits(self) -> u32 {
+        match self {
+            Self::One => 1,
+            Self::Two => 2,
+        }
+    }
+}
+
+/// The format of one character on the line. The default is 8N1, the setting
+/// of every Yosemitech probe (datasheet notes, section 6 item 10).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
+pub struct CharFormat {
+    /// Data bits.
+    pub data_bits: DataBits,
+    /// Parity.
+    pub parity: Parity,
+    /// Stop bits.
+    pub stop_bits: StopBits,
+}
+
+impl CharFormat {
+    /// Eight data bits, no parity, one stop bit: 10 bits per character.
+    pub const EIGHT_N_1: Self = Self { data_bits: DataBits::Eight, parity: Parity::None, stop_bits: StopBits::One };
+
+    /// Bits per character: one start bit, the data bits, the parity bit and the stop bits.
+    pub const fn bits(&self) -> u32 {
+        1 + self.data_bits.bits() + self.parity.bits() + self.stop_bits.bits()
+    }
+}
+
+impl fmt::Display for CharFormat {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let parity = match self.parity {
+            Parity::None => 'N',
+            Parity::Even => 'E',
+            Parity::Odd => 'O',
+        };
+        write!(f, "{}{}{}", self.data_bits.bits(), parity, self.stop_bits.bits())
+    }
+}
+
+/// Baud rates above this use the fixed t1.5 and t3.5 of the Modbus spec.
+pub const FIXED_TIMING_ABOVE_BAUD: u32 = 19_200;
+
+/// t1.5 above [`FIXED_TIMING_ABOVE_BAUD`].
+pub const FIXED_T1_5: Duration = Duration::from_micros(750);
+
+/// t3.5 above [`FIXED_TIMING_ABOVE_BAUD`].
+pub const FIXED_T3_5: Duration = Duration::from_micros(1750);
+
+/// The timing of a serial line: how long characters and silences last.
+///
+/// ```
+/// use yosemitech_rtu::{CharFormat, LineTiming};
+/// let line = LineTiming::new(9600, CharFormat::EIGHT_N_1);
+/// assert_eq!(line.char_time().as_nanos(), 1_041_666);
+/// assert_eq!(line.t3_5().as_micros(), 3_645);
+/// ```
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub struct LineTiming {
+    baud: u32,
+    bits_per_char: u32,
+}
+
+impl LineTiming {
+    /// The timing of a line at `baud` with characters of `format`. A baud
+    /// rate of zero is taken as one (it would otherwise divide by zero).
+    pub const fn new(baud: u32, format: CharFormat) -> Self {
+        Self { baud: if baud == 0 { 1 } else { baud }, bits_per_char: format.bits() }
+    }
+
+    /// Bits per second.
+    pub const fn baud(&self) -> u32 {
+        self.baud
+    }
+
+    /// Bits per character, start and stop bits included.
+    pub const fn bits_per_char(&self) -> u32 {
+        self.bits_per_char
+    }
+
+    /// The time one character takes on the line.
+    pub const fn char_time(&self) -> Duration {
+        self.tenths_of_chars(10)
+    }
+
+    /// The time `bytes` characters take on the line, back to back.
+    pub const fn frame_time(&self, bytes: usize) -> Duration {
+        self.tenths_of_chars((bytes as u64).saturating_mul(10))
+    }
+
+    /// The longest silence allowed inside a frame: 1.5 character times, or
+    /// 750 µs above 19200 baud.
+    pub const fn t1_5(&self) -> Duration {
+        if self.baud > FIXED_TIMING_ABOVE_BAUD { FIXED_T1_5 } else { self.tenths_of_chars(15) }
+    }
+
+    /// The silence that separates frames: 3.5 character times, or 1750 µs
+    /// above 19200 baud.
+    pub const fn t3_5(&self) -> Duration {
+        if self.baud > FIXED_TIMING_ABOVE_BAUD { FIXED_T3_5 } else { self.tenths_of_chars(35) }
+    }
+
+    /// `tenths / 10` character times, rounded down to the nanosecond.
+    const fn tenths_of_chars(&self, tenths: u64) -> Duration {
+        // bits * tenths * 1e8 fits in u64 for any realistic frame; saturate otherwise.
+        let numerator = (self.bits_per_char as u64).saturating_mul(tenths).saturating_mul(100_000_000);
+        // `baud` is never zero (see `new`).
+        Duration::from_nanos(numerator / self.baud as u64)
+    }
+}
+
+impl Default for LineTiming {
+    /// 9600 baud 8N1, the setting of Yosemitech probes.
+    fn default() -> Self {
+        Self::new(9600, CharFormat::EIGHT_N_1)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn ms(d: Duration) -> f64 {
+        d.as_secs_f64() * 1e3
+    }
+
+    #[test]
+    fn timing_at_9600_8n1() {
+        let line = LineTiming::new(9600, CharFormat::EIGHT_N_1);
+        assert_eq!(line.bits_per_char(), 10);
+        assert!((ms(line.char_time()) - 1.0417).abs() < 1e-4, "{:?}", line.char_time());
+        assert!((ms(line.t3_5()) - 3.646).abs() < 1e-3, "{:?}", line.t3_5());
+        assert!((ms(line.t1_5()) - 1.5625).abs() < 1e-4, "{:?}", line.t1_5());
+        // get_ph: 8-byte request, 9-byte reply.
+        assert!((ms(line.frame_time(17)) - 17.708).abs() < 1e-3);
+        assert_eq!(line, LineTiming::default());
+    }
+
+    #[test]
+    fn eleven_bit_characters() {
+        // Datasheet notes 6.10: 11-bit characters give t3.5 of 4.01 ms.
+        let format = CharFormat { parity: Parity::Even, ..CharFormat::EIGHT_N_1 };
+        assert_eq!(format.bits(), 11);
+        assert_eq!(format.to_string(), "8E1");
+        let line = LineTiming::new(9600, format);
+        assert!((ms(line.t3_5()) - 4.0104).abs() < 1e-4, "{:?}", line.t3_5());
+        let two_stop = CharFormat { stop_bits: StopBits::Two, ..CharFormat::EIGHT_N_1 };
+        assert_eq!(two_stop.bits(), 11);
+        assert_eq!(CharFormat { data_bits: DataBits::Seven, ..CharFormat::EIGHT_N_1 }.bits(), 9);
+    }
+
+    #[test]
+    fn fixed_above_19200() {
+        let at = LineTiming::new(19_200, CharFormat::EIGHT_N_1);
+        assert!((ms(at.t3_5()) - 1.8229).abs() < 1e-4, "computed at exactly 19200: {:?}", at.t3_5());
+        assert!((ms(at.t1_5()) - 0.78125).abs() < 1e-5);
+        for baud in [38_400, 57_600, 115_200] {
+            let line = LineTiming::new(baud, CharFormat::EIGHT_N_1);
+            assert_eq!(line.t3_5(), Duration::from_micros(1750));
+            assert_eq!(line.t1_5(), Duration::from_micros(750));
+        }
+        assert_eq!(LineTiming::new(115_200, CharFormat::EIGHT_N_1).char_time().as_nanos(), 86_805);
+    }
+
+    #[test]
+    fn degenerate_inputs_do_not_panic() {
+        let zero = LineTiming::new(0, CharFormat::EIGHT_N_1);
+        assert_eq!(zero.baud(), 1);
+        assert_eq!(zero.char_time(), Duration::from_secs(10));
+        let _ = zero.frame_time(usize::MAX);
+    }
+}

@@ -1,0 +1,125 @@
+//! Diagnostics in the manner of rustc: what is wrong, where, and what would be valid.
+
+use std::fmt;
+use std::path::{Path, PathBuf};
+
+use serde_saphyr::{Location, Spanned};
+
+/// A position in a spec file (1-based; 0 when unknown).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Default)]
+pub struct Pos {
+    /// Line.
+    pub line: u32,
+    /// Column.
+    pub column: u32,
+}
+
+impl Pos {
+    /// The position of a YAML location.
+    pub fn of(location: Location) -> Self {
+        Self { line: location.line() as u32, column: location.column() as u32 }
+    }
+
+    /// Where a spanned value is written.
+    pub fn at<T>(spanned: &Spanned<T>) -> Self {
+        Self::of(spanned.referenced)
+    }
+}
+
+/// One problem in a spec file.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Diagnostic {
+    /// The file.
+    pub file: PathBuf,
+    /// Where in it.
+    pub pos: Pos,
+    /// The offending key, as a path (`commands[2].count`).
+    pub key: String,
+    /// What is wrong.
+    pub message: String,
+    /// What would be valid.
+    pub help: Option<String>,
+    /// The source line, for display.
+    pub source_line: Option<String>,
+}
+
+impl fmt::Display for Diagnostic {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        writeln!(f, "error: {}", self.message)?;
+        let file = self.file.display();
+        if self.pos.line > 0 {
+            writeln!(f, "  --> {file}:{}:{}", self.pos.line, self.pos.column)?;
+        } else {
+            writeln!(f, "  --> {file}")?;
+        }
+        if let Some(line) = &self.source_line {
+            let number = self.pos.line.to_string();
+            let pad = " ".repeat(number.len());
+            let caret_at = (self.pos.column as usize).saturating_sub(1);
+            let shown: String = line.chars().map(|c| if c.is_control() { ' ' } else { c }).collect();
+            writeln!(f, "{pad} |")?;
+            writeln!(f, "{number} | {shown}")?;
+            writeln!(f, "{pad} | {}^", " ".repeat(caret_at.min(shown.chars().count())))?;
+        }
+        if !self.key.is_empty() {
+            writeln!(f, "  = key: {}", self.key)?;
+        }
+        if let Some(help) = &self.help {
+            writeln!(f, "  = help: {help}")?;
+        }
+        Ok(())
+    }
+}
+
+/// All problems found in a set of spec files.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct Diagnostics(pub Vec<Diagnostic>);
+
+impl Diagnostics {
+    /// True when nothing is wrong.
+    pub fn is_empty(&self) -> bool {
+        self.0.is_empty()
+    }
+
+    /// Number of problems.
+    pub fn len(&self) -> usize {
+        self.0.len()
+    }
+}
+
+impl fmt::Display for Diagnostics {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        for d in &self.0 {
+            writeln!(f, "{d}")?;
+        }
+        let n = self.0.len();
+        write!(f, "error: could not load the spec due to {n} previous error{}", if n == 1 { "" } else { "s" })
+    }
+}
+
+impl std::error::Error for Diagnostics {}
+
+/// Collects diagnostics for one file.
+pub(crate) struct Reporter<'a> {
+    pub file: &'a Path,
+    pub text: &'a str,
+    pub out: &'a mut Vec<Diagnostic>,
+}
+
+impl Reporter<'_> {
+    pub fn error(&mut self, pos: Pos, key: impl Into<String>, message: impl Into<String>, help: Option<String>) {
+        let source_line = if pos.line > 0 {
+            self.text.lines().nth(pos.line as usize - 1).map(|l| l.chars().take(200).collect())
+        } else {
+            None
+        };
+        self.out.push(Diagnostic {
+            file: self.file.to_path_buf(),
+            pos,
+            key: key.into(),
+            message: message.into(),
+            help,
+            source_line,
+        });
+    }
+}

@@ -1,0 +1,346 @@
+//! The reference interpreter: encodes and decodes frames by walking the spec.
+//!
+//! It is deliberately plain (allocating, no generated code) so that it can
+//! check the spec's own examples, drive the simulator and the CLI's `--spec`
+//! mode, and serve as the independent side of the differential test against
+//! the generated codecs. Framing is shared with them through
+//! [`yosemitech_rtu::Layout`]; only the field walking is its own.
+
+use std::collections::BTreeMap;
+use std::fmt;
+
+use serde::Serialize;
+use yosemitech_rtu::{FrameError, Version, codec};
+
+use crate::model::{Command, EnumRepr, Field, FieldKind, Variant};
+
+/// A decoded or stated field value.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+#[serde(untagged)]
+pub enum Value {
+    /// f32 fields.
+    Float(f32),
+    /// Integer fields.
+    Int(i64),
+    /// Text fields.
+    Text(String),
+    /// Version fields.
+    #[serde(serialize_with = "ser_version")]
+    Version(Version),
+    /// Enum fields: the raw code and its name when known.
+    Enum {
+        /// The code on the wire.
+        raw: u16,
+        /// The variant name, `None` for an unknown code.
+        name: Option<String>,
+    },
+}
+
+fn ser_version<S: serde::Serializer>(v: &Version, s: S) -> Result<S::Ok, S::Error> {
+    s.collect_str(v)
+}
+
+impl Value {
+    /// Bit-exact equality (floats compared by bits, so NaN payloads and -0.0 count).
+    pub fn same_as(&self, other: &Value) -> bool {
+        match (self, other) {
+            (Value::Float(a), Value::Float(b)) => a.to_bits() == b.to_bits(),
+            (a, b) => a == b,
+        }
+    }
+}
+
+impl fmt::Display for Value {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Value::Float(v) => write!(f, "{v}"),
+            Value::Int(v) => write!(f, "{v}"),
+            Value::Text(v) => write!(f, "{v:?}"),
+            Value::Version(v) => write!(f, "{v}"),
+            Value::Enum { raw, name: Some(name) } => write!(f, "{name} ({raw})"),
+            Value::Enum { raw, name: None } => write!(f, "unknown ({raw})"),
+        }
+    }
+}
+
+/// Field values in wire order, by name.
+pub type Values = Vec<(String, Value)>;
+
+/// Why values could not be encoded.
+#[derive(Debug, Clone, PartialEq)]
+pub enum EncodeValuesError {
+    /// A field has no value.
+    Missing(String),
+    /// A value names no field.
+    Unknown(String),
+    /// A value has the wrong type for its field.
+    WrongType {
+        /// Field.
+        field: String,
+        /// The field's type.
+        expected: &'static str,
+    },
+    /// A value is outside the field's range or type.
+    OutOfRange {
+        /// Field.
+        field: String,
+        /// Explanation.
+        detail: String,
+    },
+    /// The frame could not be built.
+    Frame(yosemitech_rtu::EncodeError),
+}
+
+impl fmt::Display for EncodeValuesError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::Missing(name) => write!(f, "no value for field `{name}`"),
+            Self::Unknown(name) => write!(f, "no field called `{name}`"),
+            Self::WrongType { field, expected } => write!(f, "field `{field}` takes a {expected} value"),
+            Self::OutOfRange { field, detail } => write!(f, "field `{field}`: {detail}"),
+            Self::Frame(e) => write!(f, "{e}"),
+        }
+    }
+}
+
+impl std::error::Error for EncodeValuesError {}
+
+/// Decodes register data into values (reserved bytes skipped).
+///
+/// `data` must be the command's full register data; shorter data decodes
+/// the fields that fit and stops (it never panics).
+pub fn decode_fields(command: &Command, data: &[u8]) -> Values {
+    let mut out = Vec::new();
+    for field in &command.fields {
+        let Some(name) = &field.name else { continue };
+        let Some(bytes) = data.get(field.offset..field.offset + field.size()) else { break };
+        out.push((name.clone(), decode_field(field, bytes)));
+    }
+    out
+}
+
+fn arr<const N: usize>(bytes: &[u8]) -> [u8; N] {
+    let mut a = [0u8; N];
+    for (slot, b) in a.iter_mut().zip(bytes) {
+        *slot = *b;
+    }
+    a
+}
+
+fn variant_name(variants: &[Variant], raw: u16) -> Option<String> {
+    variants.iter().find(|v| v.value == raw).map(|v| v.name.clone())
+}
+
+/// Decodes one field from exactly its bytes.
+pub fn decode_field(field: &Field, bytes: &[u8]) -> Value {
+    match &field.kind {
+        FieldKind::F32 { order } => Value::Float(codec::f32_from_wire(order.rtu(), arr(bytes))),
+        FieldKind::U8 => Value::Int(i64::from(arr::<1>(bytes)[0])),
+        FieldKind::I8 => Value::Int(i64::from(arr::<1>(bytes)[0] as i8)),
+        FieldKind::U16 { order } => Value::Int(i64::from(codec::u16_from_wire(order.rtu(), arr(bytes)))),
+        FieldKind::I16 { order } => Value::Int(i64::from(codec::u16_from_wire(order.rtu(), arr(bytes)) as i16)),
+        FieldKind::U32 { order } => Value::Int(i64::from(codec::u32_from_wire(order.rtu(), arr(bytes)))),
+        FieldKind::I32 { order } => Value::Int(i64::from(codec::u32_from_wire(order.rtu(), arr(bytes)) as i32)),
+        FieldKind::Ascii { padding, .. } => {
+            let end = bytes.iter().rposition(|b| b != padding).map_or(0, |i| i + 1);
+            let text: String = bytes.iter().take(end).map(|&b| char::from(b)).collect();
+            Value::Text(text)
+        }
+        FieldKind::Version => Value::Version(Version::from_wire(arr(bytes))),
+        FieldKind::Enum { repr, variants } => {
+            let raw = match repr {
+                EnumRepr::U8 => u16::from(arr::<1>(bytes)[0]),
+                EnumRepr::U16(order) => codec::u16_from_wire(order.rtu(), arr(bytes)),
+            };
+            Value::Enum { raw, name: variant_name(variants, raw) }
+        }
+        FieldKind::Reserved { .. } => Value::Int(0),
+    }
+}
+
+/// Encodes values into register data. Every named field needs a value;
+/// reserved bytes get their fill.
+pub fn encode_fields(command: &Command, values: &BTreeMap<String, Value>) -> Result<Vec<u8>, EncodeValuesError> {
+    if let Some(unknown) = values.keys().find(|k| command.field(k).is_none()) {
+        return Err(EncodeValuesError::Unknown(unknown.clone()));
+    }
+    let mut data = vec![0u8; 2 * usize::from(command.count)];
+    for field in &command.fields {
+        let bytes = match &field.name {
+            None => encode_reserved(field),
+            Some(name) => {
+                let value = values.get(name).ok_or_else(|| EncodeValuesError::Missing(name.clone()))?;
+                encode_field(field, value)?
+            }
+        };
+        if let Some(slot) = data.get_mut(field.offset..field.offset + bytes.len()) {
+            slot.copy_from_slice(&bytes);
+        }
+    }
+    Ok(data)
+}
+
+fn encode_reserved(field: &Field) -> Vec<u8> {
+    match field.kind {
+        FieldKind::Reserved { len, fill } => vec![fill; len],
+        _ => vec![0; field.size()],
+    }
+}
+
+fn out_of_range(field: &Field, detail: String) -> EncodeValuesError {
+    EncodeValuesError::OutOfRange { field: field.display_name().to_owned(), detail }
+}
+
+fn int_in(field: &Field, value: &Value, min: i64, max: i64) -> Result<i64, EncodeValuesError> {
+    let v = match value {
+        Value::Int(v) => *v,
+        Value::Float(f) if f.fract() == 0.0 && f.is_finite() => *f as i64,
+        _ => {
+            return Err(EncodeValuesError::WrongType {
+                field: field.display_name().to_owned(),
+                expected: field.kind.type_name(),
+            });
+        }
+    };
+    if v < min || v > max {
+        return Err(out_of_range(field, format!("{v} is outside {min}..={max}")));
+    }
+    Ok(v)
+}
+
+/// Checks a value against the field's declared `range`.
+fn check_range(field: &Field, v: f64) -> Result<(), EncodeValuesError> {
+    match field.range {
+        Some((min, max)) if !(min..=max).contains(&v) => {
+            Err(out_of_range(field, format!("{v} is outside the valid range {min}..={max}")))
+        }
+        _ => Ok(()),
+    }
+}
+
+/// Encodes one field.
+pub fn encode_field(field: &Field, value: &Value) -> Result<Vec<u8>, EncodeValuesError> {
+    let wrong =
+        || EncodeValuesError::WrongType { field: field.display_name().to_owned(), expected: field.kind.type_name() };
+    Ok(match &field.kind {
+        FieldKind::F32 { order } => {
+            let v = match value {
+                Value::Float(v) => *v,
+                Value::Int(v) => *v as f32,
+                _ => return Err(wrong()),
+            };
+            if !v.is_nan() {
+                check_range(field, f64::from(v))?;
+            }
+            codec::f32_to_wire(order.rtu(), v).to_vec()
+        }
+        FieldKind::U8 => {
+            let v = int_in(field, value, 0, 255)?;
+            check_range(field, v as f64)?;
+            vec![v as u8]
+        }
+        FieldKind::I8 => {
+            let v = int_in(field, value, -128, 127)?;
+            check_range(field, v as f64)?;
+            vec![v as i8 as u8]
+        }
+        FieldKind::U16 { order } => {
+            let v = int_in(field, value, 0, 0xFFFF)?;
+            check_range(field, v as f64)?;
+            codec::u16_to_wire(order.rtu(), v as u16).to_vec()
+        }
+        FieldKind::I16 { order } => {
+            let v = int_in(field, value, -0x8000, 0x7FFF)?;
+            check_range(field, v as f64)?;
+            codec::u16_to_wire(order.rtu(), v as i16 as u16).to_vec()
+        }
+        FieldKind::U32 { order } => {
+            let v = int_in(field, value, 0, 0xFFFF_FFFF)?;
+            check_range(field, v as f64)?;
+            codec::u32_to_wire(order.rtu(), v as u32).to_vec()
+        }
+        FieldKind::I32 { order } => {
+            let v = int_in(field, value, i64::from(i32::MIN), i64::from(i32::MAX))?;
+            check_range(field, v as f64)?;
+            codec::u32_to_wire(order.rtu(), v as i32 as u32).to_vec()
+        }
+        FieldKind::Ascii { len, padding } => {
+            let Value::Text(text) = value else { return Err(wrong()) };
+            if text.len() > *len || !text.is_ascii() {
+                return Err(out_of_range(field, format!("text must be at most {len} ASCII characters")));
+            }
+            let mut bytes = vec![*padding; *len];
+            for (slot, b) in bytes.iter_mut().zip(text.bytes()) {
+                *slot = b;
+            }
+            bytes
+        }
+        FieldKind::Version => match value {
+            Value::Version(v) => v.to_wire().to_vec(),
+            Value::Text(t) => parse_version(t).ok_or_else(wrong)?.to_wire().to_vec(),
+            _ => return Err(wrong()),
+        },
+        FieldKind::Enum { repr, variants } => {
+            let raw = match value {
+                Value::Enum { raw, .. } => *raw,
+                Value::Text(name) => variants
+                    .iter()
+                    .find(|v| &v.name == name)
+                    .map(|v| v.value)
+                    .ok_or_else(|| out_of_range(field, format!("`{name}` is not a variant")))?,
+                Value::Int(v) => u16::try_from(*v).map_err(|_| out_of_range(field, format!("{v} is not a code")))?,
+                _ => return Err(wrong()),
+            };
+            match repr {
+                EnumRepr::U8 => vec![u8::try_from(raw).map_err(|_| out_of_range(field, format!("{raw} > 255")))?],
+                EnumRepr::U16(order) => codec::u16_to_wire(order.rtu(), raw).to_vec(),
+            }
+        }
+        FieldKind::Reserved { .. } => encode_reserved(field),
+    })
+}
+
+/// Parses `major.minor` with each part 0..=255.
+pub fn parse_version(text: &str) -> Option<Version> {
+    let (major, minor) = text.split_once('.')?;
+    Some(Version::new(major.trim().parse().ok()?, minor.trim().parse().ok()?))
+}
+
+impl Command {
+    /// Encodes a request to `slave`: `values` are the write's fields (none for a read).
+    pub fn encode_request(&self, slave: u8, values: &BTreeMap<String, Value>) -> Result<Vec<u8>, EncodeValuesError> {
+        let data = if self.is_read() {
+            if let Some(k) = values.keys().next() {
+                return Err(EncodeValuesError::Unknown(k.clone()));
+            }
+            Vec::new()
+        } else {
+            encode_fields(self, values)?
+        };
+        let mut out = vec![0u8; self.layout().request_len()];
+        let n = self.layout().encode_request(slave, &data, &mut out).map_err(EncodeValuesError::Frame)?;
+        out.truncate(n);
+        Ok(out)
+    }
+
+    /// Encodes a reply from `slave`: `values` are a read's fields (none for a write).
+    pub fn encode_response(&self, slave: u8, values: &BTreeMap<String, Value>) -> Result<Vec<u8>, EncodeValuesError> {
+        let data = if self.is_read() { encode_fields(self, values)? } else { Vec::new() };
+        let mut out = vec![0u8; self.layout().response_len()];
+        let n = self.layout().encode_response(slave, &data, &mut out).map_err(EncodeValuesError::Frame)?;
+        out.truncate(n);
+        Ok(out)
+    }
+
+    /// Decodes a request frame: its slave and the write's values.
+    pub fn decode_request(&self, frame: &[u8]) -> Result<(u8, Values), FrameError> {
+        let (slave, data) = self.layout().decode_request(frame)?;
+        Ok((slave, decode_fields(self, data)))
+    }
+
+    /// Decodes a reply to a request sent to `slave`: a read's values.
+    pub fn decode_response(&self, slave: u8, frame: &[u8]) -> Result<Values, FrameError> {
+        let data = self.layout().decode_response(slave, frame)?;
+        Ok(decode_fields(self, data))
+    }
+}

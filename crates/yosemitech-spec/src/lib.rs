@@ -1,0 +1,40 @@
+//! The YAML spec language for Yosemitech Modbus sensors.
+//!
+//! A spec file transcribes one vendor manual: every command's function,
+//! register address and count, its fields with types, byte orders and units,
+//! the frames the manual prints, and the manual's errata. This crate loads
+//! spec files with source positions ([`load_paths`]), validates them
+//! (every problem at once, rustc-style, see [`Diagnostics`]), and interprets
+//! them ([`interp`]): the same walk encodes requests and decodes replies for
+//! the validator, the simulator and the CLI.
+//!
+//! ```
+//! let spec = yosemitech_spec::load_paths(&[concat!(env!("CARGO_MANIFEST_DIR"), "/../../spec").into()])?;
+//! let ph = spec.sensor("ph_orp").and_then(|s| s.command("get_ph")).expect("get_ph is in the spec");
+//! let reply = [0x01, 0x03, 0x04, 0x33, 0x33, 0xF3, 0x40, 0x40, 0x78];
+//! let values = ph.decode_response(1, &reply)?;
+//! assert_eq!(values[0].1, yosemitech_spec::Value::Float(7.6));
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
+#![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used, clippy::panic))]
+
+mod diag;
+pub mod document;
+mod examples;
+pub mod interp;
+pub mod model;
+pub mod names;
+mod resolve;
+pub mod sources;
+
+pub use diag::{Diagnostic, Diagnostics, Pos};
+pub use interp::{Value, Values};
+pub use model::*;
+pub use resolve::{
+    MAX_INCLUDE_DEPTH, MAX_READ_COUNT, MAX_TEXT_LEN, MAX_WRITE_COUNT, Summary, load_paths, load_with, parse_hex,
+};
+
+/// The JSON Schema of a spec file, for editors.
+pub fn json_schema() -> serde_json::Value {
+    serde_json::to_value(schemars::schema_for!(document::SpecFile)).unwrap_or_default()
+}

@@ -1,0 +1,1393 @@
+//! Loading and validation: YAML documents in, a checked [`Spec`] or every
+//! problem at once out.
+
+use std::collections::{BTreeMap, BTreeSet};
+use std::path::{Path, PathBuf};
+
+use serde_saphyr::Spanned;
+use yosemitech_rtu::{Function, Hex, crc16};
+
+use crate::diag::{Diagnostic, Diagnostics, Pos, Reporter};
+use crate::document::*;
+use crate::interp::{Value, parse_version};
+use crate::model::*;
+use crate::names::{check_snake, escape};
+use crate::sources::{FsSources, Sources, sibling};
+
+/// Deepest chain of includes.
+pub const MAX_INCLUDE_DEPTH: usize = 8;
+/// Most registers a read may cover (Modbus).
+pub const MAX_READ_COUNT: u32 = 125;
+/// Most registers a write may cover (Modbus).
+pub const MAX_WRITE_COUNT: u32 = 123;
+/// Longest text (doc, title, note).
+pub const MAX_TEXT_LEN: usize = 4096;
+
+/// Loads files and directories (their `*.yaml`) from the file system.
+pub fn load_paths(paths: &[PathBuf]) -> Result<Spec, Diagnostics> {
+    load_with(&FsSources, paths)
+}
+
+/// Loads files and directories from `sources`.
+pub fn load_with(sources: &dyn Sources, paths: &[PathBuf]) -> Result<Spec, Diagnostics> {
+    let mut roots = Vec::new();
+    let mut diags = Vec::new();
+    for path in paths {
+        if sources.is_dir(path) {
+            match sources.yaml_files(path) {
+                Ok(files) => roots.extend(files),
+                Err(e) => diags.push(plain(path, format!("cannot list the directory: {e}"))),
+            }
+        } else {
+            roots.push(path.clone());
+        }
+    }
+    let mut loader = Loader { sources, files: BTreeMap::new(), diags };
+    for root in &roots {
+        loader.parse(root, None);
+    }
+    let mut sensors = Vec::new();
+    for root in &roots {
+        if let Some(sensor) = loader.resolve_root(root) {
+            sensors.push(sensor);
+        }
+    }
+    let mut seen = BTreeSet::new();
+    for s in &sensors {
+        if !seen.insert(s.name.clone()) {
+            loader.diags.push(plain(&s.file, format!("a sensor called `{}` is defined in another file too", s.name)));
+        }
+    }
+    // A fragment is checked once per including sensor: report each problem once.
+    let mut unique = Vec::new();
+    for d in loader.diags {
+        if !unique.contains(&d) {
+            unique.push(d);
+        }
+    }
+    if unique.is_empty() { Ok(Spec { sensors }) } else { Err(Diagnostics(unique)) }
+}
+
+/// Counts of what [`load_paths`] checked.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct Summary {
+    /// Sensors.
+    pub sensors: usize,
+    /// Commands over all sensors.
+    pub commands: usize,
+    /// Example frame pairs replayed.
+    pub examples: usize,
+    /// Frames replayed (two per example, plus corrections).
+    pub frames: usize,
+    /// Errata recorded.
+    pub errata: usize,
+}
+
+impl Spec {
+    /// What the spec holds.
+    pub fn summary(&self) -> Summary {
+        let mut s = Summary { sensors: self.sensors.len(), ..Summary::default() };
+        for sensor in &self.sensors {
+            s.commands += sensor.commands.len();
+            s.errata += sensor.errata.len();
+            for c in &sensor.commands {
+                s.errata += c.errata.len();
+                for e in &c.examples {
+                    s.examples += 1;
+                    s.frames += 2;
+                    if let Some(err) = &e.erratum {
+                        s.errata += 1;
+                        s.frames += usize::from(err.corrected_request.is_some())
+                            + usize::from(err.corrected_response.is_some());
+                    }
+                }
+            }
+        }
+        s
+    }
+}
+
+fn plain(path: &Path, message: String) -> Diagnostic {
+    Diagnostic {
+        file: path.to_path_buf(),
+        pos: Pos::default(),
+        key: String::new(),
+        message,
+        help: None,
+        source_line: None,
+    }
+}
+
+struct Parsed {
+    text: String,
+    doc: Option<SpecFile>,
+}
+
+struct Loader<'s> {
+    sources: &'s dyn Sources,
+    files: BTreeMap<PathBuf, Parsed>,
+    diags: Vec<Diagnostic>,
+}
+
+/// A command definition with the file it was written in.
+struct Def<'d> {
+    file: &'d Path,
+    doc: &'d CommandDoc,
+    index: usize,
+    fragment: Option<String>,
+}
+
+impl Loader<'_> {
+    /// Reads and parses `path` once (and, recursively, its includes).
+    fn parse(&mut self, path: &Path, included_from: Option<(&Path, Pos)>) {
+        if self.files.contains_key(path) {
+            return;
+        }
+        let text = match self.sources.read(path) {
+            Ok(t) => t,
+            Err(e) => {
+                match included_from {
+                    Some((from, pos)) => {
+                        let from_text = self.files.get(from).map(|p| p.text.clone()).unwrap_or_default();
+                        let mut r = Reporter { file: from, text: &from_text, out: &mut self.diags };
+                        r.error(
+                            pos,
+                            "include",
+                            format!("cannot read included file `{}`: {e}", path.display()),
+                            Some("include paths are relative to the including file".into()),
+                        );
+                    }
+                    None => self.diags.push(plain(path, format!("cannot read the file: {e}"))),
+                }
+                self.files.insert(path.to_path_buf(), Parsed { text: String::new(), doc: None });
+                return;
+            }
+        };
+        let doc = match serde_saphyr::from_str::<SpecFile>(&text) {
+            Ok(doc) => Some(doc),
+            Err(e) => {
+                let pos = e.location().map(Pos::of).unwrap_or_default();
+                let message = yaml_message(&e);
+                let mut r = Reporter { file: path, text: &text, out: &mut self.diags };
+                r.error(pos, "", message, Some(yaml_help(&e)));
+                None
+            }
+        };
+        let includes: Vec<(PathBuf, Pos)> = doc
+            .as_ref()
+            .map(|d| d.include.iter().map(|i| (sibling(path, &i.value), Pos::at(i))).collect())
+            .unwrap_or_default();
+        self.files.insert(path.to_path_buf(), Parsed { text, doc });
+        for (inc, pos) in includes {
+            self.parse(&inc, Some((path, pos)));
+        }
+    }
+
+    fn resolve_root(&mut self, root: &Path) -> Option<Sensor> {
+        let parsed = self.files.get(root)?;
+        let doc = parsed.doc.as_ref()?;
+        let mut diags = Vec::new();
+        let sensor = {
+            let mut r = Reporter { file: root, text: &parsed.text, out: &mut diags };
+            match (&doc.sensor, &doc.fragment) {
+                (Some(_), Some(_)) => {
+                    r.error(Pos { line: 1, column: 1 }, "", "a file has `sensor` or `fragment`, not both", None);
+                    None
+                }
+                (None, None) => {
+                    r.error(
+                        Pos { line: 1, column: 1 },
+                        "",
+                        "a spec file needs a `sensor` or a `fragment` section",
+                        Some("start the file with `sensor:` (a manual) or `fragment:` (shared commands)".into()),
+                    );
+                    None
+                }
+                (None, Some(_)) => {
+                    // A fragment on its own: check its commands and stop.
+                    let mut defs = Vec::new();
+                    collect_includes(&self.files, root, &mut vec![root.to_path_buf()], &mut defs, &mut diags);
+                    drop(defs);
+                    let parsed = self.files.get(root)?;
+                    let doc = parsed.doc.as_ref()?;
+                    let mut r = Reporter { file: root, text: &parsed.text, out: &mut diags };
+                    check_fragment(doc, &mut r);
+                    for (i, c) in doc.commands.iter().enumerate() {
+                        let _ = resolve_command(c, None, i, None, &mut r);
+                    }
+                    None
+                }
+                (Some(sensor), None) => Some(self.resolve_sensor(root, doc, sensor, &mut diags)),
+            }
+        };
+        self.diags.extend(diags);
+        sensor.flatten()
+    }
+
+    fn resolve_sensor(
+        &self,
+        root: &Path,
+        doc: &SpecFile,
+        sensor_doc: &SensorDoc,
+        diags: &mut Vec<Diagnostic>,
+    ) -> Option<Sensor> {
+        let text = &self.files.get(root)?.text;
+        let mut included = Vec::new();
+        collect_includes(&self.files, root, &mut vec![root.to_path_buf()], &mut included, diags);
+
+        let mut r = Reporter { file: root, text, out: diags };
+        let head = resolve_sensor_head(sensor_doc, &mut r);
+
+        // Which included commands does this file `use`?
+        let mut used: BTreeMap<String, usize> = BTreeMap::new();
+        for (i, c) in doc.commands.iter().enumerate() {
+            if let Some(u) = &c.uses {
+                if !included.iter().any(|d| d.doc.name.as_ref().is_some_and(|n| n.value == u.value)) {
+                    let names: Vec<String> =
+                        included.iter().filter_map(|d| d.doc.name.as_ref().map(|n| n.value.clone())).collect();
+                    r.error(
+                        Pos::at(u),
+                        format!("commands[{i}].use"),
+                        format!("no included command is called `{}`", escape(&u.value)),
+                        Some(if names.is_empty() {
+                            "this file includes no commands; add the fragment to `include`".into()
+                        } else {
+                            format!("included commands: {}", names.join(", "))
+                        }),
+                    );
+                } else if used.insert(u.value.clone(), i).is_some() {
+                    r.error(Pos::at(u), format!("commands[{i}].use"), format!("`{}` is used twice", u.value), None);
+                }
+            }
+        }
+
+        let mut commands = Vec::new();
+        // Included commands nobody refines keep their fragment's examples and source.
+        for def in included.iter().filter(|d| d.doc.name.as_ref().is_some_and(|n| !used.contains_key(&n.value))) {
+            let Some(parsed) = self.files.get(def.file) else { continue };
+            let mut fr = Reporter { file: def.file, text: &parsed.text, out: r.out };
+            if let Some(c) = resolve_command(def.doc, None, def.index, def.fragment.clone(), &mut fr) {
+                commands.push(c);
+            }
+        }
+        for (i, c) in doc.commands.iter().enumerate() {
+            match (&c.name, &c.uses) {
+                (Some(n), Some(_)) => r.error(
+                    Pos::at(n),
+                    format!("commands[{i}]"),
+                    "a command has `name` (a new command) or `use` (an included one), not both",
+                    None,
+                ),
+                (None, None) => r.error(
+                    c.title.as_ref().map(Pos::at).unwrap_or_default(),
+                    format!("commands[{i}]"),
+                    "a command needs `name` (a new command) or `use` (an included one)",
+                    None,
+                ),
+                (Some(_), None) => {
+                    if let Some(cmd) = resolve_command(c, None, i, None, &mut r) {
+                        commands.push(cmd);
+                    }
+                }
+                (None, Some(u)) => {
+                    let Some(def) = included.iter().find(|d| d.doc.name.as_ref().is_some_and(|n| n.value == u.value))
+                    else {
+                        continue;
+                    };
+                    check_use_entry(c, i, &mut r);
+                    // The definition's problems belong to its own file.
+                    let Some(parsed) = self.files.get(def.file) else { continue };
+                    let mut defr = Reporter { file: def.file, text: &parsed.text, out: r.out };
+                    let Some(mut cmd) = resolve_command(def.doc, None, def.index, def.fragment.clone(), &mut defr)
+                    else {
+                        continue;
+                    };
+                    // This manual's source, examples and errata.
+                    if let Some(s) = &c.source {
+                        cmd.source = resolve_source(s, &format!("commands[{i}].source"), &mut r);
+                    }
+                    cmd.examples.clear();
+                    cmd.errata.clear();
+                    resolve_command_extras(c, i, &mut cmd, &mut r);
+                    commands.push(cmd);
+                }
+            }
+        }
+
+        // Names and wire positions must be unique.
+        let mut names = BTreeSet::new();
+        let mut wires = BTreeMap::new();
+        for cmd in &commands {
+            if !names.insert(cmd.name.clone()) {
+                let pos = find_name_pos(doc, &cmd.name);
+                r.error(
+                    pos,
+                    "commands",
+                    format!("two commands are called `{}`", cmd.name),
+                    Some("command names must be unique within a sensor, included commands too".into()),
+                );
+            }
+            let key = (cmd.function.code(), cmd.address, cmd.fixed_slave);
+            if let Some(other) = wires.insert(key, cmd.name.clone()) {
+                let pos = find_name_pos(doc, &cmd.name);
+                r.error(
+                    pos,
+                    "commands",
+                    format!(
+                        "`{}` and `{other}` both {} register 0x{:04X}",
+                        cmd.name,
+                        if cmd.is_read() { "read" } else { "write" },
+                        cmd.address
+                    ),
+                    Some("a frame must identify one command".into()),
+                );
+            }
+        }
+
+        let constants = resolve_constants(&doc.constants, &mut r);
+        let errata = resolve_errata(&doc.errata, &mut r);
+        let (name, title, sdoc, manual, serial, min, max, default_address) = head?;
+        let mut files = vec![root.to_path_buf()];
+        files.extend(included.iter().map(|d| d.file.to_path_buf()));
+        files.sort();
+        files.dedup();
+        Some(Sensor {
+            name,
+            title,
+            doc: sdoc,
+            manual,
+            serial,
+            min_address: min,
+            max_address: max,
+            default_address,
+            commands,
+            constants,
+            errata,
+            file: root.to_path_buf(),
+            files,
+        })
+    }
+}
+
+fn find_name_pos(doc: &SpecFile, name: &str) -> Pos {
+    doc.commands
+        .iter()
+        .find_map(|c| c.name.as_ref().or(c.uses.as_ref()).filter(|n| n.value == name).map(Pos::at))
+        .unwrap_or_default()
+}
+
+fn yaml_message(e: &serde_saphyr::Error) -> String {
+    // serde-saphyr's Display may append a rendered snippet; keep the first line.
+    let full = e.to_string();
+    let first = full.lines().next().unwrap_or("invalid YAML").trim();
+    let first = first.strip_prefix("error: ").unwrap_or(first);
+    // Drop a leading "line L column C: "; the position is shown separately.
+    let first = match (first.starts_with("line "), first.find(": ")) {
+        (true, Some(i)) => first.get(i + 2..).unwrap_or(first),
+        _ => first,
+    };
+    match first.find(" at line ") {
+        Some(i) => first.get(..i).unwrap_or(first).to_string(),
+        None => first.to_string(),
+    }
+}
+
+fn yaml_help(e: &serde_saphyr::Error) -> String {
+    let m = e.to_string();
+    if m.contains("unknown field") {
+        "check the spelling; `spec/schema.json` lists every key".into()
+    } else if m.contains("duplicate") {
+        "each key may appear once in a mapping".into()
+    } else {
+        "see `spec/schema.json` or an existing spec file for the expected shape".into()
+    }
+}
+
+type Head = (String, String, String, Manual, Serial, u8, u8, u8);
+
+fn check_text(value: &Spanned<String>, key: &str, r: &mut Reporter<'_>) -> String {
+    let text = &value.value;
+    if let Some(c) = text.chars().find(|c| c.is_control() && *c != '\n' && *c != '\t') {
+        r.error(
+            Pos::at(value),
+            key,
+            format!("text contains the control character {:?}", c),
+            Some("remove it; only newlines and tabs are allowed".into()),
+        );
+    }
+    if text.len() > MAX_TEXT_LEN {
+        r.error(
+            Pos::at(value),
+            key,
+            format!("text is {} bytes long; at most {MAX_TEXT_LEN} are allowed", text.len()),
+            None,
+        );
+    }
+    text.trim().to_string()
+}
+
+fn check_name(value: &Spanned<String>, key: &str, r: &mut Reporter<'_>) -> bool {
+    match check_snake(&value.value) {
+        None => true,
+        Some(why) => {
+            r.error(
+                Pos::at(value),
+                key,
+                format!("invalid name: {why}"),
+                Some("names are snake_case ASCII (a-z, 0-9, _), start with a letter, and are not Rust keywords".into()),
+            );
+            false
+        }
+    }
+}
+
+fn check_fragment(doc: &SpecFile, r: &mut Reporter<'_>) {
+    if let Some(f) = &doc.fragment {
+        check_name(&f.name, "fragment.name", r);
+        check_text(&f.doc, "fragment.doc", r);
+    }
+    if !doc.constants.is_empty() || !doc.errata.is_empty() {
+        r.error(Pos { line: 1, column: 1 }, "", "a fragment holds only `commands` and `include`", None);
+    }
+    for (i, c) in doc.commands.iter().enumerate() {
+        if let Some(u) = &c.uses {
+            r.error(Pos::at(u), format!("commands[{i}].use"), "`use` belongs in sensor files, not fragments", None);
+        }
+    }
+}
+
+fn resolve_sensor_head(s: &SensorDoc, r: &mut Reporter<'_>) -> Option<Head> {
+    let name_ok = check_name(&s.name, "sensor.name", r);
+    let title = check_text(&s.title, "sensor.title", r);
+    let doc = check_text(&s.doc, "sensor.doc", r);
+    let manual = Manual {
+        title: check_text(&s.manual.title, "sensor.manual.title", r),
+        revision: check_text(&s.manual.revision, "sensor.manual.revision", r),
+        file: s.manual.file.as_ref().map(|f| check_text(f, "sensor.manual.file", r)),
+    };
+    let mut ok = name_ok;
+    let baud = s.serial.baud.value;
+    if !(300..=1_000_000).contains(&baud) {
+        r.error(
+            Pos::at(&s.serial.baud),
+            "sensor.serial.baud",
+            format!("baud {baud} is not plausible"),
+            Some("use 300..=1000000".into()),
+        );
+        ok = false;
+    }
+    let data_bits = s.serial.data_bits.value;
+    if !(7..=8).contains(&data_bits) {
+        r.error(
+            Pos::at(&s.serial.data_bits),
+            "sensor.serial.data_bits",
+            format!("{data_bits} data bits"),
+            Some("use 7 or 8".into()),
+        );
+        ok = false;
+    }
+    let stop_bits = s.serial.stop_bits.value;
+    if !(1..=2).contains(&stop_bits) {
+        r.error(
+            Pos::at(&s.serial.stop_bits),
+            "sensor.serial.stop_bits",
+            format!("{stop_bits} stop bits"),
+            Some("use 1 or 2".into()),
+        );
+        ok = false;
+    }
+    let min = s.addresses.min.value;
+    let max = s.addresses.max.value;
+    if !(1..=247).contains(&min) || !(1..=247).contains(&max) || min > max {
+        r.error(
+            Pos::at(&s.addresses.min),
+            "sensor.addresses",
+            format!("address range {min}..={max} is not a range of Modbus slave addresses"),
+            Some("use min <= max within 1..=247".into()),
+        );
+        ok = false;
+    }
+    let default = s.default_address.value;
+    if default < min || default > max {
+        r.error(
+            Pos::at(&s.default_address),
+            "sensor.default_address",
+            format!("default address {default} is outside {min}..={max}"),
+            None,
+        );
+        ok = false;
+    }
+    let parity = match s.serial.parity {
+        ParityDoc::None => Parity::None,
+        ParityDoc::Even => Parity::Even,
+        ParityDoc::Odd => Parity::Odd,
+    };
+    if !ok {
+        return None;
+    }
+    let serial = Serial { baud, data_bits: data_bits as u8, parity, stop_bits: stop_bits as u8 };
+    Some((s.name.value.clone(), title, doc, manual, serial, min as u8, max as u8, default as u8))
+}
+
+/// Depth-first over includes, collecting fragment commands; reports cycles.
+fn collect_includes<'d>(
+    files: &'d BTreeMap<PathBuf, Parsed>,
+    file: &Path,
+    stack: &mut Vec<PathBuf>,
+    out: &mut Vec<Def<'d>>,
+    diags: &mut Vec<Diagnostic>,
+) {
+    let Some(parsed) = files.get(file) else { return };
+    let Some(doc) = &parsed.doc else { return };
+    for (i, inc) in doc.include.iter().enumerate() {
+        let path = sibling(file, &inc.value);
+        let mut r = Reporter { file, text: &parsed.text, out: diags };
+        if stack.contains(&path) {
+            let chain: Vec<String> = stack.iter().chain([&path]).map(|p| p.display().to_string()).collect();
+            r.error(
+                Pos::at(inc),
+                format!("include[{i}]"),
+                format!("include cycle: {}", chain.join(" -> ")),
+                Some("a fragment may not include itself, directly or through others".into()),
+            );
+            continue;
+        }
+        if stack.len() >= MAX_INCLUDE_DEPTH {
+            r.error(
+                Pos::at(inc),
+                format!("include[{i}]"),
+                format!("includes nest deeper than {MAX_INCLUDE_DEPTH} files"),
+                None,
+            );
+            continue;
+        }
+        if out.iter().any(|d| d.file == path) {
+            continue; // Already included through another path.
+        }
+        let Some(inc_parsed) = files.get(&path) else { continue };
+        let Some(inc_doc) = &inc_parsed.doc else { continue };
+        let Some(fragment) = &inc_doc.fragment else {
+            r.error(
+                Pos::at(inc),
+                format!("include[{i}]"),
+                format!("`{}` is not a fragment", path.display()),
+                Some("only files with a `fragment:` section can be included".into()),
+            );
+            continue;
+        };
+        stack.push(path.clone());
+        collect_includes(files, &path, stack, out, diags);
+        stack.pop();
+        let Some((path_ref, _)) = files.get_key_value(&path) else { continue };
+        for (index, c) in inc_doc.commands.iter().enumerate() {
+            if c.name.is_some() {
+                out.push(Def { file: path_ref.as_path(), doc: c, index, fragment: Some(fragment.name.value.clone()) });
+            }
+        }
+    }
+}
+
+/// A `use:` entry may only add this manual's source, examples and errata.
+fn check_use_entry(c: &CommandDoc, i: usize, r: &mut Reporter<'_>) {
+    let extra: Vec<(&str, Pos)> = [
+        ("title", c.title.as_ref().map(Pos::at)),
+        ("doc", c.doc.as_ref().map(Pos::at)),
+        ("function", c.function.as_ref().map(Pos::at)),
+        ("address", c.address.as_ref().map(Pos::at)),
+        ("count", c.count.as_ref().map(Pos::at)),
+        ("trigger", c.trigger.as_ref().map(Pos::at)),
+        ("fixed_slave", c.fixed_slave.as_ref().map(Pos::at)),
+        ("fields", c.fields.as_ref().map(Pos::at)),
+        ("extra_byte_counts", c.extra_byte_counts.first().map(Pos::at)),
+    ]
+    .into_iter()
+    .filter_map(|(k, p)| p.map(|p| (k, p)))
+    .collect();
+    for (key, pos) in extra {
+        r.error(
+            pos,
+            format!("commands[{i}].{key}"),
+            format!("`{key}` cannot be changed by a `use` entry"),
+            Some("a `use` entry takes `source`, `examples` and `errata`; change the definition in the fragment".into()),
+        );
+    }
+}
+
+fn resolve_source(s: &SourceDoc, key: &str, r: &mut Reporter<'_>) -> Source {
+    Source { section: check_text(&s.section, &format!("{key}.section"), r), figures: s.figures.clone() }
+}
+
+fn require<'a, T>(
+    v: &'a Option<Spanned<T>>,
+    at: Pos,
+    key: &str,
+    what: &str,
+    r: &mut Reporter<'_>,
+) -> Option<&'a Spanned<T>> {
+    if v.is_none() {
+        r.error(at, key, format!("missing `{what}`"), None);
+    }
+    v.as_ref()
+}
+
+/// Turns a command definition into the model, reporting every problem.
+fn resolve_command(
+    c: &CommandDoc,
+    _prefix: Option<&str>,
+    i: usize,
+    fragment: Option<String>,
+    r: &mut Reporter<'_>,
+) -> Option<Command> {
+    let key = format!("commands[{i}]");
+    let name = c.name.as_ref()?;
+    let name_ok = check_name(name, &format!("{key}.name"), r);
+    let at = Pos::at(name);
+    let title = c.title.as_ref().map(|t| check_text(t, &format!("{key}.title"), r));
+    let doc = c.doc.as_ref().map(|t| check_text(t, &format!("{key}.doc"), r));
+    let source = c.source.as_ref().map(|s| resolve_source(s, &format!("{key}.source"), r)).unwrap_or_default();
+    let function = require(&c.function, at, &format!("{key}.function"), "function", r).map(|f| match f.value {
+        FunctionDoc::Read => Function::Read,
+        FunctionDoc::Write => Function::Write,
+    });
+    let address = require(&c.address, at, &format!("{key}.address"), "address", r).and_then(|a| {
+        u16::try_from(a.value).ok().or_else(|| {
+            r.error(
+                Pos::at(a),
+                format!("{key}.address"),
+                format!("register address {} does not fit in 16 bits", a.value),
+                Some("addresses are 0x0000..=0xFFFF, as sent on the wire".into()),
+            );
+            None
+        })
+    });
+    let trigger = c.trigger.as_ref().is_some_and(|t| t.value);
+    let count = require(&c.count, at, &format!("{key}.count"), "count", r);
+    let count = match (function, count) {
+        (Some(f), Some(n)) => check_count(f, n, trigger, c, &key, r),
+        _ => None,
+    };
+    let fixed_slave = c.fixed_slave.as_ref().and_then(|s| {
+        u8::try_from(s.value).ok().or_else(|| {
+            r.error(
+                Pos::at(s),
+                format!("{key}.fixed_slave"),
+                format!("slave address {} does not fit in a byte", s.value),
+                None,
+            );
+            None
+        })
+    });
+    let mut extra_byte_counts = Vec::new();
+    for (j, b) in c.extra_byte_counts.iter().enumerate() {
+        let k = format!("{key}.extra_byte_counts[{j}]");
+        if function != Some(Function::Read) {
+            r.error(Pos::at(b), &k, "extra byte counts apply to read replies only", None);
+        } else if b.value > 250 || count.is_some_and(|n| b.value == 2 * u32::from(n)) {
+            r.error(
+                Pos::at(b),
+                &k,
+                format!("byte count {} is not an alternative to the normal one", b.value),
+                Some("list only counts other than 2 * count, at most 250".into()),
+            );
+        } else {
+            extra_byte_counts.push(b.value as u8);
+        }
+    }
+    let fields = resolve_fields(c, &key, count, trigger, at, r);
+
+    let mut cmd = Command {
+        name: name.value.clone(),
+        title: title.unwrap_or_else(|| name.value.replace('_', " ")),
+        doc: doc.unwrap_or_default(),
+        source,
+        function: function?,
+        address: address?,
+        count: count?,
+        trigger,
+        fixed_slave,
+        extra_byte_counts,
+        fields: fields?,
+        examples: Vec::new(),
+        errata: Vec::new(),
+        shared_from: fragment,
+    };
+    if !name_ok {
+        return None;
+    }
+    resolve_command_extras(c, i, &mut cmd, r);
+    Some(cmd)
+}
+
+fn check_count(
+    f: Function,
+    n: &Spanned<u32>,
+    trigger: bool,
+    c: &CommandDoc,
+    key: &str,
+    r: &mut Reporter<'_>,
+) -> Option<u16> {
+    let v = n.value;
+    let k = format!("{key}.count");
+    if trigger {
+        let t = c.trigger.as_ref().map(Pos::at).unwrap_or_default();
+        if f != Function::Write {
+            r.error(t, format!("{key}.trigger"), "only writes can be triggers", None);
+            return None;
+        }
+        if v != 0 {
+            r.error(Pos::at(n), k, format!("a trigger writes 0 registers, not {v}"), Some("use `count: 0`".into()));
+            return None;
+        }
+        return Some(0);
+    }
+    let max = if f == Function::Read { MAX_READ_COUNT } else { MAX_WRITE_COUNT };
+    if v == 0 {
+        r.error(
+            Pos::at(n),
+            k,
+            "register count 0 is only valid for a trigger write".to_string(),
+            Some("declare `trigger: true` on a write that sends no data (like conductivity start measurement)".into()),
+        );
+        return None;
+    }
+    if v > max {
+        let what = if f == Function::Read { "read" } else { "write" };
+        r.error(
+            Pos::at(n),
+            k,
+            format!("register count {v} is out of range for a {what}"),
+            Some(format!("a {what} covers 1..={max} registers")),
+        );
+        return None;
+    }
+    Some(v as u16)
+}
+
+fn order2(o: Option<&Spanned<ByteOrderDoc>>, key: &str, at: Pos, r: &mut Reporter<'_>) -> Option<Order2> {
+    match o.map(|o| (o.value, Pos::at(o))) {
+        Some((ByteOrderDoc::Ab, _)) => Some(Order2::Ab),
+        Some((ByteOrderDoc::Ba, _)) => Some(Order2::Ba),
+        Some((other, pos)) => {
+            r.error(
+                pos,
+                key,
+                format!("`{}` is a 4-byte order but the value has 2 bytes", order_name(other)),
+                Some("use `ab` (big-endian) or `ba`".into()),
+            );
+            None
+        }
+        None => {
+            r.error(at, key, "missing `byte_order` for a 2-byte value", Some("use `ab` (big-endian) or `ba`".into()));
+            None
+        }
+    }
+}
+
+fn order4(o: Option<&Spanned<ByteOrderDoc>>, key: &str, at: Pos, r: &mut Reporter<'_>) -> Option<Order4> {
+    let help = "use `abcd` (big-endian), `dcba` (little-endian image), `cdab` or `badc`";
+    match o.map(|o| (o.value, Pos::at(o))) {
+        Some((ByteOrderDoc::Abcd, _)) => Some(Order4::Abcd),
+        Some((ByteOrderDoc::Dcba, _)) => Some(Order4::Dcba),
+        Some((ByteOrderDoc::Cdab, _)) => Some(Order4::Cdab),
+        Some((ByteOrderDoc::Badc, _)) => Some(Order4::Badc),
+        Some((other, pos)) => {
+            r.error(
+                pos,
+                key,
+                format!("`{}` is a 2-byte order but the value has 4 bytes", order_name(other)),
+                Some(help.into()),
+            );
+            None
+        }
+        None => {
+            r.error(at, key, "missing `byte_order` for a 4-byte value", Some(help.into()));
+            None
+        }
+    }
+}
+
+fn order_name(o: ByteOrderDoc) -> &'static str {
+    match o {
+        ByteOrderDoc::Ab => "ab",
+        ByteOrderDoc::Ba => "ba",
+        ByteOrderDoc::Abcd => "abcd",
+        ByteOrderDoc::Dcba => "dcba",
+        ByteOrderDoc::Cdab => "cdab",
+        ByteOrderDoc::Badc => "badc",
+    }
+}
+
+fn resolve_fields(
+    c: &CommandDoc,
+    key: &str,
+    count: Option<u16>,
+    trigger: bool,
+    at: Pos,
+    r: &mut Reporter<'_>,
+) -> Option<Vec<Field>> {
+    let docs: &[FieldDoc] = c.fields.as_ref().map(|f| f.value.as_slice()).unwrap_or(&[]);
+    if trigger {
+        if let Some(f) = &c.fields
+            && !f.value.is_empty()
+        {
+            r.error(Pos::at(f), format!("{key}.fields"), "a trigger write carries no fields", None);
+            return None;
+        }
+        return Some(Vec::new());
+    }
+    if docs.is_empty() {
+        let pos = c.fields.as_ref().map(Pos::at).unwrap_or(at);
+        r.error(
+            pos,
+            format!("{key}.fields"),
+            "the command has no fields",
+            Some("describe the register data, using `reserved` for unused bytes".into()),
+        );
+        return None;
+    }
+    let mut ok = true;
+    let mut fields = Vec::new();
+    let mut names = BTreeSet::new();
+    let mut offset = 0usize;
+    for (j, f) in docs.iter().enumerate() {
+        let fk = format!("{key}.fields[{j}]");
+        let fat = Pos::at(&f.ty);
+        match resolve_field(f, &fk, fat, offset, r) {
+            Some(field) => {
+                if let Some(n) = &field.name
+                    && !names.insert(n.clone())
+                {
+                    r.error(
+                        f.name.as_ref().map(Pos::at).unwrap_or(fat),
+                        format!("{fk}.name"),
+                        format!("two fields are called `{n}`"),
+                        None,
+                    );
+                    ok = false;
+                }
+                offset = field.offset + field.size();
+                fields.push(field);
+            }
+            None => ok = false,
+        }
+    }
+    if ok && let Some(count) = count {
+        let want = 2 * usize::from(count);
+        let pos = c.count.as_ref().map(Pos::at).unwrap_or(at);
+        if offset < want {
+            r.error(
+                pos,
+                format!("{key}.fields"),
+                format!("the fields cover {offset} bytes but {count} registers hold {want}"),
+                Some(format!("add a `reserved` field of {} bytes or fix `count`", want - offset)),
+            );
+            ok = false;
+        } else if offset > want {
+            r.error(
+                pos,
+                format!("{key}.fields"),
+                format!("the fields need {offset} bytes but {count} registers hold only {want}"),
+                Some(format!("`count` should be {}", offset.div_ceil(2))),
+            );
+            ok = false;
+        }
+    }
+    ok.then_some(fields)
+}
+
+fn forbid<T>(v: &Option<Spanned<T>>, what: &str, ty: &str, key: &str, r: &mut Reporter<'_>) -> bool {
+    match v {
+        Some(v) => {
+            r.error(Pos::at(v), format!("{key}.{what}"), format!("`{what}` does not apply to a `{ty}` field"), None);
+            false
+        }
+        None => true,
+    }
+}
+
+fn resolve_field(f: &FieldDoc, key: &str, at: Pos, offset: usize, r: &mut Reporter<'_>) -> Option<Field> {
+    let ty = f.ty.value;
+    let ty_name = type_name(ty);
+    let mut ok = true;
+    let name = match (&f.name, ty) {
+        (Some(n), _) => {
+            ok &= check_name(n, &format!("{key}.name"), r);
+            Some(n.value.clone())
+        }
+        (None, FieldTypeDoc::Reserved) => None,
+        (None, _) => {
+            r.error(at, format!("{key}.name"), format!("a `{ty_name}` field needs a `name`"), None);
+            ok = false;
+            None
+        }
+    };
+    let size = f.size.as_ref().map(|s| (s.value, Pos::at(s)));
+    let needs_size = |r: &mut Reporter<'_>| -> Option<usize> {
+        match size {
+            Some((s, pos)) if s == 0 || s > 250 => {
+                r.error(pos, format!("{key}.size"), format!("size {s} is not between 1 and 250 bytes"), None);
+                None
+            }
+            Some((s, _)) => Some(s as usize),
+            None => {
+                r.error(at, format!("{key}.size"), format!("a `{ty_name}` field needs a `size` in bytes"), None);
+                None
+            }
+        }
+    };
+    let kind = match ty {
+        FieldTypeDoc::F32 => {
+            order4(f.byte_order.as_ref(), &format!("{key}.byte_order"), at, r).map(|order| FieldKind::F32 { order })
+        }
+        FieldTypeDoc::U32 => {
+            order4(f.byte_order.as_ref(), &format!("{key}.byte_order"), at, r).map(|order| FieldKind::U32 { order })
+        }
+        FieldTypeDoc::I32 => {
+            order4(f.byte_order.as_ref(), &format!("{key}.byte_order"), at, r).map(|order| FieldKind::I32 { order })
+        }
+        FieldTypeDoc::U16 => {
+            order2(f.byte_order.as_ref(), &format!("{key}.byte_order"), at, r).map(|order| FieldKind::U16 { order })
+        }
+        FieldTypeDoc::I16 => {
+            order2(f.byte_order.as_ref(), &format!("{key}.byte_order"), at, r).map(|order| FieldKind::I16 { order })
+        }
+        FieldTypeDoc::U8 => Some(FieldKind::U8),
+        FieldTypeDoc::I8 => Some(FieldKind::I8),
+        FieldTypeDoc::Version => Some(FieldKind::Version),
+        FieldTypeDoc::Ascii => {
+            let padding = match f.padding.as_ref().map(|p| p.value) {
+                None | Some(PaddingDoc::Nul) => 0u8,
+                Some(PaddingDoc::Space) => b' ',
+            };
+            needs_size(r).map(|len| FieldKind::Ascii { len, padding })
+        }
+        FieldTypeDoc::Reserved => {
+            let fill = match &f.fill {
+                Some(v) if v.value > 255 => {
+                    r.error(
+                        Pos::at(v),
+                        format!("{key}.fill"),
+                        format!("fill {} does not fit in a byte", v.value),
+                        None,
+                    );
+                    None
+                }
+                Some(v) => Some(v.value as u8),
+                None => Some(0),
+            };
+            match (needs_size(r), fill) {
+                (Some(len), Some(fill)) => Some(FieldKind::Reserved { len, fill }),
+                _ => None,
+            }
+        }
+        FieldTypeDoc::Enum => resolve_enum(f, key, at, r),
+    };
+    // Keys that do not apply to this type.
+    let multi_byte =
+        matches!(ty, FieldTypeDoc::F32 | FieldTypeDoc::U16 | FieldTypeDoc::I16 | FieldTypeDoc::U32 | FieldTypeDoc::I32)
+            || (ty == FieldTypeDoc::Enum && size.is_some_and(|(s, _)| s == 2));
+    if !multi_byte {
+        ok &= forbid(&f.byte_order, "byte_order", ty_name, key, r);
+    }
+    if !matches!(ty, FieldTypeDoc::Ascii | FieldTypeDoc::Reserved | FieldTypeDoc::Enum) {
+        ok &= forbid(&f.size, "size", ty_name, key, r);
+    }
+    if ty != FieldTypeDoc::Ascii {
+        ok &= forbid(&f.padding, "padding", ty_name, key, r);
+    }
+    if ty != FieldTypeDoc::Reserved {
+        ok &= forbid(&f.fill, "fill", ty_name, key, r);
+    }
+    if ty != FieldTypeDoc::Enum {
+        ok &= forbid(&f.variants, "variants", ty_name, key, r);
+    }
+    let numeric = matches!(
+        ty,
+        FieldTypeDoc::F32
+            | FieldTypeDoc::U8
+            | FieldTypeDoc::I8
+            | FieldTypeDoc::U16
+            | FieldTypeDoc::I16
+            | FieldTypeDoc::U32
+            | FieldTypeDoc::I32
+    );
+    let range = match &f.range {
+        Some(rg) if !numeric => {
+            r.error(
+                Pos::at(rg),
+                format!("{key}.range"),
+                format!("`range` does not apply to a `{ty_name}` field"),
+                None,
+            );
+            ok = false;
+            None
+        }
+        Some(rg) if !(rg.value.min.is_finite() && rg.value.max.is_finite() && rg.value.min <= rg.value.max) => {
+            r.error(
+                Pos::at(rg),
+                format!("{key}.range"),
+                format!("range {}..={} is empty or not finite", rg.value.min, rg.value.max),
+                None,
+            );
+            ok = false;
+            None
+        }
+        Some(rg) => Some((rg.value.min, rg.value.max)),
+        None => None,
+    };
+    let unit = f.unit.as_ref().map(|u| check_text(u, &format!("{key}.unit"), r));
+    let doc = f.doc.as_ref().map(|d| check_text(d, &format!("{key}.doc"), r));
+    let kind = kind?;
+    if let Some(o) = &f.offset {
+        let want = o.value as usize;
+        if want < offset {
+            r.error(
+                Pos::at(o),
+                format!("{key}.offset"),
+                format!("field starts at byte {want} but the previous field ends at byte {offset}: they overlap"),
+                Some(format!("use `offset: {offset}` or remove `offset`")),
+            );
+            ok = false;
+        } else if want > offset {
+            r.error(
+                Pos::at(o),
+                format!("{key}.offset"),
+                format!("bytes {offset}..{want} are not covered by any field"),
+                Some(format!("add a `reserved` field of {} bytes before this one", want - offset)),
+            );
+            ok = false;
+        }
+    }
+    ok.then_some(Field { name, kind, offset, unit, doc, range })
+}
+
+fn type_name(ty: FieldTypeDoc) -> &'static str {
+    match ty {
+        FieldTypeDoc::F32 => "f32",
+        FieldTypeDoc::U8 => "u8",
+        FieldTypeDoc::I8 => "i8",
+        FieldTypeDoc::U16 => "u16",
+        FieldTypeDoc::I16 => "i16",
+        FieldTypeDoc::U32 => "u32",
+        FieldTypeDoc::I32 => "i32",
+        FieldTypeDoc::Ascii => "ascii",
+        FieldTypeDoc::Version => "version",
+        FieldTypeDoc::Enum => "enum",
+        FieldTypeDoc::Reserved => "reserved",
+    }
+}
+
+fn resolve_enum(f: &FieldDoc, key: &str, at: Pos, r: &mut Reporter<'_>) -> Option<FieldKind> {
+    let repr = match f.size.as_ref().map(|s| (s.value, Pos::at(s))) {
+        None | Some((1, _)) => Some(EnumRepr::U8),
+        Some((2, _)) => order2(f.byte_order.as_ref(), &format!("{key}.byte_order"), at, r).map(EnumRepr::U16),
+        Some((s, pos)) => {
+            r.error(pos, format!("{key}.size"), format!("an enum code is 1 or 2 bytes, not {s}"), None);
+            None
+        }
+    };
+    let Some(variants) = &f.variants else {
+        r.error(
+            at,
+            format!("{key}.variants"),
+            "an `enum` field needs `variants`",
+            Some("list `- {name: ..., value: ...}` entries".into()),
+        );
+        return None;
+    };
+    if variants.value.is_empty() {
+        r.error(Pos::at(variants), format!("{key}.variants"), "an `enum` needs at least one variant", None);
+        return None;
+    }
+    let max = if repr == Some(EnumRepr::U8) { 0xFF } else { 0xFFFF };
+    let mut ok = true;
+    let mut names = BTreeSet::new();
+    let mut values = BTreeMap::new();
+    let mut out = Vec::new();
+    for (j, v) in variants.value.iter().enumerate() {
+        let vk = format!("{key}.variants[{j}]");
+        ok &= check_name(&v.name, &format!("{vk}.name"), r);
+        if !names.insert(v.name.value.clone()) {
+            r.error(
+                Pos::at(&v.name),
+                format!("{vk}.name"),
+                format!("two variants are called `{}`", v.name.value),
+                None,
+            );
+            ok = false;
+        }
+        if v.value.value > max {
+            r.error(
+                Pos::at(&v.value),
+                format!("{vk}.value"),
+                format!("code {} does not fit the enum's {}-byte size", v.value.value, if max == 0xFF { 1 } else { 2 }),
+                None,
+            );
+            ok = false;
+        } else if let Some(other) = values.insert(v.value.value, v.name.value.clone()) {
+            r.error(
+                Pos::at(&v.value),
+                format!("{vk}.value"),
+                format!("code {} is used by `{other}` and `{}`", v.value.value, v.name.value),
+                Some("enum codes must be unique".into()),
+            );
+            ok = false;
+        }
+        let doc = v.doc.as_ref().map(|d| check_text(d, &format!("{vk}.doc"), r));
+        out.push(Variant { name: v.name.value.clone(), value: v.value.value as u16, doc });
+    }
+    let repr = repr?;
+    ok.then_some(FieldKind::Enum { repr, variants: out })
+}
+
+/// Examples and table errata; needs the resolved command.
+fn resolve_command_extras(c: &CommandDoc, i: usize, cmd: &mut Command, r: &mut Reporter<'_>) {
+    let key = format!("commands[{i}]");
+    let mut ids = BTreeSet::new();
+    for (j, e) in c.errata.iter().enumerate() {
+        let ek = format!("{key}.errata[{j}]");
+        check_erratum_id(&e.id, &format!("{ek}.id"), &mut ids, r);
+        let note = check_text(&e.note, &format!("{ek}.note"), r);
+        let t = &e.table;
+        let mut differs = false;
+        if let Some(a) = &t.address {
+            if a.value == u32::from(cmd.address) {
+                r.error(
+                    Pos::at(a),
+                    format!("{ek}.table.address"),
+                    format!("the table's address 0x{:04X} is the command's own: nothing to correct", a.value),
+                    None,
+                );
+            } else if a.value > 0xFFFF {
+                r.error(
+                    Pos::at(a),
+                    format!("{ek}.table.address"),
+                    format!("address {} does not fit in 16 bits", a.value),
+                    None,
+                );
+            }
+            differs = true;
+        }
+        if let Some(n) = &t.count {
+            if n.value == u32::from(cmd.count) {
+                r.error(
+                    Pos::at(n),
+                    format!("{ek}.table.count"),
+                    format!("the table's count {} is the command's own: nothing to correct", n.value),
+                    None,
+                );
+            } else if n.value > 0xFFFF {
+                r.error(
+                    Pos::at(n),
+                    format!("{ek}.table.count"),
+                    format!("count {} does not fit in 16 bits", n.value),
+                    None,
+                );
+            }
+            differs = true;
+        }
+        let table_function = t.function.as_ref().map(|f| {
+            let func = match f.value {
+                FunctionDoc::Read => Function::Read,
+                FunctionDoc::Write => Function::Write,
+            };
+            if func == cmd.function {
+                r.error(
+                    Pos::at(f),
+                    format!("{ek}.table.function"),
+                    "the table's function is the command's own: nothing to correct",
+                    None,
+                );
+            }
+            func
+        });
+        if t.function.is_some() {
+            differs = true;
+        }
+        if !differs {
+            r.error(
+                Pos::at(&e.id),
+                format!("{ek}.table"),
+                "a table erratum names what the table prints: `address`, `count` or `function`",
+                None,
+            );
+        }
+        cmd.errata.push(CommandErratum {
+            id: e.id.value.clone(),
+            figure: e.figure.value,
+            table_address: t.address.as_ref().map(|a| a.value as u16),
+            table_count: t.count.as_ref().map(|n| n.value as u16),
+            table_function,
+            note,
+        });
+    }
+    for (j, e) in c.examples.iter().enumerate() {
+        if let Some(ex) = crate::examples::check_example(cmd, e, &format!("{key}.examples[{j}]"), &mut ids, r) {
+            cmd.examples.push(ex);
+        }
+    }
+}
+
+pub(crate) fn check_erratum_id(id: &Spanned<String>, key: &str, ids: &mut BTreeSet<String>, r: &mut Reporter<'_>) {
+    let v = &id.value;
+    let valid = !v.is_empty() && v.len() <= 16 && v.chars().all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '_');
+    if !valid {
+        r.error(
+            Pos::at(id),
+            key,
+            format!("erratum id `{}` is not a short identifier", escape(v)),
+            Some("use the id from datasheet-notes.md, like `E4`".into()),
+        );
+    } else if !ids.insert(v.clone()) {
+        r.error(Pos::at(id), key, format!("erratum `{v}` is recorded twice here"), None);
+    }
+}
+
+fn resolve_constants(docs: &[ConstantDoc], r: &mut Reporter<'_>) -> Vec<Constant> {
+    let mut out = Vec::new();
+    let mut names = BTreeSet::new();
+    for (i, c) in docs.iter().enumerate() {
+        let key = format!("constants[{i}]");
+        let mut ok = check_name(&c.name, &format!("{key}.name"), r);
+        if !names.insert(c.name.value.clone()) {
+            r.error(
+                Pos::at(&c.name),
+                format!("{key}.name"),
+                format!("two constants are called `{}`", c.name.value),
+                None,
+            );
+            ok = false;
+        }
+        let doc = check_text(&c.doc, &format!("{key}.doc"), r);
+        let unit = c.unit.as_ref().map(|u| check_text(u, &format!("{key}.unit"), r));
+        let source = c.source.as_ref().map(|s| resolve_source(s, &format!("{key}.source"), r));
+        let (values, is_list, pos) = match (&c.value, &c.values) {
+            (Some(v), None) => (vec![v.value], false, Pos::at(v)),
+            (None, Some(vs)) if !vs.value.is_empty() && vs.value.len() <= 64 => (vs.value.clone(), true, Pos::at(vs)),
+            (None, Some(vs)) => {
+                r.error(Pos::at(vs), format!("{key}.values"), "a list constant holds 1 to 64 values", None);
+                continue;
+            }
+            _ => {
+                r.error(Pos::at(&c.name), &key, "a constant has exactly one of `value` and `values`", None);
+                continue;
+            }
+        };
+        let ty = match c.ty.value {
+            ConstantTypeDoc::F32 => ConstantType::F32,
+            ConstantTypeDoc::U8 => ConstantType::U8,
+            ConstantTypeDoc::U16 => ConstantType::U16,
+            ConstantTypeDoc::U32 => ConstantType::U32,
+        };
+        let max = match ty {
+            ConstantType::F32 => f64::from(f32::MAX),
+            ConstantType::U8 => 255.0,
+            ConstantType::U16 => 65535.0,
+            ConstantType::U32 => 4294967295.0,
+        };
+        for v in &values {
+            let integral = ty == ConstantType::F32 || (v.fract() == 0.0 && *v >= 0.0);
+            if !v.is_finite() || !integral || v.abs() > max {
+                r.error(pos, format!("{key}.value"), format!("{v} is not a valid `{}`", type_name_const(ty)), None);
+                ok = false;
+            }
+        }
+        if ok {
+            out.push(Constant { name: c.name.value.clone(), ty, values, is_list, unit, doc, source });
+        }
+    }
+    out
+}
+
+fn type_name_const(t: ConstantType) -> &'static str {
+    match t {
+        ConstantType::F32 => "f32",
+        ConstantType::U8 => "u8",
+        ConstantType::U16 => "u16",
+        ConstantType::U32 => "u32",
+    }
+}
+
+fn resolve_errata(docs: &[ErratumDoc], r: &mut Reporter<'_>) -> Vec<Erratum> {
+    let mut ids = BTreeSet::new();
+    docs.iter()
+        .enumerate()
+        .map(|(i, e)| {
+            check_erratum_id(&e.id, &format!("errata[{i}].id"), &mut ids, r);
+            Erratum {
+                id: e.id.value.clone(),
+                figures: e.figures.clone(),
+                sections: e.sections.clone(),
+                note: check_text(&e.note, &format!("errata[{i}].note"), r),
+            }
+        })
+        .collect()
+}
+
+/// Parses "01 03 28 00" (spaces optional between bytes).
+pub fn parse_hex(text: &str) -> Result<Vec<u8>, String> {
+    let compact: String = text.chars().filter(|c| !c.is_whitespace()).collect();
+    if compact.is_empty() {
+        return Err("the frame is empty".into());
+    }
+    if let Some(bad) = compact.chars().find(|c| !c.is_ascii_hexdigit()) {
+        return Err(format!("{bad:?} is not a hex digit"));
+    }
+    if compact.len() % 2 != 0 {
+        return Err(format!("{} hex digits is an odd number; each byte takes two", compact.len()));
+    }
+    if compact.len() / 2 > yosemitech_rtu::frame::MAX_ADU {
+        return Err(format!("{} bytes is longer than any RTU frame (256)", compact.len() / 2));
+    }
+    (0..compact.len())
+        .step_by(2)
+        .map(|i| u8::from_str_radix(compact.get(i..i + 2).unwrap_or("zz"), 16).map_err(|e| e.to_string()))
+        .collect()
+}
+
+/// The CRC a frame should carry, shown as wire bytes.
+pub(crate) fn crc_text(frame: &[u8]) -> String {
+    let body = frame.get(..frame.len().saturating_sub(2)).unwrap_or(&[]);
+    Hex(&crc16(body).to_le_bytes()).to_string()
+}
+
+/// Converts a stated value to the field's value type.
+pub(crate) fn stated_value(field: &Field, v: &StatedValue) -> Result<Value, String> {
+    let ty = field.kind.type_name();
+    match (&field.kind, v) {
+        (FieldKind::F32 { .. }, StatedValue::Number(n)) => Ok(Value::Float(*n as f32)),
+        (
+            FieldKind::U8
+            | FieldKind::I8
+            | FieldKind::U16 { .. }
+            | FieldKind::I16 { .. }
+            | FieldKind::U32 { .. }
+            | FieldKind::I32 { .. },
+            StatedValue::Number(n),
+        ) => {
+            if n.fract() != 0.0 || !n.is_finite() || n.abs() > 4.3e9 {
+                Err(format!("{n} is not a whole number for a `{ty}` field"))
+            } else {
+                Ok(Value::Int(*n as i64))
+            }
+        }
+        (FieldKind::Ascii { .. }, StatedValue::Text(t)) => Ok(Value::Text(t.clone())),
+        (FieldKind::Version, StatedValue::Text(t)) => {
+            parse_version(t).map(Value::Version).ok_or_else(|| format!("`{t}` is not a version like \"1.1\""))
+        }
+        (FieldKind::Version, StatedValue::Number(n)) => Err(format!("write the version {n} as text, e.g. \"1.1\"")),
+        (FieldKind::Enum { variants, .. }, StatedValue::Text(t)) => variants
+            .iter()
+            .find(|v| &v.name == t)
+            .map(|v| Value::Enum { raw: v.value, name: Some(v.name.clone()) })
+            .ok_or_else(|| {
+                format!(
+                    "`{}` is not a variant; variants: {}",
+                    escape(t),
+                    variants.iter().map(|v| v.name.as_str()).collect::<Vec<_>>().join(", ")
+                )
+            }),
+        (_, StatedValue::Number(n)) => Err(format!("a `{ty}` field takes text, not the number {n}")),
+        (_, StatedValue::Text(t)) => Err(format!("a `{ty}` field takes a number, not the text {:?}", escape(t))),
+    }
+}
