@@ -154,6 +154,17 @@ impl<const N: usize> Ascii<N> {
         &self.bytes
     }
 
+    /// The raw bytes without trailing padding (whatever the device sent).
+    pub fn trimmed(&self) -> &[u8] {
+        let end = self.bytes.iter().rposition(|&b| b != self.pad).map_or(0, |i| i + 1);
+        self.bytes.get(..end).unwrap_or(&[])
+    }
+
+    /// The padding byte.
+    pub const fn pad(&self) -> u8 {
+        self.pad
+    }
+
     /// The text without trailing padding, if it is printable ASCII.
     pub fn as_str(&self) -> Option<&str> {
         let end = self.bytes.iter().rposition(|&b| b != self.pad).map_or(0, |i| i + 1);

@@ -16,9 +16,11 @@ mod crc;
 mod error;
 pub mod frame;
 mod raw;
+mod sensor;
 pub mod timing;
 #[cfg(feature = "std")]
 pub mod transport;
+mod value;
 
 pub use codec::{Ascii, ByteOrder2, ByteOrder4, Version};
 pub use command::Command;
@@ -26,7 +28,9 @@ pub use crc::{CRC_INIT, crc_ok, crc16, crc16_update};
 pub use error::{EchoField, EncodeError, ExceptionCode, FrameError};
 pub use frame::{Frame, Function, Layout};
 pub use raw::RawBytes;
+pub use sensor::SensorInfo;
 pub use timing::{CharFormat, DataBits, LineTiming, Parity, StopBits};
+pub use value::{FieldInfo, FieldValue};
 
 #[cfg(feature = "std")]
 pub use client::{Client, ClientConfig, Error, RetryPolicy};

@@ -124,6 +124,10 @@ impl SerialTransport {
 
     fn set_timeout(&mut self, timeout: Duration) -> io::Result<()> {
         let timeout = timeout.min(MAX_WAIT);
+        // Windows timeouts are whole milliseconds, and 0 does not mean "return at once"
+        // with the COMMTIMEOUTS `serialport` uses.
+        #[cfg(windows)]
+        let timeout = timeout.max(Duration::from_millis(1));
         if self.timeout != Some(timeout) {
             self.port.set_timeout(timeout)?;
             self.timeout = Some(timeout);

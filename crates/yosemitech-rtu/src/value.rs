@@ -1,0 +1,68 @@
+//! A borrowed, allocation-free view of one decoded field, for generic code.
+
+use core::fmt;
+
+use crate::codec::Version;
+
+/// One field of a decoded message, as generic code (CLI tables, differential
+/// tests, loggers) sees it. Generated message types list theirs with a
+/// `fields()` method.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum FieldValue<'a> {
+    /// An f32 field.
+    F32(f32),
+    /// Any integer field.
+    Int(i64),
+    /// A text field without its padding (raw bytes; may be non-ASCII if the device sent that).
+    Text(&'a [u8]),
+    /// A version field.
+    Version(Version),
+    /// An enum field: the raw code and the variant's spec name when known.
+    Enum {
+        /// The code on the wire.
+        raw: u16,
+        /// The variant's snake_case name; `None` for an unknown code.
+        name: Option<&'static str>,
+    },
+}
+
+impl FieldValue<'_> {
+    /// Bit-exact equality (floats by bits).
+    pub fn same_as(&self, other: &FieldValue<'_>) -> bool {
+        match (self, other) {
+            (FieldValue::F32(a), FieldValue::F32(b)) => a.to_bits() == b.to_bits(),
+            (a, b) => a == b,
+        }
+    }
+}
+
+impl fmt::Display for FieldValue<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            FieldValue::F32(v) => write!(f, "{v}"),
+            FieldValue::Int(v) => write!(f, "{v}"),
+            FieldValue::Text(bytes) => {
+                for &b in *bytes {
+                    if b.is_ascii_graphic() || b == b' ' {
+                        write!(f, "{}", char::from(b))?;
+                    } else {
+                        write!(f, "\\x{b:02x}")?;
+                    }
+                }
+                Ok(())
+            }
+            FieldValue::Version(v) => write!(f, "{v}"),
+            FieldValue::Enum { raw, name: Some(name) } => write!(f, "{name} ({raw})"),
+            FieldValue::Enum { raw, name: None } => write!(f, "unknown ({raw})"),
+        }
+    }
+}
+
+/// Static description of one field of a generated message.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct FieldInfo {
+    /// The spec's snake_case name.
+    pub name: &'static str,
+    /// Unit, if any.
+    pub unit: Option<&'static str>,
+}
