@@ -1,1 +1,82 @@
 //! A Yosemitech sensor simulated from its spec: register state, writes, fault injection and line timing.
+//!
+//! A [`Simulator`] is built from a [`yosemitech_spec::Sensor`] alone, so it
+//! serves any sensor whose spec is loaded at run time, with no Rust per
+//! sensor. It answers request frames as the probe would (see [`Simulator`]
+//! for the rules: addressing, exceptions, the slave-address change), starts
+//! with the register contents the manual's examples show, and can vary its
+//! readings and inject faults, deterministically from a seed.
+//!
+//! Where to run it:
+//!
+//! * in-process: [`Simulator`] and [`Bus`] implement
+//!   [`yosemitech_rtu::Responder`], so `Client<ResponderTransport<Simulator>>`
+//!   talks to it with no thread;
+//! * on a byte stream from a background thread ([`serve`]): a
+//!   pseudo-terminal (`serve_pty`, Unix, `pty` feature), RTU over TCP
+//!   ([`serve_tcp`]), an in-memory pair ([`serve_memory`]), optionally
+//!   emulating the serial line's timing ([`ServeConfig::line_timing`]).
+//!
+//! The few rules that are not generic (the measurement trigger's warm-up,
+//! the three-point pH calibration) live in [`behaviour`], keyed by the
+//! spec's command and constant names.
+//!
+//! ```
+//! # let spec = yosemitech_spec::load_paths(&[concat!(env!("CARGO_MANIFEST_DIR"), "/../../spec").into()])?;
+//! use std::collections::BTreeMap;
+//! use yosemitech_rtu::{Client, ResponderTransport};
+//! use yosemitech_sim::Simulator;
+//! use yosemitech_spec::Value;
+//!
+//! let sensor = spec.sensor("ph_orp").unwrap().clone();
+//! let get_ph = sensor.command("get_ph").unwrap().clone();
+//! let mut sim = Simulator::new(sensor);
+//! sim.set("get_ph", "ph", Value::Float(6.5))?;
+//! let mut client = Client::new(ResponderTransport::new(sim));
+//! let request = get_ph.encode_request(1, &BTreeMap::new())?;
+//! let reply = client.call_raw(&request, &get_ph.layout())?;
+//! assert_eq!(get_ph.decode_response(1, reply)?, [("ph".to_string(), Value::Float(6.5))]);
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
+#![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used, clippy::panic, clippy::indexing_slicing))]
+
+use std::time::Duration;
+
+pub mod behaviour;
+mod bus;
+pub mod fault;
+mod registers;
+pub mod serve;
+mod simulator;
+
+pub use behaviour::{MeasurementState, WarmUpPolicy};
+pub use bus::Bus;
+pub use fault::{FaultConfig, FaultCounts, FaultKind, Rng};
+pub use registers::RegisterMap;
+#[cfg(all(unix, feature = "pty"))]
+pub use serve::serve_pty;
+pub use serve::{Endpoint, ServeConfig, Server, serve_memory, serve_tcp, serve_transport};
+pub use simulator::{SimError, Simulator, Stats, Variation, line_timing};
+
+/// Something on the bus that answers request frames: a [`Simulator`] or a
+/// [`Bus`] of them. The serving functions take any `Device`.
+pub trait Device {
+    /// Handles one request frame: appends the reply to `reply` (nothing
+    /// for no reply: ignored, broadcast, dropped) and returns how long the
+    /// reply is held back before it is sent, zero unless a
+    /// [`FaultKind::Delay`] was injected. Threaded servers sleep that long;
+    /// in-process [`yosemitech_rtu::Responder`]s withhold a held-back reply.
+    fn handle(&mut self, request: &[u8], reply: &mut Vec<u8>) -> Duration;
+}
+
+impl<D: Device + ?Sized> Device for &mut D {
+    fn handle(&mut self, request: &[u8], reply: &mut Vec<u8>) -> Duration {
+        (**self).handle(request, reply)
+    }
+}
+
+impl<D: Device + ?Sized> Device for Box<D> {
+    fn handle(&mut self, request: &[u8], reply: &mut Vec<u8>) -> Duration {
+        (**self).handle(request, reply)
+    }
+}

@@ -1,0 +1,904 @@
+//! One simulated sensor: register state, request handling, exceptions, faults.
+
+use std::collections::BTreeMap;
+use std::fmt;
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use yosemitech_rtu::frame::{BROADCAST, encode_exception};
+use yosemitech_rtu::{
+    CharFormat, DataBits, EncodeError, ExceptionCode, Function, Layout, LineTiming, Parity, Responder, StopBits, codec,
+    crc_ok, crc16,
+};
+use yosemitech_spec::interp::{EncodeValuesError, decode_field, decode_fields, encode_field};
+use yosemitech_spec::{Command, EnumRepr, Field, FieldKind, Sensor, Value, Values};
+
+use crate::Device;
+use crate::behaviour::{ADDRESS_FIELD, Behaviour, MeasurementState, WarmUpPolicy};
+use crate::fault::{FaultConfig, FaultCounts, FaultKind, Injector, Rng};
+use crate::registers::RegisterMap;
+
+/// Why a value could not be read or set through the simulator's API.
+#[derive(Debug, Clone, PartialEq)]
+#[non_exhaustive]
+pub enum SimError {
+    /// The sensor has no command of that name.
+    UnknownCommand(String),
+    /// The command has no field of that name.
+    UnknownField {
+        /// The command.
+        command: String,
+        /// The field asked for.
+        field: String,
+    },
+    /// No read command has a field of that name ([`Simulator::set_everywhere`]).
+    NoSuchField(String),
+    /// The value does not fit the field (wrong type, outside its `range`).
+    Value(EncodeValuesError),
+}
+
+impl fmt::Display for SimError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::UnknownCommand(name) => write!(f, "no command called `{name}`"),
+            Self::UnknownField { command, field } => write!(f, "command `{command}` has no field `{field}`"),
+            Self::NoSuchField(field) => write!(f, "no read command has a field `{field}`"),
+            Self::Value(e) => write!(f, "{e}"),
+        }
+    }
+}
+
+impl std::error::Error for SimError {}
+
+impl From<EncodeValuesError> for SimError {
+    fn from(e: EncodeValuesError) -> Self {
+        Self::Value(e)
+    }
+}
+
+/// What the simulator did with the requests it was given.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct Stats {
+    /// Request frames handled.
+    pub requests: u64,
+    /// Replies produced (normal or exception; before fault injection, so a
+    /// dropped reply counts here and in [`FaultCounts`]).
+    pub replies: u64,
+    /// Requests ignored for a bad CRC (or too short to carry one).
+    pub ignored_bad_crc: u64,
+    /// Requests ignored because they were for another slave.
+    pub ignored_other_slave: u64,
+    /// Broadcast requests (applied if they were writes, never answered).
+    pub broadcasts: u64,
+    /// Exception replies produced by the rules (01, 02, 03, and 06 under
+    /// [`WarmUpPolicy::Busy`]); injected busy faults are in [`FaultCounts`].
+    pub exceptions: u64,
+    /// Reads served.
+    pub reads: u64,
+    /// Writes applied (broadcasts included).
+    pub writes: u64,
+    /// Slave address changes made by writes.
+    pub address_changes: u64,
+}
+
+/// Deterministic variation of the readings: noise and drift.
+///
+/// On each read of a *measurement* command (a read that no write command
+/// covers and that has a field with a unit: pH, temperature, conductivity,
+/// ORP), every f32 field is set to `base + drift_per_read * n + noise * u`
+/// before the reply is built, where `base` is the value when the variation
+/// was enabled or last [`Simulator::set`], `n` the number of earlier reads
+/// of the command and `u` uniform in `[-1, 1)` from a generator seeded with
+/// `seed`; clamped to the field's `range` if it has one. The registers hold
+/// what was sent, so [`Simulator::get`] after a read is the truth the
+/// client saw.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Variation {
+    /// Seed of the noise.
+    pub seed: u64,
+    /// Noise amplitude, in the field's unit.
+    pub noise: f32,
+    /// Drift per read, in the field's unit.
+    pub drift_per_read: f32,
+}
+
+#[derive(Debug, Clone)]
+struct VariationState {
+    config: Variation,
+    rng: Rng,
+    /// Base value by (command index, field index).
+    bases: BTreeMap<(usize, usize), f32>,
+    /// Reads served by command index.
+    reads: BTreeMap<usize, u64>,
+}
+
+/// How a request reached the device.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Route {
+    /// To its own address.
+    Unicast,
+    /// To address 0: applied, never answered.
+    Broadcast,
+    /// To a command's `fixed_slave` address (get_slave_id: 0xFF).
+    Wildcard(u8),
+}
+
+/// The device's clock: real time, or time advanced by hand.
+#[derive(Debug, Clone, Copy)]
+struct Clock {
+    start: Option<Instant>,
+    offset: Duration,
+}
+
+impl Clock {
+    fn now(&self) -> Duration {
+        self.start.map_or(Duration::ZERO, |s| s.elapsed()) + self.offset
+    }
+}
+
+/// Where a field named [`ADDRESS_FIELD`] keeps the address.
+#[derive(Debug, Clone)]
+struct AddressSlot {
+    register: u16,
+    field: Field,
+}
+
+/// A Yosemitech sensor simulated from its spec.
+///
+/// Everything comes from the [`Sensor`]: the commands it answers (by
+/// function, start address and register count), the register contents at
+/// start (the manual's example frames: a read's reply data, a write's
+/// request data; reads are applied last, so where both cover a register it
+/// reads back as the read example shows), the fields' ranges, the slave
+/// address rules and the few sensor-specific rules of [`crate::behaviour`].
+///
+/// # On the wire
+///
+/// * Frames with a bad CRC are ignored, as a real slave ignores them.
+/// * Requests to another address are ignored. Address 0 is broadcast:
+///   writes are applied, nothing is answered. A command's `fixed_slave`
+///   (get_slave_id: 0xFF) is answered from that address when the request
+///   matches the command exactly; the same registers read at the device's
+///   own address are answered from its own address.
+/// * A function code no command uses: exception 01. A read not 8 bytes
+///   long, or a write whose byte count is not `2 * count` or not the
+///   frame's length: exception 03. No command of that function at that
+///   address: exception 02; at that address with another count: 03. A
+///   write with a value outside its field's `range`, or a slave address
+///   outside the sensor's addresses: 03, nothing stored.
+/// * Reads return the registers; writes store their data (seen by later
+///   reads of the same registers) and are echoed; trigger writes (zero
+///   registers) are echoed and start a measurement.
+/// * A write to a field named `slave_address` changes the address after
+///   the reply, which comes from the old address.
+///
+/// ```
+/// # let spec = yosemitech_spec::load_paths(&[concat!(env!("CARGO_MANIFEST_DIR"), "/../../spec").into()])?;
+/// use yosemitech_sim::{Device, Simulator};
+/// use yosemitech_spec::Value;
+///
+/// let mut sim = Simulator::new(spec.sensor("ph_orp").unwrap().clone());
+/// sim.set("get_ph", "ph", Value::Float(7.0))?;
+/// let mut reply = Vec::new();
+/// sim.handle(&[0x01, 0x03, 0x28, 0x00, 0x00, 0x02, 0xCD, 0xAB], &mut reply);
+/// assert_eq!(reply, [0x01, 0x03, 0x04, 0x00, 0x00, 0xE0, 0x40, 0xB2, 0x03]);
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
+#[derive(Clone)]
+pub struct Simulator {
+    sensor: Arc<Sensor>,
+    address: u8,
+    registers: RegisterMap,
+    address_slots: Vec<AddressSlot>,
+    /// Function codes some command uses.
+    functions: Vec<u8>,
+    /// Fixed slave addresses of commands.
+    wildcards: Vec<u8>,
+    /// Per command: a measurement read (see [`Variation`]).
+    measurement: Vec<bool>,
+    behaviour: Behaviour,
+    injector: Injector,
+    variation: Option<VariationState>,
+    warm_up_policy: WarmUpPolicy,
+    byte_count_quirk: bool,
+    clock: Clock,
+    stats: Stats,
+    /// The reply being built.
+    out: Vec<u8>,
+}
+
+impl Simulator {
+    /// The sensor at its factory address (`default_address`), registers as
+    /// the manual's examples show them, no faults.
+    pub fn new(sensor: impl Into<Arc<Sensor>>) -> Self {
+        let sensor: Arc<Sensor> = sensor.into();
+        let mut functions: Vec<u8> = sensor.commands.iter().map(|c| c.function.code()).collect();
+        functions.sort_unstable();
+        functions.dedup();
+        let mut wildcards: Vec<u8> = sensor.commands.iter().filter_map(|c| c.fixed_slave).collect();
+        wildcards.sort_unstable();
+        wildcards.dedup();
+        let address_slots = sensor
+            .commands
+            .iter()
+            .filter_map(|c| c.field(ADDRESS_FIELD).map(|f| AddressSlot { register: c.address, field: f.clone() }))
+            .collect();
+        let measurement = sensor.commands.iter().map(|c| is_measurement(&sensor, c)).collect();
+        let mut sim = Self {
+            address: sensor.default_address,
+            registers: RegisterMap::new(),
+            address_slots,
+            functions,
+            wildcards,
+            measurement,
+            behaviour: Behaviour::new(&sensor),
+            injector: Injector::new(FaultConfig::none()),
+            variation: None,
+            warm_up_policy: WarmUpPolicy::default(),
+            byte_count_quirk: false,
+            clock: Clock { start: Some(Instant::now()), offset: Duration::ZERO },
+            stats: Stats::default(),
+            out: Vec::with_capacity(2 * yosemitech_rtu::frame::MAX_ADU),
+            sensor,
+        };
+        sim.load_examples();
+        sim.set_address(sim.address);
+        sim
+    }
+
+    /// Builder form of [`Simulator::set_address`].
+    #[must_use]
+    pub fn with_address(mut self, address: u8) -> Self {
+        self.set_address(address);
+        self
+    }
+
+    /// Builder form of [`Simulator::set_faults`].
+    #[must_use]
+    pub fn with_faults(mut self, config: FaultConfig) -> Self {
+        self.set_faults(config);
+        self
+    }
+
+    /// Uses a clock that only moves with [`Simulator::advance`] (for
+    /// deterministic warm-up tests). The clock restarts at zero.
+    #[must_use]
+    pub fn with_manual_clock(mut self) -> Self {
+        self.clock = Clock { start: None, offset: Duration::ZERO };
+        self
+    }
+
+    fn load_examples(&mut self) {
+        let sensor = Arc::clone(&self.sensor);
+        // Writes first, then reads: where both cover a register, it reads
+        // back as the manual's read example shows.
+        for reads in [false, true] {
+            for command in sensor.commands.iter().filter(|c| c.is_read() == reads) {
+                let layout = command.layout();
+                for example in &command.examples {
+                    let data = if reads {
+                        layout.decode_response(example.slave(), example.true_response()).ok()
+                    } else {
+                        layout.decode_request(example.true_request()).ok().map(|(_, data)| data)
+                    };
+                    if let Some(data) = data {
+                        self.registers.write(command.address, data);
+                    }
+                }
+            }
+        }
+    }
+
+    /// The sensor simulated.
+    pub fn sensor(&self) -> &Sensor {
+        &self.sensor
+    }
+
+    /// The line timing of the sensor's serial settings.
+    pub fn line_timing(&self) -> LineTiming {
+        line_timing(&self.sensor)
+    }
+
+    /// The slave address the device answers.
+    pub fn address(&self) -> u8 {
+        self.address
+    }
+
+    /// Moves the device to `address` at once and stores it in every field
+    /// named `slave_address` (so get_slave_id reports it). Any address is
+    /// accepted here, even outside the sensor's range, for client tests;
+    /// writes on the wire are checked.
+    pub fn set_address(&mut self, address: u8) {
+        self.address = address;
+        for slot in &self.address_slots {
+            if let Some(bytes) = address_bytes(&slot.field, address) {
+                self.registers.write_bytes(slot.register, slot.field.offset, &bytes);
+            }
+        }
+    }
+
+    /// The registers.
+    pub fn registers(&self) -> &RegisterMap {
+        &self.registers
+    }
+
+    /// The registers, to change directly (no rule runs; the address does not follow).
+    pub fn registers_mut(&mut self) -> &mut RegisterMap {
+        &mut self.registers
+    }
+
+    fn command_index(&self, name: &str) -> Result<usize, SimError> {
+        self.sensor.commands.iter().position(|c| c.name == name).ok_or_else(|| SimError::UnknownCommand(name.into()))
+    }
+
+    /// The current values of `command`'s fields, decoded from the registers
+    /// (what a read would return now, variation aside).
+    pub fn values(&self, command: &str) -> Result<Values, SimError> {
+        let command = self.sensor.command(command).ok_or_else(|| SimError::UnknownCommand(command.into()))?;
+        Ok(decode_fields(command, &self.registers.read(command.address, command.count)))
+    }
+
+    /// The current value of one field.
+    pub fn get(&self, command: &str, field: &str) -> Result<Value, SimError> {
+        self.values(command)?
+            .into_iter()
+            .find(|(name, _)| name == field)
+            .map(|(_, v)| v)
+            .ok_or_else(|| SimError::UnknownField { command: command.into(), field: field.into() })
+    }
+
+    /// Sets one field of `command` in the registers: a reading
+    /// (`set("get_ph", "ph", Value::Float(7.0))`), a coefficient, a serial
+    /// number. The value is checked against the field's type and `range`.
+    /// Setting a `slave_address` field moves the device
+    /// ([`Simulator::set_address`]).
+    pub fn set(&mut self, command: &str, field: &str, value: Value) -> Result<(), SimError> {
+        let index = self.command_index(command)?;
+        let sensor = Arc::clone(&self.sensor);
+        let cmd = sensor.commands.get(index).ok_or_else(|| SimError::UnknownCommand(command.into()))?;
+        let (field_index, spec_field) =
+            cmd.fields
+                .iter()
+                .enumerate()
+                .find(|(_, f)| f.name.as_deref() == Some(field))
+                .ok_or_else(|| SimError::UnknownField { command: command.into(), field: field.into() })?;
+        let bytes = encode_field(spec_field, &value)?;
+        if field == ADDRESS_FIELD
+            && let Value::Int(a) = value
+            && let Ok(a) = u8::try_from(a)
+        {
+            self.set_address(a);
+        }
+        self.registers.write_bytes(cmd.address, spec_field.offset, &bytes);
+        if let (Some(variation), Value::Float(v)) = (self.variation.as_mut(), &value) {
+            variation.bases.insert((index, field_index), *v);
+        }
+        Ok(())
+    }
+
+    /// [`Simulator::set`] for an f32 field.
+    pub fn set_f32(&mut self, command: &str, field: &str, value: f32) -> Result<(), SimError> {
+        self.set(command, field, Value::Float(value))
+    }
+
+    /// Sets `field` in every read command that has it (pH is in both
+    /// get_ph and get_orp_and_ph); returns how many commands.
+    pub fn set_everywhere(&mut self, field: &str, value: Value) -> Result<usize, SimError> {
+        let names: Vec<String> = self
+            .sensor
+            .commands
+            .iter()
+            .filter(|c| c.is_read() && c.field(field).is_some())
+            .map(|c| c.name.clone())
+            .collect();
+        if names.is_empty() {
+            return Err(SimError::NoSuchField(field.into()));
+        }
+        for name in &names {
+            self.set(name, field, value.clone())?;
+        }
+        Ok(names.len())
+    }
+
+    /// Whether `command` is a measurement read (see [`Variation`]).
+    pub fn is_measurement(&self, command: &str) -> bool {
+        self.command_index(command).ok().and_then(|i| self.measurement.get(i).copied()).unwrap_or(false)
+    }
+
+    /// Replaces the fault injection (and its generator); counters are kept.
+    pub fn set_faults(&mut self, config: FaultConfig) {
+        self.injector.reconfigure(config);
+    }
+
+    /// The fault configuration (its script shrinks as it is used).
+    pub fn fault_config(&self) -> &FaultConfig {
+        self.injector.config()
+    }
+
+    /// Faults injected so far, by kind.
+    pub fn faults(&self) -> &FaultCounts {
+        self.injector.counts()
+    }
+
+    /// Sets the fault counters to zero.
+    pub fn reset_fault_counts(&mut self) {
+        self.injector.reset_counts();
+    }
+
+    /// What was done with the requests so far.
+    pub fn stats(&self) -> &Stats {
+        &self.stats
+    }
+
+    /// Turns deterministic noise and drift of the readings on (`Some`) or off.
+    pub fn set_variation(&mut self, variation: Option<Variation>) {
+        self.variation = variation.map(|config| VariationState {
+            config,
+            rng: Rng::new(config.seed),
+            bases: BTreeMap::new(),
+            reads: BTreeMap::new(),
+        });
+    }
+
+    /// How measurement reads are answered before readings are valid.
+    pub fn set_warm_up_policy(&mut self, policy: WarmUpPolicy) {
+        self.warm_up_policy = policy;
+    }
+
+    /// The measurement state (see [`crate::behaviour`]).
+    pub fn measurement_state(&self) -> MeasurementState {
+        self.behaviour.measurement_state(self.clock.now())
+    }
+
+    /// Calibration points recorded since the three-point calibration (re)started.
+    pub fn calibration_points(&self) -> &[f32] {
+        self.behaviour.calibration_points()
+    }
+
+    /// Moves the device's clock forward (skips a warm-up).
+    pub fn advance(&mut self, by: Duration) {
+        self.clock.offset += by;
+    }
+
+    /// Replies to reads with a declared extra byte count (`extra_byte_counts`)
+    /// carry that count, as the firmware the manual printed them from did
+    /// (pH Fig 54: 0x0C over 24 bytes), instead of the true `2 * count`.
+    pub fn set_byte_count_quirk(&mut self, on: bool) {
+        self.byte_count_quirk = on;
+    }
+
+    fn route(&self, slave: u8) -> Option<Route> {
+        if slave == self.address {
+            Some(Route::Unicast)
+        } else if slave == BROADCAST {
+            Some(Route::Broadcast)
+        } else if self.wildcards.contains(&slave) {
+            Some(Route::Wildcard(slave))
+        } else {
+            None
+        }
+    }
+
+    /// Finds the command a request is for, and the write's data.
+    fn lookup<'r>(&self, request: &'r [u8], route: Route) -> Result<(usize, &'r [u8]), ExceptionCode> {
+        let code = byte(request, 1);
+        if !self.functions.contains(&code) {
+            return Err(ExceptionCode::IllegalFunction);
+        }
+        let function = Function::from_code(code).ok_or(ExceptionCode::IllegalFunction)?;
+        let (address, count) = (word(request, 2), word(request, 4));
+        let data: &[u8] = match function {
+            Function::Read if request.len() == 8 => &[],
+            Function::Read => return Err(ExceptionCode::IllegalDataValue),
+            Function::Write => {
+                let byte_count = usize::from(byte(request, 6));
+                if request.len() != 9 + byte_count || byte_count != 2 * usize::from(count) {
+                    return Err(ExceptionCode::IllegalDataValue);
+                }
+                request.get(7..7 + byte_count).ok_or(ExceptionCode::IllegalDataValue)?
+            }
+        };
+        let mut candidates = self.sensor.commands.iter().enumerate().filter(|(_, c)| {
+            c.function == function
+                && match route {
+                    Route::Wildcard(slave) => c.fixed_slave == Some(slave),
+                    Route::Unicast | Route::Broadcast => true,
+                }
+        });
+        let mut known_address = false;
+        for (index, c) in &mut candidates {
+            if c.address == address {
+                if c.count == count {
+                    return Ok((index, data));
+                }
+                known_address = true;
+            }
+        }
+        Err(if known_address { ExceptionCode::IllegalDataValue } else { ExceptionCode::IllegalDataAddress })
+    }
+
+    /// Carries out a request; writes the normal reply to `self.out` (unless
+    /// broadcast) and returns the new slave address if it changes.
+    fn process(&mut self, request: &[u8], route: Route) -> Result<Option<u8>, ExceptionCode> {
+        let (index, data) = self.lookup(request, route)?;
+        let sensor = Arc::clone(&self.sensor);
+        let command = sensor.commands.get(index).ok_or(ExceptionCode::ServerDeviceFailure)?;
+        let layout = Layout {
+            fixed_slave: if matches!(route, Route::Wildcard(_)) { command.fixed_slave } else { None },
+            ..command.layout()
+        };
+        let slave = byte(request, 0);
+        if command.is_read() {
+            if route == Route::Broadcast {
+                return Ok(None);
+            }
+            if self.warm_up_policy == WarmUpPolicy::Busy
+                && self.measurement.get(index).copied().unwrap_or(false)
+                && self.measurement_state() != MeasurementState::Measuring
+            {
+                return Err(ExceptionCode::ServerDeviceBusy);
+            }
+            self.vary(index, command);
+            self.stats.reads += 1;
+            let data = self.registers.read(command.address, command.count);
+            push_frame(&mut self.out, layout.response_len(), |buf| layout.encode_response(slave, &data, buf))?;
+            if self.byte_count_quirk
+                && let Some(&quirk) = command.extra_byte_counts.first()
+            {
+                requirk(&mut self.out, quirk);
+            }
+            Ok(None)
+        } else {
+            check_ranges(command, data)?;
+            let new_address = match command.field(ADDRESS_FIELD) {
+                Some(field) => {
+                    let value = data.get(field.offset..field.offset + field.size()).map(|b| decode_field(field, b));
+                    match value {
+                        Some(Value::Int(a))
+                            if (i64::from(sensor.min_address)..=i64::from(sensor.max_address)).contains(&a) =>
+                        {
+                            u8::try_from(a).ok()
+                        }
+                        _ => return Err(ExceptionCode::IllegalDataValue),
+                    }
+                }
+                None => None,
+            };
+            self.registers.write(command.address, data);
+            let now = self.clock.now();
+            self.behaviour.on_write(command, index, data, &mut self.registers, now);
+            self.stats.writes += 1;
+            if route != Route::Broadcast {
+                push_frame(&mut self.out, layout.response_len(), |buf| layout.encode_response(slave, &[], buf))?;
+            }
+            Ok(new_address)
+        }
+    }
+
+    /// Applies the variation to a measurement read about to be served.
+    fn vary(&mut self, index: usize, command: &Command) {
+        if !self.measurement.get(index).copied().unwrap_or(false) {
+            return;
+        }
+        let Some(variation) = self.variation.as_mut() else { return };
+        let reads = variation.reads.entry(index).or_insert(0);
+        let n = *reads as f32;
+        *reads += 1;
+        for (field_index, field) in command.fields.iter().enumerate() {
+            if !matches!(field.kind, FieldKind::F32 { .. }) {
+                continue;
+            }
+            let registers = &self.registers;
+            let base = *variation.bases.entry((index, field_index)).or_insert_with(|| {
+                let bytes = registers.read(command.address, command.count);
+                match bytes.get(field.offset..field.offset + field.size()).map(|b| decode_field(field, b)) {
+                    Some(Value::Float(v)) => v,
+                    _ => 0.0,
+                }
+            });
+            let noise = variation.config.noise * variation.rng.next_signed() as f32;
+            let mut value = base + variation.config.drift_per_read * n + noise;
+            if let Some((min, max)) = field.range {
+                value = value.clamp(min as f32, max as f32);
+            }
+            if let Ok(bytes) = encode_field(field, &Value::Float(value)) {
+                self.registers.write_bytes(command.address, field.offset, &bytes);
+            }
+        }
+    }
+}
+
+impl Device for Simulator {
+    fn handle(&mut self, request: &[u8], reply: &mut Vec<u8>) -> Duration {
+        self.stats.requests += 1;
+        if request.len() < 4 || !crc_ok(request) {
+            self.stats.ignored_bad_crc += 1;
+            return Duration::ZERO;
+        }
+        let slave = byte(request, 0);
+        let function = byte(request, 1);
+        let Some(route) = self.route(slave) else {
+            self.stats.ignored_other_slave += 1;
+            return Duration::ZERO;
+        };
+        self.out.clear();
+        if route == Route::Broadcast {
+            self.stats.broadcasts += 1;
+            if let Ok(Some(address)) = self.process(request, route) {
+                self.stats.address_changes += 1;
+                self.set_address(address);
+            }
+            self.out.clear();
+            return Duration::ZERO;
+        }
+        if matches!(route, Route::Wildcard(_)) && self.lookup(request, route).is_err() {
+            self.stats.ignored_other_slave += 1;
+            return Duration::ZERO;
+        }
+        let reply_slave = if matches!(route, Route::Wildcard(_)) { slave } else { self.address };
+        self.stats.replies += 1;
+        let fault = self.injector.draw();
+        let mut new_address = None;
+        if fault == Some(FaultKind::Busy) {
+            push_exception(&mut self.out, reply_slave, function, ExceptionCode::ServerDeviceBusy);
+        } else {
+            match self.process(request, route) {
+                Ok(address) => new_address = address,
+                Err(code) => {
+                    self.stats.exceptions += 1;
+                    self.out.clear();
+                    push_exception(&mut self.out, reply_slave, function, code);
+                }
+            }
+        }
+        let delay = match fault {
+            Some(kind) if kind != FaultKind::Busy => self.injector.apply(kind, &mut self.out),
+            _ => Duration::ZERO,
+        };
+        reply.extend_from_slice(&self.out);
+        // After the reply: it came from the old address.
+        if let Some(address) = new_address {
+            self.stats.address_changes += 1;
+            self.set_address(address);
+        }
+        delay
+    }
+}
+
+impl Responder for Simulator {
+    /// [`Device::handle`]; a delayed reply is withheld (it cannot arrive
+    /// late in-process, and a client has given up on it by then).
+    fn respond(&mut self, request: &[u8], reply: &mut Vec<u8>) {
+        if !self.handle(request, reply).is_zero() {
+            reply.clear();
+        }
+    }
+}
+
+impl fmt::Debug for Simulator {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.debug_struct("Simulator")
+            .field("sensor", &self.sensor.name)
+            .field("address", &self.address)
+            .field("registers", &self.registers)
+            .field("stats", &self.stats)
+            .field("faults", self.injector.counts())
+            .finish_non_exhaustive()
+    }
+}
+
+/// The line timing of a sensor's serial settings.
+pub fn line_timing(sensor: &Sensor) -> LineTiming {
+    let serial = &sensor.serial;
+    let format = CharFormat {
+        data_bits: if serial.data_bits == 7 { DataBits::Seven } else { DataBits::Eight },
+        parity: match serial.parity {
+            yosemitech_spec::Parity::None => Parity::None,
+            yosemitech_spec::Parity::Even => Parity::Even,
+            yosemitech_spec::Parity::Odd => Parity::Odd,
+        },
+        stop_bits: if serial.stop_bits == 2 { StopBits::Two } else { StopBits::One },
+    };
+    LineTiming::new(serial.baud, format)
+}
+
+/// A measurement read: no write command covers its registers, and a field has a unit.
+fn is_measurement(sensor: &Sensor, command: &Command) -> bool {
+    let end = |c: &Command| u32::from(c.address) + u32::from(c.count);
+    command.is_read()
+        && command.fields.iter().any(|f| f.unit.is_some())
+        && !sensor.commands.iter().any(|w| {
+            !w.is_read() && w.count > 0 && u32::from(w.address) < end(command) && u32::from(command.address) < end(w)
+        })
+}
+
+/// The bytes of an address in a `slave_address` field.
+fn address_bytes(field: &Field, address: u8) -> Option<Vec<u8>> {
+    match &field.kind {
+        FieldKind::U8 | FieldKind::I8 | FieldKind::Enum { repr: EnumRepr::U8, .. } => Some(vec![address]),
+        FieldKind::U16 { order } | FieldKind::I16 { order } => {
+            Some(codec::u16_to_wire(order.rtu(), u16::from(address)).to_vec())
+        }
+        FieldKind::Enum { repr: EnumRepr::U16(order), .. } => {
+            Some(codec::u16_to_wire(order.rtu(), u16::from(address)).to_vec())
+        }
+        FieldKind::U32 { order } | FieldKind::I32 { order } => {
+            Some(codec::u32_to_wire(order.rtu(), u32::from(address)).to_vec())
+        }
+        _ => None,
+    }
+}
+
+/// Refuses write data with a value outside its field's `range` (or NaN).
+fn check_ranges(command: &Command, data: &[u8]) -> Result<(), ExceptionCode> {
+    for field in command.fields.iter().filter(|f| f.range.is_some()) {
+        let Some((min, max)) = field.range else { continue };
+        let bytes = data.get(field.offset..field.offset + field.size()).ok_or(ExceptionCode::IllegalDataValue)?;
+        let value = match decode_field(field, bytes) {
+            Value::Float(v) => f64::from(v),
+            Value::Int(v) => v as f64,
+            Value::Enum { raw, .. } => f64::from(raw),
+            _ => continue,
+        };
+        if !(min..=max).contains(&value) {
+            return Err(ExceptionCode::IllegalDataValue);
+        }
+    }
+    Ok(())
+}
+
+/// Appends a frame of at most `len` bytes written by `encode`.
+fn push_frame(
+    out: &mut Vec<u8>,
+    len: usize,
+    encode: impl FnOnce(&mut [u8]) -> Result<usize, EncodeError>,
+) -> Result<(), ExceptionCode> {
+    let start = out.len();
+    out.resize(start + len, 0);
+    match out.get_mut(start..).map(encode) {
+        Some(Ok(n)) => {
+            out.truncate(start + n);
+            Ok(())
+        }
+        _ => {
+            out.truncate(start);
+            Err(ExceptionCode::ServerDeviceFailure)
+        }
+    }
+}
+
+fn push_exception(out: &mut Vec<u8>, slave: u8, function: u8, code: ExceptionCode) {
+    let mut frame = [0u8; yosemitech_rtu::frame::EXCEPTION_LEN];
+    if let Ok(n) = encode_exception(slave, function, code.to_u8(), &mut frame) {
+        out.extend_from_slice(frame.get(..n).unwrap_or(&[]));
+    }
+}
+
+/// Replaces the byte count of the read reply in `out` and fixes its CRC.
+fn requirk(out: &mut Vec<u8>, byte_count: u8) {
+    if out.len() < 5 {
+        return;
+    }
+    if let Some(b) = out.get_mut(2) {
+        *b = byte_count;
+    }
+    out.truncate(out.len() - 2);
+    let crc = crc16(out);
+    out.extend_from_slice(&crc.to_le_bytes());
+}
+
+fn byte(frame: &[u8], at: usize) -> u8 {
+    frame.get(at).copied().unwrap_or(0)
+}
+
+fn word(frame: &[u8], at: usize) -> u16 {
+    u16::from_be_bytes([byte(frame, at), byte(frame, at + 1)])
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn sensor(name: &str) -> Sensor {
+        let spec = yosemitech_spec::load_paths(&[concat!(env!("CARGO_MANIFEST_DIR"), "/../../spec").into()]).unwrap();
+        spec.sensor(name).unwrap().clone()
+    }
+
+    fn with_crc(bytes: &[u8]) -> Vec<u8> {
+        let mut frame = bytes.to_vec();
+        frame.extend_from_slice(&crc16(bytes).to_le_bytes());
+        frame
+    }
+
+    fn exchange(sim: &mut Simulator, request: &[u8]) -> Vec<u8> {
+        let mut reply = Vec::new();
+        assert_eq!(sim.handle(request, &mut reply), Duration::ZERO);
+        reply
+    }
+
+    #[test]
+    fn starts_from_the_examples_at_the_factory_address() {
+        let sim = Simulator::new(sensor("ph_orp"));
+        assert_eq!(sim.address(), 1);
+        assert_eq!(sim.get("get_ph", "ph").unwrap(), Value::Float(7.6));
+        assert_eq!(sim.get("get_sn", "serial_number").unwrap(), Value::Text("YL4314010022".into()));
+        // set_slave_id's example wrote 20 and get_slave_id's read 3; the live address wins.
+        assert_eq!(sim.registers().get(0x3000), Some([1, 0]));
+        assert_eq!(sim.get("get_slave_id", "slave_address").unwrap(), Value::Int(1));
+        let moved = sim.with_address(42);
+        assert_eq!(moved.registers().get(0x3000), Some([42, 0]));
+    }
+
+    #[test]
+    fn measurement_reads_are_the_uncovered_ones_with_units() {
+        let ph = sensor("ph_orp");
+        let measured: Vec<&str> =
+            ph.commands.iter().filter(|c| is_measurement(&ph, c)).map(|c| c.name.as_str()).collect();
+        assert_eq!(measured, ["get_ph", "get_orp_and_ph", "get_orp", "get_temperature"]);
+        let cond = sensor("conductivity");
+        let measured: Vec<&str> =
+            cond.commands.iter().filter(|c| is_measurement(&cond, c)).map(|c| c.name.as_str()).collect();
+        assert_eq!(measured, ["get_temperature_and_conductivity"]);
+    }
+
+    #[test]
+    fn nan_and_out_of_range_writes_are_refused() {
+        let mut sim = Simulator::new(sensor("ph_orp"));
+        for bad in [f32::NAN, -0.5, 14.5, f32::INFINITY] {
+            let mut frame = vec![1, 0x10, 0x23, 0x00, 0x00, 0x02, 0x04];
+            frame.extend_from_slice(&bad.to_le_bytes());
+            let reply = exchange(&mut sim, &with_crc(&frame));
+            assert_eq!(reply, with_crc(&[1, 0x90, 0x03]), "{bad}");
+        }
+        // The bounds themselves are fine.
+        for ok in [0.0f32, 14.0] {
+            let mut frame = vec![1, 0x10, 0x23, 0x00, 0x00, 0x02, 0x04];
+            frame.extend_from_slice(&ok.to_le_bytes());
+            assert_eq!(exchange(&mut sim, &with_crc(&frame))[1], 0x10, "{ok}");
+        }
+    }
+
+    #[test]
+    fn address_bytes_follow_the_field_type() {
+        let field =
+            |kind| Field { name: Some("slave_address".into()), kind, offset: 0, unit: None, doc: None, range: None };
+        assert_eq!(address_bytes(&field(FieldKind::U8), 7), Some(vec![7]));
+        let be = FieldKind::U16 { order: yosemitech_spec::Order2::Ab };
+        assert_eq!(address_bytes(&field(be), 7), Some(vec![0, 7]));
+        let le = FieldKind::U16 { order: yosemitech_spec::Order2::Ba };
+        assert_eq!(address_bytes(&field(le), 7), Some(vec![7, 0]));
+        assert_eq!(address_bytes(&field(FieldKind::Version), 7), None);
+    }
+
+    #[test]
+    fn requirk_rewrites_count_and_crc() {
+        let mut reply = with_crc(&[1, 3, 4, 1, 2, 3, 4]);
+        requirk(&mut reply, 2);
+        assert_eq!(reply, with_crc(&[1, 3, 2, 1, 2, 3, 4]));
+        let mut short = vec![1, 2];
+        requirk(&mut short, 9);
+        assert_eq!(short, [1, 2]);
+    }
+
+    #[test]
+    fn arbitrary_bytes_never_panic() {
+        let mut sim = Simulator::new(sensor("conductivity")).with_faults(FaultConfig::uniform(5, 0.5));
+        let mut rng = Rng::new(77);
+        for _ in 0..20_000 {
+            let len = rng.below(40) as usize;
+            let mut frame: Vec<u8> = (0..len).map(|_| rng.byte()).collect();
+            if rng.chance(0.5) && frame.len() >= 4 {
+                // Mostly valid headers for this device, valid CRC.
+                frame[0] = if rng.chance(0.8) { sim.address() } else { 0 };
+                frame[1] = [0x03, 0x10, 0x04][rng.below(3) as usize];
+                let n = frame.len() - 2;
+                let crc = crc16(&frame[..n]).to_le_bytes();
+                frame[n..].copy_from_slice(&crc);
+            }
+            let mut reply = Vec::new();
+            sim.handle(&frame, &mut reply);
+            assert!(reply.len() <= yosemitech_rtu::frame::MAX_ADU + 4);
+        }
+        assert!(sim.stats().exceptions > 0);
+    }
+}

@@ -1,0 +1,237 @@
+//! Fault injection seen from the rtu client: each kind as the right error,
+//! counters that match, retries that recover, and a soak that accepts no
+//! wrong value.
+#![allow(clippy::result_large_err)]
+
+mod sim_common;
+
+use std::collections::BTreeMap;
+use std::thread;
+use std::time::{Duration, Instant};
+
+use sim_common::{client, command, request, same, sensor};
+use yosemitech_rtu::{
+    Client, ClientConfig, Error, ExceptionCode, FrameError, ResponderTransport, RetryPolicy, Transport,
+};
+use yosemitech_sim::{Bus, FaultConfig, FaultKind, Rng, ServeConfig, Simulator, serve_memory};
+use yosemitech_spec::{Command, FieldKind, Sensor, Value};
+
+const TIMEOUT: Duration = Duration::from_millis(20);
+
+/// get_ph on a pH simulator that injects `fault` into its first reply.
+fn one_fault(fault: FaultKind) -> (Result<Vec<u8>, Error>, Simulator) {
+    let ph = sensor("ph_orp");
+    let get_ph = command(&ph, "get_ph");
+    let sim = Simulator::new(ph).with_faults(FaultConfig::scripted([Some(fault)]));
+    let mut client = client(ResponderTransport::new(sim), TIMEOUT);
+    let result = client.call_raw(&request(&get_ph, 1, &[]), &get_ph.layout()).map(<[u8]>::to_vec);
+    (result, client.into_transport().into_responder())
+}
+
+const GET_PH_REPLY: [u8; 9] = [0x01, 0x03, 0x04, 0x33, 0x33, 0xF3, 0x40, 0x40, 0x78];
+
+#[test]
+fn each_fault_kind_is_seen_by_the_client_as_the_right_error() {
+    for kind in FaultKind::ALL {
+        let (result, sim) = one_fault(kind);
+        match (kind, &result) {
+            (FaultKind::Drop | FaultKind::Delay, Err(Error::Timeout { received })) => {
+                assert!(received.is_empty(), "{kind}: silence, got {received}");
+            }
+            (FaultKind::CorruptCrc, Err(Error::Frame { error: FrameError::Crc { .. }, .. })) => {}
+            (FaultKind::Truncate, Err(Error::Timeout { received })) => {
+                assert!(!received.is_empty() && GET_PH_REPLY.starts_with(received.as_bytes()), "{kind}: {received}");
+            }
+            // The rtu client skips noise before a frame: the reply is accepted.
+            (FaultKind::Garbage, Ok(reply)) => assert_eq!(reply, &GET_PH_REPLY),
+            (
+                FaultKind::WrongSlave,
+                Err(Error::Frame { error: FrameError::WrongSlave { expected: 1, actual: 2 }, .. }),
+            ) => {}
+            (FaultKind::Busy, Err(e)) if e.exception() == Some(ExceptionCode::ServerDeviceBusy) => {}
+            _ => panic!("{kind}: unexpected {result:?}"),
+        }
+        assert_eq!(sim.faults().get(kind), 1, "{kind}");
+        assert_eq!(sim.faults().total(), 1, "{kind}");
+        assert_eq!(sim.faults().replies(), 1, "{kind}");
+        println!("{kind:>11}: {}", result.map_or_else(|e| e.to_string(), |_| "ok (noise skipped)".into()));
+    }
+}
+
+#[test]
+fn retries_recover_from_a_scripted_sequence() {
+    let ph = sensor("ph_orp");
+    let get_ph = command(&ph, "get_ph");
+    let script = [Some(FaultKind::Drop), Some(FaultKind::CorruptCrc), Some(FaultKind::WrongSlave), None];
+    let sim = Simulator::new(ph).with_faults(FaultConfig::scripted(script));
+    let config = ClientConfig {
+        timeout: TIMEOUT,
+        retry: RetryPolicy { retries: 3, backoff: Duration::ZERO, ..RetryPolicy::default() },
+        ..ClientConfig::default()
+    };
+    let mut client = Client::with_config(ResponderTransport::new(sim), config);
+    let reply = client.call_raw(&request(&get_ph, 1, &[]), &get_ph.layout()).unwrap().to_vec();
+    assert_eq!(reply, GET_PH_REPLY);
+    let sim = client.transport().responder();
+    assert_eq!(sim.faults().total(), 3);
+    assert_eq!(sim.faults().replies(), 4);
+    assert_eq!(sim.stats().reads, 4, "the device served every attempt");
+    // A busy exception is not retried.
+    client.transport_mut().responder_mut().set_faults(FaultConfig::scripted([Some(FaultKind::Busy)]));
+    let err = client.call_raw(&request(&get_ph, 1, &[]), &get_ph.layout()).unwrap_err();
+    assert_eq!(err.exception(), Some(ExceptionCode::ServerDeviceBusy));
+    assert_eq!(client.transport().responder().faults().get(FaultKind::Busy), 1, "counts go on across configurations");
+}
+
+#[test]
+fn a_delayed_reply_arrives_after_the_deadline_when_served_in_a_thread() {
+    let ph = sensor("ph_orp");
+    let get_ph = command(&ph, "get_ph");
+    let delay = Duration::from_millis(200);
+    let faults = FaultConfig { delay_by: delay, ..FaultConfig::scripted([Some(FaultKind::Delay)]) };
+    let (transport, server) = serve_memory(Simulator::new(ph).with_faults(faults), ServeConfig::default()).unwrap();
+    let mut client = client(transport, Duration::from_millis(50));
+    let start = Instant::now();
+    match client.call_raw(&request(&get_ph, 1, &[]), &get_ph.layout()) {
+        Err(Error::Timeout { received }) => assert!(received.is_empty()),
+        other => panic!("expected a timeout, got {other:?}"),
+    }
+    assert!(start.elapsed() < delay, "the client gave up before the reply came");
+    // The late reply lands as stale input; the client discards it before the next request.
+    let waiting = Instant::now();
+    while client.transport().available() < GET_PH_REPLY.len() {
+        assert!(waiting.elapsed() < Duration::from_secs(5), "the late reply never came");
+        thread::sleep(Duration::from_millis(10));
+    }
+    assert!(start.elapsed() >= delay, "it came late");
+    assert_eq!(client.call_raw(&request(&get_ph, 1, &[]), &get_ph.layout()).unwrap(), GET_PH_REPLY);
+    assert_eq!(server.device().faults().get(FaultKind::Delay), 1);
+    server.stop().unwrap();
+}
+
+/// Random values for a write command's fields, within their ranges.
+fn random_values(command: &Command, rng: &mut Rng) -> BTreeMap<String, Value> {
+    command
+        .named_fields()
+        .map(|f| {
+            let (min, max) = f.range.unwrap_or((-100.0, 100.0));
+            let v = match f.kind {
+                FieldKind::F32 { .. } => Value::Float((min + rng.next_f64() * (max - min)) as f32),
+                _ => Value::Int(min as i64 + rng.below((max - min) as u64 + 1) as i64),
+            };
+            (f.name.clone().unwrap(), v)
+        })
+        .collect()
+}
+
+/// How one soak transaction ended.
+#[derive(Debug, Default)]
+struct Tally {
+    clean: u64,
+    recovered: u64,
+    failed: BTreeMap<String, u64>,
+}
+
+fn failure_kind(e: &Error) -> String {
+    match e {
+        Error::Timeout { received } if received.is_empty() => "timeout (silent)".into(),
+        Error::Timeout { .. } => "timeout (partial)".into(),
+        Error::Frame { error: FrameError::Exception { code, .. }, .. } => format!("exception {code}"),
+        Error::Frame { error: FrameError::Crc { .. }, .. } => "crc".into(),
+        Error::Frame { error: FrameError::WrongSlave { .. }, .. } => "wrong slave".into(),
+        Error::Frame { error, .. } => format!("frame: {error}"),
+        other => format!("other: {other}"),
+    }
+}
+
+#[test]
+fn soak_10k_transactions_with_10_percent_faults_accepts_no_wrong_value() {
+    const TRANSACTIONS: usize = 10_000;
+    let (ph, cond) = (sensor("ph_orp"), sensor("conductivity"));
+    let bus = Bus::new()
+        .with(Simulator::new(ph.clone()).with_address(1).with_faults(FaultConfig::uniform(11, 0.10)))
+        .with(Simulator::new(cond.clone()).with_address(2).with_faults(FaultConfig::uniform(22, 0.10)));
+    let config = ClientConfig {
+        timeout: Duration::from_millis(2),
+        retry: RetryPolicy { retries: 3, backoff: Duration::ZERO, ..RetryPolicy::default() },
+        ..ClientConfig::default()
+    };
+    let mut client = Client::with_config(ResponderTransport::new(bus), config);
+    // Every command but the address-changing one and the 0xFF wildcard (two
+    // devices would collide on it).
+    let plan: Vec<(u8, &Sensor, &Command)> = [(1u8, &ph), (2u8, &cond)]
+        .into_iter()
+        .flat_map(|(address, sensor)| sensor.commands.iter().map(move |c| (address, sensor, c)))
+        .filter(|(_, _, c)| c.fixed_slave.is_none() && c.field("slave_address").is_none())
+        .collect();
+    let mut rng = Rng::new(2024);
+    let mut tally = Tally::default();
+    let mut wrong = 0u64;
+    let started = Instant::now();
+    for _ in 0..TRANSACTIONS {
+        let (address, _sensor, cmd) = plan[rng.below(plan.len() as u64) as usize];
+        let bus = client.transport_mut().responder_mut();
+        let device = bus.device_mut(address).unwrap();
+        // Vary the truth: a fresh reading before each measurement read.
+        if device.is_measurement(&cmd.name) {
+            for field in cmd.named_fields().filter(|f| matches!(f.kind, FieldKind::F32 { .. })) {
+                let v = Value::Float((rng.next_f64() * 20.0) as f32);
+                device.set(&cmd.name, field.name.as_deref().unwrap(), v).unwrap();
+            }
+        }
+        let faults_before = device.faults().total();
+        let values = if cmd.is_read() { BTreeMap::new() } else { random_values(cmd, &mut rng) };
+        let req = cmd.encode_request(address, &values).unwrap();
+        let result = client.call_raw(&req, &cmd.layout()).map(<[u8]>::to_vec);
+        let device = client.transport().responder().device(address).unwrap();
+        let faulted = device.faults().total() > faults_before;
+        match result {
+            Ok(reply) => {
+                let good = if cmd.is_read() {
+                    let got = cmd.decode_response(address, &reply).unwrap();
+                    same(&got, &device.values(&cmd.name).unwrap())
+                } else {
+                    // The write's echo was accepted: the device must hold the values.
+                    let held = device.values(&cmd.name).unwrap();
+                    held.iter().all(|(k, v)| values.get(k).is_some_and(|w| w.same_as(v)))
+                };
+                if !good {
+                    wrong += 1;
+                    eprintln!("WRONG VALUE accepted: {} at {address}: {reply:02X?}", cmd.name);
+                }
+                if faulted {
+                    tally.recovered += 1;
+                } else {
+                    tally.clean += 1;
+                }
+            }
+            Err(e) => {
+                assert!(faulted, "{} failed without an injected fault: {e}", cmd.name);
+                *tally.failed.entry(failure_kind(&e)).or_default() += 1;
+            }
+        }
+    }
+    let bus = client.transport().responder();
+    println!("soak: {TRANSACTIONS} transactions in {:.2?}", started.elapsed());
+    println!("  ok first time: {}", tally.clean);
+    println!("  ok after faults (retried or noise skipped): {}", tally.recovered);
+    for (kind, n) in &tally.failed {
+        println!("  failed, {kind}: {n}");
+    }
+    for device in bus.devices() {
+        println!("  device {} ({}): {}", device.address(), device.sensor().name, device.faults());
+    }
+    println!("  wrong values accepted: {wrong}");
+    assert_eq!(wrong, 0, "no wrong value may be accepted");
+    assert_eq!(tally.clean + tally.recovered + tally.failed.values().sum::<u64>(), TRANSACTIONS as u64);
+    let injected: u64 = bus.devices().iter().map(|d| d.faults().total()).sum();
+    let replies: u64 = bus.devices().iter().map(|d| d.faults().replies()).sum();
+    let rate = injected as f64 / replies as f64;
+    assert!((0.08..0.12).contains(&rate), "fault rate {rate}");
+    assert!(tally.recovered > 500, "retries recovered most faults: {tally:?}");
+    // Busy is the only fault retries cannot cure (exceptions are final);
+    // everything else needs four faults in a row.
+    let busy = tally.failed.get("exception server device busy (0x06)").copied().unwrap_or(0);
+    assert!(tally.failed.values().sum::<u64>() - busy < 5, "{tally:?}");
+    let _ = client.transport_mut().discard_input();
+}
