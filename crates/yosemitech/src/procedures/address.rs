@@ -1,0 +1,130 @@
+//! Changing a probe's slave address, so the user always knows where it is.
+//!
+//! The address is validated (1..=247, not the current one, not taken by
+//! another device), the write is confirmed by the probe's reply from its old
+//! address, and the probe is read back at the new one. If anything fails
+//! after the write was sent, both addresses are probed and the error says
+//! where the probe answers.
+
+use std::fmt;
+
+use crate::{Client, Command, Error, Transport};
+
+/// Where a probe answers after a failed change.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Whereabouts {
+    /// At its old address: the change did not take.
+    Old(u8),
+    /// At its new address: the change took, the confirmation was lost.
+    New(u8),
+    /// At neither (power loss, wiring): try `scan`.
+    Unknown {
+        /// The old address.
+        old: u8,
+        /// The new address.
+        new: u8,
+    },
+}
+
+impl fmt::Display for Whereabouts {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::Old(a) => write!(f, "the probe still answers at its old address {a}"),
+            Self::New(a) => write!(f, "the probe answers at its new address {a}"),
+            Self::Unknown { old, new } => {
+                write!(f, "the probe answers at neither {old} nor {new}; scan the bus to find it")
+            }
+        }
+    }
+}
+
+/// Why an address change was refused or failed.
+#[derive(Debug)]
+#[non_exhaustive]
+pub enum AddressChangeError {
+    /// An address is outside 1..=247.
+    InvalidAddress(u8),
+    /// The new address is the current one.
+    SameAddress(u8),
+    /// Another device already answers at the new address.
+    AddressInUse(u8),
+    /// No probe answers at the old address; nothing was written.
+    NotFound {
+        /// The old address.
+        address: u8,
+        /// The error of the probe request.
+        error: Error,
+    },
+    /// The write or its verification failed; `whereabouts` says where the probe is.
+    Failed {
+        /// What failed.
+        error: Error,
+        /// Where the probe answers now.
+        whereabouts: Whereabouts,
+    },
+}
+
+impl fmt::Display for AddressChangeError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::InvalidAddress(a) => write!(f, "address {a} is outside 1..=247"),
+            Self::SameAddress(a) => write!(f, "the probe is already at address {a}"),
+            Self::AddressInUse(a) => write!(f, "another device already answers at address {a}"),
+            Self::NotFound { address, error } => write!(f, "no probe answers at address {address}: {error}"),
+            Self::Failed { error, whereabouts } => write!(f, "{error}; {whereabouts}"),
+        }
+    }
+}
+
+impl std::error::Error for AddressChangeError {}
+
+fn valid(a: u8) -> Result<(), AddressChangeError> {
+    if (1..=247).contains(&a) { Ok(()) } else { Err(AddressChangeError::InvalidAddress(a)) }
+}
+
+/// Changes the probe at `from` to `to`.
+///
+/// `write` is the sensor's set-slave-id request carrying `to` (e.g.
+/// `ph_orp::SetSlaveId { slave_address: to }`); `probe` is any read the
+/// probe answers (e.g. `GetSn`), used to check addresses before and after.
+/// Returns the probe's reply to `probe` at its new address.
+#[allow(clippy::result_large_err)]
+pub fn change_address<T: Transport, W: Command, P: Command>(
+    client: &mut Client<T>,
+    from: u8,
+    to: u8,
+    write: &W,
+    probe: &P,
+) -> Result<P::Response, AddressChangeError> {
+    valid(from)?;
+    valid(to)?;
+    if from == to {
+        return Err(AddressChangeError::SameAddress(to));
+    }
+    if client.call(to, probe).is_ok() {
+        return Err(AddressChangeError::AddressInUse(to));
+    }
+    if let Err(error) = client.call(from, probe) {
+        return Err(AddressChangeError::NotFound { address: from, error });
+    }
+    let locate = |client: &mut Client<T>| {
+        if client.call(to, probe).is_ok() {
+            Whereabouts::New(to)
+        } else if client.call(from, probe).is_ok() {
+            Whereabouts::Old(from)
+        } else {
+            Whereabouts::Unknown { old: from, new: to }
+        }
+    };
+    if let Err(error) = client.call(from, write) {
+        let whereabouts = locate(client);
+        return Err(AddressChangeError::Failed { error, whereabouts });
+    }
+    match client.call(to, probe) {
+        Ok(reply) => Ok(reply),
+        Err(error) => {
+            let whereabouts = locate(client);
+            Err(AddressChangeError::Failed { error, whereabouts })
+        }
+    }
+}

@@ -1,0 +1,256 @@
+//! The manuals' procedures (yosemitech::procedures) against the simulator.
+
+use std::sync::Arc;
+use std::time::Duration;
+
+use yosemitech::procedures::address::{AddressChangeError, Whereabouts, change_address};
+use yosemitech::procedures::coefficients::{self, PhOrpCoefficients};
+use yosemitech::procedures::conductivity::{MeasurementConfig, MeasurementEvent, measure, tds_mg_l};
+use yosemitech::procedures::ph::{CalibrationConfig, CalibrationGuide, calibrate};
+use yosemitech::procedures::{NoSleep, ProcedureError, Sleep};
+use yosemitech::rtu::transport::Responder;
+use yosemitech::{Client, ClientConfig, ResponderTransport, RetryPolicy, conductivity, ph_orp};
+use yosemitech_sim::{Bus, Simulator};
+use yosemitech_spec::{Sensor, Value};
+
+fn sensor(name: &str) -> Arc<Sensor> {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../spec");
+    let spec = yosemitech_spec::load_paths(&[dir]).expect("the spec loads");
+    Arc::new(spec.sensor(name).expect("sensor in spec").clone())
+}
+
+fn fast() -> ClientConfig {
+    ClientConfig {
+        timeout: Duration::from_millis(30),
+        inter_frame_delay: Some(Duration::ZERO),
+        retry: RetryPolicy { retries: 0, ..RetryPolicy::default() },
+        ..ClientConfig::default()
+    }
+}
+
+fn client<R: Responder>(responder: R) -> Client<ResponderTransport<R>> {
+    Client::with_config(ResponderTransport::new(responder), fast())
+}
+
+#[test]
+fn conductivity_measurement_averages_the_manuals_count_and_computes_tds() {
+    let mut sim = Simulator::new(sensor("conductivity"));
+    let mut reads = 0u32;
+    // Readings 1.0, 2.0, ... so the mean of the first ten is 5.5.
+    let responder = move |request: &[u8], reply: &mut Vec<u8>| {
+        if request.get(1) == Some(&0x03) && request.get(2) == Some(&0x26) {
+            reads += 1;
+            sim.set_f32("get_temperature_and_conductivity", "conductivity_ms_cm", reads as f32).unwrap();
+            sim.set_f32("get_temperature_and_conductivity", "temperature_c", 20.0).unwrap();
+        }
+        sim.respond(request, reply);
+    };
+    let mut client = client(responder);
+    let mut probe = conductivity::Device::new(&mut client, 1);
+    let mut sleep = NoSleep::default();
+    let mut events = Vec::new();
+    let m = measure(&mut probe, &MeasurementConfig::default(), &mut sleep, &mut |e| events.push(e)).unwrap();
+    assert_eq!(m.readings, 10);
+    assert_eq!(m.discarded, 0);
+    assert_eq!(m.conductivity_ms_cm, 5.5);
+    assert_eq!(m.temperature_c, 20.0);
+    assert!((m.tds_mg_l - 5.5 * 640.0).abs() < 0.01, "{}", m.tds_mg_l);
+    // Warm-up 10 s plus 9 intervals of 3 s, as the manual says.
+    assert_eq!(sleep.requested, Duration::from_secs(10 + 9 * 3));
+    assert!(matches!(events.first(), Some(MeasurementEvent::WarmingUp { .. })));
+    assert_eq!(events.len(), 11);
+}
+
+#[test]
+fn flagged_readings_are_discarded_and_replaced() {
+    let mut sim = Simulator::new(sensor("conductivity"));
+    let mut reads = 0u32;
+    let responder = move |request: &[u8], reply: &mut Vec<u8>| {
+        if request.get(1) == Some(&0x03) && request.get(2) == Some(&0x26) {
+            reads += 1;
+            // Every third reading has a range-switch error and an absurd value.
+            let flagged = reads % 3 == 0;
+            let status = if flagged { "range_switch_error" } else { "ok" };
+            sim.set("get_temperature_and_conductivity", "range_status", Value::Text(status.into())).unwrap();
+            let value = if flagged { 999.0 } else { 2.0 };
+            sim.set_f32("get_temperature_and_conductivity", "conductivity_ms_cm", value).unwrap();
+        }
+        sim.respond(request, reply);
+    };
+    let mut client = client(responder);
+    let mut probe = conductivity::Device::new(&mut client, 1);
+    let m = measure(&mut probe, &MeasurementConfig::default(), &mut NoSleep::default(), &mut |_| {}).unwrap();
+    assert_eq!(m.readings, 10);
+    assert_eq!(m.discarded, 4, "reads 3, 6, 9, 12 are flagged before 10 good ones arrive");
+    assert_eq!(m.conductivity_ms_cm, 2.0, "flagged values never reach the mean");
+    assert_eq!(m.tds_mg_l, tds_mg_l(2.0));
+}
+
+#[test]
+fn measurement_gives_up_when_every_reading_is_flagged() {
+    let mut sim = Simulator::new(sensor("conductivity"));
+    sim.set("get_temperature_and_conductivity", "range_status", Value::Text("range_switch_error".into())).unwrap();
+    let mut client = client(sim);
+    let mut probe = conductivity::Device::new(&mut client, 1);
+    let config = MeasurementConfig { readings: 3, max_reads: 5, ..MeasurementConfig::default() };
+    match measure(&mut probe, &config, &mut NoSleep::default(), &mut |_| {}) {
+        Err(ProcedureError::NotEnoughReadings { accepted: 0, needed: 3, discarded: 5 }) => {}
+        other => panic!("expected NotEnoughReadings, got {other:?}"),
+    }
+}
+
+/// Records what the procedure asked of the user.
+#[derive(Default)]
+struct Recorder {
+    backup: Option<PhOrpCoefficients>,
+    immersed: Vec<f32>,
+    written: Vec<f32>,
+    refuse_backup: bool,
+}
+
+impl CalibrationGuide for Recorder {
+    fn backed_up(&mut self, backup: &PhOrpCoefficients) -> bool {
+        self.backup = Some(*backup);
+        !self.refuse_backup
+    }
+    fn immerse(&mut self, _index: usize, standard_ph: f32) -> bool {
+        self.immersed.push(standard_ph);
+        true
+    }
+    fn settle(&mut self, _index: usize, duration: Duration, sleep: &mut dyn Sleep) {
+        sleep.sleep(duration);
+    }
+    fn point_written(&mut self, _index: usize, standard_ph: f32) {
+        self.written.push(standard_ph);
+    }
+}
+
+#[test]
+fn ph_calibration_runs_the_three_points_in_order_after_a_backup() {
+    let mut client = client(Simulator::new(sensor("ph_orp")));
+    let mut probe = ph_orp::Device::new(&mut client, 1);
+    let before = coefficients::read_ph_orp(&mut probe).unwrap();
+    let mut guide = Recorder::default();
+    let mut sleep = NoSleep::default();
+    let report = calibrate(&mut probe, &CalibrationConfig::default(), &mut guide, &mut sleep).unwrap();
+    assert!(report.succeeded(), "{:?}", report.status);
+    assert_eq!(guide.immersed, [4.00, 6.86, 9.18]);
+    assert_eq!(guide.written, [4.00, 6.86, 9.18]);
+    assert_eq!(guide.backup, Some(before));
+    assert_eq!(report.backup, before);
+    assert_eq!(sleep.requested, Duration::from_secs(3 * 60), "a minute in each buffer");
+}
+
+#[test]
+fn ph_calibration_in_the_wrong_order_reports_the_probes_status() {
+    let mut client = client(Simulator::new(sensor("ph_orp")));
+    let mut probe = ph_orp::Device::new(&mut client, 1);
+    let config = CalibrationConfig { standards: [6.86, 4.00, 9.18], ..CalibrationConfig::default() };
+    let report = calibrate(&mut probe, &config, &mut Recorder::default(), &mut NoSleep::default()).unwrap();
+    assert!(!report.succeeded());
+    assert_eq!(report.status, ph_orp::CalibrationStatus::NotACalibrationStandard);
+}
+
+#[test]
+fn nothing_is_written_when_the_backup_cannot_be_kept() {
+    let sim = Simulator::new(sensor("ph_orp"));
+    let mut client = client(sim);
+    let mut probe = ph_orp::Device::new(&mut client, 1);
+    let mut guide = Recorder { refuse_backup: true, ..Recorder::default() };
+    let result = calibrate(&mut probe, &CalibrationConfig::default(), &mut guide, &mut NoSleep::default());
+    assert!(matches!(result, Err(ProcedureError::Aborted)));
+    assert!(guide.written.is_empty());
+    let sim = client.into_transport().into_responder();
+    assert_eq!(sim.stats().writes, 0, "no write reached the probe");
+}
+
+#[test]
+fn coefficients_restore_with_read_back() {
+    let mut client = client(Simulator::new(sensor("ph_orp")));
+    let mut probe = ph_orp::Device::new(&mut client, 1);
+    let original = coefficients::read_ph_orp(&mut probe).unwrap();
+    assert_eq!(original.electrode, ph_orp::DEFAULT_ELECTRODE_COEFFICIENTS);
+    let changed = PhOrpCoefficients::from_array([1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 0.9, 0.1, 1.1, -0.5]);
+    coefficients::write_ph_orp(&mut probe, &changed).unwrap();
+    assert_eq!(coefficients::read_ph_orp(&mut probe).unwrap(), changed);
+    coefficients::write_ph_orp(&mut probe, &original).unwrap();
+    assert_eq!(coefficients::read_ph_orp(&mut probe).unwrap(), original);
+
+    let mut client = self::client(Simulator::new(sensor("conductivity")));
+    let mut probe = conductivity::Device::new(&mut client, 1);
+    let c = coefficients::ConductivityCoefficients { user_calibration: [1.02, -0.003] };
+    coefficients::write_conductivity(&mut probe, &c).unwrap();
+    assert_eq!(coefficients::read_conductivity(&mut probe).unwrap(), c);
+}
+
+#[test]
+fn a_write_that_does_not_stick_is_caught_by_read_back() {
+    let mut sim = Simulator::new(sensor("conductivity"));
+    // A probe that acknowledges the write but keeps its old coefficients.
+    let responder = move |request: &[u8], reply: &mut Vec<u8>| {
+        if request.get(1) == Some(&0x10) {
+            let echo = &request[..6];
+            reply.extend_from_slice(echo);
+            reply.extend_from_slice(&yosemitech::rtu::crc16(echo).to_le_bytes());
+        } else {
+            sim.respond(request, reply);
+        }
+    };
+    let mut client = client(responder);
+    let mut probe = conductivity::Device::new(&mut client, 1);
+    let c = coefficients::ConductivityCoefficients { user_calibration: [2.0, 1.0] };
+    assert!(matches!(
+        coefficients::write_conductivity(&mut probe, &c),
+        Err(ProcedureError::ReadBackMismatch { .. })
+    ));
+}
+
+#[test]
+fn address_change_is_validated_confirmed_and_verified() {
+    let mut client = client(Simulator::new(sensor("ph_orp")));
+    let reply = change_address(&mut client, 1, 20, &ph_orp::SetSlaveId { slave_address: 20 }, &ph_orp::GetSn).unwrap();
+    assert_eq!(reply.serial_number.as_str(), Some("YL4314010022"));
+    assert!(client.call(1, &ph_orp::GetSn).is_err(), "the old address is gone");
+    assert!(client.call(20, &ph_orp::GetSn).is_ok());
+
+    for bad in [0u8, 248] {
+        let err = change_address(&mut client, 20, bad, &ph_orp::SetSlaveId { slave_address: bad }, &ph_orp::GetSn);
+        assert!(matches!(err, Err(AddressChangeError::InvalidAddress(a)) if a == bad));
+    }
+    let same = change_address(&mut client, 20, 20, &ph_orp::SetSlaveId { slave_address: 20 }, &ph_orp::GetSn);
+    assert!(matches!(same, Err(AddressChangeError::SameAddress(20))));
+    let missing = change_address(&mut client, 7, 8, &ph_orp::SetSlaveId { slave_address: 8 }, &ph_orp::GetSn);
+    assert!(matches!(missing, Err(AddressChangeError::NotFound { address: 7, .. })));
+}
+
+#[test]
+fn address_change_refuses_an_address_in_use() {
+    let bus = Bus::new()
+        .with(Simulator::new(sensor("ph_orp")).with_address(1))
+        .with(Simulator::new(sensor("conductivity")).with_address(2));
+    let mut client = client(bus);
+    let err = change_address(&mut client, 1, 2, &ph_orp::SetSlaveId { slave_address: 2 }, &ph_orp::GetSn);
+    assert!(matches!(err, Err(AddressChangeError::AddressInUse(2))));
+    let bus = client.into_transport().into_responder();
+    assert_eq!(bus.device(1).map(|d| d.stats().writes), Some(0), "nothing was written");
+}
+
+#[test]
+fn a_lost_confirmation_still_tells_where_the_probe_is() {
+    let mut sim = Simulator::new(sensor("ph_orp"));
+    // The probe applies the new address but its reply is lost on the line.
+    let responder = move |request: &[u8], reply: &mut Vec<u8>| {
+        sim.respond(request, reply);
+        if request.get(1) == Some(&0x10) {
+            reply.clear();
+        }
+    };
+    let mut client = client(responder);
+    match change_address(&mut client, 1, 30, &ph_orp::SetSlaveId { slave_address: 30 }, &ph_orp::GetSn) {
+        Err(AddressChangeError::Failed { error, whereabouts }) => {
+            assert!(error.is_timeout());
+            assert_eq!(whereabouts, Whereabouts::New(30));
+        }
+        other => panic!("expected a failure with whereabouts, got {other:?}"),
+    }
+}
