@@ -1,1 +1,341 @@
-//! Generates typed Rust codecs from Yosemitech spec files (a library for build.rs).
+//! Generates typed, allocation-free Rust codecs from Yosemitech spec files,
+//! in the manner of `prost-build`: call it from a `build.rs`, write the
+//! sources to `OUT_DIR` and `include!` them.
+//!
+//! ```no_run
+//! // build.rs
+//! fn main() -> Result<(), yosemitech_codegen::Error> {
+//!     let out_dir = std::env::var_os("OUT_DIR").expect("cargo sets OUT_DIR");
+//!     yosemitech_codegen::Config::new().compile("spec", out_dir)?;
+//!     Ok(())
+//! }
+//! ```
+//!
+//! ```ignore
+//! // src/lib.rs: one `pub mod <sensor>` per sensor of the spec directory.
+//! include!(concat!(env!("OUT_DIR"), "/mod.rs"));
+//! ```
+//!
+//! [`Config::compile`] writes one `<sensor>.rs` per sensor plus a `mod.rs`
+//! that declares `pub mod <sensor> { include!("<sensor>.rs"); }` for each,
+//! with the sensor's documentation, and prints `cargo:rerun-if-changed` for
+//! the directory and every spec file it read. The including crate depends on
+//! the runtime (`yosemitech-rtu`, or wherever [`Config::runtime_crate`]
+//! points) and, when device handles are gated on a feature
+//! ([`Config::std_feature`]), declares that feature.
+//!
+//! # What a sensor module contains
+//!
+//! For each command `get_ph` of the spec (names come only from validated
+//! spec names, converted with `heck`):
+//!
+//! - `GetPh`: the request, a unit struct for reads and a struct of typed
+//!   fields for writes; it implements the runtime's `Command` trait.
+//! - `GetPhResponse`: the reply of a read, a struct of typed fields. Writes
+//!   reply with `()` (the runtime checks the echo).
+//! - on both: `FIELDS: [FieldInfo; N]`, `fields(&self) -> [FieldValue<'_>; N]`,
+//!   `DATA_LEN`, `from_data(&[u8; DATA_LEN])` and `to_data()` for the
+//!   register data; write requests have `validate()` for spec ranges.
+//! - an enum per `enum` field with an `Unknown(raw)` arm, `from_raw`, `raw`
+//!   and `name`.
+//!
+//! And per sensor: `SENSOR` (a `SensorInfo`), one `pub const` per spec
+//! constant, `CommandId` (`ALL`, `name`, `from_name`, `layout`, decoding),
+//! `Request` and `Response` enums over every command, `decode_response`,
+//! `identify_request`, and (unless disabled) a `Device` handle with one
+//! method per command.
+//!
+//! The generated code allocates nothing, has no `unwrap` and no indexing
+//! that could panic (every array access is a constant index into an array
+//! of known length), and is clippy-clean.
+#![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used, clippy::panic))]
+
+mod naming;
+mod sensor;
+mod text;
+
+use std::fmt;
+use std::fs;
+use std::io;
+use std::path::{Path, PathBuf};
+
+use proc_macro2::TokenStream;
+use yosemitech_spec::{Diagnostics, Spec};
+
+use naming::Names;
+
+/// The file [`Config::compile`] writes next to the sensor files, declaring one
+/// module per sensor. No sensor can be called `mod` (a keyword), so it never
+/// collides with a sensor's file.
+pub const MODULES_FILE: &str = "mod.rs";
+
+/// How to generate code. Build with [`Config::new`] and the setters, then
+/// call [`Config::compile`] (build scripts) or [`Config::generate`].
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Config {
+    runtime: String,
+    device_handles: bool,
+    std_feature: Option<String>,
+}
+
+impl Default for Config {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl Config {
+    /// The defaults: runtime `::yosemitech_rtu`, device handles on, gated on
+    /// the feature `std`.
+    pub fn new() -> Self {
+        Self { runtime: "::yosemitech_rtu".into(), device_handles: true, std_feature: Some("std".into()) }
+    }
+
+    /// The path of the runtime crate in generated code (default
+    /// `::yosemitech_rtu`), e.g. `crate::rtu` for a crate that re-exports it.
+    /// Checked when generating ([`Error::RuntimePath`]).
+    pub fn runtime_crate(&mut self, path: impl Into<String>) -> &mut Self {
+        self.runtime = path.into();
+        self
+    }
+
+    /// Whether to generate `Device` handles (blocking, over the runtime's
+    /// `Client`; they need the runtime's `std` feature). Default on.
+    pub fn device_handles(&mut self, on: bool) -> &mut Self {
+        self.device_handles = on;
+        self
+    }
+
+    /// The cargo feature that gates std-only items (device handles) with
+    /// `#[cfg(feature = "...")]`; `None` emits them unconditionally. Default
+    /// `Some("std")`: the including crate must declare that feature.
+    pub fn std_feature(&mut self, feature: Option<&str>) -> &mut Self {
+        self.std_feature = feature.map(str::to_owned);
+        self
+    }
+
+    /// Loads and validates the spec files in `spec_dirs` (directories or
+    /// files) and generates one module per sensor.
+    pub fn generate<P: AsRef<Path>>(&self, spec_dirs: &[P]) -> Result<Generated, Error> {
+        let paths: Vec<PathBuf> = spec_dirs.iter().map(|p| p.as_ref().to_path_buf()).collect();
+        let spec = yosemitech_spec::load_paths(&paths).map_err(Error::Spec)?;
+        self.generate_spec(&spec)
+    }
+
+    /// Generates one module per sensor of an already loaded spec.
+    pub fn generate_spec(&self, spec: &Spec) -> Result<Generated, Error> {
+        let runtime: syn::Path = syn::parse_str(&self.runtime)
+            .map_err(|e| Error::RuntimePath { path: self.runtime.clone(), reason: e.to_string() })?;
+        let options = sensor::Options {
+            runtime: quote::quote!(#runtime),
+            device_handles: self.device_handles,
+            std_feature: self.std_feature.clone(),
+        };
+        let mut sensors = Vec::new();
+        let mut modules = TokenStream::new();
+        for s in &spec.sensors {
+            let names = Names::plan(s)?;
+            let tokens = sensor::module(s, &names, &options)?;
+            let source = format_tokens(&s.name, tokens, &header(&s.file))?;
+            modules.extend(sensor::module_declaration(s, &format!("{}.rs", s.name)));
+            sensors.push(GeneratedSensor { name: s.name.clone(), file_name: format!("{}.rs", s.name), source });
+        }
+        let files: Vec<String> = spec.sensors.iter().filter_map(|s| file_name(&s.file)).collect();
+        let modules = format_tokens(MODULES_FILE, modules, &format!("from {}", files.join(", ")))?;
+        Ok(Generated { sensors, modules })
+    }
+
+    /// For build scripts: generates from `spec_dir`, writes `<sensor>.rs`
+    /// and [`MODULES_FILE`] to `out_dir` (only files whose content changed),
+    /// and prints `cargo:rerun-if-changed` for the directory and every spec
+    /// file read (included fragments too), also when loading fails.
+    pub fn compile(&self, spec_dir: impl AsRef<Path>, out_dir: impl AsRef<Path>) -> Result<Generated, Error> {
+        let spec_dir = spec_dir.as_ref();
+        let out_dir = out_dir.as_ref();
+        println!("cargo:rerun-if-changed={}", spec_dir.display());
+        let spec = match yosemitech_spec::load_paths(&[spec_dir.to_path_buf()]) {
+            Ok(spec) => spec,
+            Err(diagnostics) => {
+                // Re-run when any file of the directory changes, so that a fix is picked up.
+                if let Ok(entries) = fs::read_dir(spec_dir) {
+                    for entry in entries.flatten() {
+                        println!("cargo:rerun-if-changed={}", entry.path().display());
+                    }
+                }
+                return Err(Error::Spec(diagnostics));
+            }
+        };
+        for file in spec.files() {
+            println!("cargo:rerun-if-changed={}", file.display());
+        }
+        let generated = self.generate_spec(&spec)?;
+        generated.write_to(out_dir)?;
+        Ok(generated)
+    }
+}
+
+/// The generated sources.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Generated {
+    /// One module per sensor, in spec order.
+    pub sensors: Vec<GeneratedSensor>,
+    /// The contents of [`MODULES_FILE`]: `pub mod <sensor> { include!("<sensor>.rs"); }` for each sensor.
+    pub modules: String,
+}
+
+impl Generated {
+    /// Every file as (file name, contents): the sensors, then [`MODULES_FILE`].
+    pub fn files(&self) -> Vec<(String, &str)> {
+        let mut files: Vec<(String, &str)> =
+            self.sensors.iter().map(|s| (s.file_name.clone(), s.source.as_str())).collect();
+        files.push((MODULES_FILE.to_owned(), &self.modules));
+        files
+    }
+
+    /// Writes every file to `dir` (created if missing), skipping files whose
+    /// contents are already the same (so their timestamps stay).
+    pub fn write_to(&self, dir: &Path) -> Result<(), Error> {
+        fs::create_dir_all(dir).map_err(|source| Error::Io { path: dir.to_path_buf(), source })?;
+        for (name, contents) in self.files() {
+            let path = dir.join(name);
+            if fs::read_to_string(&path).is_ok_and(|old| old == contents) {
+                continue;
+            }
+            fs::write(&path, contents).map_err(|source| Error::Io { path, source })?;
+        }
+        Ok(())
+    }
+
+    /// The sensor called `name`.
+    pub fn sensor(&self, name: &str) -> Option<&GeneratedSensor> {
+        self.sensors.iter().find(|s| s.name == name)
+    }
+}
+
+/// The generated module of one sensor.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct GeneratedSensor {
+    /// The sensor's (module's) name.
+    pub name: String,
+    /// `<name>.rs`.
+    pub file_name: String,
+    /// Formatted Rust source: the module's items, for `include!`.
+    pub source: String,
+}
+
+/// Why code could not be generated.
+///
+/// `Debug` shows the same text as `Display`, so a build script that returns
+/// it from `main` prints the full rustc-style diagnostics.
+#[non_exhaustive]
+pub enum Error {
+    /// The spec did not load: every problem, rustc-style.
+    Spec(Diagnostics),
+    /// Two generated items of one sensor would have the same name.
+    NameCollision {
+        /// The sensor.
+        sensor: String,
+        /// What collides.
+        detail: String,
+    },
+    /// A spec value cannot be expressed in generated code.
+    Unsupported {
+        /// The sensor.
+        sensor: String,
+        /// What is wrong.
+        detail: String,
+    },
+    /// [`Config::runtime_crate`] is not a Rust path.
+    RuntimePath {
+        /// The path given.
+        path: String,
+        /// Why it does not parse.
+        reason: String,
+    },
+    /// The generated tokens did not parse as Rust (a bug in this crate).
+    Internal {
+        /// The file being generated.
+        file: String,
+        /// The parser's message.
+        reason: String,
+    },
+    /// Writing a file failed.
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// The error.
+        source: io::Error,
+    },
+}
+
+impl fmt::Display for Error {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::Spec(diagnostics) => write!(f, "{diagnostics}"),
+            Self::NameCollision { sensor, detail } => {
+                write!(f, "error: sensor `{sensor}`: generated names collide: {detail}")
+            }
+            Self::Unsupported { sensor, detail } => write!(f, "error: sensor `{sensor}`: {detail}"),
+            Self::RuntimePath { path, reason } => {
+                write!(f, "error: the runtime crate path `{path}` is not a Rust path: {reason}")
+            }
+            Self::Internal { file, reason } => {
+                write!(f, "error: internal: the code generated for {file} does not parse: {reason}")
+            }
+            Self::Io { path, source } => write!(f, "error: cannot write {}: {source}", path.display()),
+        }
+    }
+}
+
+impl fmt::Debug for Error {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        fmt::Display::fmt(self, f)
+    }
+}
+
+impl std::error::Error for Error {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        match self {
+            Self::Spec(diagnostics) => Some(diagnostics),
+            Self::Io { source, .. } => Some(source),
+            _ => None,
+        }
+    }
+}
+
+fn file_name(path: &Path) -> Option<String> {
+    path.file_name().map(|n| n.to_string_lossy().into_owned())
+}
+
+/// The first line of every generated file; names the spec file by its file
+/// name only, so the output does not depend on where the checkout lives.
+fn header(spec_file: &Path) -> String {
+    format!("from {}", file_name(spec_file).unwrap_or_default())
+}
+
+fn format_tokens(what: &str, tokens: TokenStream, from: &str) -> Result<String, Error> {
+    let file: syn::File =
+        syn::parse2(tokens).map_err(|e| Error::Internal { file: what.to_owned(), reason: e.to_string() })?;
+    let from: String = from.chars().map(|c| if c.is_control() { ' ' } else { c }).collect();
+    Ok(format!(
+        "// @generated by yosemitech-codegen {from}. Do not edit: change the spec and regenerate.\n\n{}",
+        space_items(&prettyplease::unparse(&file))
+    ))
+}
+
+/// A blank line between top-level items, as rustfmt-formatted code has.
+/// (No generated string literal spans lines, so lines are safe to inspect.)
+fn space_items(source: &str) -> String {
+    let mut out = String::with_capacity(source.len() + source.len() / 20);
+    let mut previous: Option<&str> = None;
+    for line in source.lines() {
+        let ends_item = previous.is_some_and(|p| p == "}" || (!p.starts_with(' ') && p.ends_with(';')));
+        if ends_item && !line.is_empty() && !line.starts_with(' ') && !line.starts_with('}') {
+            out.push('\n');
+        }
+        out.push_str(line);
+        out.push('\n');
+        previous = Some(line);
+    }
+    out
+}

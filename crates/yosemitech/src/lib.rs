@@ -1,1 +1,156 @@
-//! Typed, allocation-free Modbus RTU codecs, device handles and procedures for Yosemitech water-quality sensors, generated from the vendor manuals.
+//! Typed, allocation-free Modbus RTU codecs and device handles for Yosemitech
+//! water-quality probes, generated from the vendor manuals.
+//!
+//! Every module here is generated at build time from the YAML spec files
+//! that transcribe the manuals (`spec/*.yaml`: registers, field types, byte
+//! orders, units, the manuals' example frames and their errata). The spec is
+//! the single source of truth: the same files drive the reference
+//! interpreter, the simulator, the golden tests and the register maps in
+//! `docs/sensors/`. A readable copy of the generated code is kept in
+//! `crates/yosemitech/generated/` for review (`cargo xtask codegen`); the
+//! build never reads it.
+//!
+//! # Decoding a frame
+//!
+//! ```
+//! use yosemitech::Command;
+//! use yosemitech::ph_orp::GetPh;
+//!
+//! // The pH manual's example (figures 23 and 24).
+//! let request = GetPh.request_frame(1)?;
+//! assert_eq!(&*request, [0x01, 0x03, 0x28, 0x00, 0x00, 0x02, 0xCD, 0xAB]);
+//!
+//! let reply = [0x01, 0x03, 0x04, 0x33, 0x33, 0xF3, 0x40, 0x40, 0x78];
+//! let response = GetPh::decode_response(1, &reply)?;
+//! assert_eq!(response.ph, 7.6);
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
+//!
+//! # Talking to a probe
+//!
+//! With the `std` feature, each sensor module has a `Device` that borrows a
+//! [`Client`] (one per bus) and knows the probe's slave address:
+//!
+//! ```
+//! use yosemitech::{Client, ResponderTransport, ph_orp};
+//!
+//! // A stand-in for a serial port: answers get_ph like the manual's probe.
+//! let transport = ResponderTransport::from_fn(|request: &[u8], reply: &mut Vec<u8>| {
+//!     if request == [0x01, 0x03, 0x28, 0x00, 0x00, 0x02, 0xCD, 0xAB] {
+//!         reply.extend_from_slice(&[0x01, 0x03, 0x04, 0x33, 0x33, 0xF3, 0x40, 0x40, 0x78]);
+//!     }
+//! });
+//! let mut client = Client::new(transport);
+//! let mut probe = ph_orp::Device::new(&mut client, 1);
+//! assert_eq!(probe.ph()?, 7.6);
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
+//!
+//! On hardware, use `SerialTransport` (feature `serial`) or `TcpTransport`
+//! (RTU over TCP) instead.
+//!
+//! # Generic code
+//!
+//! Each module has a `CommandId` enum listing every command, `Request` and
+//! `Response` enums over all of them, and field metadata, so loggers and
+//! command-line tools can work without naming commands in code:
+//!
+//! ```
+//! use yosemitech::ph_orp::{self, CommandId};
+//!
+//! let id = CommandId::from_name("get_ph").expect("get_ph is a pH probe command");
+//! let reply = [0x01, 0x03, 0x04, 0x33, 0x33, 0xF3, 0x40, 0x40, 0x78];
+//! let response = ph_orp::decode_response(id, 1, &reply)?;
+//! let shown: Vec<String> = response
+//!     .fields()
+//!     .map(|(info, value)| format!("{} = {value} {}", info.name, info.unit.unwrap_or("")))
+//!     .collect();
+//! assert_eq!(shown, ["ph = 7.6 pH"]);
+//! # Ok::<(), yosemitech::FrameError>(())
+//! ```
+//!
+//! # Conventions of the generated API
+//!
+//! For a sensor `s` (one module per spec file: [`ph_orp`], [`conductivity`])
+//! and a command `get_ph` of its spec:
+//!
+//! - **Names** come from the spec: types are the command's name in
+//!   UpperCamelCase (`GetPh`), fields keep their snake_case names (`ph`,
+//!   `orp_mv`, `temperature_c`), constants are SHOUTY (`PH_CALIBRATION_STANDARDS`).
+//! - **Requests**: `GetPh` is the request and implements [`Command`]. Reads
+//!   are unit structs; writes are structs of typed fields
+//!   (`SetSlaveId { slave_address: 20 }`), and `encode_request` refuses values
+//!   outside the spec's `range` with [`EncodeError::OutOfRange`] (`validate()`
+//!   checks without encoding).
+//! - **Replies**: a read replies with `GetPhResponse`, a struct of named
+//!   fields; a write replies with `()` (the runtime checks the echoed address
+//!   and count).
+//! - **Field types**: `f32`, `u8`/`i8`/`u16`/`i16`/`u32`/`i32`, [`Ascii<N>`]
+//!   (raw bytes kept, padding trimmed on display), [`Version`], and a
+//!   generated enum per coded field with an `Unknown(raw)` arm
+//!   (`CalibrationStatus::from_raw(4)`, `.raw()`, `.name()`).
+//! - **Metadata**: every message type has `FIELDS: [FieldInfo; N]` (name,
+//!   unit) and `fields(&self) -> [FieldValue<'_>; N]`; messages with register
+//!   data have `DATA_LEN`, `from_data(&[u8; DATA_LEN])` and `to_data()`.
+//! - **Dispatch**: `CommandId` (`ALL`, `name()`, `from_name()`, `layout()`,
+//!   `decode_request()`, `decode_response()`), `Request`, `Response`,
+//!   `decode_response(id, slave, frame)` and `identify_request(frame)` (by
+//!   function, start address and register count).
+//! - **Device handles** (`std`): `Device::new(&mut client, address)`; reads
+//!   are named after the command without `get_` and return the reply, or its
+//!   only field directly (`ph()`, `orp()` (the `orp_mv` field),
+//!   `temperature()`, `sn()`, `slave_id()`, `calibration_status()`; `version()`
+//!   and `orp_and_ph()` return the reply struct); writes keep
+//!   their name and take the field (`set_slave_id(20)`,
+//!   `start_ph_calibration(4.0)`) or, with several fields, the request struct
+//!   (`set_orp_calibration(SetOrpCalibration { k_slope: 1.0, b_offset: 0.0 })`).
+//!   `Device::call` sends any command. Commands with a fixed slave address
+//!   (`get_slave_id`, 0xFF) use it instead of the device's.
+//! - **Constants** of the procedures (`ph_orp::PH_CALIBRATION_STANDARDS`,
+//!   `conductivity::MEASUREMENT_WARM_UP_MS`) and `SENSOR`, a [`SensorInfo`]
+//!   with the serial settings and address range.
+//! - **Docs** of each type carry the manual's title, text, section and
+//!   figures, the command's function, address and count, the printed example
+//!   frames, and the errata that concern it.
+//!
+//! Decoding never allocates and never panics on any input: every check
+//! (length, CRC, slave, function, byte count, write echo, Modbus exception)
+//! is a typed [`FrameError`].
+//!
+//! # Quirks the manuals document
+//!
+//! - Floats are 4-byte little-endian images (`dcba`), not Modbus big-endian.
+//! - `get_ph_electrode_coefficients` accepts byte count 0x0C as well as 0x18
+//!   (erratum E4: the manual's example prints 0x0C over 24 data bytes).
+//! - `get_slave_id` is sent to and answered from 0xFF (erratum E3).
+//! - `conductivity::StartMeasurement` writes zero registers (erratum E11).
+//!
+//! # Features
+//!
+//! - `std` (default): device handles, the [`Client`] and transports, and
+//!   `std::error::Error` for the errors. Without it the crate is `no_std`
+//!   and offers the codecs only.
+//! - `serial`: the serial-port transport.
+#![cfg_attr(not(feature = "std"), no_std)]
+#![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used, clippy::panic, clippy::indexing_slicing))]
+
+include!(concat!(env!("OUT_DIR"), "/mod.rs"));
+
+/// The runtime the generated code is built on.
+pub use yosemitech_rtu as rtu;
+
+pub use yosemitech_rtu::{
+    Ascii, Command, EncodeError, ExceptionCode, FieldInfo, FieldValue, Frame, FrameError, Function, Hex, Layout,
+    SensorInfo, Version,
+};
+
+#[cfg(feature = "std")]
+pub use yosemitech_rtu::{
+    Client, ClientConfig, Error, MemoryTransport, ResponderTransport, RetryPolicy, TcpTransport, Transport,
+};
+
+#[cfg(feature = "serial")]
+pub use yosemitech_rtu::{SerialConfig, SerialTransport};
+
+#[cfg(feature = "std")]
+pub mod procedures;

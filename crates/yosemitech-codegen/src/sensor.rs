@@ -1,0 +1,1273 @@
+//! One sensor's module: tokens for every generated item.
+
+use std::fmt::Write as _;
+
+use proc_macro2::{Ident, Literal, Span, TokenStream};
+use quote::{format_ident, quote};
+use yosemitech_rtu::Function;
+use yosemitech_spec::{Command, Constant, ConstantType, EnumRepr, Field, FieldKind, Order2, Order4, Parity, Sensor};
+
+use crate::Error;
+use crate::naming::{EnumDef, Names};
+use crate::text::{self, doc, hex, lit, one_line, opt_lit};
+
+/// What [`crate::Config`] decides.
+pub struct Options {
+    /// The runtime crate's path.
+    pub runtime: TokenStream,
+    /// Whether to emit `Device`.
+    pub device_handles: bool,
+    /// The feature gating std-only items.
+    pub std_feature: Option<String>,
+}
+
+fn ident(name: &str) -> Ident {
+    Ident::new(name, Span::call_site())
+}
+
+fn unsupported(sensor: &Sensor, detail: String) -> Error {
+    Error::Unsupported { sensor: sensor.name.clone(), detail }
+}
+
+/// `pub mod <sensor> { include!("<file>"); }` with the sensor's documentation.
+pub fn module_declaration(s: &Sensor, file: &str) -> TokenStream {
+    let name = ident(&s.name);
+    let file = lit(file);
+    let mut d = format!("{}\n\n{}\n\n", one_line(&s.title), text::clean(&s.doc).trim_end());
+    let _ = writeln!(
+        d,
+        "Generated from the spec of the manual \"{}\" ({}). Serial: {} baud, {}{}{}; slave addresses {}..={}, factory address {}.",
+        one_line(&s.manual.title),
+        one_line(&s.manual.revision),
+        s.serial.baud,
+        s.serial.data_bits,
+        match s.serial.parity {
+            Parity::None => 'N',
+            Parity::Even => 'E',
+            Parity::Odd => 'O',
+        },
+        s.serial.stop_bits,
+        s.min_address,
+        s.max_address,
+        s.default_address
+    );
+    d.push_str("\n| Command | Function | Address | Registers | Request | Reply |\n|---|---|---|---|---|---|\n");
+    for c in &s.commands {
+        let ty = heck::ToUpperCamelCase::to_upper_camel_case(c.name.as_str());
+        let (function, reply) = match c.function {
+            Function::Read => ("read (0x03)", format!("[`{ty}Response`]({}::{ty}Response)", s.name)),
+            Function::Write => ("write (0x10)", "`()`".to_owned()),
+        };
+        let _ = writeln!(
+            d,
+            "| {} | {function} | 0x{:04X} | {} | [`{ty}`]({}::{ty}) | {reply} |",
+            one_line(&c.title).replace('|', "\\|"),
+            c.address,
+            c.count,
+            s.name
+        );
+    }
+    if !s.errata.is_empty() {
+        d.push_str("\n# Manual errata\n\n");
+        for e in &s.errata {
+            let _ = writeln!(d, "- **{}**: {}", one_line(&e.id), one_line(&e.note));
+        }
+    }
+    let docs = doc(&d);
+    quote! {
+        #docs
+        pub mod #name {
+            include!(#file);
+        }
+    }
+}
+
+/// Every item of one sensor's module.
+pub fn module(s: &Sensor, names: &Names, o: &Options) -> Result<TokenStream, Error> {
+    let rt = &o.runtime;
+    let mut out = quote! {
+        use #rt as rtu;
+    };
+    out.extend(sensor_info(s)?);
+    for (c, name) in s.constants.iter().zip(&names.constants) {
+        out.extend(constant(s, c, name)?);
+    }
+    for e in &names.enums {
+        out.extend(enum_type(s, e)?);
+    }
+    for (ci, c) in s.commands.iter().enumerate() {
+        out.extend(command(names, ci, c));
+    }
+    out.extend(dispatch(s, names));
+    if o.device_handles {
+        out.extend(device(s, names, o));
+    }
+    Ok(out)
+}
+
+fn sensor_info(s: &Sensor) -> Result<TokenStream, Error> {
+    let name = lit(&s.name);
+    let title = lit(&one_line(&s.title));
+    let manual = lit(&one_line(&s.manual.title));
+    let revision = lit(&one_line(&s.manual.revision));
+    let baud = Literal::u32_unsuffixed(s.serial.baud);
+    let data_bits = match s.serial.data_bits {
+        7 => quote!(Seven),
+        8 => quote!(Eight),
+        n => return Err(unsupported(s, format!("{n} data bits (the runtime knows 7 and 8)"))),
+    };
+    let parity = match s.serial.parity {
+        Parity::None => quote!(None),
+        Parity::Even => quote!(Even),
+        Parity::Odd => quote!(Odd),
+    };
+    let stop_bits = match s.serial.stop_bits {
+        1 => quote!(One),
+        2 => quote!(Two),
+        n => return Err(unsupported(s, format!("{n} stop bits (the runtime knows 1 and 2)"))),
+    };
+    let (min, max, default) = (
+        Literal::u8_unsuffixed(s.min_address),
+        Literal::u8_unsuffixed(s.max_address),
+        Literal::u8_unsuffixed(s.default_address),
+    );
+    let d = doc(&format!("The {}: serial settings and slave addresses.", one_line(&s.title)));
+    Ok(quote! {
+        #d
+        pub const SENSOR: rtu::SensorInfo = rtu::SensorInfo {
+            name: #name,
+            title: #title,
+            manual: #manual,
+            revision: #revision,
+            baud: #baud,
+            format: rtu::CharFormat {
+                data_bits: rtu::DataBits::#data_bits,
+                parity: rtu::Parity::#parity,
+                stop_bits: rtu::StopBits::#stop_bits,
+            },
+            min_address: #min,
+            max_address: #max,
+            default_address: #default,
+        };
+    })
+}
+
+fn f32_lit(v: f32) -> TokenStream {
+    if v.is_nan() {
+        quote!(f32::NAN)
+    } else if v == f32::INFINITY {
+        quote!(f32::INFINITY)
+    } else if v == f32::NEG_INFINITY {
+        quote!(f32::NEG_INFINITY)
+    } else {
+        let l = Literal::f32_unsuffixed(v);
+        quote!(#l)
+    }
+}
+
+fn f64_lit(v: f64) -> TokenStream {
+    if v.is_nan() {
+        quote!(f64::NAN)
+    } else if v == f64::INFINITY {
+        quote!(f64::INFINITY)
+    } else if v == f64::NEG_INFINITY {
+        quote!(f64::NEG_INFINITY)
+    } else {
+        let l = Literal::f64_unsuffixed(v);
+        quote!(#l)
+    }
+}
+
+fn int_lit(s: &Sensor, c: &Constant, v: f64, max: f64) -> Result<TokenStream, Error> {
+    if v.fract() != 0.0 || v < 0.0 || v > max {
+        return Err(unsupported(s, format!("constant `{}`: {v} does not fit its type", c.name)));
+    }
+    // Checked integral and in range above.
+    let l = Literal::u64_unsuffixed(v as u64);
+    Ok(quote!(#l))
+}
+
+fn constant(s: &Sensor, c: &Constant, name: &str) -> Result<TokenStream, Error> {
+    let name = ident(name);
+    let (ty, values) = match c.ty {
+        ConstantType::F32 => (quote!(f32), c.values.iter().map(|v| f32_lit(*v as f32)).collect::<Vec<_>>()),
+        ConstantType::U8 => {
+            (quote!(u8), c.values.iter().map(|v| int_lit(s, c, *v, 255.0)).collect::<Result<Vec<_>, _>>()?)
+        }
+        ConstantType::U16 => {
+            (quote!(u16), c.values.iter().map(|v| int_lit(s, c, *v, 65535.0)).collect::<Result<Vec<_>, _>>()?)
+        }
+        ConstantType::U32 => (
+            quote!(u32),
+            c.values.iter().map(|v| int_lit(s, c, *v, f64::from(u32::MAX))).collect::<Result<Vec<_>, _>>()?,
+        ),
+    };
+    let mut d = one_line(&c.doc);
+    if let Some(unit) = &c.unit {
+        let _ = write!(d, "\n\nUnit: {}.", one_line(unit));
+    }
+    if let Some(source) = c.source.as_ref().and_then(text::source) {
+        let _ = write!(d, "\n\n{source}");
+    }
+    let d = doc(&d);
+    if c.is_list {
+        let n = Literal::usize_unsuffixed(values.len());
+        Ok(quote! {
+            #d
+            pub const #name: [#ty; #n] = [#(#values),*];
+        })
+    } else {
+        let v = values.first().cloned().unwrap_or_else(|| quote!(0));
+        Ok(quote! {
+            #d
+            pub const #name: #ty = #v;
+        })
+    }
+}
+
+fn enum_raw_ty(repr: EnumRepr) -> TokenStream {
+    match repr {
+        EnumRepr::U8 => quote!(u8),
+        EnumRepr::U16(_) => quote!(u16),
+    }
+}
+
+fn enum_type(s: &Sensor, e: &EnumDef) -> Result<TokenStream, Error> {
+    let ty = ident(&e.ty);
+    let raw_ty = enum_raw_ty(e.repr);
+    let mut variants = Vec::new();
+    let mut from_arms = Vec::new();
+    let mut raw_arms = Vec::new();
+    let mut name_arms = Vec::new();
+    let mut known = Vec::new();
+    for v in &e.variants {
+        let vi = format_ident!("{}", heck::ToUpperCamelCase::to_upper_camel_case(v.name.as_str()));
+        let raw = match e.repr {
+            EnumRepr::U8 => match u8::try_from(v.value) {
+                Ok(b) => hex(u32::from(b), 2),
+                Err(_) => {
+                    return Err(unsupported(s, format!("enum `{}`: code {} does not fit one byte", e.ty, v.value)));
+                }
+            },
+            EnumRepr::U16(_) => hex(u32::from(v.value), 4),
+        };
+        let mut d = v.doc.as_deref().map(one_line).unwrap_or_default();
+        if !d.is_empty() {
+            d.push(' ');
+        }
+        let width = if matches!(e.repr, EnumRepr::U8) { 2 } else { 4 };
+        let _ = write!(d, "Code 0x{:0width$X}.", v.value);
+        let d = doc(&d);
+        let name = lit(&v.name);
+        variants.push(quote!(#d #vi,));
+        from_arms.push(quote!(#raw => Self::#vi,));
+        raw_arms.push(quote!(Self::#vi => #raw,));
+        name_arms.push(quote!(Self::#vi => Some(#name),));
+        known.push(quote!(Self::#vi));
+    }
+    let n = Literal::usize_unsuffixed(known.len());
+    let mut d = e.doc.as_deref().map(one_line).unwrap_or_default();
+    let size = match e.repr {
+        EnumRepr::U8 => "one byte".to_owned(),
+        EnumRepr::U16(order) => format!("two bytes, {}", text::order2(order)),
+    };
+    let _ = write!(
+        d,
+        "\n\nA code of {size} on the wire, used by {}.",
+        e.used_by.iter().map(|u| format!("`{u}`")).collect::<Vec<_>>().join(", ")
+    );
+    d.push_str(" Codes the spec does not name decode to [`Self::Unknown`]; `from_raw` never returns `Unknown` for a named code.");
+    let d = doc(&d);
+    Ok(quote! {
+        #d
+        #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+        pub enum #ty {
+            #(#variants)*
+            /// A code the spec does not name, as received.
+            Unknown(#raw_ty),
+        }
+
+        impl #ty {
+            /// Every named code, in spec order.
+            pub const KNOWN: [Self; #n] = [#(#known),*];
+
+            /// The variant for a wire code.
+            pub const fn from_raw(raw: #raw_ty) -> Self {
+                match raw {
+                    #(#from_arms)*
+                    other => Self::Unknown(other),
+                }
+            }
+
+            /// The wire code.
+            pub const fn raw(self) -> #raw_ty {
+                match self {
+                    #(#raw_arms)*
+                    Self::Unknown(raw) => raw,
+                }
+            }
+
+            /// The spec's snake_case name of the code, `None` for [`Self::Unknown`].
+            pub const fn name(self) -> Option<&'static str> {
+                match self {
+                    #(#name_arms)*
+                    Self::Unknown(_) => None,
+                }
+            }
+        }
+
+        impl ::core::fmt::Display for #ty {
+            fn fmt(&self, f: &mut ::core::fmt::Formatter<'_>) -> ::core::fmt::Result {
+                match self.name() {
+                    Some(name) => write!(f, "{name} ({})", self.raw()),
+                    None => write!(f, "unknown ({})", self.raw()),
+                }
+            }
+        }
+    })
+}
+
+/// Per-field facts for code generation.
+struct FieldGen<'a> {
+    field: &'a Field,
+    name: Ident,
+    ty: TokenStream,
+}
+
+fn field_gens<'a>(names: &Names, ci: usize, c: &'a Command) -> Vec<FieldGen<'a>> {
+    c.fields
+        .iter()
+        .enumerate()
+        .filter_map(|(fi, f)| {
+            let name = ident(f.name.as_deref()?);
+            let ty = match &f.kind {
+                FieldKind::F32 { .. } => quote!(f32),
+                FieldKind::U8 => quote!(u8),
+                FieldKind::I8 => quote!(i8),
+                FieldKind::U16 { .. } => quote!(u16),
+                FieldKind::I16 { .. } => quote!(i16),
+                FieldKind::U32 { .. } => quote!(u32),
+                FieldKind::I32 { .. } => quote!(i32),
+                FieldKind::Ascii { len, .. } => {
+                    let n = Literal::usize_unsuffixed(*len);
+                    quote!(rtu::Ascii<#n>)
+                }
+                FieldKind::Version => quote!(rtu::Version),
+                FieldKind::Enum { .. } => {
+                    let e = names.enum_of.get(&(ci, fi)).and_then(|k| names.enums.get(*k))?;
+                    let e = ident(&e.ty);
+                    quote!(#e)
+                }
+                FieldKind::Reserved { .. } => return None,
+            };
+            Some(FieldGen { field: f, name, ty })
+        })
+        .collect()
+}
+
+fn order4(o: Order4) -> TokenStream {
+    match o {
+        Order4::Abcd => quote!(rtu::ByteOrder4::Abcd),
+        Order4::Dcba => quote!(rtu::ByteOrder4::Dcba),
+        Order4::Cdab => quote!(rtu::ByteOrder4::Cdab),
+        Order4::Badc => quote!(rtu::ByteOrder4::Badc),
+    }
+}
+
+fn order2(o: Order2) -> TokenStream {
+    match o {
+        Order2::Ab => quote!(rtu::ByteOrder2::Ab),
+        Order2::Ba => quote!(rtu::ByteOrder2::Ba),
+    }
+}
+
+/// `[data[3], data[4], data[5], data[6]]`.
+fn data_bytes(offset: usize, len: usize) -> TokenStream {
+    let idx = (offset..offset + len).map(Literal::usize_unsuffixed);
+    quote!([#(data[#idx]),*])
+}
+
+fn decode_expr(g: &FieldGen<'_>) -> TokenStream {
+    let f = g.field;
+    let b = data_bytes(f.offset, f.size());
+    let at = Literal::usize_unsuffixed(f.offset);
+    let ty = &g.ty;
+    match &f.kind {
+        FieldKind::F32 { order } => {
+            let o = order4(*order);
+            quote!(rtu::codec::f32_from_wire(#o, #b))
+        }
+        FieldKind::U8 => quote!(data[#at]),
+        FieldKind::I8 => quote!(i8::from_ne_bytes([data[#at]])),
+        FieldKind::U16 { order } => {
+            let o = order2(*order);
+            quote!(rtu::codec::u16_from_wire(#o, #b))
+        }
+        FieldKind::I16 { order } => {
+            let o = order2(*order);
+            quote!(rtu::codec::u16_from_wire(#o, #b) as i16)
+        }
+        FieldKind::U32 { order } => {
+            let o = order4(*order);
+            quote!(rtu::codec::u32_from_wire(#o, #b))
+        }
+        FieldKind::I32 { order } => {
+            let o = order4(*order);
+            quote!(rtu::codec::u32_from_wire(#o, #b) as i32)
+        }
+        FieldKind::Ascii { padding, .. } => {
+            let p = hex(u32::from(*padding), 2);
+            quote!(rtu::Ascii::from_wire(#b, #p))
+        }
+        FieldKind::Version => quote!(rtu::Version::from_wire(#b)),
+        FieldKind::Enum { repr: EnumRepr::U8, .. } => quote!(#ty::from_raw(data[#at])),
+        FieldKind::Enum { repr: EnumRepr::U16(order), .. } => {
+            let o = order2(*order);
+            quote!(#ty::from_raw(rtu::codec::u16_from_wire(#o, #b)))
+        }
+        FieldKind::Reserved { .. } => quote!(()),
+    }
+}
+
+/// The wire bytes of a field: a statement binding `b<offset>..` (or nothing)
+/// and one expression per byte.
+fn encode_field(g: &FieldGen<'_>) -> (TokenStream, Vec<TokenStream>) {
+    let f = g.field;
+    let name = &g.name;
+    let bytes: Vec<Ident> = (f.offset..f.offset + f.size()).map(|i| format_ident!("b{}", i)).collect();
+    let bind = |expr: TokenStream| -> (TokenStream, Vec<TokenStream>) {
+        (quote!(let [#(#bytes),*] = #expr;), bytes.iter().map(|b| quote!(#b)).collect())
+    };
+    match &f.kind {
+        FieldKind::F32 { order } => {
+            let o = order4(*order);
+            bind(quote!(rtu::codec::f32_to_wire(#o, self.#name)))
+        }
+        FieldKind::U8 => (TokenStream::new(), vec![quote!(self.#name)]),
+        FieldKind::I8 => bind(quote!(self.#name.to_ne_bytes())),
+        FieldKind::U16 { order } => {
+            let o = order2(*order);
+            bind(quote!(rtu::codec::u16_to_wire(#o, self.#name)))
+        }
+        FieldKind::I16 { order } => {
+            let o = order2(*order);
+            bind(quote!(rtu::codec::u16_to_wire(#o, self.#name as u16)))
+        }
+        FieldKind::U32 { order } => {
+            let o = order4(*order);
+            bind(quote!(rtu::codec::u32_to_wire(#o, self.#name)))
+        }
+        FieldKind::I32 { order } => {
+            let o = order4(*order);
+            bind(quote!(rtu::codec::u32_to_wire(#o, self.#name as u32)))
+        }
+        FieldKind::Ascii { .. } | FieldKind::Version => bind(quote!(self.#name.to_wire())),
+        FieldKind::Enum { repr: EnumRepr::U8, .. } => (TokenStream::new(), vec![quote!(self.#name.raw())]),
+        FieldKind::Enum { repr: EnumRepr::U16(order), .. } => {
+            let o = order2(*order);
+            bind(quote!(rtu::codec::u16_to_wire(#o, self.#name.raw())))
+        }
+        FieldKind::Reserved { .. } => (TokenStream::new(), Vec::new()),
+    }
+}
+
+fn field_value(g: &FieldGen<'_>) -> TokenStream {
+    let name = &g.name;
+    match &g.field.kind {
+        FieldKind::F32 { .. } => quote!(rtu::FieldValue::F32(self.#name)),
+        FieldKind::U8
+        | FieldKind::I8
+        | FieldKind::U16 { .. }
+        | FieldKind::I16 { .. }
+        | FieldKind::U32 { .. }
+        | FieldKind::I32 { .. } => quote!(rtu::FieldValue::Int(i64::from(self.#name))),
+        FieldKind::Ascii { .. } => quote!(rtu::FieldValue::Text(self.#name.trimmed())),
+        FieldKind::Version => quote!(rtu::FieldValue::Version(self.#name)),
+        FieldKind::Enum { repr: EnumRepr::U8, .. } => {
+            quote!(rtu::FieldValue::Enum { raw: u16::from(self.#name.raw()), name: self.#name.name() })
+        }
+        FieldKind::Enum { repr: EnumRepr::U16(_), .. } => {
+            quote!(rtu::FieldValue::Enum { raw: self.#name.raw(), name: self.#name.name() })
+        }
+        FieldKind::Reserved { .. } => quote!(rtu::FieldValue::Int(0)),
+    }
+}
+
+/// The range check of a write field, if it has a range.
+fn range_check(g: &FieldGen<'_>) -> Option<TokenStream> {
+    let (min, max) = g.field.range?;
+    let name = &g.name;
+    let spec_name = lit(g.field.display_name());
+    let err = quote!(return Err(rtu::EncodeError::OutOfRange { field: #spec_name }););
+    let int_bounds = |lo: f64, hi: f64| -> Option<(i64, i64)> {
+        let (a, b) = (min.ceil().max(lo), max.floor().min(hi));
+        (min.is_finite() && max.is_finite() && a <= b).then_some((a as i64, b as i64))
+    };
+    let int_check = |lo: i64, hi: i64, type_lo: i64, type_hi: i64| -> Option<TokenStream> {
+        if lo <= type_lo && hi >= type_hi {
+            return None;
+        }
+        let (lo, hi) = (Literal::i64_unsuffixed(lo), Literal::i64_unsuffixed(hi));
+        Some(quote! {
+            if !(#lo..=#hi).contains(&self.#name) {
+                #err
+            }
+        })
+    };
+    let float_check = || {
+        let (lo, hi) = (f64_lit(min), f64_lit(max));
+        quote! {
+            if !(#lo..=#hi).contains(&f64::from(self.#name)) {
+                #err
+            }
+        }
+    };
+    let (type_lo, type_hi): (i64, i64) = match &g.field.kind {
+        FieldKind::F32 { .. } => {
+            let (lo, hi) = (f64_lit(min), f64_lit(max));
+            // NaN is not range-checked (the reference interpreter agrees): it is how
+            // a logger writes "no value".
+            return Some(quote! {
+                if !self.#name.is_nan() && !(#lo..=#hi).contains(&f64::from(self.#name)) {
+                    #err
+                }
+            });
+        }
+        FieldKind::U8 => (0, 255),
+        FieldKind::I8 => (-128, 127),
+        FieldKind::U16 { .. } => (0, 65535),
+        FieldKind::I16 { .. } => (-32768, 32767),
+        FieldKind::U32 { .. } => (0, i64::from(u32::MAX)),
+        FieldKind::I32 { .. } => (i64::from(i32::MIN), i64::from(i32::MAX)),
+        _ => return None,
+    };
+    match int_bounds(type_lo as f64, type_hi as f64) {
+        Some((lo, hi)) if min.fract() == 0.0 && max.fract() == 0.0 => int_check(lo, hi, type_lo, type_hi),
+        _ => Some(float_check()),
+    }
+}
+
+fn field_doc(g: &FieldGen<'_>) -> TokenStream {
+    let f = g.field;
+    let mut d = f.doc.as_deref().map(one_line).unwrap_or_default();
+    if let Some(unit) = &f.unit {
+        if !d.is_empty() {
+            d.push(' ');
+        }
+        let _ = write!(d, "Unit: {}.", one_line(unit));
+    }
+    let _ = write!(d, "\n\nWire: {}.", text::encoding(f));
+    if let Some((min, max)) = f.range {
+        let _ = write!(d, " Valid range {min}..={max}; encoding refuses other values.");
+    }
+    doc(&d)
+}
+
+/// FIELDS, fields(), DATA_LEN, from_data, to_data (and validate for writes) of one message type.
+/// Whether a message type gets `validate()`: write requests always, read
+/// replies when a field has a range (a range applies wherever the field is
+/// encoded, as in the reference interpreter).
+fn has_validate(gens: &[FieldGen<'_>], write_request: bool) -> bool {
+    write_request || gens.iter().any(|g| g.field.range.is_some())
+}
+
+fn message_impl(ty: &Ident, gens: &[FieldGen<'_>], c: &Command, with_data: bool, write_request: bool) -> TokenStream {
+    let validated = with_data && has_validate(gens, write_request);
+    let n = Literal::usize_unsuffixed(gens.len());
+    let infos = gens.iter().map(|g| {
+        let name = lit(g.field.display_name());
+        let unit = opt_lit(g.field.unit.as_deref());
+        quote!(rtu::FieldInfo { name: #name, unit: #unit })
+    });
+    let values = gens.iter().map(field_value);
+    let mut items = quote! {
+        /// Name and unit of each field, in wire order.
+        pub const FIELDS: [rtu::FieldInfo; #n] = [#(#infos),*];
+
+        /// Each field's value, in the order of [`Self::FIELDS`].
+        pub fn fields(&self) -> [rtu::FieldValue<'_>; #n] {
+            [#(#values),*]
+        }
+    };
+    if with_data {
+        let len = 2 * usize::from(c.count);
+        let len_lit = Literal::usize_unsuffixed(len);
+        let is_unit = gens.is_empty();
+        let from = if is_unit {
+            quote! {
+                /// Decodes register data (nothing in it is kept).
+                pub const fn from_data(_data: &[u8; #len_lit]) -> Self {
+                    Self
+                }
+            }
+        } else {
+            let inits = gens.iter().map(|g| {
+                let name = &g.name;
+                let e = decode_expr(g);
+                quote!(#name: #e)
+            });
+            quote! {
+                /// Decodes register data; reserved bytes are ignored.
+                pub const fn from_data(data: &[u8; #len_lit]) -> Self {
+                    Self { #(#inits),* }
+                }
+            }
+        };
+        // Every byte: a field's byte, a reserved byte's fill, or 0 for gaps.
+        let mut slots: Vec<TokenStream> = (0..len).map(|_| quote!(0x00)).collect();
+        for f in &c.fields {
+            if let FieldKind::Reserved { len: rl, fill } = f.kind {
+                for slot in slots.iter_mut().skip(f.offset).take(rl) {
+                    *slot = hex(u32::from(fill), 2);
+                }
+            }
+        }
+        let mut binds = Vec::new();
+        for g in gens {
+            let (bind, bytes) = encode_field(g);
+            binds.push(bind);
+            for (slot, b) in slots.iter_mut().skip(g.field.offset).zip(bytes) {
+                *slot = b;
+            }
+        }
+        let to_doc = if validated {
+            quote!(
+                /// Encodes register data, reserved bytes with their fill. Does not
+                /// check ranges: see [`Self::validate`].
+            )
+        } else {
+            quote!(
+                /// Encodes register data, reserved bytes with their fill.
+            )
+        };
+        items.extend(quote! {
+            /// Bytes of register data: two per register.
+            pub const DATA_LEN: usize = #len_lit;
+
+            #from
+
+            #to_doc
+            pub const fn to_data(&self) -> [u8; #len_lit] {
+                #(#binds)*
+                [#(#slots),*]
+            }
+        });
+    }
+    if validated {
+        let checks: Vec<TokenStream> = gens.iter().filter_map(range_check).collect();
+        let body = if checks.is_empty() {
+            quote!(Ok(()))
+        } else {
+            quote! {
+                #(#checks)*
+                Ok(())
+            }
+        };
+        items.extend(quote! {
+            /// Checks every field against the range the spec allows
+            /// ([`rtu::EncodeError::OutOfRange`] names the first that is not).
+            pub fn validate(&self) -> Result<(), rtu::EncodeError> {
+                #body
+            }
+        });
+    }
+    quote! {
+        impl #ty {
+            #items
+        }
+    }
+}
+
+fn struct_def(ty: &Ident, gens: &[FieldGen<'_>], docs: TokenStream) -> TokenStream {
+    if gens.is_empty() {
+        return quote! {
+            #docs
+            #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
+            pub struct #ty;
+        };
+    }
+    let has_float = gens.iter().any(|g| matches!(g.field.kind, FieldKind::F32 { .. }));
+    let derives = if has_float {
+        quote!(#[derive(Debug, Clone, Copy, PartialEq)])
+    } else {
+        quote!(#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)])
+    };
+    let members = gens.iter().map(|g| {
+        let d = field_doc(g);
+        let name = &g.name;
+        let ty = &g.ty;
+        quote!(#d pub #name: #ty)
+    });
+    quote! {
+        #docs
+        #derives
+        pub struct #ty {
+            #(#members),*
+        }
+    }
+}
+
+fn command_doc(c: &Command) -> String {
+    let mut d = format!("{}.\n\n", one_line(&c.title).trim_end_matches('.'));
+    d.push_str(text::clean(&c.doc).trim_end());
+    d.push_str("\n\n");
+    if let Some(source) = text::source(&c.source) {
+        let _ = write!(d, "{source} ");
+    }
+    let registers = if c.count == 1 { "register" } else { "registers" };
+    match c.function {
+        Function::Read => {
+            let _ = write!(d, "Reads (function 0x03) {} {registers} at 0x{:04X}.", c.count, c.address);
+        }
+        Function::Write => {
+            let _ = write!(d, "Writes (function 0x10) {} {registers} at 0x{:04X}.", c.count, c.address);
+        }
+    }
+    if c.trigger {
+        d.push_str(" A trigger: the write carries no data (byte count 0).");
+    }
+    if let Some(slave) = c.fixed_slave {
+        let _ = write!(
+            d,
+            " Always sent to slave 0x{slave:02X}, and the reply comes from 0x{slave:02X}, whatever the probe's address."
+        );
+    }
+    if !c.extra_byte_counts.is_empty() {
+        let counts: Vec<String> = c.extra_byte_counts.iter().map(|b| format!("0x{b:02X}")).collect();
+        let _ = write!(
+            d,
+            " The reply is framed by its length; besides 0x{:02X} its byte count may be {} (see the example's erratum).",
+            2 * usize::from(c.count),
+            counts.join(" or ")
+        );
+    }
+    if let Some(from) = &c.shared_from {
+        let _ = write!(d, " Shared by every Yosemitech probe (`{}`).", one_line(from));
+    }
+    d.push('\n');
+    let names: Vec<&str> = c.fields.iter().filter_map(|f| f.name.as_deref()).collect();
+    for ex in &c.examples {
+        d.push('\n');
+        d.push_str(&text::example(ex, &names));
+    }
+    let errata: Vec<String> = c
+        .errata
+        .iter()
+        .map(|e| {
+            let mut table = Vec::new();
+            if let Some(a) = e.table_address {
+                table.push(format!("address 0x{a:04X}"));
+            }
+            if let Some(n) = e.table_count {
+                table.push(format!("count {n}"));
+            }
+            if let Some(f) = e.table_function {
+                table.push(format!("function 0x{:02X}", f.code()));
+            }
+            format!(
+                "- **{}** (figure {}): the table gives {}. {}",
+                one_line(&e.id),
+                e.figure,
+                table.join(", "),
+                one_line(&e.note)
+            )
+        })
+        .collect();
+    if !errata.is_empty() {
+        d.push_str("\n# Errata\n\n");
+        for e in errata {
+            d.push_str(&e);
+            d.push('\n');
+        }
+    }
+    d
+}
+
+fn layout_expr(c: &Command) -> TokenStream {
+    let function = match c.function {
+        Function::Read => quote!(rtu::Function::Read),
+        Function::Write => quote!(rtu::Function::Write),
+    };
+    let address = hex(u32::from(c.address), 4);
+    let count = Literal::u16_unsuffixed(c.count);
+    let fixed = match c.fixed_slave {
+        Some(s) => {
+            let s = hex(u32::from(s), 2);
+            quote!(Some(#s))
+        }
+        None => quote!(None),
+    };
+    let extra = c.extra_byte_counts.iter().map(|b| hex(u32::from(*b), 2));
+    quote! {
+        rtu::Layout {
+            function: #function,
+            address: #address,
+            count: #count,
+            fixed_slave: #fixed,
+            extra_byte_counts: &[#(#extra),*],
+        }
+    }
+}
+
+fn command(names: &Names, ci: usize, c: &Command) -> TokenStream {
+    let n = &names.commands[ci];
+    let ty = ident(&n.ty);
+    let gens = field_gens(names, ci, c);
+    let name = lit(&c.name);
+    let layout = layout_expr(c);
+    let len = 2 * usize::from(c.count);
+    let len_lit = Literal::usize_unsuffixed(len);
+    let docs = doc(&command_doc(c));
+    let mut out = TokenStream::new();
+    match c.function {
+        Function::Read => {
+            let resp = ident(&n.response);
+            let resp_docs = doc(&format!(
+                "Reply to [`{}`]. {}",
+                n.ty,
+                one_line(&c.doc).split(". ").next().unwrap_or_default().trim_end_matches('.').to_owned() + "."
+            ));
+            out.extend(struct_def(&ty, &[], docs));
+            out.extend(message_impl(&ty, &[], c, false, false));
+            let validate_response =
+                if has_validate(&gens, false) { quote!(response.validate()?;) } else { TokenStream::new() };
+            out.extend(struct_def(&resp, &gens, resp_docs));
+            out.extend(message_impl(&resp, &gens, c, true, false));
+            out.extend(quote! {
+                impl rtu::Command for #ty {
+                    type Response = #resp;
+                    const NAME: &'static str = #name;
+                    const LAYOUT: rtu::Layout<'static> = #layout;
+
+                    fn encode_request(&self, slave: u8, out: &mut [u8]) -> Result<usize, rtu::EncodeError> {
+                        Self::LAYOUT.encode_request(slave, &[], out)
+                    }
+
+                    fn decode_request(frame: &[u8]) -> Result<(u8, Self), rtu::FrameError> {
+                        let (slave, _) = Self::LAYOUT.decode_request(frame)?;
+                        Ok((slave, Self))
+                    }
+
+                    fn encode_response(response: &#resp, slave: u8, out: &mut [u8]) -> Result<usize, rtu::EncodeError> {
+                        #validate_response
+                        Self::LAYOUT.encode_response(slave, &response.to_data(), out)
+                    }
+
+                    fn decode_response(slave: u8, frame: &[u8]) -> Result<#resp, rtu::FrameError> {
+                        let data = Self::LAYOUT.decode_response(slave, frame)?;
+                        let data = <&[u8; #len_lit]>::try_from(data)
+                            .map_err(|_| rtu::FrameError::Truncated { expected: Self::RESPONSE_LEN, actual: frame.len() })?;
+                        Ok(#resp::from_data(data))
+                    }
+                }
+            });
+        }
+        Function::Write => {
+            out.extend(struct_def(&ty, &gens, docs));
+            out.extend(message_impl(&ty, &gens, c, true, true));
+            let (encode_data, decode) = if len == 0 {
+                (
+                    quote!(&[]),
+                    quote! {
+                        let (slave, _) = Self::LAYOUT.decode_request(frame)?;
+                        Ok((slave, Self))
+                    },
+                )
+            } else {
+                (
+                    quote!(&self.to_data()),
+                    quote! {
+                        let (slave, data) = Self::LAYOUT.decode_request(frame)?;
+                        let data = <&[u8; #len_lit]>::try_from(data)
+                            .map_err(|_| rtu::FrameError::Truncated { expected: Self::REQUEST_LEN, actual: frame.len() })?;
+                        Ok((slave, Self::from_data(data)))
+                    },
+                )
+            };
+            out.extend(quote! {
+                impl rtu::Command for #ty {
+                    type Response = ();
+                    const NAME: &'static str = #name;
+                    const LAYOUT: rtu::Layout<'static> = #layout;
+
+                    fn encode_request(&self, slave: u8, out: &mut [u8]) -> Result<usize, rtu::EncodeError> {
+                        self.validate()?;
+                        Self::LAYOUT.encode_request(slave, #encode_data, out)
+                    }
+
+                    fn decode_request(frame: &[u8]) -> Result<(u8, Self), rtu::FrameError> {
+                        #decode
+                    }
+
+                    fn encode_response(_response: &(), slave: u8, out: &mut [u8]) -> Result<usize, rtu::EncodeError> {
+                        Self::LAYOUT.encode_response(slave, &[], out)
+                    }
+
+                    fn decode_response(slave: u8, frame: &[u8]) -> Result<(), rtu::FrameError> {
+                        Self::LAYOUT.decode_response(slave, frame)?;
+                        Ok(())
+                    }
+                }
+            });
+        }
+    }
+    out
+}
+
+fn dispatch(s: &Sensor, names: &Names) -> TokenStream {
+    let n = Literal::usize_unsuffixed(s.commands.len());
+    let variants: Vec<Ident> = names.commands.iter().map(|c| ident(&c.ty)).collect();
+    let spec_names: Vec<Literal> = s.commands.iter().map(|c| lit(&c.name)).collect();
+    let titles: Vec<Literal> = s.commands.iter().map(|c| lit(&one_line(&c.title))).collect();
+    let id_docs: Vec<TokenStream> =
+        s.commands.iter().zip(&variants).map(|(c, v)| doc(&format!("`{}`: [`{v}`].", c.name))).collect();
+
+    let mut response_variants = Vec::new();
+    let mut response_fields = Vec::new();
+    let mut decode_response_arms = Vec::new();
+    let mut response_command_arms = Vec::new();
+    let mut response_encode_arms = Vec::new();
+    let mut response_field_arms = Vec::new();
+    let mut froms = Vec::new();
+    for (c, v) in s.commands.iter().zip(&variants) {
+        let d = doc(&format!("The reply to [`{v}`]."));
+        if c.is_read() {
+            let resp = format_ident!("{}Response", v);
+            response_variants.push(quote!(#d #v(#resp)));
+            response_fields.push(quote!(Self::#v => &#resp::FIELDS));
+            decode_response_arms
+                .push(quote!(Self::#v => <#v as rtu::Command>::decode_response(slave, frame).map(Response::#v)));
+            response_command_arms.push(quote!(Self::#v(_) => CommandId::#v));
+            response_encode_arms.push(quote!(Self::#v(r) => <#v as rtu::Command>::encode_response(r, slave, out)));
+            response_field_arms.push(quote!(Self::#v(r) => r.fields().get(index).copied()));
+            froms.push(quote! {
+                impl From<#resp> for Response {
+                    fn from(response: #resp) -> Self {
+                        Self::#v(response)
+                    }
+                }
+            });
+        } else {
+            response_variants.push(quote!(#d #v));
+            response_fields.push(quote!(Self::#v => &[]));
+            decode_response_arms
+                .push(quote!(Self::#v => <#v as rtu::Command>::decode_response(slave, frame).map(|()| Response::#v)));
+            response_command_arms.push(quote!(Self::#v => CommandId::#v));
+            response_encode_arms.push(quote!(Self::#v => <#v as rtu::Command>::encode_response(&(), slave, out)));
+            response_field_arms.push(quote!(Self::#v => None));
+        }
+        froms.push(quote! {
+            impl From<#v> for Request {
+                fn from(request: #v) -> Self {
+                    Self::#v(request)
+                }
+            }
+        });
+    }
+    let request_variants = variants.iter().map(|v| {
+        let d = doc(&format!("A [`{v}`] request."));
+        quote!(#d #v(#v))
+    });
+
+    quote! {
+        /// Every command of this sensor, for code that picks commands at run
+        /// time (CLIs, simulators, tests).
+        #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+        pub enum CommandId {
+            #(#id_docs #variants,)*
+        }
+
+        impl CommandId {
+            /// Every command, in spec order.
+            pub const ALL: [Self; #n] = [#(Self::#variants),*];
+
+            /// The command's snake_case name in the spec.
+            pub const fn name(self) -> &'static str {
+                match self {
+                    #(Self::#variants => #spec_names,)*
+                }
+            }
+
+            /// The command called `name` in the spec.
+            pub fn from_name(name: &str) -> Option<Self> {
+                match name {
+                    #(#spec_names => Some(Self::#variants),)*
+                    _ => None,
+                }
+            }
+
+            /// The command's title in the manual.
+            pub const fn title(self) -> &'static str {
+                match self {
+                    #(Self::#variants => #titles,)*
+                }
+            }
+
+            /// Function, start address, register count and addressing quirks.
+            pub const fn layout(self) -> rtu::Layout<'static> {
+                match self {
+                    #(Self::#variants => <#variants as rtu::Command>::LAYOUT,)*
+                }
+            }
+
+            /// Name and unit of each field of the request (empty for reads).
+            pub const fn request_fields(self) -> &'static [rtu::FieldInfo] {
+                match self {
+                    #(Self::#variants => &#variants::FIELDS,)*
+                }
+            }
+
+            /// Name and unit of each field of the reply (empty for writes).
+            pub const fn response_fields(self) -> &'static [rtu::FieldInfo] {
+                match self {
+                    #(#response_fields,)*
+                }
+            }
+
+            /// Checks a request frame for this command and decodes it.
+            pub fn decode_request(self, frame: &[u8]) -> Result<(u8, Request), rtu::FrameError> {
+                match self {
+                    #(Self::#variants => {
+                        <#variants as rtu::Command>::decode_request(frame).map(|(slave, r)| (slave, Request::#variants(r)))
+                    })*
+                }
+            }
+
+            /// Checks a reply to this command, sent to `slave`, and decodes it.
+            pub fn decode_response(self, slave: u8, frame: &[u8]) -> Result<Response, rtu::FrameError> {
+                match self {
+                    #(#decode_response_arms,)*
+                }
+            }
+        }
+
+        impl ::core::fmt::Display for CommandId {
+            fn fmt(&self, f: &mut ::core::fmt::Formatter<'_>) -> ::core::fmt::Result {
+                f.write_str(self.name())
+            }
+        }
+
+        /// A request of any command of this sensor.
+        #[derive(Debug, Clone, Copy, PartialEq)]
+        pub enum Request {
+            #(#request_variants,)*
+        }
+
+        impl Request {
+            /// Which command this is.
+            pub const fn command(&self) -> CommandId {
+                match self {
+                    #(Self::#variants(_) => CommandId::#variants,)*
+                }
+            }
+
+            /// Writes the request frame for `slave` into `out` and returns its length.
+            pub fn encode(&self, slave: u8, out: &mut [u8]) -> Result<usize, rtu::EncodeError> {
+                match self {
+                    #(Self::#variants(r) => rtu::Command::encode_request(r, slave, out),)*
+                }
+            }
+
+            /// The value of field `index` of [`CommandId::request_fields`].
+            pub fn field(&self, index: usize) -> Option<rtu::FieldValue<'_>> {
+                match self {
+                    #(Self::#variants(r) => r.fields().get(index).copied(),)*
+                }
+            }
+
+            /// Every field with its name and unit, in wire order.
+            pub fn fields(&self) -> impl Iterator<Item = (rtu::FieldInfo, rtu::FieldValue<'_>)> + '_ {
+                self.command().request_fields().iter().enumerate().filter_map(|(i, info)| Some((*info, self.field(i)?)))
+            }
+        }
+
+        /// A reply to any command of this sensor (writes reply with no data).
+        #[derive(Debug, Clone, Copy, PartialEq)]
+        pub enum Response {
+            #(#response_variants,)*
+        }
+
+        impl Response {
+            /// Which command this answers.
+            pub const fn command(&self) -> CommandId {
+                match self {
+                    #(#response_command_arms,)*
+                }
+            }
+
+            /// Writes this reply from `slave` into `out` and returns its length.
+            pub fn encode(&self, slave: u8, out: &mut [u8]) -> Result<usize, rtu::EncodeError> {
+                match self {
+                    #(#response_encode_arms,)*
+                }
+            }
+
+            /// The value of field `index` of [`CommandId::response_fields`].
+            pub fn field(&self, index: usize) -> Option<rtu::FieldValue<'_>> {
+                match self {
+                    #(#response_field_arms,)*
+                }
+            }
+
+            /// Every field with its name and unit, in wire order.
+            pub fn fields(&self) -> impl Iterator<Item = (rtu::FieldInfo, rtu::FieldValue<'_>)> + '_ {
+                self.command().response_fields().iter().enumerate().filter_map(|(i, info)| Some((*info, self.field(i)?)))
+            }
+        }
+
+        #(#froms)*
+
+        /// Checks a reply to command `id`, sent to `slave`, and decodes it.
+        pub fn decode_response(id: CommandId, slave: u8, frame: &[u8]) -> Result<Response, rtu::FrameError> {
+            id.decode_response(slave, frame)
+        }
+
+        /// The command a request frame is for, by its function, start address
+        /// and register count (the first in spec order if several match). Does
+        /// not check the frame: decode it with [`CommandId::decode_request`].
+        pub fn identify_request(frame: &[u8]) -> Option<CommandId> {
+            let [_, function, address_hi, address_lo, count_hi, count_lo] = *frame.first_chunk::<6>()?;
+            let address = u16::from_be_bytes([address_hi, address_lo]);
+            let count = u16::from_be_bytes([count_hi, count_lo]);
+            CommandId::ALL.into_iter().find(|id| {
+                let layout = id.layout();
+                layout.function.code() == function && layout.address == address && layout.count == count
+            })
+        }
+    }
+}
+
+const RANGE_NOTE: &str = " Values outside the spec's range are refused before sending.";
+
+fn device(s: &Sensor, names: &Names, o: &Options) -> TokenStream {
+    let cfg = match &o.std_feature {
+        Some(feature) => quote!(#[cfg(feature = #feature)]),
+        None => TokenStream::new(),
+    };
+    let mut methods = Vec::new();
+    for (ci, c) in s.commands.iter().enumerate() {
+        let n = &names.commands[ci];
+        let ty = ident(&n.ty);
+        let method = ident(&n.method);
+        let gens = field_gens(names, ci, c);
+        let title = one_line(&c.title);
+        let title = title.trim_end_matches('.');
+        match c.function {
+            Function::Read => {
+                let resp = ident(&n.response);
+                if let [only] = gens.as_slice() {
+                    let field = &only.name;
+                    let fty = &only.ty;
+                    let unit = only.field.unit.as_deref().map(|u| format!(" ({})", one_line(u))).unwrap_or_default();
+                    let d = doc(&format!(
+                        "{title}: sends [`{}`] and returns its `{}`{unit}.",
+                        n.ty,
+                        only.field.display_name()
+                    ));
+                    methods.push(quote! {
+                        #d
+                        pub fn #method(&mut self) -> Result<#fty, rtu::Error> {
+                            self.call(&#ty).map(|reply| reply.#field)
+                        }
+                    });
+                } else {
+                    let d = doc(&format!("{title}: sends [`{}`] and returns the reply.", n.ty));
+                    methods.push(quote! {
+                        #d
+                        pub fn #method(&mut self) -> Result<#resp, rtu::Error> {
+                            self.call(&#ty)
+                        }
+                    });
+                }
+            }
+            Function::Write => match gens.as_slice() {
+                [] => {
+                    let d = doc(&format!("{title}: sends [`{}`].", n.ty));
+                    methods.push(quote! {
+                        #d
+                        pub fn #method(&mut self) -> Result<(), rtu::Error> {
+                            self.call(&#ty)
+                        }
+                    });
+                }
+                [only] => {
+                    let field = &only.name;
+                    let fty = &only.ty;
+                    let d = doc(&format!(
+                        "{title}: sends [`{}`] with `{}`.{}",
+                        n.ty,
+                        only.field.display_name(),
+                        if only.field.range.is_some() { RANGE_NOTE } else { "" }
+                    ));
+                    methods.push(quote! {
+                        #d
+                        pub fn #method(&mut self, #field: #fty) -> Result<(), rtu::Error> {
+                            self.call(&#ty { #field })
+                        }
+                    });
+                }
+                _ => {
+                    let ranged = gens.iter().any(|g| g.field.range.is_some());
+                    let d = doc(&format!(
+                        "{title}: sends `request` ([`{}`]).{}",
+                        n.ty,
+                        if ranged { RANGE_NOTE } else { "" }
+                    ));
+                    methods.push(quote! {
+                        #d
+                        pub fn #method(&mut self, request: #ty) -> Result<(), rtu::Error> {
+                            self.call(&request)
+                        }
+                    });
+                }
+            },
+        }
+    }
+    let title = one_line(&s.title);
+    let d = doc(&format!(
+        "One {title} on a bus: a borrowed [`rtu::Client`] and the probe's slave address, with one method per command.\n\n\
+         Reads are named after the command without its `get_` prefix and return the reply, or its only field; writes \
+         keep the command's name and take the field (one field) or the request (several). Commands with a fixed slave \
+         address (`get_slave_id`: 0xFF) use it instead of the device's."
+    ));
+    quote! {
+        #cfg
+        #d
+        pub struct Device<'c, T> {
+            client: &'c mut rtu::Client<T>,
+            address: u8,
+        }
+
+        #cfg
+        // `rtu::Error` carries the received bytes inline (see its docs).
+        #[allow(clippy::result_large_err)]
+        impl<'c, T: rtu::Transport> Device<'c, T> {
+            /// The probe at `address` on `client`'s bus.
+            pub fn new(client: &'c mut rtu::Client<T>, address: u8) -> Self {
+                Self { client, address }
+            }
+
+            /// The probe's slave address.
+            pub fn address(&self) -> u8 {
+                self.address
+            }
+
+            /// The client, for requests to other devices on the bus.
+            pub fn client(&mut self) -> &mut rtu::Client<T> {
+                self.client
+            }
+
+            /// Sends any command to this probe (or to the command's fixed
+            /// slave address) and returns the decoded reply.
+            pub fn call<C: rtu::Command>(&mut self, command: &C) -> Result<C::Response, rtu::Error> {
+                let slave = match C::LAYOUT.fixed_slave {
+                    Some(fixed) => fixed,
+                    None => self.address,
+                };
+                self.client.call(slave, command)
+            }
+
+            #(#methods)*
+        }
+    }
+}

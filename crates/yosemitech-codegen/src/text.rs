@@ -1,0 +1,193 @@
+//! Spec text into documentation and literals.
+//!
+//! Spec text reaches generated code only as string literals built by
+//! `proc_macro2` (`#[doc = "..."]` attributes and `&str` constants), never
+//! pasted into source, so `*/`, `"#]`, backticks or quotes in a spec cannot
+//! change the code.
+
+use std::fmt::Write as _;
+
+use proc_macro2::{Literal, TokenStream};
+use quote::quote;
+use yosemitech_spec::{Example, Field, FieldKind, Order2, Order4, Source, Value};
+
+/// `#[doc = " line"]` for each line of `text` (control characters replaced,
+/// since a bare CR is not allowed in a doc comment).
+pub fn doc(text: &str) -> TokenStream {
+    let mut out = TokenStream::new();
+    for line in clean(text).lines() {
+        let line = line.trim_end();
+        let line = if line.is_empty() { String::new() } else { format!(" {line}") };
+        out.extend(quote!(#[doc = #line]));
+    }
+    out
+}
+
+/// `text` with control characters other than newlines replaced by spaces.
+pub fn clean(text: &str) -> String {
+    text.replace("\r\n", "\n").chars().map(|c| if c.is_control() && c != '\n' { ' ' } else { c }).collect()
+}
+
+/// One line of text: newlines and control characters become spaces.
+pub fn one_line(text: &str) -> String {
+    clean(text).split_whitespace().collect::<Vec<_>>().join(" ")
+}
+
+/// A string literal.
+pub fn lit(text: &str) -> Literal {
+    Literal::string(text)
+}
+
+/// `Some("text")` or `None`.
+pub fn opt_lit(text: Option<&str>) -> TokenStream {
+    match text {
+        Some(t) => {
+            let t = lit(t);
+            quote!(Some(#t))
+        }
+        None => quote!(None),
+    }
+}
+
+/// An integer literal in hex with the given digits: `0x2800`.
+pub fn hex(value: u32, digits: usize) -> TokenStream {
+    let text = format!("0x{value:0digits$X}");
+    match syn::parse_str::<syn::LitInt>(&text) {
+        Ok(lit) => quote!(#lit),
+        Err(_) => {
+            let lit = Literal::u32_unsuffixed(value);
+            quote!(#lit)
+        }
+    }
+}
+
+/// "Manual section 2.2.3, figures 22, 23, 24, 25."
+pub fn source(source: &Source) -> Option<String> {
+    if source.section.is_empty() && source.figures.is_empty() {
+        return None;
+    }
+    let mut s = String::from("Manual");
+    if !source.section.is_empty() {
+        let _ = write!(s, " section {}", one_line(&source.section));
+    }
+    if !source.figures.is_empty() {
+        let word = if source.figures.len() == 1 { "figure" } else { "figures" };
+        let sep = if source.section.is_empty() { " " } else { ", " };
+        let _ = write!(s, "{sep}{word} {}", join(&source.figures));
+    }
+    s.push('.');
+    Some(s)
+}
+
+/// `22, 23, 24`.
+pub fn join<T: ToString>(items: &[T]) -> String {
+    items.iter().map(ToString::to_string).collect::<Vec<_>>().join(", ")
+}
+
+/// Bytes as `01 03 28 00`.
+pub fn hex_bytes(bytes: &[u8]) -> String {
+    bytes.iter().map(|b| format!("{b:02X}")).collect::<Vec<_>>().join(" ")
+}
+
+/// How a field sits on the wire: "`f32`, little-endian image (`dcba`), data bytes 0..4".
+pub fn encoding(field: &Field) -> String {
+    let end = field.offset + field.size();
+    let what = match &field.kind {
+        FieldKind::F32 { order } => format!("`f32`, {}", order4(*order)),
+        FieldKind::U8 => "`u8`".to_owned(),
+        FieldKind::I8 => "`i8`".to_owned(),
+        FieldKind::U16 { order } => format!("`u16`, {}", order2(*order)),
+        FieldKind::I16 { order } => format!("`i16`, {}", order2(*order)),
+        FieldKind::U32 { order } => format!("`u32`, {}", order4(*order)),
+        FieldKind::I32 { order } => format!("`i32`, {}", order4(*order)),
+        FieldKind::Ascii { len, padding } => format!("{len} ASCII bytes padded with 0x{padding:02X}"),
+        FieldKind::Version => "major byte, minor byte".to_owned(),
+        FieldKind::Enum { repr: yosemitech_spec::EnumRepr::U8, .. } => "one-byte code".to_owned(),
+        FieldKind::Enum { repr: yosemitech_spec::EnumRepr::U16(order), .. } => {
+            format!("two-byte code, {}", order2(*order))
+        }
+        FieldKind::Reserved { len, fill } => format!("{len} reserved bytes, sent as 0x{fill:02X}"),
+    };
+    if field.size() == 1 {
+        format!("{what}, data byte {}", field.offset)
+    } else {
+        format!("{what}, data bytes {}..{end}", field.offset)
+    }
+}
+
+/// Name of a 4-byte order.
+pub fn order4(order: Order4) -> &'static str {
+    match order {
+        Order4::Abcd => "big-endian (`abcd`)",
+        Order4::Dcba => "little-endian image (`dcba`)",
+        Order4::Cdab => "word-swapped (`cdab`)",
+        Order4::Badc => "byte-swapped (`badc`)",
+    }
+}
+
+/// Name of a 2-byte order.
+pub fn order2(order: Order2) -> &'static str {
+    match order {
+        Order2::Ab => "big-endian (`ab`)",
+        Order2::Ba => "little-endian (`ba`)",
+    }
+}
+
+/// A stated value as the manual gives it.
+pub fn value(v: &Value) -> String {
+    match v {
+        Value::Float(f) => format!("{f}"),
+        Value::Int(i) => format!("{i}"),
+        Value::Text(t) => format!("{:?}", one_line(t)),
+        Value::Version(v) => format!("{v}"),
+        Value::Enum { name: Some(name), .. } => name.clone(),
+        Value::Enum { raw, name: None } => format!("{raw}"),
+    }
+}
+
+/// An example as a `text` block plus remarks, in Markdown.
+pub fn example(ex: &Example, field_order: &[&str]) -> String {
+    let mut s = String::new();
+    let figures = if ex.figures.is_empty() { String::new() } else { format!(" (figures {})", join(&ex.figures)) };
+    let _ = writeln!(s, "Example{figures}:");
+    s.push('\n');
+    s.push_str("```text\n");
+    let _ = writeln!(s, "request:  {}", hex_bytes(&ex.request));
+    let _ = writeln!(s, "response: {}", hex_bytes(&ex.response));
+    if let Some(err) = &ex.erratum {
+        if let Some(r) = &err.corrected_request {
+            let _ = writeln!(s, "true request:  {}", hex_bytes(r));
+        }
+        if let Some(r) = &err.corrected_response {
+            let _ = writeln!(s, "true response: {}", hex_bytes(r));
+        }
+    }
+    let mut values: Vec<String> = Vec::new();
+    for name in field_order {
+        if let Some(v) = ex.values.get(*name) {
+            values.push(format!("{name} = {}", value(v)));
+        }
+    }
+    if !values.is_empty() {
+        let _ = writeln!(s, "values:   {}", values.join(", "));
+    }
+    s.push_str("```\n");
+    if let Some(doc) = &ex.doc {
+        let _ = writeln!(s, "\n{}", clean(doc).trim_end());
+    }
+    if let Some(err) = &ex.erratum {
+        let verdict = if err.printed_decodes {
+            "the printed frame decodes (the decoder accepts it on purpose)"
+        } else {
+            "the printed frame is rejected"
+        };
+        let _ = writeln!(
+            s,
+            "\nErratum {} (figure {}): {} Here {verdict}.",
+            one_line(&err.id),
+            err.figure,
+            one_line(&err.printed)
+        );
+    }
+    s
+}
