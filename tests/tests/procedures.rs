@@ -69,7 +69,7 @@ fn flagged_readings_are_discarded_and_replaced() {
         if request.get(1) == Some(&0x03) && request.get(2) == Some(&0x26) {
             reads += 1;
             // Every third reading has a range-switch error and an absurd value.
-            let flagged = reads % 3 == 0;
+            let flagged = reads.is_multiple_of(3);
             let status = if flagged { "range_switch_error" } else { "ok" };
             sim.set("get_temperature_and_conductivity", "range_status", Value::Text(status.into())).unwrap();
             let value = if flagged { 999.0 } else { 2.0 };
@@ -199,10 +199,7 @@ fn a_write_that_does_not_stick_is_caught_by_read_back() {
     let mut client = client(responder);
     let mut probe = conductivity::Device::new(&mut client, 1);
     let c = coefficients::ConductivityCoefficients { user_calibration: [2.0, 1.0] };
-    assert!(matches!(
-        coefficients::write_conductivity(&mut probe, &c),
-        Err(ProcedureError::ReadBackMismatch { .. })
-    ));
+    assert!(matches!(coefficients::write_conductivity(&mut probe, &c), Err(ProcedureError::ReadBackMismatch { .. })));
 }
 
 #[test]

@@ -88,7 +88,6 @@ fn valid(a: u8) -> Result<(), AddressChangeError> {
 /// `ph_orp::SetSlaveId { slave_address: to }`); `probe` is any read the
 /// probe answers (e.g. `GetSn`), used to check addresses before and after.
 /// Returns the probe's reply to `probe` at its new address.
-#[allow(clippy::result_large_err)]
 pub fn change_address<T: Transport, W: Command, P: Command>(
     client: &mut Client<T>,
     from: u8,

@@ -33,7 +33,6 @@ impl PhOrpCoefficients {
 }
 
 /// Reads every coefficient of a pH/ORP probe.
-#[allow(clippy::result_large_err)]
 pub fn read_ph_orp<T: Transport>(probe: &mut ph_orp::Device<'_, T>) -> Result<PhOrpCoefficients, ProcedureError> {
     let e = probe.ph_electrode_coefficients()?;
     let p = probe.ph_calibration()?;
@@ -46,7 +45,6 @@ pub fn read_ph_orp<T: Transport>(probe: &mut ph_orp::Device<'_, T>) -> Result<Ph
 }
 
 /// Writes every coefficient of a pH/ORP probe and reads them back.
-#[allow(clippy::result_large_err)]
 pub fn write_ph_orp<T: Transport>(
     probe: &mut ph_orp::Device<'_, T>,
     c: &PhOrpCoefficients,
@@ -72,7 +70,6 @@ pub struct ConductivityCoefficients {
 }
 
 /// Reads every coefficient of a conductivity probe.
-#[allow(clippy::result_large_err)]
 pub fn read_conductivity<T: Transport>(
     probe: &mut conductivity::Device<'_, T>,
 ) -> Result<ConductivityCoefficients, ProcedureError> {
@@ -81,7 +78,6 @@ pub fn read_conductivity<T: Transport>(
 }
 
 /// Writes every coefficient of a conductivity probe and reads them back.
-#[allow(clippy::result_large_err)]
 pub fn write_conductivity<T: Transport>(
     probe: &mut conductivity::Device<'_, T>,
     c: &ConductivityCoefficients,

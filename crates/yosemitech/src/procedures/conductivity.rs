@@ -84,11 +84,12 @@ pub fn tds_mg_l(conductivity_ms_cm: f32) -> f32 {
 
 /// Whether a reading may be averaged.
 pub fn is_valid(reading: &GetTemperatureAndConductivityResponse) -> bool {
-    reading.range_status == RangeStatus::Ok && reading.conductivity_ms_cm.is_finite() && reading.temperature_c.is_finite()
+    reading.range_status == RangeStatus::Ok
+        && reading.conductivity_ms_cm.is_finite()
+        && reading.temperature_c.is_finite()
 }
 
 /// Runs the manual's measurement procedure on `probe`.
-#[allow(clippy::result_large_err)]
 pub fn measure<T: Transport>(
     probe: &mut Device<'_, T>,
     config: &MeasurementConfig,

@@ -82,7 +82,6 @@ pub fn explain(status: CalibrationStatus) -> &'static str {
 
 /// Runs the three-point calibration. On an error after the backup was
 /// taken, the backup is in the guide's hands; the error is returned as is.
-#[allow(clippy::result_large_err)]
 pub fn calibrate<T: Transport>(
     probe: &mut Device<'_, T>,
     config: &CalibrationConfig,
