@@ -117,6 +117,17 @@
 //! (length, CRC, slave, function, byte count, write echo, Modbus exception)
 //! is a typed [`FrameError`].
 //!
+//! # Procedures
+//!
+//! [`procedures`] runs what the manuals describe, with the spec's numbers:
+//! the conductivity measurement (warm-up, averaging, flagged readings
+//! discarded, TDS), the three-point pH calibration (coefficients backed up
+//! before anything is written), coefficient backup and restore with
+//! read-back, and a slave-address change verified at the new address. Waits
+//! are injectable, so tests run instantly. `examples/pty_sensors.rs` reads
+//! every measurement from simulated probes on ptys through the serial
+//! transport.
+//!
 //! # Quirks the manuals document
 //!
 //! - Floats are 4-byte little-endian images (`dcba`), not Modbus big-endian.
@@ -130,7 +141,7 @@
 //! - `std` (default): device handles, the [`Client`] and transports, and
 //!   `std::error::Error` for the errors. Without it the crate is `no_std`
 //!   and offers the codecs only.
-//! - `serial`: the serial-port transport.
+//! - `serial` (default): the serial-port transport (no libudev needed).
 #![cfg_attr(not(feature = "std"), no_std)]
 #![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used, clippy::panic, clippy::indexing_slicing))]
 
@@ -154,3 +165,8 @@ pub use yosemitech_rtu::{SerialConfig, SerialTransport};
 
 #[cfg(feature = "std")]
 pub mod procedures;
+
+// The README's examples compile as doctests.
+#[cfg(all(doctest, feature = "std"))]
+#[doc = include_str!("../../../README.md")]
+struct ReadmeDoctests;
