@@ -40,7 +40,7 @@ fn fixture_decodes_its_own_examples() {
             frames += 2;
         }
     }
-    println!("fixture: {frames} frames decode and re-encode");
+    yosemitech_tests::report!("fixture: {frames} frames decode and re-encode");
     assert_eq!(frames, 18);
 }
 

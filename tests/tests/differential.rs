@@ -72,7 +72,7 @@ fn for_each_command(name: &str, mut check: impl FnMut(&mut TestRunner, &Cmd, &Co
             commands += 1;
         }
     }
-    println!("{name}: {commands} commands x {CASES} cases agree");
+    yosemitech_tests::report!("{name}: {commands} commands x {CASES} cases agree");
     assert!(commands >= 23);
 }
 
@@ -151,5 +151,5 @@ fn encoding_agrees_with_the_interpreter() {
             })
             .map_err(|e| e.to_string())
     });
-    println!("encodings skipped for non-ASCII text: {}", skipped.get());
+    yosemitech_tests::report!("encodings skipped for non-ASCII text: {}", skipped.get());
 }

@@ -126,7 +126,7 @@ fn every_printed_frame_replays() {
         }
     }
     let manual_frames = frames - fixture_frames;
-    println!(
+    yosemitech_tests::report!(
         "golden: replayed {frames} frames ({manual_frames} from the manuals, {fixture_frames} from the fixture spec; \
          {examples} examples of {commands} commands, {} sensors), errata checked: {}",
         sensors.len(),

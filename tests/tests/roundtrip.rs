@@ -51,7 +51,7 @@ fn for_each_command(
             commands += 1;
         }
     }
-    println!("{name}: {commands} commands x {CASES} cases");
+    yosemitech_tests::report!("{name}: {commands} commands x {CASES} cases");
     assert!(commands >= 23, "every command of both manuals at least");
 }
 
@@ -226,5 +226,5 @@ fn mutated_frames_never_decode_to_other_values() {
             })
             .map_err(|e| e.to_string())
     });
-    println!("mutated frames accepted (with unchanged values): {}", accepted.get());
+    yosemitech_tests::report!("mutated frames accepted (with unchanged values): {}", accepted.get());
 }

@@ -47,7 +47,7 @@ fn every_example_request_yields_the_true_reply() {
         }
     }
     assert_eq!(checked, 23, "both manuals hold 23 examples");
-    println!("{checked} example exchanges match the manuals");
+    yosemitech_tests::report!("{checked} example exchanges match the manuals");
 }
 
 #[test]

@@ -212,16 +212,16 @@ fn soak_10k_transactions_with_10_percent_faults_accepts_no_wrong_value() {
         }
     }
     let bus = client.transport().responder();
-    println!("soak: {TRANSACTIONS} transactions in {:.2?}", started.elapsed());
-    println!("  ok first time: {}", tally.clean);
-    println!("  ok after faults (retried or noise skipped): {}", tally.recovered);
+    yosemitech_tests::report!("soak: {TRANSACTIONS} transactions in {:.2?}", started.elapsed());
+    yosemitech_tests::report!("  ok first time: {}", tally.clean);
+    yosemitech_tests::report!("  ok after faults (retried or noise skipped): {}", tally.recovered);
     for (kind, n) in &tally.failed {
-        println!("  failed, {kind}: {n}");
+        yosemitech_tests::report!("  failed, {kind}: {n}");
     }
     for device in bus.devices() {
-        println!("  device {} ({}): {}", device.address(), device.sensor().name, device.faults());
+        yosemitech_tests::report!("  device {} ({}): {}", device.address(), device.sensor().name, device.faults());
     }
-    println!("  wrong values accepted: {wrong}");
+    yosemitech_tests::report!("  wrong values accepted: {wrong}");
     assert_eq!(wrong, 0, "no wrong value may be accepted");
     assert_eq!(tally.clean + tally.recovered + tally.failed.values().sum::<u64>(), TRANSACTIONS as u64);
     let injected: u64 = bus.devices().iter().map(|d| d.faults().total()).sum();
