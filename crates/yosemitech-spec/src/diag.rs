@@ -55,11 +55,10 @@ impl fmt::Display for Diagnostic {
         if let Some(line) = &self.source_line {
             let number = self.pos.line.to_string();
             let pad = " ".repeat(number.len());
-            let caret_at = (self.pos.column as usize).saturating_sub(1);
-            let shown: String = line.chars().map(|c| if c.is_control() { ' ' } else { c }).collect();
+            let (shown, caret_at) = window(line, (self.pos.column as usize).saturating_sub(1));
             writeln!(f, "{pad} |")?;
             writeln!(f, "{number} | {shown}")?;
-            writeln!(f, "{pad} | {}^", " ".repeat(caret_at.min(shown.chars().count())))?;
+            writeln!(f, "{pad} | {}^", " ".repeat(caret_at))?;
         }
         if !self.key.is_empty() {
             writeln!(f, "  = key: {}", self.key)?;
@@ -69,6 +68,32 @@ impl fmt::Display for Diagnostic {
         }
         Ok(())
     }
+}
+
+/// Widest source excerpt shown, in characters.
+const SHOWN_WIDTH: usize = 100;
+
+/// The part of `line` to show around character `column` (0-based), with
+/// control characters blanked, and the caret's offset in it.
+fn window(line: &str, column: usize) -> (String, usize) {
+    let chars: Vec<char> = line.chars().map(|c| if c.is_control() { ' ' } else { c }).collect();
+    let column = column.min(chars.len());
+    if chars.len() <= SHOWN_WIDTH {
+        return (chars.into_iter().collect::<String>().trim_end().to_string(), column);
+    }
+    let start = if column < SHOWN_WIDTH * 3 / 4 { 0 } else { column - SHOWN_WIDTH / 2 };
+    let end = (start + SHOWN_WIDTH).min(chars.len());
+    let mut shown = String::new();
+    let mut caret = column - start;
+    if start > 0 {
+        shown.push_str("...");
+        caret += 3;
+    }
+    shown.extend(&chars[start..end]);
+    if end < chars.len() {
+        shown.push_str("...");
+    }
+    (shown, caret)
 }
 
 /// All problems found in a set of spec files.
@@ -109,7 +134,7 @@ pub(crate) struct Reporter<'a> {
 impl Reporter<'_> {
     pub fn error(&mut self, pos: Pos, key: impl Into<String>, message: impl Into<String>, help: Option<String>) {
         let source_line = if pos.line > 0 {
-            self.text.lines().nth(pos.line as usize - 1).map(|l| l.chars().take(200).collect())
+            self.text.lines().nth(pos.line as usize - 1).map(|l| l.chars().take(4096).collect())
         } else {
             None
         };

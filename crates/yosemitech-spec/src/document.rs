@@ -1,6 +1,6 @@
 //! The YAML shape of a spec file, exactly as written, with source positions.
 //!
-//! Nothing here is validated beyond YAML types: [`crate::resolve`] turns these
+//! Nothing here is validated beyond YAML types: [`crate::load_paths`] turns these
 //! documents into the checked [`crate::model`]. Positions are kept with
 //! `Spanned` on every value a semantic error may point at; the model avoids
 //! `untagged` and `flatten`, which would lose them.
@@ -15,6 +15,7 @@ use serde_saphyr::Spanned;
 #[derive(Debug, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 #[schemars(title = "Yosemitech Modbus sensor spec")]
+#[schemars(extend("oneOf" = [{"required": ["sensor"]}, {"required": ["fragment"]}]))]
 pub struct SpecFile {
     /// The sensor this file describes. A file has `sensor` or `fragment`, not both.
     pub sensor: Option<SensorDoc>,
@@ -153,6 +154,7 @@ pub enum FunctionDoc {
 /// A command: a full definition (`name`), or `use` of an included one.
 #[derive(Debug, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
+#[schemars(extend("oneOf" = [{"required": ["name"]}, {"required": ["use"]}]))]
 pub struct CommandDoc {
     /// snake_case name of a new command.
     #[schemars(with = "Option<String>")]

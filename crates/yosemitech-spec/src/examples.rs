@@ -9,7 +9,7 @@ use crate::diag::{Pos, Reporter};
 use crate::document::ExampleDoc;
 use crate::interp::Value;
 use crate::model::{Command, Example, ExampleErratum};
-use crate::resolve::{check_erratum_id, crc_text, parse_hex, stated_value};
+use crate::resolve::{check_erratum_id, check_text, crc_text, parse_hex, stated_value};
 
 fn hex(text: &Spanned<String>, key: &str, r: &mut Reporter<'_>) -> Option<Vec<u8>> {
     match parse_hex(&text.value) {
@@ -37,7 +37,7 @@ pub(crate) fn check_example(
     let errors_before = r.out.len();
     let request = hex(&e.request, &format!("{key}.request"), r);
     let response = hex(&e.response, &format!("{key}.response"), r);
-    let doc = e.doc.as_ref().map(|d| d.value.trim().to_string());
+    let doc = e.doc.as_ref().map(|d| check_text(d, &format!("{key}.doc"), r));
 
     let mut erratum = None;
     if let Some(er) = &e.erratum {
@@ -48,7 +48,7 @@ pub(crate) fn check_example(
                 Pos::at(&er.figure),
                 format!("{ek}.figure"),
                 format!("figure {} is not one of the example's figures {:?}", er.figure.value, e.figures),
-                None,
+                Some("name the figure that prints the wrong frame".into()),
             );
         }
         let corrected_request =
@@ -56,12 +56,17 @@ pub(crate) fn check_example(
         let corrected_response =
             er.corrected_response.as_ref().and_then(|t| hex(t, &format!("{ek}.corrected_response"), r));
         if er.corrected_request.is_none() && er.corrected_response.is_none() {
-            r.error(Pos::at(&er.id), &ek, "an example erratum gives `corrected_request` or `corrected_response`", None);
+            r.error(
+                Pos::at(&er.id),
+                &ek,
+                "an example erratum gives `corrected_request` or `corrected_response`",
+                Some("give the true frame the printed one stands for".into()),
+            );
         }
         erratum = Some(ExampleErratum {
             id: er.id.value.clone(),
             figure: er.figure.value,
-            printed: er.printed.value.trim().to_string(),
+            printed: check_text(&er.printed, &format!("{ek}.printed"), r),
             corrected_request,
             corrected_response,
             printed_decodes: er.printed_decodes.value,
@@ -70,29 +75,49 @@ pub(crate) fn check_example(
     let (request, response) = (request?, response?);
 
     // CRCs: a printed frame must verify unless an erratum corrects it.
+    let corrections = e.erratum.as_ref().map(|x| (&x.corrected_request, &x.corrected_response));
     let frames = [
-        ("request", &request, erratum.as_ref().and_then(|x| x.corrected_request.as_ref()), &e.request),
-        ("response", &response, erratum.as_ref().and_then(|x| x.corrected_response.as_ref()), &e.response),
+        (
+            "request",
+            &request,
+            erratum.as_ref().and_then(|x| x.corrected_request.as_ref()),
+            &e.request,
+            corrections.and_then(|c| c.0.as_ref()),
+        ),
+        (
+            "response",
+            &response,
+            erratum.as_ref().and_then(|x| x.corrected_response.as_ref()),
+            &e.response,
+            corrections.and_then(|c| c.1.as_ref()),
+        ),
     ];
-    for (what, printed, corrected, span) in frames {
+    for (what, printed, corrected, span, corrected_span) in frames {
+        let corrected_at = corrected_span.map_or_else(|| Pos::at(span), Pos::at);
         match corrected {
             None if !crc_ok(printed) => r.error(
                 Pos::at(span),
                 format!("{key}.{what}"),
-                format!("the printed CRC of the {what} is wrong: the bytes give {}", crc_text(printed)),
+                match printed.len() {
+                    0..4 => format!("the printed {what} is too short to carry a CRC ({} bytes)", printed.len()),
+                    _ => format!(
+                        "the printed CRC of the {what} is wrong: the bytes before it give {}",
+                        crc_text(printed)
+                    ),
+                },
                 Some("fix the frame; if the manual prints it wrong, add an `erratum` with the corrected frame".into()),
             ),
             Some(c) if !crc_ok(c) => r.error(
-                Pos::at(span),
+                corrected_at,
                 format!("{key}.erratum.corrected_{what}"),
-                format!("the corrected {what}'s CRC is wrong: the bytes give {}", crc_text(c)),
-                None,
+                format!("the CRC of the corrected {what} is wrong: the bytes before it give {}", crc_text(c)),
+                Some("a corrected frame must be the true frame, CRC included".into()),
             ),
             Some(c) if c == printed => r.error(
-                Pos::at(span),
+                corrected_at,
                 format!("{key}.erratum.corrected_{what}"),
                 format!("the corrected {what} is the printed one: nothing to correct"),
-                None,
+                Some(format!("remove `corrected_{what}`, or give the frame the device really sends")),
             ),
             _ => {}
         }
@@ -120,8 +145,12 @@ pub(crate) fn check_example(
             ),
         }
     }
-    let missing: Vec<&str> =
-        cmd.named_fields().map(|f| f.display_name()).filter(|n| !e.values.value.contains_key(*n)).collect();
+    let missing: Vec<String> = cmd
+        .named_fields()
+        .map(|f| f.display_name())
+        .filter(|n| !e.values.value.contains_key(*n))
+        .map(|n| format!("`{n}`"))
+        .collect();
     if !missing.is_empty() {
         r.error(
             Pos::at(&e.values).max(Pos::at(&e.response)),
@@ -141,11 +170,18 @@ pub(crate) fn check_example(
     let slave = match cmd.decode_request(&true_req) {
         Ok((slave, _)) => slave,
         Err(err) => {
+            let why = header_mismatch(cmd, &true_req).unwrap_or_else(|| err.to_string());
             r.error(
                 Pos::at(&e.request),
                 format!("{key}.request"),
-                format!("the request is not a `{}` frame: {err}", cmd.name),
-                None,
+                format!("the request is not a `{}` frame: {why}", cmd.name),
+                Some(format!(
+                    "`{}` sends function 0x{:02X}, register 0x{:04X}, count {}",
+                    cmd.name,
+                    cmd.function.code(),
+                    cmd.address,
+                    cmd.count
+                )),
             );
             return None;
         }
@@ -156,14 +192,14 @@ pub(crate) fn check_example(
         Ok(encoded) => r.error(
             Pos::at(&e.request),
             format!("{key}.request"),
-            format!("the spec encodes this request as {}", Hex(&encoded)),
-            Some("the printed frame, the command and the stated values disagree".into()),
+            format!("the printed request does not carry the stated values; they encode as {}", Hex(&encoded)),
+            Some("check `values` against the request's data bytes".into()),
         ),
         Err(err) => r.error(
             Pos::at(&e.values),
             format!("{key}.values"),
             format!("the stated values do not encode: {err}"),
-            None,
+            Some("state values the command can send (see the fields' types and `range`)".into()),
         ),
     }
 
@@ -187,13 +223,16 @@ pub(crate) fn check_example(
                     Pos::at(&e.response),
                     format!("{key}.response"),
                     format!("the decoded reply does not re-encode: {err}"),
-                    None,
+                    Some("a field's `range` may exclude the value the manual prints".into()),
                 ),
             }
         }
-        Err(err) => {
-            r.error(Pos::at(&e.response), format!("{key}.response"), format!("the reply does not decode: {err}"), None)
-        }
+        Err(err) => r.error(
+            Pos::at(&e.response),
+            format!("{key}.response"),
+            format!("the reply does not decode: {err}"),
+            Some("check the reply against the command; if the manual prints it wrong, add an `erratum`".into()),
+        ),
     }
 
     // The printed form of a corrected frame behaves as the erratum says.
@@ -213,7 +252,7 @@ pub(crate) fn check_example(
                 Pos::at(&er.printed_decodes),
                 format!("{key}.erratum.printed_decodes"),
                 format!("the printed frame {detail}, but `printed_decodes` is {}", x.printed_decodes),
-                None,
+                Some(format!("set `printed_decodes: {decodes}`")),
             );
         }
         if let Ok(Some(decoded)) = outcome {
@@ -250,4 +289,35 @@ fn compare_values(
             );
         }
     }
+}
+
+/// What in a request's header differs from the command, in the spec's terms.
+fn header_mismatch(cmd: &Command, frame: &[u8]) -> Option<String> {
+    let function = *frame.get(1)?;
+    if function != cmd.function.code() {
+        return Some(format!(
+            "it has function 0x{function:02X}, but `{}` is a {} (0x{:02X})",
+            cmd.name,
+            if cmd.is_read() { "read" } else { "write" },
+            cmd.function.code()
+        ));
+    }
+    let address = u16::from_be_bytes([*frame.get(2)?, *frame.get(3)?]);
+    if address != cmd.address {
+        return Some(format!("it addresses register 0x{address:04X}, but `{}` uses 0x{:04X}", cmd.name, cmd.address));
+    }
+    let count = u16::from_be_bytes([*frame.get(4)?, *frame.get(5)?]);
+    if count != cmd.count {
+        return Some(format!("it asks for {count} registers, but `{}` covers {}", cmd.name, cmd.count));
+    }
+    if let Some(slave) = cmd.fixed_slave
+        && frame.first() != Some(&slave)
+    {
+        return Some(format!(
+            "it is sent to slave {}, but `{}` always uses 0x{slave:02X}",
+            frame.first().copied().unwrap_or(0),
+            cmd.name
+        ));
+    }
+    None
 }

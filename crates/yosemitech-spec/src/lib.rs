@@ -8,6 +8,18 @@
 //! them ([`interp`]): the same walk encodes requests and decodes replies for
 //! the validator, the simulator and the CLI.
 //!
+//! Validation checks, among others: unique names (sensors, commands, fields,
+//! variants, constants), also once converted to Rust; names that are
+//! snake_case identifiers and not keywords; register counts within Modbus
+//! limits (reads 1..=125, writes 1..=123, zero only for a `trigger`); fields
+//! that fill the registers exactly; every example frame's CRC (unless an
+//! erratum corrects it), its request encoded from the spec and its reply
+//! decoded to the stated values; includes that exist, are fragments and do
+//! not cycle; and text without control or bidi-override characters. Hostile
+//! input is bounded: files over [`sources::MAX_FILE_BYTES`], YAML with more
+//! than [`MAX_YAML_NODES`] values, deeper than [`MAX_YAML_DEPTH`] levels or
+//! with aliases replaying more than [`MAX_ALIAS_REPLAY`] events are refused.
+//!
 //! ```
 //! let spec = yosemitech_spec::load_paths(&[concat!(env!("CARGO_MANIFEST_DIR"), "/../../spec").into()])?;
 //! let ph = spec.sensor("ph_orp").and_then(|s| s.command("get_ph")).expect("get_ph is in the spec");
@@ -26,6 +38,7 @@ pub mod model;
 pub mod names;
 mod resolve;
 pub mod sources;
+mod yaml;
 
 pub use diag::{Diagnostic, Diagnostics, Pos};
 pub use interp::{Value, Values};
@@ -33,6 +46,7 @@ pub use model::*;
 pub use resolve::{
     MAX_INCLUDE_DEPTH, MAX_READ_COUNT, MAX_TEXT_LEN, MAX_WRITE_COUNT, Summary, load_paths, load_with, parse_hex,
 };
+pub use yaml::{MAX_ALIAS_REPLAY, MAX_YAML_ALIASES, MAX_YAML_DEPTH, MAX_YAML_NODES};
 
 /// The JSON Schema of a spec file, for editors.
 pub fn json_schema() -> serde_json::Value {

@@ -1,6 +1,6 @@
 //! The validated spec: what the generator, interpreter, simulator and CLI read.
 //!
-//! Every value here has passed [`crate::resolve`]: names are valid
+//! Every value here has passed [`crate::load_paths`]: names are valid
 //! identifiers, fields fill the registers exactly, every example frame has
 //! been replayed through the interpreter.
 

@@ -10,13 +10,21 @@ const KEYWORDS: &[&str] = &[
     "for", "gen", "if", "impl", "in", "let", "loop", "match", "mod", "move", "mut", "pub", "ref", "return", "self",
     "Self", "static", "struct", "super", "trait", "true", "type", "unsafe", "use", "where", "while", "abstract",
     "become", "box", "do", "final", "macro", "override", "priv", "try", "typeof", "unsized", "virtual", "yield",
-    "union", "raw", "safe",
 ];
+
+/// Words that are keywords only in some positions (`union`, `&raw const`,
+/// `safe fn`); legal identifiers, but refused to keep generated code plain.
+const CONTEXTUAL_KEYWORDS: &[&str] = &["union", "raw", "safe", "macro_rules"];
 
 /// Names the generated code uses itself.
 const TAKEN_TYPE_NAMES: &[&str] = &["Command", "Response", "Request", "Unknown", "Device", "Error", "Result"];
 
-/// Why `name` cannot be used, or `None` if it can. `what` says what it names.
+/// Why `name` cannot be used, or `None` if it can.
+///
+/// A usable name is snake_case ASCII starting with a letter, at most
+/// [`MAX_NAME_LEN`] long, without doubled or trailing underscores, not a
+/// Rust keyword, and not a keyword or a name the generated code reserves
+/// once converted to UpperCamelCase.
 pub fn check_snake(name: &str) -> Option<String> {
     if name.is_empty() {
         return Some("the name is empty".into());
@@ -36,6 +44,9 @@ pub fn check_snake(name: &str) -> Option<String> {
     if KEYWORDS.contains(&name) {
         return Some(format!("`{name}` is a Rust keyword"));
     }
+    if CONTEXTUAL_KEYWORDS.contains(&name) {
+        return Some(format!("`{name}` is a contextual Rust keyword"));
+    }
     let camel = name.to_upper_camel_case();
     if KEYWORDS.contains(&camel.as_str()) || TAKEN_TYPE_NAMES.contains(&camel.as_str()) {
         return Some(format!("`{name}` becomes `{camel}`, which the generated code reserves"));
@@ -53,9 +64,93 @@ pub fn shouty(name: &str) -> String {
     name.to_shouty_snake_case()
 }
 
-/// `name` with control characters escaped, for messages.
+/// Crates that generated code, or the crate including it, names by path:
+/// a sensor module of the same name, declared at that crate's root, would
+/// shadow them (`std::time::Duration` in the `yosemitech` crate would look
+/// into the module; `rtu` is how the `yosemitech` crate re-exports the
+/// runtime, and the generated code's own alias for it).
+pub const RESERVED_SENSOR_NAMES: &[&str] = &["core", "alloc", "std", "rtu", "yosemitech_rtu"];
+
+/// Type, trait and variant names of the Rust 2024 prelude. A command's
+/// request type must not take one: generated code relies on `Option`,
+/// `Some`, `None`, `Ok`, `Err`, `From` and `Iterator` from the prelude, and
+/// a module that shadows the others breaks the code that glob-imports it.
+pub const PRELUDE_NAMES: &[&str] = &[
+    "AsMut",
+    "AsRef",
+    "AsyncFn",
+    "AsyncFnMut",
+    "AsyncFnOnce",
+    "Box",
+    "Clone",
+    "Copy",
+    "Default",
+    "DoubleEndedIterator",
+    "Drop",
+    "Eq",
+    "Err",
+    "ExactSizeIterator",
+    "Extend",
+    "Fn",
+    "FnMut",
+    "FnOnce",
+    "From",
+    "FromIterator",
+    "Future",
+    "Into",
+    "IntoFuture",
+    "IntoIterator",
+    "Iterator",
+    "None",
+    "Ok",
+    "Option",
+    "Ord",
+    "PartialEq",
+    "PartialOrd",
+    "Result",
+    "Send",
+    "Sized",
+    "Some",
+    "String",
+    "Sync",
+    "ToOwned",
+    "ToString",
+    "TryFrom",
+    "TryInto",
+    "Unpin",
+    "Vec",
+];
+
+/// Why `name` (already a valid [`check_snake`] name) cannot name a sensor,
+/// or `None` if it can: the sensor's module must not shadow a crate.
+pub fn check_sensor_name(name: &str) -> Option<String> {
+    RESERVED_SENSOR_NAMES.contains(&name).then(|| {
+        format!("a sensor module called `{name}` would shadow the crate `{name}` that generated code and the crate including it use")
+    })
+}
+
+/// Why `name` (already a valid [`check_snake`] name) cannot name a
+/// command, or `None` if it can: its request type must not shadow a name
+/// of the Rust prelude.
+pub fn check_command_name(name: &str) -> Option<String> {
+    let camel = camel(name);
+    PRELUDE_NAMES
+        .contains(&camel.as_str())
+        .then(|| format!("`{name}` becomes the type `{camel}`, which would shadow the Rust prelude's `{camel}`"))
+}
+
+/// `name` with control and bidi-override characters escaped, shortened to
+/// 80 characters, for messages.
 pub fn escape(name: &str) -> String {
-    name.chars().flat_map(char::escape_debug).take(80).collect()
+    let mut out = String::new();
+    for c in name.chars().take(80) {
+        if c.is_control() || ('\u{202A}'..='\u{202E}').contains(&c) || ('\u{2066}'..='\u{2069}').contains(&c) {
+            out.extend(c.escape_default());
+        } else {
+            out.push(c);
+        }
+    }
+    out
 }
 
 #[cfg(test)]
@@ -72,5 +167,19 @@ mod tests {
         assert!(check_snake("x\"]; fn evil() {").is_some());
         assert!(check_snake("unknown").is_some());
         assert!(check_snake(&"a".repeat(65)).is_some());
+    }
+
+    #[test]
+    fn sensor_and_command_roles() {
+        for crate_name in ["core", "std", "alloc", "rtu", "yosemitech_rtu"] {
+            assert!(check_sensor_name(crate_name).is_some(), "{crate_name}");
+            assert_eq!(check_command_name(crate_name), None, "{crate_name}");
+        }
+        for shadowing in ["option", "some", "none", "ok", "err", "from", "iterator", "try_from", "string", "vec"] {
+            assert!(check_command_name(shadowing).is_some(), "{shadowing}");
+            assert_eq!(check_sensor_name(shadowing), None, "{shadowing}");
+        }
+        assert_eq!(check_command_name("get_option"), None);
+        assert_eq!(check_sensor_name("ph_orp"), None);
     }
 }

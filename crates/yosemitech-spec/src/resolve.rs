@@ -11,8 +11,8 @@ use crate::diag::{Diagnostic, Diagnostics, Pos, Reporter};
 use crate::document::*;
 use crate::interp::{Value, parse_version};
 use crate::model::*;
-use crate::names::{check_snake, escape};
-use crate::sources::{FsSources, Sources, sibling};
+use crate::names::{camel, check_snake, escape, shouty};
+use crate::sources::{FsSources, NotUtf8, Sources, sibling};
 
 /// Deepest chain of includes.
 pub const MAX_INCLUDE_DEPTH: usize = 8;
@@ -24,17 +24,21 @@ pub const MAX_WRITE_COUNT: u32 = 123;
 pub const MAX_TEXT_LEN: usize = 4096;
 
 /// Loads files and directories (their `*.yaml`) from the file system.
+///
+/// Every problem in every file is reported at once, each with its file,
+/// line and column; the loader never panics, whatever the input.
 pub fn load_paths(paths: &[PathBuf]) -> Result<Spec, Diagnostics> {
     load_with(&FsSources, paths)
 }
 
 /// Loads files and directories from `sources`.
 pub fn load_with(sources: &dyn Sources, paths: &[PathBuf]) -> Result<Spec, Diagnostics> {
-    let mut roots = Vec::new();
+    let mut roots: Vec<PathBuf> = Vec::new();
     let mut diags = Vec::new();
     for path in paths {
         if sources.is_dir(path) {
             match sources.yaml_files(path) {
+                Ok(files) if files.is_empty() => diags.push(plain(path, "the directory holds no `.yaml` files".into())),
                 Ok(files) => roots.extend(files),
                 Err(e) => diags.push(plain(path, format!("cannot list the directory: {e}"))),
             }
@@ -42,7 +46,10 @@ pub fn load_with(sources: &dyn Sources, paths: &[PathBuf]) -> Result<Spec, Diagn
             roots.push(path.clone());
         }
     }
-    let mut loader = Loader { sources, files: BTreeMap::new(), diags };
+    let mut seen_roots = BTreeSet::new();
+    roots.retain(|r| seen_roots.insert(r.clone()));
+
+    let mut loader = Loader { sources, files: BTreeMap::new(), diags, cycles: BTreeSet::new() };
     for root in &roots {
         loader.parse(root, None);
     }
@@ -52,20 +59,22 @@ pub fn load_with(sources: &dyn Sources, paths: &[PathBuf]) -> Result<Spec, Diagn
             sensors.push(sensor);
         }
     }
-    let mut seen = BTreeSet::new();
-    for s in &sensors {
-        if !seen.insert(s.name.clone()) {
-            loader.diags.push(plain(&s.file, format!("a sensor called `{}` is defined in another file too", s.name)));
-        }
-    }
-    // A fragment is checked once per including sensor: report each problem once.
-    let mut unique = Vec::new();
-    for d in loader.diags {
+    loader.check_unique_sensors(&sensors);
+    let diags = finish(loader.diags);
+    if diags.is_empty() { Ok(Spec { sensors }) } else { Err(Diagnostics(diags)) }
+}
+
+/// Drops repeated diagnostics (a fragment is checked once per including
+/// sensor) and orders them by file, then position.
+fn finish(diags: Vec<Diagnostic>) -> Vec<Diagnostic> {
+    let mut unique: Vec<Diagnostic> = Vec::new();
+    for d in diags {
         if !unique.contains(&d) {
             unique.push(d);
         }
     }
-    if unique.is_empty() { Ok(Spec { sensors }) } else { Err(Diagnostics(unique)) }
+    unique.sort_by(|a, b| (&a.file, a.pos).cmp(&(&b.file, b.pos)));
+    unique
 }
 
 /// Counts of what [`load_paths`] checked.
@@ -77,8 +86,10 @@ pub struct Summary {
     pub commands: usize,
     /// Example frame pairs replayed.
     pub examples: usize,
-    /// Frames replayed (two per example, plus corrections).
+    /// Frames replayed: the printed ones plus the corrections errata give.
     pub frames: usize,
+    /// Frames printed in the manuals: a request and a reply per example.
+    pub printed_frames: usize,
     /// Errata recorded.
     pub errata: usize,
 }
@@ -94,7 +105,8 @@ impl Spec {
                 s.errata += c.errata.len();
                 for e in &c.examples {
                     s.examples += 1;
-                    s.frames += 2;
+                    s.frames += Example::FRAMES;
+                    s.printed_frames += Example::FRAMES;
                     if let Some(err) = &e.erratum {
                         s.errata += 1;
                         s.frames += usize::from(err.corrected_request.is_some())
@@ -107,6 +119,7 @@ impl Spec {
     }
 }
 
+/// A problem with a whole file or directory, at no particular place.
 fn plain(path: &Path, message: String) -> Diagnostic {
     Diagnostic {
         file: path.to_path_buf(),
@@ -115,6 +128,52 @@ fn plain(path: &Path, message: String) -> Diagnostic {
         message,
         help: None,
         source_line: None,
+    }
+}
+
+/// `path` as shown in a message about `from`: relative to `from`'s directory when inside it.
+fn shown(path: &Path, from: &Path) -> String {
+    let dir = from.parent().unwrap_or(Path::new(""));
+    path.strip_prefix(dir).unwrap_or(path).display().to_string()
+}
+
+/// A place in another file, for a help text: `line L, column C` in the same file.
+fn place(file: &Path, pos: Pos, from: &Path) -> String {
+    if file == from {
+        format!("line {}, column {}", pos.line, pos.column)
+    } else {
+        format!("{}:{}:{}", shown(file, from), pos.line, pos.column)
+    }
+}
+
+/// Where a top-level `key:` is written (block style), or the file's start.
+fn top_key_pos(text: &str, key: &str) -> Pos {
+    text.lines()
+        .position(|l| l.strip_prefix(key).is_some_and(|rest| rest.trim_start().starts_with(':')))
+        .map_or(Pos { line: 1, column: 1 }, |i| Pos { line: i as u32 + 1, column: 1 })
+}
+
+/// Why an include entry cannot name a fragment file, or the file it names.
+fn include_target(file: &Path, include: &str) -> Result<PathBuf, String> {
+    let path = Path::new(include);
+    if include.trim().is_empty() {
+        return Err("the include path is empty".into());
+    }
+    if path.is_absolute() || include.starts_with('/') || include.starts_with('\\') {
+        return Err("it is an absolute path".into());
+    }
+    if !matches!(path.extension().and_then(|e| e.to_str()), Some("yaml" | "yml")) {
+        return Err("it is not a `.yaml` file".into());
+    }
+    Ok(sibling(file, include))
+}
+
+/// A read error as a reader would say it.
+fn io_reason(e: &std::io::Error) -> String {
+    match e.kind() {
+        std::io::ErrorKind::NotFound => "no such file".into(),
+        std::io::ErrorKind::PermissionDenied => "permission denied".into(),
+        _ => e.to_string(),
     }
 }
 
@@ -127,6 +186,8 @@ struct Loader<'s> {
     sources: &'s dyn Sources,
     files: BTreeMap<PathBuf, Parsed>,
     diags: Vec<Diagnostic>,
+    /// Include cycles already reported, by their member files.
+    cycles: BTreeSet<BTreeSet<PathBuf>>,
 }
 
 /// A command definition with the file it was written in.
@@ -137,49 +198,99 @@ struct Def<'d> {
     fragment: Option<String>,
 }
 
+/// Where a resolved command comes from, for messages about it.
+struct Origin<'d> {
+    file: &'d Path,
+    pos: Pos,
+    key: String,
+}
+
 impl Loader<'_> {
+    /// Reports at `pos` in `file` (a file already read).
+    fn report(&mut self, file: &Path, pos: Pos, key: String, message: String, help: Option<String>) {
+        let text = self.files.get(file).map(|p| p.text.clone()).unwrap_or_default();
+        Reporter { file, text: &text, out: &mut self.diags }.error(pos, key, message, help);
+    }
+
     /// Reads and parses `path` once (and, recursively, its includes).
-    fn parse(&mut self, path: &Path, included_from: Option<(&Path, Pos)>) {
+    fn parse(&mut self, path: &Path, included_from: Option<(&Path, Pos, String)>) {
         if self.files.contains_key(path) {
             return;
         }
         let text = match self.sources.read(path) {
             Ok(t) => t,
             Err(e) => {
-                match included_from {
-                    Some((from, pos)) => {
-                        let from_text = self.files.get(from).map(|p| p.text.clone()).unwrap_or_default();
-                        let mut r = Reporter { file: from, text: &from_text, out: &mut self.diags };
-                        r.error(
-                            pos,
-                            "include",
-                            format!("cannot read included file `{}`: {e}", path.display()),
-                            Some("include paths are relative to the including file".into()),
-                        );
-                    }
-                    None => self.diags.push(plain(path, format!("cannot read the file: {e}"))),
-                }
                 self.files.insert(path.to_path_buf(), Parsed { text: String::new(), doc: None });
+                self.read_error(path, &e, included_from);
                 return;
             }
         };
-        let doc = match serde_saphyr::from_str::<SpecFile>(&text) {
+        let doc = match crate::yaml::parse(&text) {
             Ok(doc) => Some(doc),
-            Err(e) => {
-                let pos = e.location().map(Pos::of).unwrap_or_default();
-                let message = yaml_message(&e);
+            Err(problem) => {
                 let mut r = Reporter { file: path, text: &text, out: &mut self.diags };
-                r.error(pos, "", message, Some(yaml_help(&e)));
+                r.error(problem.pos, problem.key, problem.message, problem.help);
                 None
             }
         };
-        let includes: Vec<(PathBuf, Pos)> = doc
-            .as_ref()
-            .map(|d| d.include.iter().map(|i| (sibling(path, &i.value), Pos::at(i))).collect())
-            .unwrap_or_default();
+        let mut includes = Vec::new();
+        if let Some(d) = &doc {
+            for (i, inc) in d.include.iter().enumerate() {
+                match include_target(path, &inc.value) {
+                    Ok(target) => includes.push((target, Pos::at(inc), format!("include[{i}]"))),
+                    Err(why) => {
+                        let mut r = Reporter { file: path, text: &text, out: &mut self.diags };
+                        r.error(
+                            Pos::at(inc),
+                            format!("include[{i}]"),
+                            format!("cannot include `{}`: {why}", escape(&inc.value)),
+                            Some("include fragment files by a path relative to this file, like `common.yaml`".into()),
+                        );
+                    }
+                }
+            }
+        }
         self.files.insert(path.to_path_buf(), Parsed { text, doc });
-        for (inc, pos) in includes {
-            self.parse(&inc, Some((path, pos)));
+        for (inc, pos, key) in includes {
+            self.parse(&inc, Some((path, pos, key)));
+        }
+    }
+
+    /// Reports a file that could not be read: in the file itself when its
+    /// content is at fault, at the include (or with no position) otherwise.
+    fn read_error(&mut self, path: &Path, e: &std::io::Error, included_from: Option<(&Path, Pos, String)>) {
+        let not_utf8 = e.get_ref().and_then(|inner| inner.downcast_ref::<NotUtf8>());
+        if let Some(bad) = not_utf8 {
+            self.diags.push(Diagnostic {
+                file: path.to_path_buf(),
+                pos: Pos { line: bad.line, column: bad.column },
+                key: String::new(),
+                message: "the file is not UTF-8 text".into(),
+                help: Some("save the file as UTF-8".into()),
+                source_line: Some(bad.text.chars().take(200).collect()),
+            });
+            return;
+        }
+        if e.kind() == std::io::ErrorKind::FileTooLarge || e.kind() == std::io::ErrorKind::InvalidData {
+            self.diags.push(Diagnostic {
+                file: path.to_path_buf(),
+                pos: Pos { line: 1, column: 1 },
+                key: String::new(),
+                message: e.to_string(),
+                help: Some("spec files are hand-written and small; check that this is the intended file".into()),
+                source_line: None,
+            });
+            return;
+        }
+        match included_from {
+            Some((from, pos, key)) => self.report(
+                from,
+                pos,
+                key,
+                format!("cannot read included file `{}`: {}", shown(path, from), io_reason(e)),
+                Some("include paths are relative to the including file's directory".into()),
+            ),
+            None => self.diags.push(plain(path, format!("cannot read the file: {}", io_reason(e)))),
         }
     }
 
@@ -191,7 +302,12 @@ impl Loader<'_> {
             let mut r = Reporter { file: root, text: &parsed.text, out: &mut diags };
             match (&doc.sensor, &doc.fragment) {
                 (Some(_), Some(_)) => {
-                    r.error(Pos { line: 1, column: 1 }, "", "a file has `sensor` or `fragment`, not both", None);
+                    r.error(
+                        top_key_pos(&parsed.text, "fragment"),
+                        "fragment",
+                        "a file has `sensor` or `fragment`, not both",
+                        Some("move shared commands to a fragment file of their own and `include` it".into()),
+                    );
                     None
                 }
                 (None, None) => {
@@ -206,7 +322,8 @@ impl Loader<'_> {
                 (None, Some(_)) => {
                     // A fragment on its own: check its commands and stop.
                     let mut defs = Vec::new();
-                    collect_includes(&self.files, root, &mut vec![root.to_path_buf()], &mut defs, &mut diags);
+                    let mut stack = vec![root.to_path_buf()];
+                    collect_includes(&self.files, root, &mut stack, &mut defs, &mut diags, &mut self.cycles);
                     drop(defs);
                     let parsed = self.files.get(root)?;
                     let doc = parsed.doc.as_ref()?;
@@ -217,11 +334,42 @@ impl Loader<'_> {
                     }
                     None
                 }
-                (Some(sensor), None) => Some(self.resolve_sensor(root, doc, sensor, &mut diags)),
+                (Some(sensor), None) => {
+                    let mut cycles = std::mem::take(&mut self.cycles);
+                    let sensor = self.resolve_sensor(root, doc, sensor, &mut diags, &mut cycles);
+                    self.cycles = cycles;
+                    Some(sensor)
+                }
             }
         };
         self.diags.extend(diags);
         sensor.flatten()
+    }
+
+    /// Reports sensors defined twice, at the second definition's name.
+    fn check_unique_sensors(&mut self, sensors: &[Sensor]) {
+        let mut first: BTreeMap<&str, (&Path, Pos)> = BTreeMap::new();
+        for s in sensors {
+            let pos = self
+                .files
+                .get(&s.file)
+                .and_then(|p| p.doc.as_ref())
+                .and_then(|d| d.sensor.as_ref())
+                .map_or(Pos { line: 1, column: 1 }, |d| Pos::at(&d.name));
+            match first.get(s.name.as_str()) {
+                Some((file, at)) => {
+                    let message = format!("a sensor called `{}` is already defined", s.name);
+                    let help = format!(
+                        "the first is at {}; sensor names become module names and must be unique",
+                        place(file, *at, &s.file)
+                    );
+                    self.report(&s.file, pos, "sensor.name".into(), message, Some(help));
+                }
+                None => {
+                    first.insert(&s.name, (&s.file, pos));
+                }
+            }
+        }
     }
 
     fn resolve_sensor(
@@ -230,43 +378,60 @@ impl Loader<'_> {
         doc: &SpecFile,
         sensor_doc: &SensorDoc,
         diags: &mut Vec<Diagnostic>,
+        cycles: &mut BTreeSet<BTreeSet<PathBuf>>,
     ) -> Option<Sensor> {
         let text = &self.files.get(root)?.text;
         let mut included = Vec::new();
-        collect_includes(&self.files, root, &mut vec![root.to_path_buf()], &mut included, diags);
+        let complete = collect_includes(&self.files, root, &mut vec![root.to_path_buf()], &mut included, diags, cycles);
 
         let mut r = Reporter { file: root, text, out: diags };
         let head = resolve_sensor_head(sensor_doc, &mut r);
 
-        // Which included commands does this file `use`?
+        // Which included commands does this file `use`? Only the first `use` of each counts.
         let mut used: BTreeMap<String, usize> = BTreeMap::new();
         for (i, c) in doc.commands.iter().enumerate() {
-            if let Some(u) = &c.uses {
-                if !included.iter().any(|d| d.doc.name.as_ref().is_some_and(|n| n.value == u.value)) {
-                    let names: Vec<String> =
-                        included.iter().filter_map(|d| d.doc.name.as_ref().map(|n| n.value.clone())).collect();
-                    r.error(
-                        Pos::at(u),
-                        format!("commands[{i}].use"),
-                        format!("no included command is called `{}`", escape(&u.value)),
-                        Some(if names.is_empty() {
-                            "this file includes no commands; add the fragment to `include`".into()
-                        } else {
-                            format!("included commands: {}", names.join(", "))
-                        }),
-                    );
-                } else if used.insert(u.value.clone(), i).is_some() {
-                    r.error(Pos::at(u), format!("commands[{i}].use"), format!("`{}` is used twice", u.value), None);
+            let Some(u) = &c.uses else { continue };
+            let key = format!("{}.use", command_key(i, c));
+            if !included.iter().any(|d| d.doc.name.as_ref().is_some_and(|n| n.value == u.value)) {
+                if !complete {
+                    continue; // An include failed: its commands are unknown, not missing.
                 }
+                let names: Vec<&str> =
+                    included.iter().filter_map(|d| d.doc.name.as_ref().map(|n| n.value.as_str())).collect();
+                let help = if names.is_empty() {
+                    "this file includes no commands; add the fragment that defines it to `include`".to_string()
+                } else {
+                    match crate::yaml::closest(&u.value, &names) {
+                        Some(best) => format!("did you mean `{best}`? included commands: {}", names.join(", ")),
+                        None => format!("included commands: {}", names.join(", ")),
+                    }
+                };
+                r.error(Pos::at(u), key, format!("no included command is called `{}`", escape(&u.value)), Some(help));
+            } else if let Some(&first) = used.get(&u.value) {
+                let first_pos = doc.commands.get(first).and_then(|f| f.uses.as_ref()).map(Pos::at).unwrap_or_default();
+                r.error(
+                    Pos::at(u),
+                    key,
+                    format!("`{}` is used twice", u.value),
+                    Some(format!(
+                        "the first `use` is at line {}, column {}; merge the two entries",
+                        first_pos.line, first_pos.column
+                    )),
+                );
+            } else {
+                used.insert(u.value.clone(), i);
             }
         }
 
         let mut commands = Vec::new();
+        let mut origins: Vec<Origin<'_>> = Vec::new();
         // Included commands nobody refines keep their fragment's examples and source.
         for def in included.iter().filter(|d| d.doc.name.as_ref().is_some_and(|n| !used.contains_key(&n.value))) {
             let Some(parsed) = self.files.get(def.file) else { continue };
             let mut fr = Reporter { file: def.file, text: &parsed.text, out: r.out };
             if let Some(c) = resolve_command(def.doc, None, def.index, def.fragment.clone(), &mut fr) {
+                let pos = def.doc.name.as_ref().map(Pos::at).unwrap_or_default();
+                origins.push(Origin { file: def.file, pos, key: command_key(def.index, def.doc) });
                 commands.push(c);
             }
         }
@@ -274,22 +439,26 @@ impl Loader<'_> {
             match (&c.name, &c.uses) {
                 (Some(n), Some(_)) => r.error(
                     Pos::at(n),
-                    format!("commands[{i}]"),
+                    command_key(i, c),
                     "a command has `name` (a new command) or `use` (an included one), not both",
-                    None,
+                    Some("keep `name` to define a new command, or `use` to add this manual's examples to an included one".into()),
                 ),
                 (None, None) => r.error(
-                    c.title.as_ref().map(Pos::at).unwrap_or_default(),
-                    format!("commands[{i}]"),
+                    c.title.as_ref().map(Pos::at).or(c.function.as_ref().map(Pos::at)).unwrap_or_default(),
+                    command_key(i, c),
                     "a command needs `name` (a new command) or `use` (an included one)",
-                    None,
+                    Some("add `name: <snake_case>` for a new command, or `use: <name>` of an included one".into()),
                 ),
-                (Some(_), None) => {
+                (Some(n), None) => {
                     if let Some(cmd) = resolve_command(c, None, i, None, &mut r) {
+                        origins.push(Origin { file: root, pos: Pos::at(n), key: command_key(i, c) });
                         commands.push(cmd);
                     }
                 }
                 (None, Some(u)) => {
+                    if used.get(&u.value) != Some(&i) {
+                        continue; // Unknown or repeated: reported above.
+                    }
                     let Some(def) = included.iter().find(|d| d.doc.name.as_ref().is_some_and(|n| n.value == u.value))
                     else {
                         continue;
@@ -304,43 +473,73 @@ impl Loader<'_> {
                     };
                     // This manual's source, examples and errata.
                     if let Some(s) = &c.source {
-                        cmd.source = resolve_source(s, &format!("commands[{i}].source"), &mut r);
+                        cmd.source = resolve_source(s, &format!("{}.source", command_key(i, c)), &mut r);
                     }
                     cmd.examples.clear();
                     cmd.errata.clear();
                     resolve_command_extras(c, i, &mut cmd, &mut r);
+                    origins.push(Origin { file: root, pos: Pos::at(u), key: command_key(i, c) });
                     commands.push(cmd);
                 }
             }
         }
 
-        // Names and wire positions must be unique.
-        let mut names = BTreeSet::new();
-        let mut wires = BTreeMap::new();
-        for cmd in &commands {
-            if !names.insert(cmd.name.clone()) {
-                let pos = find_name_pos(doc, &cmd.name);
-                r.error(
-                    pos,
-                    "commands",
+        // Names, the Rust types they become, and wire positions must be unique.
+        let mut names: BTreeMap<String, usize> = BTreeMap::new();
+        let mut types: BTreeMap<String, usize> = BTreeMap::new();
+        let mut wires: BTreeMap<(u8, u16, Option<u8>), usize> = BTreeMap::new();
+        for (k, (cmd, origin)) in commands.iter().zip(&origins).enumerate() {
+            let mut fr = match self.files.get(origin.file) {
+                Some(p) => Reporter { file: origin.file, text: &p.text, out: r.out },
+                None => continue,
+            };
+            if let Some(&j) = names.get(&cmd.name) {
+                let first = &origins[j];
+                fr.error(
+                    origin.pos,
+                    format!("{}.name", origin.key),
                     format!("two commands are called `{}`", cmd.name),
-                    Some("command names must be unique within a sensor, included commands too".into()),
+                    Some(format!(
+                        "the first is at {}; command names must be unique within a sensor, included commands too",
+                        place(first.file, first.pos, origin.file)
+                    )),
                 );
+                continue;
             }
-            let key = (cmd.function.code(), cmd.address, cmd.fixed_slave);
-            if let Some(other) = wires.insert(key, cmd.name.clone()) {
-                let pos = find_name_pos(doc, &cmd.name);
-                r.error(
-                    pos,
-                    "commands",
+            names.insert(cmd.name.clone(), k);
+            let ty = camel(&cmd.name);
+            if let Some(&j) = types.get(&ty) {
+                fr.error(
+                    origin.pos,
+                    format!("{}.name", origin.key),
+                    format!("`{}` and `{}` both become the Rust type `{ty}`", commands[j].name, cmd.name),
+                    Some(format!(
+                        "rename one of them (the other is at {})",
+                        place(origins[j].file, origins[j].pos, origin.file)
+                    )),
+                );
+            } else {
+                types.insert(ty, k);
+            }
+            let wire = (cmd.function.code(), cmd.address, cmd.fixed_slave);
+            if let Some(&j) = wires.get(&wire) {
+                fr.error(
+                    origin.pos,
+                    format!("{}.address", origin.key),
                     format!(
-                        "`{}` and `{other}` both {} register 0x{:04X}",
+                        "`{}` and `{}` both {} register 0x{:04X}",
+                        commands[j].name,
                         cmd.name,
                         if cmd.is_read() { "read" } else { "write" },
                         cmd.address
                     ),
-                    Some("a frame must identify one command".into()),
+                    Some(format!(
+                        "a frame must identify one command (the other is at {})",
+                        place(origins[j].file, origins[j].pos, origin.file)
+                    )),
                 );
+            } else {
+                wires.insert(wire, k);
             }
         }
 
@@ -369,50 +568,65 @@ impl Loader<'_> {
     }
 }
 
-fn find_name_pos(doc: &SpecFile, name: &str) -> Pos {
-    doc.commands
-        .iter()
-        .find_map(|c| c.name.as_ref().or(c.uses.as_ref()).filter(|n| n.value == name).map(Pos::at))
-        .unwrap_or_default()
-}
-
-fn yaml_message(e: &serde_saphyr::Error) -> String {
-    // serde-saphyr's Display may append a rendered snippet; keep the first line.
-    let full = e.to_string();
-    let first = full.lines().next().unwrap_or("invalid YAML").trim();
-    let first = first.strip_prefix("error: ").unwrap_or(first);
-    // Drop a leading "line L column C: "; the position is shown separately.
-    let first = match (first.starts_with("line "), first.find(": ")) {
-        (true, Some(i)) => first.get(i + 2..).unwrap_or(first),
-        _ => first,
-    };
-    match first.find(" at line ") {
-        Some(i) => first.get(..i).unwrap_or(first).to_string(),
-        None => first.to_string(),
+/// The key of a command entry: `commands[3] (get_ph)`, the name only when it is valid.
+fn command_key(i: usize, c: &CommandDoc) -> String {
+    match c.name.as_ref().or(c.uses.as_ref()) {
+        Some(n) if check_snake(&n.value).is_none() => format!("commands[{i}] ({})", n.value),
+        _ => format!("commands[{i}]"),
     }
 }
 
-fn yaml_help(e: &serde_saphyr::Error) -> String {
-    let m = e.to_string();
-    if m.contains("unknown field") {
-        "check the spelling; `spec/schema.json` lists every key".into()
-    } else if m.contains("duplicate") {
-        "each key may appear once in a mapping".into()
-    } else {
-        "see `spec/schema.json` or an existing spec file for the expected shape".into()
+/// The key of a field entry: `<command>.fields[0] (ph)`.
+fn field_key(command: &str, j: usize, f: &FieldDoc) -> String {
+    match &f.name {
+        Some(n) if check_snake(&n.value).is_none() => format!("{command}.fields[{j}] ({})", n.value),
+        _ => format!("{command}.fields[{j}]"),
     }
 }
 
 type Head = (String, String, String, Manual, Serial, u8, u8, u8);
 
-fn check_text(value: &Spanned<String>, key: &str, r: &mut Reporter<'_>) -> String {
+/// Characters that reorder text on screen (Trojan Source, CVE-2021-42574):
+/// rustc refuses them in comments and literals, and a reader cannot see them.
+const BIDI_CONTROLS: &[char] =
+    &['\u{202A}', '\u{202B}', '\u{202C}', '\u{202D}', '\u{202E}', '\u{2066}', '\u{2067}', '\u{2068}', '\u{2069}'];
+
+/// Name of a control character, for messages.
+fn char_name(c: char) -> String {
+    let name = match c {
+        '\0' => " (NUL)",
+        '\u{7}' => " (BEL)",
+        '\u{8}' => " (backspace)",
+        '\r' => " (carriage return)",
+        '\u{b}' => " (vertical tab)",
+        '\u{c}' => " (form feed)",
+        '\u{1b}' => " (ESC)",
+        '\u{7f}' => " (DEL)",
+        c if BIDI_CONTROLS.contains(&c) => " (bidi override)",
+        _ => "",
+    };
+    format!("U+{:04X}{name}", u32::from(c))
+}
+
+pub(crate) fn check_text(value: &Spanned<String>, key: &str, r: &mut Reporter<'_>) -> String {
     let text = &value.value;
-    if let Some(c) = text.chars().find(|c| c.is_control() && *c != '\n' && *c != '\t') {
+    let mut bad: Vec<char> = Vec::new();
+    for c in text.chars() {
+        let control = c.is_control() && c != '\n' && c != '\t';
+        if (control || BIDI_CONTROLS.contains(&c)) && !bad.contains(&c) {
+            bad.push(c);
+        }
+    }
+    if !bad.is_empty() {
+        let names: Vec<String> = bad.iter().take(8).map(|c| char_name(*c)).collect();
+        let what = if names.len() == 1 { "an invisible control character" } else { "invisible control characters" };
         r.error(
             Pos::at(value),
             key,
-            format!("text contains the control character {:?}", c),
-            Some("remove it; only newlines and tabs are allowed".into()),
+            format!("text contains {what}: {}", names.join(", ")),
+            Some(
+                "remove them; text may hold newlines and tabs, but no other control or bidi-override characters".into(),
+            ),
         );
     }
     if text.len() > MAX_TEXT_LEN {
@@ -420,7 +634,7 @@ fn check_text(value: &Spanned<String>, key: &str, r: &mut Reporter<'_>) -> Strin
             Pos::at(value),
             key,
             format!("text is {} bytes long; at most {MAX_TEXT_LEN} are allowed", text.len()),
-            None,
+            Some("shorten it; long explanations belong in docs/".into()),
         );
     }
     text.trim().to_string()
@@ -441,23 +655,59 @@ fn check_name(value: &Spanned<String>, key: &str, r: &mut Reporter<'_>) -> bool 
     }
 }
 
+/// A name valid as such that cannot name this kind of item (`rule`), reported with `help`.
+fn check_role(
+    value: &Spanned<String>,
+    key: &str,
+    rule: fn(&str) -> Option<String>,
+    help: &str,
+    r: &mut Reporter<'_>,
+) -> bool {
+    match rule(&value.value) {
+        None => true,
+        Some(why) => {
+            r.error(Pos::at(value), key, format!("invalid name: {why}"), Some(help.replace("<name>", &value.value)));
+            false
+        }
+    }
+}
+
 fn check_fragment(doc: &SpecFile, r: &mut Reporter<'_>) {
     if let Some(f) = &doc.fragment {
         check_name(&f.name, "fragment.name", r);
         check_text(&f.doc, "fragment.doc", r);
     }
-    if !doc.constants.is_empty() || !doc.errata.is_empty() {
-        r.error(Pos { line: 1, column: 1 }, "", "a fragment holds only `commands` and `include`", None);
+    for (key, present) in [("constants", !doc.constants.is_empty()), ("errata", !doc.errata.is_empty())] {
+        if present {
+            r.error(
+                top_key_pos(r.text, key),
+                key,
+                format!("a fragment cannot hold `{key}`"),
+                Some("a fragment holds only `commands` and `include`; move this to the sensor files".into()),
+            );
+        }
     }
     for (i, c) in doc.commands.iter().enumerate() {
         if let Some(u) = &c.uses {
-            r.error(Pos::at(u), format!("commands[{i}].use"), "`use` belongs in sensor files, not fragments", None);
+            r.error(
+                Pos::at(u),
+                format!("{}.use", command_key(i, c)),
+                "`use` belongs in sensor files, not fragments",
+                Some("a fragment defines commands with `name`; sensor files `use` them".into()),
+            );
         }
     }
 }
 
 fn resolve_sensor_head(s: &SensorDoc, r: &mut Reporter<'_>) -> Option<Head> {
-    let name_ok = check_name(&s.name, "sensor.name", r);
+    let name_ok = check_name(&s.name, "sensor.name", r)
+        && check_role(
+            &s.name,
+            "sensor.name",
+            crate::names::check_sensor_name,
+            "rename the sensor, e.g. `<name>_probe`",
+            r,
+        );
     let title = check_text(&s.title, "sensor.title", r);
     let doc = check_text(&s.doc, "sensor.doc", r);
     let manual = Manual {
@@ -471,8 +721,8 @@ fn resolve_sensor_head(s: &SensorDoc, r: &mut Reporter<'_>) -> Option<Head> {
         r.error(
             Pos::at(&s.serial.baud),
             "sensor.serial.baud",
-            format!("baud {baud} is not plausible"),
-            Some("use 300..=1000000".into()),
+            format!("baud rate {baud} is not plausible"),
+            Some("use 300..=1000000 (the manuals say 9600)".into()),
         );
         ok = false;
     }
@@ -481,8 +731,8 @@ fn resolve_sensor_head(s: &SensorDoc, r: &mut Reporter<'_>) -> Option<Head> {
         r.error(
             Pos::at(&s.serial.data_bits),
             "sensor.serial.data_bits",
-            format!("{data_bits} data bits"),
-            Some("use 7 or 8".into()),
+            format!("a serial line has 7 or 8 data bits, not {data_bits}"),
+            Some("use 7 or 8 (the manuals say 8)".into()),
         );
         ok = false;
     }
@@ -491,8 +741,8 @@ fn resolve_sensor_head(s: &SensorDoc, r: &mut Reporter<'_>) -> Option<Head> {
         r.error(
             Pos::at(&s.serial.stop_bits),
             "sensor.serial.stop_bits",
-            format!("{stop_bits} stop bits"),
-            Some("use 1 or 2".into()),
+            format!("a serial line has 1 or 2 stop bits, not {stop_bits}"),
+            Some("use 1 or 2 (the manuals say 1)".into()),
         );
         ok = false;
     }
@@ -513,7 +763,7 @@ fn resolve_sensor_head(s: &SensorDoc, r: &mut Reporter<'_>) -> Option<Head> {
             Pos::at(&s.default_address),
             "sensor.default_address",
             format!("default address {default} is outside {min}..={max}"),
-            None,
+            Some("the factory address must be one of `addresses`".into()),
         );
         ok = false;
     }
@@ -529,27 +779,39 @@ fn resolve_sensor_head(s: &SensorDoc, r: &mut Reporter<'_>) -> Option<Head> {
     Some((s.name.value.clone(), title, doc, manual, serial, min as u8, max as u8, default as u8))
 }
 
-/// Depth-first over includes, collecting fragment commands; reports cycles.
+/// Depth-first over includes, collecting fragment commands; reports cycles
+/// (each once) and includes of files that are not fragments. Returns false
+/// when some included file could not be used, so that its commands are
+/// unknown rather than missing.
 fn collect_includes<'d>(
     files: &'d BTreeMap<PathBuf, Parsed>,
     file: &Path,
     stack: &mut Vec<PathBuf>,
     out: &mut Vec<Def<'d>>,
     diags: &mut Vec<Diagnostic>,
-) {
-    let Some(parsed) = files.get(file) else { return };
-    let Some(doc) = &parsed.doc else { return };
+    cycles: &mut BTreeSet<BTreeSet<PathBuf>>,
+) -> bool {
+    let Some(parsed) = files.get(file) else { return false };
+    let Some(doc) = &parsed.doc else { return false };
+    let mut complete = true;
     for (i, inc) in doc.include.iter().enumerate() {
-        let path = sibling(file, &inc.value);
+        // Invalid include paths were reported while parsing.
+        let Ok(path) = include_target(file, &inc.value) else {
+            complete = false;
+            continue;
+        };
         let mut r = Reporter { file, text: &parsed.text, out: diags };
-        if stack.contains(&path) {
-            let chain: Vec<String> = stack.iter().chain([&path]).map(|p| p.display().to_string()).collect();
-            r.error(
-                Pos::at(inc),
-                format!("include[{i}]"),
-                format!("include cycle: {}", chain.join(" -> ")),
-                Some("a fragment may not include itself, directly or through others".into()),
-            );
+        if let Some(start) = stack.iter().position(|p| *p == path) {
+            let members: BTreeSet<PathBuf> = stack[start..].iter().cloned().collect();
+            if cycles.insert(members) {
+                let chain: Vec<String> = stack[start..].iter().chain([&path]).map(|p| shown(p, file)).collect();
+                r.error(
+                    Pos::at(inc),
+                    format!("include[{i}]"),
+                    format!("include cycle: {}", chain.join(" -> ")),
+                    Some("a fragment may not include itself, directly or through others; remove this include".into()),
+                );
+            }
             continue;
         }
         if stack.len() >= MAX_INCLUDE_DEPTH {
@@ -557,26 +819,35 @@ fn collect_includes<'d>(
                 Pos::at(inc),
                 format!("include[{i}]"),
                 format!("includes nest deeper than {MAX_INCLUDE_DEPTH} files"),
-                None,
+                Some("include the fragments from the sensor file directly".into()),
             );
+            complete = false;
             continue;
         }
         if out.iter().any(|d| d.file == path) {
             continue; // Already included through another path.
         }
-        let Some(inc_parsed) = files.get(&path) else { continue };
-        let Some(inc_doc) = &inc_parsed.doc else { continue };
+        // Unreadable or broken files were reported where they are.
+        let Some(inc_doc) = files.get(&path).and_then(|p| p.doc.as_ref()) else {
+            complete = false;
+            continue;
+        };
         let Some(fragment) = &inc_doc.fragment else {
+            let what = match &inc_doc.sensor {
+                Some(s) => format!("it describes the sensor `{}`", escape(&s.name.value)),
+                None => "it has no `fragment:` section".into(),
+            };
             r.error(
                 Pos::at(inc),
                 format!("include[{i}]"),
-                format!("`{}` is not a fragment", path.display()),
+                format!("`{}` is not a fragment: {what}", escape(&inc.value)),
                 Some("only files with a `fragment:` section can be included".into()),
             );
+            complete = false;
             continue;
         };
         stack.push(path.clone());
-        collect_includes(files, &path, stack, out, diags);
+        complete &= collect_includes(files, &path, stack, out, diags, cycles);
         stack.pop();
         let Some((path_ref, _)) = files.get_key_value(&path) else { continue };
         for (index, c) in inc_doc.commands.iter().enumerate() {
@@ -585,6 +856,7 @@ fn collect_includes<'d>(
             }
         }
     }
+    complete
 }
 
 /// A `use:` entry may only add this manual's source, examples and errata.
@@ -606,7 +878,7 @@ fn check_use_entry(c: &CommandDoc, i: usize, r: &mut Reporter<'_>) {
     for (key, pos) in extra {
         r.error(
             pos,
-            format!("commands[{i}].{key}"),
+            format!("{}.{key}", command_key(i, c)),
             format!("`{key}` cannot be changed by a `use` entry"),
             Some("a `use` entry takes `source`, `examples` and `errata`; change the definition in the fragment".into()),
         );
@@ -625,7 +897,13 @@ fn require<'a, T>(
     r: &mut Reporter<'_>,
 ) -> Option<&'a Spanned<T>> {
     if v.is_none() {
-        r.error(at, key, format!("missing `{what}`"), None);
+        let help = match what {
+            "function" => "add `function: read` (0x03) or `function: write` (0x10)",
+            "address" => "add `address:`, the first register as sent on the wire, like `0x2800`",
+            "count" => "add `count:`, the number of registers",
+            _ => "see spec/schema.json",
+        };
+        r.error(at, key, format!("missing `{what}`"), Some(help.into()));
     }
     v.as_ref()
 }
@@ -638,9 +916,16 @@ fn resolve_command(
     fragment: Option<String>,
     r: &mut Reporter<'_>,
 ) -> Option<Command> {
-    let key = format!("commands[{i}]");
+    let key = command_key(i, c);
     let name = c.name.as_ref()?;
-    let name_ok = check_name(name, &format!("{key}.name"), r);
+    let name_ok = check_name(name, &format!("{key}.name"), r)
+        && check_role(
+            name,
+            &format!("{key}.name"),
+            crate::names::check_command_name,
+            "rename the command, e.g. `get_<name>`",
+            r,
+        );
     let at = Pos::at(name);
     let title = c.title.as_ref().map(|t| check_text(t, &format!("{key}.title"), r));
     let doc = c.doc.as_ref().map(|t| check_text(t, &format!("{key}.doc"), r));
@@ -672,7 +957,7 @@ fn resolve_command(
                 Pos::at(s),
                 format!("{key}.fixed_slave"),
                 format!("slave address {} does not fit in a byte", s.value),
-                None,
+                Some("a fixed slave address is 0..=255, like `0xFF` for a wildcard".into()),
             );
             None
         })
@@ -681,7 +966,12 @@ fn resolve_command(
     for (j, b) in c.extra_byte_counts.iter().enumerate() {
         let k = format!("{key}.extra_byte_counts[{j}]");
         if function != Some(Function::Read) {
-            r.error(Pos::at(b), &k, "extra byte counts apply to read replies only", None);
+            r.error(
+                Pos::at(b),
+                &k,
+                "extra byte counts apply to read replies only",
+                Some("remove `extra_byte_counts` from this write".into()),
+            );
         } else if b.value > 250 || count.is_some_and(|n| b.value == 2 * u32::from(n)) {
             r.error(
                 Pos::at(b),
@@ -731,7 +1021,12 @@ fn check_count(
     if trigger {
         let t = c.trigger.as_ref().map(Pos::at).unwrap_or_default();
         if f != Function::Write {
-            r.error(t, format!("{key}.trigger"), "only writes can be triggers", None);
+            r.error(
+                t,
+                format!("{key}.trigger"),
+                "only writes can be triggers",
+                Some("remove `trigger`, or make the command `function: write`".into()),
+            );
             return None;
         }
         if v != 0 {
@@ -830,12 +1125,20 @@ fn resolve_fields(
         if let Some(f) = &c.fields
             && !f.value.is_empty()
         {
-            r.error(Pos::at(f), format!("{key}.fields"), "a trigger write carries no fields", None);
+            r.error(
+                Pos::at(f),
+                format!("{key}.fields"),
+                "a trigger write carries no fields",
+                Some("remove `fields`, or remove `trigger` and give `count`".into()),
+            );
             return None;
         }
         return Some(Vec::new());
     }
     if docs.is_empty() {
+        if c.count.as_ref().is_some_and(|n| n.value == 0) {
+            return None; // `count: 0` without `trigger` is reported; no fields follows from it.
+        }
         let pos = c.fields.as_ref().map(Pos::at).unwrap_or(at);
         r.error(
             pos,
@@ -847,21 +1150,25 @@ fn resolve_fields(
     }
     let mut ok = true;
     let mut fields = Vec::new();
-    let mut names = BTreeSet::new();
+    let mut names: BTreeMap<String, Pos> = BTreeMap::new();
     let mut offset = 0usize;
     for (j, f) in docs.iter().enumerate() {
-        let fk = format!("{key}.fields[{j}]");
+        let fk = field_key(key, j, f);
         let fat = Pos::at(&f.ty);
         match resolve_field(f, &fk, fat, offset, r) {
             Some(field) => {
+                let pos = f.name.as_ref().map(Pos::at).unwrap_or(fat);
                 if let Some(n) = &field.name
-                    && !names.insert(n.clone())
+                    && let Some(first) = names.insert(n.clone(), pos)
                 {
                     r.error(
-                        f.name.as_ref().map(Pos::at).unwrap_or(fat),
+                        pos,
                         format!("{fk}.name"),
-                        format!("two fields are called `{n}`"),
-                        None,
+                        format!("two fields of this command are called `{n}`"),
+                        Some(format!(
+                            "the first is at line {}, column {}; rename one of them",
+                            first.line, first.column
+                        )),
                     );
                     ok = false;
                 }
@@ -898,7 +1205,12 @@ fn resolve_fields(
 fn forbid<T>(v: &Option<Spanned<T>>, what: &str, ty: &str, key: &str, r: &mut Reporter<'_>) -> bool {
     match v {
         Some(v) => {
-            r.error(Pos::at(v), format!("{key}.{what}"), format!("`{what}` does not apply to a `{ty}` field"), None);
+            r.error(
+                Pos::at(v),
+                format!("{key}.{what}"),
+                format!("`{what}` does not apply to a `{ty}` field"),
+                Some(format!("remove `{what}`")),
+            );
             false
         }
         None => true,
@@ -916,7 +1228,12 @@ fn resolve_field(f: &FieldDoc, key: &str, at: Pos, offset: usize, r: &mut Report
         }
         (None, FieldTypeDoc::Reserved) => None,
         (None, _) => {
-            r.error(at, format!("{key}.name"), format!("a `{ty_name}` field needs a `name`"), None);
+            r.error(
+                at,
+                format!("{key}.name"),
+                format!("a `{ty_name}` field needs a `name`"),
+                Some("add `name:`, or use `type: reserved` for bytes without meaning".into()),
+            );
             ok = false;
             None
         }
@@ -925,12 +1242,22 @@ fn resolve_field(f: &FieldDoc, key: &str, at: Pos, offset: usize, r: &mut Report
     let needs_size = |r: &mut Reporter<'_>| -> Option<usize> {
         match size {
             Some((s, pos)) if s == 0 || s > 250 => {
-                r.error(pos, format!("{key}.size"), format!("size {s} is not between 1 and 250 bytes"), None);
+                r.error(
+                    pos,
+                    format!("{key}.size"),
+                    format!("size {s} is not between 1 and 250 bytes"),
+                    Some("a field fits in one frame: at most 250 bytes (125 registers)".into()),
+                );
                 None
             }
             Some((s, _)) => Some(s as usize),
             None => {
-                r.error(at, format!("{key}.size"), format!("a `{ty_name}` field needs a `size` in bytes"), None);
+                r.error(
+                    at,
+                    format!("{key}.size"),
+                    format!("a `{ty_name}` field needs a `size` in bytes"),
+                    Some("add `size:`".into()),
+                );
                 None
             }
         }
@@ -1082,7 +1409,12 @@ fn resolve_enum(f: &FieldDoc, key: &str, at: Pos, r: &mut Reporter<'_>) -> Optio
         None | Some((1, _)) => Some(EnumRepr::U8),
         Some((2, _)) => order2(f.byte_order.as_ref(), &format!("{key}.byte_order"), at, r).map(EnumRepr::U16),
         Some((s, pos)) => {
-            r.error(pos, format!("{key}.size"), format!("an enum code is 1 or 2 bytes, not {s}"), None);
+            r.error(
+                pos,
+                format!("{key}.size"),
+                format!("an enum code is 1 or 2 bytes, not {s}"),
+                Some("use `size: 1`, or `size: 2` with a `byte_order`".into()),
+            );
             None
         }
     };
@@ -1096,32 +1428,58 @@ fn resolve_enum(f: &FieldDoc, key: &str, at: Pos, r: &mut Reporter<'_>) -> Optio
         return None;
     };
     if variants.value.is_empty() {
-        r.error(Pos::at(variants), format!("{key}.variants"), "an `enum` needs at least one variant", None);
+        r.error(
+            Pos::at(variants),
+            format!("{key}.variants"),
+            "an `enum` needs at least one variant",
+            Some("list `- {name: ..., value: ...}` entries".into()),
+        );
         return None;
     }
     let max = if repr == Some(EnumRepr::U8) { 0xFF } else { 0xFFFF };
     let mut ok = true;
-    let mut names = BTreeSet::new();
+    let mut names: BTreeMap<String, Pos> = BTreeMap::new();
+    let mut types: BTreeMap<String, String> = BTreeMap::new();
     let mut values = BTreeMap::new();
     let mut out = Vec::new();
     for (j, v) in variants.value.iter().enumerate() {
-        let vk = format!("{key}.variants[{j}]");
-        ok &= check_name(&v.name, &format!("{vk}.name"), r);
-        if !names.insert(v.name.value.clone()) {
+        let vk = match check_snake(&v.name.value) {
+            None => format!("{key}.variants[{j}] ({})", v.name.value),
+            Some(_) => format!("{key}.variants[{j}]"),
+        };
+        let name_ok = check_name(&v.name, &format!("{vk}.name"), r);
+        ok &= name_ok;
+        if let Some(first) = names.insert(v.name.value.clone(), Pos::at(&v.name)) {
             r.error(
                 Pos::at(&v.name),
                 format!("{vk}.name"),
                 format!("two variants are called `{}`", v.name.value),
-                None,
+                Some(format!("the first is at line {}, column {}; rename one of them", first.line, first.column)),
             );
             ok = false;
+        } else if name_ok {
+            let ty = camel(&v.name.value);
+            if let Some(other) = types.insert(ty.clone(), v.name.value.clone()) {
+                r.error(
+                    Pos::at(&v.name),
+                    format!("{vk}.name"),
+                    format!("variants `{other}` and `{}` both become the Rust variant `{ty}`", v.name.value),
+                    Some("rename one of them".into()),
+                );
+                ok = false;
+            }
         }
         if v.value.value > max {
+            let (bytes, help) = if max == 0xFF {
+                (1, "a 1-byte enum takes codes 0..=255; for larger codes use `size: 2` with a `byte_order`")
+            } else {
+                (2, "a 2-byte enum takes codes 0..=65535")
+            };
             r.error(
                 Pos::at(&v.value),
                 format!("{vk}.value"),
-                format!("code {} does not fit the enum's {}-byte size", v.value.value, if max == 0xFF { 1 } else { 2 }),
-                None,
+                format!("code {} does not fit the enum's {bytes}-byte size", v.value.value),
+                Some(help.into()),
             );
             ok = false;
         } else if let Some(other) = values.insert(v.value.value, v.name.value.clone()) {
@@ -1129,7 +1487,7 @@ fn resolve_enum(f: &FieldDoc, key: &str, at: Pos, r: &mut Reporter<'_>) -> Optio
                 Pos::at(&v.value),
                 format!("{vk}.value"),
                 format!("code {} is used by `{other}` and `{}`", v.value.value, v.name.value),
-                Some("enum codes must be unique".into()),
+                Some("enum codes must be unique; each code names one variant".into()),
             );
             ok = false;
         }
@@ -1142,7 +1500,7 @@ fn resolve_enum(f: &FieldDoc, key: &str, at: Pos, r: &mut Reporter<'_>) -> Optio
 
 /// Examples and table errata; needs the resolved command.
 fn resolve_command_extras(c: &CommandDoc, i: usize, cmd: &mut Command, r: &mut Reporter<'_>) {
-    let key = format!("commands[{i}]");
+    let key = command_key(i, c);
     let mut ids = BTreeSet::new();
     for (j, e) in c.errata.iter().enumerate() {
         let ek = format!("{key}.errata[{j}]");
@@ -1156,14 +1514,14 @@ fn resolve_command_extras(c: &CommandDoc, i: usize, cmd: &mut Command, r: &mut R
                     Pos::at(a),
                     format!("{ek}.table.address"),
                     format!("the table's address 0x{:04X} is the command's own: nothing to correct", a.value),
-                    None,
+                    Some("remove `address` from `table`".into()),
                 );
             } else if a.value > 0xFFFF {
                 r.error(
                     Pos::at(a),
                     format!("{ek}.table.address"),
                     format!("address {} does not fit in 16 bits", a.value),
-                    None,
+                    Some("addresses are 0x0000..=0xFFFF".into()),
                 );
             }
             differs = true;
@@ -1174,14 +1532,14 @@ fn resolve_command_extras(c: &CommandDoc, i: usize, cmd: &mut Command, r: &mut R
                     Pos::at(n),
                     format!("{ek}.table.count"),
                     format!("the table's count {} is the command's own: nothing to correct", n.value),
-                    None,
+                    Some("remove `count` from `table`".into()),
                 );
             } else if n.value > 0xFFFF {
                 r.error(
                     Pos::at(n),
                     format!("{ek}.table.count"),
                     format!("count {} does not fit in 16 bits", n.value),
-                    None,
+                    Some("counts are 0..=65535".into()),
                 );
             }
             differs = true;
@@ -1196,7 +1554,7 @@ fn resolve_command_extras(c: &CommandDoc, i: usize, cmd: &mut Command, r: &mut R
                     Pos::at(f),
                     format!("{ek}.table.function"),
                     "the table's function is the command's own: nothing to correct",
-                    None,
+                    Some("remove `function` from `table`".into()),
                 );
             }
             func
@@ -1209,7 +1567,7 @@ fn resolve_command_extras(c: &CommandDoc, i: usize, cmd: &mut Command, r: &mut R
                 Pos::at(&e.id),
                 format!("{ek}.table"),
                 "a table erratum names what the table prints: `address`, `count` or `function`",
-                None,
+                Some("add `table: {address: 0x1100}` (or `count`, `function`) as the table prints it".into()),
             );
         }
         cmd.errata.push(CommandErratum {
@@ -1239,24 +1597,45 @@ pub(crate) fn check_erratum_id(id: &Spanned<String>, key: &str, ids: &mut BTreeS
             Some("use the id from datasheet-notes.md, like `E4`".into()),
         );
     } else if !ids.insert(v.clone()) {
-        r.error(Pos::at(id), key, format!("erratum `{v}` is recorded twice here"), None);
+        r.error(
+            Pos::at(id),
+            key,
+            format!("erratum `{v}` is recorded twice here"),
+            Some("record each erratum once per command".into()),
+        );
     }
 }
 
 fn resolve_constants(docs: &[ConstantDoc], r: &mut Reporter<'_>) -> Vec<Constant> {
     let mut out = Vec::new();
-    let mut names = BTreeSet::new();
+    let mut names: BTreeMap<String, Pos> = BTreeMap::new();
+    let mut consts: BTreeMap<String, String> = BTreeMap::new();
     for (i, c) in docs.iter().enumerate() {
-        let key = format!("constants[{i}]");
-        let mut ok = check_name(&c.name, &format!("{key}.name"), r);
-        if !names.insert(c.name.value.clone()) {
+        let key = match check_snake(&c.name.value) {
+            None => format!("constants[{i}] ({})", c.name.value),
+            Some(_) => format!("constants[{i}]"),
+        };
+        let name_ok = check_name(&c.name, &format!("{key}.name"), r);
+        let mut ok = name_ok;
+        if let Some(first) = names.insert(c.name.value.clone(), Pos::at(&c.name)) {
             r.error(
                 Pos::at(&c.name),
                 format!("{key}.name"),
                 format!("two constants are called `{}`", c.name.value),
-                None,
+                Some(format!("the first is at line {}, column {}; rename one of them", first.line, first.column)),
             );
             ok = false;
+        } else if name_ok {
+            let upper = shouty(&c.name.value);
+            if let Some(other) = consts.insert(upper.clone(), c.name.value.clone()) {
+                r.error(
+                    Pos::at(&c.name),
+                    format!("{key}.name"),
+                    format!("constants `{other}` and `{}` both become the Rust constant `{upper}`", c.name.value),
+                    Some("rename one of them".into()),
+                );
+                ok = false;
+            }
         }
         let doc = check_text(&c.doc, &format!("{key}.doc"), r);
         let unit = c.unit.as_ref().map(|u| check_text(u, &format!("{key}.unit"), r));
@@ -1265,11 +1644,21 @@ fn resolve_constants(docs: &[ConstantDoc], r: &mut Reporter<'_>) -> Vec<Constant
             (Some(v), None) => (vec![v.value], false, Pos::at(v)),
             (None, Some(vs)) if !vs.value.is_empty() && vs.value.len() <= 64 => (vs.value.clone(), true, Pos::at(vs)),
             (None, Some(vs)) => {
-                r.error(Pos::at(vs), format!("{key}.values"), "a list constant holds 1 to 64 values", None);
+                r.error(
+                    Pos::at(vs),
+                    format!("{key}.values"),
+                    "a list constant holds 1 to 64 values",
+                    Some("use `value:` for a single number".into()),
+                );
                 continue;
             }
             _ => {
-                r.error(Pos::at(&c.name), &key, "a constant has exactly one of `value` and `values`", None);
+                r.error(
+                    Pos::at(&c.name),
+                    &key,
+                    "a constant has exactly one of `value` and `values`",
+                    Some("use `value: 1.0` for a number or `values: [1.0, 2.0]` for a list".into()),
+                );
                 continue;
             }
         };
@@ -1288,7 +1677,21 @@ fn resolve_constants(docs: &[ConstantDoc], r: &mut Reporter<'_>) -> Vec<Constant
         for v in &values {
             let integral = ty == ConstantType::F32 || (v.fract() == 0.0 && *v >= 0.0);
             if !v.is_finite() || !integral || v.abs() > max {
-                r.error(pos, format!("{key}.value"), format!("{v} is not a valid `{}`", type_name_const(ty)), None);
+                r.error(
+                    pos,
+                    format!("{key}.value"),
+                    format!("{v} is not a valid `{}`", type_name_const(ty)),
+                    Some(format!(
+                        "a `{}` holds {}",
+                        type_name_const(ty),
+                        match ty {
+                            ConstantType::F32 => "finite numbers that fit an f32",
+                            ConstantType::U8 => "whole numbers 0..=255",
+                            ConstantType::U16 => "whole numbers 0..=65535",
+                            ConstantType::U32 => "whole numbers 0..=4294967295",
+                        }
+                    )),
+                );
                 ok = false;
             }
         }
@@ -1314,10 +1717,20 @@ fn resolve_errata(docs: &[ErratumDoc], r: &mut Reporter<'_>) -> Vec<Erratum> {
         .enumerate()
         .map(|(i, e)| {
             check_erratum_id(&e.id, &format!("errata[{i}].id"), &mut ids, r);
+            let sections = e
+                .sections
+                .iter()
+                .enumerate()
+                .map(|(j, section)| {
+                    // Sections are plain strings (no positions): check them as if written at the id.
+                    let spanned = Spanned { value: section.clone(), ..e.id.clone() };
+                    check_text(&spanned, &format!("errata[{i}].sections[{j}]"), r)
+                })
+                .collect();
             Erratum {
                 id: e.id.value.clone(),
                 figures: e.figures.clone(),
-                sections: e.sections.clone(),
+                sections,
                 note: check_text(&e.note, &format!("errata[{i}].note"), r),
             }
         })
@@ -1333,7 +1746,7 @@ pub fn parse_hex(text: &str) -> Result<Vec<u8>, String> {
     if let Some(bad) = compact.chars().find(|c| !c.is_ascii_hexdigit()) {
         return Err(format!("{bad:?} is not a hex digit"));
     }
-    if compact.len() % 2 != 0 {
+    if !compact.len().is_multiple_of(2) {
         return Err(format!("{} hex digits is an odd number; each byte takes two", compact.len()));
     }
     if compact.len() / 2 > yosemitech_rtu::frame::MAX_ADU {

@@ -7,6 +7,50 @@ use std::path::{Component, Path, PathBuf};
 /// The largest spec file the loader reads.
 pub const MAX_FILE_BYTES: u64 = 1 << 20;
 
+/// Why a file could not be read as text: it is not UTF-8. Carried inside
+/// the [`io::Error`] that [`Sources::read`] returns (kind `InvalidData`), so
+/// the loader can point at the first bad byte.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct NotUtf8 {
+    /// Line of the first byte that is not UTF-8 (1-based).
+    pub line: u32,
+    /// Its column, in characters (1-based).
+    pub column: u32,
+    /// That line, bad bytes replaced by U+FFFD, for display.
+    pub text: String,
+}
+
+impl std::fmt::Display for NotUtf8 {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "the file is not UTF-8 text (line {}, column {})", self.line, self.column)
+    }
+}
+
+impl std::error::Error for NotUtf8 {}
+
+impl NotUtf8 {
+    /// Where `bytes` stop being UTF-8, or `None` if they are UTF-8.
+    pub fn find(bytes: &[u8]) -> Option<Self> {
+        let valid_up_to = std::str::from_utf8(bytes).err()?.valid_up_to();
+        let good = String::from_utf8_lossy(bytes.get(..valid_up_to).unwrap_or(&[])).into_owned();
+        let line = good.matches('\n').count() as u32 + 1;
+        let line_start = good.rfind('\n').map_or(0, |i| i + 1);
+        let column = good.get(line_start..).map_or(0, |l| l.chars().count()) as u32 + 1;
+        let rest = bytes.get(line_start..).unwrap_or(&[]);
+        let end = rest.iter().position(|&b| b == b'\n').unwrap_or(rest.len());
+        let text = String::from_utf8_lossy(rest.get(..end).unwrap_or(&[])).into_owned();
+        Some(Self { line, column, text })
+    }
+}
+
+fn too_large(bytes: Option<usize>) -> io::Error {
+    let size = bytes.map_or_else(|| "more than 1 MiB".to_string(), |n| format!("{n} bytes"));
+    io::Error::new(
+        io::ErrorKind::FileTooLarge,
+        format!("the file is {size}; spec files are limited to {MAX_FILE_BYTES} bytes (1 MiB)"),
+    )
+}
+
 /// A store of spec files.
 pub trait Sources {
     /// The text of `path`.
@@ -27,14 +71,22 @@ fn is_yaml(path: &Path) -> bool {
 
 impl Sources for FsSources {
     fn read(&self, path: &Path) -> io::Result<String> {
-        let len = std::fs::metadata(path)?.len();
-        if len > MAX_FILE_BYTES {
-            return Err(io::Error::new(
-                io::ErrorKind::InvalidData,
-                format!("file is {len} bytes; spec files are limited to {MAX_FILE_BYTES} bytes"),
-            ));
+        use std::io::Read;
+        let file = std::fs::File::open(path)?;
+        if file.metadata()?.is_dir() {
+            return Err(io::Error::new(io::ErrorKind::InvalidInput, "it is a directory"));
         }
-        std::fs::read_to_string(path)
+        // Read at most one byte past the limit: the length on disk may lie
+        // (a device, a growing file).
+        let mut bytes = Vec::new();
+        file.take(MAX_FILE_BYTES + 1).read_to_end(&mut bytes)?;
+        if bytes.len() as u64 > MAX_FILE_BYTES {
+            return Err(too_large(None));
+        }
+        String::from_utf8(bytes).map_err(|e| match NotUtf8::find(e.as_bytes()) {
+            Some(bad) => io::Error::new(io::ErrorKind::InvalidData, bad),
+            None => io::Error::new(io::ErrorKind::InvalidData, e),
+        })
     }
 
     fn yaml_files(&self, dir: &Path) -> io::Result<Vec<PathBuf>> {
@@ -70,10 +122,7 @@ impl Sources for MemSources {
     fn read(&self, path: &Path) -> io::Result<String> {
         let text = self.0.get(path).ok_or_else(|| io::Error::new(io::ErrorKind::NotFound, "no such file"))?;
         if text.len() as u64 > MAX_FILE_BYTES {
-            return Err(io::Error::new(
-                io::ErrorKind::InvalidData,
-                format!("file is {} bytes; spec files are limited to {MAX_FILE_BYTES} bytes", text.len()),
-            ));
+            return Err(too_large(Some(text.len())));
         }
         Ok(text.clone())
     }

@@ -1,0 +1,181 @@
+//! Validation rules, on small specs held in memory.
+
+use std::path::PathBuf;
+
+use yosemitech_spec::sources::MemSources;
+use yosemitech_spec::{Diagnostics, Spec, load_with};
+
+const HEAD: &str = "sensor:
+  name: probe
+  title: Probe
+  doc: A probe.
+  manual: {title: Manual, revision: Rev 1}
+  serial: {baud: 9600, data_bits: 8, parity: none, stop_bits: 1}
+  addresses: {min: 1, max: 247}
+  default_address: 1
+";
+
+const GET_PH: &str = "
+  - name: get_ph
+    function: read
+    address: 0x2800
+    count: 2
+    fields:
+      - {name: ph, type: f32, byte_order: dcba}
+";
+
+fn load(files: &[(&str, &str)]) -> Result<Spec, Diagnostics> {
+    let mut sources = MemSources::default();
+    for (path, text) in files {
+        sources = sources.with(*path, *text);
+    }
+    load_with(&sources, &[PathBuf::from("spec")])
+}
+
+/// Loads one sensor file made of the common head and `rest`; returns the errors.
+fn errors(rest: &str) -> Diagnostics {
+    let text = format!("{HEAD}{rest}");
+    match load(&[("spec/probe.yaml", &text)]) {
+        Ok(_) => panic!("expected errors in\n{text}"),
+        Err(d) => d,
+    }
+}
+
+fn assert_error(d: &Diagnostics, line: u32, key: &str, message: &str) {
+    assert!(
+        d.0.iter().any(|x| x.pos.line == line && x.key == key && x.message.contains(message)),
+        "no error at line {line}, key `{key}`, containing `{message}` in\n{d}"
+    );
+}
+
+#[test]
+fn a_minimal_sensor_loads() {
+    let spec = load(&[("spec/probe.yaml", &format!("{HEAD}commands:{GET_PH}"))]).expect("loads");
+    assert_eq!(spec.sensors[0].commands[0].name, "get_ph");
+}
+
+#[test]
+fn register_counts_are_in_modbus_range() {
+    let d = errors("commands:\n  - {name: get_x, function: read, address: 1, count: 126, fields: []}\n");
+    assert_error(&d, 10, "commands[0] (get_x).count", "register count 126 is out of range for a read");
+    let d = errors("commands:\n  - {name: set_x, function: write, address: 1, count: 124, fields: []}\n");
+    assert_error(&d, 10, "commands[0] (set_x).count", "out of range for a write");
+    let d = errors("commands:\n  - {name: set_x, function: write, address: 1, count: 0}\n");
+    assert_error(&d, 10, "commands[0] (set_x).count", "only valid for a trigger");
+    assert_eq!(d.len(), 1, "count 0 alone, not a cascade:\n{d}");
+}
+
+#[test]
+fn a_trigger_is_a_write_of_nothing() {
+    let ok = "commands:\n  - {name: start, function: write, address: 0x1C00, count: 0, trigger: true}\n";
+    load(&[("spec/probe.yaml", &format!("{HEAD}{ok}"))]).expect("a trigger loads");
+    let d = errors("commands:\n  - {name: start, function: read, address: 0x1C00, count: 0, trigger: true}\n");
+    assert_error(&d, 10, "commands[0] (start).trigger", "only writes can be triggers");
+}
+
+#[test]
+fn fields_fill_the_registers_exactly() {
+    let d = errors(&format!("commands:{}", GET_PH.replace("count: 2", "count: 3")));
+    assert_error(&d, 13, "commands[0] (get_ph).fields", "cover 4 bytes but 3 registers hold 6");
+    let d = errors(&format!("commands:{}", GET_PH.replace("count: 2", "count: 1")));
+    assert_error(&d, 13, "commands[0] (get_ph).fields", "need 4 bytes but 1 registers hold only 2");
+    let overlap =
+        GET_PH.replace("count: 2", "count: 3") + "      - {name: flags, type: u16, byte_order: ab, offset: 2}\n";
+    let d = errors(&format!("commands:{overlap}"));
+    assert_error(&d, 16, "commands[0] (get_ph).fields[1] (flags).offset", "overlap");
+}
+
+#[test]
+fn names_are_unique_and_rust_safe() {
+    let d = errors(&format!("commands:{GET_PH}{}", GET_PH.replace("0x2800", "0x1200")));
+    assert_error(&d, 17, "commands[1] (get_ph).name", "two commands are called `get_ph`");
+    let d = errors(&format!("commands:{}", GET_PH.replace("name: ph,", "name: type,")));
+    assert_error(&d, 15, "commands[0] (get_ph).fields[0].name", "`type` is a Rust keyword");
+    let d = errors(&format!("commands:{}", GET_PH.replace("name: get_ph", "name: 'x\"]; fn evil() {'")));
+    assert_error(&d, 10, "commands[0].name", "is not a snake_case identifier");
+}
+
+#[test]
+fn example_crcs_verify_unless_an_erratum_says_otherwise() {
+    let example = |response: &str, erratum: &str| {
+        format!(
+            "commands:{GET_PH}    examples:\n      - figures: [1]\n        request: \"01 03 28 00 00 02 CD AB\"\n        response: \"{response}\"\n        values: {{ph: 7.6}}\n{erratum}"
+        )
+    };
+    let d = errors(&example("01 03 04 33 33 F3 40 40 79", ""));
+    assert_error(&d, 19, "commands[0] (get_ph).examples[0].response", "the printed CRC of the response is wrong");
+    // With an erratum giving the true frame, the printed one may be wrong.
+    let erratum = "        erratum:\n          id: E9\n          figure: 1\n          printed: Wrong CRC.\n          corrected_response: \"01 03 04 33 33 F3 40 40 78\"\n          printed_decodes: false\n";
+    let text = format!("{HEAD}{}", example("01 03 04 33 33 F3 40 40 79", erratum));
+    let spec = load(&[("spec/probe.yaml", &text)]).unwrap_or_else(|d| panic!("{d}"));
+    assert_eq!(spec.summary().printed_frames, 2);
+    assert_eq!(spec.summary().frames, 3);
+}
+
+#[test]
+fn stated_values_must_match_the_frame() {
+    let text = format!(
+        "commands:{GET_PH}    examples:\n      - figures: [1]\n        request: \"01 03 28 00 00 02 CD AB\"\n        response: \"01 03 04 33 33 F3 40 40 78\"\n        values: {{ph: 7.5}}\n"
+    );
+    let d = errors(&text);
+    assert_error(&d, 20, "commands[0] (get_ph).examples[0].values.ph", "the frame gives ph = 7.6");
+}
+
+#[test]
+fn includes_must_exist_be_fragments_and_not_cycle() {
+    let d = match load(&[("spec/probe.yaml", &format!("{HEAD}include: [missing.yaml]\n"))]) {
+        Err(d) => d,
+        Ok(_) => panic!("loaded"),
+    };
+    assert_error(&d, 9, "include[0]", "cannot read included file `missing.yaml`");
+
+    let fragment = |name: &str, include: &str| {
+        format!("fragment: {{name: {name}, doc: A fragment.}}\ninclude: [{include}]\ncommands: []\n")
+    };
+    let (a, b) = (fragment("frag_a", "b.yaml"), fragment("frag_b", "a.yaml"));
+    let sensor = format!("{HEAD}include: [a.yaml]\n");
+    let d = load(&[("spec/probe.yaml", &sensor), ("spec/a.yaml", &a), ("spec/b.yaml", &b)]).expect_err("a cycle");
+    assert_eq!(d.len(), 1, "one cycle, reported once:\n{d}");
+    assert!(d.0[0].message.starts_with("include cycle: "), "{d}");
+}
+
+#[test]
+fn every_error_of_a_file_is_reported_at_once() {
+    let text = format!(
+        "commands:{}{}",
+        GET_PH.replace("count: 2", "count: 200"),
+        GET_PH.replace("name: get_ph", "name: self").replace("0x2800", "0x1200")
+    );
+    let d = errors(&text);
+    assert_eq!(d.len(), 2, "{d}");
+    assert!(d.to_string().ends_with("could not load the spec due to 2 previous errors"));
+}
+
+#[test]
+fn yaml_errors_carry_positions_and_keys() {
+    let d = errors(&format!("commands:{}", GET_PH.replace("address", "adress")));
+    assert_error(&d, 12, "commands[0] (get_ph).adress", "unknown key `adress`");
+    assert!(d.0[0].help.as_deref().is_some_and(|h| h.contains("did you mean `address`?")));
+    let d = errors(&format!("commands:{}", GET_PH.replace("count: 2", "count: 2\n    count: 3")));
+    assert_error(&d, 14, "commands[0] (get_ph).count", "duplicate key `count`");
+}
+
+#[test]
+fn limits_refuse_hostile_input_quickly() {
+    // Billion laughs in a stated value (an untagged value serde buffers whole).
+    let mut values = String::from("        values:\n          ph:\n            - &a0 [x, x, x, x, x, x, x, x, x, x]\n");
+    for i in 1..10 {
+        let refs = vec![format!("*a{}", i - 1); 10].join(", ");
+        values.push_str(&format!("            - &a{i} [{refs}]\n"));
+    }
+    let text = format!(
+        "commands:{GET_PH}    examples:\n      - figures: [1]\n        request: \"01 03 28 00 00 02 CD AB\"\n        response: \"01 03 04 33 33 F3 40 40 78\"\n{values}"
+    );
+    let start = std::time::Instant::now();
+    let d = errors(&text);
+    assert!(start.elapsed() < std::time::Duration::from_secs(5), "took {:?}", start.elapsed());
+    assert!(d.0[0].message.contains("aliases expand to more than"), "{d}");
+    let big = "#".repeat(yosemitech_spec::sources::MAX_FILE_BYTES as usize + 1);
+    let d = load(&[("spec/big.yaml", &big)]).expect_err("too big");
+    assert!(d.0[0].message.contains("limited to 1048576 bytes"), "{d}");
+}
