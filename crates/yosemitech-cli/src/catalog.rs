@@ -1,0 +1,327 @@
+//! The sensors the tool knows: the spec compiled into the binary, plus spec
+//! files loaded at run time with `--spec`.
+//!
+//! Built-in files are served from memory ([`MemSources`]) under a virtual
+//! directory. A `--spec` directory is read from disk; a file it includes but
+//! does not hold (typically `yosemitech-common.yaml`) falls back to the
+//! built-in copy of the same name, so a new sensor's YAML file is enough on
+//! its own. A `--spec` sensor with a built-in sensor's name replaces it (and
+//! is then served through the interpreter, not the typed crate).
+
+use std::collections::BTreeMap;
+use std::io;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use yosemitech_spec::sources::{FsSources, MemSources, Sources};
+use yosemitech_spec::{Command, Sensor, load_with};
+
+use crate::error::{CliError, Result};
+
+include!(concat!(env!("OUT_DIR"), "/embedded_spec.rs"));
+
+/// The virtual directory of the built-in spec files.
+const BUILT_IN_DIR: &str = "<built-in spec>";
+
+/// Where a sensor's spec came from.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Origin {
+    /// Compiled into the binary: the typed `yosemitech` crate matches it.
+    BuiltIn,
+    /// Loaded at run time from this `--spec` path.
+    Loaded(PathBuf),
+}
+
+/// One known sensor.
+#[derive(Debug, Clone)]
+pub struct Entry {
+    /// Its spec.
+    pub sensor: Arc<Sensor>,
+    /// Where the spec came from.
+    pub origin: Origin,
+}
+
+/// Every sensor the tool knows, in load order.
+#[derive(Debug, Clone)]
+pub struct Catalog {
+    entries: Vec<Entry>,
+    /// The `--spec` paths, for commands printed to paste back.
+    spec_paths: Vec<PathBuf>,
+}
+
+/// The built-in files as a [`Sources`].
+fn built_in_sources() -> MemSources {
+    EMBEDDED_SPEC
+        .iter()
+        .fold(MemSources::default(), |sources, (name, text)| sources.with(Path::new(BUILT_IN_DIR).join(name), *text))
+}
+
+/// The file system, with the built-in files as a fallback for includes.
+struct Overlay<'a> {
+    built_in: &'a MemSources,
+}
+
+impl Sources for Overlay<'_> {
+    fn read(&self, path: &Path) -> io::Result<String> {
+        match FsSources.read(path) {
+            Err(e) if e.kind() == io::ErrorKind::NotFound => {
+                let fallback = path.file_name().map(|name| Path::new(BUILT_IN_DIR).join(name));
+                fallback.and_then(|p| self.built_in.read(&p).ok()).ok_or(e)
+            }
+            other => other,
+        }
+    }
+
+    fn yaml_files(&self, dir: &Path) -> io::Result<Vec<PathBuf>> {
+        FsSources.yaml_files(dir)
+    }
+
+    fn is_dir(&self, path: &Path) -> bool {
+        FsSources.is_dir(path)
+    }
+}
+
+impl Catalog {
+    /// The built-in sensors, then those of each `--spec` path.
+    pub fn load(extra: &[PathBuf]) -> Result<Self> {
+        let built_in = built_in_sources();
+        let spec = load_with(&built_in, &[PathBuf::from(BUILT_IN_DIR)]).map_err(|d| {
+            CliError::device(format!("the built-in spec does not load ({} problems)", d.len()))
+                .hint("this is a bug in the build; rebuild from a clean checkout")
+        })?;
+        let mut entries: Vec<Entry> =
+            spec.sensors.into_iter().map(|s| Entry { sensor: Arc::new(s), origin: Origin::BuiltIn }).collect();
+        for path in extra {
+            if !path.exists() {
+                return Err(CliError::usage(format!("--spec {}: no such file or directory", path.display()))
+                    .hint("give a directory of spec YAML files (like the repository's spec/) or one file"));
+            }
+            let loaded = load_with(&Overlay { built_in: &built_in }, std::slice::from_ref(path)).map_err(|d| {
+                let mut e = CliError::usage(format!(
+                    "the spec in {} has {} problem{}",
+                    path.display(),
+                    d.len(),
+                    if d.len() == 1 { "" } else { "s" }
+                ));
+                for diag in &d.0 {
+                    for line in diag.to_string().lines() {
+                        e = e.detail(line.to_owned());
+                    }
+                }
+                e.hint("fix the file (`cargo xtask validate` checks a spec directory); your editor checks keys through spec/schema.json")
+            })?;
+            for sensor in loaded.sensors {
+                let entry = Entry { sensor: Arc::new(sensor), origin: Origin::Loaded(path.clone()) };
+                match entries.iter_mut().find(|e| e.sensor.name == entry.sensor.name) {
+                    Some(existing) => *existing = entry,
+                    None => entries.push(entry),
+                }
+            }
+        }
+        Ok(Self { entries, spec_paths: extra.to_vec() })
+    }
+
+    /// Every sensor.
+    pub fn entries(&self) -> &[Entry] {
+        &self.entries
+    }
+
+    /// The sensor called `name` (`-` may stand for `_`), or an error that
+    /// suggests the closest name.
+    pub fn entry(&self, name: &str) -> Result<&Entry> {
+        let wanted = name.replace('-', "_");
+        if let Some(entry) = self.entries.iter().find(|e| e.sensor.name == wanted) {
+            return Ok(entry);
+        }
+        // A unique prefix (`ph` for `ph_orp`, `cond` for `conductivity`).
+        let prefixed: Vec<&Entry> = self.entries.iter().filter(|e| e.sensor.name.starts_with(&wanted)).collect();
+        if let ([entry], false) = (prefixed.as_slice(), wanted.is_empty()) {
+            return Ok(entry);
+        }
+        let names: Vec<&str> = self.entries.iter().map(|e| e.sensor.name.as_str()).collect();
+        let mut e = CliError::usage(format!("unknown sensor `{name}`"));
+        e = match closest(&wanted, &names) {
+            Some(best) => e.hint(format!("did you mean `{best}`? Known sensors: {}", names.join(", "))),
+            None => e.hint(format!(
+                "known sensors: {}; `yosemitech list` shows them, --spec DIR loads more",
+                names.join(", ")
+            )),
+        };
+        Err(e)
+    }
+
+    /// The sensor called `name`.
+    pub fn sensor(&self, name: &str) -> Result<&Arc<Sensor>> {
+        self.entry(name).map(|e| &e.sensor)
+    }
+
+    /// `--spec` arguments to repeat in a printed command, for a sensor of this origin.
+    pub fn spec_args(&self, origin: &Origin) -> Vec<String> {
+        match origin {
+            Origin::BuiltIn => Vec::new(),
+            Origin::Loaded(_) => {
+                self.spec_paths.iter().flat_map(|p| ["--spec".to_owned(), p.display().to_string()]).collect()
+            }
+        }
+    }
+}
+
+/// The command called `name` of `sensor` (`-` for `_`, and `ph` for
+/// `get_ph` when that is a read), or an error suggesting the closest name.
+pub fn command<'s>(sensor: &'s Sensor, name: &str) -> Result<&'s Command> {
+    let wanted = name.replace('-', "_");
+    if let Some(c) = sensor.command(&wanted).or_else(|| sensor.command(&format!("get_{wanted}"))) {
+        return Ok(c);
+    }
+    let names: Vec<&str> = sensor.commands.iter().map(|c| c.name.as_str()).collect();
+    let e = CliError::usage(format!("sensor `{}` has no command `{name}`", sensor.name));
+    Err(match closest(&wanted, &names) {
+        Some(best) => e.hint(format!("did you mean `{best}`? `yosemitech list {}` shows every command", sensor.name)),
+        None => e.hint(format!("its commands: {}", names.join(", "))),
+    })
+}
+
+/// The candidate closest to `wanted` by edit distance, if close enough to be a typo.
+pub fn closest<'a>(wanted: &str, candidates: &[&'a str]) -> Option<&'a str> {
+    let (best, distance) = candidates.iter().map(|c| (*c, edit_distance(wanted, c))).min_by_key(|(_, d)| *d)?;
+    let allowed = (wanted.chars().count().max(best.chars().count()) / 3).max(2);
+    (distance <= allowed || best.contains(wanted) || wanted.contains(best)).then_some(best)
+}
+
+/// Levenshtein distance over characters.
+fn edit_distance(a: &str, b: &str) -> usize {
+    let b: Vec<char> = b.chars().collect();
+    let mut row: Vec<usize> = (0..=b.len()).collect();
+    for (i, ca) in a.chars().enumerate() {
+        let mut previous = row.first().copied().unwrap_or(0);
+        if let Some(first) = row.first_mut() {
+            *first = i + 1;
+        }
+        for (j, cb) in b.iter().enumerate() {
+            let substitution = previous + usize::from(ca != *cb);
+            previous = row.get(j + 1).copied().unwrap_or(0);
+            let insertion = row.get(j).copied().unwrap_or(0) + 1;
+            let deletion = previous + 1;
+            if let Some(slot) = row.get_mut(j + 1) {
+                *slot = substitution.min(insertion).min(deletion);
+            }
+        }
+    }
+    row.last().copied().unwrap_or(0)
+}
+
+/// Reads a command `write` covers entirely (for read-back), if any: the
+/// smallest such read.
+pub fn read_back_for<'s>(sensor: &'s Sensor, write: &Command) -> Option<&'s Command> {
+    if write.count == 0 {
+        return None;
+    }
+    let end = u32::from(write.address) + u32::from(write.count);
+    sensor
+        .commands
+        .iter()
+        .filter(|r| r.is_read() && r.address <= write.address && u32::from(r.address) + u32::from(r.count) >= end)
+        .min_by_key(|r| r.count)
+}
+
+/// True for a read that no write covers and that has a field with a unit:
+/// a measurement (pH, temperature, conductivity, ORP), as the simulator
+/// defines it.
+pub fn is_measurement(sensor: &Sensor, read: &Command) -> bool {
+    let (start, end) = (u32::from(read.address), u32::from(read.address) + u32::from(read.count));
+    read.is_read()
+        && read.fields.iter().any(|f| f.unit.is_some())
+        && !sensor
+            .commands
+            .iter()
+            .any(|w| !w.is_read() && u32::from(w.address) < end && start < u32::from(w.address) + u32::from(w.count))
+}
+
+/// The calibration-coefficient blocks of a sensor: writes (not triggers)
+/// of float fields only, with a read of exactly the same registers, that
+/// do not set the slave address. Keyed by the write's name.
+pub fn coefficient_blocks(sensor: &Sensor) -> Vec<(&Command, &Command)> {
+    sensor
+        .commands
+        .iter()
+        .filter(|w| !w.is_read() && !w.trigger && w.count > 0)
+        .filter(|w| w.named_fields().all(|f| matches!(f.kind, yosemitech_spec::FieldKind::F32 { .. })))
+        .filter(|w| w.field("slave_address").is_none())
+        .filter_map(|w| {
+            sensor.commands.iter().find(|r| r.is_read() && r.address == w.address && r.count == w.count).map(|r| (w, r))
+        })
+        .collect()
+}
+
+/// The read the most sensors answer identically (same name and layout),
+/// for `scan`: `get_sn`, which every Yosemitech probe shares, wins ties.
+pub fn common_probe(catalog: &Catalog) -> Option<Command> {
+    let sensors: Vec<&Sensor> = catalog.entries().iter().map(|e| e.sensor.as_ref()).collect();
+    let sharing =
+        |c: &Command| sensors.iter().filter(|s| s.command(&c.name).is_some_and(|o| o.layout() == c.layout())).count();
+    sensors
+        .iter()
+        .flat_map(|s| s.commands.iter())
+        .filter(|c| c.is_read() && c.fixed_slave.is_none())
+        .max_by_key(|c| (sharing(c), c.name == "get_sn"))
+        .cloned()
+}
+
+/// A read that only `sensor` has (by start address and count), to tell
+/// sensor kinds apart on the bus.
+pub fn signature_read<'s>(catalog: &Catalog, sensor: &'s Sensor) -> Option<&'s Command> {
+    let others: BTreeMap<(u16, u16), usize> = catalog
+        .entries()
+        .iter()
+        .filter(|e| e.sensor.name != sensor.name)
+        .flat_map(|e| e.sensor.commands.iter().filter(|c| c.is_read()).map(|c| ((c.address, c.count), 1)))
+        .collect();
+    sensor
+        .commands
+        .iter()
+        .filter(|c| c.is_read() && c.fixed_slave.is_none() && !others.contains_key(&(c.address, c.count)))
+        .find(|c| is_measurement(sensor, c))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn built_in_spec_loads_every_file() {
+        let catalog = Catalog::load(&[]).unwrap();
+        let names: Vec<&str> = catalog.entries().iter().map(|e| e.sensor.name.as_str()).collect();
+        assert_eq!(names, ["conductivity", "ph_orp"]);
+        assert!(EMBEDDED_SPEC.iter().any(|(n, _)| *n == "yosemitech-common.yaml"));
+    }
+
+    #[test]
+    fn suggests_close_names() {
+        assert_eq!(closest("ph_or", &["ph_orp", "conductivity"]), Some("ph_orp"));
+        assert_eq!(closest("conductivty", &["ph_orp", "conductivity"]), Some("conductivity"));
+        assert_eq!(closest("zzzzzzzz", &["ph_orp", "conductivity"]), None);
+        assert_eq!(edit_distance("kitten", "sitting"), 3);
+        let catalog = Catalog::load(&[]).unwrap();
+        assert_eq!(catalog.sensor("ph").unwrap().name, "ph_orp");
+        assert_eq!(catalog.sensor("ph-orp").unwrap().name, "ph_orp");
+        let e = catalog.sensor("phh_orp").unwrap_err();
+        assert!(e.hint.unwrap().contains("did you mean `ph_orp`"));
+    }
+
+    #[test]
+    fn derives_roles_from_the_spec() {
+        let catalog = Catalog::load(&[]).unwrap();
+        let ph = catalog.sensor("ph_orp").unwrap();
+        let blocks: Vec<&str> = coefficient_blocks(ph).iter().map(|(w, _)| w.name.as_str()).collect();
+        assert_eq!(blocks, ["set_ph_electrode_coefficients", "set_orp_calibration", "set_ph_calibration"]);
+        let measurements: Vec<&str> =
+            ph.commands.iter().filter(|c| is_measurement(ph, c)).map(|c| c.name.as_str()).collect();
+        assert_eq!(measurements, ["get_ph", "get_orp_and_ph", "get_orp", "get_temperature"]);
+        assert_eq!(common_probe(&catalog).unwrap().name, "get_sn");
+        let cond = catalog.sensor("conductivity").unwrap();
+        assert_eq!(signature_read(&catalog, cond).unwrap().name, "get_temperature_and_conductivity");
+        assert_eq!(signature_read(&catalog, ph).unwrap().name, "get_ph");
+        let set_id = ph.command("set_slave_id").unwrap();
+        assert_eq!(read_back_for(ph, set_id).unwrap().name, "get_slave_id");
+    }
+}

@@ -1,0 +1,456 @@
+//! The command line: every subcommand, option and help text.
+
+use std::path::PathBuf;
+use std::time::Duration;
+
+use clap::{ArgAction, Args, Parser, Subcommand, ValueEnum};
+
+use crate::format::parse_duration;
+use crate::port::{AddressArg, PortArgs};
+
+const LONG_ABOUT: &str = "\
+Field tool for Yosemitech water-quality probes (optical pH/ORP, conductivity) on Modbus RTU.
+
+Everything the tool knows about a probe comes from the YAML transcriptions of the vendor
+manuals compiled into it (see `yosemitech list`). `--spec DIR` adds spec files at run time:
+a new sensor works with the generic commands (list, read, write, poll, decode, encode, scan)
+before the tool is rebuilt.
+
+Generic commands work on any command of any sensor through the spec's reference
+interpreter; procedures (measure, calibrate, coefficients, set-address, demo) follow the
+manuals' procedures through the typed `yosemitech` crate.
+
+Exit codes: 0 success, 1 device or protocol error, 2 usage error.";
+
+const AFTER_HELP: &str = "\
+Examples:
+  yosemitech demo                                  simulated probes, no hardware needed
+  yosemitech list ph_orp                           commands, registers and fields
+  yosemitech read ph_orp get_ph --port /dev/ttyUSB0
+  yosemitech poll conductivity -p /dev/ttyUSB0 --interval 10s --format csv >> log.csv
+  yosemitech decode 01 03 04 33 33 F3 40 40 78
+  yosemitech scan --port /dev/ttyUSB0
+
+The port and baud rate may also come from YOSEMITECH_PORT and YOSEMITECH_BAUD.";
+
+/// `yosemitech`: the command line.
+#[derive(Parser, Debug)]
+#[command(
+    name = "yosemitech",
+    version,
+    about = "Read, log, calibrate, scan and simulate Yosemitech water-quality probes over Modbus RTU",
+    long_about = LONG_ABOUT,
+    after_help = AFTER_HELP,
+    propagate_version = true,
+    arg_required_else_help = true
+)]
+pub struct Cli {
+    /// Options every subcommand takes.
+    #[command(flatten)]
+    pub global: Global,
+    /// What to do.
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+/// Options every subcommand takes.
+#[derive(Args, Debug, Clone, Default)]
+pub struct Global {
+    /// Load extra spec files from DIR (a directory of YAML files, or one file) at run time;
+    /// repeatable. A file may include `yosemitech-common.yaml` without holding a copy.
+    #[arg(long, value_name = "DIR", global = true)]
+    pub spec: Vec<PathBuf>,
+    /// Show frame dumps on stderr: -v every frame sent and received (debug), -vv everything (trace).
+    #[arg(short, long, action = ArgAction::Count, global = true)]
+    pub verbose: u8,
+    /// Time allowed for each reply, e.g. 500ms, 2s [default: 1s; scan: 100ms].
+    #[arg(long, value_name = "DURATION", value_parser = parse_duration, global = true)]
+    pub timeout: Option<Duration>,
+    /// Retries after a timeout or a corrupt reply [default: 2; scan: 0].
+    #[arg(long, value_name = "N", global = true)]
+    pub retries: Option<u32>,
+}
+
+/// The subcommands.
+#[derive(Subcommand, Debug)]
+pub enum Command {
+    /// Run simulated pH/ORP and conductivity probes on pseudo-terminals and talk to them.
+    #[command(long_about = "\
+Start simulated pH/ORP and conductivity probes on pseudo-terminals (no hardware, no root) and
+run a short session through the real serial code path: identify each probe (serial number,
+hardware and software revisions), read every measurement, and run the conductivity manual's
+measurement procedure with its waits shortened. Takes a few seconds.")]
+    Demo(DemoArgs),
+
+    /// List the sensors and commands of the spec.
+    #[command(long_about = "\
+List the sensors the tool knows (built in, plus --spec files) and their commands: function,
+start register, register count, and each field's type, unit, byte offset, size and byte order.
+--json prints the same as JSON for other programs.")]
+    List(ListArgs),
+
+    /// Send any read command and show the values with their units.
+    #[command(long_about = "\
+Send any read command of a sensor's spec and show the reply's values with their units.
+COMMAND is the spec's name (`get_ph`); `ph` stands for `get_ph`.")]
+    Read(ReadArgs),
+
+    /// Send any write command, after confirmation, and read it back.
+    #[command(long_about = "\
+Send any write command of a sensor's spec. VALUES are `field=value` pairs or values in field
+order; they are checked against the spec's ranges before anything is sent. The frame is shown
+and confirmed first (--yes skips the question; without a terminal on stdin, --yes is required).
+Where a read command covers the same registers, the values are read back and compared.
+Writes of calibration coefficients first save every coefficient to a timestamped JSON file
+and print the command that restores it.")]
+    Write(WriteArgs),
+
+    /// Log timestamped measurements at an interval (table, CSV or JSON lines).
+    #[command(long_about = "\
+Read every measurement of a sensor (its reads that no write covers and that carry a unit) at
+an interval, one row per poll with an RFC 3339 UTC timestamp. Errors are reported in the row's
+`error` column and polling goes on; the exit code is 1 only if every poll failed. Ctrl-C ends
+cleanly. --interval 0 polls back to back.")]
+    Poll(PollArgs),
+
+    /// Run a manual's measurement procedure.
+    #[command(subcommand)]
+    Measure(MeasureCommand),
+
+    /// Run a guided calibration.
+    #[command(subcommand)]
+    Calibrate(CalibrateCommand),
+
+    /// Back up or restore every calibration coefficient of a probe (JSON).
+    #[command(subcommand)]
+    Coefficients(CoefficientsCommand),
+
+    /// Find the probes on a bus.
+    #[command(long_about = "\
+Probe each address with a read every sensor answers (get_sn) and list the devices that answer:
+address, serial number, and which sensor kinds answer their own measurement read. The reply
+timeout defaults to 100ms here and retries to 0 (--timeout, --retries).")]
+    Scan(ScanArgs),
+
+    /// Change a probe's slave address, verified at the new one.
+    #[command(long_about = "\
+Change a probe's slave address: both addresses are checked (1..=247, the new one free), the
+change is confirmed, sent, and verified at the new address. If anything fails after the write,
+the tool finds out where the probe answers and says so.")]
+    SetAddress(SetAddressArgs),
+
+    /// Decode a frame from a log: command, fields with units, CRC.
+    #[command(long_about = "\
+Decode a request or reply frame copied from a log or a bus analyser. HEX may have spaces,
+0x prefixes, commas or colons. The command is identified from the frame where that is
+unambiguous (requests by function, start address and register count; replies by length,
+byte count and function across every sensor); otherwise the candidates are listed and
+--sensor / --command choose. Every field is shown with its unit, Modbus exceptions are
+decoded, and the CRC is checked (with the expected CRC when it is wrong).
+Exit code 1 when the CRC or another frame check fails.")]
+    Decode(DecodeArgs),
+
+    /// Build a request (or reply) frame offline.
+    #[command(long_about = "\
+Print the frame of a command: the request (for a write, VALUES as field=value or in order),
+or with --response the reply a probe would send (for a read, VALUES are the reply's fields).")]
+    Encode(EncodeArgs),
+
+    /// Serve a simulated probe on a pseudo-terminal or TCP for other tools.
+    #[command(long_about = "\
+Serve a sensor simulated from its spec until Ctrl-C: on a new pseudo-terminal (--pty, the
+default) or as an RTU-over-TCP gateway (--tcp ADDR). The first line on stdout is the port to
+give other tools (the pty path, or tcp://ADDR). Faults can be injected:
+--faults drop=0.05,corrupt_crc=0.02 (kinds: drop, corrupt_crc, truncate, garbage,
+wrong_slave, delay, busy; all=P spreads P over every kind; delay_by=500ms).")]
+    Simulate(SimulateArgs),
+}
+
+/// `demo`.
+#[derive(Args, Debug, Default)]
+pub struct DemoArgs {
+    /// Emulate the serial line's timing at 9600 baud (slower, like real probes).
+    #[arg(long)]
+    pub line_timing: bool,
+}
+
+/// `list`.
+#[derive(Args, Debug)]
+pub struct ListArgs {
+    /// Only this sensor.
+    pub sensor: Option<String>,
+    /// Print JSON.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// `read`.
+#[derive(Args, Debug)]
+pub struct ReadArgs {
+    /// Sensor (`yosemitech list` shows them).
+    pub sensor: String,
+    /// Read command, e.g. get_ph.
+    pub command: String,
+    #[command(flatten)]
+    pub port: PortArgs,
+    #[command(flatten)]
+    pub address: AddressArg,
+    /// Print JSON.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// `write`.
+#[derive(Args, Debug)]
+pub struct WriteArgs {
+    /// Sensor.
+    pub sensor: String,
+    /// Write command, e.g. set_ph_calibration.
+    pub command: String,
+    /// Values: field=value pairs, or values in field order.
+    #[arg(value_name = "VALUES", allow_negative_numbers = true)]
+    pub values: Vec<String>,
+    #[command(flatten)]
+    pub port: PortArgs,
+    #[command(flatten)]
+    pub address: AddressArg,
+    /// Send without asking.
+    #[arg(short, long)]
+    pub yes: bool,
+    /// Where to save the coefficient backup [default: the current directory].
+    #[arg(long, value_name = "DIR")]
+    pub backup_dir: Option<PathBuf>,
+}
+
+/// Output formats of `poll`.
+#[derive(ValueEnum, Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum PollFormat {
+    /// Aligned columns with units.
+    #[default]
+    Table,
+    /// Comma-separated values with a header row.
+    Csv,
+    /// One JSON object per line.
+    Json,
+}
+
+/// `poll`.
+#[derive(Args, Debug)]
+pub struct PollArgs {
+    /// Sensor.
+    pub sensor: String,
+    #[command(flatten)]
+    pub port: PortArgs,
+    #[command(flatten)]
+    pub address: AddressArg,
+    /// Time between the starts of two polls; 0 polls back to back.
+    #[arg(short, long, value_name = "DURATION", default_value = "3s", value_parser = parse_duration)]
+    pub interval: Duration,
+    /// Stop after N polls [default: until Ctrl-C].
+    #[arg(short = 'n', long, value_name = "N")]
+    pub count: Option<u64>,
+    /// Output format.
+    #[arg(short, long, value_enum, default_value_t = PollFormat::Table)]
+    pub format: PollFormat,
+}
+
+/// `measure`.
+#[derive(Subcommand, Debug)]
+pub enum MeasureCommand {
+    /// The conductivity manual's procedure: start, warm up, average readings, TDS.
+    #[command(long_about = "\
+The conductivity manual's measurement procedure (section 3): Start Measurement, wait 10 s,
+read every 3 s and average 10 readings (readings flagged with a range-switch error are
+discarded), then TDS (mg/L) = mean conductivity (uS/cm) x 0.64. Progress bars show the
+warm-up and the averaging when stderr is a terminal.")]
+    Conductivity(MeasureConductivityArgs),
+}
+
+/// `measure conductivity`.
+#[derive(Args, Debug)]
+pub struct MeasureConductivityArgs {
+    #[command(flatten)]
+    pub port: PortArgs,
+    #[command(flatten)]
+    pub address: AddressArg,
+    /// Print JSON.
+    #[arg(long)]
+    pub json: bool,
+    /// Override the warm-up (tests, demos).
+    #[arg(long, hide = true, value_parser = parse_duration)]
+    pub warm_up: Option<Duration>,
+    /// Override the reading interval (tests, demos).
+    #[arg(long, hide = true, value_parser = parse_duration)]
+    pub interval: Option<Duration>,
+    /// Override the number of readings averaged (tests, demos).
+    #[arg(long, hide = true)]
+    pub readings: Option<usize>,
+    /// Shorthand for --warm-up 0 --interval 0 (tests, demos).
+    #[arg(long, hide = true)]
+    pub fast: bool,
+}
+
+/// `calibrate`.
+#[derive(Subcommand, Debug)]
+pub enum CalibrateCommand {
+    /// Guided three-point pH calibration (buffers 4.00, 6.86, 9.18).
+    #[command(long_about = "\
+The pH manual's three-point calibration. Every coefficient is first saved to a JSON file
+(the calibration stops if it cannot be saved) and the command that restores it is printed.
+Then, for each buffer in order (4.00, 6.86, 9.18 at 25 °C): put the probe in it and press
+Enter (q quits), wait for it to settle (a minute; a progress bar shows it; Enter on a
+terminal or --skip-wait skips), and the buffer's pH is written. Finally the probe's
+calibration status is read and explained.")]
+    Ph(CalibratePhArgs),
+}
+
+/// `calibrate ph`.
+#[derive(Args, Debug)]
+pub struct CalibratePhArgs {
+    #[command(flatten)]
+    pub port: PortArgs,
+    #[command(flatten)]
+    pub address: AddressArg,
+    /// Do not wait for the probe to settle in each buffer.
+    #[arg(long)]
+    pub skip_wait: bool,
+    /// Start without asking (the buffer prompts still read stdin).
+    #[arg(short, long)]
+    pub yes: bool,
+    /// Where to save the coefficient backup [default: the current directory].
+    #[arg(long, value_name = "DIR")]
+    pub backup_dir: Option<PathBuf>,
+}
+
+/// `coefficients`.
+#[derive(Subcommand, Debug)]
+pub enum CoefficientsCommand {
+    /// Save every calibration coefficient to a JSON file.
+    Backup(CoefficientsBackupArgs),
+    /// Write every calibration coefficient from a JSON file, then read it back.
+    Restore(CoefficientsRestoreArgs),
+}
+
+/// `coefficients backup`.
+#[derive(Args, Debug)]
+pub struct CoefficientsBackupArgs {
+    /// Sensor.
+    pub sensor: String,
+    #[command(flatten)]
+    pub port: PortArgs,
+    #[command(flatten)]
+    pub address: AddressArg,
+    /// The JSON file to write (not overwritten) [default: a timestamped file here].
+    #[arg(short, long, value_name = "FILE")]
+    pub file: Option<PathBuf>,
+}
+
+/// `coefficients restore`.
+#[derive(Args, Debug)]
+pub struct CoefficientsRestoreArgs {
+    /// Sensor.
+    pub sensor: String,
+    #[command(flatten)]
+    pub port: PortArgs,
+    #[command(flatten)]
+    pub address: AddressArg,
+    /// The JSON file written by `coefficients backup` (or by a calibration).
+    #[arg(short, long, value_name = "FILE")]
+    pub file: PathBuf,
+    /// Write without asking.
+    #[arg(short, long)]
+    pub yes: bool,
+}
+
+/// `scan`.
+#[derive(Args, Debug)]
+pub struct ScanArgs {
+    #[command(flatten)]
+    pub port: PortArgs,
+    /// Addresses to probe: 1-247, 1,5,10-20 or 3.
+    #[arg(long, value_name = "RANGES", default_value = "1-247")]
+    pub addresses: String,
+    /// Print JSON.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// `set-address`.
+#[derive(Args, Debug)]
+pub struct SetAddressArgs {
+    #[command(flatten)]
+    pub port: PortArgs,
+    /// The probe's current address.
+    #[arg(long, value_name = "A")]
+    pub from: u32,
+    /// The new address, 1..=247.
+    #[arg(long, value_name = "B")]
+    pub to: u32,
+    /// The sensor [default: any; the address commands are shared by every probe].
+    #[arg(long, value_name = "SENSOR")]
+    pub sensor: Option<String>,
+    /// Change without asking.
+    #[arg(short, long)]
+    pub yes: bool,
+}
+
+/// `decode`.
+#[derive(Args, Debug)]
+pub struct DecodeArgs {
+    /// The frame in hex (several arguments are joined).
+    #[arg(value_name = "HEX", required = true, num_args = 1..)]
+    pub hex: Vec<String>,
+    /// Only consider this sensor's commands.
+    #[arg(long, value_name = "SENSOR")]
+    pub sensor: Option<String>,
+    /// Decode as this command.
+    #[arg(long, value_name = "COMMAND")]
+    pub command: Option<String>,
+    /// Print JSON.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// `encode`.
+#[derive(Args, Debug)]
+pub struct EncodeArgs {
+    /// Sensor.
+    pub sensor: String,
+    /// Command.
+    pub command: String,
+    /// Values: field=value pairs, or values in field order.
+    #[arg(value_name = "VALUES", allow_negative_numbers = true)]
+    pub values: Vec<String>,
+    #[command(flatten)]
+    pub address: AddressArg,
+    /// Encode the reply instead of the request.
+    #[arg(long)]
+    pub response: bool,
+}
+
+/// `simulate`.
+#[derive(Args, Debug)]
+pub struct SimulateArgs {
+    /// Sensor to simulate.
+    pub sensor: String,
+    #[command(flatten)]
+    pub address: AddressArg,
+    /// Serve on a new pseudo-terminal (the default).
+    #[arg(long, conflicts_with = "tcp")]
+    pub pty: bool,
+    /// Serve RTU over TCP on ADDR (127.0.0.1:5020; port 0 picks a free one).
+    #[arg(long, value_name = "ADDR")]
+    pub tcp: Option<String>,
+    /// Faults to inject: kind=probability,... (see the long help).
+    #[arg(long, value_name = "SPEC")]
+    pub faults: Option<String>,
+    /// Seed of the fault and noise generator.
+    #[arg(long, value_name = "N", default_value_t = 1)]
+    pub seed: u64,
+    /// Noise amplitude added to every measurement, in its unit.
+    #[arg(long, value_name = "X")]
+    pub noise: Option<f32>,
+    /// Emulate the serial line's timing (9600 baud: about 25 ms per get_ph).
+    #[arg(long)]
+    pub line_timing: bool,
+}

@@ -1,0 +1,207 @@
+//! `yosemitech calibrate ph`: the guided three-point pH calibration.
+
+use std::io::{self, BufRead, IsTerminal, Write};
+use std::path::PathBuf;
+use std::sync::mpsc::{self, Receiver, TryRecvError};
+use std::time::{Duration, SystemTime};
+
+use yosemitech::ph_orp;
+use yosemitech::procedures::coefficients::PhOrpCoefficients;
+use yosemitech::procedures::ph::{CalibrationConfig, CalibrationGuide, calibrate, explain};
+use yosemitech::procedures::{ProcedureError, RealSleep, Sleep};
+
+use crate::backup::{self, Backup, ph_orp_blocks};
+use crate::catalog::{Catalog, Entry};
+use crate::cli::{CalibratePhArgs, Global};
+use crate::confirm::{confirm, ensure_can_ask};
+use crate::device::{is_typed, procedure_failed};
+use crate::error::{CliError, Result, show_duration};
+use crate::{port, progress, time};
+
+/// Lines typed on stdin, read by a thread so a wait can be cut short.
+fn stdin_lines() -> Receiver<String> {
+    let (tx, rx) = mpsc::channel();
+    std::thread::spawn(move || {
+        for line in io::stdin().lock().lines() {
+            let Ok(line) = line else { break };
+            if tx.send(line).is_err() {
+                break;
+            }
+        }
+    });
+    rx
+}
+
+/// The user's side of the calibration, on stdin and stdout.
+struct Guide<'a> {
+    out: &'a mut dyn Write,
+    input: Receiver<String>,
+    interactive: bool,
+    skip_wait: bool,
+    backup_dir: Option<PathBuf>,
+    /// Built before the calibration starts (the guide has no bus).
+    template: Backup,
+    /// The restore command, once the backup is saved.
+    restore: Option<String>,
+    /// Why the guide stopped the calibration.
+    stopped: Option<CliError>,
+    catalog: &'a Catalog,
+    entry: &'a Entry,
+}
+
+impl Guide<'_> {
+    fn say(&mut self, text: &str) {
+        let _ = writeln!(self.out, "{text}");
+        let _ = self.out.flush();
+    }
+}
+
+impl CalibrationGuide for Guide<'_> {
+    fn backed_up(&mut self, coefficients: &PhOrpCoefficients) -> bool {
+        let backup = Backup { blocks: ph_orp_blocks(coefficients), ..self.template.clone() };
+        match backup::save_in(self.backup_dir.as_deref(), &backup) {
+            Ok(path) => {
+                let restore = backup::restore_command(self.catalog, self.entry, &backup.port, backup.address, &path);
+                self.say(&format!("saved every coefficient to {}", path.display()));
+                self.say(&format!("restore with: {restore}"));
+                self.restore = Some(restore);
+                true
+            }
+            Err(e) => {
+                self.stopped = Some(CliError {
+                    message: format!("{}; the calibration did not start, nothing was written", e.message),
+                    ..e
+                });
+                false
+            }
+        }
+    }
+
+    fn immerse(&mut self, index: usize, standard_ph: f32) -> bool {
+        self.say(&format!(
+            "\npoint {} of 3: rinse the probe and put it in the pH {standard_ph:.2} buffer, then press Enter (q quits)",
+            index + 1
+        ));
+        match self.input.recv() {
+            Ok(line) if line.trim().eq_ignore_ascii_case("q") => {
+                self.stopped =
+                    Some(CliError::device(format!("calibration stopped by the user at point {}", index + 1)));
+                false
+            }
+            Ok(_) => true,
+            Err(_) => {
+                self.stopped = Some(
+                    CliError::device(format!("stdin ended before point {} was confirmed", index + 1))
+                        .hint("answer each buffer prompt with Enter (a line on stdin)"),
+                );
+                false
+            }
+        }
+    }
+
+    fn settle(&mut self, _index: usize, duration: Duration, sleep: &mut dyn Sleep) {
+        if self.skip_wait {
+            self.say("  not waiting for the probe to settle (--skip-wait)");
+            return;
+        }
+        let skip = if self.interactive { "; Enter skips" } else { "" };
+        self.say(&format!("  letting the probe settle for {}{skip}", show_duration(duration)));
+        let bar = progress::timer(duration, "settling");
+        let (input, interactive) = (&self.input, self.interactive);
+        progress::wait(
+            &bar,
+            duration,
+            |d| sleep.sleep(d),
+            || !interactive || matches!(input.try_recv(), Err(TryRecvError::Empty | TryRecvError::Disconnected)),
+        );
+    }
+
+    fn point_written(&mut self, index: usize, standard_ph: f32) {
+        self.say(&format!("  point {}: pH {standard_ph:.2} written", index + 1));
+    }
+}
+
+/// Runs `calibrate ph`.
+pub fn run(catalog: &Catalog, global: &Global, args: &CalibratePhArgs, out: &mut dyn Write) -> Result<()> {
+    let entry = catalog.entry("ph_orp")?;
+    if !is_typed(entry, "ph_orp") {
+        return Err(CliError::usage("`calibrate ph` needs the built-in ph_orp sensor")
+            .hint("a --spec file replaced it; run without --spec"));
+    }
+    let slave = args.address.get(entry.sensor.default_address)?;
+    ensure_can_ask(args.yes, "calibrate")?;
+    let mut opened = port::open(&args.port, global, &entry.sensor.serial)?;
+    let serial_number = backup::serial_number(&mut opened, entry, slave);
+    let config = CalibrationConfig::default();
+    writeln!(
+        out,
+        "three-point pH calibration of the probe at address {slave} on {}{}",
+        opened.port,
+        serial_number.as_deref().map(|sn| format!(" (SN {sn})")).unwrap_or_default()
+    )?;
+    writeln!(
+        out,
+        "buffers in order: {} (at 25 °C); the coefficients are saved first",
+        config.standards.map(|s| format!("{s:.2}")).join(", ")
+    )?;
+    out.flush()?;
+    confirm(args.yes, "Start the calibration?")?;
+
+    let template = Backup {
+        sensor: entry.sensor.name.clone(),
+        address: slave,
+        port: opened.port.clone(),
+        serial_number,
+        saved_at: time::rfc3339(SystemTime::now()),
+        blocks: Default::default(),
+    };
+    let ctx = opened.context(slave, "the calibration");
+    let mut guide = Guide {
+        out,
+        input: stdin_lines(),
+        interactive: io::stdin().is_terminal(),
+        skip_wait: args.skip_wait,
+        backup_dir: args.backup_dir.clone(),
+        template,
+        restore: None,
+        stopped: None,
+        catalog,
+        entry,
+    };
+    let mut probe = ph_orp::Device::new(&mut opened.bus, slave);
+    let result = calibrate(&mut probe, &config, &mut guide, &mut RealSleep);
+    let restore = guide.restore.clone();
+    let with_restore = |e: CliError| match &restore {
+        Some(cmd) => e.detail(format!("to restore the coefficients saved before the calibration: {cmd}")),
+        None => e,
+    };
+    let report = match result {
+        Ok(report) => report,
+        Err(ProcedureError::Aborted) => {
+            let e = guide.stopped.take().unwrap_or_else(|| CliError::device("calibration stopped"));
+            return Err(with_restore(e));
+        }
+        Err(e) => return Err(with_restore(procedure_failed(&e, &ctx))),
+    };
+    let out = guide.out;
+    if report.succeeded() {
+        writeln!(out, "\ncalibration succeeded (probe status {})", report.status.raw())?;
+        writeln!(out, "coefficients now:")?;
+        for line in backup::show(&ph_orp_blocks(&report.after)) {
+            writeln!(out, "  {line}")?;
+        }
+        Ok(())
+    } else {
+        Err(with_restore(
+            CliError::device(format!(
+                "calibration failed: status {} ({}): {}",
+                report.status.raw(),
+                report.status,
+                explain(report.status)
+            ))
+            .hint(
+                "the probe keeps its previous coefficients after a failed calibration; fix the cause and run it again",
+            ),
+        ))
+    }
+}

@@ -1,0 +1,197 @@
+//! `yosemitech demo`: simulated probes on pseudo-terminals, driven through
+//! the real serial code path (no hardware, no root).
+
+use std::io::Write;
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use yosemitech::procedures::ScaledSleep;
+use yosemitech::procedures::coefficients::{read_conductivity, read_ph_orp};
+use yosemitech::procedures::conductivity::MeasurementConfig;
+use yosemitech::{conductivity, ph_orp};
+use yosemitech_rtu::{Client, ClientConfig, Transport};
+use yosemitech_sim::{ServeConfig, Server, Simulator, Variation, line_timing};
+use yosemitech_spec::{Sensor, Value};
+
+use crate::catalog::Catalog;
+use crate::cli::DemoArgs;
+use crate::commands::measure;
+use crate::device::{is_typed, procedure_failed};
+use crate::error::{CliError, Context, Result, request_failed};
+use crate::port::Opened;
+
+/// How much shorter the demo's measurement waits are than the manual's.
+const TIME_SCALE: f64 = 0.02;
+
+/// The readings the simulated probes start from.
+const PH: f32 = 7.02;
+const ORP_MV: f32 = 215.4;
+const WATER_C: f32 = 21.3;
+const CONDUCTIVITY_MS_CM: f32 = 1.413;
+
+/// A simulated probe served for the demo, and the client talking to it.
+struct Probe {
+    server: Server<Simulator>,
+    opened: Opened,
+}
+
+fn setup(sensor: &Arc<Sensor>, values: &[(&str, f32)], noise: f32, line: bool) -> Result<Probe> {
+    let mut sim = Simulator::new(Arc::clone(sensor));
+    for (field, value) in values {
+        sim.set_everywhere(field, Value::Float(*value))
+            .map_err(|e| CliError::device(format!("cannot set up the simulated {}: {e}", sensor.name)))?;
+    }
+    sim.set_variation(Some(Variation { seed: 7, noise, drift_per_read: 0.0 }));
+    let config = if line { ServeConfig::emulating(line_timing(sensor)) } else { ServeConfig::default() };
+    let (server, port, transport) = serve(sim, config, sensor.serial.baud)?;
+    let config = ClientConfig { timeout: Duration::from_secs(1), ..ClientConfig::default() };
+    let opened = Opened { bus: Client::with_config(transport, config), port, timeout: config.timeout };
+    Ok(Probe { server, opened })
+}
+
+/// Serves `sim` on a pty and opens it as a serial port.
+#[cfg(unix)]
+fn serve(
+    sim: Simulator,
+    config: ServeConfig,
+    baud: u32,
+) -> Result<(Server<Simulator>, String, Box<dyn Transport + Send>)> {
+    use yosemitech_rtu::{SerialConfig, SerialTransport};
+    let server = yosemitech_sim::serve_pty(sim, config).map_err(|e| {
+        CliError::device(format!("cannot create a pseudo-terminal: {e}")).hint("the demo needs ptys (/dev/ptmx)")
+    })?;
+    let path = server.tty_path().unwrap_or_default().to_owned();
+    let serial = SerialConfig { baud, ..SerialConfig::new(path.clone()) };
+    let transport = SerialTransport::open(&serial).map_err(|e| crate::port::open_failed(&path, &e))?;
+    Ok((server, path, Box::new(transport)))
+}
+
+/// Without ptys, serves `sim` as an RTU-over-TCP gateway on localhost.
+#[cfg(not(unix))]
+fn serve(
+    sim: Simulator,
+    config: ServeConfig,
+    _baud: u32,
+) -> Result<(Server<Simulator>, String, Box<dyn Transport + Send>)> {
+    use yosemitech_rtu::TcpTransport;
+    let server = yosemitech_sim::serve_tcp(sim, "127.0.0.1:0", config)
+        .map_err(|e| CliError::device(format!("cannot serve the simulator: {e}")))?;
+    let addr = server.local_addr().ok_or_else(|| CliError::device("the simulator has no address"))?;
+    let port = format!("tcp://{addr}");
+    let transport =
+        TcpTransport::connect(addr, Duration::from_secs(1)).map_err(|e| crate::port::open_failed(&port, &e))?;
+    Ok((server, port, Box::new(transport)))
+}
+
+/// Maps a failed request to the user's error.
+fn fail(c: &Context) -> impl Fn(yosemitech_rtu::Error) -> CliError + '_ {
+    move |e| request_failed(&e, c)
+}
+
+fn row(out: &mut dyn Write, label: &str, value: impl std::fmt::Display) -> Result<()> {
+    writeln!(out, "  {label:15} {value}")?;
+    Ok(())
+}
+
+fn join(values: &[f32]) -> String {
+    values.iter().map(f32::to_string).collect::<Vec<_>>().join(" ")
+}
+
+/// Runs `demo`.
+pub fn run(catalog: &Catalog, args: &DemoArgs, out: &mut dyn Write) -> Result<()> {
+    let started = Instant::now();
+    let (ph_entry, cond_entry) = (catalog.entry("ph_orp")?, catalog.entry("conductivity")?);
+    if !is_typed(ph_entry, "ph_orp") || !is_typed(cond_entry, "conductivity") {
+        return Err(CliError::usage("the demo runs the built-in pH/ORP and conductivity sensors")
+            .hint("run it without a --spec that replaces them"));
+    }
+    let mut ph =
+        setup(&ph_entry.sensor, &[("ph", PH), ("orp_mv", ORP_MV), ("temperature_c", WATER_C)], 0.01, args.line_timing)?;
+    let mut cond = setup(
+        &cond_entry.sensor,
+        &[("temperature_c", WATER_C), ("conductivity_ms_cm", CONDUCTIVITY_MS_CM)],
+        0.002,
+        args.line_timing,
+    )?;
+    let address = ph_orp::SENSOR.default_address;
+    writeln!(out, "yosemitech demo: simulated probes on pseudo-terminals, driven through the serial port code")?;
+    writeln!(out, "(no hardware; the same code talks to a real RS-485 adapter)")?;
+    for (name, probe, baud) in
+        [("pH/ORP probe", &ph, ph_orp::SENSOR.baud), ("conductivity probe", &cond, conductivity::SENSOR.baud)]
+    {
+        writeln!(out, "  {name:19} {} ({baud} baud 8N1, address {address})", probe.opened.port)?;
+    }
+
+    // The pH/ORP probe.
+    let ctx = |probe: &Probe, what: &str| Context {
+        port: probe.opened.port.clone(),
+        slave: address,
+        what: what.to_owned(),
+        timeout: probe.opened.timeout,
+    };
+    let ph_ctx = ctx(&ph, "the pH/ORP probe");
+    writeln!(out, "\n{} on {}, address {address}", ph_orp::SENSOR.title, ph.opened.port)?;
+    {
+        let mut probe = ph_orp::Device::new(&mut ph.opened.bus, address);
+        let sn = probe.sn().map_err(fail(&ph_ctx))?;
+        let version = probe.version().map_err(fail(&ph_ctx))?;
+        row(out, "serial number", sn)?;
+        row(out, "hardware", version.hardware)?;
+        row(out, "software", version.software)?;
+        row(out, "pH", format!("{:.2} pH", probe.ph().map_err(fail(&ph_ctx))?))?;
+        row(out, "ORP", format!("{:.1} mV", probe.orp().map_err(fail(&ph_ctx))?))?;
+        let both = probe.orp_and_ph().map_err(fail(&ph_ctx))?;
+        row(out, "ORP and pH", format!("{:.1} mV, {:.2} pH (one read)", both.orp_mv, both.ph))?;
+        row(out, "temperature", format!("{:.2} °C", probe.temperature().map_err(fail(&ph_ctx))?))?;
+        let status = probe.calibration_status().map_err(fail(&ph_ctx))?;
+        row(out, "calibration", format!("status {}: {}", status.raw(), status.name().unwrap_or("unknown")))?;
+        let c = read_ph_orp(&mut probe).map_err(|e| procedure_failed(&e, &ph_ctx))?;
+        row(out, "electrode K1-K6", join(&c.electrode))?;
+        row(out, "pH K, B", join(&c.ph_calibration))?;
+        row(out, "ORP K, B", join(&c.orp_calibration))?;
+    }
+
+    // The conductivity probe.
+    let cond_ctx = ctx(&cond, "the conductivity probe");
+    writeln!(out, "\n{} on {}, address {address}", conductivity::SENSOR.title, cond.opened.port)?;
+    {
+        let mut probe = conductivity::Device::new(&mut cond.opened.bus, address);
+        let sn = probe.sn().map_err(fail(&cond_ctx))?;
+        let version = probe.version().map_err(fail(&cond_ctx))?;
+        row(out, "serial number", sn)?;
+        row(out, "hardware", version.hardware)?;
+        row(out, "software", version.software)?;
+        let reading = probe.temperature_and_conductivity().map_err(fail(&cond_ctx))?;
+        row(out, "temperature", format!("{:.2} °C", reading.temperature_c))?;
+        row(out, "conductivity", format!("{:.4} mS/cm", reading.conductivity_ms_cm))?;
+        row(out, "range status", reading.range_status.name().unwrap_or("unknown code"))?;
+        let c = read_conductivity(&mut probe).map_err(|e| procedure_failed(&e, &cond_ctx))?;
+        row(out, "user K, B", join(&c.user_calibration))?;
+    }
+
+    // The manual's measurement procedure, waits scaled down.
+    let config = MeasurementConfig::default();
+    writeln!(
+        out,
+        "\nconductivity measurement (manual section 3: start, warm up {} s, average {} readings {} s apart),",
+        config.warm_up.as_secs_f64(),
+        config.readings,
+        config.interval.as_secs_f64()
+    )?;
+    writeln!(out, "waits shortened {}x for the demo:", (1.0 / TIME_SCALE).round())?;
+    out.flush()?;
+    let m = measure::run_procedure(&mut cond.opened, address, &config, ScaledSleep { factor: TIME_SCALE })?;
+    measure::show(&m, Some(4), out)?;
+
+    let requests = ph.server.device().stats().requests + cond.server.device().stats().requests;
+    writeln!(
+        out,
+        "\n{requests} requests answered over the serial code path in {:.1} s.",
+        started.elapsed().as_secs_f64()
+    )?;
+    writeln!(
+        out,
+        "Next: `yosemitech simulate ph_orp` serves a probe; `yosemitech read ph_orp get_ph --port <its path>` reads it."
+    )?;
+    Ok(())
+}

@@ -1,0 +1,179 @@
+//! `yosemitech poll`: timestamped measurements for loggers.
+
+use std::collections::BTreeMap;
+use std::io::Write;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant, SystemTime};
+
+use serde_json::{Map, Value as Json, json};
+use yosemitech_spec::{Command, Value};
+
+use crate::catalog::{Catalog, is_measurement};
+use crate::cli::{Global, PollArgs, PollFormat};
+use crate::error::{CliError, Result, short};
+use crate::format::{unit, value_json, value_text};
+use crate::{device, port, time};
+
+/// One output column: a field of a measurement read.
+struct Column<'s> {
+    command: &'s Command,
+    field: String,
+    name: String,
+    unit: Option<String>,
+}
+
+/// A value as a logger wants it: numbers plain, enums by name.
+fn plain(value: &Value) -> String {
+    match value {
+        Value::Enum { name: Some(name), .. } => name.clone(),
+        Value::Enum { raw, name: None } => raw.to_string(),
+        other => value_text(other),
+    }
+}
+
+/// A CSV field, quoted when it needs to be.
+fn csv(text: &str) -> String {
+    if text.contains([',', '"', '\n', '\r']) { format!("\"{}\"", text.replace('"', "\"\"")) } else { text.to_owned() }
+}
+
+/// Runs `poll` until `count` polls are done or `stop` is set (Ctrl-C).
+pub fn run(
+    catalog: &Catalog,
+    global: &Global,
+    args: &PollArgs,
+    stop: &Arc<AtomicBool>,
+    out: &mut dyn Write,
+) -> Result<()> {
+    let sensor = catalog.sensor(&args.sensor)?;
+    let reads: Vec<&Command> = sensor.commands.iter().filter(|c| is_measurement(sensor, c)).collect();
+    if reads.is_empty() {
+        return Err(CliError::usage(format!("sensor `{}` has no measurement reads", sensor.name))
+            .hint("poll reads commands that no write covers and that have a field with a unit; use `yosemitech read` for others"));
+    }
+    let address = args.address.get(sensor.default_address)?;
+    let mut opened = port::open(&args.port, global, &sensor.serial)?;
+
+    let mut seen: BTreeMap<&str, usize> = BTreeMap::new();
+    for c in &reads {
+        for f in c.named_fields() {
+            *seen.entry(f.display_name()).or_default() += 1;
+        }
+    }
+    let columns: Vec<Column<'_>> = reads
+        .iter()
+        .flat_map(|c| {
+            let seen = &seen;
+            c.named_fields().map(move |f| Column {
+                command: c,
+                field: f.display_name().to_owned(),
+                name: if seen.get(f.display_name()).copied().unwrap_or(0) > 1 {
+                    format!("{}.{}", c.name, f.display_name())
+                } else {
+                    f.display_name().to_owned()
+                },
+                unit: f.unit.as_deref().map(|u| unit(u).to_owned()),
+            })
+        })
+        .collect();
+    let widths: Vec<usize> =
+        columns.iter().map(|c| (c.name.len() + c.unit.as_ref().map_or(0, |u| u.chars().count() + 3)).max(9)).collect();
+
+    match args.format {
+        PollFormat::Table => {
+            write!(out, "{:24}", "timestamp")?;
+            for (c, w) in columns.iter().zip(&widths) {
+                let head = match &c.unit {
+                    Some(u) => format!("{} [{u}]", c.name),
+                    None => c.name.clone(),
+                };
+                write!(out, "  {head:>w$}")?;
+            }
+            writeln!(out, "  error")?;
+        }
+        PollFormat::Csv => {
+            let names: Vec<String> = columns.iter().map(|c| csv(&c.name)).collect();
+            writeln!(out, "timestamp,{},error", names.join(","))?;
+        }
+        PollFormat::Json => {}
+    }
+    out.flush()?;
+
+    let (mut polls, mut failed) = (0u64, 0u64);
+    while args.count.is_none_or(|n| polls < n) && !stop.load(Ordering::SeqCst) {
+        let started = Instant::now();
+        let timestamp = time::rfc3339(SystemTime::now());
+        let mut values: BTreeMap<&str, BTreeMap<String, Value>> = BTreeMap::new();
+        // Failed commands grouped by what went wrong: "no reply: get_ph, get_orp".
+        let mut failures: Vec<(String, Vec<&str>)> = Vec::new();
+        for command in &reads {
+            match device::try_read(&mut opened, command, address)? {
+                Ok(v) => {
+                    values.insert(&command.name, v.into_iter().collect());
+                }
+                Err(e) => {
+                    let why = short(&e);
+                    match failures.iter_mut().find(|(w, _)| *w == why) {
+                        Some((_, names)) => names.push(&command.name),
+                        None => failures.push((why, vec![&command.name])),
+                    }
+                }
+            }
+        }
+        let errors: Vec<String> = failures.iter().map(|(why, names)| format!("{}: {why}", names.join(", "))).collect();
+        polls += 1;
+        if values.is_empty() {
+            failed += 1;
+        }
+        let cell = |c: &Column<'_>| values.get(c.command.name.as_str()).and_then(|v| v.get(&c.field));
+        let error = errors.join("; ");
+        match args.format {
+            PollFormat::Table => {
+                write!(out, "{timestamp:24}")?;
+                for (c, w) in columns.iter().zip(&widths) {
+                    write!(out, "  {:>w$}", cell(c).map(plain).unwrap_or_else(|| "-".into()))?;
+                }
+                if error.is_empty() {
+                    writeln!(out)?;
+                } else {
+                    writeln!(out, "  {error}")?;
+                }
+            }
+            PollFormat::Csv => {
+                let cells: Vec<String> = columns.iter().map(|c| csv(&cell(c).map(plain).unwrap_or_default())).collect();
+                writeln!(out, "{timestamp},{},{}", cells.join(","), csv(&error))?;
+            }
+            PollFormat::Json => {
+                let map: Map<String, Json> =
+                    columns.iter().map(|c| (c.name.clone(), cell(c).map_or(Json::Null, value_json))).collect();
+                let row = json!({
+                    "timestamp": timestamp,
+                    "values": map,
+                    "error": if errors.is_empty() { Json::Null } else { Json::String(error) },
+                });
+                writeln!(out, "{row}")?;
+            }
+        }
+        out.flush()?;
+        if args.count.is_some_and(|n| polls >= n) {
+            break;
+        }
+        let next = started + args.interval;
+        while !stop.load(Ordering::SeqCst) {
+            let left = next.saturating_duration_since(Instant::now());
+            if left.is_zero() {
+                break;
+            }
+            std::thread::sleep(left.min(Duration::from_millis(50)));
+        }
+    }
+    out.flush()?;
+    if polls > 0 && failed == polls {
+        return Err(CliError::device(format!(
+            "every poll failed ({polls} of {polls}) on {} at address {address}",
+            opened.port
+        ))
+        .hint("the error column says why; check the port, the address and the sensor type"));
+    }
+    Ok(())
+}

@@ -1,0 +1,71 @@
+//! Requests through the spec's interpreter, and errors of the typed procedures.
+
+use std::collections::BTreeMap;
+
+use yosemitech::procedures::ProcedureError;
+use yosemitech_spec::{Command, Value, Values};
+
+use crate::catalog::{Entry, Origin};
+use crate::error::{CliError, Context, Result, request_failed};
+use crate::port::Opened;
+
+/// The slave a request of `command` goes to: its fixed address (get_slave_id: 0xFF) or `slave`.
+pub fn target(command: &Command, slave: u8) -> u8 {
+    command.fixed_slave.unwrap_or(slave)
+}
+
+/// Encodes `command` for `slave` with `values` (a write's fields), sends it
+/// with the client's timing and retries, and decodes the reply (a read's values).
+pub fn call(opened: &mut Opened, command: &Command, slave: u8, values: &BTreeMap<String, Value>) -> Result<Values> {
+    let slave = target(command, slave);
+    let request = command
+        .encode_request(slave, values)
+        .map_err(|e| CliError::usage(format!("cannot build the {} request: {e}", command.name)))?;
+    let ctx = opened.context(slave, &command.name);
+    let reply = opened.bus.call_raw(&request, &command.layout()).map_err(|e| request_failed(&e, &ctx))?;
+    command.decode_response(slave, reply).map_err(|e| {
+        CliError::device(format!("cannot decode the reply to {}: {e}", command.name))
+            .hint("the device may not be the sensor type you named; -v shows the frames")
+    })
+}
+
+/// Sends a read and returns its values, or the request's own error for
+/// the caller to report (the outer error: the request cannot be built).
+pub fn try_read(
+    opened: &mut Opened,
+    command: &Command,
+    slave: u8,
+) -> Result<std::result::Result<Values, yosemitech_rtu::Error>> {
+    let slave = target(command, slave);
+    let request = command
+        .encode_request(slave, &BTreeMap::new())
+        .map_err(|e| CliError::usage(format!("cannot build the {} request: {e}", command.name)))?;
+    Ok(opened
+        .bus
+        .call_raw(&request, &command.layout())
+        .map(|reply| command.decode_response(slave, reply).unwrap_or_default()))
+}
+
+/// A read with no values.
+pub fn read(opened: &mut Opened, command: &Command, slave: u8) -> Result<Values> {
+    call(opened, command, slave, &BTreeMap::new())
+}
+
+/// True when the typed `yosemitech` crate describes this sensor: a built-in
+/// sensor called `name` (a `--spec` file of the same name replaces it).
+pub fn is_typed(entry: &Entry, name: &str) -> bool {
+    entry.origin == Origin::BuiltIn && entry.sensor.name == name
+}
+
+/// A procedure's error as the user sees it.
+pub fn procedure_failed(e: &ProcedureError, ctx: &Context) -> CliError {
+    match e {
+        ProcedureError::Device(e) => request_failed(e, ctx),
+        ProcedureError::Aborted => CliError::device("stopped before completion"),
+        ProcedureError::NotEnoughReadings { .. } => CliError::device(format!("measurement failed: {e}"))
+            .hint("the probe kept flagging range-switch errors: check it is immersed and clean"),
+        ProcedureError::ReadBackMismatch { .. } => CliError::device(format!("verification failed: {e}"))
+            .hint("the probe did not keep the values written; read them with `yosemitech read` and retry"),
+        other => CliError::device(other.to_string()),
+    }
+}

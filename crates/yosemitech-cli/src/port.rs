@@ -1,0 +1,163 @@
+//! Opening the bus: a serial port, or `tcp://HOST:PORT` for an RTU-over-TCP
+//! gateway, with the client's timeout and retries from the command line.
+
+use std::io;
+use std::path::Path;
+use std::time::Duration;
+
+use clap::Args;
+use yosemitech_rtu::{
+    Client, ClientConfig, DataBits, Parity, RetryPolicy, SerialConfig, SerialTransport, StopBits, TcpTransport,
+    Transport,
+};
+use yosemitech_spec::{Parity as SpecParity, Serial};
+
+use crate::cli::Global;
+use crate::error::{CliError, Context, Result};
+
+/// A client on any transport.
+pub type Bus = Client<Box<dyn Transport + Send>>;
+
+/// The port options every device command takes.
+#[derive(Args, Debug, Clone, Default)]
+pub struct PortArgs {
+    /// Serial port of the RS-485 adapter (/dev/ttyUSB0, COM3), or
+    /// tcp://HOST:PORT for an RTU-over-TCP gateway (or `yosemitech simulate --tcp`).
+    #[arg(short, long, env = "YOSEMITECH_PORT", value_name = "PATH")]
+    pub port: Option<String>,
+    /// Baud rate [default: the sensor's, 9600 for every Yosemitech probe].
+    #[arg(short, long, env = "YOSEMITECH_BAUD", value_name = "BAUD")]
+    pub baud: Option<u32>,
+}
+
+/// The slave address option.
+#[derive(Args, Debug, Clone, Default)]
+pub struct AddressArg {
+    /// Slave address of the probe, 1..=247 [default: the sensor's factory address, 1].
+    #[arg(short, long, value_name = "N")]
+    pub address: Option<u32>,
+}
+
+impl AddressArg {
+    /// The address, validated, or `default`.
+    pub fn get(&self, default: u8) -> Result<u8> {
+        self.address.map_or(Ok(default), |a| check_address(a, "--address"))
+    }
+}
+
+/// Checks a slave address given on the command line.
+pub fn check_address(address: u32, what: &str) -> Result<u8> {
+    match u8::try_from(address) {
+        Ok(a @ 1..=247) => Ok(a),
+        _ => Err(CliError::usage(format!("{what} {address} is outside 1..=247")).hint(
+            "Modbus RTU slave addresses run from 1 to 247 (0 is broadcast); Yosemitech probes leave the factory at 1",
+        )),
+    }
+}
+
+/// An open bus, and how to name it in messages.
+pub struct Opened {
+    /// The client.
+    pub bus: Bus,
+    /// The port as given.
+    pub port: String,
+    /// The reply timeout.
+    pub timeout: Duration,
+}
+
+impl Opened {
+    /// The context of a request to `slave`, for error messages.
+    pub fn context(&self, slave: u8, what: &str) -> Context {
+        Context { port: self.port.clone(), slave, what: what.to_owned(), timeout: self.timeout }
+    }
+}
+
+/// The port given, or a usage error saying how to give one.
+pub fn port_name(args: &PortArgs) -> Result<String> {
+    match args.port.as_deref().map(str::trim) {
+        Some(p) if !p.is_empty() => Ok(p.to_owned()),
+        _ => Err(CliError::usage("no port given")
+            .hint("pass --port /dev/ttyUSB0 (or COM3, or tcp://HOST:PORT), or set YOSEMITECH_PORT")),
+    }
+}
+
+/// Client settings from the global options and this command's defaults.
+pub fn client_config(global: &Global, default_timeout: Duration, default_retries: u32) -> ClientConfig {
+    let timeout = global.timeout.unwrap_or(default_timeout);
+    let retries = global.retries.unwrap_or(default_retries);
+    ClientConfig { timeout, retry: RetryPolicy { retries, ..RetryPolicy::default() }, ..ClientConfig::default() }
+}
+
+/// Opens the port for a sensor with `serial` settings, with the default
+/// timeout (1 s) and retries (2).
+pub fn open(args: &PortArgs, global: &Global, serial: &Serial) -> Result<Opened> {
+    open_with(args, global, serial, Duration::from_secs(1), RetryPolicy::default().retries)
+}
+
+/// The serial settings of every Yosemitech probe: 9600 baud 8N1.
+pub const YOSEMITECH_SERIAL: Serial = Serial { baud: 9600, data_bits: 8, parity: SpecParity::None, stop_bits: 1 };
+
+/// Opens the port.
+pub fn open_with(
+    args: &PortArgs,
+    global: &Global,
+    serial: &Serial,
+    default_timeout: Duration,
+    default_retries: u32,
+) -> Result<Opened> {
+    let port = port_name(args)?;
+    let config = client_config(global, default_timeout, default_retries);
+    let baud = args.baud.unwrap_or(serial.baud);
+    if baud == 0 {
+        return Err(
+            CliError::usage("--baud 0 is not a baud rate").hint("Yosemitech probes use 9600 unless reconfigured")
+        );
+    }
+    let transport: Box<dyn Transport + Send> = match port.strip_prefix("tcp://") {
+        Some(address) => Box::new(
+            TcpTransport::connect(address, config.timeout.max(Duration::from_millis(500)))
+                .map_err(|e| open_failed(&port, &e))?,
+        ),
+        None => {
+            let config = SerialConfig {
+                baud,
+                data_bits: if serial.data_bits == 7 { DataBits::Seven } else { DataBits::Eight },
+                parity: match serial.parity {
+                    SpecParity::None => Parity::None,
+                    SpecParity::Even => Parity::Even,
+                    SpecParity::Odd => Parity::Odd,
+                },
+                stop_bits: if serial.stop_bits == 2 { StopBits::Two } else { StopBits::One },
+                ..SerialConfig::new(port.clone())
+            };
+            Box::new(SerialTransport::open(&config).map_err(|e| open_failed(&port, &e))?)
+        }
+    };
+    Ok(Opened { bus: Client::with_config(transport, config), port, timeout: config.timeout })
+}
+
+/// Why a port could not be opened, with what to do about it.
+pub fn open_failed(port: &str, e: &io::Error) -> CliError {
+    let tcp = port.starts_with("tcp://");
+    match e.kind() {
+        io::ErrorKind::NotFound if !tcp && Path::new(port).exists() => {
+            CliError::device(format!("cannot open {port}: it is in use ({e})"))
+                .hint("another program holds the port (a logger, a terminal, ModemManager): close it and retry")
+        }
+        io::ErrorKind::NotFound => CliError::device(format!("port {port} not found")).hint(if cfg!(windows) {
+            "check the COM port number in the Device Manager"
+        } else {
+            "is the adapter plugged in? `ls /dev/ttyUSB* /dev/ttyACM*` lists USB serial ports"
+        }),
+        io::ErrorKind::PermissionDenied => CliError::device(format!("permission denied opening {port}"))
+            .hint("add yourself to the group that owns the port (`sudo usermod -aG dialout $USER`, then log in again)"),
+        io::ErrorKind::ConnectionRefused | io::ErrorKind::TimedOut if tcp => {
+            CliError::device(format!("cannot connect to {port}: {e}"))
+                .hint("is the gateway (or `yosemitech simulate --tcp`) running at that address?")
+        }
+        _ if tcp => CliError::device(format!("cannot connect to {port}: {e}"))
+            .hint("give the gateway as tcp://HOST:PORT, e.g. tcp://192.168.1.50:4001"),
+        _ => CliError::device(format!("cannot open {port} as a serial port: {e}"))
+            .hint("is it a serial device? `ls /dev/ttyUSB* /dev/ttyACM*` lists USB serial ports"),
+    }
+}

@@ -1,0 +1,504 @@
+//! The `yosemitech` binary against simulated probes on pseudo-terminals
+//! (yosemitech-sim's `serve_pty`, or `yosemitech simulate` in a child
+//! process), through the real serial code path. No hardware.
+#![cfg(unix)]
+
+mod common;
+
+use std::io::{BufRead, BufReader};
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+use common::{bus, fixture_spec_dir, number_after, sim, yosemitech, yosemitech_with_input};
+use serde_json::Value as Json;
+use yosemitech_sim::{FaultConfig, FaultKind};
+use yosemitech_spec::Value;
+
+/// Short timeouts for requests that are meant to fail.
+const FAST: [&str; 4] = ["--timeout", "150ms", "--retries", "0"];
+
+fn float(sim: &common::Sim<yosemitech_sim::Simulator>, command: &str, field: &str) -> f32 {
+    match sim.server.device().get(command, field).unwrap() {
+        Value::Float(v) => v,
+        other => panic!("{command}.{field} is {other:?}"),
+    }
+}
+
+#[test]
+fn demo_runs_both_probes_and_prints_the_values() {
+    let started = Instant::now();
+    let run = yosemitech(&["demo"]);
+    let out = run.ok();
+    assert!(started.elapsed() < Duration::from_secs(20), "the demo takes a few seconds");
+    for needle in [
+        "/dev/pts/",
+        "YL4314010022",
+        "YL0914010022",
+        "hardware        1.1",
+        "software        1.0",
+        " pH",
+        " mV",
+        "°C",
+        "mS/cm",
+        "range status    ok",
+        "electrode K1-K6 6.86 -6.72 0.04 6.86 -6.56 -1.04",
+        "TDS",
+        "mean of 10 readings",
+    ] {
+        assert!(out.contains(needle), "`{needle}` missing from the demo:\n{out}");
+    }
+    let measurement = out.split("waits shortened").nth(1).expect("the measurement section");
+    let conductivity = number_after(measurement, "conductivity  ");
+    let tds = number_after(measurement, "TDS");
+    assert!((tds - conductivity * 640.0).abs() < 0.2, "TDS {tds} vs mean {conductivity}");
+    assert!((number_after(out, "pH  ") - 7.02).abs() < 0.05, "{out}");
+}
+
+#[test]
+fn read_shows_values_with_units() {
+    let s = sim("ph_orp", 1);
+    let out = yosemitech(&["read", "ph_orp", "get_ph", "--port", &s.path]).ok().to_owned();
+    assert_eq!(out.trim(), "ph  7.6 pH");
+    let out = yosemitech(&["read", "ph", "orp_and_ph", "-p", &s.path]).ok().to_owned();
+    assert!(out.contains("orp_mv  -6.56 mV") && out.contains("ph      7 pH"), "{out}");
+    let json = yosemitech(&["read", "ph_orp", "get_version", "-p", &s.path, "--json"]).json();
+    assert_eq!(json["values"], serde_json::json!({ "hardware": "1.1", "software": "1.1" }));
+    assert!(json["timestamp"].as_str().unwrap().ends_with('Z'));
+    // get_slave_id goes to the wildcard address 0xFF whatever --address says.
+    let out = yosemitech(&["read", "ph_orp", "get_slave_id", "-p", &s.path, "-a", "9"]).ok().to_owned();
+    assert_eq!(out.trim(), "slave_address  1");
+}
+
+#[test]
+fn port_and_baud_come_from_the_environment() {
+    let s = sim("conductivity", 1);
+    let mut cmd = common::command();
+    cmd.args(["read", "conductivity", "get_sn"]).env("YOSEMITECH_PORT", &s.path).env("YOSEMITECH_BAUD", "9600");
+    let run = common::run_command(cmd, None);
+    assert!(run.ok().contains("YL0914010022"));
+}
+
+#[test]
+fn a_silent_address_times_out_cleanly() {
+    let s = sim("ph_orp", 1);
+    let run =
+        yosemitech(&["read", "ph_orp", "get_ph", "-p", &s.path, "-a", "9", "--timeout", "100ms", "--retries", "1"]);
+    let err = run.fails_with_hint(1);
+    assert!(err.contains("no reply to get_ph from address 9") && err.contains("within 100ms"), "{err}");
+    assert!(err.contains("yosemitech scan"), "{err}");
+    // A command the probe does not have: its exception, explained.
+    let run = yosemitech(&["read", "conductivity", "get_temperature_and_conductivity", "-p", &s.path]);
+    assert!(
+        run.fails_with_hint(1)
+            .contains("refused get_temperature_and_conductivity with Modbus exception illegal data value"),
+        "{}",
+        run.stderr
+    );
+}
+
+#[test]
+fn write_backs_up_coefficients_confirms_and_reads_back() {
+    let s = sim("ph_orp", 1);
+    let dir = tempfile::tempdir().unwrap();
+    let backup_dir = dir.path().to_str().unwrap();
+    // Without a terminal and without --yes, nothing is sent.
+    let run = yosemitech(&["write", "ph_orp", "set_ph_calibration", "1.02", "-0.05", "-p", &s.path]);
+    assert!(run.fails_with_hint(2).contains("--yes") || run.stderr.contains("stdin is not a terminal"));
+    assert_eq!(float(&s, "get_ph_calibration", "k_slope"), 1.0);
+
+    let run = yosemitech(&[
+        "write",
+        "ph_orp",
+        "set_ph_calibration",
+        "k_slope=1.02",
+        "b_offset=-0.05",
+        "-p",
+        &s.path,
+        "--yes",
+        "--backup-dir",
+        backup_dir,
+    ]);
+    let out = run.ok();
+    assert!(out.contains("frame: 01 10 11 00 00 04 08 5C 8F 82 3F CD CC 4C BD F1 CF"), "{out}");
+    assert!(out.contains("k_slope = 1.02 (matches)") && out.contains("verified"), "{out}");
+    assert!(out.contains("restore with: yosemitech coefficients restore ph_orp --port"), "{out}");
+    assert_eq!(float(&s, "get_ph_calibration", "k_slope"), 1.02);
+    let files: Vec<_> = std::fs::read_dir(dir.path()).unwrap().collect();
+    assert_eq!(files.len(), 1, "one backup file");
+    let backup: Json =
+        serde_json::from_str(&std::fs::read_to_string(files[0].as_ref().unwrap().path()).unwrap()).unwrap();
+    assert_eq!(backup["coefficients"]["set_ph_calibration"]["k_slope"], 1.0, "the backup holds the old values");
+    assert_eq!(backup["coefficients"]["set_ph_electrode_coefficients"]["k2"], -6.72);
+
+    // A write that is not a coefficient: no backup, and no read-back command.
+    let out = yosemitech(&["write", "ph_orp", "start_ph_calibration", "4", "-p", &s.path, "--yes"]).ok().to_owned();
+    assert!(out.contains("nothing to read back") && !out.contains("saved every coefficient"), "{out}");
+    // A write with a read of the same registers at another address (get_slave_id at 0xFF).
+    let out = yosemitech(&["write", "ph_orp", "set_slave_id", "12", "-p", &s.path, "--yes"]).ok().to_owned();
+    assert!(out.contains("slave_address = 12 (matches)"), "{out}");
+    assert_eq!(s.server.device().address(), 12);
+}
+
+#[test]
+fn poll_csv_gives_one_row_per_poll() {
+    let s = sim("ph_orp", 1);
+    let run = yosemitech(&["poll", "ph_orp", "-p", &s.path, "--count", "3", "--interval", "0", "--format", "csv"]);
+    let out = run.ok();
+    let lines: Vec<&str> = out.lines().collect();
+    assert_eq!(lines.len(), 4, "a header and 3 rows:\n{out}");
+    assert_eq!(
+        lines[0],
+        "timestamp,get_ph.ph,get_orp_and_ph.orp_mv,get_orp_and_ph.ph,get_orp.orp_mv,temperature_c,error"
+    );
+    for row in &lines[1..] {
+        let cells: Vec<&str> = row.split(',').collect();
+        assert_eq!(cells.len(), 7, "{row}");
+        assert!(cells[0].len() == 24 && cells[0].ends_with('Z') && cells[0].as_bytes()[10] == b'T', "{row}");
+        assert_eq!(&cells[1..], ["7.6", "-6.56", "7", "-10.28", "15.8", ""]);
+    }
+}
+
+#[test]
+fn poll_reports_errors_per_row_and_goes_on() {
+    let s = sim("conductivity", 1);
+    // The first reply is lost: that row carries the error, the next ones do not.
+    s.server.device().set_faults(FaultConfig::scripted([Some(FaultKind::Drop)]));
+    let mut args = vec!["poll", "conductivity", "-p", &s.path, "-n", "3", "-i", "0", "-f", "json"];
+    args.extend(FAST);
+    let run = yosemitech(&args);
+    let rows: Vec<Json> = run.ok().lines().map(|l| serde_json::from_str(l).unwrap()).collect();
+    assert_eq!(rows.len(), 3);
+    assert_eq!(rows[0]["error"], "get_temperature_and_conductivity: no reply");
+    assert_eq!(rows[0]["values"]["conductivity_ms_cm"], Json::Null);
+    assert_eq!(rows[1]["error"], Json::Null);
+    assert_eq!(rows[1]["values"]["conductivity_ms_cm"], 17.625);
+    assert_eq!(rows[2]["values"]["range_status"]["name"], "ok");
+
+    // Every poll failing is exit 1, after every row was printed.
+    let mut args = vec!["poll", "conductivity", "-p", &s.path, "-a", "7", "-n", "2", "-i", "0", "-f", "table"];
+    args.extend(FAST);
+    let run = yosemitech(&args);
+    run.fails_with_hint(1);
+    assert_eq!(run.stdout.lines().count(), 3, "{}", run.stdout);
+    assert!(run.stdout.contains("no reply"), "{}", run.stdout);
+}
+
+#[test]
+fn poll_stops_cleanly_on_ctrl_c() {
+    let s = sim("ph_orp", 1);
+    let mut child = common::command()
+        .args(["poll", "ph_orp", "-p", &s.path, "--interval", "50ms", "--format", "csv"])
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut stdout = BufReader::new(child.stdout.take().unwrap());
+    let mut line = String::new();
+    for _ in 0..3 {
+        line.clear();
+        stdout.read_line(&mut line).unwrap();
+    }
+    assert!(line.ends_with(",\n"), "a data row: {line}");
+    let status = Command::new("kill").args(["-INT", &child.id().to_string()]).status().unwrap();
+    assert!(status.success());
+    let code = common::wait(&mut child, Duration::from_secs(10));
+    assert_eq!(code, 0, "Ctrl-C ends polling with success");
+}
+
+#[test]
+fn set_address_changes_and_verifies() {
+    let s = sim("conductivity", 1);
+    let mut args = vec!["set-address", "-p", &s.path, "--from", "1", "--to", "42", "--yes", "--sensor", "conductivity"];
+    args.extend(FAST);
+    let out = yosemitech(&args).ok().to_owned();
+    assert!(out.contains("now answers at address 42") && out.contains("YL0914010022"), "{out}");
+    assert_eq!(s.server.device().address(), 42);
+    // Nothing answers at the old address any more: refused, nothing written.
+    let mut args = vec!["set-address", "-p", &s.path, "--from", "1", "--to", "43", "--yes"];
+    args.extend(FAST);
+    let err = yosemitech(&args).fails_with_hint(1).to_owned();
+    assert!(err.contains("no probe answers at address 1"), "{err}");
+    assert_eq!(s.server.device().address(), 42);
+    // The new address taken by the probe itself.
+    let mut args = vec!["set-address", "-p", &s.path, "--from", "7", "--to", "42", "--yes"];
+    args.extend(FAST);
+    assert!(yosemitech(&args).fails_with_hint(2).contains("already answers at address 42"));
+}
+
+#[test]
+fn set_address_refuses_0_and_248() {
+    let s = sim("ph_orp", 1);
+    for (from, to) in [("0", "5"), ("1", "0"), ("1", "248"), ("248", "1")] {
+        let run = yosemitech(&["set-address", "-p", &s.path, "--from", from, "--to", to, "--yes"]);
+        assert!(run.fails_with_hint(2).contains("outside 1..=247"), "{}", run.stderr);
+    }
+    assert_eq!(s.server.device().stats().requests, 0, "nothing was sent");
+}
+
+#[test]
+fn coefficients_backup_and_restore_round_trip() {
+    let s = sim("ph_orp", 1);
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("ph backup.json");
+    let file = file.to_str().unwrap();
+    s.server.device().set("get_orp_calibration", "k_slope", Value::Float(0.987_654_3)).unwrap();
+    let out = yosemitech(&["coefficients", "backup", "ph_orp", "-p", &s.path, "--file", file]).ok().to_owned();
+    assert!(out.contains("restore with:") && out.contains("'"), "the path with a space is quoted:\n{out}");
+    // Never overwritten.
+    yosemitech(&["coefficients", "backup", "ph_orp", "-p", &s.path, "--file", file]).fails_with_hint(2);
+
+    // Change everything, then restore.
+    for (command, field) in [("get_orp_calibration", "k_slope"), ("get_ph_calibration", "b_offset")] {
+        s.server.device().set(command, field, Value::Float(42.0)).unwrap();
+    }
+    s.server.device().set("get_ph_electrode_coefficients", "k6", Value::Float(-3.5)).unwrap();
+    // Restoring needs confirmation.
+    yosemitech(&["coefficients", "restore", "ph_orp", "-p", &s.path, "--file", file]).fails_with_hint(2);
+    assert_eq!(float(&s, "get_orp_calibration", "k_slope"), 42.0);
+    let out =
+        yosemitech(&["coefficients", "restore", "ph_orp", "-p", &s.path, "--file", file, "--yes"]).ok().to_owned();
+    assert!(out.contains("restored and verified"), "{out}");
+    assert_eq!(float(&s, "get_orp_calibration", "k_slope").to_bits(), 0.987_654_3f32.to_bits());
+    assert_eq!(float(&s, "get_ph_calibration", "b_offset"), 0.0);
+    assert_eq!(float(&s, "get_ph_electrode_coefficients", "k6"), -1.04);
+    // A pH backup is not a conductivity backup.
+    let err = yosemitech(&["coefficients", "restore", "conductivity", "-p", &s.path, "--file", file, "--yes"])
+        .fails_with_hint(2)
+        .to_owned();
+    assert!(err.contains("`ph_orp` probe"), "{err}");
+}
+
+#[test]
+fn conductivity_coefficients_round_trip() {
+    let s = sim("conductivity", 5);
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("c.json");
+    let file = file.to_str().unwrap();
+    yosemitech(&["coefficients", "backup", "conductivity", "-p", &s.path, "-a", "5", "-f", file]).ok();
+    s.server.device().set("get_user_calibration", "k_slope", Value::Float(2.5)).unwrap();
+    yosemitech(&["coefficients", "restore", "cond", "-p", &s.path, "-a", "5", "-f", file, "-y"]).ok();
+    assert_eq!(float(&s, "get_user_calibration", "k_slope"), 1.0);
+}
+
+#[test]
+fn calibrate_ph_guides_three_points_and_reports_success() {
+    let s = sim("ph_orp", 1);
+    let dir = tempfile::tempdir().unwrap();
+    let backup_dir = dir.path().to_str().unwrap();
+    let run = yosemitech_with_input(
+        &["calibrate", "ph", "-p", &s.path, "--yes", "--skip-wait", "--backup-dir", backup_dir],
+        "\n\n\n",
+    );
+    let out = run.ok();
+    for needle in ["pH 4.00 buffer", "pH 6.86 buffer", "pH 9.18 buffer", "calibration succeeded", "restore with:"] {
+        assert!(out.contains(needle), "`{needle}` missing:\n{out}");
+    }
+    assert!(out.find("saved every coefficient").unwrap() < out.find("pH 4.00 buffer").unwrap(), "backup first");
+    assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1, "one backup file");
+}
+
+#[test]
+fn calibrate_ph_stops_on_q_and_prints_the_restore_command() {
+    let s = sim("ph_orp", 1);
+    let dir = tempfile::tempdir().unwrap();
+    let backup_dir = dir.path().to_str().unwrap();
+    let run = yosemitech_with_input(
+        &["calibrate", "ph", "-p", &s.path, "--yes", "--skip-wait", "--backup-dir", backup_dir],
+        "\nq\n",
+    );
+    let err = run.fails(1);
+    assert!(err.contains("stopped by the user at point 2"), "{err}");
+    assert!(err.contains("yosemitech coefficients restore ph_orp"), "{err}");
+    assert_eq!(s.server.device().calibration_points().len(), 1, "one point written");
+    // Without --yes and without a terminal, nothing starts.
+    let run = yosemitech(&["calibrate", "ph", "-p", &s.path, "--skip-wait", "--backup-dir", backup_dir]);
+    run.fails_with_hint(2);
+    // A backup that cannot be saved stops the calibration before any write.
+    let before = s.server.device().stats().writes;
+    let run = yosemitech_with_input(
+        &["calibrate", "ph", "-p", &s.path, "--yes", "--skip-wait", "--backup-dir", "/nonexistent/dir"],
+        "\n\n\n",
+    );
+    assert!(run.fails_with_hint(1).contains("nothing was written"), "{}", run.stderr);
+    assert_eq!(s.server.device().stats().writes, before);
+}
+
+#[test]
+fn measure_conductivity_prints_tds_as_mean_times_640() {
+    let s = sim("conductivity", 1);
+    s.server.device().set("get_temperature_and_conductivity", "conductivity_ms_cm", Value::Float(1.413)).unwrap();
+    let run = yosemitech(&["measure", "conductivity", "-p", &s.path, "--fast", "--readings", "4"]);
+    let out = run.ok();
+    let mean = number_after(out, "conductivity");
+    let tds = number_after(out, "TDS");
+    assert_eq!(mean as f32, 1.413);
+    assert!((tds - mean * 640.0).abs() < 1e-3, "TDS {tds} = {mean} x 640\n{out}");
+    assert!(out.contains("mean of 4 readings") && out.contains("mg/L"), "{out}");
+    let json: Json = serde_json::from_str(
+        yosemitech(&["measure", "conductivity", "-p", &s.path, "--warm-up", "10ms", "--interval", "5ms", "--json"])
+            .ok(),
+    )
+    .unwrap();
+    assert_eq!(json["readings"], 10);
+    assert!((json["tds_mg_l"].as_f64().unwrap() - 904.32).abs() < 0.01, "{json}");
+    // The manual's Start Measurement trigger was sent.
+    assert!(s.server.device().stats().writes >= 2);
+}
+
+#[test]
+fn scan_finds_each_probe_and_its_kind() {
+    let s = bus(&[("ph_orp", 1), ("conductivity", 3)]);
+    let run = yosemitech(&["scan", "-p", &s.path, "--addresses", "1-4"]);
+    let out = run.ok();
+    assert!(out.contains("address   1  SN YL4314010022    ph_orp"), "{out}");
+    assert!(out.contains("address   3  SN YL0914010022    conductivity"), "{out}");
+    assert!(out.contains("found 2 device(s)"), "{out}");
+    let json = yosemitech(&["scan", "-p", &s.path, "--addresses", "2,3", "--json"]).json();
+    assert_eq!(
+        json["devices"],
+        serde_json::json!([{ "address": 3, "serial_number": "YL0914010022", "sensors": ["conductivity"], "note": null }])
+    );
+    let run = yosemitech(&["scan", "-p", &s.path, "--addresses", "5-6"]);
+    assert!(run.fails_with_hint(1).contains("no device answered"), "{}", run.stderr);
+}
+
+/// `yosemitech simulate` in a child process: the port it prints, and a clean
+/// stop on Ctrl-C.
+fn spawn_simulate(args: &[&str]) -> (std::process::Child, String) {
+    let mut child = common::command()
+        .arg("simulate")
+        .args(args)
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut line = String::new();
+    BufReader::new(child.stdout.take().unwrap()).read_line(&mut line).unwrap();
+    (child, line.trim().to_owned())
+}
+
+fn interrupt(mut child: std::process::Child) -> String {
+    let status = Command::new("kill").args(["-INT", &child.id().to_string()]).status().unwrap();
+    assert!(status.success());
+    assert_eq!(common::wait(&mut child, Duration::from_secs(10)), 0, "simulate stops cleanly on Ctrl-C");
+    let mut err = String::new();
+    std::io::Read::read_to_string(&mut child.stderr.take().unwrap(), &mut err).unwrap();
+    err
+}
+
+#[test]
+fn simulate_serves_a_pty_until_interrupted() {
+    let (child, port) = spawn_simulate(&["conductivity", "--address", "4"]);
+    assert!(port.starts_with("/dev/"), "{port}");
+    let out = yosemitech(&["read", "conductivity", "get_temperature_and_conductivity", "-p", &port, "-a", "4"]);
+    assert!(out.ok().contains("conductivity_ms_cm  17.625 mS/cm"), "{}", out.stdout);
+    let err = interrupt(child);
+    assert!(err.contains("simulating Conductivity probe") && err.contains("stopped: 1 requests"), "{err}");
+}
+
+#[test]
+fn simulate_serves_rtu_over_tcp() {
+    let (child, port) = spawn_simulate(&["ph_orp", "--tcp", "127.0.0.1:0"]);
+    assert!(port.starts_with("tcp://127.0.0.1:"), "{port}");
+    let out = yosemitech(&["read", "ph_orp", "get_temperature", "-p", &port]);
+    assert_eq!(out.ok().trim(), "temperature_c  15.8 °C");
+    interrupt(child);
+}
+
+#[test]
+fn simulate_injects_faults_the_client_retries() {
+    let (child, port) = spawn_simulate(&["ph_orp", "--faults", "drop=0.3,corrupt_crc=0.2", "--seed", "5"]);
+    let run = yosemitech(&[
+        "poll",
+        "ph_orp",
+        "-p",
+        &port,
+        "-n",
+        "5",
+        "-i",
+        "0",
+        "-f",
+        "csv",
+        "--timeout",
+        "100ms",
+        "--retries",
+        "5",
+    ]);
+    assert_eq!(run.ok().lines().count(), 6);
+    let err = interrupt(child);
+    let injected: u64 = err
+        .split("faults: ")
+        .nth(1)
+        .and_then(|rest| rest.split_whitespace().next())
+        .and_then(|n| n.parse().ok())
+        .unwrap_or_else(|| panic!("no fault count in: {err}"));
+    assert!(injected > 0, "faults were injected: {err}");
+}
+
+#[test]
+fn spec_sensors_work_through_the_interpreter() {
+    // The fixture DO probe (19200 8E1, address 10) exists only as a spec file.
+    let dir = fixture_spec_dir();
+    let spec = dir.to_str().unwrap();
+    let (child, port) = spawn_simulate(&["--spec", spec, "do_probe"]);
+    let out = yosemitech(&["read", "--spec", spec, "do_probe", "get_dissolved_oxygen", "-p", &port]);
+    let text = out.ok();
+    assert!(text.contains("do_mg_l") && text.contains("8.25 mg/L") && text.contains("-1250"), "{text}");
+    let run = yosemitech(&["--spec", spec, "poll", "do_probe", "-p", &port, "-n", "2", "-i", "0", "-f", "csv"]);
+    assert_eq!(run.ok().lines().count(), 3, "{}", run.stdout);
+    let run = yosemitech(&[
+        "--spec",
+        spec,
+        "write",
+        "do_probe",
+        "set_offsets",
+        "pressure_offset_pa=-100",
+        "salinity_ppt=12.5",
+        "membrane_correction=3",
+        "-p",
+        &port,
+        "--yes",
+    ]);
+    assert!(run.ok().contains("verified"), "{}", run.stdout);
+    let run = yosemitech(&["--spec", spec, "write", "do_probe", "set_offsets", "0", "50", "0", "-p", &port, "--yes"]);
+    assert!(run.fails_with_hint(2).contains("outside the valid range 0..=40"), "{}", run.stderr);
+    interrupt(child);
+}
+
+#[test]
+fn verbose_shows_frame_dumps() {
+    let s = sim("ph_orp", 1);
+    let run = yosemitech(&["read", "ph_orp", "get_ph", "-p", &s.path, "-v"]);
+    run.ok();
+    assert!(run.stderr.contains("tx") && run.stderr.contains("01 03 28 00 00 02 CD AB"), "{}", run.stderr);
+    assert!(run.stderr.contains("rx") && run.stderr.contains("01 03 04 33 33 F3 40 40 78"), "{}", run.stderr);
+    assert!(!run.stderr.contains('\u{1b}'), "no colour codes when stderr is not a terminal");
+}
+
+#[test]
+fn a_spec_file_replacing_a_built_in_sensor_goes_through_the_interpreter() {
+    // The pH manual's spec loaded at run time replaces the built-in sensor:
+    // coefficients go through the interpreter (with the same read-back), and
+    // the typed procedures refuse.
+    let dir = tempfile::tempdir().unwrap();
+    let text = std::fs::read_to_string(common::spec_dir().join("ph-orp-optical.yaml")).unwrap();
+    std::fs::write(dir.path().join("ph-orp-optical.yaml"), text).unwrap();
+    let spec = dir.path().to_str().unwrap();
+    let s = sim("ph_orp", 1);
+    let file = dir.path().join("backup.json");
+    let file = file.to_str().unwrap();
+    let out =
+        yosemitech(&["--spec", spec, "coefficients", "backup", "ph_orp", "-p", &s.path, "-f", file]).ok().to_owned();
+    assert!(out.contains("k1=6.86") && out.contains(&format!("--spec {spec}")), "{out}");
+    s.server.device().set("get_ph_electrode_coefficients", "k1", Value::Float(1.5)).unwrap();
+    s.server.device().set("get_orp_calibration", "b_offset", Value::Float(-2.0)).unwrap();
+    let out = yosemitech(&["--spec", spec, "coefficients", "restore", "ph_orp", "-p", &s.path, "-f", file, "--yes"]);
+    assert!(out.ok().contains("restored and verified"));
+    assert_eq!(float(&s, "get_ph_electrode_coefficients", "k1"), 6.86);
+    assert_eq!(float(&s, "get_orp_calibration", "b_offset"), 0.0);
+    let run =
+        yosemitech_with_input(&["--spec", spec, "calibrate", "ph", "-p", &s.path, "--yes", "--skip-wait"], "\n\n\n");
+    assert!(run.fails_with_hint(2).contains("built-in ph_orp"), "{}", run.stderr);
+}

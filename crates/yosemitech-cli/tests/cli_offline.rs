@@ -1,0 +1,400 @@
+//! The `yosemitech` binary without a device: help, list, decode, encode, and
+//! bad input. Every frame the manuals print goes through `decode --json` and
+//! `encode` and must give the manuals' stated values and bytes.
+
+mod common;
+
+use common::{spec, yosemitech};
+use serde_json::Value as Json;
+use yosemitech_spec::{Command, Example, Sensor, Value};
+
+const SUBCOMMANDS: [&str; 13] = [
+    "demo",
+    "list",
+    "read",
+    "write",
+    "poll",
+    "measure",
+    "calibrate",
+    "coefficients",
+    "scan",
+    "set-address",
+    "decode",
+    "encode",
+    "simulate",
+];
+
+fn hex(bytes: &[u8]) -> String {
+    bytes.iter().map(|b| format!("{b:02X}")).collect::<Vec<_>>().join(" ")
+}
+
+/// Whether a decoded JSON value is the value the manual states.
+fn same(expected: &Value, got: &Json) -> bool {
+    match expected {
+        Value::Float(f) => got.as_f64().is_some_and(|g| (g as f32).to_bits() == f.to_bits()),
+        Value::Int(i) => got.as_i64() == Some(*i),
+        Value::Text(t) => got.as_str() == Some(t.as_str()),
+        Value::Version(v) => got.as_str() == Some(v.to_string().as_str()),
+        Value::Enum { raw, name } => {
+            got["raw"].as_u64() == Some(u64::from(*raw)) && got["name"].as_str() == name.as_deref()
+        }
+    }
+}
+
+/// A stated value as the command line takes it.
+fn arg(value: &Value) -> String {
+    match value {
+        Value::Float(f) => f.to_string(),
+        Value::Int(i) => i.to_string(),
+        Value::Text(t) => t.clone(),
+        Value::Version(v) => v.to_string(),
+        Value::Enum { raw, name } => name.clone().unwrap_or_else(|| raw.to_string()),
+    }
+}
+
+/// Every example of every command, with its sensor and command.
+fn examples() -> Vec<(Sensor, Command, Example)> {
+    let spec = spec();
+    let mut out = Vec::new();
+    for sensor in &spec.sensors {
+        for command in &sensor.commands {
+            for example in &command.examples {
+                out.push((sensor.clone(), command.clone(), example.clone()));
+            }
+        }
+    }
+    assert!(out.len() >= 20, "the manuals print at least 20 example pairs");
+    out
+}
+
+fn decode_json(frame: &[u8], sensor: &str, command: &str) -> Json {
+    let frame = hex(frame);
+    let run = yosemitech(&["decode", &frame, "--sensor", sensor, "--command", command, "--json"]);
+    run.json()
+}
+
+#[test]
+fn help_works_for_every_subcommand() {
+    let top = yosemitech(&["--help"]);
+    let text = top.ok();
+    for sub in SUBCOMMANDS {
+        assert!(text.contains(sub), "`{sub}` missing from --help");
+        let run = yosemitech(&[sub, "--help"]);
+        assert!(run.ok().contains("Usage:"), "{sub} --help:\n{}", run.stdout);
+    }
+    for nested in
+        [["measure", "conductivity"], ["calibrate", "ph"], ["coefficients", "backup"], ["coefficients", "restore"]]
+    {
+        assert!(yosemitech(&[nested[0], nested[1], "--help"]).ok().contains("Usage:"));
+    }
+    assert!(yosemitech(&["--version"]).ok().starts_with("yosemitech "));
+}
+
+#[test]
+fn usage_errors_exit_2() {
+    // No subcommand: the usage, on stderr.
+    let run = yosemitech(&[]);
+    assert_eq!(run.code, 2);
+    assert!(run.stderr.contains("Usage:"), "{}", run.stderr);
+    yosemitech(&["frobnicate"]).fails(2);
+    yosemitech(&["decode"]).fails(2);
+    yosemitech(&["poll", "ph_orp", "--interval", "fast"]).fails(2);
+}
+
+#[test]
+fn list_json_has_every_command_with_its_layout() {
+    let json = yosemitech(&["list", "--json"]).json();
+    let sensors = json["sensors"].as_array().expect("sensors");
+    let names: Vec<&str> = sensors.iter().filter_map(|s| s["name"].as_str()).collect();
+    assert_eq!(names, ["conductivity", "ph_orp"]);
+    let spec = spec();
+    for s in sensors {
+        let sensor = spec.sensor(s["name"].as_str().unwrap()).unwrap();
+        let commands = s["commands"].as_array().expect("commands");
+        assert_eq!(commands.len(), sensor.commands.len());
+        for c in commands {
+            for key in ["name", "function", "address", "count", "fields"] {
+                assert!(!c[key].is_null(), "{key} missing in {c}");
+            }
+            let command = sensor.command(c["name"].as_str().unwrap()).unwrap();
+            assert_eq!(c["address"].as_u64(), Some(u64::from(command.address)));
+            assert_eq!(c["count"].as_u64(), Some(u64::from(command.count)));
+            assert_eq!(c["function"].as_str(), Some(if command.is_read() { "read" } else { "write" }));
+            let fields = c["fields"].as_array().unwrap();
+            assert_eq!(fields.len(), command.fields.len());
+            let size: u64 = fields.iter().map(|f| f["size"].as_u64().unwrap()).sum();
+            assert_eq!(size, 2 * u64::from(command.count), "fields fill the registers of {}", command.name);
+            for f in fields {
+                for key in ["name", "type", "unit", "offset", "size", "byte_order"] {
+                    assert!(f.get(key).is_some(), "{key} missing in {f}");
+                }
+            }
+        }
+    }
+    let ph = &sensors[1]["commands"].as_array().unwrap().iter().find(|c| c["name"] == "get_ph").unwrap()["fields"][0];
+    assert_eq!(ph["name"], "ph");
+    assert_eq!(ph["type"], "f32");
+    assert_eq!(ph["unit"], "pH");
+    assert_eq!(ph["offset"], 0);
+    assert_eq!(ph["size"], 4);
+    assert_eq!(ph["byte_order"], "dcba");
+
+    let one = yosemitech(&["list", "conductivity", "--json"]).json();
+    assert_eq!(one["sensors"].as_array().unwrap().len(), 1);
+}
+
+#[test]
+fn list_shows_sensors_commands_and_fields() {
+    let all = yosemitech(&["list"]);
+    let text = all.ok();
+    assert!(text.contains("ph_orp") && text.contains("conductivity"));
+    assert!(text.contains("get_ph") && text.contains("0x2800"));
+    let one = yosemitech(&["list", "ph"]);
+    assert!(one.ok().contains("ph: f32 dcba [pH]"), "{}", one.stdout);
+}
+
+#[test]
+fn decode_json_of_every_manual_reply_gives_the_stated_values() {
+    for (sensor, command, example) in examples() {
+        let mut frames = vec![example.true_response().to_vec()];
+        if example.erratum.as_ref().is_some_and(|e| e.printed_decodes && e.corrected_response.is_some()) {
+            frames.push(example.response.clone());
+        }
+        for frame in frames {
+            let json = decode_json(&frame, &sensor.name, &command.name);
+            assert_eq!(json["crc"]["ok"], true, "{} {}: {json}", sensor.name, command.name);
+            assert_eq!(json["command"]["name"], command.name.as_str());
+            if command.is_read() {
+                assert_eq!(json["kind"], "read_reply");
+                let values = &json["values"];
+                assert_eq!(values.as_object().unwrap().len(), example.values.len(), "{}: {json}", command.name);
+                for (name, want) in &example.values {
+                    assert!(
+                        same(want, &values[name]),
+                        "{} {name}: manual {want:?}, decoded {}",
+                        command.name,
+                        values[name]
+                    );
+                }
+            } else {
+                assert_eq!(json["kind"], "write_reply");
+                assert_eq!(json["address"].as_u64(), Some(u64::from(command.address)));
+            }
+        }
+    }
+}
+
+#[test]
+fn decode_json_of_every_manual_request_gives_the_stated_values() {
+    for (sensor, command, example) in examples() {
+        let json = decode_json(example.true_request(), &sensor.name, &command.name);
+        assert_eq!(json["crc"]["ok"], true);
+        assert_eq!(json["slave"].as_u64(), Some(u64::from(example.slave())));
+        if command.is_read() {
+            assert_eq!(json["kind"], "read_request");
+        } else {
+            assert_eq!(json["kind"], "write_request");
+            for (name, want) in &example.values {
+                assert!(same(want, &json["values"][name]), "{} {name}: {json}", command.name);
+            }
+        }
+    }
+}
+
+#[test]
+fn encode_reproduces_every_manual_frame() {
+    for (sensor, command, example) in examples() {
+        let values: Vec<String> = example.values.iter().map(|(k, v)| format!("{k}={}", arg(v))).collect();
+        let address = example.slave().to_string();
+        let mut base = vec!["encode".to_owned(), sensor.name.clone(), command.name.clone()];
+        if command.fixed_slave.is_none() {
+            base.extend(["--address".to_owned(), address]);
+        }
+        let (request_values, response_values) =
+            if command.is_read() { (Vec::new(), values) } else { (values, Vec::new()) };
+        let args: Vec<String> = base.iter().cloned().chain(request_values).collect();
+        let run = yosemitech(&args.iter().map(String::as_str).collect::<Vec<_>>());
+        assert_eq!(run.ok().trim(), hex(example.true_request()), "{} request", command.name);
+        let args: Vec<String> = base.iter().cloned().chain(["--response".to_owned()]).chain(response_values).collect();
+        let run = yosemitech(&args.iter().map(String::as_str).collect::<Vec<_>>());
+        assert_eq!(run.ok().trim(), hex(example.true_response()), "{} reply", command.name);
+    }
+}
+
+#[test]
+fn decode_identifies_unambiguous_frames_on_its_own() {
+    // Conductivity Fig 27: only the conductivity probe reads 5 registers at 0x2600.
+    let run = yosemitech(&["decode", "01 03 0A 00 00 8D 41 00 00 8D 41 00 00 C7 33"]);
+    let text = run.ok();
+    assert!(text.contains("conductivity get_temperature_and_conductivity"), "{text}");
+    assert!(text.contains("17.625 mS/cm") && text.contains("17.625 °C") && text.contains("ok (0)"), "{text}");
+    assert!(text.contains("CRC         C7 33 (ok)"), "{text}");
+    // pH Fig 54 as printed: byte count 0x0C over 24 bytes (erratum E4).
+    let run = yosemitech(&["decode", "01030C1F85DB403D0AD7C00AD7233D1F85DB4085EBD1C0B81E85BFABF5", "--json"]);
+    let json = run.json();
+    assert_eq!(json["command"]["name"], "get_ph_electrode_coefficients");
+    assert_eq!(json["values"]["k2"].as_f64().map(|v| v as f32), Some(-6.72));
+    assert!(json["notes"][0].as_str().unwrap().contains("quirk"), "{json}");
+    // get_sn is shared by both probes: one candidate.
+    let run = yosemitech(&["decode", "0x01 0x03 0x09 0x00 0x00 0x07 0x07 0x94"]);
+    assert!(run.ok().contains("conductivity/ph_orp get_sn"), "{}", run.stdout);
+    // A read request that two probes answer differently is named with both.
+    let run = yosemitech(&["decode", "01:03:11:00:00:04:41:35"]);
+    let text = run.ok();
+    assert!(text.contains("one of:") && text.contains("get_ph_calibration") && text.contains("get_user_calibration"));
+}
+
+#[test]
+fn decode_asks_which_command_when_a_reply_is_ambiguous() {
+    let run = yosemitech(&["decode", "01 03 04 33 33 F3 40 40 78"]);
+    let err = run.fails_with_hint(2);
+    for candidate in ["get_ph", "get_orp", "get_temperature", "get_version"] {
+        assert!(err.contains(candidate), "{candidate} not listed:\n{err}");
+    }
+    assert!(err.contains("ph = 7.6 pH"), "{err}");
+    assert!(err.contains("--sensor") && err.contains("--command"), "{err}");
+    // Narrowing by command alone is enough.
+    let run = yosemitech(&["decode", "01 03 04 33 33 F3 40 40 78", "--command", "get_ph"]);
+    assert!(run.ok().contains("7.6 pH"));
+}
+
+#[test]
+fn decode_reports_a_wrong_crc_with_the_expected_one() {
+    let run = yosemitech(&["decode", "01 03 04 33 33 F3 40 40 79", "--sensor", "ph_orp", "--command", "get_ph"]);
+    let err = run.fails_with_hint(1);
+    assert!(run.stdout.contains("40 79 (wrong: the bytes give 40 78)"), "{}", run.stdout);
+    assert!(run.stdout.contains("7.6 pH"), "fields still shown:\n{}", run.stdout);
+    assert!(err.contains("40 78"));
+    let run = yosemitech(&["decode", "01 03 04 33 33 F3 40 40 79", "--command", "get_ph", "--json"]);
+    assert_eq!(run.code, 1);
+    let json: Json = serde_json::from_str(&run.stdout).unwrap();
+    assert_eq!(json["crc"], serde_json::json!({ "ok": false, "received": "40 79", "expected": "40 78" }));
+}
+
+#[test]
+fn decode_explains_exceptions() {
+    let run = yosemitech(&["decode", "01 83 02 C0 F1"]);
+    let text = run.ok();
+    assert!(text.contains("exception reply from address 1 to function 0x03"), "{text}");
+    assert!(text.contains("illegal data address"), "{text}");
+    let json = yosemitech(&["decode", "01 83 02 C0 F1", "--json"]).json();
+    assert_eq!(json["exception"]["code"], 2);
+}
+
+#[test]
+fn decode_rejects_a_frame_that_does_not_fit_the_command() {
+    let err =
+        yosemitech(&["decode", "01 03 04 33 33 F3 40 40 78", "--command", "get_sn"]).fails_with_hint(2).to_owned();
+    assert!(err.contains("does not fit `get_sn`"), "{err}");
+    let err =
+        yosemitech(&["decode", "01 03 04 33 33 F3 40 40 78", "--command", "get_phh"]).fails_with_hint(2).to_owned();
+    assert!(err.contains("did you mean `get_ph`"), "{err}");
+}
+
+#[test]
+fn bad_input_gets_one_error_and_a_hint() {
+    let cases: &[(&[&str], i32, &str)] = &[
+        (&["decode", "01 03 0"], 2, "odd number"),
+        (&["decode", "01 03 zz"], 2, "not a hex digit"),
+        (&["decode", "0103"], 2, "too short"),
+        (&["decode", "01 2B 0E 01 00 70 77"], 1, "function 0x2B"),
+        (&["read", "ph_ors", "get_ph", "--port", "/dev/null"], 2, "did you mean `ph_orp`"),
+        (&["read", "ph_orp", "get_pj", "--port", "/dev/null"], 2, "did you mean `get_ph`"),
+        (&["read", "ph_orp", "get_ph"], 2, "no port given"),
+        (&["read", "ph_orp", "get_ph", "--port", "/dev/yosemitech-no-such-port"], 1, "not found"),
+        (&["read", "ph_orp", "get_ph", "--port", "/dev/null", "--address", "0"], 2, "outside 1..=247"),
+        (&["read", "ph_orp", "get_ph", "--port", "/dev/null", "--address", "248"], 2, "outside 1..=247"),
+        (&["read", "ph_orp", "set_ph_calibration", "--port", "/dev/null"], 2, "write command"),
+        (&["write", "ph_orp", "get_ph", "--port", "/dev/null"], 2, "read command"),
+        (
+            &["write", "ph_orp", "start_ph_calibration", "15", "--port", "/dev/null", "--yes"],
+            2,
+            "outside the valid range",
+        ),
+        (&["write", "ph_orp", "set_ph_calibration", "k_slope=1", "--port", "/dev/null"], 2, "no value for `b_offset`"),
+        (&["write", "ph_orp", "set_ph_calibration", "1", "x", "--port", "/dev/null"], 2, "not a number"),
+        (&["write", "ph_orp", "set_ph_calibration", "1", "0", "--port", "/dev/null"], 2, "stdin is not a terminal"),
+        (&["encode", "ph_orp", "set_slave_id", "0"], 2, "outside the valid range 1..=247"),
+        (&["encode", "ph_orp", "set_slave_id", "248"], 2, "outside the valid range 1..=247"),
+        (&["encode", "ph_orp", "set_slave_id", "slave_adress=3"], 2, "did you mean `slave_address`"),
+        (&["encode", "ph_orp", "get_ph", "7.6"], 2, "carries no values"),
+        (&["encode", "ph_orp", "get_slave_id", "--address", "3"], 2, "0xFF"),
+        (&["set-address", "--port", "/dev/null", "--from", "0", "--to", "5"], 2, "--from 0 is outside 1..=247"),
+        (&["set-address", "--port", "/dev/null", "--from", "1", "--to", "248"], 2, "--to 248 is outside 1..=247"),
+        (&["scan", "--port", "/dev/null", "--addresses", "0-3"], 2, "outside 1..=247"),
+        (&["scan", "--port", "/dev/null", "--addresses", "a-b"], 2, "not an address"),
+        (&["simulate", "ph_orp", "--faults", "dorp=0.1"], 2, "did you mean `drop`"),
+        (&["list", "nonexistent_sensor"], 2, "unknown sensor"),
+        (&["list", "--spec", "/nonexistent/spec/dir"], 2, "no such file"),
+        (
+            &["coefficients", "restore", "ph_orp", "--port", "/dev/null", "--file", "/nonexistent.json"],
+            2,
+            "cannot read",
+        ),
+    ];
+    for (args, code, needle) in cases {
+        let run = yosemitech(args);
+        let err = run.fails_with_hint(*code);
+        assert!(err.starts_with("error: "), "{args:?}: stderr starts with the error:\n{err}");
+        assert!(err.contains(needle), "{args:?}: `{needle}` not in:\n{err}");
+        assert_eq!(err.lines().filter(|l| l.starts_with("error:")).count(), 1, "{args:?}: one error line:\n{err}");
+    }
+}
+
+#[test]
+fn a_spec_error_is_reported_with_its_position() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("broken.yaml"), "sensor:\n  name: Broken Name\n").unwrap();
+    let run = yosemitech(&["list", "--spec", dir.path().to_str().unwrap()]);
+    let err = run.fails_with_hint(2);
+    assert!(err.contains("broken.yaml:"), "{err}");
+}
+
+#[test]
+fn spec_files_load_at_run_time_with_the_shared_commands_built_in() {
+    // A new sensor in a directory of its own: its include of
+    // yosemitech-common.yaml falls back to the built-in copy.
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(
+        dir.path().join("turbidity.yaml"),
+        r#"sensor:
+  name: turbidity
+  title: Turbidity probe (test)
+  doc: A made-up probe for the CLI's --spec test.
+  manual: {title: Test manual, revision: "1.0"}
+  serial: {baud: 9600, data_bits: 8, parity: none, stop_bits: 1}
+  addresses: {min: 1, max: 247}
+  default_address: 1
+include:
+  - yosemitech-common.yaml
+commands:
+  - use: get_sn
+  - name: get_turbidity
+    title: Get Turbidity
+    doc: Turbidity.
+    function: read
+    address: 0x2600
+    count: 2
+    fields:
+      - {name: turbidity_ntu, type: f32, byte_order: dcba, unit: NTU, doc: Turbidity.}
+    examples:
+      - figures: []
+        request: "01 03 26 00 00 02 CF 43"
+        response: "01 03 04 00 00 20 41 23 C3"
+        values: {turbidity_ntu: 10.0}
+"#,
+    )
+    .unwrap();
+    let spec = dir.path().to_str().unwrap();
+    let json = yosemitech(&["--spec", spec, "list", "--json"]).json();
+    let names: Vec<&str> = json["sensors"].as_array().unwrap().iter().filter_map(|s| s["name"].as_str()).collect();
+    assert_eq!(names, ["conductivity", "ph_orp", "turbidity"]);
+    let turbidity = yosemitech(&["list", "turbidity", "--json", "--spec", spec]).json();
+    let commands: Vec<&str> =
+        turbidity["sensors"][0]["commands"].as_array().unwrap().iter().filter_map(|c| c["name"].as_str()).collect();
+    assert!(commands.contains(&"get_sn") && commands.contains(&"get_turbidity"), "{commands:?}");
+    let run = yosemitech(&["decode", "01 03 04 00 00 20 41 23 C3", "--spec", spec, "--command", "get_turbidity"]);
+    assert!(run.ok().contains("10 NTU"), "{}", run.stdout);
+    let run = yosemitech(&["encode", "turbidity", "get_turbidity", "--spec", spec]);
+    assert_eq!(run.ok().trim(), "01 03 26 00 00 02 CF 43");
+}
