@@ -117,6 +117,7 @@ impl Layout<'_> {
     }
 
     /// Checks that `slave` may be used in a request for this command.
+    #[inline]
     pub fn check_slave(&self, slave: u8) -> Result<(), EncodeError> {
         let ok = match self.fixed_slave {
             Some(fixed) => slave == fixed,
@@ -127,6 +128,7 @@ impl Layout<'_> {
 
     /// Writes the request frame to `out`. `data` is the register data of a
     /// write (exactly [`Layout::request_data_len`] bytes) and empty for a read.
+    #[inline(always)]
     pub fn encode_request(&self, slave: u8, data: &[u8], out: &mut [u8]) -> Result<usize, EncodeError> {
         self.check_slave(slave)?;
         let len = self.request_len();
@@ -150,6 +152,7 @@ impl Layout<'_> {
 
     /// Writes a normal reply to `out`. `data` is the register data of a read
     /// reply (exactly [`Layout::response_data_len`] bytes) and empty for a write.
+    #[inline]
     pub fn encode_response(&self, slave: u8, data: &[u8], out: &mut [u8]) -> Result<usize, EncodeError> {
         let len = self.response_len();
         if data.len() != self.response_data_len() || len > MAX_ADU {
@@ -174,6 +177,7 @@ impl Layout<'_> {
     }
 
     /// Checks a request frame and returns its slave address and register data.
+    #[inline]
     pub fn decode_request<'f>(&self, frame: &'f [u8]) -> Result<(u8, &'f [u8]), FrameError> {
         check_len(frame, self.request_len())?;
         check_crc(frame)?;
@@ -198,6 +202,7 @@ impl Layout<'_> {
     /// Checks a reply to a request sent to `slave` and returns its register
     /// data (exactly [`Layout::response_data_len`] bytes). An exception reply
     /// becomes [`FrameError::Exception`].
+    #[inline(always)]
     pub fn decode_response<'f>(&self, slave: u8, frame: &'f [u8]) -> Result<&'f [u8], FrameError> {
         let expected_slave = self.reply_slave(slave);
         let function = self.function.code();
@@ -247,14 +252,17 @@ pub fn reply_len(head: &[u8], function: u8, normal_len: usize) -> Option<usize> 
     }
 }
 
+#[inline]
 fn byte(frame: &[u8], at: usize) -> u8 {
     frame.get(at).copied().unwrap_or(0)
 }
 
+#[inline]
 fn word(frame: &[u8], at: usize) -> u16 {
     u16::from_be_bytes([byte(frame, at), byte(frame, at + 1)])
 }
 
+#[inline]
 fn check_len(frame: &[u8], expected: usize) -> Result<(), FrameError> {
     let actual = frame.len();
     if actual < expected {
@@ -266,6 +274,7 @@ fn check_len(frame: &[u8], expected: usize) -> Result<(), FrameError> {
     }
 }
 
+#[inline]
 fn check_crc(frame: &[u8]) -> Result<(), FrameError> {
     if crc_ok(frame) {
         return Ok(());
@@ -276,21 +285,25 @@ fn check_crc(frame: &[u8]) -> Result<(), FrameError> {
     Err(FrameError::Crc { received, computed })
 }
 
+#[inline]
 fn check_slave(frame: &[u8], expected: u8) -> Result<(), FrameError> {
     let actual = byte(frame, 0);
     if actual == expected { Ok(()) } else { Err(FrameError::WrongSlave { expected, actual }) }
 }
 
+#[inline]
 fn check_function(frame: &[u8], expected: u8) -> Result<(), FrameError> {
     let actual = byte(frame, 1);
     if actual == expected { Ok(()) } else { Err(FrameError::WrongFunction { expected, actual }) }
 }
 
+#[inline]
 fn check_echo(frame: &[u8], field: EchoField, at: usize, expected: u16) -> Result<(), FrameError> {
     let actual = word(frame, at);
     if actual == expected { Ok(()) } else { Err(FrameError::EchoMismatch { field, expected, actual }) }
 }
 
+#[inline]
 fn check_byte_count(actual: u8, data_len: usize, extra: &[u8]) -> Result<(), FrameError> {
     if usize::from(actual) == data_len || extra.contains(&actual) {
         Ok(())
@@ -306,10 +319,12 @@ struct Writer<'b> {
 }
 
 impl<'b> Writer<'b> {
+    #[inline]
     fn new(out: &'b mut [u8]) -> Self {
         Self { out, at: 0 }
     }
 
+    #[inline]
     fn byte(&mut self, b: u8) {
         if let Some(slot) = self.out.get_mut(self.at) {
             *slot = b;
@@ -317,16 +332,19 @@ impl<'b> Writer<'b> {
         self.at += 1;
     }
 
+    #[inline]
     fn word(&mut self, w: u16) {
         self.bytes(&w.to_be_bytes());
     }
 
+    #[inline]
     fn bytes(&mut self, bytes: &[u8]) {
         for &b in bytes {
             self.byte(b);
         }
     }
 
+    #[inline]
     fn crc(&mut self) {
         let crc = crc16(self.out.get(..self.at).unwrap_or(&[]));
         self.bytes(&crc.to_le_bytes());
