@@ -11,6 +11,12 @@ fn main() -> Result<(), yosemitech_codegen::Error> {
     // This package has no `std` feature: emit the device handles unconditionally.
     yosemitech_codegen::Config::new()
         .std_feature(None)
-        .compile(manifest_dir.join("fixtures/do-probe/spec"), out_dir)?;
+        .compile(manifest_dir.join("fixtures/do-probe/spec"), &out_dir)?;
+    // The hostile-but-valid fixture (tests/fixtures/hostile-valid): text that
+    // tries to escape doc comments and literals, names next to Rust's own,
+    // counts at their maximum. `src/lib.rs` includes it as `yosemitech_tests::hostile`.
+    yosemitech_codegen::Config::new()
+        .std_feature(None)
+        .compile(manifest_dir.join("fixtures/hostile-valid/spec"), out_dir.with_file_name("hostile"))?;
     Ok(())
 }

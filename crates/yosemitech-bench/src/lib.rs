@@ -15,7 +15,6 @@ use yosemitech_rtu::LineTiming;
 use yosemitech_sim::Simulator;
 use yosemitech_spec::Sensor;
 
-
 /// The pH manual's get_ph request (Fig 23): slave 1, read 2 registers at 0x2800.
 pub const GET_PH_REQUEST: [u8; 8] = [0x01, 0x03, 0x28, 0x00, 0x00, 0x02, 0xCD, 0xAB];
 

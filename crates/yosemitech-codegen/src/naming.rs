@@ -4,7 +4,7 @@
 use std::collections::BTreeMap;
 
 use heck::{ToShoutySnakeCase, ToUpperCamelCase};
-use yosemitech_spec::names::check_snake;
+use yosemitech_spec::names::{PRELUDE_NAMES, check_snake};
 use yosemitech_spec::{Command, EnumRepr, FieldKind, Sensor, Variant};
 
 use crate::Error;
@@ -61,6 +61,11 @@ impl Names {
         let collision = |detail: String| Error::NameCollision { sensor: sensor.name.clone(), detail };
         let mut types: BTreeMap<String, String> =
             FIXED_TYPES.iter().map(|t| ((*t).to_owned(), "the generated module".to_owned())).collect();
+        // The module relies on the prelude (`Option`, `Some`, `From`, `Iterator`, ...):
+        // an enum type falls back to another name, a command is refused.
+        for name in PRELUDE_NAMES {
+            types.insert((*name).to_owned(), "a name of the Rust prelude".to_owned());
+        }
         let claim_type = |types: &mut BTreeMap<String, String>, name: &str, owner: String| match types.get(name) {
             Some(other) => Err(collision(format!("type `{name}` of {owner} is also {other}"))),
             None => {

@@ -73,10 +73,21 @@ impl fmt::Display for Diagnostic {
 /// Widest source excerpt shown, in characters.
 const SHOWN_WIDTH: usize = 100;
 
+/// Characters that would change how the rest of a terminal line reads:
+/// bidi embeddings, overrides, isolates and marks, line and paragraph
+/// separators (the diagnostic's message names them; the excerpt blanks them).
+fn is_invisible_format(c: char) -> bool {
+    matches!(
+        c,
+        '\u{200E}' | '\u{200F}' | '\u{061C}' | '\u{2028}' | '\u{2029}' | '\u{202A}'..='\u{202E}' | '\u{2066}'..='\u{2069}'
+    )
+}
+
 /// The part of `line` to show around character `column` (0-based), with
-/// control characters blanked, and the caret's offset in it.
+/// control and bidi characters blanked, and the caret's offset in it.
 fn window(line: &str, column: usize) -> (String, usize) {
-    let chars: Vec<char> = line.chars().map(|c| if c.is_control() { ' ' } else { c }).collect();
+    let chars: Vec<char> =
+        line.chars().map(|c| if c.is_control() || is_invisible_format(c) { ' ' } else { c }).collect();
     let column = column.min(chars.len());
     if chars.len() <= SHOWN_WIDTH {
         return (chars.into_iter().collect::<String>().trim_end().to_string(), column);

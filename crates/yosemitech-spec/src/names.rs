@@ -125,7 +125,10 @@ pub const PRELUDE_NAMES: &[&str] = &[
 /// or `None` if it can: the sensor's module must not shadow a crate.
 pub fn check_sensor_name(name: &str) -> Option<String> {
     RESERVED_SENSOR_NAMES.contains(&name).then(|| {
-        format!("a sensor module called `{name}` would shadow the crate `{name}` that generated code and the crate including it use")
+        format!(
+            "a sensor module called `{name}` would shadow the crate `{name}` \
+             that generated code and the crate including it use"
+        )
     })
 }
 

@@ -14,7 +14,9 @@
 //!    ([`frame::reply_len`]). All reads share one deadline,
 //!    [`ClientConfig::timeout`] after the request left. Bytes whose successor
 //!    is not the expected function code (line noise as an RS-485 driver
-//!    turns on) are skipped before the frame.
+//!    turns on) are skipped before the frame; a candidate frame whose CRC
+//!    fails is tried again one byte further on while more bytes arrive (noise
+//!    before a slave whose address looks like a function code, slave 3 or 16).
 //! 5. Check and decode the reply; on a retryable failure ([`RetryPolicy`]),
 //!    wait [`RetryPolicy::backoff`] and start again at 1.
 //!
@@ -38,8 +40,9 @@ use tracing::{debug, debug_span, warn};
 pub use self::error::Error;
 use crate::Hex;
 use crate::command::Command;
+use crate::crc::crc_ok;
 use crate::error::{EncodeError, FrameError};
-use crate::frame::{self, BROADCAST, EXCEPTION_BIT, Function, Layout, MAX_ADU};
+use crate::frame::{self, BROADCAST, EXCEPTION_BIT, EXCEPTION_LEN, Function, Layout, MAX_ADU};
 use crate::raw::RawBytes;
 use crate::transport::{MAX_WAIT, Transport};
 
@@ -114,9 +117,10 @@ pub struct ClientConfig {
     /// without line timing (TCP, in-memory). `Some(d)` uses `d` as is;
     /// `Some(Duration::ZERO)` never waits.
     pub inter_frame_delay: Option<Duration>,
-    /// The least derived inter-frame delay. Default 4 ms: the manuals
-    /// contradict themselves on 10 or 11 bits per character, whose t3.5 at
-    /// 9600 baud is 3.65 or 4.01 ms (datasheet notes, section 6 item 10).
+    /// The least derived inter-frame delay at 19200 baud and below. Default
+    /// 4 ms: the manuals contradict themselves on 10 or 11 bits per
+    /// character, whose t3.5 at 9600 baud is 3.65 or 4.01 ms (datasheet
+    /// notes, section 6 item 10). Above 19200 baud t3.5 is fixed at 1.75 ms.
     pub min_inter_frame_delay: Duration,
     /// Silence kept after a broadcast before the next request, so slaves
     /// can act on it (the Modbus "turnaround delay"). Default 100 ms.
@@ -201,10 +205,15 @@ impl<T: Transport> Client<T> {
     pub fn inter_frame_delay(&self) -> Duration {
         match self.config.inter_frame_delay {
             Some(delay) => delay,
-            None => self
-                .transport
-                .line_timing()
-                .map_or(Duration::ZERO, |line| line.t3_5().max(self.config.min_inter_frame_delay)),
+            None => self.transport.line_timing().map_or(Duration::ZERO, |line| {
+                // Above 19200 baud t3.5 is a fixed 1.75 ms whatever the
+                // character format, so the floor has nothing to guard.
+                if line.baud() > crate::timing::FIXED_TIMING_ABOVE_BAUD {
+                    line.t3_5()
+                } else {
+                    line.t3_5().max(self.config.min_inter_frame_delay)
+                }
+            }),
         }
     }
 
@@ -384,8 +393,26 @@ impl<T: Transport> Client<T> {
     }
 
     /// Reads one reply to `function` by length, before `deadline`.
+    ///
+    /// A frame starts at the first byte whose successor is the function (or
+    /// exception) code; bytes before it are noise. That rule alone misframes
+    /// a reply whose slave address looks like a function code (slave 3
+    /// answering a read: `AA 03 03 04 ...` has 0x03 second), so a complete
+    /// candidate whose CRC fails is not the end: the next alignment is tried
+    /// with the bytes that keep arriving, waiting at most
+    /// [`Client::inter_frame_delay`] (at least
+    /// [`ClientConfig::min_inter_frame_delay`]) for each further byte. When
+    /// none comes, the first failed candidate is the reply (and its CRC
+    /// error is reported). After the deadline, at most [`MAX_ADU`] more bytes
+    /// are looked at, so a device that never stops talking cannot hold the
+    /// client.
     fn receive(&mut self, function: u8, normal_len: usize, deadline: Instant) -> Result<Range<usize>, Error> {
         let exception = function | EXCEPTION_BIT;
+        let more_bytes_wait = self.inter_frame_delay().max(self.config.min_inter_frame_delay);
+        // The first complete candidate whose CRC failed, kept in case no better one follows.
+        let mut rejected = [0u8; MAX_ADU];
+        let mut rejected_len: Option<usize> = None;
+        let mut late_bytes = 0usize;
         // rx[..start]: skipped bytes; rx[start..end]: the frame so far.
         let (mut start, mut end) = (0usize, 0usize);
         loop {
@@ -402,12 +429,39 @@ impl<T: Transport> Client<T> {
                 frame::reply_len(head, function, normal_len).unwrap_or(normal_len)
             };
             if head.len() >= target {
-                if start > 0 {
-                    debug!(skipped = %Hex(self.rx.get(..start).unwrap_or(&[])), "bytes before the reply");
-                }
                 let frame = start..start + target;
-                debug!(frame = %Hex(self.rx.get(frame.clone()).unwrap_or(&[])), "rx");
-                return Ok(frame);
+                let bytes = self.rx.get(frame.clone()).unwrap_or(&[]);
+                if crc_ok(bytes) {
+                    if rejected_len.is_some() && holds_frame(self.rx.get(..start).unwrap_or(&[])) {
+                        // What came before is a whole frame (an echo of the request,
+                        // another conversation), not noise: report, do not guess.
+                        return Ok(self.restore(&rejected, rejected_len));
+                    }
+                    if start > 0 {
+                        debug!(skipped = %Hex(self.rx.get(..start).unwrap_or(&[])), "bytes before the reply");
+                    }
+                    debug!(frame = %Hex(bytes), "rx");
+                    return Ok(frame);
+                }
+                debug!(candidate = %Hex(bytes), "CRC mismatch; looking for the frame further on");
+                if rejected_len.is_none() {
+                    if let Some(slot) = rejected.get_mut(..bytes.len()) {
+                        slot.copy_from_slice(bytes);
+                    }
+                    rejected_len = Some(bytes.len());
+                }
+                start += 1;
+                continue;
+            }
+            // Noise may also open a normal-length candidate around a shorter
+            // exception reply (`AA 03 03 83 06 ..` from slave 3): take an
+            // exception frame further on as soon as it is complete and checks.
+            // (A later normal-length candidate cannot complete before this one.)
+            if let Some(at) = (start + 1..end.saturating_sub(EXCEPTION_LEN - 1)).find(|&at| {
+                self.rx.get(at + 1) == Some(&exception) && self.rx.get(at..at + EXCEPTION_LEN).is_some_and(crc_ok)
+            }) {
+                debug!(skipped = %Hex(self.rx.get(..at).unwrap_or(&[])), "bytes before the reply");
+                return Ok(at..at + EXCEPTION_LEN);
             }
             if start + target > MAX_ADU {
                 debug!(skipped = %Hex(self.rx.get(..start).unwrap_or(&[])), "bytes before the reply");
@@ -416,16 +470,54 @@ impl<T: Transport> Client<T> {
                 start = 0;
             }
             let remaining = deadline.saturating_duration_since(Instant::now());
+            let wait = if rejected_len.is_some() { remaining.min(more_bytes_wait) } else { remaining };
             let buf = self.rx.get_mut(end..start + target).unwrap_or_default();
-            let n = self.transport.read(buf, remaining)?.min(buf.len());
+            let n = self.transport.read(buf, wait)?.min(buf.len());
             if n > 0 {
                 end += n;
                 self.bus_busy_until = Some(Instant::now());
-            } else if remaining.is_zero() || Instant::now() >= deadline {
+                if remaining.is_zero() {
+                    late_bytes += n;
+                }
+            }
+            let give_up = if n == 0 {
+                rejected_len.is_some() || remaining.is_zero() || Instant::now() >= deadline
+            } else {
+                late_bytes > MAX_ADU
+            };
+            if give_up {
+                if rejected_len.is_some() {
+                    // No better candidate: the first one is the reply.
+                    return Ok(self.restore(&rejected, rejected_len));
+                }
                 return Err(Error::Timeout { received: RawBytes::new(self.rx.get(..end).unwrap_or(&[])) });
             }
         }
     }
+}
+
+impl<T> Client<T> {
+    /// Puts the first rejected candidate back at the start of `rx` and returns its place.
+    fn restore(&mut self, rejected: &[u8; MAX_ADU], len: Option<usize>) -> Range<usize> {
+        let frame = rejected.get(..len.unwrap_or(0)).unwrap_or(&[]);
+        if let Some(slot) = self.rx.get_mut(..frame.len()) {
+            slot.copy_from_slice(frame);
+        }
+        debug!(frame = %Hex(frame), "rx");
+        0..frame.len()
+    }
+}
+
+/// Whether `bytes` hold a whole frame: a run of at least 4 bytes that ends
+/// in its own CRC (the CRC-16/MODBUS of a frame, CRC included, is zero).
+fn holds_frame(bytes: &[u8]) -> bool {
+    (0..bytes.len()).any(|from| {
+        let mut crc = crate::crc::CRC_INIT;
+        bytes.iter().skip(from).enumerate().any(|(i, &b)| {
+            crc = crate::crc::crc16_update(crc, &[b]);
+            i >= 3 && crc == 0
+        })
+    })
 }
 
 impl<T: fmt::Debug> fmt::Debug for Client<T> {

@@ -1,10 +1,11 @@
 //! Changing a probe's slave address, so the user always knows where it is.
 //!
 //! The address is validated (1..=247, not the current one, not taken by
-//! another device), the write is confirmed by the probe's reply from its old
-//! address, and the probe is read back at the new one. If anything fails
-//! after the write was sent, both addresses are probed and the error says
-//! where the probe answers.
+//! another device: anything that answers there, even with an exception),
+//! the write is confirmed by the probe's reply from its old address, and
+//! the probe is read back at the new one. If anything fails after the write
+//! was sent, both addresses are probed and the error says where the probe
+//! answers.
 
 use std::fmt;
 
@@ -46,7 +47,8 @@ pub enum AddressChangeError {
     InvalidAddress(u8),
     /// The new address is the current one.
     SameAddress(u8),
-    /// Another device already answers at the new address.
+    /// Another device already answers at the new address (with a reply, an
+    /// exception or a frame that fails a check).
     AddressInUse(u8),
     /// No probe answers at the old address; nothing was written.
     NotFound {
@@ -100,7 +102,9 @@ pub fn change_address<T: Transport, W: Command, P: Command>(
     if from == to {
         return Err(AddressChangeError::SameAddress(to));
     }
-    if client.call(to, probe).is_ok() {
+    // Any reply at the new address, even an exception or a bad frame, is a
+    // device there: moving the probe onto it would put two at one address.
+    if let Ok(_) | Err(Error::Frame { .. }) = client.call(to, probe) {
         return Err(AddressChangeError::AddressInUse(to));
     }
     if let Err(error) = client.call(from, probe) {
