@@ -30,7 +30,7 @@ fn main() -> Result<(), Box<dyn Error>> {
     let config = ClientConfig { timeout: Duration::from_millis(500), ..ClientConfig::default() };
 
     let ph_path = ph_server.tty_path().ok_or("the pH simulator has no pty")?;
-    let mut ph_bus = Client::with_config(SerialTransport::open(&SerialConfig::new(ph_path))?, config.clone());
+    let mut ph_bus = Client::with_config(SerialTransport::open(&SerialConfig::new(ph_path))?, config);
     let mut ph = ph_orp::Device::new(&mut ph_bus, ph_orp::SENSOR.default_address);
     println!("pH/ORP probe {} on {ph_path}", ph.sn()?);
     println!("  pH           {:.2} pH", ph.ph()?);
