@@ -251,3 +251,15 @@ fn a_lost_confirmation_still_tells_where_the_probe_is() {
         other => panic!("expected a failure with whereabouts, got {other:?}"),
     }
 }
+
+#[test]
+fn non_finite_coefficients_are_refused_before_any_write() {
+    let mut client = client(Simulator::new(sensor("conductivity")));
+    let mut probe = conductivity::Device::new(&mut client, 1);
+    for bad in [f32::NAN, f32::INFINITY] {
+        let c = coefficients::ConductivityCoefficients { user_calibration: [bad, 0.0] };
+        assert!(matches!(coefficients::write_conductivity(&mut probe, &c), Err(ProcedureError::NotFinite { .. })));
+    }
+    let sim = client.into_transport().into_responder();
+    assert_eq!(sim.stats().writes, 0);
+}

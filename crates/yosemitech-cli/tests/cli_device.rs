@@ -259,6 +259,7 @@ fn coefficients_backup_and_restore_round_trip() {
     let out =
         yosemitech(&["coefficients", "restore", "ph_orp", "-p", &s.path, "--file", file, "--yes"]).ok().to_owned();
     assert!(out.contains("restored and verified"), "{out}");
+    assert!(out.contains("saved the probe's current coefficients to"), "restore keeps what it overwrites:\n{out}");
     assert_eq!(float(&s, "get_orp_calibration", "k_slope").to_bits(), 0.987_654_3f32.to_bits());
     assert_eq!(float(&s, "get_ph_calibration", "b_offset"), 0.0);
     assert_eq!(float(&s, "get_ph_electrode_coefficients", "k6"), -1.04);

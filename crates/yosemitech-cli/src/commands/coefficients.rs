@@ -68,6 +68,11 @@ pub fn restore(catalog: &Catalog, global: &Global, args: &CoefficientsRestoreArg
     }
     out.flush()?;
     confirm(args.yes, &format!("Write these coefficients to address {slave} on {}?", opened.port))?;
+    // What the probe holds now is a calibration too: keep it before overwriting.
+    let current = backup::take_backup(&mut opened, entry, slave)?;
+    let dir = args.file.parent().filter(|d| !d.as_os_str().is_empty());
+    let path = backup::save_in(dir, &current)?;
+    writeln!(out, "saved the probe's current coefficients to {}", path.display())?;
     backup::write_blocks(&mut opened, entry, slave, &saved.blocks)?;
     writeln!(out, "restored and verified: every coefficient reads back as saved")?;
     Ok(())

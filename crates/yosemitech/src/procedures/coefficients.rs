@@ -49,6 +49,9 @@ pub fn write_ph_orp<T: Transport>(
     probe: &mut ph_orp::Device<'_, T>,
     c: &PhOrpCoefficients,
 ) -> Result<(), ProcedureError> {
+    if !c.to_array().iter().all(|v| v.is_finite()) {
+        return Err(ProcedureError::NotFinite { what: "pH/ORP coefficients" });
+    }
     let [k1, k2, k3, k4, k5, k6] = c.electrode;
     probe.set_ph_electrode_coefficients(ph_orp::SetPhElectrodeCoefficients { k1, k2, k3, k4, k5, k6 })?;
     let [k_slope, b_offset] = c.ph_calibration;
@@ -82,6 +85,9 @@ pub fn write_conductivity<T: Transport>(
     probe: &mut conductivity::Device<'_, T>,
     c: &ConductivityCoefficients,
 ) -> Result<(), ProcedureError> {
+    if !c.user_calibration.iter().all(|v| v.is_finite()) {
+        return Err(ProcedureError::NotFinite { what: "conductivity coefficients" });
+    }
     let [k_slope, b_offset] = c.user_calibration;
     probe.set_user_calibration(conductivity::SetUserCalibration { k_slope, b_offset })?;
     let back = read_conductivity(probe)?;

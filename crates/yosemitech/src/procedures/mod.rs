@@ -83,6 +83,11 @@ pub enum ProcedureError {
         /// Readings discarded (range-switch error or not finite).
         discarded: usize,
     },
+    /// A coefficient to write is NaN or infinite; nothing was written.
+    NotFinite {
+        /// Which block.
+        what: &'static str,
+    },
     /// Values written did not read back identically.
     ReadBackMismatch {
         /// Which block.
@@ -99,6 +104,7 @@ impl fmt::Display for ProcedureError {
                 f,
                 "only {accepted} of {needed} readings were valid ({discarded} discarded for range-switch errors)"
             ),
+            Self::NotFinite { what } => write!(f, "{what} contain a NaN or infinite value; nothing was written"),
             Self::ReadBackMismatch { what } => write!(f, "{what} did not read back as written"),
         }
     }
