@@ -15,17 +15,9 @@ const USAGE: &str = "usage: cargo xtask codegen [--check]";
 
 /// Runs the task.
 pub fn run(args: &[String]) -> anyhow::Result<ExitCode> {
-    let mut check = false;
-    for arg in args {
-        match arg.as_str() {
-            "--check" => check = true,
-            "-h" | "--help" => {
-                println!("{USAGE}");
-                return Ok(ExitCode::SUCCESS);
-            }
-            other => anyhow::bail!("unknown argument `{other}`; {USAGE}"),
-        }
-    }
+    let Some(check) = crate::check_flag(args, USAGE)? else {
+        return Ok(ExitCode::SUCCESS);
+    };
     let root = crate::root();
     // The same configuration as crates/yosemitech/build.rs.
     let generated = yosemitech_codegen::Config::new()

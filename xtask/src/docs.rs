@@ -15,17 +15,9 @@ const USAGE: &str = "usage: cargo xtask docs [--check]";
 
 /// Runs the task.
 pub fn run(args: &[String]) -> anyhow::Result<ExitCode> {
-    let mut check = false;
-    for arg in args {
-        match arg.as_str() {
-            "--check" => check = true,
-            "-h" | "--help" => {
-                println!("{USAGE}");
-                return Ok(ExitCode::SUCCESS);
-            }
-            other => anyhow::bail!("unknown argument `{other}`; {USAGE}"),
-        }
-    }
+    let Some(check) = crate::check_flag(args, USAGE)? else {
+        return Ok(ExitCode::SUCCESS);
+    };
     let root = crate::root();
     let spec = yosemitech_spec::load_paths(&[root.join("spec")]).map_err(|e| anyhow::anyhow!("{e}"))?;
     let dir = root.join("docs/sensors");
@@ -330,16 +322,7 @@ fn command_section(d: &mut String, c: &Command) {
 
     if !c.errata.is_empty() {
         for e in &c.errata {
-            let mut table = Vec::new();
-            if let Some(a) = e.table_address {
-                table.push(format!("address 0x{a:04X}"));
-            }
-            if let Some(n) = e.table_count {
-                table.push(format!("count {n}"));
-            }
-            if let Some(f) = e.table_function {
-                table.push(format!("function 0x{:02X}", f.code()));
-            }
+            let table = e.table_says();
             let _ = writeln!(
                 d,
                 "Erratum **{}** (figure {}): the table gives {}. {}\n",

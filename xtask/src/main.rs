@@ -23,6 +23,23 @@ pub fn root() -> PathBuf {
     here.parent().map(PathBuf::from).unwrap_or(here)
 }
 
+/// Parses the `[--check]` flag shared by the generating tasks: `Ok(None)`
+/// when help was asked for (and printed).
+pub fn check_flag(args: &[String], usage: &str) -> anyhow::Result<Option<bool>> {
+    let mut check = false;
+    for arg in args {
+        match arg.as_str() {
+            "--check" => check = true,
+            "-h" | "--help" => {
+                println!("{usage}");
+                return Ok(None);
+            }
+            other => anyhow::bail!("unknown argument `{other}`; {usage}"),
+        }
+    }
+    Ok(Some(check))
+}
+
 const USAGE: &str = "usage: cargo xtask <validate [PATH...] | schema [--check] | codegen [--check] | docs [--check] | fuzz --seconds N>";
 
 fn main() -> ExitCode {

@@ -7,17 +7,9 @@ use anyhow::Context;
 
 /// Runs the task.
 pub fn run(args: &[String]) -> anyhow::Result<ExitCode> {
-    let mut check = false;
-    for a in args {
-        match a.as_str() {
-            "--check" => check = true,
-            "-h" | "--help" => {
-                println!("usage: cargo xtask schema [--check]");
-                return Ok(ExitCode::SUCCESS);
-            }
-            other => anyhow::bail!("unexpected argument `{other}`; usage: cargo xtask schema [--check]"),
-        }
-    }
+    let Some(check) = crate::check_flag(args, "usage: cargo xtask schema [--check]")? else {
+        return Ok(ExitCode::SUCCESS);
+    };
     let path = crate::root().join("spec").join("schema.json");
     let mut text = serde_json::to_string_pretty(&yosemitech_spec::json_schema())?;
     text.push('\n');

@@ -62,8 +62,8 @@ fn relative(mut diags: Diagnostics) -> Diagnostics {
 /// `path` relative to `base` (both made absolute), or `path` unchanged.
 fn relative_to(path: &Path, base: &Path) -> PathBuf {
     let absolute = if path.is_absolute() { path.to_path_buf() } else { base.join(path) };
-    let absolute = normalize(&absolute);
-    let base = normalize(base);
+    let absolute = yosemitech_spec::sources::normalize(&absolute);
+    let base = yosemitech_spec::sources::normalize(base);
     let (a, b): (Vec<Component<'_>>, Vec<Component<'_>>) =
         (absolute.components().collect(), base.components().collect());
     let common = a.iter().zip(&b).take_while(|(x, y)| x == y).count();
@@ -79,23 +79,6 @@ fn relative_to(path: &Path, base: &Path) -> PathBuf {
         out.push(c.as_os_str());
     }
     if out.as_os_str().is_empty() { PathBuf::from(".") } else { out }
-}
-
-/// Resolves `.` and `..` lexically.
-fn normalize(path: &Path) -> PathBuf {
-    let mut out = PathBuf::new();
-    for c in path.components() {
-        match c {
-            Component::CurDir => {}
-            Component::ParentDir => {
-                if !out.pop() {
-                    out.push("..");
-                }
-            }
-            other => out.push(other.as_os_str()),
-        }
-    }
-    out
 }
 
 #[cfg(test)]

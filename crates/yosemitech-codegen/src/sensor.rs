@@ -754,16 +754,7 @@ fn command_doc(c: &Command) -> String {
         .errata
         .iter()
         .map(|e| {
-            let mut table = Vec::new();
-            if let Some(a) = e.table_address {
-                table.push(format!("address 0x{a:04X}"));
-            }
-            if let Some(n) = e.table_count {
-                table.push(format!("count {n}"));
-            }
-            if let Some(f) = e.table_function {
-                table.push(format!("function 0x{:02X}", f.code()));
-            }
+            let table = e.table_says();
             format!(
                 "- **{}** (figure {}): the table gives {}. {}",
                 one_line(&e.id),

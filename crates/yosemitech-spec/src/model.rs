@@ -226,6 +226,23 @@ fn ser_opt_function<S: serde::Serializer>(f: &Option<Function>, s: S) -> Result<
     }
 }
 
+impl CommandErratum {
+    /// What the table prints, e.g. `["address 0x1100"]`.
+    pub fn table_says(&self) -> Vec<String> {
+        let mut said = Vec::new();
+        if let Some(a) = self.table_address {
+            said.push(format!("address 0x{a:04X}"));
+        }
+        if let Some(n) = self.table_count {
+            said.push(format!("count {n}"));
+        }
+        if let Some(f) = self.table_function {
+            said.push(format!("function 0x{:02X}", f.code()));
+        }
+        said
+    }
+}
+
 /// A manual-wide erratum.
 #[derive(Debug, Clone, Serialize)]
 pub struct Erratum {

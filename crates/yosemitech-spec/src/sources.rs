@@ -138,9 +138,13 @@ impl Sources for MemSources {
 
 /// Joins `relative` to the directory of `file`, resolving `.` and `..` lexically.
 pub fn sibling(file: &Path, relative: &str) -> PathBuf {
-    let joined = file.parent().unwrap_or(Path::new("")).join(relative);
+    normalize(&file.parent().unwrap_or(Path::new("")).join(relative))
+}
+
+/// Resolves `.` and `..` in `path` lexically (without touching the file system).
+pub fn normalize(path: &Path) -> PathBuf {
     let mut out = PathBuf::new();
-    for c in joined.components() {
+    for c in path.components() {
         match c {
             Component::CurDir => {}
             Component::ParentDir => {
