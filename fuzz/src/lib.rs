@@ -456,87 +456,33 @@ pub fn spec_loader(data: &[u8]) {
 // ---------------------------------------------------------------------------
 // cli_decode
 
-/// What `yosemitech decode` makes of a frame, from its function code and
-/// length (the CLI's rule, crates/yosemitech-cli/src/commands/decode.rs).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum Kind {
-    ReadRequest,
-    ReadReply,
-    WriteRequest,
-    WriteReply,
-    Exception,
-    Unknown,
-}
-
-/// The CLI's `parse_frame`: hex with or without spaces, `0x` prefixes,
-/// commas, colons, semicolons or dashes between bytes.
-fn cli_parse_frame(text: &str) -> Result<Vec<u8>, String> {
-    let mut compact = String::new();
-    for token in text.split(|c: char| c.is_whitespace() || matches!(c, ',' | ':' | '-' | ';')) {
-        let token = token.strip_prefix("0x").or_else(|| token.strip_prefix("0X")).unwrap_or(token);
-        compact.push_str(token);
-    }
-    parse_hex(&compact)
-}
-
-/// Input: text, as typed after `yosemitech decode`. The CLI is a binary
-/// without a library, so this follows its path with the library calls it
-/// makes: the hex parser, the frame's classification, and the reference
-/// interpreter's decoding against every command of every loaded sensor;
-/// then the generated decoders on the same frame ([`decode_response`]).
+/// Input: text, as typed after `yosemitech decode`. Runs the CLI's own
+/// decode path ([`yosemitech_cli::decode_text`]: its hex parser, frame
+/// classification, interpretation against every spec command and output, as
+/// text and as JSON), then the generated decoders on the same frame
+/// ([`decode_response`]) and the interpreter on every command.
 pub fn cli_decode(data: &[u8]) {
     let text = String::from_utf8_lossy(data);
-    // The spec's own parser on the raw text, and the CLI's tokenizer.
+    // The spec's own parser on the raw text round-trips.
     if let Ok(bytes) = parse_hex(&text) {
         assert!(!bytes.is_empty() && bytes.len() <= MAX_ADU);
         assert_eq!(parse_hex(&Hex(&bytes).to_string()).as_deref(), Ok(&bytes[..]), "hex does not round-trip");
     }
-    let Ok(frame) = cli_parse_frame(&text) else { return };
+    let mut shown = Vec::new();
+    let outcome = yosemitech_cli::decode_text(&text, false, &mut shown);
+    let mut json = Vec::new();
+    let json_outcome = yosemitech_cli::decode_text(&text, true, &mut json);
+    assert_eq!(outcome.is_ok(), json_outcome.is_ok(), "text and JSON output disagree on {text:?}");
+    let Ok(frame) = yosemitech_cli::parse_frame(&text) else {
+        assert!(outcome.is_err(), "decode accepted text its parser refuses: {text:?}");
+        return;
+    };
     assert!(!frame.is_empty() && frame.len() <= MAX_ADU);
     if frame.len() < 4 {
         return; // The CLI refuses these before looking at them.
     }
-    let len = frame.len();
-    let function = frame[1];
-    // The CLI's `word`: missing bytes read as 0 (a 5-byte "write request" has no count).
-    let word =
-        |at: usize| u16::from_be_bytes([frame.get(at).copied().unwrap_or(0), frame.get(at + 1).copied().unwrap_or(0)]);
-    let kind = match function {
-        f if f & 0x80 != 0 => Kind::Exception,
-        0x03 if len == 8 => Kind::ReadRequest,
-        0x03 => Kind::ReadReply,
-        0x10 if len == 8 => Kind::WriteReply,
-        0x10 => Kind::WriteRequest,
-        _ => Kind::Unknown,
-    };
-    let (address, count) = match kind {
-        Kind::ReadRequest | Kind::WriteRequest | Kind::WriteReply => (Some(word(2)), Some(word(4))),
-        _ => (None, None),
-    };
     for sensor in &spec().sensors {
         for c in &sensor.commands {
-            let fits = match kind {
-                Kind::ReadRequest => c.is_read() && Some(c.address) == address && Some(c.count) == count,
-                Kind::ReadReply => c.is_read() && c.layout().response_len() == len,
-                Kind::WriteRequest | Kind::WriteReply => {
-                    !c.is_read() && Some(c.address) == address && Some(c.count) == count
-                }
-                Kind::Exception => c.function.code() == function & 0x7F,
-                Kind::Unknown => false,
-            };
-            if fits {
-                let values = match kind {
-                    Kind::ReadReply => decode_fields(c, frame.get(3..len - 2).unwrap_or(&[])),
-                    Kind::WriteRequest if len == c.layout().request_len() => {
-                        decode_fields(c, frame.get(7..len - 2).unwrap_or(&[]))
-                    }
-                    _ => Vec::new(),
-                };
-                for (name, value) in &values {
-                    assert!(c.field(name).is_some(), "{}: decoded a field `{name}` it does not have", c.name);
-                    let _ = value.to_string();
-                }
-            }
             // Data of any length decodes what fits and never panics.
             let partial = decode_fields(c, frame.get(3..).unwrap_or(&[]));
             assert!(partial.len() <= c.named_fields().count());

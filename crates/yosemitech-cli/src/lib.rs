@@ -1,0 +1,103 @@
+//! `yosemitech`: the field tool for Yosemitech water-quality probes on Modbus RTU.
+//!
+//! Every subcommand is in [`commands`]; the command line is in [`cli`]. The
+//! spec files of the workspace's `spec/` directory are compiled in
+//! ([`catalog`]); `--spec DIR` adds more at run time. Generic commands go
+//! through the spec's reference interpreter and `Client::call_raw`;
+//! procedures through the typed `yosemitech` crate.
+//!
+//! The binary is a thin `main` over [`main`]; [`decode_text`] exposes the
+//! `decode` subcommand's path to the fuzzer.
+//!
+//! Errors are one `error:` line and one `hint:` line on stderr ([`error`]),
+//! with exit code 1 for device and protocol errors and 2 for usage errors;
+//! nothing the user, a device or a file supplies can make it panic.
+#![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used, clippy::panic))]
+#![allow(clippy::result_large_err)]
+
+mod backup;
+mod catalog;
+mod cli;
+mod commands;
+mod confirm;
+mod device;
+mod error;
+mod format;
+mod port;
+mod progress;
+mod shell;
+mod time;
+
+use std::io::{IsTerminal as _, Write as _};
+use std::process::ExitCode;
+
+use std::sync::OnceLock;
+
+use clap::Parser;
+use tracing_subscriber::EnvFilter;
+
+/// Frame dumps on stderr: `-v` shows the client's `tx`/`rx` frames (debug),
+/// `-vv` everything (trace); `RUST_LOG` overrides both.
+fn init_logging(verbose: u8) {
+    let level = match verbose {
+        0 => "error",
+        1 => "debug",
+        _ => "trace",
+    };
+    let filter = EnvFilter::try_from_env("RUST_LOG").unwrap_or_else(|_| EnvFilter::new(level));
+    let _ = tracing_subscriber::fmt()
+        .with_env_filter(filter)
+        .with_writer(std::io::stderr)
+        .with_ansi(std::io::stderr().is_terminal())
+        .with_target(false)
+        .without_time()
+        .try_init();
+}
+
+/// Reports a bug as an error line instead of a panic message and backtrace.
+fn install_panic_hook() {
+    std::panic::set_hook(Box::new(|info| {
+        let message = info
+            .payload()
+            .downcast_ref::<&str>()
+            .map(|s| (*s).to_owned())
+            .or_else(|| info.payload().downcast_ref::<String>().cloned())
+            .unwrap_or_default();
+        let place = info.location().map(|l| format!(" at {}:{}", l.file(), l.line())).unwrap_or_default();
+        let mut err = std::io::stderr().lock();
+        let _ = writeln!(err, "error: internal error{place}: {message}");
+        let _ = writeln!(err, "hint: this is a bug in yosemitech; please report it with the command you ran");
+    }));
+}
+
+/// Runs the tool on the process's arguments: the binary's `main`.
+pub fn main() -> ExitCode {
+    install_panic_hook();
+    let cli = cli::Cli::parse();
+    init_logging(cli.global.verbose);
+    match commands::run(&cli) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            e.report();
+            e.exit_code()
+        }
+    }
+}
+
+/// Runs `yosemitech decode TEXT [--json]` against the built-in spec, writing
+/// what the tool prints to `out`, and returns the message the tool would put
+/// on stderr, if any. The fuzz target `cli_decode` drives the CLI's own
+/// hex decode path through this.
+pub fn decode_text(text: &str, json: bool, out: &mut dyn std::io::Write) -> Result<(), String> {
+    static CATALOG: OnceLock<Result<catalog::Catalog, String>> = OnceLock::new();
+    let catalog = CATALOG.get_or_init(|| catalog::Catalog::load(&[]).map_err(|e| e.to_string()));
+    let catalog = catalog.as_ref().map_err(Clone::clone)?;
+    let args = cli::DecodeArgs { hex: vec![text.to_owned()], sensor: None, command: None, json };
+    commands::decode::run(catalog, &args, out).map_err(|e| e.to_string())
+}
+
+/// The `decode` subcommand's hex parser: hex with or without spaces, `0x`
+/// prefixes, commas, colons or dashes between bytes.
+pub fn parse_frame(text: &str) -> Result<Vec<u8>, String> {
+    format::parse_frame(text).map_err(|e| e.to_string())
+}
