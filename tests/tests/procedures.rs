@@ -263,3 +263,19 @@ fn non_finite_coefficients_are_refused_before_any_write() {
     let sim = client.into_transport().into_responder();
     assert_eq!(sim.stats().writes, 0);
 }
+
+#[test]
+fn device_handles_change_their_address_with_verification() {
+    let mut bus = client(Simulator::new(sensor("conductivity")));
+    let mut probe = conductivity::Device::new(&mut bus, 1);
+    probe.set_slave_address(42).unwrap();
+    assert_eq!(probe.address(), 42);
+    assert_eq!(probe.sn().unwrap().as_str(), Some("YL0914010022"), "the handle follows the probe");
+    assert!(matches!(probe.set_slave_address(0), Err(AddressChangeError::InvalidAddress(0))));
+    assert_eq!(probe.address(), 42, "a refused change leaves the handle where the probe is");
+
+    let mut bus = client(Simulator::new(sensor("ph_orp")));
+    let mut probe = ph_orp::Device::new(&mut bus, 1);
+    probe.set_slave_address(7).unwrap();
+    assert_eq!(probe.ph().unwrap(), 7.6);
+}

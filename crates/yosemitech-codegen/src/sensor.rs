@@ -1243,6 +1243,12 @@ fn device(s: &Sensor, names: &Names, o: &Options) -> TokenStream {
                 self.address
             }
 
+            /// Points the handle at another address, after the probe's
+            /// address was changed and verified (see `yosemitech::procedures::address`).
+            pub fn set_address(&mut self, address: u8) {
+                self.address = address;
+            }
+
             /// The client, for requests to other devices on the bus.
             pub fn client(&mut self) -> &mut rtu::Client<T> {
                 self.client

@@ -2963,6 +2963,11 @@ impl<'c, T: rtu::Transport> Device<'c, T> {
     pub fn address(&self) -> u8 {
         self.address
     }
+    /// Points the handle at another address, after the probe's
+    /// address was changed and verified (see `yosemitech::procedures::address`).
+    pub fn set_address(&mut self, address: u8) {
+        self.address = address;
+    }
     /// The client, for requests to other devices on the bus.
     pub fn client(&mut self) -> &mut rtu::Client<T> {
         self.client

@@ -22,6 +22,7 @@ use std::time::Duration;
 pub mod address;
 pub mod coefficients;
 pub mod conductivity;
+mod device;
 pub mod ph;
 
 /// Waits between the steps of a procedure.
