@@ -27,7 +27,7 @@ use yosemitech_rtu::{
 };
 use yosemitech_spec::interp::decode_fields;
 use yosemitech_spec::sources::MemSources;
-use yosemitech_spec::{Command, Spec, Value, Values, load_with, parse_hex};
+use yosemitech_spec::{Command, Spec, Values, load_with, parse_hex};
 
 /// The real spec files, compiled in so that the targets need no files at run time.
 pub const SPEC_FILES: [(&str, &str); 3] = [
@@ -159,14 +159,7 @@ fn same_values<'a>(
     assert_eq!(typed.len(), values.len(), "{sensor}.{command}: field counts differ");
     for ((name, t), (other, v)) in typed.iter().zip(values) {
         assert_eq!(name, other, "{sensor}.{command}: field order differs");
-        let same = match (t, v) {
-            (FieldValue::F32(a), Value::Float(b)) => a.to_bits() == b.to_bits(),
-            (FieldValue::Int(a), Value::Int(b)) => a == b,
-            (FieldValue::Text(a), Value::Text(b)) => a.iter().map(|&c| char::from(c)).eq(b.chars()),
-            (FieldValue::Version(a), Value::Version(b)) => a == b,
-            (FieldValue::Enum { raw, name }, Value::Enum { raw: r, name: n }) => raw == r && *name == n.as_deref(),
-            _ => false,
-        };
+        let same = v.matches(t);
         assert!(same, "{sensor}.{command}.{name}: typed {t:?}, interpreted {v:?}");
     }
 }

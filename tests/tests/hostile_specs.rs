@@ -463,14 +463,7 @@ fn same_values<'a>(typed: impl Iterator<Item = (&'a str, FieldValue<'a>)>, value
     assert_eq!(typed.len(), values.len());
     for ((name, t), (other, v)) in typed.iter().zip(values) {
         assert_eq!(name, other);
-        let same = match (t, v) {
-            (FieldValue::F32(a), Value::Float(b)) => a.to_bits() == b.to_bits(),
-            (FieldValue::Int(a), Value::Int(b)) => a == b,
-            (FieldValue::Text(a), Value::Text(b)) => a.iter().map(|&c| char::from(c)).eq(b.chars()),
-            (FieldValue::Version(a), Value::Version(b)) => a == b,
-            (FieldValue::Enum { raw, name }, Value::Enum { raw: r, name: n }) => raw == r && *name == n.as_deref(),
-            _ => false,
-        };
+        let same = v.matches(t);
         assert!(same, "{name}: typed {t:?}, interpreted {v:?}");
     }
 }

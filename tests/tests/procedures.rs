@@ -1,6 +1,9 @@
 //! The manuals' procedures (yosemitech::procedures) against the simulator.
 
-use std::sync::Arc;
+mod sim_common;
+
+use sim_common::sensor;
+
 use std::time::Duration;
 
 use yosemitech::procedures::address::{AddressChangeError, Whereabouts, change_address};
@@ -11,13 +14,7 @@ use yosemitech::procedures::{NoSleep, ProcedureError, Sleep};
 use yosemitech::rtu::transport::Responder;
 use yosemitech::{Client, ClientConfig, ResponderTransport, RetryPolicy, conductivity, ph_orp};
 use yosemitech_sim::{Bus, Simulator};
-use yosemitech_spec::{Sensor, Value};
-
-fn sensor(name: &str) -> Arc<Sensor> {
-    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../spec");
-    let spec = yosemitech_spec::load_paths(&[dir]).expect("the spec loads");
-    Arc::new(spec.sensor(name).expect("sensor in spec").clone())
-}
+use yosemitech_spec::Value;
 
 fn fast() -> ClientConfig {
     ClientConfig {

@@ -11,6 +11,10 @@
 //! - an address another device answers at, even with an exception, is in use.
 #![allow(clippy::result_large_err)]
 
+mod sim_common;
+
+use sim_common::sensor;
+
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::time::Duration;
@@ -22,13 +26,6 @@ use yosemitech::procedures::{NoSleep, ProcedureError, Sleep};
 use yosemitech::rtu::transport::Responder;
 use yosemitech::{Client, ClientConfig, ResponderTransport, RetryPolicy, ph_orp};
 use yosemitech_sim::{FaultConfig, FaultKind, Simulator};
-use yosemitech_spec::Sensor;
-
-fn sensor(name: &str) -> Arc<Sensor> {
-    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../spec");
-    let spec = yosemitech_spec::load_paths(&[dir]).expect("the spec loads");
-    Arc::new(spec.sensor(name).expect("sensor in spec").clone())
-}
 
 fn fast() -> ClientConfig {
     ClientConfig {

@@ -48,6 +48,21 @@ impl Value {
             (a, b) => a == b,
         }
     }
+
+    /// Bit-exact equality with a field as generated code decodes it: the
+    /// one comparison the differential tests and the fuzzer share. Text is
+    /// compared byte for byte (the interpreter keeps each byte as a char).
+    pub fn matches(&self, typed: &yosemitech_rtu::FieldValue<'_>) -> bool {
+        use yosemitech_rtu::FieldValue;
+        match (typed, self) {
+            (FieldValue::F32(a), Value::Float(b)) => a.to_bits() == b.to_bits(),
+            (FieldValue::Int(a), Value::Int(b)) => a == b,
+            (FieldValue::Text(a), Value::Text(b)) => a.iter().map(|&c| char::from(c)).eq(b.chars()),
+            (FieldValue::Version(a), Value::Version(b)) => a == b,
+            (FieldValue::Enum { raw, name }, Value::Enum { raw: r, name: n }) => raw == r && *name == n.as_deref(),
+            _ => false,
+        }
+    }
 }
 
 impl fmt::Display for Value {
@@ -342,5 +357,26 @@ impl Command {
     pub fn decode_response(&self, slave: u8, frame: &[u8]) -> Result<Values, FrameError> {
         let data = self.layout().decode_response(slave, frame)?;
         Ok(decode_fields(self, data))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use yosemitech_rtu::FieldValue;
+
+    use super::Value;
+
+    #[test]
+    fn matches_is_bit_exact_and_typed() {
+        assert!(Value::Float(7.6).matches(&FieldValue::F32(7.6)));
+        assert!(!Value::Float(0.0).matches(&FieldValue::F32(-0.0)), "-0.0 is not 0.0");
+        let nan = f32::from_bits(0x7FC0_0001);
+        assert!(Value::Float(nan).matches(&FieldValue::F32(nan)));
+        assert!(!Value::Int(1).matches(&FieldValue::F32(1.0)), "types must agree");
+        assert!(Value::Text("YL".into()).matches(&FieldValue::Text(b"YL")));
+        assert!(!Value::Text("YL".into()).matches(&FieldValue::Text(b"YL\0")));
+        let known = Value::Enum { raw: 0, name: Some("ok".into()) };
+        assert!(known.matches(&FieldValue::Enum { raw: 0, name: Some("ok") }));
+        assert!(!known.matches(&FieldValue::Enum { raw: 0, name: None }));
     }
 }

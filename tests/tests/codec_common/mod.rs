@@ -42,15 +42,19 @@ impl Val {
         }
     }
 
-    /// Bit-exact equality with an interpreter value.
+    /// Bit-exact equality with an interpreter value ([`Value::matches`]).
     pub fn same_as(&self, v: &Value) -> bool {
-        match (self, v) {
-            (Self::F32(bits), Value::Float(f)) => *bits == f.to_bits(),
-            (Self::Int(a), Value::Int(b)) => a == b,
-            (Self::Text(bytes), Value::Text(t)) => bytes.iter().map(|&b| char::from(b)).eq(t.chars()),
-            (Self::Version(a), Value::Version(b)) => a == b,
-            (Self::Enum { raw, name }, Value::Enum { raw: r, name: n }) => raw == r && *name == n.as_deref(),
-            _ => false,
+        v.matches(&self.as_field())
+    }
+
+    /// The borrowed form generated code produces.
+    pub fn as_field(&self) -> FieldValue<'_> {
+        match self {
+            Self::F32(bits) => FieldValue::F32(f32::from_bits(*bits)),
+            Self::Int(i) => FieldValue::Int(*i),
+            Self::Text(bytes) => FieldValue::Text(bytes),
+            Self::Version(v) => FieldValue::Version(*v),
+            Self::Enum { raw, name } => FieldValue::Enum { raw: *raw, name: *name },
         }
     }
 
