@@ -11,22 +11,12 @@
 
 mod codec_common;
 
-use codec_common::{Cmd, SPECIAL_F32, data_len, data_with_specials, sensors, usable_slave};
+use codec_common::{Cmd, data_strategy, sensors, usable_slave};
 use proptest::prelude::*;
 use proptest::test_runner::{Config, TestCaseError, TestRunner};
-use yosemitech_spec::{Command, FieldKind};
+use yosemitech_spec::Command;
 
 const CASES: u32 = 512;
-
-fn data_strategy(command: &Command) -> impl Strategy<Value = Vec<u8>> + use<> {
-    let floats = command.fields.iter().filter(|f| matches!(f.kind, FieldKind::F32 { .. })).count();
-    let command = command.clone();
-    (
-        proptest::collection::vec(any::<u8>(), data_len(&command)),
-        proptest::collection::vec(proptest::option::weighted(0.3, proptest::sample::select(&SPECIAL_F32[..])), floats),
-    )
-        .prop_map(move |(data, specials)| data_with_specials(&command, data, &specials))
-}
 
 /// Valid frames from random register data, and the slave they are for.
 fn valid_frames(command: &Command, request: bool) -> impl Strategy<Value = (Vec<u8>, u8)> + use<> {

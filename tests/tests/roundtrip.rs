@@ -12,7 +12,7 @@
 
 mod codec_common;
 
-use codec_common::{Api, Cmd, Decoded, SPECIAL_F32, data_len, data_with_specials, normalized, sensors, usable_slave};
+use codec_common::{Api, Cmd, Decoded, data_strategy, normalized, sensors, usable_slave};
 use proptest::prelude::*;
 use proptest::test_runner::{Config, TestCaseError, TestRunner};
 use yosemitech_rtu::EncodeError;
@@ -22,17 +22,6 @@ const CASES: u32 = 256;
 
 fn runner() -> TestRunner {
     TestRunner::new(Config { cases: CASES, failure_persistence: None, ..Config::default() })
-}
-
-/// Random register data for `command`, with special floats in some f32 fields.
-fn data_strategy(command: &Command) -> impl Strategy<Value = Vec<u8>> + use<> {
-    let floats = command.fields.iter().filter(|f| matches!(f.kind, FieldKind::F32 { .. })).count();
-    let command = command.clone();
-    (
-        proptest::collection::vec(any::<u8>(), data_len(&command)),
-        proptest::collection::vec(proptest::option::weighted(0.3, proptest::sample::select(&SPECIAL_F32[..])), floats),
-    )
-        .prop_map(move |(data, specials)| data_with_specials(&command, data, &specials))
 }
 
 /// Runs `check` for every command, counting cases.

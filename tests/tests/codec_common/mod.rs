@@ -284,6 +284,19 @@ pub fn data_with_specials(command: &yosemitech_spec::Command, mut data: Vec<u8>,
     data
 }
 
+/// Random register data for `command`, with special floats (NaN payloads,
+/// infinities, -0.0, …) in some f32 fields.
+pub fn data_strategy(command: &yosemitech_spec::Command) -> impl proptest::strategy::Strategy<Value = Vec<u8>> + use<> {
+    use proptest::prelude::*;
+    let floats = command.fields.iter().filter(|f| matches!(f.kind, FieldKind::F32 { .. })).count();
+    let command = command.clone();
+    (
+        proptest::collection::vec(any::<u8>(), data_len(&command)),
+        proptest::collection::vec(proptest::option::weighted(0.3, proptest::sample::select(&SPECIAL_F32[..])), floats),
+    )
+        .prop_map(move |(data, specials)| data_with_specials(&command, data, &specials))
+}
+
 /// Register data bytes of a command's reply (reads) or request (writes).
 pub fn data_len(command: &yosemitech_spec::Command) -> usize {
     2 * usize::from(command.count)
