@@ -5,10 +5,17 @@
 //! of `hostile` (tests/fixtures/hostile-valid), whose spec tries to break the
 //! generator with its text, names and sizes.
 
-include!(concat!(env!("OUT_DIR"), "/fixtures/mod.rs"));
+/// The fixture sensor `do_probe` (tests/fixtures/do-probe), as generated.
+pub mod fixture {
+    include!(concat!(env!("OUT_DIR"), "/fixtures/mod.rs"));
+}
+pub use fixture::do_probe;
 
-// The hostile-but-valid fixture sensor `hostile` (tests/fixtures/hostile-valid).
-include!(concat!(env!("OUT_DIR"), "/hostile/mod.rs"));
+/// The hostile-but-valid fixture sensor `hostile` (tests/fixtures/hostile-valid).
+pub mod hostile_fixture {
+    include!(concat!(env!("OUT_DIR"), "/hostile/mod.rs"));
+}
+pub use hostile_fixture::hostile;
 
 /// Prints a test's summary line (counts of frames replayed, cases checked)
 /// so that it shows in `cargo test` output even when the test passes.

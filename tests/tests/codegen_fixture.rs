@@ -29,14 +29,15 @@ fn fixture_decodes_its_own_examples() {
     for c in &sensor.commands {
         let id = do_probe::CommandId::from_name(&c.name).unwrap();
         for ex in &c.examples {
-            let (slave, request) = id.decode_request(&ex.request).unwrap();
-            assert_eq!(do_probe::identify_request(&ex.request), Some(id));
+            let (ex_request, ex_response) = ex.true_pair().unwrap();
+            let (slave, request) = id.decode_request(ex_request).unwrap();
+            assert_eq!(do_probe::identify_request(ex_request), Some(id));
             let mut out = [0u8; 64];
             let n = request.encode(slave, &mut out).unwrap();
-            assert_eq!(out[..n], ex.request[..], "{}", c.name);
-            let response = id.decode_response(slave, &ex.response).unwrap();
+            assert_eq!(out[..n], ex_request[..], "{}", c.name);
+            let response = id.decode_response(slave, ex_response).unwrap();
             let n = response.encode(slave, &mut out).unwrap();
-            assert_eq!(out[..n], ex.response[..], "{}", c.name);
+            assert_eq!(out[..n], ex_response[..], "{}", c.name);
             frames += 2;
         }
     }
@@ -92,9 +93,12 @@ fn fixture_device_handle() {
     let sensor = spec.sensor("do_probe").unwrap().clone();
     // A fake probe that answers every example request with the example reply.
     let transport = ResponderTransport::from_fn(move |request: &[u8], reply: &mut Vec<u8>| {
-        let found = sensor.commands.iter().flat_map(|c| &c.examples).find(|ex| ex.request == request);
-        if let Some(ex) = found {
-            reply.extend_from_slice(&ex.response);
+        let found = sensor.commands.iter().flat_map(|c| &c.examples).find_map(|ex| {
+            let (req, resp) = ex.true_pair()?;
+            (req == request).then_some(resp)
+        });
+        if let Some(response) = found {
+            reply.extend_from_slice(response);
         }
     });
     let mut client = Client::new(transport);
@@ -114,10 +118,10 @@ fn fixture_device_handle() {
 
 #[test]
 fn generated_code_snapshots() {
-    let generated = yosemitech_codegen::Config::new().generate(&[spec_dir()]).unwrap();
-    for (name, source) in generated.files() {
-        insta::assert_snapshot!(name.trim_end_matches(".rs").replace('.', "_"), source);
-    }
+    // The spec's own sensors are reviewed as `crates/yosemitech/generated/`
+    // (checked below and by `cargo xtask codegen --check`), so that a new
+    // manual's file needs no snapshot; the fixture, whose spec exercises the
+    // generator, is snapshotted here.
     let fixture = yosemitech_codegen::Config::new().std_feature(None).generate(&[fixture_dir()]).unwrap();
     insta::assert_snapshot!("fixture_do_probe", fixture.sensor("do_probe").unwrap().source);
 }

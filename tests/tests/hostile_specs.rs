@@ -513,19 +513,20 @@ fn hostile_fixture_decodes_and_encodes_its_examples() {
     for c in &sensor.commands {
         let id = hostile::CommandId::from_name(&c.name).expect("a generated command");
         for ex in &c.examples {
-            let (slave, request) = id.decode_request(&ex.request).expect("the example request decodes");
-            assert_eq!(hostile::identify_request(&ex.request), Some(id));
-            let (_, values) = c.decode_request(&ex.request).expect("the interpreter decodes it");
+            let (ex_request, ex_response) = ex.true_pair().expect("the fixture's examples are complete");
+            let (slave, request) = id.decode_request(ex_request).expect("the example request decodes");
+            assert_eq!(hostile::identify_request(ex_request), Some(id));
+            let (_, values) = c.decode_request(ex_request).expect("the interpreter decodes it");
             same_values(request.fields().map(|(i, v)| (i.name, v)), &values);
             let mut out = [0u8; 256];
             let n = request.encode(slave, &mut out).expect("it encodes");
-            assert_eq!(out[..n], ex.request[..], "{}", c.name);
+            assert_eq!(out[..n], ex_request[..], "{}", c.name);
 
-            let response = hostile::decode_response(id, slave, &ex.response).expect("the example reply decodes");
-            let values = c.decode_response(slave, &ex.response).expect("the interpreter decodes it");
+            let response = hostile::decode_response(id, slave, ex_response).expect("the example reply decodes");
+            let values = c.decode_response(slave, ex_response).expect("the interpreter decodes it");
             same_values(response.fields().map(|(i, v)| (i.name, v)), &values);
             let n = response.encode(slave, &mut out).expect("it encodes");
-            assert_eq!(out[..n], ex.response[..], "{}", c.name);
+            assert_eq!(out[..n], ex_response[..], "{}", c.name);
             frames += 2;
         }
     }
@@ -533,7 +534,7 @@ fn hostile_fixture_decodes_and_encodes_its_examples() {
 
     // The largest frames Modbus allows, typed.
     let read = sensor.command("get_max_read").expect("get_max_read");
-    let reply = &read.examples[0].response;
+    let reply = read.examples[0].true_response().expect("a complete reply");
     assert_eq!(reply.len(), 255);
     let r = GetMaxRead::decode_response(7, reply).expect("the 255-byte reply decodes");
     assert_eq!(r.label.as_str(), Some(r##"Probe */ "#] \ `x` {}"##));
@@ -542,8 +543,9 @@ fn hostile_fixture_decodes_and_encodes_its_examples() {
     assert_eq!(r.firmware, yosemitech::Version::new(2, 7));
     assert_eq!(r.iterator, GetMaxReadIterator::None);
     let write = sensor.command("set_max_write").expect("set_max_write");
-    let (_, w) = SetMaxWrite::decode_request(&write.examples[0].request).expect("the 255-byte request decodes");
-    assert_eq!(write.examples[0].request.len(), 255);
+    let request = write.examples[0].true_request().expect("a complete request");
+    let (_, w) = SetMaxWrite::decode_request(request).expect("the 255-byte request decodes");
+    assert_eq!(request.len(), 255);
     assert_eq!(w.option, -1000);
     assert_eq!(w.string.as_bytes(), b"a\\b\"c*/\0\0\0\0\0\0\0\0\0\0\0\0\0\0\0\0\0\0\0\0\0\0\0\0\0");
     assert_eq!(w.box_kind, BoxKind::Large);

@@ -74,8 +74,10 @@ const FIRST_LOCATION: &[(&str, &str)] = &[
     ("wrong-type", "wrong-type.yaml:15:12"),
     ("yaml-1-1-boolean", "yaml-1-1-boolean.yaml:16:14"),
     ("yaml-tab-indent", "yaml-tab-indent.yaml:14:1"),
+    ("yaml-three-errors", "yaml-three-errors.yaml:13:12"),
     ("yaml-unclosed-bracket", "yaml-unclosed-bracket.yaml:19:18"),
     ("yaml-unclosed-quote", "yaml-unclosed-quote.yaml:13:12"),
+    ("yaml-unquoted-comma", "yaml-unquoted-comma.yaml:17:60"),
 ];
 
 /// Replacements for one byte of a real spec file: YAML's special characters.

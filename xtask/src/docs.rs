@@ -9,6 +9,7 @@ use std::path::Path;
 use std::process::ExitCode;
 
 use anyhow::Context as _;
+use yosemitech_codegen::text;
 use yosemitech_spec::{Command, EnumRepr, Field, FieldKind, Order2, Order4, Sensor, Value};
 
 const USAGE: &str = "usage: cargo xtask docs [--check]";
@@ -121,17 +122,16 @@ fn type_and_order(f: &Field) -> (String, String) {
         FieldKind::Enum { repr: EnumRepr::U8, .. } => ("enum (1 byte)".into(), "–".into()),
         FieldKind::Enum { repr: EnumRepr::U16(order), .. } => ("enum (2 bytes)".into(), order2(*order).into()),
         FieldKind::Reserved { fill, .. } => (format!("reserved, sent as 0x{fill:02X}"), "–".into()),
+        FieldKind::Bcd => ("bcd (two decimal digits)".into(), "–".into()),
+        FieldKind::Flags { repr: EnumRepr::U8, .. } => ("flags (1 byte)".into(), "–".into()),
+        FieldKind::Flags { repr: EnumRepr::U16(order), .. } => ("flags (2 bytes)".into(), order2(*order).into()),
     }
 }
 
 fn value(v: &Value) -> String {
     match v {
-        Value::Float(f) => format!("{f}"),
-        Value::Int(i) => format!("{i}"),
-        Value::Text(t) => format!("{t:?}"),
-        Value::Version(v) => format!("{v}"),
         Value::Enum { name: Some(name), raw } => format!("{name} ({raw})"),
-        Value::Enum { raw, name: None } => format!("{raw}"),
+        other => text::value(other),
     }
 }
 
@@ -282,9 +282,11 @@ fn command_section(d: &mut String, c: &Command) {
 
     for ex in &c.examples {
         let figures = if ex.figures.is_empty() { String::new() } else { format!(" (figures {})", join(&ex.figures)) };
-        let _ = writeln!(d, "Example{figures}:\n\n```text");
-        let _ = writeln!(d, "request:  {}", hex_bytes(&ex.request));
-        let _ = writeln!(d, "response: {}", hex_bytes(&ex.response));
+        let manual = ex.manual.as_ref().map(|m| format!(", manual for software {m}")).unwrap_or_default();
+        let _ = writeln!(d, "Example{figures}{manual}:\n\n```text");
+        let shown = |f: &Option<yosemitech_spec::PrintedFrame>| f.as_ref().map_or_else(|| "(not printed)".to_owned(), text::printed_frame);
+        let _ = writeln!(d, "request:  {}", shown(&ex.request));
+        let _ = writeln!(d, "response: {}", shown(&ex.response));
         if let Some(err) = &ex.erratum {
             if let Some(r) = &err.corrected_request {
                 let _ = writeln!(d, "true request:  {}", hex_bytes(r));

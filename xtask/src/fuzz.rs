@@ -226,7 +226,9 @@ fn examples(spec: &Spec) -> Vec<ExampleFrames> {
     for sensor in &spec.sensors {
         for c in &sensor.commands {
             for e in &c.examples {
-                out.push((e.slave(), e.true_request().to_vec(), e.response.clone(), e.true_response().to_vec()));
+                let Some((request, reply)) = e.true_pair() else { continue };
+                let printed = e.response.as_ref().and_then(|f| f.complete.clone()).unwrap_or_else(|| reply.to_vec());
+                out.push((e.slave(), request.to_vec(), printed, reply.to_vec()));
             }
         }
     }
@@ -267,7 +269,7 @@ fn stream_seeds(spec: &Spec) -> Vec<Vec<u8>> {
         for c in &sensor.commands {
             for e in &c.examples {
                 let slave = e.slave().wrapping_sub(1);
-                let reply = e.true_response();
+                let Some(reply) = e.true_response() else { continue };
                 let mut clean = vec![index, slave, 0, 0];
                 clean.extend_from_slice(reply);
                 seeds.push(clean);

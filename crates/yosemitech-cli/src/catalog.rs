@@ -8,7 +8,6 @@
 //! its own. A `--spec` sensor with a built-in sensor's name replaces it (and
 //! is then served through the interpreter, not the typed crate).
 
-use std::collections::BTreeMap;
 use std::io;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -253,46 +252,23 @@ pub fn coefficient_blocks(sensor: &Sensor) -> Vec<(&Command, &Command)> {
         .collect()
 }
 
-/// The read the most sensors answer identically (same name and layout),
-/// for `scan`: `get_sn`, which every Yosemitech probe shares, wins ties.
-pub fn common_probe(catalog: &Catalog) -> Option<Command> {
-    let sensors: Vec<&Sensor> = catalog.entries().iter().map(|e| e.sensor.as_ref()).collect();
-    let sharing =
-        |c: &Command| sensors.iter().filter(|s| s.command(&c.name).is_some_and(|o| o.layout() == c.layout())).count();
-    sensors
-        .iter()
-        .flat_map(|s| s.commands.iter())
-        .filter(|c| c.is_read() && c.fixed_slave.is_none())
-        .max_by_key(|c| (sharing(c), c.name == "get_sn"))
-        .cloned()
-}
-
-/// A read that only `sensor` has (by start address and count), to tell
-/// sensor kinds apart on the bus.
-pub fn signature_read<'s>(catalog: &Catalog, sensor: &'s Sensor) -> Option<&'s Command> {
-    let others: BTreeMap<(u16, u16), usize> = catalog
-        .entries()
-        .iter()
-        .filter(|e| e.sensor.name != sensor.name)
-        .flat_map(|e| e.sensor.commands.iter().filter(|c| c.is_read()).map(|c| ((c.address, c.count), 1)))
-        .collect();
-    sensor
-        .commands
-        .iter()
-        .filter(|c| c.is_read() && c.fixed_slave.is_none() && !others.contains_key(&(c.address, c.count)))
-        .find(|c| is_measurement(sensor, c))
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The workspace's spec, read from disk: what the binary embeds.
+    fn spec() -> yosemitech_spec::Spec {
+        yosemitech_spec::load_paths(&[concat!(env!("CARGO_MANIFEST_DIR"), "/../../spec").into()]).unwrap()
+    }
 
     #[test]
     fn built_in_spec_loads_every_file() {
         let catalog = Catalog::load(&[]).unwrap();
         let names: Vec<&str> = catalog.entries().iter().map(|e| e.sensor.name.as_str()).collect();
-        assert_eq!(names, ["conductivity", "ph_orp"]);
+        let want: Vec<String> = spec().sensors.iter().map(|s| s.name.clone()).collect();
+        assert_eq!(names, want);
         assert!(EMBEDDED_SPEC.iter().any(|(n, _)| *n == "yosemitech-common.yaml"));
+        assert!(catalog.entries().iter().all(|e| e.origin == Origin::BuiltIn));
     }
 
     #[test]
@@ -302,26 +278,36 @@ mod tests {
         assert_eq!(closest("zzzzzzzz", &["ph_orp", "conductivity"]), None);
         assert_eq!(edit_distance("kitten", "sitting"), 3);
         let catalog = Catalog::load(&[]).unwrap();
-        assert_eq!(catalog.sensor("ph").unwrap().name, "ph_orp");
-        assert_eq!(catalog.sensor("ph-orp").unwrap().name, "ph_orp");
-        let e = catalog.sensor("phh_orp").unwrap_err();
-        assert!(e.hint.unwrap().contains("did you mean `ph_orp`"));
+        for entry in catalog.entries() {
+            let name = &entry.sensor.name;
+            assert_eq!(&catalog.sensor(name).unwrap().name, name);
+            assert_eq!(&catalog.sensor(&name.replace('_', "-")).unwrap().name, name);
+            // A typo: one letter doubled.
+            let typo = format!("{}{}", &name[..1], name);
+            let e = catalog.sensor(&typo).unwrap_err();
+            assert!(e.hint.unwrap().contains(&format!("did you mean `{name}`")), "{typo}");
+        }
     }
 
     #[test]
     fn derives_roles_from_the_spec() {
         let catalog = Catalog::load(&[]).unwrap();
-        let ph = catalog.sensor("ph_orp").unwrap();
-        let blocks: Vec<&str> = coefficient_blocks(ph).iter().map(|(w, _)| w.name.as_str()).collect();
-        assert_eq!(blocks, ["set_ph_electrode_coefficients", "set_orp_calibration", "set_ph_calibration"]);
-        let measurements: Vec<&str> =
-            ph.commands.iter().filter(|c| is_measurement(ph, c)).map(|c| c.name.as_str()).collect();
-        assert_eq!(measurements, ["get_ph", "get_orp_and_ph", "get_orp", "get_temperature"]);
-        assert_eq!(common_probe(&catalog).unwrap().name, "get_sn");
-        let cond = catalog.sensor("conductivity").unwrap();
-        assert_eq!(signature_read(&catalog, cond).unwrap().name, "get_temperature_and_conductivity");
-        assert_eq!(signature_read(&catalog, ph).unwrap().name, "get_ph");
-        let set_id = ph.command("set_slave_id").unwrap();
-        assert_eq!(read_back_for(ph, set_id).unwrap().name, "get_slave_id");
+        for entry in catalog.entries() {
+            let s = &entry.sensor;
+            for (w, r) in coefficient_blocks(s) {
+                assert!(!w.is_read() && r.is_read() && w.address == r.address && w.count == r.count);
+                assert!(w.named_fields().all(|f| matches!(f.kind, yosemitech_spec::FieldKind::F32 { .. })));
+            }
+            for c in s.commands.iter().filter(|c| is_measurement(s, c)) {
+                assert!(c.is_read() && c.fields.iter().any(|f| f.unit.is_some()), "{} {}", s.name, c.name);
+            }
+            // The slave-address write reads back through the slave-address read.
+            if let (Some(set), Some(get)) = (
+                s.command_with_role(yosemitech_spec::Role::SetSlaveAddress),
+                s.command_with_role(yosemitech_spec::Role::GetSlaveAddress),
+            ) {
+                assert_eq!(read_back_for(s, set).unwrap().name, get.name);
+            }
+        }
     }
 }

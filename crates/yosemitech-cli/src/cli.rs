@@ -9,16 +9,17 @@ use crate::format::parse_duration;
 use crate::port::{AddressArg, PortArgs};
 
 const LONG_ABOUT: &str = "\
-Field tool for Yosemitech water-quality probes (optical pH/ORP, conductivity) on Modbus RTU.
+Field tool for Yosemitech water-quality probes (pH/ORP, conductivity, turbidity, chlorophyll,
+COD, multi-parameter sondes: every sensor of the spec) on Modbus RTU.
 
 Everything the tool knows about a probe comes from the YAML transcriptions of the vendor
 manuals compiled into it (see `yosemitech list`). `--spec DIR` adds spec files at run time:
-a new sensor works with the generic commands (list, read, write, poll, decode, encode, scan)
-before the tool is rebuilt.
+a new sensor works with the generic commands (list, read, write, poll, measure, decode,
+encode, scan) before the tool is rebuilt.
 
 Generic commands work on any command of any sensor through the spec's reference
-interpreter; procedures (measure, calibrate, coefficients, set-address, demo) follow the
-manuals' procedures through the typed `yosemitech` crate.
+interpreter (`measure` runs the procedure a spec states); calibrate, coefficients,
+set-address and demo follow the manuals' procedures through the typed `yosemitech` crate.
 
 Exit codes: 0 success, 1 device or protocol error, 2 usage error.";
 
@@ -28,6 +29,7 @@ Examples:
   yosemitech list ph_orp                           commands, registers and fields
   yosemitech read ph_orp get_ph --port /dev/ttyUSB0
   yosemitech poll conductivity -p /dev/ttyUSB0 --interval 10s --format csv >> log.csv
+  yosemitech measure turbidity -p /dev/ttyUSB0
   yosemitech decode 01 03 04 33 33 F3 40 40 78
   yosemitech scan --port /dev/ttyUSB0
 
@@ -113,9 +115,17 @@ an interval, one row per poll with an RFC 3339 UTC timestamp. Errors are reporte
 cleanly. --interval 0 polls back to back.")]
     Poll(PollArgs),
 
-    /// Run a manual's measurement procedure.
-    #[command(subcommand)]
-    Measure(MeasureCommand),
+    /// Run a sensor's measuring procedure (its manual's section 3) and average the readings.
+    #[command(long_about = "\
+Run the measuring procedure the sensor's manual states (its spec's `procedure`): send the
+commands that start a measurement (a trigger, the brush), wait the warm-up, take the readings
+the manual asks for at its interval, and print the mean of every numeric field with its unit
+(enum and flag fields: the last value and how often each occurred; a field that reads its
+`absent` value, a sub-probe not fitted, is reported absent, not averaged). Commands to send
+afterwards are sent at the end. Works for every sensor whose spec states a procedure,
+including --spec files; `yosemitech list SENSOR` shows it. Progress bars show the warm-up and
+the readings when stderr is a terminal.")]
+    Measure(MeasureArgs),
 
     /// Run a guided calibration.
     #[command(subcommand)]
@@ -125,11 +135,16 @@ cleanly. --interval 0 polls back to back.")]
     #[command(subcommand)]
     Coefficients(CoefficientsCommand),
 
-    /// Find the probes on a bus.
+    /// Find the probes on a bus and name each one's model and firmware.
     #[command(long_about = "\
-Probe each address with a read every sensor answers (get_sn) and list the devices that answer:
-address, serial number, and which sensor kinds answer their own measurement read. The reply
-timeout defaults to 100ms here and retries to 0 (--timeout, --retries).")]
+Find the probes on a bus and identify each one. At every address the serial number is read
+(the loaded sensors' serial-number reads, the most common layout first; a probe that lacks a
+register does not answer, so most addresses cost one read and a sonde two). The model code in
+the byte before the serial number (real probes send it there) or in its characters 3-4
+(`YL09...`) names the sensor whose spec declares that `model_code`; where no single loaded
+sensor matches, the candidates are listed with the reason. One more read gives the hardware
+and software revisions, and the manual revision that covers that firmware. The reply timeout
+defaults to 100ms here and retries to 0 (--timeout, --retries).")]
     Scan(ScanArgs),
 
     /// Change a probe's slave address, verified at the new one.
@@ -139,16 +154,9 @@ change is confirmed, sent, and verified at the new address. If anything fails af
 the tool finds out where the probe answers and says so.")]
     SetAddress(SetAddressArgs),
 
-    /// Decode a frame from a log: command, fields with units, CRC.
-    #[command(long_about = "\
-Decode a request or reply frame copied from a log or a bus analyser. HEX may have spaces,
-0x prefixes, commas or colons. The command is identified from the frame where that is
-unambiguous (requests by function, start address and register count; replies by length,
-byte count and function across every sensor); otherwise the candidates are listed and
---sensor / --command choose. Every field is shown with its unit, Modbus exceptions are
-decoded, and the CRC is checked (with the expected CRC when it is wrong).
-Exit code 1 when the CRC or another frame check fails.")]
-    Decode(DecodeArgs),
+    /// Decode frames from a log or a bus capture: command, fields with units, CRC.
+    #[command(long_about = DECODE_ABOUT, after_help = DECODE_EXAMPLES)]
+    Decode(DecodeCommandArgs),
 
     /// Build a request (or reply) frame offline.
     #[command(long_about = "\
@@ -255,20 +263,10 @@ pub struct PollArgs {
 }
 
 /// `measure`.
-#[derive(Subcommand, Debug)]
-pub enum MeasureCommand {
-    /// The conductivity manual's procedure: start, warm up, average readings, TDS.
-    #[command(long_about = "\
-The conductivity manual's measurement procedure (section 3): Start Measurement, wait 10 s,
-read every 3 s and average 10 readings (readings flagged with a range-switch error are
-discarded), then TDS (mg/L) = mean conductivity (uS/cm) x 0.64. Progress bars show the
-warm-up and the averaging when stderr is a terminal.")]
-    Conductivity(MeasureConductivityArgs),
-}
-
-/// `measure conductivity`.
 #[derive(Args, Debug)]
-pub struct MeasureConductivityArgs {
+pub struct MeasureArgs {
+    /// Sensor (`yosemitech list` shows which have a procedure).
+    pub sensor: String,
     #[command(flatten)]
     pub port: PortArgs,
     #[command(flatten)]
@@ -284,7 +282,7 @@ pub struct MeasureConductivityArgs {
     pub interval: Option<Duration>,
     /// Override the number of readings averaged (tests, demos).
     #[arg(long, hide = true)]
-    pub readings: Option<usize>,
+    pub readings: Option<u32>,
     /// Shorthand for --warm-up 0 --interval 0 (tests, demos).
     #[arg(long, hide = true)]
     pub fast: bool,
@@ -394,11 +392,64 @@ pub struct SetAddressArgs {
     pub yes: bool,
 }
 
-/// `decode`.
+const DECODE_ABOUT: &str = "\
+Decode frames copied from a log or a bus analyser: one frame, a request and its reply, or a
+whole capture. HEX may have spaces, 0x prefixes, commas or colons; several arguments are one
+byte stream (`decode REQ REPLY` and `decode \"REQ REPLY\"` are the same).
+
+One frame: the command is identified from the frame where that is unambiguous (requests by
+function, start address and register count; replies by length, byte count and function
+across every sensor, replies from 0xFF only as commands with a fixed slave address);
+otherwise the candidates are listed and --sensor / --command choose. Every field is shown
+with its unit, Modbus exceptions are decoded, and the CRC is checked (with the expected CRC
+when it is wrong).
+
+Several frames (a request and its reply, a hex stream, or --capture): the bytes are split
+into frames. A request is recognised by matching a command's request (function, start
+address, register count, CRC, and the fixed slave address where the command has one); a
+reply by its CRC and the length the pending request's command expects (5 bytes for an
+exception). Each reply is paired with the request before it (same slave, or the command's
+fixed slave) and decoded as the command(s) that request names. When several sensors share
+the request (get_sn is in every probe), the reply is decoded as each: decodings that fail
+are dropped, equal ones are reported together (`get_sn of conductivity, ph_orp`), and
+different ones are all listed: an ambiguity that --sensor / --command resolve (they only
+narrow the decoding: a transaction of a command they leave out is reported as unknown).
+
+--capture FILE (`-` for stdin) reads a capture: one frame per line, or one hex stream
+(possibly wrapped over lines; whichever reading explains more bytes as frames wins). A label
+before a colon and a space (`12:00:01.250 TX: 01 03 ...`) is skipped, and so are up to four
+leading words before the frame (`2024-05-01 12:00:01 01 03 ...`); blank lines and lines
+starting with # are ignored. Unpaired frames, noise and lines that are not hex are reported
+and decoding goes on.
+
+--json: a single frame or a single request/reply pair prints one JSON document; anything
+more (and every --capture) prints JSON lines, one object per transaction, unpaired reply,
+noise run or unreadable line, then a `summary` line. Each has a `type` (transaction, reply,
+noise, unreadable, summary), an `ok` flag and a `status`: decoded, exception, broadcast (ok);
+ambiguous, undecodable, no_reply, unknown_command, unpaired, noise, unreadable (failed).
+A transaction lists every reading in `decodings`; when there is one, its `command`,
+`sensors`, `values` and `fields` are also at the top. Errors are JSON too: a document with
+an `error` object (message, hint, details, exit_code) on stdout; the `error:` line on stderr
+and the exit code stay as without --json.
+
+Exit codes: 0 when every frame was decoded (a Modbus exception reply counts as decoded);
+1 when a frame check fails (CRC, length, slave) or, for several frames, when some frame
+could not be paired or decoded, or was ambiguous; 2 for usage errors: malformed hex, an
+unreadable capture file, an ambiguous single frame or pair (choose with --sensor/--command).";
+
+const DECODE_EXAMPLES: &str = "\
+Examples:
+  yosemitech decode 01 03 04 33 33 F3 40 40 78 --command get_ph
+  yosemitech decode \"01 03 28 00 00 02 CD AB\" \"01 03 04 33 33 F3 40 40 78\"
+  yosemitech decode 010328000002CDAB01030433 33F3404078 --json
+  yosemitech decode --capture bus.log --json | jq 'select(.status != \"decoded\")'
+  some-sniffer | yosemitech decode --capture -";
+
+/// `decode`: the frames and how to read them.
 #[derive(Args, Debug)]
 pub struct DecodeArgs {
-    /// The frame in hex (several arguments are joined).
-    #[arg(value_name = "HEX", required = true, num_args = 1..)]
+    /// Frames in hex: one frame, a request and its reply, or a stream (arguments are joined).
+    #[arg(value_name = "HEX", required_unless_present = "capture", conflicts_with = "capture", num_args = 1..)]
     pub hex: Vec<String>,
     /// Only consider this sensor's commands.
     #[arg(long, value_name = "SENSOR")]
@@ -406,9 +457,20 @@ pub struct DecodeArgs {
     /// Decode as this command.
     #[arg(long, value_name = "COMMAND")]
     pub command: Option<String>,
-    /// Print JSON.
+    /// Print JSON (one document; JSON lines for several transactions and captures).
     #[arg(long)]
     pub json: bool,
+}
+
+/// `decode` on the command line: [`DecodeArgs`] and a capture file.
+#[derive(Args, Debug)]
+pub struct DecodeCommandArgs {
+    /// The frames and options.
+    #[command(flatten)]
+    pub frames: DecodeArgs,
+    /// Read a capture from FILE (`-`: stdin): one frame per line, or a hex stream.
+    #[arg(long, value_name = "FILE")]
+    pub capture: Option<PathBuf>,
 }
 
 /// `encode`.

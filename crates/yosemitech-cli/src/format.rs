@@ -24,6 +24,27 @@ pub fn value_text(value: &Value) -> String {
     }
 }
 
+/// A value as text for its field: flag fields by the names of the bits
+/// set (`none` for 0, unnamed bits in hex), every other value as
+/// [`value_text`] shows it.
+pub fn field_value_text(field: &Field, value: &Value) -> String {
+    match (&field.kind, value) {
+        (FieldKind::Flags { flags, .. }, Value::Int(raw)) => {
+            if *raw == 0 {
+                return "none".to_owned();
+            }
+            let mut names: Vec<String> =
+                flags.iter().filter(|f| raw & i64::from(f.mask) != 0).map(|f| f.name.clone()).collect();
+            let known: i64 = flags.iter().map(|f| i64::from(f.mask)).fold(0, |a, m| a | m);
+            if raw & !known != 0 {
+                names.push(format!("0x{:X}", raw & !known));
+            }
+            names.join("|")
+        }
+        _ => value_text(value),
+    }
+}
+
 /// A value with its unit, if it has one.
 pub fn value_with_unit(value: &Value, field: Option<&Field>) -> String {
     match field.and_then(|f| f.unit.as_deref()) {
@@ -70,6 +91,7 @@ pub fn value_json(value: &Value) -> Json {
         Value::Int(v) => json!(v),
         Value::Text(t) => json!(t),
         Value::Version(v) => json!(v.to_string()),
+        Value::Bcd(v) => v.value().map_or(Json::Null, |n| json!(n)),
         Value::Enum { raw, name } => json!({ "raw": raw, "name": name }),
     }
 }
@@ -262,6 +284,25 @@ pub fn parse_value(field: &Field, text: &str) -> Result<Value> {
             })?),
         },
         FieldKind::Reserved { .. } => Value::Int(0),
+        FieldKind::Bcd => {
+            let v = parse_int(text).ok_or_else(|| bad("a whole number"))?;
+            let digits = u8::try_from(v).ok().and_then(yosemitech_rtu::Bcd::from_value).ok_or_else(|| bad("a number 0..=99"))?;
+            Value::Bcd(digits)
+        }
+        FieldKind::Flags { flags, .. } => {
+            let mut raw = 0i64;
+            for part in text.split(['|', ',', '+']).map(str::trim).filter(|p| !p.is_empty() && *p != "none") {
+                match flags.iter().find(|f| f.name == part) {
+                    Some(f) => raw |= i64::from(f.mask),
+                    None => raw |= parse_int(part).ok_or_else(|| {
+                        let names: Vec<&str> = flags.iter().map(|f| f.name.as_str()).collect();
+                        CliError::usage(format!("`{part}` is not a flag of `{name}`"))
+                            .hint(format!("flags joined by `|`: {} (or a number)", names.join(", ")))
+                    })?,
+                }
+            }
+            Value::Int(raw)
+        }
     };
     // Check the range here too, for a message that names the range.
     if let (Some((min, max)), Some(v)) = (field.range, numeric(&value))
@@ -277,6 +318,7 @@ fn numeric(value: &Value) -> Option<f64> {
     match value {
         Value::Float(v) => Some(f64::from(*v)),
         Value::Int(v) => Some(*v as f64),
+        Value::Bcd(v) => v.value().map(f64::from),
         _ => None,
     }
 }

@@ -52,7 +52,7 @@
 
 mod naming;
 mod sensor;
-mod text;
+pub mod text;
 
 use std::fmt;
 use std::fs;
@@ -140,6 +140,21 @@ impl Config {
             modules.extend(sensor::module_declaration(s, &format!("{}.rs", s.name)));
             sensors.push(GeneratedSensor { name: s.name.clone(), file_name: format!("{}.rs", s.name), source });
         }
+        let module_refs: Vec<TokenStream> = spec
+            .sensors
+            .iter()
+            .map(|s| {
+                let m = quote::format_ident!("{}", s.name);
+                quote::quote!(#m::MODULE)
+            })
+            .collect();
+        let count = proc_macro2::Literal::usize_unsuffixed(module_refs.len());
+        let runtime_path = &options.runtime;
+        modules.extend(quote::quote! {
+            /// Every generated sensor module, in spec-file order, as data: for code
+            /// that serves any sensor of the spec without naming one.
+            pub const SENSORS: [#runtime_path::SensorModule; #count] = [#(#module_refs),*];
+        });
         let files: Vec<String> = spec.sensors.iter().filter_map(|s| file_name(&s.file)).collect();
         let modules = format_tokens(MODULES_FILE, modules, &format!("from {}", files.join(", ")))?;
         Ok(Generated { sensors, modules })

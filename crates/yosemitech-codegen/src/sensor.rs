@@ -353,6 +353,9 @@ fn field_gens<'a>(names: &Names, ci: usize, c: &'a Command) -> Vec<FieldGen<'a>>
                     quote!(rtu::Ascii<#n>)
                 }
                 FieldKind::Version => quote!(rtu::Version),
+                FieldKind::Bcd => quote!(rtu::Bcd),
+                FieldKind::Flags { repr: EnumRepr::U8, .. } => quote!(u8),
+                FieldKind::Flags { repr: EnumRepr::U16(_), .. } => quote!(u16),
                 FieldKind::Enum { .. } => {
                     let e = names.enum_of.get(&(ci, fi)).and_then(|k| names.enums.get(*k))?;
                     let e = ident(&e.ty);
@@ -420,6 +423,12 @@ fn decode_expr(g: &FieldGen<'_>) -> TokenStream {
             quote!(rtu::Ascii::from_wire(#b, #p))
         }
         FieldKind::Version => quote!(rtu::Version::from_wire(#b)),
+        FieldKind::Bcd => quote!(rtu::Bcd(data[#at])),
+        FieldKind::Flags { repr: EnumRepr::U8, .. } => quote!(data[#at]),
+        FieldKind::Flags { repr: EnumRepr::U16(order), .. } => {
+            let o = order2(*order);
+            quote!(rtu::codec::u16_from_wire(#o, #b))
+        }
         FieldKind::Enum { repr: EnumRepr::U8, .. } => quote!(#ty::from_raw(data[#at])),
         FieldKind::Enum { repr: EnumRepr::U16(order), .. } => {
             let o = order2(*order);
@@ -462,6 +471,12 @@ fn encode_field(g: &FieldGen<'_>) -> (TokenStream, Vec<TokenStream>) {
             bind(quote!(rtu::codec::u32_to_wire(#o, self.#name as u32)))
         }
         FieldKind::Ascii { .. } | FieldKind::Version => bind(quote!(self.#name.to_wire())),
+        FieldKind::Bcd => (TokenStream::new(), vec![quote!(self.#name.0)]),
+        FieldKind::Flags { repr: EnumRepr::U8, .. } => (TokenStream::new(), vec![quote!(self.#name)]),
+        FieldKind::Flags { repr: EnumRepr::U16(order), .. } => {
+            let o = order2(*order);
+            bind(quote!(rtu::codec::u16_to_wire(#o, self.#name)))
+        }
         FieldKind::Enum { repr: EnumRepr::U8, .. } => (TokenStream::new(), vec![quote!(self.#name.raw())]),
         FieldKind::Enum { repr: EnumRepr::U16(order), .. } => {
             let o = order2(*order);
@@ -483,6 +498,8 @@ fn field_value(g: &FieldGen<'_>) -> TokenStream {
         | FieldKind::I32 { .. } => quote!(rtu::FieldValue::Int(i64::from(self.#name))),
         FieldKind::Ascii { .. } => quote!(rtu::FieldValue::Text(self.#name.trimmed())),
         FieldKind::Version => quote!(rtu::FieldValue::Version(self.#name)),
+        FieldKind::Bcd => quote!(rtu::FieldValue::Bcd(self.#name)),
+        FieldKind::Flags { .. } => quote!(rtu::FieldValue::Int(i64::from(self.#name))),
         FieldKind::Enum { repr: EnumRepr::U8, .. } => {
             quote!(rtu::FieldValue::Enum { raw: u16::from(self.#name.raw()), name: self.#name.name() })
         }
@@ -523,6 +540,16 @@ fn range_check(g: &FieldGen<'_>) -> Option<TokenStream> {
         }
     };
     let (type_lo, type_hi): (i64, i64) = match &g.field.kind {
+        FieldKind::Bcd => {
+            // An invalid digit is never sent; in range means the digits' value.
+            let (lo, hi) = (Literal::u8_unsuffixed(min.ceil().clamp(0.0, 99.0) as u8), Literal::u8_unsuffixed(max.floor().clamp(0.0, 99.0) as u8));
+            return Some(quote! {
+                match self.#name.value() {
+                    Some(v) if (#lo..=#hi).contains(&v) => {}
+                    _ => { #err }
+                }
+            });
+        }
         FieldKind::F32 { .. } => {
             let (lo, hi) = (f64_lit(min), f64_lit(max));
             // NaN is not range-checked (the reference interpreter agrees): it is how
@@ -563,12 +590,12 @@ fn field_doc(g: &FieldGen<'_>) -> TokenStream {
     doc(&d)
 }
 
-/// FIELDS, fields(), DATA_LEN, from_data, to_data (and validate for writes) of one message type.
-/// Whether a message type gets `validate()`: write requests always, read
-/// replies when a field has a range (a range applies wherever the field is
-/// encoded, as in the reference interpreter).
-fn has_validate(gens: &[FieldGen<'_>], write_request: bool) -> bool {
-    write_request || gens.iter().any(|g| g.field.range.is_some())
+/// Whether a message type gets `validate()`: write requests. On a read, a
+/// range is the measuring range the user manual states: a probe may report
+/// values outside it, so replies are never refused for it (the reference
+/// interpreter agrees).
+fn has_validate(_gens: &[FieldGen<'_>], write_request: bool) -> bool {
+    write_request
 }
 
 fn message_impl(ty: &Ident, gens: &[FieldGen<'_>], c: &Command, with_data: bool, write_request: bool) -> TokenStream {
@@ -580,7 +607,61 @@ fn message_impl(ty: &Ident, gens: &[FieldGen<'_>], c: &Command, with_data: bool,
         quote!(rtu::FieldInfo { name: #name, unit: #unit })
     });
     let values = gens.iter().map(field_value);
+    let mut extras = TokenStream::new();
+    for g in gens {
+        let name = &g.name;
+        if let Some(absent) = g.field.absent {
+            let method = format_ident!("{}_present", g.field.display_name());
+            let ty = &g.ty;
+            let sentinel = match &g.field.kind {
+                FieldKind::F32 { .. } => f32_lit(absent as f32),
+                _ => {
+                    let v = Literal::i64_unsuffixed(absent as i64);
+                    quote!(#v)
+                }
+            };
+            let d = doc(&format!(
+                "`{}`, or `None` where the device reads {absent}: the manual's value for a sub-probe that is not fitted (a real reading of exactly {absent} looks the same).",
+                g.field.display_name()
+            ));
+            extras.extend(quote! {
+                #d
+                pub fn #method(&self) -> Option<#ty> {
+                    if self.#name == #sentinel { None } else { Some(self.#name) }
+                }
+            });
+        }
+        if let FieldKind::Flags { flags, repr } = &g.field.kind {
+            let raw_ty = match repr {
+                EnumRepr::U8 => quote!(u8),
+                EnumRepr::U16(_) => quote!(u16),
+            };
+            let consts = flags.iter().map(|f| {
+                let c = format_ident!("{}_{}", yosemitech_spec::names::shouty(g.field.display_name()), yosemitech_spec::names::shouty(&f.name));
+                let m = hex(u32::from(f.mask), if matches!(repr, EnumRepr::U8) { 2 } else { 4 });
+                let d = doc(&format!("Bit of `{}`: {}", g.field.display_name(), f.doc.as_deref().map(one_line).unwrap_or_else(|| f.name.clone())));
+                quote!(#d pub const #c: #raw_ty = #m;)
+            });
+            let method = format_ident!("{}_names", g.field.display_name());
+            let pairs = flags.iter().map(|f| {
+                let n = lit(&f.name);
+                let m = hex(u32::from(f.mask), if matches!(repr, EnumRepr::U8) { 2 } else { 4 });
+                quote!((#m, #n))
+            });
+            let count = Literal::usize_unsuffixed(flags.len());
+            let d = doc(&format!("The names of the flags set in `{}`, in mask order; bits no flag names are not listed.", g.field.display_name()));
+            extras.extend(quote! {
+                #(#consts)*
+                #d
+                pub fn #method(&self) -> impl Iterator<Item = &'static str> + '_ {
+                    const KNOWN: [(#raw_ty, &str); #count] = [#(#pairs),*];
+                    KNOWN.into_iter().filter(move |(mask, _)| self.#name & mask != 0).map(|(_, name)| name)
+                }
+            });
+        }
+    }
     let mut items = quote! {
+        #extras
         /// Name and unit of each field, in wire order.
         pub const FIELDS: [rtu::FieldInfo; #n] = [#(#infos),*];
 
@@ -654,7 +735,16 @@ fn message_impl(ty: &Ident, gens: &[FieldGen<'_>], c: &Command, with_data: bool,
         });
     }
     if validated {
-        let checks: Vec<TokenStream> = gens.iter().filter_map(range_check).collect();
+        let mut checks: Vec<TokenStream> = gens.iter().filter_map(range_check).collect();
+        for g in gens.iter().filter(|g| matches!(g.field.kind, FieldKind::Bcd) && g.field.range.is_none()) {
+            let name = &g.name;
+            let spec_name = lit(g.field.display_name());
+            checks.push(quote! {
+                if self.#name.value().is_none() {
+                    return Err(rtu::EncodeError::OutOfRange { field: #spec_name });
+                }
+            });
+        }
         let body = if checks.is_empty() {
             quote!(Ok(()))
         } else {
@@ -723,8 +813,18 @@ fn command_doc(c: &Command) -> String {
             let _ = write!(d, "Writes (function 0x10) {} {registers} at 0x{:04X}.", c.count, c.address);
         }
     }
-    if c.trigger {
-        d.push_str(" A trigger: the write carries no data (byte count 0).");
+    match (c.trigger, c.function) {
+        (true, Function::Write) => d.push_str(" A trigger: the write carries no data (byte count 0)."),
+        (true, Function::Read) => d.push_str(
+            " A trigger: a read used as a command. Its reply carries no value and is accepted with byte count 0 and no data, byte count 0 followed by the registers, or the registers with their byte count.",
+        ),
+        _ => {}
+    }
+    if let Some(since) = &c.since {
+        let _ = write!(d, " Added in software revision {}.", one_line(since));
+    }
+    if let Some(role) = c.role {
+        let _ = write!(d, " Role: `{}`.", role.name());
     }
     if let Some(slave) = c.fixed_slave {
         let _ = write!(
@@ -789,6 +889,7 @@ fn layout_expr(c: &Command) -> TokenStream {
         None => quote!(None),
     };
     let extra = c.extra_byte_counts.iter().map(|b| hex(u32::from(*b), 2));
+    let trigger = c.trigger;
     quote! {
         rtu::Layout {
             function: #function,
@@ -796,6 +897,7 @@ fn layout_expr(c: &Command) -> TokenStream {
             count: #count,
             fixed_slave: #fixed,
             extra_byte_counts: &[#(#extra),*],
+            trigger: #trigger,
         }
     }
 }
@@ -811,7 +913,7 @@ fn command(names: &Names, ci: usize, c: &Command) -> TokenStream {
     let docs = doc(&command_doc(c));
     let mut out = TokenStream::new();
     match c.function {
-        Function::Read => {
+        Function::Read if !c.trigger => {
             let resp = ident(&n.response);
             let resp_docs = doc(&format!(
                 "Reply to [`{}`]. {}",
@@ -849,6 +951,40 @@ fn command(names: &Names, ci: usize, c: &Command) -> TokenStream {
                         let data = <&[u8; #len_lit]>::try_from(data)
                             .map_err(|_| rtu::FrameError::Truncated { expected: Self::RESPONSE_LEN, actual: frame.len() })?;
                         Ok(#resp::from_data(data))
+                    }
+                }
+            });
+        }
+        Function::Read => {
+            // A read used as a command: the reply's data is never read.
+            let resp = ident(&n.response);
+            let resp_docs = doc(&format!("Reply to [`{}`]: an acknowledgement that carries no value.", n.ty));
+            out.extend(struct_def(&ty, &[], docs));
+            out.extend(message_impl(&ty, &[], c, false, false));
+            out.extend(struct_def(&resp, &[], resp_docs));
+            out.extend(message_impl(&resp, &[], c, false, false));
+            out.extend(quote! {
+                impl rtu::Command for #ty {
+                    type Response = #resp;
+                    const NAME: &'static str = #name;
+                    const LAYOUT: rtu::Layout<'static> = #layout;
+
+                    fn encode_request(&self, slave: u8, out: &mut [u8]) -> Result<usize, rtu::EncodeError> {
+                        Self::LAYOUT.encode_request(slave, &[], out)
+                    }
+
+                    fn decode_request(frame: &[u8]) -> Result<(u8, Self), rtu::FrameError> {
+                        let (slave, _) = Self::LAYOUT.decode_request(frame)?;
+                        Ok((slave, Self))
+                    }
+
+                    fn encode_response(_response: &#resp, slave: u8, out: &mut [u8]) -> Result<usize, rtu::EncodeError> {
+                        Self::LAYOUT.encode_response(slave, &[], out)
+                    }
+
+                    fn decode_response(slave: u8, frame: &[u8]) -> Result<#resp, rtu::FrameError> {
+                        Self::LAYOUT.decode_response(slave, frame)?;
+                        Ok(#resp)
                     }
                 }
             });
@@ -1125,6 +1261,47 @@ fn dispatch(s: &Sensor, names: &Names) -> TokenStream {
                 layout.function.code() == function && layout.address == address && layout.count == count
             })
         }
+
+        /// Every command's spec name, in spec order.
+        pub const COMMAND_NAMES: [&str; #n] = [#(#spec_names),*];
+
+        /// This module as data, for code that serves every sensor without naming one
+        /// (`crate::SENSORS` lists them all).
+        pub const MODULE: rtu::SensorModule = rtu::SensorModule {
+            info: SENSOR,
+            commands: &COMMAND_NAMES,
+            layout: |name| CommandId::from_name(name).map(CommandId::layout),
+            identify_request: |frame| identify_request(frame).map(CommandId::name),
+            visit_request: |name, frame, visit| {
+                let id = CommandId::from_name(name)?;
+                Some(id.decode_request(frame).map(|(slave, request)| {
+                    for (info, value) in request.fields() {
+                        visit(info, value);
+                    }
+                    slave
+                }))
+            },
+            reencode_request: |name, frame, out| {
+                let id = CommandId::from_name(name)?;
+                Some(id.decode_request(frame).map_err(rtu::RoundTripError::Frame).and_then(|(slave, request)| {
+                    request.encode(slave, out).map_err(rtu::RoundTripError::Encode)
+                }))
+            },
+            reencode_response: |name, slave, frame, out| {
+                let id = CommandId::from_name(name)?;
+                Some(id.decode_response(slave, frame).map_err(rtu::RoundTripError::Frame).and_then(|response| {
+                    response.encode(slave, out).map_err(rtu::RoundTripError::Encode)
+                }))
+            },
+            visit_response: |name, slave, frame, visit| {
+                let id = CommandId::from_name(name)?;
+                Some(id.decode_response(slave, frame).map(|response| {
+                    for (info, value) in response.fields() {
+                        visit(info, value);
+                    }
+                }))
+            },
+        };
     }
 }
 

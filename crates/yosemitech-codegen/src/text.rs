@@ -107,12 +107,42 @@ pub fn encoding(field: &Field) -> String {
             format!("two-byte code, {}", order2(*order))
         }
         FieldKind::Reserved { len, fill } => format!("{len} reserved bytes, sent as 0x{fill:02X}"),
+        FieldKind::Bcd => "one byte, two decimal digits (BCD: 0x59 = 59)".to_owned(),
+        FieldKind::Flags { repr: yosemitech_spec::EnumRepr::U8, flags } => format!("one byte of bit flags ({})", flag_list(flags)),
+        FieldKind::Flags { repr: yosemitech_spec::EnumRepr::U16(order), flags } => {
+            format!("two bytes of bit flags, {} ({})", order2(*order), flag_list(flags))
+        }
     };
     if field.size() == 1 {
         format!("{what}, data byte {}", field.offset)
     } else {
         format!("{what}, data bytes {}..{end}", field.offset)
     }
+}
+
+/// `0x01 brush, 0x04 supply`.
+fn flag_list(flags: &[yosemitech_spec::Flag]) -> String {
+    flags.iter().map(|f| format!("0x{:02X} {}", f.mask, one_line(&f.name))).collect::<Vec<_>>().join(", ")
+}
+
+/// A printed frame: known bytes in hex, `??` placeholders, `...`, and a
+/// note when its CRC was computed rather than printed.
+pub fn printed_frame(frame: &yosemitech_spec::PrintedFrame) -> String {
+    let mut parts: Vec<String> =
+        frame.bytes.iter().map(|b| b.map_or_else(|| "??".to_owned(), |b| format!("{b:02X}"))).collect();
+    if frame.open_ended {
+        parts.push("...".into());
+    }
+    let mut s = parts.join(" ");
+    if !frame.crc_printed {
+        match &frame.complete {
+            Some(all) if all.len() >= 2 => {
+                let _ = write!(s, " [{}] (CRC not printed; computed)", hex_bytes(&all[all.len() - 2..]));
+            }
+            _ => s.push_str(" (CRC not printed)"),
+        }
+    }
+    s
 }
 
 /// Name of a 4-byte order.
@@ -140,6 +170,7 @@ pub fn value(v: &Value) -> String {
         Value::Int(i) => format!("{i}"),
         Value::Text(t) => format!("{:?}", one_line(t)),
         Value::Version(v) => format!("{v}"),
+        Value::Bcd(v) => format!("{v}"),
         Value::Enum { name: Some(name), .. } => name.clone(),
         Value::Enum { raw, name: None } => format!("{raw}"),
     }
@@ -149,11 +180,22 @@ pub fn value(v: &Value) -> String {
 pub fn example(ex: &Example, field_order: &[&str]) -> String {
     let mut s = String::new();
     let figures = if ex.figures.is_empty() { String::new() } else { format!(" (figures {})", join(&ex.figures)) };
-    let _ = writeln!(s, "Example{figures}:");
+    let manual = ex.manual.as_ref().map(|m| format!(", manual for software {}", one_line(m))).unwrap_or_default();
+    let _ = writeln!(s, "Example{figures}{manual}:");
     s.push('\n');
     s.push_str("```text\n");
-    let _ = writeln!(s, "request:  {}", hex_bytes(&ex.request));
-    let _ = writeln!(s, "response: {}", hex_bytes(&ex.response));
+    match &ex.request {
+        Some(f) => {
+            let _ = writeln!(s, "request:  {}", printed_frame(f));
+        }
+        None => s.push_str("request:  (not printed)\n"),
+    }
+    match &ex.response {
+        Some(f) => {
+            let _ = writeln!(s, "response: {}", printed_frame(f));
+        }
+        None => s.push_str("response: (not printed)\n"),
+    }
     if let Some(err) = &ex.erratum {
         if let Some(r) = &err.corrected_request {
             let _ = writeln!(s, "true request:  {}", hex_bytes(r));

@@ -115,6 +115,35 @@ impl fmt::Display for Version {
     }
 }
 
+/// One byte of two decimal digits (`0x59` is 59), as clocks send them.
+///
+/// The raw byte is kept as received: a byte with a digit above 9 is not a
+/// number, and [`Bcd::value`] says so instead of guessing one.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Default)]
+pub struct Bcd(pub u8);
+
+impl Bcd {
+    /// The byte for `value`, `None` above 99.
+    pub const fn from_value(value: u8) -> Option<Self> {
+        if value > 99 { None } else { Some(Self((value / 10) << 4 | (value % 10))) }
+    }
+
+    /// The two digits as a number, `None` when a digit is above 9.
+    pub const fn value(self) -> Option<u8> {
+        let (high, low) = (self.0 >> 4, self.0 & 0x0F);
+        if high > 9 || low > 9 { None } else { Some(high * 10 + low) }
+    }
+}
+
+impl fmt::Display for Bcd {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self.value() {
+            Some(v) => write!(f, "{v:02}"),
+            None => write!(f, "invalid BCD (0x{:02X})", self.0),
+        }
+    }
+}
+
 /// A fixed-length text field of `N` bytes, padded with `pad` bytes at the end.
 ///
 /// The raw bytes are kept as received: a device that sends bytes outside ASCII
@@ -233,5 +262,22 @@ mod tests {
         assert_eq!(Ascii::<2>::from_wire([0x59, 0x07], 0).as_str(), None);
         assert_eq!(Ascii::<2>::from_text("YLX", 0), None);
         assert_eq!(Ascii::<3>::from_text("YL", b' ').map(|a| a.to_wire()), Some(*b"YL "));
+    }
+}
+
+#[cfg(test)]
+mod bcd_tests {
+    use super::Bcd;
+
+    #[test]
+    fn bcd_round_trips_every_two_digit_number_and_refuses_the_rest() {
+        for v in 0..=99u8 {
+            let b = Bcd::from_value(v).unwrap();
+            assert_eq!(b.value(), Some(v));
+        }
+        assert_eq!(Bcd(0x59).value(), Some(59));
+        assert_eq!(Bcd::from_value(100), None);
+        let invalid = (0..=255u8).filter(|&raw| Bcd(raw).value().is_none()).count();
+        assert_eq!(invalid, 256 - 100, "exactly the 100 two-digit bytes are numbers");
     }
 }

@@ -68,6 +68,13 @@ pub struct Layout<'a> {
     pub fixed_slave: Option<u8>,
     /// Byte counts a read reply may carry besides `2 * count` (documented firmware quirks).
     pub extra_byte_counts: &'a [u8],
+    /// A command that carries no value. A trigger write sends zero registers.
+    /// A trigger read (optical Start/Stop Measurement) ignores its reply's
+    /// data: the manuals print byte count 0 followed by "meaningless" bytes,
+    /// so a reply is accepted with byte count 0 and no data
+    /// ([`Layout::short_response_len`]), with byte count 0 or `2 * count`
+    /// followed by `2 * count` bytes; the data is never returned.
+    pub trigger: bool,
 }
 
 impl Layout<'_> {
@@ -84,11 +91,22 @@ impl Layout<'_> {
         }
     }
 
-    /// Bytes in a normal (non-exception) reply frame.
+    /// Bytes in a normal (non-exception) reply frame: the longest form a
+    /// trigger read may take.
     pub const fn response_len(&self) -> usize {
         match self.function {
             Function::Read => 5 + self.data_len(),
             Function::Write => 8,
+        }
+    }
+
+    /// The length of the short reply a trigger read may also get (`slave 03
+    /// 00 CRC`), `None` for every other command. A reader that has this many
+    /// bytes with byte count 0 and a valid CRC has the whole reply.
+    pub const fn short_response_len(&self) -> Option<usize> {
+        match (self.function, self.trigger) {
+            (Function::Read, true) if self.count > 0 => Some(5),
+            _ => None,
         }
     }
 
@@ -100,11 +118,12 @@ impl Layout<'_> {
         }
     }
 
-    /// Bytes of register data in the reply (reads) or zero (writes).
+    /// Bytes of register data in the reply that carry values: `2 * count`
+    /// for reads, zero for writes and trigger reads.
     pub const fn response_data_len(&self) -> usize {
         match self.function {
-            Function::Read => self.data_len(),
-            Function::Write => 0,
+            Function::Read if !self.trigger => self.data_len(),
+            _ => 0,
         }
     }
 
@@ -163,6 +182,13 @@ impl Layout<'_> {
         w.byte(self.reply_slave(slave));
         w.byte(self.function.code());
         match self.function {
+            Function::Read if self.trigger => {
+                // The manuals' form: byte count 0, then the "meaningless" registers.
+                w.byte(0);
+                for _ in 0..self.data_len() {
+                    w.byte(0);
+                }
+            }
             Function::Read => {
                 w.byte(self.data_len() as u8);
                 w.bytes(data);
@@ -212,11 +238,27 @@ impl Layout<'_> {
             check_slave(frame, expected_slave)?;
             return Err(FrameError::Exception { function, code: crate::ExceptionCode::from_u8(byte(frame, 2)) });
         }
+        if let Some(short) = self.short_response_len()
+            && frame.len() == short
+        {
+            check_crc(frame)?;
+            check_slave(frame, expected_slave)?;
+            check_function(frame, function)?;
+            check_byte_count(byte(frame, 2), 0, &[])?;
+            return Ok(&[]);
+        }
         check_len(frame, self.response_len())?;
         check_crc(frame)?;
         check_slave(frame, expected_slave)?;
         check_function(frame, function)?;
         match self.function {
+            Function::Read if self.trigger => {
+                let count = byte(frame, 2);
+                if count != 0 {
+                    check_byte_count(count, self.data_len(), self.extra_byte_counts)?;
+                }
+                Ok(&[])
+            }
             Function::Read => {
                 check_byte_count(byte(frame, 2), self.data_len(), self.extra_byte_counts)?;
                 Ok(frame.get(3..3 + self.data_len()).unwrap_or(&[]))
@@ -396,9 +438,9 @@ mod tests {
     use crate::ExceptionCode;
 
     const GET_PH: Layout<'static> =
-        Layout { function: Function::Read, address: 0x2800, count: 2, fixed_slave: None, extra_byte_counts: &[] };
+        Layout { function: Function::Read, address: 0x2800, count: 2, fixed_slave: None, extra_byte_counts: &[], trigger: false };
     const START: Layout<'static> =
-        Layout { function: Function::Write, address: 0x1C00, count: 0, fixed_slave: None, extra_byte_counts: &[] };
+        Layout { function: Function::Write, address: 0x1C00, count: 0, fixed_slave: None, extra_byte_counts: &[], trigger: true };
 
     #[test]
     fn encodes_manual_requests() {
@@ -409,6 +451,38 @@ mod tests {
         assert_eq!(f.as_bytes(), [0x01, 0x10, 0x1C, 0x00, 0x00, 0x00, 0x00, 0xD8, 0x92]);
         let f = Frame::fill(|b| START.encode_response(1, &[], b)).unwrap();
         assert_eq!(f.as_bytes(), [0x01, 0x10, 0x1C, 0x00, 0x00, 0x00, 0xC7, 0x99]);
+    }
+
+    const START_OPTICAL: Layout<'static> =
+        Layout { function: Function::Read, address: 0x2500, count: 1, fixed_slave: None, extra_byte_counts: &[], trigger: true };
+
+    #[test]
+    fn trigger_reads_accept_each_form_the_manuals_allow_and_return_no_data() {
+        let request = Frame::fill(|b| START_OPTICAL.encode_request(1, &[], b)).unwrap();
+        assert_eq!(request.as_bytes(), [0x01, 0x03, 0x25, 0x00, 0x00, 0x01, 0x8F, 0x06]);
+        let manual_form = Frame::fill(|b| START_OPTICAL.encode_response(1, &[], b)).unwrap();
+        assert_eq!(&manual_form[..5], [0x01, 0x03, 0x00, 0x00, 0x00]);
+        assert_eq!(START_OPTICAL.decode_response(1, &manual_form), Ok(&[][..]));
+        let mut short = [0x01, 0x03, 0x00, 0, 0];
+        let crc = crate::crc16(&short[..3]).to_le_bytes();
+        short[3..].copy_from_slice(&crc);
+        assert_eq!(START_OPTICAL.short_response_len(), Some(5));
+        assert_eq!(START_OPTICAL.decode_response(1, &short), Ok(&[][..]));
+        let mut standard = [0x01, 0x03, 0x02, 0xAB, 0xCD, 0, 0];
+        let crc = crate::crc16(&standard[..5]).to_le_bytes();
+        standard[5..].copy_from_slice(&crc);
+        assert_eq!(START_OPTICAL.decode_response(1, &standard), Ok(&[][..]));
+        // Still a checked frame: slave, CRC and byte count.
+        assert!(matches!(START_OPTICAL.decode_response(2, &short), Err(FrameError::WrongSlave { .. })));
+        let mut bad_count = standard;
+        bad_count[2] = 0x04;
+        let crc = crate::crc16(&bad_count[..5]).to_le_bytes();
+        bad_count[5..].copy_from_slice(&crc);
+        assert!(matches!(START_OPTICAL.decode_response(1, &bad_count), Err(FrameError::ByteCount { .. })));
+        let mut short_bad_crc = short;
+        short_bad_crc[4] ^= 1;
+        assert!(matches!(START_OPTICAL.decode_response(1, &short_bad_crc), Err(FrameError::Crc { .. })));
+        assert_eq!(GET_PH.short_response_len(), None);
     }
 
     #[test]

@@ -22,13 +22,13 @@ pub mod timing;
 pub mod transport;
 mod value;
 
-pub use codec::{Ascii, ByteOrder2, ByteOrder4, Version};
+pub use codec::{Ascii, Bcd, ByteOrder2, ByteOrder4, Version};
 pub use command::Command;
 pub use crc::{CRC_INIT, crc_ok, crc16, crc16_update};
 pub use error::{EchoField, EncodeError, ExceptionCode, FrameError};
 pub use frame::{Frame, Function, Layout};
 pub use raw::RawBytes;
-pub use sensor::SensorInfo;
+pub use sensor::{RoundTripError, SensorInfo, SensorModule};
 pub use timing::{CharFormat, DataBits, LineTiming, Parity, StopBits};
 pub use value::{FieldInfo, FieldValue};
 

@@ -1,6 +1,9 @@
 //! [`SensorInfo`]: what generated sensor modules say about their sensor.
 
+use crate::error::{EncodeError, FrameError};
+use crate::frame::Layout;
 use crate::timing::{CharFormat, LineTiming};
+use crate::value::{FieldInfo, FieldValue};
 
 /// Static facts about one sensor model, from its spec: generated code
 /// declares one `SENSOR` constant of this type per sensor module.
@@ -35,5 +38,61 @@ impl SensorInfo {
     /// True when `address` is a valid slave address for this sensor.
     pub const fn is_valid_address(&self, address: u8) -> bool {
         address >= self.min_address && address <= self.max_address
+    }
+}
+
+/// Why a frame could not be decoded and encoded again.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum RoundTripError {
+    /// The frame was rejected.
+    Frame(FrameError),
+    /// The decoded message could not be encoded.
+    Encode(EncodeError),
+}
+
+impl core::fmt::Display for RoundTripError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            Self::Frame(e) => write!(f, "{e}"),
+            Self::Encode(e) => write!(f, "{e}"),
+        }
+    }
+}
+
+/// A generated sensor module as data: what code that serves every sensor
+/// (loggers, tests, the CLI) needs without naming one. Each generated module
+/// declares one `MODULE`; the generated crate lists them in `SENSORS`. Every
+/// function goes through the module's typed codecs, never allocates, and
+/// returns `None` for a command name the sensor does not have.
+#[derive(Clone, Copy)]
+pub struct SensorModule {
+    /// The sensor's facts.
+    pub info: SensorInfo,
+    /// Every command's spec name, in spec order.
+    pub commands: &'static [&'static str],
+    /// The wire layout of the named command.
+    pub layout: fn(&str) -> Option<Layout<'static>>,
+    /// The command a request frame is for, by function, start address and count.
+    pub identify_request: fn(&[u8]) -> Option<&'static str>,
+    /// Decodes a request to the named command, passes each field of a
+    /// write's data (in wire order) to the visitor, and returns the slave
+    /// address the request is for.
+    #[allow(clippy::type_complexity)]
+    pub visit_request: fn(&str, &[u8], &mut dyn FnMut(FieldInfo, FieldValue<'_>)) -> Option<Result<u8, FrameError>>,
+    /// Decodes a request to the named command and encodes the typed request
+    /// again into `out`: the length written.
+    pub reencode_request: fn(&str, &[u8], &mut [u8]) -> Option<Result<usize, RoundTripError>>,
+    /// Decodes a reply (from a request sent to the slave given) to the named
+    /// command and encodes the typed reply again into `out`.
+    pub reencode_response: fn(&str, u8, &[u8], &mut [u8]) -> Option<Result<usize, RoundTripError>>,
+    /// Decodes a reply to the named command and passes each field, in wire
+    /// order, to the visitor.
+    #[allow(clippy::type_complexity)]
+    pub visit_response: fn(&str, u8, &[u8], &mut dyn FnMut(FieldInfo, FieldValue<'_>)) -> Option<Result<(), FrameError>>,
+}
+
+impl core::fmt::Debug for SensorModule {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.debug_struct("SensorModule").field("info", &self.info).field("commands", &self.commands).finish_non_exhaustive()
     }
 }

@@ -2,7 +2,7 @@
 
 use core::fmt;
 
-use crate::codec::Version;
+use crate::codec::{Bcd, Version};
 
 /// One field of a decoded message, as generic code (CLI tables, differential
 /// tests, loggers) sees it. Generated message types list theirs with a
@@ -17,6 +17,8 @@ pub enum FieldValue<'a> {
     Text(&'a [u8]),
     /// A version field.
     Version(Version),
+    /// A two-digit BCD field, raw.
+    Bcd(Bcd),
     /// An enum field: the raw code and the variant's spec name when known.
     Enum {
         /// The code on the wire.
@@ -52,6 +54,7 @@ impl fmt::Display for FieldValue<'_> {
                 Ok(())
             }
             FieldValue::Version(v) => write!(f, "{v}"),
+            FieldValue::Bcd(v) => write!(f, "{v}"),
             FieldValue::Enum { raw, name: Some(name) } => write!(f, "{name} ({raw})"),
             FieldValue::Enum { raw, name: None } => write!(f, "unknown ({raw})"),
         }

@@ -17,9 +17,15 @@
 //!   ([`serve_tcp`]), an in-memory pair ([`serve_memory`]), optionally
 //!   emulating the serial line's timing ([`ServeConfig::line_timing`]).
 //!
-//! The few rules that are not generic (the measurement trigger's warm-up,
-//! the three-point pH calibration) live in [`behaviour`], keyed by the
-//! spec's command and constant names.
+//! By default the simulator behaves like the real probe: a request that
+//! matches no command of the sensor gets no reply
+//! ([`UnknownRequestPolicy`]), and the serial number carries the sensor's
+//! model code ([`SerialNumberPolicy`]); both can be switched to the
+//! manual's textbook behaviour.
+//!
+//! The few rules that are not generic (the slave address, the serial
+//! number, the measurement trigger and its warm-up, the three-point pH
+//! calibration) live in [`behaviour`], keyed by the spec's command roles.
 //!
 //! ```
 //! # let spec = yosemitech_spec::load_paths(&[concat!(env!("CARGO_MANIFEST_DIR"), "/../../spec").into()])?;
@@ -49,14 +55,14 @@ mod registers;
 pub mod serve;
 mod simulator;
 
-pub use behaviour::{MeasurementState, WarmUpPolicy};
+pub use behaviour::{MeasurementState, SerialNumberPolicy, WarmUpPolicy};
 pub use bus::Bus;
 pub use fault::{FaultConfig, FaultCounts, FaultKind, Rng};
 pub use registers::RegisterMap;
 #[cfg(all(unix, feature = "pty"))]
 pub use serve::serve_pty;
 pub use serve::{Endpoint, ServeConfig, Server, serve_memory, serve_tcp, serve_transport};
-pub use simulator::{SimError, Simulator, Stats, Variation, line_timing};
+pub use simulator::{SimError, Simulator, Stats, UnknownRequestPolicy, Variation, line_timing};
 
 /// Something on the bus that answers request frames: a [`Simulator`] or a
 /// [`Bus`] of them. The serving functions take any `Device`.

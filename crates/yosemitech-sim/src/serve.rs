@@ -11,8 +11,10 @@
 //! * 0x03 (read): 8 bytes in all;
 //! * 0x10 (write): 7 bytes, then `9 + byte count` in all;
 //! * any other code: everything until [`ServeConfig::silence`] passes
-//!   without a byte (t3.5); the device answers exception 01 if the CRC
-//!   holds and the frame is addressed to it.
+//!   without a byte (t3.5); the device ignores it, as a real probe, or
+//!   answers exception 01 under
+//!   [`UnknownRequestPolicy::Exception`](crate::UnknownRequestPolicy) if
+//!   the CRC holds and the frame is addressed to it.
 //!
 //! A gap longer than [`ServeConfig::inter_char_timeout`] inside a frame
 //! drops the partial frame (resynchronisation); a frame whose CRC fails is

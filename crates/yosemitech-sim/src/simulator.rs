@@ -11,10 +11,12 @@ use yosemitech_rtu::{
     crc_ok, crc16,
 };
 use yosemitech_spec::interp::{EncodeValuesError, decode_field, decode_fields, encode_field};
-use yosemitech_spec::{Command, EnumRepr, Field, FieldKind, Sensor, Value, Values};
+use yosemitech_spec::{Command, EnumRepr, Field, FieldKind, Role, Sensor, Value, Values};
 
 use crate::Device;
-use crate::behaviour::{ADDRESS_FIELD, Behaviour, MeasurementState, WarmUpPolicy};
+use crate::behaviour::{
+    AddressSlot, Behaviour, MeasurementState, SerialNumber, SerialNumberPolicy, WarmUpPolicy, address_slots, role_index,
+};
 use crate::fault::{FaultConfig, FaultCounts, FaultKind, Injector, Rng};
 use crate::registers::RegisterMap;
 
@@ -68,10 +70,16 @@ pub struct Stats {
     pub ignored_bad_crc: u64,
     /// Requests ignored because they were for another slave.
     pub ignored_other_slave: u64,
+    /// Requests to the device that match no command of the sensor (unknown
+    /// function, unknown address, wrong count, malformed), ignored under
+    /// [`UnknownRequestPolicy::Silent`] (the default).
+    pub ignored_unknown: u64,
     /// Broadcast requests (applied if they were writes, never answered).
     pub broadcasts: u64,
-    /// Exception replies produced by the rules (01, 02, 03, and 06 under
-    /// [`WarmUpPolicy::Busy`]); injected busy faults are in [`FaultCounts`].
+    /// Exception replies produced by the rules (03 for a value out of
+    /// range; 01, 02, 03 for unknown requests under
+    /// [`UnknownRequestPolicy::Exception`]; 06 under [`WarmUpPolicy::Busy`]);
+    /// injected busy faults are in [`FaultCounts`].
     pub exceptions: u64,
     /// Reads served.
     pub reads: u64,
@@ -112,6 +120,24 @@ struct VariationState {
     reads: BTreeMap<usize, u64>,
 }
 
+/// What the device does with a request that matches no command of its
+/// sensor: an unknown function code, an address no command uses, a known
+/// address with another register count, or a malformed frame (a read not 8
+/// bytes long, a write whose byte count is not `2 * count` or not the
+/// frame's length).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum UnknownRequestPolicy {
+    /// No reply, as a real probe: the client times out (the default).
+    /// Counted in [`Stats::ignored_unknown`].
+    #[default]
+    Silent,
+    /// A Modbus exception reply: 01 (illegal function) for an unknown
+    /// function, 02 (illegal data address) for an address no command of that
+    /// function uses, 03 (illegal data value) for a known address with
+    /// another count or a malformed frame. Counted in [`Stats::exceptions`].
+    Exception,
+}
+
 /// How a request reached the device.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Route {
@@ -136,13 +162,6 @@ impl Clock {
     }
 }
 
-/// Where a field named [`ADDRESS_FIELD`] keeps the address.
-#[derive(Debug, Clone)]
-struct AddressSlot {
-    register: u16,
-    field: Field,
-}
-
 /// A Yosemitech sensor simulated from its spec.
 ///
 /// Everything comes from the [`Sensor`]: the commands it answers (by
@@ -160,17 +179,25 @@ struct AddressSlot {
 ///   (get_slave_id: 0xFF) is answered from that address when the request
 ///   matches the command exactly; the same registers read at the device's
 ///   own address are answered from its own address.
-/// * A function code no command uses: exception 01. A read not 8 bytes
-///   long, or a write whose byte count is not `2 * count` or not the
-///   frame's length: exception 03. No command of that function at that
-///   address: exception 02; at that address with another count: 03. A
-///   write with a value outside its field's `range`, or a slave address
-///   outside the sensor's addresses: 03, nothing stored.
+/// * A request that matches no command (function, address and register
+///   count), or is malformed, is not answered, as a real probe does not
+///   answer for a register it lacks ([`UnknownRequestPolicy::Silent`]);
+///   [`Simulator::set_unknown_request_policy`] with
+///   [`UnknownRequestPolicy::Exception`] answers exceptions 01, 02 or 03
+///   instead. A write with a value outside its field's `range`, or a slave
+///   address outside the sensor's addresses: exception 03 (the register
+///   exists), nothing stored.
 /// * Reads return the registers; writes store their data (seen by later
 ///   reads of the same registers) and are echoed; trigger writes (zero
-///   registers) are echoed and start a measurement.
-/// * A write to a field named `slave_address` changes the address after
-///   the reply, which comes from the old address.
+///   registers) are echoed; trigger reads (optical Start/Stop Measurement)
+///   are answered in the manuals' form (byte count 0 and `2 * count` zero
+///   bytes). The commands with role `start_measurement` and
+///   `stop_measurement` start and stop the measurement
+///   ([`crate::behaviour`]).
+/// * The `serial_number` command answers with the sensor's model code
+///   ([`SerialNumberPolicy`]).
+/// * A `set_slave_address` write changes the address after the reply,
+///   which comes from the old address.
 ///
 /// ```
 /// # let spec = yosemitech_spec::load_paths(&[concat!(env!("CARGO_MANIFEST_DIR"), "/../../spec").into()])?;
@@ -190,6 +217,11 @@ pub struct Simulator {
     address: u8,
     registers: RegisterMap,
     address_slots: Vec<AddressSlot>,
+    /// Index of the `set_slave_address` command.
+    set_address_command: Option<usize>,
+    serial_number: Option<SerialNumber>,
+    serial_number_policy: SerialNumberPolicy,
+    unknown_request_policy: UnknownRequestPolicy,
     /// Function codes some command uses.
     functions: Vec<u8>,
     /// Fixed slave addresses of commands.
@@ -218,16 +250,16 @@ impl Simulator {
         let mut wildcards: Vec<u8> = sensor.commands.iter().filter_map(|c| c.fixed_slave).collect();
         wildcards.sort_unstable();
         wildcards.dedup();
-        let address_slots = sensor
-            .commands
-            .iter()
-            .filter_map(|c| c.field(ADDRESS_FIELD).map(|f| AddressSlot { register: c.address, field: f.clone() }))
-            .collect();
+        let address_slots = address_slots(&sensor);
         let measurement = sensor.commands.iter().map(|c| is_measurement(&sensor, c)).collect();
         let mut sim = Self {
             address: sensor.default_address,
             registers: RegisterMap::new(),
             address_slots,
+            set_address_command: role_index(&sensor, Role::SetSlaveAddress),
+            serial_number: None,
+            serial_number_policy: SerialNumberPolicy::default(),
+            unknown_request_policy: UnknownRequestPolicy::default(),
             functions,
             wildcards,
             measurement,
@@ -242,6 +274,8 @@ impl Simulator {
             sensor,
         };
         sim.load_examples();
+        sim.serial_number = SerialNumber::new(&sim.sensor, &sim.registers);
+        sim.set_serial_number_policy(sim.serial_number_policy);
         sim.set_address(sim.address);
         sim
     }
@@ -277,9 +311,9 @@ impl Simulator {
                 let layout = command.layout();
                 for example in &command.examples {
                     let data = if reads {
-                        layout.decode_response(example.slave(), example.true_response()).ok()
+                        example.true_response().and_then(|frame| layout.decode_response(example.slave(), frame).ok())
                     } else {
-                        layout.decode_request(example.true_request()).ok().map(|(_, data)| data)
+                        example.true_request().and_then(|frame| layout.decode_request(frame).ok().map(|(_, data)| data))
                     };
                     if let Some(data) = data {
                         self.registers.write(command.address, data);
@@ -304,8 +338,9 @@ impl Simulator {
         self.address
     }
 
-    /// Moves the device to `address` at once and stores it in every field
-    /// named `slave_address` (so get_slave_id reports it). Any address is
+    /// Moves the device to `address` at once and stores it in the address
+    /// field of the `set_slave_address` and `get_slave_address` commands (so
+    /// get_slave_id reports it). Any address is
     /// accepted here, even outside the sensor's range, for client tests;
     /// writes on the wire are checked.
     pub fn set_address(&mut self, address: u8) {
@@ -349,8 +384,11 @@ impl Simulator {
 
     /// Sets one field of `command` in the registers: a reading
     /// (`set("get_ph", "ph", Value::Float(7.0))`), a coefficient, a serial
-    /// number. The value is checked against the field's type and `range`.
-    /// Setting a `slave_address` field moves the device
+    /// number. The value is checked against the field's type, and a write
+    /// command's field against its `range`; a read's `range` is the
+    /// measuring range, which a probe may leave, so a reading outside it can
+    /// be set. Setting the address field of the `set_slave_address` or
+    /// `get_slave_address` command moves the device
     /// ([`Simulator::set_address`]).
     pub fn set(&mut self, command: &str, field: &str, value: Value) -> Result<(), SimError> {
         let index = self.command_index(command)?;
@@ -362,8 +400,13 @@ impl Simulator {
                 .enumerate()
                 .find(|(_, f)| f.name.as_deref() == Some(field))
                 .ok_or_else(|| SimError::UnknownField { command: command.into(), field: field.into() })?;
-        let bytes = encode_field(spec_field, &value)?;
-        if field == ADDRESS_FIELD
+        let bytes = if cmd.is_read() {
+            encode_field(&Field { range: None, ..spec_field.clone() }, &value)?
+        } else {
+            encode_field(spec_field, &value)?
+        };
+        let address_field = self.address_slots.iter().any(|s| s.command == index && s.field.name == spec_field.name);
+        if address_field
             && let Value::Int(a) = value
             && let Ok(a) = u8::try_from(a)
         {
@@ -460,6 +503,33 @@ impl Simulator {
         self.clock.offset += by;
     }
 
+    /// What the device does with requests that match no command of its
+    /// sensor: nothing (the default, as a real probe) or an exception.
+    pub fn set_unknown_request_policy(&mut self, policy: UnknownRequestPolicy) {
+        self.unknown_request_policy = policy;
+    }
+
+    /// The current [`UnknownRequestPolicy`].
+    pub fn unknown_request_policy(&self) -> UnknownRequestPolicy {
+        self.unknown_request_policy
+    }
+
+    /// How the `serial_number` command is answered: with the sensor's
+    /// model code (the default, as a real probe) or exactly as the manual
+    /// prints it. Rewrites the serial number's registers (a serial number
+    /// [`Simulator::set`] earlier is replaced).
+    pub fn set_serial_number_policy(&mut self, policy: SerialNumberPolicy) {
+        self.serial_number_policy = policy;
+        if let Some(serial) = &self.serial_number {
+            serial.apply(policy, &mut self.registers);
+        }
+    }
+
+    /// The current [`SerialNumberPolicy`].
+    pub fn serial_number_policy(&self) -> SerialNumberPolicy {
+        self.serial_number_policy
+    }
+
     /// Replies to reads with a declared extra byte count (`extra_byte_counts`)
     /// carry that count, as the firmware the manual printed them from did
     /// (pH Fig 54: 0x0C over 24 bytes), instead of the true `2 * count`.
@@ -517,10 +587,17 @@ impl Simulator {
         Err(if known_address { ExceptionCode::IllegalDataValue } else { ExceptionCode::IllegalDataAddress })
     }
 
-    /// Carries out a request; writes the normal reply to `self.out` (unless
-    /// broadcast) and returns the new slave address if it changes.
-    fn process(&mut self, request: &[u8], route: Route) -> Result<Option<u8>, ExceptionCode> {
-        let (index, data) = self.lookup(request, route)?;
+    /// Carries out a request for command `index` (with the write's `data`,
+    /// found by [`Simulator::lookup`]); writes the normal reply to
+    /// `self.out` (unless broadcast) and returns the new slave address if it
+    /// changes.
+    fn process(
+        &mut self,
+        request: &[u8],
+        route: Route,
+        index: usize,
+        data: &[u8],
+    ) -> Result<Option<u8>, ExceptionCode> {
         let sensor = Arc::clone(&self.sensor);
         let command = sensor.commands.get(index).ok_or(ExceptionCode::ServerDeviceFailure)?;
         let layout = Layout {
@@ -540,8 +617,11 @@ impl Simulator {
             }
             self.vary(index, command);
             self.stats.reads += 1;
-            let data = self.registers.read(command.address, command.count);
+            // A trigger read's reply carries no value: the layout writes the manuals' form.
+            let data = if command.trigger { Vec::new() } else { self.registers.read(command.address, command.count) };
             push_frame(&mut self.out, layout.response_len(), |buf| layout.encode_response(slave, &data, buf))?;
+            let now = self.clock.now();
+            self.behaviour.on_command(index, now);
             if self.byte_count_quirk
                 && let Some(&quirk) = command.extra_byte_counts.first()
             {
@@ -550,7 +630,12 @@ impl Simulator {
             Ok(None)
         } else {
             check_ranges(command, data)?;
-            let new_address = match command.field(ADDRESS_FIELD) {
+            let address_field = self
+                .address_slots
+                .iter()
+                .find(|s| Some(s.command) == self.set_address_command && s.command == index)
+                .map(|s| &s.field);
+            let new_address = match address_field {
                 Some(field) => {
                     let value = data.get(field.offset..field.offset + field.size()).map(|b| decode_field(field, b));
                     match value {
@@ -622,18 +707,27 @@ impl Device for Simulator {
             return Duration::ZERO;
         };
         self.out.clear();
+        let found = self.lookup(request, route);
         if route == Route::Broadcast {
             self.stats.broadcasts += 1;
-            if let Ok(Some(address)) = self.process(request, route) {
+            if let Ok((index, data)) = found
+                && let Ok(Some(address)) = self.process(request, route, index, data)
+            {
                 self.stats.address_changes += 1;
                 self.set_address(address);
             }
             self.out.clear();
             return Duration::ZERO;
         }
-        if matches!(route, Route::Wildcard(_)) && self.lookup(request, route).is_err() {
-            self.stats.ignored_other_slave += 1;
-            return Duration::ZERO;
+        if found.is_err() {
+            if matches!(route, Route::Wildcard(_)) {
+                self.stats.ignored_other_slave += 1;
+                return Duration::ZERO;
+            }
+            if self.unknown_request_policy == UnknownRequestPolicy::Silent {
+                self.stats.ignored_unknown += 1;
+                return Duration::ZERO;
+            }
         }
         let reply_slave = if matches!(route, Route::Wildcard(_)) { slave } else { self.address };
         self.stats.replies += 1;
@@ -642,7 +736,7 @@ impl Device for Simulator {
         if fault == Some(FaultKind::Busy) {
             push_exception(&mut self.out, reply_slave, function, ExceptionCode::ServerDeviceBusy);
         } else {
-            match self.process(request, route) {
+            match found.and_then(|(index, data)| self.process(request, route, index, data)) {
                 Ok(address) => new_address = address,
                 Err(code) => {
                     self.stats.exceptions += 1;
@@ -799,9 +893,12 @@ fn word(frame: &[u8], at: usize) -> u16 {
 mod tests {
     use super::*;
 
+    fn spec() -> yosemitech_spec::Spec {
+        yosemitech_spec::load_paths(&[concat!(env!("CARGO_MANIFEST_DIR"), "/../../spec").into()]).unwrap()
+    }
+
     fn sensor(name: &str) -> Sensor {
-        let spec = yosemitech_spec::load_paths(&[concat!(env!("CARGO_MANIFEST_DIR"), "/../../spec").into()]).unwrap();
-        spec.sensor(name).unwrap().clone()
+        spec().sensor(name).unwrap().clone()
     }
 
     fn with_crc(bytes: &[u8]) -> Vec<u8> {
@@ -830,15 +927,33 @@ mod tests {
     }
 
     #[test]
+    fn the_address_lives_in_the_slave_address_role_fields_of_every_sensor() {
+        for sensor in spec().sensors {
+            let sim = Simulator::new(sensor.clone()).with_address(42);
+            for role in [Role::SetSlaveAddress, Role::GetSlaveAddress] {
+                let Some(command) = sensor.command_with_role(role) else { continue };
+                let field = command.named_fields().next().unwrap();
+                let value = sim.get(&command.name, field.name.as_deref().unwrap()).unwrap();
+                assert_eq!(value, Value::Int(42), "{}.{}", sensor.name, command.name);
+            }
+        }
+    }
+
+    #[test]
     fn measurement_reads_are_the_uncovered_ones_with_units() {
+        // The reads a sensor's procedure takes its measurements from.
+        let mut measured = 0;
+        for sensor in spec().sensors {
+            for name in sensor.procedure.iter().flat_map(|p| &p.read) {
+                assert!(is_measurement(&sensor, sensor.command(name).unwrap()), "{}.{name}", sensor.name);
+                measured += 1;
+            }
+        }
+        assert!(measured > 0);
         let ph = sensor("ph_orp");
-        let measured: Vec<&str> =
-            ph.commands.iter().filter(|c| is_measurement(&ph, c)).map(|c| c.name.as_str()).collect();
-        assert_eq!(measured, ["get_ph", "get_orp_and_ph", "get_orp", "get_temperature"]);
-        let cond = sensor("conductivity");
-        let measured: Vec<&str> =
-            cond.commands.iter().filter(|c| is_measurement(&cond, c)).map(|c| c.name.as_str()).collect();
-        assert_eq!(measured, ["get_temperature_and_conductivity"]);
+        assert!(is_measurement(&ph, ph.command("get_ph").unwrap()));
+        assert!(!is_measurement(&ph, ph.command("get_ph_calibration").unwrap()), "set_ph_calibration writes it");
+        assert!(!is_measurement(&ph, ph.command("get_sn").unwrap()), "no unit");
     }
 
     #[test]
@@ -860,8 +975,16 @@ mod tests {
 
     #[test]
     fn address_bytes_follow_the_field_type() {
-        let field =
-            |kind| Field { name: Some("slave_address".into()), kind, offset: 0, unit: None, doc: None, range: None };
+        let field = |kind| Field {
+            name: Some("slave_address".into()),
+            kind,
+            offset: 0,
+            unit: None,
+            doc: None,
+            range: None,
+            absent: None,
+            examples: Vec::new(),
+        };
         assert_eq!(address_bytes(&field(FieldKind::U8), 7), Some(vec![7]));
         let be = FieldKind::U16 { order: yosemitech_spec::Order2::Ab };
         assert_eq!(address_bytes(&field(be), 7), Some(vec![0, 7]));
@@ -882,7 +1005,14 @@ mod tests {
 
     #[test]
     fn arbitrary_bytes_never_panic() {
+        for policy in [UnknownRequestPolicy::Silent, UnknownRequestPolicy::Exception] {
+            arbitrary_bytes_never_panic_with(policy);
+        }
+    }
+
+    fn arbitrary_bytes_never_panic_with(policy: UnknownRequestPolicy) {
         let mut sim = Simulator::new(sensor("conductivity")).with_faults(FaultConfig::uniform(5, 0.5));
+        sim.set_unknown_request_policy(policy);
         let mut rng = Rng::new(77);
         for _ in 0..20_000 {
             let len = rng.below(40) as usize;
@@ -899,6 +1029,63 @@ mod tests {
             sim.handle(&frame, &mut reply);
             assert!(reply.len() <= yosemitech_rtu::frame::MAX_ADU + 4);
         }
-        assert!(sim.stats().exceptions > 0);
+        match policy {
+            UnknownRequestPolicy::Silent => assert!(sim.stats().ignored_unknown > 0 && sim.stats().exceptions == 0),
+            UnknownRequestPolicy::Exception => assert!(sim.stats().exceptions > 0 && sim.stats().ignored_unknown == 0),
+        }
+    }
+
+    #[test]
+    fn unknown_requests_are_silent_unless_exceptions_are_asked_for() {
+        let unknown = [
+            with_crc(&[1, 0x04, 0x28, 0x00, 0x00, 0x02]),
+            with_crc(&[1, 0x03, 0x27, 0x00, 0x00, 0x02]),
+            with_crc(&[1, 0x03, 0x28, 0x00, 0x00, 0x03]),
+        ];
+        let mut sim = Simulator::new(sensor("ph_orp"));
+        assert_eq!(sim.unknown_request_policy(), UnknownRequestPolicy::Silent);
+        for request in &unknown {
+            assert!(exchange(&mut sim, request).is_empty());
+        }
+        assert_eq!(sim.stats().ignored_unknown, unknown.len() as u64);
+        assert_eq!((sim.stats().replies, sim.stats().exceptions), (0, 0));
+        assert_eq!(sim.faults().replies(), 0, "no reply, no fault drawn");
+        sim.set_unknown_request_policy(UnknownRequestPolicy::Exception);
+        let codes: Vec<u8> = unknown.iter().map(|r| exchange(&mut sim, r)[2]).collect();
+        assert_eq!(codes, [0x01, 0x02, 0x03]);
+        assert_eq!(sim.stats().exceptions, unknown.len() as u64);
+    }
+
+    #[test]
+    fn the_serial_number_carries_the_model_code_unless_printed_is_asked_for() {
+        let mut sim = Simulator::new(sensor("chlorophyll"));
+        let code = sim.sensor().model_code.clone().unwrap();
+        let printed = sim.sensor().example_serial_number().unwrap();
+        assert_ne!(printed[2..4], code, "the manual prints a sibling's serial number");
+        let own = format!("{}{code}{}", &printed[..2], &printed[4..]);
+        assert_eq!(sim.serial_number_policy(), SerialNumberPolicy::ModelCode);
+        assert_eq!(sim.get("get_sn", "serial_number").unwrap(), Value::Text(own));
+        let request = with_crc(&[1, 0x03, 0x09, 0x00, 0x00, 0x07]);
+        let reply = exchange(&mut sim, &request);
+        assert_eq!(reply[3], u8::from_str_radix(&code, 16).unwrap(), "the byte before the serial number");
+        sim.set_serial_number_policy(SerialNumberPolicy::AsPrinted);
+        assert_eq!(sim.get("get_sn", "serial_number").unwrap(), Value::Text(printed));
+        assert_eq!(exchange(&mut sim, &request)[3], 0);
+    }
+
+    #[test]
+    fn trigger_reads_are_answered_in_the_manuals_form() {
+        let sensor = sensor("turbidity");
+        let stop = sensor.command_with_role(Role::StopMeasurement).unwrap().clone();
+        let mut sim = Simulator::new(sensor).with_manual_clock();
+        assert_eq!(sim.measurement_state(), MeasurementState::Measuring, "measures from power-on");
+        let reply = exchange(&mut sim, &stop.encode_request(1, &BTreeMap::new()).unwrap());
+        assert_eq!(
+            reply,
+            yosemitech_rtu::Frame::fill(|b| stop.layout().encode_response(1, &[], b)).unwrap().as_bytes()
+        );
+        assert_eq!(reply[..5], [0x01, 0x03, 0x00, 0x00, 0x00]);
+        assert_eq!(sim.measurement_state(), MeasurementState::Idle);
+        assert_eq!(sim.stats().exceptions, 0);
     }
 }

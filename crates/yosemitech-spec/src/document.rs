@@ -21,14 +21,17 @@ pub struct SpecFile {
     pub sensor: Option<SensorDoc>,
     /// A file of commands shared by several sensors, included by sensor files.
     pub fragment: Option<FragmentDoc>,
-    /// Fragment files whose commands this file includes, relative to this file.
+    /// Fragment files whose commands this file includes, relative to this
+    /// file: a file name (every command), or `{file, only: [names]}`.
     #[serde(default)]
-    #[schemars(with = "Vec<String>")]
-    pub include: Vec<Spanned<String>>,
+    #[schemars(with = "Vec<IncludeSchema>")]
+    pub include: Vec<Spanned<IncludeDoc>>,
     /// The commands: full definitions, or `use:` entries that add this
     /// manual's source and examples to an included command.
     #[serde(default)]
     pub commands: Vec<CommandDoc>,
+    /// The manual's measuring procedure, as data.
+    pub procedure: Option<ProcedureDoc>,
     /// Numbers the manual's procedures use.
     #[serde(default)]
     pub constants: Vec<ConstantDoc>,
@@ -50,9 +53,18 @@ pub struct SensorDoc {
     /// What the sensor measures.
     #[schemars(with = "String")]
     pub doc: Spanned<String>,
-    /// The manual this file transcribes.
+    /// The vendor's model name, like `Y520`.
+    #[schemars(with = "Option<String>")]
+    pub model: Option<Spanned<String>>,
+    /// The two-digit model code of the serial number (`"09"` in `YL0914010022`).
+    #[schemars(with = "Option<String>")]
+    pub model_code: Option<Spanned<String>>,
+    /// The manual whose figure numbers this file cites by default.
     pub manual: ManualDoc,
-    /// Serial line settings.
+    /// Other manuals (older or newer firmware) of the same probe.
+    #[serde(default)]
+    pub revisions: Vec<RevisionDoc>,
+    /// Serial line settings (of the newest firmware).
     pub serial: SerialDoc,
     /// Valid slave addresses.
     pub addresses: AddressRangeDoc,
@@ -71,9 +83,81 @@ pub struct ManualDoc {
     /// Hardware and software revisions the manual covers.
     #[schemars(with = "String")]
     pub revision: Spanned<String>,
+    /// The software revision the manual documents, like `"1.7"`.
+    #[schemars(with = "Option<String>")]
+    pub software: Option<Spanned<String>>,
     /// The text extraction the spec was written from.
     #[schemars(with = "Option<String>")]
     pub file: Option<Spanned<String>>,
+}
+
+/// Another manual of the same probe.
+#[derive(Debug, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct RevisionDoc {
+    /// The manual; `software` is required here.
+    pub manual: ManualDoc,
+    /// What changed against the file's `manual`.
+    #[schemars(with = "Option<String>")]
+    pub doc: Option<Spanned<String>>,
+    /// Serial settings of this firmware, when they differ.
+    pub serial: Option<SerialDoc>,
+}
+
+/// One `include` entry, as written: a file, or a file and the commands to take.
+#[derive(Debug)]
+pub struct IncludeDoc {
+    /// The fragment file, relative to the including file.
+    pub file: String,
+    /// The commands to take; `None` for every command.
+    pub only: Option<Vec<Spanned<String>>>,
+}
+
+/// The JSON-schema shape of an `include` entry.
+#[derive(JsonSchema)]
+#[serde(untagged)]
+#[allow(dead_code)]
+pub enum IncludeSchema {
+    /// Every command of the fragment file.
+    File(String),
+    /// Some commands of a fragment file.
+    Some {
+        /// The fragment file.
+        file: String,
+        /// The commands to take.
+        only: Vec<String>,
+    },
+}
+
+impl<'de> Deserialize<'de> for IncludeDoc {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct V;
+        impl<'de> serde::de::Visitor<'de> for V {
+            type Value = IncludeDoc;
+            fn expecting(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+                f.write_str("a fragment file name, or `{file: NAME, only: [COMMAND, ...]}`")
+            }
+            fn visit_str<E: serde::de::Error>(self, v: &str) -> Result<IncludeDoc, E> {
+                Ok(IncludeDoc { file: v.to_string(), only: None })
+            }
+            fn visit_map<A: serde::de::MapAccess<'de>>(self, mut map: A) -> Result<IncludeDoc, A::Error> {
+                let mut file = None;
+                let mut only = None;
+                while let Some(key) = map.next_key::<String>()? {
+                    match key.as_str() {
+                        "file" if file.is_none() => file = Some(map.next_value::<String>()?),
+                        "only" if only.is_none() => only = Some(map.next_value::<Vec<Spanned<String>>>()?),
+                        "file" | "only" => return Err(serde::de::Error::duplicate_field("include key")),
+                        other => return Err(serde::de::Error::unknown_field(other, &["file", "only"])),
+                    }
+                }
+                let file = file.ok_or_else(|| serde::de::Error::missing_field("file"))?;
+                let only = only.ok_or_else(|| serde::de::Error::missing_field("only"))?;
+                Ok(IncludeDoc { file, only: Some(only) })
+            }
+        }
+        d.deserialize_any(V)
+    }
 }
 
 /// Serial line settings.
@@ -136,9 +220,78 @@ pub struct SourceDoc {
     /// Section number, e.g. "2.2.3".
     #[schemars(with = "String")]
     pub section: Spanned<String>,
-    /// Figure numbers.
+    /// Figures and tables.
     #[serde(default)]
-    pub figures: Vec<u32>,
+    pub figures: Vec<FigureDoc>,
+    /// The manual (its `software` revision) when not the file's `manual`.
+    #[schemars(with = "Option<String>")]
+    pub manual: Option<Spanned<String>>,
+}
+
+/// A figure reference: `23` (Figure 23), `"T4"` (Table 4), `"43b"` (the second Figure 43).
+#[derive(Debug, Clone, Deserialize, JsonSchema, PartialEq, Eq)]
+#[serde(untagged)]
+pub enum FigureDoc {
+    /// A figure number.
+    Number(u32),
+    /// `T<n>` for a table, `<n>b` for a figure number used a second time.
+    Text(String),
+}
+
+/// What a command is for, where the simulator or the CLI must know.
+#[derive(Debug, Clone, Copy, Deserialize, serde::Serialize, JsonSchema, PartialEq, Eq, Hash, PartialOrd, Ord)]
+#[serde(rename_all = "snake_case")]
+pub enum RoleDoc {
+    /// Writes the slave address.
+    SetSlaveAddress,
+    /// Reads the slave address.
+    GetSlaveAddress,
+    /// Reads the serial number.
+    SerialNumber,
+    /// Reads hardware and software revisions.
+    Version,
+    /// Starts measuring.
+    StartMeasurement,
+    /// Stops measuring.
+    StopMeasurement,
+    /// Runs the wiper or brush once.
+    Wipe,
+    /// Writes one calibration standard.
+    CalibrationPoint,
+    /// Reads the result of a calibration.
+    CalibrationStatus,
+}
+
+/// The measuring procedure of a manual.
+#[derive(Debug, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct ProcedureDoc {
+    /// Where the manual describes it.
+    pub source: Option<SourceDoc>,
+    /// The procedure in words.
+    #[schemars(with = "Option<String>")]
+    pub doc: Option<Spanned<String>>,
+    /// Commands sent first, in order (commands that take no values).
+    #[serde(default)]
+    #[schemars(with = "Vec<String>")]
+    pub before: Vec<Spanned<String>>,
+    /// Milliseconds to wait after `before`.
+    #[serde(default)]
+    #[schemars(with = "Option<u32>")]
+    pub warm_up_ms: Option<Spanned<u32>>,
+    /// The reads that give the measurements.
+    #[schemars(with = "Vec<String>")]
+    pub read: Spanned<Vec<Spanned<String>>>,
+    /// Readings to average (default 1).
+    #[schemars(with = "Option<u32>")]
+    pub readings: Option<Spanned<u32>>,
+    /// Milliseconds between readings.
+    #[schemars(with = "Option<u32>")]
+    pub interval_ms: Option<Spanned<u32>>,
+    /// Commands sent at the end, in order.
+    #[serde(default)]
+    #[schemars(with = "Vec<String>")]
+    pub after: Vec<Spanned<String>>,
 }
 
 /// Read or write.
@@ -166,6 +319,15 @@ pub struct CommandDoc {
     /// Human title, as in the manual's section heading.
     #[schemars(with = "Option<String>")]
     pub title: Option<Spanned<String>>,
+    /// The software revision that introduced the command (a manual's `software`).
+    #[schemars(with = "Option<String>")]
+    pub since: Option<Spanned<String>>,
+    /// What the command is for, where the simulator or the CLI must know.
+    #[schemars(with = "Option<RoleDoc>")]
+    pub role: Option<Spanned<RoleDoc>>,
+    /// In a `use` entry: the unit this manual states for a field.
+    #[schemars(with = "Option<BTreeMap<String, String>>")]
+    pub units: Option<Spanned<BTreeMap<String, Spanned<String>>>>,
     /// What the command does; becomes the rustdoc.
     #[schemars(with = "Option<String>")]
     pub doc: Option<Spanned<String>>,
@@ -180,7 +342,7 @@ pub struct CommandDoc {
     /// Number of registers.
     #[schemars(with = "Option<u32>")]
     pub count: Option<Spanned<u32>>,
-    /// A write of zero registers that triggers an action (allows `count: 0`).
+    /// A command that carries no value: a write of zero registers, or a read whose reply is ignored.
     #[schemars(with = "Option<bool>")]
     pub trigger: Option<Spanned<bool>>,
     /// A slave address the request and the reply always use (e.g. 0xFF).
@@ -227,6 +389,10 @@ pub enum FieldTypeDoc {
     Enum,
     /// `size` bytes the device ignores or fills with `fill`.
     Reserved,
+    /// One byte of two decimal digits (`0x59` = 59).
+    Bcd,
+    /// Independent bits with names; `size` 1 or 2 bytes.
+    Flags,
 }
 
 /// Byte order of a multi-byte value, as wire letters (A = most significant).
@@ -305,6 +471,45 @@ pub struct FieldDoc {
     /// Named codes of an `enum`.
     #[schemars(with = "Option<Vec<VariantDoc>>")]
     pub variants: Option<Spanned<Vec<VariantDoc>>>,
+    /// Named bits of a `flags` field.
+    #[schemars(with = "Option<Vec<FlagDoc>>")]
+    pub flags: Option<Spanned<Vec<FlagDoc>>>,
+    /// The value read where a sub-probe is not fitted.
+    #[schemars(with = "Option<f64>")]
+    pub absent: Option<Spanned<f64>>,
+    /// Values with their bytes, as the manual prints them outside a frame.
+    #[serde(default)]
+    pub examples: Vec<FieldExampleDoc>,
+}
+
+/// A named bit of a flags field.
+#[derive(Debug, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct FlagDoc {
+    /// snake_case name.
+    #[schemars(with = "String")]
+    pub name: Spanned<String>,
+    /// The bit, as a mask with one bit set (`0x04`).
+    #[schemars(with = "u32")]
+    pub mask: Spanned<u32>,
+    /// What the bit means.
+    #[schemars(with = "Option<String>")]
+    pub doc: Option<Spanned<String>>,
+}
+
+/// A field's value and its bytes, printed outside a frame.
+#[derive(Debug, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct FieldExampleDoc {
+    /// The bytes, hex separated by spaces.
+    #[schemars(with = "String")]
+    pub bytes: Spanned<String>,
+    /// The value the manual states.
+    #[schemars(with = "StatedValue")]
+    pub value: Spanned<StatedValue>,
+    /// Where the manual prints it.
+    #[serde(default)]
+    pub figures: Vec<FigureDoc>,
 }
 
 /// A named code of an enum field.
@@ -332,18 +537,38 @@ pub enum StatedValue {
     Text(String),
 }
 
+/// Whether the manual prints a frame's CRC.
+#[derive(Debug, Clone, Copy, Deserialize, JsonSchema, PartialEq, Eq)]
+#[serde(rename_all = "snake_case")]
+pub enum CrcDoc {
+    /// The CRC is printed (the default).
+    Printed,
+    /// The CRC cells are empty: the text holds the bytes before the CRC.
+    Missing,
+}
+
 /// A frame pair printed in the manual.
 #[derive(Debug, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct ExampleDoc {
     /// The figures that print the frames (and their register tables).
-    pub figures: Vec<u32>,
-    /// The request as printed, hex bytes separated by spaces.
-    #[schemars(with = "String")]
-    pub request: Spanned<String>,
-    /// The reply as printed, hex bytes separated by spaces.
-    #[schemars(with = "String")]
-    pub response: Spanned<String>,
+    pub figures: Vec<FigureDoc>,
+    /// The manual (its `software` revision) when not the file's `manual`.
+    #[schemars(with = "Option<String>")]
+    pub manual: Option<Spanned<String>>,
+    /// The request as printed, hex bytes separated by spaces; `??` for a
+    /// placeholder byte, a final `...` for bytes of unknown number.
+    #[schemars(with = "Option<String>")]
+    pub request: Option<Spanned<String>>,
+    /// Whether the request's CRC is printed.
+    #[schemars(with = "Option<CrcDoc>")]
+    pub request_crc: Option<Spanned<CrcDoc>>,
+    /// The reply as printed, like `request`.
+    #[schemars(with = "Option<String>")]
+    pub response: Option<Spanned<String>>,
+    /// Whether the reply's CRC is printed.
+    #[schemars(with = "Option<CrcDoc>")]
+    pub response_crc: Option<Spanned<CrcDoc>>,
     /// The values the manual states, by field name.
     #[schemars(with = "BTreeMap<String, StatedValue>")]
     pub values: Spanned<BTreeMap<String, Spanned<StatedValue>>>,
@@ -362,8 +587,8 @@ pub struct ExampleErratumDoc {
     #[schemars(with = "String")]
     pub id: Spanned<String>,
     /// The figure that prints the wrong frame.
-    #[schemars(with = "u32")]
-    pub figure: Spanned<u32>,
+    #[schemars(with = "FigureDoc")]
+    pub figure: Spanned<FigureDoc>,
     /// What is wrong with the printed frame.
     #[schemars(with = "String")]
     pub printed: Spanned<String>,
@@ -401,8 +626,11 @@ pub struct CommandErratumDoc {
     #[schemars(with = "String")]
     pub id: Spanned<String>,
     /// The figure with the wrong table.
-    #[schemars(with = "u32")]
-    pub figure: Spanned<u32>,
+    #[schemars(with = "FigureDoc")]
+    pub figure: Spanned<FigureDoc>,
+    /// The manual (its `software` revision) when not the file's `manual`.
+    #[schemars(with = "Option<String>")]
+    pub manual: Option<Spanned<String>>,
     /// What the table prints instead of the truth.
     pub table: TableSaysDoc,
     /// Why the spec's value is the truth.
@@ -417,9 +645,12 @@ pub struct ErratumDoc {
     /// Identifier in datasheet-notes.md.
     #[schemars(with = "String")]
     pub id: Spanned<String>,
-    /// Figures or sections concerned.
+    /// Figures or tables concerned.
     #[serde(default)]
-    pub figures: Vec<u32>,
+    pub figures: Vec<FigureDoc>,
+    /// The manual (its `software` revision) when not the file's `manual`.
+    #[schemars(with = "Option<String>")]
+    pub manual: Option<Spanned<String>>,
     /// Manual sections concerned.
     #[serde(default)]
     pub sections: Vec<String>,

@@ -10,7 +10,7 @@ use std::collections::BTreeMap;
 use std::fmt;
 
 use serde::Serialize;
-use yosemitech_rtu::{FrameError, Version, codec};
+use yosemitech_rtu::{Bcd, FrameError, Version, codec};
 
 use crate::model::{Command, EnumRepr, Field, FieldKind, Variant};
 
@@ -27,6 +27,9 @@ pub enum Value {
     /// Version fields.
     #[serde(serialize_with = "ser_version")]
     Version(Version),
+    /// BCD fields: the raw byte (its digits may be invalid).
+    #[serde(serialize_with = "ser_bcd")]
+    Bcd(Bcd),
     /// Enum fields: the raw code and its name when known.
     Enum {
         /// The code on the wire.
@@ -38,6 +41,13 @@ pub enum Value {
 
 fn ser_version<S: serde::Serializer>(v: &Version, s: S) -> Result<S::Ok, S::Error> {
     s.collect_str(v)
+}
+
+fn ser_bcd<S: serde::Serializer>(v: &Bcd, s: S) -> Result<S::Ok, S::Error> {
+    match v.value() {
+        Some(n) => s.serialize_u8(n),
+        None => s.serialize_none(),
+    }
 }
 
 impl Value {
@@ -59,6 +69,7 @@ impl Value {
             (FieldValue::Int(a), Value::Int(b)) => a == b,
             (FieldValue::Text(a), Value::Text(b)) => a.iter().map(|&c| char::from(c)).eq(b.chars()),
             (FieldValue::Version(a), Value::Version(b)) => a == b,
+            (FieldValue::Bcd(a), Value::Bcd(b)) => a == b,
             (FieldValue::Enum { raw, name }, Value::Enum { raw: r, name: n }) => raw == r && *name == n.as_deref(),
             _ => false,
         }
@@ -72,6 +83,7 @@ impl fmt::Display for Value {
             Value::Int(v) => write!(f, "{v}"),
             Value::Text(v) => write!(f, "{v:?}"),
             Value::Version(v) => write!(f, "{v}"),
+            Value::Bcd(v) => write!(f, "{v}"),
             Value::Enum { raw, name: Some(name) } => write!(f, "{name} ({raw})"),
             Value::Enum { raw, name: None } => write!(f, "unknown ({raw})"),
         }
@@ -170,12 +182,19 @@ pub fn decode_field(field: &Field, bytes: &[u8]) -> Value {
             Value::Enum { raw, name: variant_name(variants, raw) }
         }
         FieldKind::Reserved { .. } => Value::Int(0),
+        FieldKind::Bcd => Value::Bcd(Bcd(arr::<1>(bytes)[0])),
+        FieldKind::Flags { repr, .. } => Value::Int(i64::from(match repr {
+            EnumRepr::U8 => u16::from(arr::<1>(bytes)[0]),
+            EnumRepr::U16(order) => codec::u16_from_wire(order.rtu(), arr(bytes)),
+        })),
     }
 }
 
 /// Encodes values into register data. Every named field needs a value;
-/// reserved bytes get their fill.
+/// reserved bytes get their fill. Ranges are checked for a write's data; on
+/// a read a range is the measuring range, which a probe may leave.
 pub fn encode_fields(command: &Command, values: &BTreeMap<String, Value>) -> Result<Vec<u8>, EncodeValuesError> {
+    let ranges = !command.is_read();
     if let Some(unknown) = values.keys().find(|k| command.field(k).is_none()) {
         return Err(EncodeValuesError::Unknown(unknown.clone()));
     }
@@ -185,7 +204,7 @@ pub fn encode_fields(command: &Command, values: &BTreeMap<String, Value>) -> Res
             None => encode_reserved(field),
             Some(name) => {
                 let value = values.get(name).ok_or_else(|| EncodeValuesError::Missing(name.clone()))?;
-                encode_field(field, value)?
+                encode_field_checked(field, value, ranges)?
             }
         };
         if let Some(slot) = data.get_mut(field.offset..field.offset + bytes.len()) {
@@ -224,8 +243,9 @@ fn int_in(field: &Field, value: &Value, min: i64, max: i64) -> Result<i64, Encod
 }
 
 /// Checks a value against the field's declared `range`.
-fn check_range(field: &Field, v: f64) -> Result<(), EncodeValuesError> {
+fn check_range(ranges: bool, field: &Field, v: f64) -> Result<(), EncodeValuesError> {
     match field.range {
+        _ if !ranges => Ok(()),
         Some((min, max)) if !(min..=max).contains(&v) => {
             Err(out_of_range(field, format!("{v} is outside the valid range {min}..={max}")))
         }
@@ -233,8 +253,13 @@ fn check_range(field: &Field, v: f64) -> Result<(), EncodeValuesError> {
     }
 }
 
-/// Encodes one field.
+/// Encodes one field, checking its `range`.
 pub fn encode_field(field: &Field, value: &Value) -> Result<Vec<u8>, EncodeValuesError> {
+    encode_field_checked(field, value, true)
+}
+
+/// Encodes one field, checking its range only when `ranges` is true.
+fn encode_field_checked(field: &Field, value: &Value, ranges: bool) -> Result<Vec<u8>, EncodeValuesError> {
     let wrong =
         || EncodeValuesError::WrongType { field: field.display_name().to_owned(), expected: field.kind.type_name() };
     Ok(match &field.kind {
@@ -245,38 +270,38 @@ pub fn encode_field(field: &Field, value: &Value) -> Result<Vec<u8>, EncodeValue
                 _ => return Err(wrong()),
             };
             if !v.is_nan() {
-                check_range(field, f64::from(v))?;
+                check_range(ranges, field, f64::from(v))?;
             }
             codec::f32_to_wire(order.rtu(), v).to_vec()
         }
         FieldKind::U8 => {
             let v = int_in(field, value, 0, 255)?;
-            check_range(field, v as f64)?;
+            check_range(ranges, field, v as f64)?;
             vec![v as u8]
         }
         FieldKind::I8 => {
             let v = int_in(field, value, -128, 127)?;
-            check_range(field, v as f64)?;
+            check_range(ranges, field, v as f64)?;
             vec![v as i8 as u8]
         }
         FieldKind::U16 { order } => {
             let v = int_in(field, value, 0, 0xFFFF)?;
-            check_range(field, v as f64)?;
+            check_range(ranges, field, v as f64)?;
             codec::u16_to_wire(order.rtu(), v as u16).to_vec()
         }
         FieldKind::I16 { order } => {
             let v = int_in(field, value, -0x8000, 0x7FFF)?;
-            check_range(field, v as f64)?;
+            check_range(ranges, field, v as f64)?;
             codec::u16_to_wire(order.rtu(), v as i16 as u16).to_vec()
         }
         FieldKind::U32 { order } => {
             let v = int_in(field, value, 0, 0xFFFF_FFFF)?;
-            check_range(field, v as f64)?;
+            check_range(ranges, field, v as f64)?;
             codec::u32_to_wire(order.rtu(), v as u32).to_vec()
         }
         FieldKind::I32 { order } => {
             let v = int_in(field, value, i64::from(i32::MIN), i64::from(i32::MAX))?;
-            check_range(field, v as f64)?;
+            check_range(ranges, field, v as f64)?;
             codec::u32_to_wire(order.rtu(), v as i32 as u32).to_vec()
         }
         FieldKind::Ascii { len, padding } => {
@@ -312,6 +337,31 @@ pub fn encode_field(field: &Field, value: &Value) -> Result<Vec<u8>, EncodeValue
             }
         }
         FieldKind::Reserved { .. } => encode_reserved(field),
+        FieldKind::Bcd => {
+            let raw = match value {
+                Value::Bcd(b) => *b,
+                other => {
+                    let v = int_in(field, other, 0, 99)?;
+                    Bcd::from_value(v as u8).ok_or_else(|| out_of_range(field, format!("{v} > 99")))?
+                }
+            };
+            match raw.value() {
+                Some(v) => check_range(ranges, field, f64::from(v))?,
+                // A write never sends a byte that is not two digits.
+                None if ranges => return Err(out_of_range(field, format!("0x{:02X} is not two decimal digits", raw.0))),
+                None => {}
+            }
+            vec![raw.0]
+        }
+        FieldKind::Flags { repr, .. } => {
+            // Bits no flag names are kept, as a device may set them (like an enum's unknown codes).
+            let max = if matches!(repr, EnumRepr::U8) { 0xFF } else { 0xFFFF };
+            let raw = int_in(field, value, 0, max)?;
+            match repr {
+                EnumRepr::U8 => vec![raw as u8],
+                EnumRepr::U16(order) => codec::u16_to_wire(order.rtu(), raw as u16).to_vec(),
+            }
+        }
     })
 }
 
@@ -340,7 +390,8 @@ impl Command {
 
     /// Encodes a reply from `slave`: `values` are a read's fields (none for a write).
     pub fn encode_response(&self, slave: u8, values: &BTreeMap<String, Value>) -> Result<Vec<u8>, EncodeValuesError> {
-        let data = if self.is_read() { encode_fields(self, values)? } else { Vec::new() };
+        // A trigger read's reply carries no value (the runtime writes its filler).
+        let data = if self.is_read() && !self.trigger { encode_fields(self, values)? } else { Vec::new() };
         let mut out = vec![0u8; self.layout().response_len()];
         let n = self.layout().encode_response(slave, &data, &mut out).map_err(EncodeValuesError::Frame)?;
         out.truncate(n);

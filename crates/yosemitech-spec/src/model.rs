@@ -41,9 +41,15 @@ pub struct Sensor {
     pub title: String,
     /// What it measures.
     pub doc: String,
-    /// The manual.
+    /// The vendor's model name (`Y520`), when the spec states it.
+    pub model: Option<String>,
+    /// The two-digit model code of the serial number (`"09"` in `YL0914010022`).
+    pub model_code: Option<String>,
+    /// The manual whose figure numbers the spec cites by default.
     pub manual: Manual,
-    /// Serial settings.
+    /// Other manuals of the same probe, in the order written.
+    pub revisions: Vec<Revision>,
+    /// Serial settings (of the newest firmware).
     pub serial: Serial,
     /// Lowest valid slave address.
     pub min_address: u8,
@@ -53,6 +59,8 @@ pub struct Sensor {
     pub default_address: u8,
     /// Commands, in spec order (included ones where they are included).
     pub commands: Vec<Command>,
+    /// The manual's measuring procedure.
+    pub procedure: Option<Procedure>,
     /// Numbers the procedures use.
     pub constants: Vec<Constant>,
     /// Manual-wide errata.
@@ -78,6 +86,88 @@ impl Sensor {
     pub fn example_count(&self) -> usize {
         self.commands.iter().map(|c| c.examples.len()).sum()
     }
+
+    /// The command with `role`, if the sensor has one.
+    pub fn command_with_role(&self, role: Role) -> Option<&Command> {
+        self.commands.iter().find(|c| c.role == Some(role))
+    }
+
+    /// Every manual of the probe: the file's `manual` first, then its revisions.
+    pub fn manuals(&self) -> impl Iterator<Item = &Manual> {
+        std::iter::once(&self.manual).chain(self.revisions.iter().map(|r| &r.manual))
+    }
+
+    /// The serial settings of a probe running `software` (the newest when unknown).
+    pub fn serial_for(&self, software: &str) -> Serial {
+        self.revisions
+            .iter()
+            .find(|r| r.manual.software.as_deref() == Some(software))
+            .map_or(self.serial, |r| r.serial)
+    }
+
+    /// The serial number the manual prints (the first example of the
+    /// `serial_number` command), if any.
+    pub fn example_serial_number(&self) -> Option<String> {
+        let command = self.command_with_role(Role::SerialNumber)?;
+        command.examples.iter().find_map(|e| match e.values.values().next() {
+            Some(crate::Value::Text(t)) => Some(t.clone()),
+            _ => None,
+        })
+    }
+}
+
+/// Another manual of the same probe, usually for other firmware.
+#[derive(Debug, Clone, Serialize)]
+pub struct Revision {
+    /// The manual; its `software` is always set.
+    pub manual: Manual,
+    /// What changed against the sensor's `manual`.
+    pub doc: Option<String>,
+    /// Serial settings of this firmware (the sensor's when the manual states no others).
+    pub serial: Serial,
+}
+
+/// What a command is for, where the simulator or the CLI must know. A sensor
+/// has at most one command per role; validation checks each role's shape.
+pub use crate::document::RoleDoc as Role;
+
+impl Role {
+    /// The spec's name of the role.
+    pub fn name(self) -> &'static str {
+        match self {
+            Role::SetSlaveAddress => "set_slave_address",
+            Role::GetSlaveAddress => "get_slave_address",
+            Role::SerialNumber => "serial_number",
+            Role::Version => "version",
+            Role::StartMeasurement => "start_measurement",
+            Role::StopMeasurement => "stop_measurement",
+            Role::Wipe => "wipe",
+            Role::CalibrationPoint => "calibration_point",
+            Role::CalibrationStatus => "calibration_status",
+        }
+    }
+}
+
+/// The manual's measuring procedure. Every command it names exists;
+/// `before` and `after` take no values; `read` are reads with fields.
+#[derive(Debug, Clone, Serialize)]
+pub struct Procedure {
+    /// Where the manual describes it.
+    pub source: Option<Source>,
+    /// The procedure in words.
+    pub doc: Option<String>,
+    /// Commands sent first, in order.
+    pub before: Vec<String>,
+    /// Milliseconds to wait after `before`.
+    pub warm_up_ms: u32,
+    /// Reads that give the measurements.
+    pub read: Vec<String>,
+    /// Readings averaged (at least 1).
+    pub readings: u32,
+    /// Milliseconds between readings.
+    pub interval_ms: u32,
+    /// Commands sent at the end, in order.
+    pub after: Vec<String>,
 }
 
 /// The manual a sensor's spec transcribes.
@@ -85,8 +175,10 @@ impl Sensor {
 pub struct Manual {
     /// Title.
     pub title: String,
-    /// Revisions covered.
+    /// Revisions covered, as the manual's scope line states them.
     pub revision: String,
+    /// The software revision it documents (`"1.7"`), when stated.
+    pub software: Option<String>,
     /// The text extraction used.
     pub file: Option<String>,
 }
@@ -128,8 +220,72 @@ pub enum Parity {
 pub struct Source {
     /// Section, e.g. "2.2.3".
     pub section: String,
-    /// Figures.
-    pub figures: Vec<u32>,
+    /// Figures and tables.
+    pub figures: Vec<Figure>,
+    /// The manual's software revision when not the sensor's `manual`.
+    pub manual: Option<String>,
+}
+
+/// A figure or table of a manual.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub enum Figure {
+    /// Figure `number`; `occurrence` 2 for the second figure a manual gives that number.
+    Figure {
+        /// The printed number.
+        number: u32,
+        /// 1, or 2 and more for a number the manual repeats.
+        occurrence: u8,
+    },
+    /// Table `number`.
+    Table(u32),
+}
+
+impl Figure {
+    /// Figure `number` (its first occurrence).
+    pub const fn number(number: u32) -> Self {
+        Figure::Figure { number, occurrence: 1 }
+    }
+
+    /// Parses the spec's form: `23`, `"T4"` (Table 4), `"43b"` (the second figure 43).
+    pub fn parse(text: &str) -> Result<Self, String> {
+        let t = text.trim();
+        let bad = || {
+            format!("`{}` is not a figure: use a number (23), `T<n>` for a table, `<n>b` for a repeated number", crate::names::escape(t))
+        };
+        if let Some(n) = t.strip_prefix('T').or_else(|| t.strip_prefix("Table ")) {
+            return n.parse::<u32>().map(Figure::Table).map_err(|_| bad());
+        }
+        let digits = t.trim_end_matches(|c: char| c.is_ascii_lowercase());
+        let suffix = &t[digits.len()..];
+        let number = digits.parse::<u32>().map_err(|_| bad())?;
+        let occurrence = match suffix {
+            "" => 1,
+            s if s.len() == 1 => s.as_bytes()[0] - b'a' + 1,
+            _ => return Err(bad()),
+        };
+        Ok(Figure::Figure { number, occurrence })
+    }
+}
+
+impl std::fmt::Display for Figure {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Figure::Figure { number, occurrence: 1 } => write!(f, "{number}"),
+            Figure::Figure { number, occurrence } => {
+                write!(f, "{number}{}", char::from(b'a' + occurrence.saturating_sub(1)))
+            }
+            Figure::Table(n) => write!(f, "T{n}"),
+        }
+    }
+}
+
+impl Serialize for Figure {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        match self {
+            Figure::Figure { number, occurrence: 1 } => s.serialize_u32(*number),
+            other => s.collect_str(other),
+        }
+    }
 }
 
 /// One command.
@@ -150,8 +306,13 @@ pub struct Command {
     pub address: u16,
     /// Registers.
     pub count: u16,
-    /// A write of zero registers that triggers an action.
+    /// A command that carries no value: a write of zero registers, or a
+    /// read whose reply is ignored (such a read has no fields).
     pub trigger: bool,
+    /// The software revision that introduced it; `None`: every revision.
+    pub since: Option<String>,
+    /// What it is for, where the simulator or the CLI must know.
+    pub role: Option<Role>,
     /// Slave address forced on request and reply.
     pub fixed_slave: Option<u8>,
     /// Extra byte counts a read reply may carry.
@@ -182,7 +343,13 @@ impl Command {
             count: self.count,
             fixed_slave: self.fixed_slave,
             extra_byte_counts: &self.extra_byte_counts,
+            trigger: self.trigger,
         }
+    }
+
+    /// True for a command that sends no values: reads and trigger writes.
+    pub fn takes_no_values(&self) -> bool {
+        self.is_read() || self.fields.is_empty()
     }
 
     /// True for reads.
@@ -207,7 +374,9 @@ pub struct CommandErratum {
     /// Identifier (E1, …).
     pub id: String,
     /// The figure with the wrong table.
-    pub figure: u32,
+    pub figure: Figure,
+    /// The manual's software revision when not the sensor's `manual`.
+    pub manual: Option<String>,
     /// The start address the table prints, if wrong.
     pub table_address: Option<u16>,
     /// The register count the table prints, if wrong.
@@ -249,7 +418,9 @@ pub struct Erratum {
     /// Identifier.
     pub id: String,
     /// Figures concerned.
-    pub figures: Vec<u32>,
+    pub figures: Vec<Figure>,
+    /// The manual's software revision when not the sensor's `manual`.
+    pub manual: Option<String>,
     /// Sections concerned.
     pub sections: Vec<String>,
     /// Explanation.
@@ -269,8 +440,34 @@ pub struct Field {
     pub unit: Option<String>,
     /// Meaning.
     pub doc: Option<String>,
-    /// Values a write may send (inclusive).
+    /// Values a write may send (inclusive); on a read, the measuring range.
     pub range: Option<(f64, f64)>,
+    /// The value read where a sub-probe is not fitted.
+    pub absent: Option<f64>,
+    /// Values with their bytes, printed outside a frame; each verified both ways.
+    pub examples: Vec<FieldExample>,
+}
+
+/// A field's value and its bytes, as a manual prints them outside a frame.
+#[derive(Debug, Clone, Serialize)]
+pub struct FieldExample {
+    /// The bytes.
+    pub bytes: Vec<u8>,
+    /// The value they decode to.
+    pub value: crate::Value,
+    /// Where the manual prints it.
+    pub figures: Vec<Figure>,
+}
+
+/// A named bit of a flags field.
+#[derive(Debug, Clone, Serialize, PartialEq, Eq)]
+pub struct Flag {
+    /// snake_case name.
+    pub name: String,
+    /// The mask: exactly one bit set, within the field's size.
+    pub mask: u16,
+    /// Meaning.
+    pub doc: Option<String>,
 }
 
 impl Field {
@@ -413,13 +610,24 @@ pub enum FieldKind {
         /// Byte written.
         fill: u8,
     },
+    /// One byte, two decimal digits.
+    Bcd,
+    /// Independent named bits.
+    Flags {
+        /// Size and order of the bit field.
+        repr: EnumRepr,
+        /// Known bits.
+        flags: Vec<Flag>,
+    },
 }
 
 impl FieldKind {
     /// Bytes on the wire.
     pub fn size(&self) -> usize {
         match self {
-            Self::U8 | Self::I8 => 1,
+            Self::U8 | Self::I8 | Self::Bcd => 1,
+            Self::Flags { repr: EnumRepr::U8, .. } => 1,
+            Self::Flags { repr: EnumRepr::U16(_), .. } => 2,
             Self::U16 { .. } | Self::I16 { .. } | Self::Version => 2,
             Self::F32 { .. } | Self::U32 { .. } | Self::I32 { .. } => 4,
             Self::Ascii { len, .. } | Self::Reserved { len, .. } => *len,
@@ -442,19 +650,50 @@ impl FieldKind {
             Self::Version => "version",
             Self::Enum { .. } => "enum",
             Self::Reserved { .. } => "reserved",
+            Self::Bcd => "bcd",
+            Self::Flags { .. } => "flags",
         }
     }
 }
 
-/// A frame pair printed in the manual.
+/// A frame as a manual prints it.
+#[derive(Debug, Clone, Serialize, PartialEq, Eq)]
+pub struct PrintedFrame {
+    /// The bytes printed, CRC included when printed; `None` for a placeholder
+    /// ("Value", "Time") the manual prints instead of a byte.
+    pub bytes: Vec<Option<u8>>,
+    /// The manual prints bytes of unknown number after `bytes` ("meaningless").
+    pub open_ended: bool,
+    /// Whether the manual prints the CRC.
+    pub crc_printed: bool,
+    /// The whole frame, CRC included (computed when not printed), when every
+    /// byte is known; validation checked the printed CRC against it.
+    pub complete: Option<Vec<u8>>,
+}
+
+impl PrintedFrame {
+    /// True when every byte is known (the CRC may still be computed).
+    pub fn is_complete(&self) -> bool {
+        self.complete.is_some()
+    }
+
+    /// The byte at `at`, when printed.
+    pub fn byte(&self, at: usize) -> Option<u8> {
+        self.bytes.get(at).copied().flatten()
+    }
+}
+
+/// A frame pair (or one side of it) printed in the manual.
 #[derive(Debug, Clone, Serialize)]
 pub struct Example {
-    /// Figures.
-    pub figures: Vec<u32>,
-    /// Request as printed.
-    pub request: Vec<u8>,
-    /// Reply as printed.
-    pub response: Vec<u8>,
+    /// Figures and tables.
+    pub figures: Vec<Figure>,
+    /// The manual's software revision when not the sensor's `manual`.
+    pub manual: Option<String>,
+    /// The request as printed; `None` when the manual prints none.
+    pub request: Option<PrintedFrame>,
+    /// The reply as printed; `None` when the manual prints none.
+    pub response: Option<PrintedFrame>,
     /// Values the manual states, by field name.
     pub values: BTreeMap<String, crate::Value>,
     /// Remarks.
@@ -464,23 +703,53 @@ pub struct Example {
 }
 
 impl Example {
-    /// The true request: the correction if the printed one is wrong.
-    pub fn true_request(&self) -> &[u8] {
-        self.erratum.as_ref().and_then(|e| e.corrected_request.as_deref()).unwrap_or(&self.request)
+    /// The true request, complete with its CRC: the correction if the
+    /// printed one is wrong; `None` when not every byte is known.
+    pub fn true_request(&self) -> Option<&[u8]> {
+        self.erratum
+            .as_ref()
+            .and_then(|e| e.corrected_request.as_deref())
+            .or_else(|| self.request.as_ref()?.complete.as_deref())
     }
 
-    /// The true reply: the correction if the printed one is wrong.
-    pub fn true_response(&self) -> &[u8] {
-        self.erratum.as_ref().and_then(|e| e.corrected_response.as_deref()).unwrap_or(&self.response)
+    /// The true reply, complete with its CRC: the correction if the printed
+    /// one is wrong; `None` when not every byte is known.
+    pub fn true_response(&self) -> Option<&[u8]> {
+        self.erratum
+            .as_ref()
+            .and_then(|e| e.corrected_response.as_deref())
+            .or_else(|| self.response.as_ref()?.complete.as_deref())
     }
 
-    /// The slave address the request is sent to.
+    /// Both true frames, when both are complete: what a golden test replays.
+    pub fn true_pair(&self) -> Option<(&[u8], &[u8])> {
+        Some((self.true_request()?, self.true_response()?))
+    }
+
+    /// The slave address the request is sent to (from the reply when no
+    /// request is printed).
     pub fn slave(&self) -> u8 {
-        self.true_request().first().copied().unwrap_or(0)
+        let from = |f: &Option<PrintedFrame>| f.as_ref().and_then(|f| f.byte(0));
+        self.true_request()
+            .and_then(|r| r.first().copied())
+            .or_else(|| from(&self.request))
+            .or_else(|| from(&self.response))
+            .unwrap_or(0)
     }
 
-    /// Frames printed in this example: request and reply.
-    pub const FRAMES: usize = 2;
+    /// Frames printed in this example (one or two).
+    pub fn frames_printed(&self) -> usize {
+        usize::from(self.request.is_some()) + usize::from(self.response.is_some())
+    }
+
+    /// Printed frames whose every byte and CRC the manual gives.
+    pub fn frames_printed_complete(&self) -> usize {
+        [&self.request, &self.response]
+            .into_iter()
+            .flatten()
+            .filter(|f| f.crc_printed && f.is_complete())
+            .count()
+    }
 }
 
 /// A printed frame that is wrong.
@@ -489,7 +758,7 @@ pub struct ExampleErratum {
     /// Identifier.
     pub id: String,
     /// The figure.
-    pub figure: u32,
+    pub figure: Figure,
     /// What is wrong.
     pub printed: String,
     /// True request.

@@ -88,8 +88,10 @@ pub struct Summary {
     pub examples: usize,
     /// Frames replayed: the printed ones plus the corrections errata give.
     pub frames: usize,
-    /// Frames printed in the manuals: a request and a reply per example.
+    /// Frames printed in the manuals: a request, a reply, or both per example.
     pub printed_frames: usize,
+    /// Printed frames complete with their CRC (replayed byte for byte).
+    pub complete_frames: usize,
     /// Errata recorded.
     pub errata: usize,
 }
@@ -105,8 +107,9 @@ impl Spec {
                 s.errata += c.errata.len();
                 for e in &c.examples {
                     s.examples += 1;
-                    s.frames += Example::FRAMES;
-                    s.printed_frames += Example::FRAMES;
+                    s.frames += e.frames_printed();
+                    s.printed_frames += e.frames_printed();
+                    s.complete_frames += e.frames_printed_complete();
                     if let Some(err) = &e.erratum {
                         s.errata += 1;
                         s.frames += usize::from(err.corrected_request.is_some())
@@ -227,23 +230,25 @@ impl Loader<'_> {
         };
         let doc = match crate::yaml::parse(&text) {
             Ok(doc) => Some(doc),
-            Err(problem) => {
+            Err(problems) => {
                 let mut r = Reporter { file: path, text: &text, out: &mut self.diags };
-                r.error(problem.pos, problem.key, problem.message, problem.help);
+                for problem in problems {
+                    r.error(problem.pos, problem.key, problem.message, problem.help);
+                }
                 None
             }
         };
         let mut includes = Vec::new();
         if let Some(d) = &doc {
             for (i, inc) in d.include.iter().enumerate() {
-                match include_target(path, &inc.value) {
+                match include_target(path, &inc.value.file) {
                     Ok(target) => includes.push((target, Pos::at(inc), format!("include[{i}]"))),
                     Err(why) => {
                         let mut r = Reporter { file: path, text: &text, out: &mut self.diags };
                         r.error(
                             Pos::at(inc),
                             format!("include[{i}]"),
-                            format!("cannot include `{}`: {why}", escape(&inc.value)),
+                            format!("cannot include `{}`: {why}", escape(&inc.value.file)),
                             Some("include fragment files by a path relative to this file, like `common.yaml`".into()),
                         );
                     }
@@ -471,9 +476,36 @@ impl Loader<'_> {
                     else {
                         continue;
                     };
-                    // This manual's source, examples and errata.
+                    // This manual's title, doc, units, source, examples and errata.
+                    let key = command_key(i, c);
                     if let Some(s) = &c.source {
-                        cmd.source = resolve_source(s, &format!("{}.source", command_key(i, c)), &mut r);
+                        cmd.source = resolve_source(s, &format!("{key}.source"), &mut r);
+                    }
+                    if let Some(t) = &c.title {
+                        cmd.title = check_text(t, &format!("{key}.title"), &mut r);
+                    }
+                    if let Some(d) = &c.doc {
+                        cmd.doc = check_text(d, &format!("{key}.doc"), &mut r);
+                    }
+                    if let Some(since) = &c.since {
+                        cmd.since = Some(check_text(since, &format!("{key}.since"), &mut r));
+                    }
+                    if let Some(units) = &c.units {
+                        for (field, unit) in &units.value {
+                            let unit_text = check_text(unit, &format!("{key}.units.{field}"), &mut r);
+                            match cmd.fields.iter_mut().find(|f| f.name.as_deref() == Some(field.as_str())) {
+                                Some(f) => f.unit = Some(unit_text),
+                                None => r.error(
+                                    Pos::at(unit),
+                                    format!("{key}.units.{field}"),
+                                    format!("`{}` has no field called `{}`", cmd.name, escape(field)),
+                                    Some(format!(
+                                        "fields: {}",
+                                        cmd.named_fields().map(|f| f.display_name()).collect::<Vec<_>>().join(", ")
+                                    )),
+                                ),
+                            }
+                        }
                     }
                     cmd.examples.clear();
                     cmd.errata.clear();
@@ -543,29 +575,172 @@ impl Loader<'_> {
             }
         }
 
+        // One command per role.
+        let mut roles: BTreeMap<Role, usize> = BTreeMap::new();
+        for (k, (cmd, origin)) in commands.iter().zip(&origins).enumerate() {
+            let Some(role) = cmd.role else { continue };
+            if let Some(&j) = roles.get(&role) {
+                r.error(
+                    origin.pos,
+                    format!("{}.role", origin.key),
+                    format!("`{}` and `{}` both have role `{}`", commands[j].name, cmd.name, role.name()),
+                    Some("a sensor has at most one command per role; include the fragment with `only:` to leave one out".into()),
+                );
+            } else {
+                roles.insert(role, k);
+            }
+        }
+        check_manual_refs(sensor_doc, doc, &mut r);
+        let procedure = doc.procedure.as_ref().and_then(|p| resolve_procedure(p, &commands, &mut r));
         let constants = resolve_constants(&doc.constants, &mut r);
         let errata = resolve_errata(&doc.errata, &mut r);
-        let (name, title, sdoc, manual, serial, min, max, default_address) = head?;
+        let head = head?;
         let mut files = vec![root.to_path_buf()];
         files.extend(included.iter().map(|d| d.file.to_path_buf()));
         files.sort();
         files.dedup();
         Some(Sensor {
-            name,
-            title,
-            doc: sdoc,
-            manual,
-            serial,
-            min_address: min,
-            max_address: max,
-            default_address,
+            name: head.name,
+            title: head.title,
+            doc: head.doc,
+            model: head.model,
+            model_code: head.model_code,
+            manual: head.manual,
+            revisions: head.revisions,
+            serial: head.serial,
+            min_address: head.min_address,
+            max_address: head.max_address,
+            default_address: head.default_address,
             commands,
+            procedure,
             constants,
             errata,
             file: root.to_path_buf(),
             files,
         })
     }
+}
+
+/// Every `since` and `manual` of a sensor file names one of its manuals' `software`.
+fn check_manual_refs(sensor: &SensorDoc, doc: &SpecFile, r: &mut Reporter<'_>) {
+    let known: Vec<&str> = std::iter::once(&sensor.manual)
+        .chain(sensor.revisions.iter().map(|rev| &rev.manual))
+        .filter_map(|m| m.software.as_ref().map(|s| s.value.as_str()))
+        .collect();
+    let check = |value: &Spanned<String>, key: String, r: &mut Reporter<'_>| {
+        if !known.contains(&value.value.as_str()) {
+            let help = if known.is_empty() {
+                "state the manuals' software revisions: `sensor.manual.software` and `sensor.revisions`".to_string()
+            } else {
+                format!("the file's manuals document software {}", known.join(", "))
+            };
+            r.error(Pos::at(value), key, format!("no manual of this sensor documents software `{}`", escape(&value.value)), Some(help));
+        }
+    };
+    for (i, c) in doc.commands.iter().enumerate() {
+        let key = command_key(i, c);
+        if let Some(since) = &c.since {
+            check(since, format!("{key}.since"), r);
+        }
+        if let Some(m) = c.source.as_ref().and_then(|s| s.manual.as_ref()) {
+            check(m, format!("{key}.source.manual"), r);
+        }
+        for (j, e) in c.examples.iter().enumerate() {
+            if let Some(m) = &e.manual {
+                check(m, format!("{key}.examples[{j}].manual"), r);
+            }
+        }
+        for (j, e) in c.errata.iter().enumerate() {
+            if let Some(m) = &e.manual {
+                check(m, format!("{key}.errata[{j}].manual"), r);
+            }
+        }
+    }
+    for (i, e) in doc.errata.iter().enumerate() {
+        if let Some(m) = &e.manual {
+            check(m, format!("errata[{i}].manual"), r);
+        }
+    }
+    if let Some(m) = doc.procedure.as_ref().and_then(|p| p.source.as_ref()).and_then(|s| s.manual.as_ref()) {
+        check(m, "procedure.source.manual".into(), r);
+    }
+}
+
+/// The procedure, with every command it names checked against the sensor's.
+fn resolve_procedure(p: &ProcedureDoc, commands: &[Command], r: &mut Reporter<'_>) -> Option<Procedure> {
+    let mut ok = true;
+    let names: Vec<&str> = commands.iter().map(|c| c.name.as_str()).collect();
+    let steps = |list: &[Spanned<String>], what: &str, r: &mut Reporter<'_>, ok: &mut bool| -> Vec<String> {
+        let mut out = Vec::new();
+        for (i, name) in list.iter().enumerate() {
+            let key = format!("procedure.{what}[{i}]");
+            match commands.iter().find(|c| c.name == name.value) {
+                None => {
+                    let help = match crate::yaml::closest(&name.value, &names) {
+                        Some(best) => format!("did you mean `{best}`?"),
+                        None => format!("commands: {}", names.join(", ")),
+                    };
+                    r.error(Pos::at(name), key, format!("the sensor has no command called `{}`", escape(&name.value)), Some(help));
+                    *ok = false;
+                }
+                Some(c) if what == "read" && !(c.is_read() && c.named_fields().next().is_some()) => {
+                    r.error(
+                        Pos::at(name),
+                        key,
+                        format!("`{}` is not a read that gives values", c.name),
+                        Some("`read` lists the reads whose values the procedure averages".into()),
+                    );
+                    *ok = false;
+                }
+                Some(c) if what != "read" && !c.takes_no_values() => {
+                    r.error(
+                        Pos::at(name),
+                        key,
+                        format!("`{}` needs values to send", c.name),
+                        Some(format!("`{what}` lists commands sent without values: triggers and reads")),
+                    );
+                    *ok = false;
+                }
+                Some(c) => out.push(c.name.clone()),
+            }
+        }
+        out
+    };
+    let before = steps(&p.before, "before", r, &mut ok);
+    let read = steps(&p.read.value, "read", r, &mut ok);
+    let after = steps(&p.after, "after", r, &mut ok);
+    if p.read.value.is_empty() {
+        r.error(Pos::at(&p.read), "procedure.read", "a procedure reads at least one command", None);
+        ok = false;
+    }
+    let readings = p.readings.as_ref().map_or(1, |n| n.value);
+    if let Some(n) = &p.readings
+        && !(1..=1000).contains(&n.value)
+    {
+        r.error(Pos::at(n), "procedure.readings", format!("{} readings: use 1..=1000", n.value), None);
+        ok = false;
+    }
+    const DAY_MS: u32 = 86_400_000;
+    for (value, key) in [(&p.warm_up_ms, "procedure.warm_up_ms"), (&p.interval_ms, "procedure.interval_ms")] {
+        if let Some(v) = value
+            && v.value > DAY_MS
+        {
+            r.error(Pos::at(v), key, format!("{} ms is longer than a day", v.value), None);
+            ok = false;
+        }
+    }
+    let source = p.source.as_ref().map(|s| resolve_source(s, "procedure.source", r));
+    let doc = p.doc.as_ref().map(|d| check_text(d, "procedure.doc", r));
+    ok.then(|| Procedure {
+        source,
+        doc,
+        before,
+        warm_up_ms: p.warm_up_ms.as_ref().map_or(0, |v| v.value),
+        read,
+        readings,
+        interval_ms: p.interval_ms.as_ref().map_or(0, |v| v.value),
+        after,
+    })
 }
 
 /// The key of a command entry: `commands[3] (get_ph)`, the name only when it is valid.
@@ -584,7 +759,20 @@ fn field_key(command: &str, j: usize, f: &FieldDoc) -> String {
     }
 }
 
-type Head = (String, String, String, Manual, Serial, u8, u8, u8);
+/// A sensor's header, checked.
+struct Head {
+    name: String,
+    title: String,
+    doc: String,
+    model: Option<String>,
+    model_code: Option<String>,
+    manual: Manual,
+    revisions: Vec<Revision>,
+    serial: Serial,
+    min_address: u8,
+    max_address: u8,
+    default_address: u8,
+}
 
 /// Characters that reorder text on screen (Trojan Source, CVE-2021-42574):
 /// rustc refuses them in comments and literals, and a reader cannot see them.
@@ -677,7 +865,11 @@ fn check_fragment(doc: &SpecFile, r: &mut Reporter<'_>) {
         check_name(&f.name, "fragment.name", r);
         check_text(&f.doc, "fragment.doc", r);
     }
-    for (key, present) in [("constants", !doc.constants.is_empty()), ("errata", !doc.errata.is_empty())] {
+    for (key, present) in [
+        ("constants", !doc.constants.is_empty()),
+        ("errata", !doc.errata.is_empty()),
+        ("procedure", doc.procedure.is_some()),
+    ] {
         if present {
             r.error(
                 top_key_pos(r.text, key),
@@ -696,6 +888,14 @@ fn check_fragment(doc: &SpecFile, r: &mut Reporter<'_>) {
                 Some("a fragment defines commands with `name`; sensor files `use` them".into()),
             );
         }
+        if let Some(since) = &c.since {
+            r.error(
+                Pos::at(since),
+                format!("{}.since", command_key(i, c)),
+                "`since` belongs in sensor files: firmware revisions are a probe's own",
+                Some("give `since` in the sensor file's `use` entry".into()),
+            );
+        }
     }
 }
 
@@ -710,41 +910,71 @@ fn resolve_sensor_head(s: &SensorDoc, r: &mut Reporter<'_>) -> Option<Head> {
         );
     let title = check_text(&s.title, "sensor.title", r);
     let doc = check_text(&s.doc, "sensor.doc", r);
-    let manual = Manual {
-        title: check_text(&s.manual.title, "sensor.manual.title", r),
-        revision: check_text(&s.manual.revision, "sensor.manual.revision", r),
-        file: s.manual.file.as_ref().map(|f| check_text(f, "sensor.manual.file", r)),
-    };
+    let manual = resolve_manual(&s.manual, "sensor.manual", r);
+    let model = s.model.as_ref().map(|m| check_text(m, "sensor.model", r));
+    let model_code = s.model_code.as_ref().map(|m| {
+        let code = m.value.trim();
+        if code.len() != 2 || !code.chars().all(|c| c.is_ascii_digit()) {
+            r.error(
+                Pos::at(m),
+                "sensor.model_code",
+                format!("model code `{}` is not two digits", escape(&m.value)),
+                Some("write the two digits after `YL` in the serial number, quoted: `model_code: \"09\"`".into()),
+            );
+        }
+        code.to_string()
+    });
     let mut ok = name_ok;
-    let baud = s.serial.baud.value;
-    if !(300..=1_000_000).contains(&baud) {
-        r.error(
-            Pos::at(&s.serial.baud),
-            "sensor.serial.baud",
-            format!("baud rate {baud} is not plausible"),
-            Some("use 300..=1000000 (the manuals say 9600)".into()),
-        );
-        ok = false;
+    let serial = resolve_serial(&s.serial, "sensor.serial", r);
+    ok &= serial.is_some();
+    let mut revisions = Vec::new();
+    let mut softwares: BTreeMap<String, Pos> = BTreeMap::new();
+    if let Some(sw) = &s.manual.software {
+        softwares.insert(sw.value.clone(), Pos::at(sw));
     }
-    let data_bits = s.serial.data_bits.value;
-    if !(7..=8).contains(&data_bits) {
-        r.error(
-            Pos::at(&s.serial.data_bits),
-            "sensor.serial.data_bits",
-            format!("a serial line has 7 or 8 data bits, not {data_bits}"),
-            Some("use 7 or 8 (the manuals say 8)".into()),
-        );
-        ok = false;
-    }
-    let stop_bits = s.serial.stop_bits.value;
-    if !(1..=2).contains(&stop_bits) {
-        r.error(
-            Pos::at(&s.serial.stop_bits),
-            "sensor.serial.stop_bits",
-            format!("a serial line has 1 or 2 stop bits, not {stop_bits}"),
-            Some("use 1 or 2 (the manuals say 1)".into()),
-        );
-        ok = false;
+    for (i, rev) in s.revisions.iter().enumerate() {
+        let key = format!("sensor.revisions[{i}]");
+        let rev_manual = resolve_manual(&rev.manual, &format!("{key}.manual"), r);
+        match &rev.manual.software {
+            None => {
+                r.error(
+                    Pos::at(&rev.manual.title),
+                    format!("{key}.manual.software"),
+                    "a revision's manual needs `software`, the firmware revision it documents",
+                    Some("add `software: \"1.8\"` as the manual's scope line states it".into()),
+                );
+                ok = false;
+            }
+            Some(sw) => {
+                if s.manual.software.is_none() {
+                    r.error(
+                        Pos::at(&s.manual.title),
+                        "sensor.manual.software",
+                        "a sensor with `revisions` states the `software` of its `manual` too",
+                        Some("add `software:` to `sensor.manual`".into()),
+                    );
+                    ok = false;
+                }
+                if let Some(first) = softwares.insert(sw.value.clone(), Pos::at(sw)) {
+                    r.error(
+                        Pos::at(sw),
+                        format!("{key}.manual.software"),
+                        format!("software `{}` is already the revision of another manual", escape(&sw.value)),
+                        Some(format!("each manual documents one software revision (the first is at line {})", first.line)),
+                    );
+                    ok = false;
+                }
+            }
+        }
+        let rev_serial = match &rev.serial {
+            Some(sd) => resolve_serial(sd, &format!("{key}.serial"), r),
+            None => serial,
+        };
+        let doc = rev.doc.as_ref().map(|d| check_text(d, &format!("{key}.doc"), r));
+        match rev_serial {
+            Some(serial) => revisions.push(Revision { manual: rev_manual, doc, serial }),
+            None => ok = false,
+        }
     }
     let min = s.addresses.min.value;
     let max = s.addresses.max.value;
@@ -767,16 +997,71 @@ fn resolve_sensor_head(s: &SensorDoc, r: &mut Reporter<'_>) -> Option<Head> {
         );
         ok = false;
     }
-    let parity = match s.serial.parity {
+    if !ok {
+        return None;
+    }
+    Some(Head {
+        name: s.name.value.clone(),
+        title,
+        doc,
+        model,
+        model_code,
+        manual,
+        revisions,
+        serial: serial?,
+        min_address: min as u8,
+        max_address: max as u8,
+        default_address: default as u8,
+    })
+}
+
+fn resolve_manual(m: &ManualDoc, key: &str, r: &mut Reporter<'_>) -> Manual {
+    Manual {
+        title: check_text(&m.title, &format!("{key}.title"), r),
+        revision: check_text(&m.revision, &format!("{key}.revision"), r),
+        software: m.software.as_ref().map(|s| check_text(s, &format!("{key}.software"), r)),
+        file: m.file.as_ref().map(|f| check_text(f, &format!("{key}.file"), r)),
+    }
+}
+
+fn resolve_serial(serial: &SerialDoc, key: &str, r: &mut Reporter<'_>) -> Option<Serial> {
+    let mut ok = true;
+    let baud = serial.baud.value;
+    if !(300..=1_000_000).contains(&baud) {
+        r.error(
+            Pos::at(&serial.baud),
+            format!("{key}.baud"),
+            format!("baud rate {baud} is not plausible"),
+            Some("use 300..=1000000 (the manuals say 9600)".into()),
+        );
+        ok = false;
+    }
+    let data_bits = serial.data_bits.value;
+    if !(7..=8).contains(&data_bits) {
+        r.error(
+            Pos::at(&serial.data_bits),
+            format!("{key}.data_bits"),
+            format!("a serial line has 7 or 8 data bits, not {data_bits}"),
+            Some("use 7 or 8 (the manuals say 8)".into()),
+        );
+        ok = false;
+    }
+    let stop_bits = serial.stop_bits.value;
+    if !(1..=2).contains(&stop_bits) {
+        r.error(
+            Pos::at(&serial.stop_bits),
+            format!("{key}.stop_bits"),
+            format!("a serial line has 1 or 2 stop bits, not {stop_bits}"),
+            Some("use 1 or 2 (the manuals say 1)".into()),
+        );
+        ok = false;
+    }
+    let parity = match serial.parity {
         ParityDoc::None => Parity::None,
         ParityDoc::Even => Parity::Even,
         ParityDoc::Odd => Parity::Odd,
     };
-    if !ok {
-        return None;
-    }
-    let serial = Serial { baud, data_bits: data_bits as u8, parity, stop_bits: stop_bits as u8 };
-    Some((s.name.value.clone(), title, doc, manual, serial, min as u8, max as u8, default as u8))
+    ok.then_some(Serial { baud, data_bits: data_bits as u8, parity, stop_bits: stop_bits as u8 })
 }
 
 /// Depth-first over includes, collecting fragment commands; reports cycles
@@ -796,7 +1081,7 @@ fn collect_includes<'d>(
     let mut complete = true;
     for (i, inc) in doc.include.iter().enumerate() {
         // Invalid include paths were reported while parsing.
-        let Ok(path) = include_target(file, &inc.value) else {
+        let Ok(path) = include_target(file, &inc.value.file) else {
             complete = false;
             continue;
         };
@@ -824,9 +1109,7 @@ fn collect_includes<'d>(
             complete = false;
             continue;
         }
-        if out.iter().any(|d| d.file == path) {
-            continue; // Already included through another path.
-        }
+
         // Unreadable or broken files were reported where they are.
         let Some(inc_doc) = files.get(&path).and_then(|p| p.doc.as_ref()) else {
             complete = false;
@@ -840,7 +1123,7 @@ fn collect_includes<'d>(
             r.error(
                 Pos::at(inc),
                 format!("include[{i}]"),
-                format!("`{}` is not a fragment: {what}", escape(&inc.value)),
+                format!("`{}` is not a fragment: {what}", escape(&inc.value.file)),
                 Some("only files with a `fragment:` section can be included".into()),
             );
             complete = false;
@@ -850,8 +1133,29 @@ fn collect_includes<'d>(
         complete &= collect_includes(files, &path, stack, out, diags, cycles);
         stack.pop();
         let Some((path_ref, _)) = files.get_key_value(&path) else { continue };
+        let mut r = Reporter { file, text: &parsed.text, out: diags };
+        let defined: Vec<&str> =
+            inc_doc.commands.iter().filter_map(|c| c.name.as_ref().map(|n| n.value.as_str())).collect();
+        if let Some(only) = &inc.value.only {
+            for (j, name) in only.iter().enumerate() {
+                if !defined.contains(&name.value.as_str()) {
+                    let help = match crate::yaml::closest(&name.value, &defined) {
+                        Some(best) => format!("did you mean `{best}`? `{}` defines: {}", inc.value.file, defined.join(", ")),
+                        None => format!("`{}` defines: {}", inc.value.file, defined.join(", ")),
+                    };
+                    r.error(
+                        Pos::at(name),
+                        format!("include[{i}].only[{j}]"),
+                        format!("`{}` defines no command called `{}`", escape(&inc.value.file), escape(&name.value)),
+                        Some(help),
+                    );
+                }
+            }
+        }
         for (index, c) in inc_doc.commands.iter().enumerate() {
-            if c.name.is_some() {
+            let Some(name) = &c.name else { continue };
+            let taken = inc.value.only.as_ref().is_none_or(|only| only.iter().any(|o| o.value == name.value));
+            if taken && !out.iter().any(|d| d.file == path_ref.as_path() && d.index == index) {
                 out.push(Def { file: path_ref.as_path(), doc: c, index, fragment: Some(fragment.name.value.clone()) });
             }
         }
@@ -862,8 +1166,7 @@ fn collect_includes<'d>(
 /// A `use:` entry may only add this manual's source, examples and errata.
 fn check_use_entry(c: &CommandDoc, i: usize, r: &mut Reporter<'_>) {
     let extra: Vec<(&str, Pos)> = [
-        ("title", c.title.as_ref().map(Pos::at)),
-        ("doc", c.doc.as_ref().map(Pos::at)),
+        ("role", c.role.as_ref().map(Pos::at)),
         ("function", c.function.as_ref().map(Pos::at)),
         ("address", c.address.as_ref().map(Pos::at)),
         ("count", c.count.as_ref().map(Pos::at)),
@@ -880,13 +1183,37 @@ fn check_use_entry(c: &CommandDoc, i: usize, r: &mut Reporter<'_>) {
             pos,
             format!("{}.{key}", command_key(i, c)),
             format!("`{key}` cannot be changed by a `use` entry"),
-            Some("a `use` entry takes `source`, `examples` and `errata`; change the definition in the fragment".into()),
+            Some("a `use` entry takes `title`, `doc`, `since`, `units`, `source`, `examples` and `errata`; change the definition in the fragment".into()),
         );
     }
 }
 
 fn resolve_source(s: &SourceDoc, key: &str, r: &mut Reporter<'_>) -> Source {
-    Source { section: check_text(&s.section, &format!("{key}.section"), r), figures: s.figures.clone() }
+    let at = Pos::at(&s.section);
+    Source {
+        section: check_text(&s.section, &format!("{key}.section"), r),
+        figures: resolve_figures(&s.figures, &format!("{key}.figures"), at, r),
+        manual: s.manual.as_ref().map(|m| check_text(m, &format!("{key}.manual"), r)),
+    }
+}
+
+/// Figure references: numbers, `T<n>` tables, `<n>b` repeated numbers.
+pub(crate) fn resolve_figures(docs: &[FigureDoc], key: &str, at: Pos, r: &mut Reporter<'_>) -> Vec<Figure> {
+    docs.iter().enumerate().filter_map(|(i, f)| resolve_figure(f, &format!("{key}[{i}]"), at, r)).collect()
+}
+
+pub(crate) fn resolve_figure(doc: &FigureDoc, key: &str, at: Pos, r: &mut Reporter<'_>) -> Option<Figure> {
+    let parsed = match doc {
+        FigureDoc::Number(n) => Ok(Figure::number(*n)),
+        FigureDoc::Text(t) => Figure::parse(t),
+    };
+    match parsed {
+        Ok(f) => Some(f),
+        Err(why) => {
+            r.error(at, key, why, Some("figures are `23`, `\"T4\"` (Table 4) or `\"43b\"` (the second figure 43)".into()));
+            None
+        }
+    }
 }
 
 fn require<'a, T>(
@@ -946,9 +1273,18 @@ fn resolve_command(
         })
     });
     let trigger = c.trigger.as_ref().is_some_and(|t| t.value);
+    let since = c.since.as_ref().map(|s| check_text(s, &format!("{key}.since"), r));
+    if let Some(units) = &c.units {
+        r.error(
+            Pos::at(units),
+            format!("{key}.units"),
+            "`units` belongs in a `use` entry",
+            Some("give each field its `unit` in `fields`".into()),
+        );
+    }
     let count = require(&c.count, at, &format!("{key}.count"), "count", r);
     let count = match (function, count) {
-        (Some(f), Some(n)) => check_count(f, n, trigger, c, &key, r),
+        (Some(f), Some(n)) => check_count(f, n, trigger, &key, r),
         _ => None,
     };
     let fixed_slave = c.fixed_slave.as_ref().and_then(|s| {
@@ -994,6 +1330,8 @@ fn resolve_command(
         address: address?,
         count: count?,
         trigger,
+        since,
+        role: c.role.as_ref().map(|r| r.value),
         fixed_slave,
         extra_byte_counts,
         fields: fields?,
@@ -1004,31 +1342,77 @@ fn resolve_command(
     if !name_ok {
         return None;
     }
+    if let Some(role) = &c.role
+        && let Err(why) = check_role_shape(role.value, &cmd)
+    {
+        r.error(
+            Pos::at(role),
+            format!("{key}.role"),
+            format!("`{}` cannot have role `{}`: {why}", cmd.name, role.value.name()),
+            Some("see the roles in docs/spec-language.md".into()),
+        );
+        return None;
+    }
     resolve_command_extras(c, i, &mut cmd, r);
     Some(cmd)
+}
+
+/// What a command with `role` must look like for the simulator and the CLI to use it.
+fn check_role_shape(role: Role, cmd: &Command) -> Result<(), String> {
+    let named: Vec<&Field> = cmd.named_fields().collect();
+    let one = |pred: fn(&FieldKind) -> bool, what: &str| -> Result<(), String> {
+        match named.as_slice() {
+            [f] if pred(&f.kind) => Ok(()),
+            _ => Err(format!("it needs exactly one named field, {what}")),
+        }
+    };
+    let read = |ok: bool| if ok { Ok(()) } else { Err("it must be a read".to_string()) };
+    let write = |ok: bool| if ok { Ok(()) } else { Err("it must be a write".to_string()) };
+    match role {
+        Role::SetSlaveAddress => write(!cmd.is_read()).and_then(|()| one(|k| matches!(k, FieldKind::U8), "a `u8`")),
+        Role::GetSlaveAddress => read(cmd.is_read()).and_then(|()| one(|k| matches!(k, FieldKind::U8), "a `u8`")),
+        Role::SerialNumber => read(cmd.is_read()).and_then(|()| one(|k| matches!(k, FieldKind::Ascii { .. }), "an `ascii`")),
+        Role::Version => {
+            read(cmd.is_read())?;
+            if !named.is_empty() && named.iter().all(|f| matches!(f.kind, FieldKind::Version)) {
+                Ok(())
+            } else {
+                Err("its fields must be `version` fields".into())
+            }
+        }
+        Role::StartMeasurement | Role::StopMeasurement | Role::Wipe => {
+            if cmd.trigger { Ok(()) } else { Err("it must be a `trigger`".into()) }
+        }
+        Role::CalibrationPoint => write(!cmd.is_read()).and_then(|()| {
+            one(|k| matches!(k, FieldKind::F32 { .. } | FieldKind::U16 { .. } | FieldKind::I16 { .. }), "a number")
+        }),
+        Role::CalibrationStatus => read(cmd.is_read()).and_then(|()| one(|k| matches!(k, FieldKind::Enum { .. }), "an `enum`")),
+    }
 }
 
 fn check_count(
     f: Function,
     n: &Spanned<u32>,
     trigger: bool,
-    c: &CommandDoc,
     key: &str,
     r: &mut Reporter<'_>,
 ) -> Option<u16> {
     let v = n.value;
     let k = format!("{key}.count");
-    if trigger {
-        let t = c.trigger.as_ref().map(Pos::at).unwrap_or_default();
-        if f != Function::Write {
+    if trigger && f == Function::Read {
+        // A read used as a command: it asks for registers whose reply it ignores.
+        if v == 0 || v > MAX_READ_COUNT {
             r.error(
-                t,
-                format!("{key}.trigger"),
-                "only writes can be triggers",
-                Some("remove `trigger`, or make the command `function: write`".into()),
+                Pos::at(n),
+                k,
+                format!("a trigger read asks for 1..={MAX_READ_COUNT} registers, not {v}"),
+                Some("use the count the manual's request sends, like `count: 1`".into()),
             );
             return None;
         }
+        return Some(v as u16);
+    }
+    if trigger {
         if v != 0 {
             r.error(Pos::at(n), k, format!("a trigger writes 0 registers, not {v}"), Some("use `count: 0`".into()));
             return None;
@@ -1128,8 +1512,8 @@ fn resolve_fields(
             r.error(
                 Pos::at(f),
                 format!("{key}.fields"),
-                "a trigger write carries no fields",
-                Some("remove `fields`, or remove `trigger` and give `count`".into()),
+                "a trigger carries no fields",
+                Some("remove `fields`, or remove `trigger` and describe the data".into()),
             );
             return None;
         }
@@ -1308,15 +1692,17 @@ fn resolve_field(f: &FieldDoc, key: &str, at: Pos, offset: usize, r: &mut Report
             }
         }
         FieldTypeDoc::Enum => resolve_enum(f, key, at, r),
+        FieldTypeDoc::Bcd => Some(FieldKind::Bcd),
+        FieldTypeDoc::Flags => resolve_flags(f, key, at, r),
     };
     // Keys that do not apply to this type.
     let multi_byte =
         matches!(ty, FieldTypeDoc::F32 | FieldTypeDoc::U16 | FieldTypeDoc::I16 | FieldTypeDoc::U32 | FieldTypeDoc::I32)
-            || (ty == FieldTypeDoc::Enum && size.is_some_and(|(s, _)| s == 2));
+            || (matches!(ty, FieldTypeDoc::Enum | FieldTypeDoc::Flags) && size.is_some_and(|(s, _)| s == 2));
     if !multi_byte {
         ok &= forbid(&f.byte_order, "byte_order", ty_name, key, r);
     }
-    if !matches!(ty, FieldTypeDoc::Ascii | FieldTypeDoc::Reserved | FieldTypeDoc::Enum) {
+    if !matches!(ty, FieldTypeDoc::Ascii | FieldTypeDoc::Reserved | FieldTypeDoc::Enum | FieldTypeDoc::Flags) {
         ok &= forbid(&f.size, "size", ty_name, key, r);
     }
     if ty != FieldTypeDoc::Ascii {
@@ -1328,6 +1714,9 @@ fn resolve_field(f: &FieldDoc, key: &str, at: Pos, offset: usize, r: &mut Report
     if ty != FieldTypeDoc::Enum {
         ok &= forbid(&f.variants, "variants", ty_name, key, r);
     }
+    if ty != FieldTypeDoc::Flags {
+        ok &= forbid(&f.flags, "flags", ty_name, key, r);
+    }
     let numeric = matches!(
         ty,
         FieldTypeDoc::F32
@@ -1337,7 +1726,20 @@ fn resolve_field(f: &FieldDoc, key: &str, at: Pos, offset: usize, r: &mut Report
             | FieldTypeDoc::I16
             | FieldTypeDoc::U32
             | FieldTypeDoc::I32
+            | FieldTypeDoc::Bcd
     );
+    if !numeric {
+        ok &= forbid(&f.absent, "absent", ty_name, key, r);
+    }
+    let absent = match &f.absent {
+        Some(a) if !a.value.is_finite() => {
+            r.error(Pos::at(a), format!("{key}.absent"), format!("{} is not a finite number", a.value), None);
+            ok = false;
+            None
+        }
+        Some(a) => Some(a.value),
+        None => None,
+    };
     let range = match &f.range {
         Some(rg) if !numeric => {
             r.error(
@@ -1385,7 +1787,130 @@ fn resolve_field(f: &FieldDoc, key: &str, at: Pos, offset: usize, r: &mut Report
             ok = false;
         }
     }
-    ok.then_some(Field { name, kind, offset, unit, doc, range })
+    if ty == FieldTypeDoc::Bcd
+        && let Some((min, max)) = range
+        && (min < 0.0 || max > 99.0)
+    {
+        let pos = f.range.as_ref().map(Pos::at).unwrap_or(at);
+        r.error(pos, format!("{key}.range"), format!("a `bcd` byte holds 0..=99, not {min}..={max}"), None);
+        ok = false;
+    }
+    let mut field = Field { name, kind, offset, unit, doc, range, absent, examples: Vec::new() };
+    for (j, e) in f.examples.iter().enumerate() {
+        let ek = format!("{key}.examples[{j}]");
+        let figures = resolve_figures(&e.figures, &format!("{ek}.figures"), Pos::at(&e.bytes), r);
+        let bytes = match parse_hex(&e.bytes.value) {
+            Ok(b) => b,
+            Err(why) => {
+                r.error(Pos::at(&e.bytes), format!("{ek}.bytes"), format!("invalid hex: {why}"), None);
+                ok = false;
+                continue;
+            }
+        };
+        if bytes.len() != field.size() {
+            r.error(
+                Pos::at(&e.bytes),
+                format!("{ek}.bytes"),
+                format!("{} bytes, but the field takes {}", bytes.len(), field.size()),
+                None,
+            );
+            ok = false;
+            continue;
+        }
+        let value = match stated_value(&field, &e.value.value) {
+            Ok(v) => v,
+            Err(why) => {
+                r.error(Pos::at(&e.value), format!("{ek}.value"), why, None);
+                ok = false;
+                continue;
+            }
+        };
+        let decoded = crate::interp::decode_field(&field, &bytes);
+        if !decoded.same_as(&value) {
+            r.error(
+                Pos::at(&e.value),
+                format!("{ek}.value"),
+                format!("the bytes decode to {decoded}, but the example states {value}"),
+                Some("check the value against the bytes the manual prints".into()),
+            );
+            ok = false;
+            continue;
+        }
+        match crate::interp::encode_field(&field, &value) {
+            Ok(again) if again == bytes => {}
+            Ok(again) => {
+                r.error(
+                    Pos::at(&e.bytes),
+                    format!("{ek}.bytes"),
+                    format!("the value encodes as {}", Hex(&again)),
+                    Some("the value and the bytes must match both ways".into()),
+                );
+                ok = false;
+                continue;
+            }
+            Err(err) => {
+                r.error(Pos::at(&e.value), format!("{ek}.value"), format!("the value does not encode: {err}"), None);
+                ok = false;
+                continue;
+            }
+        }
+        field.examples.push(FieldExample { bytes, value, figures });
+    }
+    ok.then_some(field)
+}
+
+fn resolve_flags(f: &FieldDoc, key: &str, at: Pos, r: &mut Reporter<'_>) -> Option<FieldKind> {
+    let repr = match f.size.as_ref().map(|s| (s.value, Pos::at(s))) {
+        None | Some((1, _)) => Some(EnumRepr::U8),
+        Some((2, _)) => order2(f.byte_order.as_ref(), &format!("{key}.byte_order"), at, r).map(EnumRepr::U16),
+        Some((s, pos)) => {
+            r.error(
+                pos,
+                format!("{key}.size"),
+                format!("a flags field is 1 or 2 bytes, not {s}"),
+                Some("use `size: 1`, or `size: 2` with a `byte_order`".into()),
+            );
+            None
+        }
+    };
+    let Some(flags) = &f.flags else {
+        r.error(at, format!("{key}.flags"), "a `flags` field needs `flags`", Some("list `- {name: ..., mask: 0x01}` entries".into()));
+        return None;
+    };
+    if flags.value.is_empty() {
+        r.error(Pos::at(flags), format!("{key}.flags"), "a `flags` field needs at least one flag", None);
+        return None;
+    }
+    let max: u32 = if repr == Some(EnumRepr::U8) { 0xFF } else { 0xFFFF };
+    let mut ok = true;
+    let mut seen_names = BTreeSet::new();
+    let mut seen_masks = BTreeSet::new();
+    let mut out = Vec::new();
+    for (j, fl) in flags.value.iter().enumerate() {
+        let fk = format!("{key}.flags[{j}]");
+        ok &= check_name(&fl.name, &format!("{fk}.name"), r);
+        if !seen_names.insert(fl.name.value.clone()) {
+            r.error(Pos::at(&fl.name), format!("{fk}.name"), format!("two flags are called `{}`", fl.name.value), None);
+            ok = false;
+        }
+        let m = fl.mask.value;
+        if m == 0 || m > max || !m.is_power_of_two() {
+            r.error(
+                Pos::at(&fl.mask),
+                format!("{fk}.mask"),
+                format!("mask 0x{m:X} is not one bit of the field"),
+                Some(format!("a flag is one bit: 0x01, 0x02, 0x04 ... up to 0x{:X}", max.div_ceil(2))),
+            );
+            ok = false;
+        } else if !seen_masks.insert(m) {
+            r.error(Pos::at(&fl.mask), format!("{fk}.mask"), format!("mask 0x{m:X} is used twice"), None);
+            ok = false;
+        }
+        let doc = fl.doc.as_ref().map(|d| check_text(d, &format!("{fk}.doc"), r));
+        out.push(Flag { name: fl.name.value.clone(), mask: m as u16, doc });
+    }
+    let repr = repr?;
+    ok.then_some(FieldKind::Flags { repr, flags: out })
 }
 
 fn type_name(ty: FieldTypeDoc) -> &'static str {
@@ -1401,6 +1926,8 @@ fn type_name(ty: FieldTypeDoc) -> &'static str {
         FieldTypeDoc::Version => "version",
         FieldTypeDoc::Enum => "enum",
         FieldTypeDoc::Reserved => "reserved",
+        FieldTypeDoc::Bcd => "bcd",
+        FieldTypeDoc::Flags => "flags",
     }
 }
 
@@ -1570,9 +2097,13 @@ fn resolve_command_extras(c: &CommandDoc, i: usize, cmd: &mut Command, r: &mut R
                 Some("add `table: {address: 0x1100}` (or `count`, `function`) as the table prints it".into()),
             );
         }
+        let Some(figure) = resolve_figure(&e.figure.value, &format!("{ek}.figure"), Pos::at(&e.figure), r) else {
+            continue;
+        };
         cmd.errata.push(CommandErratum {
             id: e.id.value.clone(),
-            figure: e.figure.value,
+            figure,
+            manual: e.manual.as_ref().map(|m| check_text(m, &format!("{ek}.manual"), r)),
             table_address: t.address.as_ref().map(|a| a.value as u16),
             table_count: t.count.as_ref().map(|n| n.value as u16),
             table_function,
@@ -1729,7 +2260,8 @@ fn resolve_errata(docs: &[ErratumDoc], r: &mut Reporter<'_>) -> Vec<Erratum> {
                 .collect();
             Erratum {
                 id: e.id.value.clone(),
-                figures: e.figures.clone(),
+                figures: resolve_figures(&e.figures, &format!("errata[{i}].figures"), Pos::at(&e.id), r),
+                manual: e.manual.as_ref().map(|m| check_text(m, &format!("errata[{i}].manual"), r)),
                 sections,
                 note: check_text(&e.note, &format!("errata[{i}].note"), r),
             }
@@ -1783,6 +2315,39 @@ pub(crate) fn stated_value(field: &Field, v: &StatedValue) -> Result<Value, Stri
             } else {
                 Ok(Value::Int(*n as i64))
             }
+        }
+        (FieldKind::Bcd, StatedValue::Number(n)) => {
+            if n.fract() != 0.0 || !(0.0..=99.0).contains(n) {
+                Err(format!("{n} is not a two-digit number for a `bcd` field"))
+            } else {
+                yosemitech_rtu::Bcd::from_value(*n as u8)
+                    .map(Value::Bcd)
+                    .ok_or_else(|| format!("{n} is not a two-digit number"))
+            }
+        }
+        (FieldKind::Flags { flags, .. }, StatedValue::Number(n)) => {
+            let all: u32 = flags.iter().map(|f| u32::from(f.mask)).sum();
+            if n.fract() != 0.0 || *n < 0.0 || *n > f64::from(all) {
+                Err(format!("{n} is not a combination of this field's flags"))
+            } else {
+                Ok(Value::Int(*n as i64))
+            }
+        }
+        (FieldKind::Flags { flags, .. }, StatedValue::Text(t)) => {
+            let mut raw = 0i64;
+            for part in t.split('|').map(str::trim).filter(|p| !p.is_empty() && *p != "none") {
+                match flags.iter().find(|f| f.name == part) {
+                    Some(f) => raw |= i64::from(f.mask),
+                    None => {
+                        return Err(format!(
+                            "`{}` is not a flag; flags: {}",
+                            escape(part),
+                            flags.iter().map(|f| f.name.as_str()).collect::<Vec<_>>().join(", ")
+                        ));
+                    }
+                }
+            }
+            Ok(Value::Int(raw))
         }
         (FieldKind::Ascii { .. }, StatedValue::Text(t)) => Ok(Value::Text(t.clone())),
         (FieldKind::Version, StatedValue::Text(t)) => {

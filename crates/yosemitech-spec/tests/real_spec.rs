@@ -12,49 +12,85 @@ fn spec() -> Spec {
     }
 }
 
+/// Every sensor of `spec/`, whatever is there: no sensor is named here, so a
+/// new manual's file needs no test edit.
 #[test]
-fn loads_both_manuals() {
+fn every_sensor_loads_with_its_identity_and_sources() {
     let spec = spec();
-    assert_eq!(spec.sensors.len(), 2);
-    let ph = spec.sensor("ph_orp").expect("ph_orp");
-    let cond = spec.sensor("conductivity").expect("conductivity");
-    assert_eq!(ph.commands.len(), 16);
-    assert_eq!(cond.commands.len(), 7);
-    // Every command of both manuals has one printed example.
-    assert!(spec.sensors.iter().flat_map(|s| &s.commands).all(|c| c.examples.len() == 1));
-    // The shared fragment is included by both.
-    assert!(ph.files.iter().any(|f| f.ends_with("yosemitech-common.yaml")));
-    assert_eq!(ph.command("get_sn").and_then(|c| c.shared_from.as_deref()), Some("yosemitech_common"));
+    assert!(!spec.sensors.is_empty());
+    for sensor in &spec.sensors {
+        assert!(!sensor.commands.is_empty(), "{}", sensor.name);
+        assert!(sensor.files.contains(&sensor.file), "{}", sensor.name);
+        // A shared command is included from a fragment file this sensor reads.
+        for c in sensor.commands.iter().filter(|c| c.shared_from.is_some()) {
+            assert!(sensor.files.len() > 1, "{}.{} is shared but no fragment was read", sensor.name, c.name);
+        }
+        // Every `since` names one of the sensor's manuals.
+        let softwares: Vec<&str> = sensor.manuals().filter_map(|m| m.software.as_deref()).collect();
+        for c in &sensor.commands {
+            if let Some(since) = &c.since {
+                assert!(softwares.contains(&since.as_str()), "{}.{}: since {since}", sensor.name, c.name);
+            }
+        }
+        // One command per role.
+        let mut roles: Vec<_> = sensor.commands.iter().filter_map(|c| c.role).collect();
+        let n = roles.len();
+        roles.sort();
+        roles.dedup();
+        assert_eq!(roles.len(), n, "{}: a role twice", sensor.name);
+    }
 }
 
 #[test]
 fn summary_counts_printed_frames_honestly() {
-    let s = spec().summary();
-    assert_eq!(s.sensors, 2);
-    assert_eq!(s.commands, 23);
-    assert_eq!(s.examples, 23);
-    // Two frames per example are printed; errata E4 and E5 add a correction each.
-    assert_eq!(s.printed_frames, 46);
-    assert_eq!(s.frames, 48);
-    assert_eq!(s.errata, 25);
+    let spec = spec();
+    let s = spec.summary();
+    let examples: Vec<&yosemitech_spec::Example> =
+        spec.sensors.iter().flat_map(|x| &x.commands).flat_map(|c| &c.examples).collect();
+    assert_eq!(s.sensors, spec.sensors.len());
+    assert_eq!(s.commands, spec.sensors.iter().map(|x| x.commands.len()).sum::<usize>());
+    assert_eq!(s.examples, examples.len());
+    let printed: usize = examples.iter().map(|e| usize::from(e.request.is_some()) + usize::from(e.response.is_some())).sum();
+    assert_eq!(s.printed_frames, printed);
+    let corrections: usize = examples
+        .iter()
+        .filter_map(|e| e.erratum.as_ref())
+        .map(|e| usize::from(e.corrected_request.is_some()) + usize::from(e.corrected_response.is_some()))
+        .sum();
+    assert_eq!(s.frames, printed + corrections);
+    let complete = examples
+        .iter()
+        .flat_map(|e| [&e.request, &e.response])
+        .flatten()
+        .filter(|f| f.crc_printed && f.complete.is_some())
+        .count();
+    assert_eq!(s.complete_frames, complete);
+    assert!(s.complete_frames <= s.printed_frames);
 }
 
 #[test]
-fn errata_are_where_the_notes_put_them() {
-    let spec = spec();
-    let ph = spec.sensor("ph_orp").expect("ph_orp");
-    let get_orp_cal = ph.command("get_orp_calibration").expect("get_orp_calibration");
-    assert_eq!(get_orp_cal.address, 0x3400);
-    assert_eq!(get_orp_cal.errata[0].table_address, Some(0x1100));
-    let status = ph.command("get_calibration_status").expect("get_calibration_status");
-    let e5 = status.examples[0].erratum.as_ref().expect("E5");
-    assert_eq!(e5.id, "E5");
-    assert!(!e5.printed_decodes);
-    assert_eq!(status.examples[0].true_response(), [0x01, 0x03, 0x02, 0x00, 0x00, 0xB8, 0x44]);
-    let cond = spec.sensor("conductivity").expect("conductivity");
-    let start = cond.command("start_measurement").expect("start_measurement");
-    assert!(start.trigger);
-    assert_eq!(start.count, 0);
+fn every_printed_frame_is_kept_as_printed() {
+    // A frame with a computed CRC holds the printed bytes followed by that CRC;
+    // a frame with placeholders has no complete form.
+    for sensor in &spec().sensors {
+        for c in &sensor.commands {
+            for e in &c.examples {
+                for f in [&e.request, &e.response].into_iter().flatten() {
+                    let known: Option<Vec<u8>> =
+                        if f.open_ended { None } else { f.bytes.iter().copied().collect() };
+                    match (&f.complete, known) {
+                        (Some(all), Some(known)) if f.crc_printed => assert_eq!(all, &known),
+                        (Some(all), Some(known)) => {
+                            assert_eq!(&all[..known.len()], &known[..]);
+                            assert!(yosemitech_rtu::crc_ok(all), "{}.{}", sensor.name, c.name);
+                        }
+                        (None, None) => assert!(!f.crc_printed),
+                        other => panic!("{}.{}: inconsistent frame {other:?}", sensor.name, c.name),
+                    }
+                }
+            }
+        }
+    }
 }
 
 #[test]

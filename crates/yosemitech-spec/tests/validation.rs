@@ -66,12 +66,38 @@ fn register_counts_are_in_modbus_range() {
 }
 
 #[test]
-fn a_trigger_is_a_write_of_nothing() {
+fn a_trigger_is_a_write_of_nothing_or_a_read_whose_reply_is_ignored() {
     let ok = "commands:\n  - {name: start, function: write, address: 0x1C00, count: 0, trigger: true}\n";
-    load(&[("spec/probe.yaml", &format!("{HEAD}{ok}"))]).expect("a trigger loads");
+    load(&[("spec/probe.yaml", &format!("{HEAD}{ok}"))]).expect("a write trigger loads");
+    let ok = "commands:\n  - {name: start, function: read, address: 0x2500, count: 1, trigger: true}\n";
+    load(&[("spec/probe.yaml", &format!("{HEAD}{ok}"))]).expect("a read trigger loads");
     let d = errors("commands:\n  - {name: start, function: read, address: 0x1C00, count: 0, trigger: true}\n");
-    assert_error(&d, 10, "commands[0] (start).trigger", "only writes can be triggers");
+    assert_error(&d, 10, "commands[0] (start).count", "a trigger read asks for 1..=125 registers, not 0");
+    let d = errors(
+        "commands:\n  - {name: start, function: read, address: 0x2500, count: 1, trigger: true, fields: [{name: x, type: u16, byte_order: ab}]}\n",
+    );
+    assert_error(&d, 10, "commands[0] (start).fields", "a trigger carries no fields");
 }
+
+#[test]
+fn partial_frames_state_what_they_can() {
+    // "meaningless" data after byte count 0, CRC cells empty: the header is checked.
+    let trigger = "commands:\n  - name: stop\n    function: read\n    address: 0x2E00\n    count: 1\n    trigger: true\n    examples:\n      - figures: [33, 34]\n        request: \"01 03 2E 00 00 01 8D 22\"\n        response: \"01 03 00 ...\"\n        response_crc: missing\n        values: {}\n";
+    load(&[("spec/probe.yaml", &format!("{HEAD}{trigger}"))]).expect("a partial trigger reply loads");
+    // A header byte that contradicts the command is an error.
+    let d = errors(&trigger.replace("01 03 00 ...", "01 04 00 ..."));
+    assert_error(&d, 18, "commands[0] (stop).examples[0].response", "byte 1 (function) is 0x04");
+    // Placeholders need `*_crc: missing`.
+    let d = errors(&trigger.replace("        response_crc: missing\n", ""));
+    assert_error(&d, 18, "commands[0] (stop).examples[0].response", "placeholders cannot carry a known CRC");
+    // A frame printed without its CRC is completed and replayed in full.
+    let no_crc = GET_PH_EXAMPLE_NO_CRC;
+    load(&[("spec/probe.yaml", &format!("{HEAD}commands:{GET_PH}{no_crc}"))]).expect("a computed CRC replays");
+    let d = errors(&format!("commands:{GET_PH}{}", no_crc.replace("F3 40\"", "F3 41\"")));
+    assert_error(&d, 21, "commands[0] (get_ph).examples[0].values.ph", "the frame gives ph =");
+}
+
+const GET_PH_EXAMPLE_NO_CRC: &str = "    examples:\n      - figures: [1]\n        request: \"01 03 28 00 00 02 CD AB\"\n        response: \"01 03 04 33 33 F3 40\"\n        response_crc: missing\n        values: {ph: 7.6}\n";
 
 #[test]
 fn fields_fill_the_registers_exactly() {

@@ -106,11 +106,19 @@ impl ::core::fmt::Display for RangeStatus {
 /// Sets the probe's Modbus slave address. The reply comes from the old
 /// address; the new address applies to every later request. The address
 /// sits in the first byte of the register and the second byte is reserved
-/// (both manuals print `14 00` for address 20, and only that CRC verifies).
+/// (every manual prints `14 00` for address 20, and only that CRC verifies).
 ///
-/// Manual section 2.2.1, figures 15, 16, 17. Writes (function 0x10) 1 register at 0x3000. Shared by every Yosemitech probe (`yosemitech_common`).
+/// Manual section 2.2.1, figures 15, 16, 17. Writes (function 0x10) 1 register at 0x3000. Role: `set_slave_address`. Shared by every Yosemitech probe (`yosemitech_common`).
 ///
 /// Example (figures 16, 17):
+///
+/// ```text
+/// request:  01 10 30 00 00 01 02 14 00 99 53
+/// response: 01 10 30 00 00 01 0E C9
+/// values:   slave_address = 20
+/// ```
+///
+/// Example (figures 16, 17), manual for software 1.8:
 ///
 /// ```text
 /// request:  01 10 30 00 00 01 02 14 00 99 53
@@ -169,6 +177,7 @@ impl rtu::Command for SetSlaveId {
         count: 1,
         fixed_slave: None,
         extra_byte_counts: &[],
+        trigger: false,
     };
     fn encode_request(
         &self,
@@ -205,9 +214,17 @@ impl rtu::Command for SetSlaveId {
 /// Reads the probe's serial number: 14 bytes, a 0x00, twelve ASCII
 /// characters ("YL…") and a 0x00.
 ///
-/// Manual section 2.2.2, figures 18, 19, 20, 21. Reads (function 0x03) 7 registers at 0x0900. Shared by every Yosemitech probe (`yosemitech_common`).
+/// Manual section 2.2.2, figures 18, 19, 20, 21. Reads (function 0x03) 7 registers at 0x0900. Role: `serial_number`. Shared by every Yosemitech probe (`yosemitech_common`).
 ///
 /// Example (figures 19, 20, 21):
+///
+/// ```text
+/// request:  01 03 09 00 00 07 07 94
+/// response: 01 03 0E 00 59 4C 30 39 31 34 30 31 30 30 32 32 00 98 8C
+/// values:   serial_number = "YL0914010022"
+/// ```
+///
+/// Example (figures 19, 20, 21), manual for software 1.8:
 ///
 /// ```text
 /// request:  01 03 09 00 00 07 07 94
@@ -289,6 +306,7 @@ impl rtu::Command for GetSn {
         count: 7,
         fixed_slave: None,
         extra_byte_counts: &[],
+        trigger: false,
     };
     fn encode_request(
         &self,
@@ -326,11 +344,20 @@ impl rtu::Command for GetSn {
 ///
 /// Starts conductivity measurement. A vendor-specific trigger: a write of
 /// zero registers with byte count 0 (erratum E11), answered with the usual
-/// write echo. Readings are valid about 10 s later.
+/// write echo. Readings are valid about 10 s later. From SW 1.8 the probe
+/// measures from power-on by default, and Start Measurement resumes
+/// measuring after Stop Measurement.
 ///
-/// Manual section 2.2.3, figures 22, 23, 24. Writes (function 0x10) 0 registers at 0x1C00. A trigger: the write carries no data (byte count 0).
+/// Manual section 2.2.3, figures 22, 23, 24. Writes (function 0x10) 0 registers at 0x1C00. A trigger: the write carries no data (byte count 0). Role: `start_measurement`.
 ///
 /// Example (figures 23, 24):
+///
+/// ```text
+/// request:  01 10 1C 00 00 00 00 D8 92
+/// response: 01 10 1C 00 00 00 C7 99
+/// ```
+///
+/// Example (figures 23, 24), manual for software 1.8:
 ///
 /// ```text
 /// request:  01 10 1C 00 00 00 00 D8 92
@@ -373,6 +400,7 @@ impl rtu::Command for StartMeasurement {
         count: 0,
         fixed_slave: None,
         extra_byte_counts: &[],
+        trigger: true,
     };
     fn encode_request(
         &self,
@@ -415,6 +443,14 @@ impl rtu::Command for StartMeasurement {
 /// response: 01 03 0A 00 00 8D 41 00 00 8D 41 00 00 C7 33
 /// values:   temperature_c = 17.625, conductivity_ms_cm = 17.625, range_status = ok
 /// ```
+///
+/// Example (figures 26, 27, 28), manual for software 1.8:
+///
+/// ```text
+/// request:  01 03 26 00 00 05 8E 81
+/// response: 01 03 0A 00 00 8D 41 00 00 8D 41 00 00 C7 33
+/// values:   temperature_c = 17.625, conductivity_ms_cm = 17.625, range_status = ok
+/// ```
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub struct GetTemperatureAndConductivity;
 
@@ -430,13 +466,13 @@ impl GetTemperatureAndConductivity {
 /// Reply to [`GetTemperatureAndConductivity`]. Temperature, conductivity (user calibration applied) and the range-switching error flag.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GetTemperatureAndConductivityResponse {
-    /// Temperature in degrees Celsius. Unit: degC.
+    /// Temperature in degrees Celsius (working range 0-50 °C per the Y520 user manual). Unit: degC.
     ///
-    /// Wire: `f32`, little-endian image (`dcba`), data bytes 0..4.
+    /// Wire: `f32`, little-endian image (`dcba`), data bytes 0..4. Valid range 0..=50; encoding refuses other values.
     pub temperature_c: f32,
-    /// Conductivity in millisiemens per centimetre. Unit: mS/cm.
+    /// Conductivity in millisiemens per centimetre (range 1 µS/cm to 200 mS/cm per the Y520 user manual). Unit: mS/cm.
     ///
-    /// Wire: `f32`, little-endian image (`dcba`), data bytes 4..8.
+    /// Wire: `f32`, little-endian image (`dcba`), data bytes 4..8. Valid range 0.001..=200; encoding refuses other values.
     pub conductivity_ms_cm: f32,
     /// Whether automatic range switching worked; discard the reading on an error.
     ///
@@ -510,6 +546,7 @@ impl rtu::Command for GetTemperatureAndConductivity {
         count: 5,
         fixed_slave: None,
         extra_byte_counts: &[],
+        trigger: false,
     };
     fn encode_request(
         &self,
@@ -546,10 +583,10 @@ impl rtu::Command for GetTemperatureAndConductivity {
 /// Get Software and Hardware Rev.
 ///
 /// Reads the hardware and software revisions, one register each, read as
-/// major.minor byte pairs (a reading that fits both manuals' examples; the
+/// major.minor byte pairs (a reading that fits every manual's example; the
 /// manuals do not define the encoding).
 ///
-/// Manual section 2.2.5, figures 29, 30, 31. Reads (function 0x03) 2 registers at 0x0700. Shared by every Yosemitech probe (`yosemitech_common`).
+/// Manual section 2.2.5, figures 29, 30, 31. Reads (function 0x03) 2 registers at 0x0700. Role: `version`. Shared by every Yosemitech probe (`yosemitech_common`).
 ///
 /// Example (figures 30, 31):
 ///
@@ -558,6 +595,16 @@ impl rtu::Command for GetTemperatureAndConductivity {
 /// response: 01 03 04 01 00 01 00 FA 5F
 /// values:   hardware = 1.0, software = 1.0
 /// ```
+///
+/// Example (figures 30, 31), manual for software 1.8:
+///
+/// ```text
+/// request:  01 03 07 00 00 02 C5 7F
+/// response: 01 03 04 01 00 01 00 FA 5F
+/// values:   hardware = 1.0, software = 1.0
+/// ```
+///
+/// SW 1.8's manual keeps the 1.0 / 1.0 example under its SW 1.8 scope (erratum Y520-3).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub struct GetVersion;
 
@@ -570,7 +617,7 @@ impl GetVersion {
     }
 }
 
-/// Reply to [`GetVersion`]. Reads the hardware and software revisions, one register each, read as major.minor byte pairs (a reading that fits both manuals' examples; the manuals do not define the encoding).
+/// Reply to [`GetVersion`]. Reads the hardware and software revisions, one register each, read as major.minor byte pairs (a reading that fits every manual's example; the manuals do not define the encoding).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub struct GetVersionResponse {
     /// Hardware revision, major.minor.
@@ -628,6 +675,7 @@ impl rtu::Command for GetVersion {
         count: 2,
         fixed_slave: None,
         extra_byte_counts: &[],
+        trigger: false,
     };
     fn encode_request(
         &self,
@@ -661,6 +709,84 @@ impl rtu::Command for GetVersion {
     }
 }
 
+/// Stop Measurement.
+///
+/// Stops measuring once a stable result has been obtained; Start
+/// Measurement resumes it. A read of one register used as a trigger: the
+/// reply's byte count is 0x00 and its bytes are "meaningless" (erratum
+/// Y520-4).
+///
+/// Manual section 2.2.6, figures 32, 33, 34. Reads (function 0x03) 1 register at 0x2E00. A trigger: a read used as a command. Its reply carries no value and is accepted with byte count 0 and no data, byte count 0 followed by the registers, or the registers with their byte count. Added in software revision 1.8. Role: `stop_measurement`. Shared by every Yosemitech probe (`yosemitech_optical`).
+///
+/// Example (figures 33, 34), manual for software 1.8:
+///
+/// ```text
+/// request:  01 03 2E 00 00 01 8D 22
+/// response: 01 03 00 ... (CRC not printed)
+/// ```
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
+pub struct StopMeasurement;
+
+impl StopMeasurement {
+    /// Name and unit of each field, in wire order.
+    pub const FIELDS: [rtu::FieldInfo; 0] = [];
+    /// Each field's value, in the order of [`Self::FIELDS`].
+    pub fn fields(&self) -> [rtu::FieldValue<'_>; 0] {
+        []
+    }
+}
+
+/// Reply to [`StopMeasurement`]: an acknowledgement that carries no value.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
+pub struct StopMeasurementResponse;
+
+impl StopMeasurementResponse {
+    /// Name and unit of each field, in wire order.
+    pub const FIELDS: [rtu::FieldInfo; 0] = [];
+    /// Each field's value, in the order of [`Self::FIELDS`].
+    pub fn fields(&self) -> [rtu::FieldValue<'_>; 0] {
+        []
+    }
+}
+
+impl rtu::Command for StopMeasurement {
+    type Response = StopMeasurementResponse;
+    const NAME: &'static str = "stop_measurement";
+    const LAYOUT: rtu::Layout<'static> = rtu::Layout {
+        function: rtu::Function::Read,
+        address: 0x2E00,
+        count: 1,
+        fixed_slave: None,
+        extra_byte_counts: &[],
+        trigger: true,
+    };
+    fn encode_request(
+        &self,
+        slave: u8,
+        out: &mut [u8],
+    ) -> Result<usize, rtu::EncodeError> {
+        Self::LAYOUT.encode_request(slave, &[], out)
+    }
+    fn decode_request(frame: &[u8]) -> Result<(u8, Self), rtu::FrameError> {
+        let (slave, _) = Self::LAYOUT.decode_request(frame)?;
+        Ok((slave, Self))
+    }
+    fn encode_response(
+        _response: &StopMeasurementResponse,
+        slave: u8,
+        out: &mut [u8],
+    ) -> Result<usize, rtu::EncodeError> {
+        Self::LAYOUT.encode_response(slave, &[], out)
+    }
+    fn decode_response(
+        slave: u8,
+        frame: &[u8],
+    ) -> Result<StopMeasurementResponse, rtu::FrameError> {
+        Self::LAYOUT.decode_response(slave, frame)?;
+        Ok(StopMeasurementResponse)
+    }
+}
+
 /// Get User Calibration Coefficients.
 ///
 /// Reads the user calibration K and B, applied as Cond_final = K·Cond + B (defaults K = 1, B = 0).
@@ -668,6 +794,14 @@ impl rtu::Command for GetVersion {
 /// Manual section 2.2.6, figures 32, 33, 34, 35. Reads (function 0x03) 4 registers at 0x1100.
 ///
 /// Example (figures 33, 34, 35):
+///
+/// ```text
+/// request:  01 03 11 00 00 04 41 35
+/// response: 01 03 08 00 00 80 3F 00 00 00 00 9E 12
+/// values:   k_slope = 1, b_offset = 0
+/// ```
+///
+/// Example (figures 36, 37, 38), manual for software 1.8:
 ///
 /// ```text
 /// request:  01 03 11 00 00 04 41 35
@@ -753,6 +887,7 @@ impl rtu::Command for GetUserCalibration {
         count: 4,
         fixed_slave: None,
         extra_byte_counts: &[],
+        trigger: false,
     };
     fn encode_request(
         &self,
@@ -793,6 +928,14 @@ impl rtu::Command for GetUserCalibration {
 /// Manual section 2.2.7, figures 36, 37, 38, 39. Writes (function 0x10) 4 registers at 0x1100.
 ///
 /// Example (figures 37, 38, 39):
+///
+/// ```text
+/// request:  01 10 11 00 00 04 08 00 00 80 3F 00 00 00 00 81 AE
+/// response: 01 10 11 00 00 04 C4 F6
+/// values:   k_slope = 1, b_offset = 0
+/// ```
+///
+/// Example (figures 40, 41, 42), manual for software 1.8:
 ///
 /// ```text
 /// request:  01 10 11 00 00 04 08 00 00 80 3F 00 00 00 00 81 AE
@@ -871,6 +1014,7 @@ impl rtu::Command for SetUserCalibration {
         count: 4,
         fixed_slave: None,
         extra_byte_counts: &[],
+        trigger: false,
     };
     fn encode_request(
         &self,
@@ -902,6 +1046,116 @@ impl rtu::Command for SetUserCalibration {
     }
 }
 
+/// Get Slave Device ID.
+///
+/// Reads the probe's slave address. Request and reply both use the
+/// wildcard address 0xFF, not the probe's own, so this works only with a
+/// single device on the bus. The address sits in the first byte of the
+/// register and the second byte is reserved, as in Set Slave Device ID.
+/// The manuals' register tables list function 0x10; every printed frame
+/// uses 0x03 (each sensor records this as a table erratum).
+///
+/// Manual section 2.2.9, figures 43, 44, 45. Reads (function 0x03) 1 register at 0x3000. Added in software revision 1.8. Role: `get_slave_address`. Always sent to slave 0xFF, and the reply comes from 0xFF, whatever the probe's address. Shared by every Yosemitech probe (`yosemitech_common`).
+///
+/// Example (figures 44, 45), manual for software 1.8:
+///
+/// ```text
+/// request:  FF 03 30 00 00 01 9E D4
+/// response: FF 03 02 03 00 91 60
+/// values:   slave_address = 3
+/// ```
+///
+/// # Errata
+///
+/// - **Y520-1** (figure 43): the table gives function 0x10. As in the pH manual (Fig 72, erratum E2), the table lists function 0x10, but this is a read with no data and the CRC-valid example (Fig 44) uses 0x03.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
+pub struct GetSlaveId;
+
+impl GetSlaveId {
+    /// Name and unit of each field, in wire order.
+    pub const FIELDS: [rtu::FieldInfo; 0] = [];
+    /// Each field's value, in the order of [`Self::FIELDS`].
+    pub fn fields(&self) -> [rtu::FieldValue<'_>; 0] {
+        []
+    }
+}
+
+/// Reply to [`GetSlaveId`]. Reads the probe's slave address.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub struct GetSlaveIdResponse {
+    /// The current slave address.
+    ///
+    /// Wire: `u8`, data byte 0.
+    pub slave_address: u8,
+}
+
+impl GetSlaveIdResponse {
+    /// Name and unit of each field, in wire order.
+    pub const FIELDS: [rtu::FieldInfo; 1] = [
+        rtu::FieldInfo {
+            name: "slave_address",
+            unit: None,
+        },
+    ];
+    /// Each field's value, in the order of [`Self::FIELDS`].
+    pub fn fields(&self) -> [rtu::FieldValue<'_>; 1] {
+        [rtu::FieldValue::Int(i64::from(self.slave_address))]
+    }
+    /// Bytes of register data: two per register.
+    pub const DATA_LEN: usize = 2;
+    /// Decodes register data; reserved bytes are ignored.
+    pub const fn from_data(data: &[u8; 2]) -> Self {
+        Self { slave_address: data[0] }
+    }
+    /// Encodes register data, reserved bytes with their fill.
+    pub const fn to_data(&self) -> [u8; 2] {
+        [self.slave_address, 0x00]
+    }
+}
+
+impl rtu::Command for GetSlaveId {
+    type Response = GetSlaveIdResponse;
+    const NAME: &'static str = "get_slave_id";
+    const LAYOUT: rtu::Layout<'static> = rtu::Layout {
+        function: rtu::Function::Read,
+        address: 0x3000,
+        count: 1,
+        fixed_slave: Some(0xFF),
+        extra_byte_counts: &[],
+        trigger: false,
+    };
+    fn encode_request(
+        &self,
+        slave: u8,
+        out: &mut [u8],
+    ) -> Result<usize, rtu::EncodeError> {
+        Self::LAYOUT.encode_request(slave, &[], out)
+    }
+    fn decode_request(frame: &[u8]) -> Result<(u8, Self), rtu::FrameError> {
+        let (slave, _) = Self::LAYOUT.decode_request(frame)?;
+        Ok((slave, Self))
+    }
+    fn encode_response(
+        response: &GetSlaveIdResponse,
+        slave: u8,
+        out: &mut [u8],
+    ) -> Result<usize, rtu::EncodeError> {
+        Self::LAYOUT.encode_response(slave, &response.to_data(), out)
+    }
+    fn decode_response(
+        slave: u8,
+        frame: &[u8],
+    ) -> Result<GetSlaveIdResponse, rtu::FrameError> {
+        let data = Self::LAYOUT.decode_response(slave, frame)?;
+        let data = <&[u8; 2]>::try_from(data)
+            .map_err(|_| rtu::FrameError::Truncated {
+                expected: Self::RESPONSE_LEN,
+                actual: frame.len(),
+            })?;
+        Ok(GetSlaveIdResponse::from_data(data))
+    }
+}
+
 /// Every command of this sensor, for code that picks commands at run
 /// time (CLIs, simulators, tests).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -916,22 +1170,28 @@ pub enum CommandId {
     GetTemperatureAndConductivity,
     /// `get_version`: [`GetVersion`].
     GetVersion,
+    /// `stop_measurement`: [`StopMeasurement`].
+    StopMeasurement,
     /// `get_user_calibration`: [`GetUserCalibration`].
     GetUserCalibration,
     /// `set_user_calibration`: [`SetUserCalibration`].
     SetUserCalibration,
+    /// `get_slave_id`: [`GetSlaveId`].
+    GetSlaveId,
 }
 
 impl CommandId {
     /// Every command, in spec order.
-    pub const ALL: [Self; 7] = [
+    pub const ALL: [Self; 9] = [
         Self::SetSlaveId,
         Self::GetSn,
         Self::StartMeasurement,
         Self::GetTemperatureAndConductivity,
         Self::GetVersion,
+        Self::StopMeasurement,
         Self::GetUserCalibration,
         Self::SetUserCalibration,
+        Self::GetSlaveId,
     ];
     /// The command's snake_case name in the spec.
     pub const fn name(self) -> &'static str {
@@ -941,8 +1201,10 @@ impl CommandId {
             Self::StartMeasurement => "start_measurement",
             Self::GetTemperatureAndConductivity => "get_temperature_and_conductivity",
             Self::GetVersion => "get_version",
+            Self::StopMeasurement => "stop_measurement",
             Self::GetUserCalibration => "get_user_calibration",
             Self::SetUserCalibration => "set_user_calibration",
+            Self::GetSlaveId => "get_slave_id",
         }
     }
     /// The command called `name` in the spec.
@@ -955,8 +1217,10 @@ impl CommandId {
                 Some(Self::GetTemperatureAndConductivity)
             }
             "get_version" => Some(Self::GetVersion),
+            "stop_measurement" => Some(Self::StopMeasurement),
             "get_user_calibration" => Some(Self::GetUserCalibration),
             "set_user_calibration" => Some(Self::SetUserCalibration),
+            "get_slave_id" => Some(Self::GetSlaveId),
             _ => None,
         }
     }
@@ -970,8 +1234,10 @@ impl CommandId {
                 "Get Temperature and Conductivity values"
             }
             Self::GetVersion => "Get Software and Hardware Rev",
+            Self::StopMeasurement => "Stop Measurement",
             Self::GetUserCalibration => "Get User Calibration Coefficients",
             Self::SetUserCalibration => "Set Customer Calibration Coefficients",
+            Self::GetSlaveId => "Get Slave Device ID",
         }
     }
     /// Function, start address, register count and addressing quirks.
@@ -984,8 +1250,10 @@ impl CommandId {
                 <GetTemperatureAndConductivity as rtu::Command>::LAYOUT
             }
             Self::GetVersion => <GetVersion as rtu::Command>::LAYOUT,
+            Self::StopMeasurement => <StopMeasurement as rtu::Command>::LAYOUT,
             Self::GetUserCalibration => <GetUserCalibration as rtu::Command>::LAYOUT,
             Self::SetUserCalibration => <SetUserCalibration as rtu::Command>::LAYOUT,
+            Self::GetSlaveId => <GetSlaveId as rtu::Command>::LAYOUT,
         }
     }
     /// Name and unit of each field of the request (empty for reads).
@@ -996,8 +1264,10 @@ impl CommandId {
             Self::StartMeasurement => &StartMeasurement::FIELDS,
             Self::GetTemperatureAndConductivity => &GetTemperatureAndConductivity::FIELDS,
             Self::GetVersion => &GetVersion::FIELDS,
+            Self::StopMeasurement => &StopMeasurement::FIELDS,
             Self::GetUserCalibration => &GetUserCalibration::FIELDS,
             Self::SetUserCalibration => &SetUserCalibration::FIELDS,
+            Self::GetSlaveId => &GetSlaveId::FIELDS,
         }
     }
     /// Name and unit of each field of the reply (empty for writes).
@@ -1010,8 +1280,10 @@ impl CommandId {
                 &GetTemperatureAndConductivityResponse::FIELDS
             }
             Self::GetVersion => &GetVersionResponse::FIELDS,
+            Self::StopMeasurement => &StopMeasurementResponse::FIELDS,
             Self::GetUserCalibration => &GetUserCalibrationResponse::FIELDS,
             Self::SetUserCalibration => &[],
+            Self::GetSlaveId => &GetSlaveIdResponse::FIELDS,
         }
     }
     /// Checks a request frame for this command and decodes it.
@@ -1037,6 +1309,10 @@ impl CommandId {
                 <GetVersion as rtu::Command>::decode_request(frame)
                     .map(|(slave, r)| (slave, Request::GetVersion(r)))
             }
+            Self::StopMeasurement => {
+                <StopMeasurement as rtu::Command>::decode_request(frame)
+                    .map(|(slave, r)| (slave, Request::StopMeasurement(r)))
+            }
             Self::GetUserCalibration => {
                 <GetUserCalibration as rtu::Command>::decode_request(frame)
                     .map(|(slave, r)| (slave, Request::GetUserCalibration(r)))
@@ -1044,6 +1320,10 @@ impl CommandId {
             Self::SetUserCalibration => {
                 <SetUserCalibration as rtu::Command>::decode_request(frame)
                     .map(|(slave, r)| (slave, Request::SetUserCalibration(r)))
+            }
+            Self::GetSlaveId => {
+                <GetSlaveId as rtu::Command>::decode_request(frame)
+                    .map(|(slave, r)| (slave, Request::GetSlaveId(r)))
             }
         }
     }
@@ -1077,6 +1357,10 @@ impl CommandId {
                 <GetVersion as rtu::Command>::decode_response(slave, frame)
                     .map(Response::GetVersion)
             }
+            Self::StopMeasurement => {
+                <StopMeasurement as rtu::Command>::decode_response(slave, frame)
+                    .map(Response::StopMeasurement)
+            }
             Self::GetUserCalibration => {
                 <GetUserCalibration as rtu::Command>::decode_response(slave, frame)
                     .map(Response::GetUserCalibration)
@@ -1084,6 +1368,10 @@ impl CommandId {
             Self::SetUserCalibration => {
                 <SetUserCalibration as rtu::Command>::decode_response(slave, frame)
                     .map(|()| Response::SetUserCalibration)
+            }
+            Self::GetSlaveId => {
+                <GetSlaveId as rtu::Command>::decode_response(slave, frame)
+                    .map(Response::GetSlaveId)
             }
         }
     }
@@ -1108,10 +1396,14 @@ pub enum Request {
     GetTemperatureAndConductivity(GetTemperatureAndConductivity),
     /// A [`GetVersion`] request.
     GetVersion(GetVersion),
+    /// A [`StopMeasurement`] request.
+    StopMeasurement(StopMeasurement),
     /// A [`GetUserCalibration`] request.
     GetUserCalibration(GetUserCalibration),
     /// A [`SetUserCalibration`] request.
     SetUserCalibration(SetUserCalibration),
+    /// A [`GetSlaveId`] request.
+    GetSlaveId(GetSlaveId),
 }
 
 impl Request {
@@ -1125,8 +1417,10 @@ impl Request {
                 CommandId::GetTemperatureAndConductivity
             }
             Self::GetVersion(_) => CommandId::GetVersion,
+            Self::StopMeasurement(_) => CommandId::StopMeasurement,
             Self::GetUserCalibration(_) => CommandId::GetUserCalibration,
             Self::SetUserCalibration(_) => CommandId::SetUserCalibration,
+            Self::GetSlaveId(_) => CommandId::GetSlaveId,
         }
     }
     /// Writes the request frame for `slave` into `out` and returns its length.
@@ -1139,8 +1433,10 @@ impl Request {
                 rtu::Command::encode_request(r, slave, out)
             }
             Self::GetVersion(r) => rtu::Command::encode_request(r, slave, out),
+            Self::StopMeasurement(r) => rtu::Command::encode_request(r, slave, out),
             Self::GetUserCalibration(r) => rtu::Command::encode_request(r, slave, out),
             Self::SetUserCalibration(r) => rtu::Command::encode_request(r, slave, out),
+            Self::GetSlaveId(r) => rtu::Command::encode_request(r, slave, out),
         }
     }
     /// The value of field `index` of [`CommandId::request_fields`].
@@ -1151,8 +1447,10 @@ impl Request {
             Self::StartMeasurement(r) => r.fields().get(index).copied(),
             Self::GetTemperatureAndConductivity(r) => r.fields().get(index).copied(),
             Self::GetVersion(r) => r.fields().get(index).copied(),
+            Self::StopMeasurement(r) => r.fields().get(index).copied(),
             Self::GetUserCalibration(r) => r.fields().get(index).copied(),
             Self::SetUserCalibration(r) => r.fields().get(index).copied(),
+            Self::GetSlaveId(r) => r.fields().get(index).copied(),
         }
     }
     /// Every field with its name and unit, in wire order.
@@ -1180,10 +1478,14 @@ pub enum Response {
     GetTemperatureAndConductivity(GetTemperatureAndConductivityResponse),
     /// The reply to [`GetVersion`].
     GetVersion(GetVersionResponse),
+    /// The reply to [`StopMeasurement`].
+    StopMeasurement(StopMeasurementResponse),
     /// The reply to [`GetUserCalibration`].
     GetUserCalibration(GetUserCalibrationResponse),
     /// The reply to [`SetUserCalibration`].
     SetUserCalibration,
+    /// The reply to [`GetSlaveId`].
+    GetSlaveId(GetSlaveIdResponse),
 }
 
 impl Response {
@@ -1197,8 +1499,10 @@ impl Response {
                 CommandId::GetTemperatureAndConductivity
             }
             Self::GetVersion(_) => CommandId::GetVersion,
+            Self::StopMeasurement(_) => CommandId::StopMeasurement,
             Self::GetUserCalibration(_) => CommandId::GetUserCalibration,
             Self::SetUserCalibration => CommandId::SetUserCalibration,
+            Self::GetSlaveId(_) => CommandId::GetSlaveId,
         }
     }
     /// Writes this reply from `slave` into `out` and returns its length.
@@ -1221,11 +1525,17 @@ impl Response {
             Self::GetVersion(r) => {
                 <GetVersion as rtu::Command>::encode_response(r, slave, out)
             }
+            Self::StopMeasurement(r) => {
+                <StopMeasurement as rtu::Command>::encode_response(r, slave, out)
+            }
             Self::GetUserCalibration(r) => {
                 <GetUserCalibration as rtu::Command>::encode_response(r, slave, out)
             }
             Self::SetUserCalibration => {
                 <SetUserCalibration as rtu::Command>::encode_response(&(), slave, out)
+            }
+            Self::GetSlaveId(r) => {
+                <GetSlaveId as rtu::Command>::encode_response(r, slave, out)
             }
         }
     }
@@ -1237,8 +1547,10 @@ impl Response {
             Self::StartMeasurement => None,
             Self::GetTemperatureAndConductivity(r) => r.fields().get(index).copied(),
             Self::GetVersion(r) => r.fields().get(index).copied(),
+            Self::StopMeasurement(r) => r.fields().get(index).copied(),
             Self::GetUserCalibration(r) => r.fields().get(index).copied(),
             Self::SetUserCalibration => None,
+            Self::GetSlaveId(r) => r.fields().get(index).copied(),
         }
     }
     /// Every field with its name and unit, in wire order.
@@ -1301,6 +1613,18 @@ impl From<GetVersion> for Request {
     }
 }
 
+impl From<StopMeasurementResponse> for Response {
+    fn from(response: StopMeasurementResponse) -> Self {
+        Self::StopMeasurement(response)
+    }
+}
+
+impl From<StopMeasurement> for Request {
+    fn from(request: StopMeasurement) -> Self {
+        Self::StopMeasurement(request)
+    }
+}
+
 impl From<GetUserCalibrationResponse> for Response {
     fn from(response: GetUserCalibrationResponse) -> Self {
         Self::GetUserCalibration(response)
@@ -1316,6 +1640,18 @@ impl From<GetUserCalibration> for Request {
 impl From<SetUserCalibration> for Request {
     fn from(request: SetUserCalibration) -> Self {
         Self::SetUserCalibration(request)
+    }
+}
+
+impl From<GetSlaveIdResponse> for Response {
+    fn from(response: GetSlaveIdResponse) -> Self {
+        Self::GetSlaveId(response)
+    }
+}
+
+impl From<GetSlaveId> for Request {
+    fn from(request: GetSlaveId) -> Self {
+        Self::GetSlaveId(request)
     }
 }
 
@@ -1344,6 +1680,75 @@ pub fn identify_request(frame: &[u8]) -> Option<CommandId> {
                 && layout.count == count
         })
 }
+
+/// Every command's spec name, in spec order.
+pub const COMMAND_NAMES: [&str; 9] = [
+    "set_slave_id",
+    "get_sn",
+    "start_measurement",
+    "get_temperature_and_conductivity",
+    "get_version",
+    "stop_measurement",
+    "get_user_calibration",
+    "set_user_calibration",
+    "get_slave_id",
+];
+
+/// This module as data, for code that serves every sensor without naming one
+/// (`crate::SENSORS` lists them all).
+pub const MODULE: rtu::SensorModule = rtu::SensorModule {
+    info: SENSOR,
+    commands: &COMMAND_NAMES,
+    layout: |name| CommandId::from_name(name).map(CommandId::layout),
+    identify_request: |frame| identify_request(frame).map(CommandId::name),
+    visit_request: |name, frame, visit| {
+        let id = CommandId::from_name(name)?;
+        Some(
+            id
+                .decode_request(frame)
+                .map(|(slave, request)| {
+                    for (info, value) in request.fields() {
+                        visit(info, value);
+                    }
+                    slave
+                }),
+        )
+    },
+    reencode_request: |name, frame, out| {
+        let id = CommandId::from_name(name)?;
+        Some(
+            id
+                .decode_request(frame)
+                .map_err(rtu::RoundTripError::Frame)
+                .and_then(|(slave, request)| {
+                    request.encode(slave, out).map_err(rtu::RoundTripError::Encode)
+                }),
+        )
+    },
+    reencode_response: |name, slave, frame, out| {
+        let id = CommandId::from_name(name)?;
+        Some(
+            id
+                .decode_response(slave, frame)
+                .map_err(rtu::RoundTripError::Frame)
+                .and_then(|response| {
+                    response.encode(slave, out).map_err(rtu::RoundTripError::Encode)
+                }),
+        )
+    },
+    visit_response: |name, slave, frame, visit| {
+        let id = CommandId::from_name(name)?;
+        Some(
+            id
+                .decode_response(slave, frame)
+                .map(|response| {
+                    for (info, value) in response.fields() {
+                        visit(info, value);
+                    }
+                }),
+        )
+    },
+};
 
 #[cfg(feature = "std")]
 /// One Conductivity probe on a bus: a borrowed [`rtu::Client`] and the probe's slave address, with one method per command.
@@ -1408,6 +1813,10 @@ impl<'c, T: rtu::Transport> Device<'c, T> {
     pub fn version(&mut self) -> Result<GetVersionResponse, rtu::Error> {
         self.call(&GetVersion)
     }
+    /// Stop Measurement: sends [`StopMeasurement`] and returns the reply.
+    pub fn stop_measurement(&mut self) -> Result<StopMeasurementResponse, rtu::Error> {
+        self.call(&StopMeasurement)
+    }
     /// Get User Calibration Coefficients: sends [`GetUserCalibration`] and returns the reply.
     pub fn user_calibration(
         &mut self,
@@ -1420,5 +1829,9 @@ impl<'c, T: rtu::Transport> Device<'c, T> {
         request: SetUserCalibration,
     ) -> Result<(), rtu::Error> {
         self.call(&request)
+    }
+    /// Get Slave Device ID: sends [`GetSlaveId`] and returns its `slave_address`.
+    pub fn slave_id(&mut self) -> Result<u8, rtu::Error> {
+        self.call(&GetSlaveId).map(|reply| reply.slave_address)
     }
 }

@@ -121,11 +121,19 @@ impl ::core::fmt::Display for CalibrationStatus {
 /// Sets the probe's Modbus slave address. The reply comes from the old
 /// address; the new address applies to every later request. The address
 /// sits in the first byte of the register and the second byte is reserved
-/// (both manuals print `14 00` for address 20, and only that CRC verifies).
+/// (every manual prints `14 00` for address 20, and only that CRC verifies).
 ///
-/// Manual section 2.2.1, figures 15, 16, 17. Writes (function 0x10) 1 register at 0x3000. Shared by every Yosemitech probe (`yosemitech_common`).
+/// Manual section 2.2.1, figures 15, 16, 17. Writes (function 0x10) 1 register at 0x3000. Role: `set_slave_address`. Shared by every Yosemitech probe (`yosemitech_common`).
 ///
 /// Example (figures 16, 17):
+///
+/// ```text
+/// request:  01 10 30 00 00 01 02 14 00 99 53
+/// response: 01 10 30 00 00 01 0E C9
+/// values:   slave_address = 20
+/// ```
+///
+/// Example (figures 16, 17), manual for software 1.1:
 ///
 /// ```text
 /// request:  01 10 30 00 00 01 02 14 00 99 53
@@ -184,6 +192,7 @@ impl rtu::Command for SetSlaveId {
         count: 1,
         fixed_slave: None,
         extra_byte_counts: &[],
+        trigger: false,
     };
     fn encode_request(
         &self,
@@ -220,9 +229,17 @@ impl rtu::Command for SetSlaveId {
 /// Reads the probe's serial number: 14 bytes, a 0x00, twelve ASCII
 /// characters ("YL…") and a 0x00.
 ///
-/// Manual section 2.2.2, figures 18, 19, 20, 21. Reads (function 0x03) 7 registers at 0x0900. Shared by every Yosemitech probe (`yosemitech_common`).
+/// Manual section 2.2.2, figures 18, 19, 20, 21. Reads (function 0x03) 7 registers at 0x0900. Role: `serial_number`. Shared by every Yosemitech probe (`yosemitech_common`).
 ///
 /// Example (figures 19, 20, 21):
+///
+/// ```text
+/// request:  01 03 09 00 00 07 07 94
+/// response: 01 03 0E 00 59 4C 34 33 31 34 30 31 30 30 32 32 00 AD 9C
+/// values:   serial_number = "YL4314010022"
+/// ```
+///
+/// Example (figures 19, 20, 21), manual for software 1.1:
 ///
 /// ```text
 /// request:  01 03 09 00 00 07 07 94
@@ -304,6 +321,7 @@ impl rtu::Command for GetSn {
         count: 7,
         fixed_slave: None,
         extra_byte_counts: &[],
+        trigger: false,
     };
     fn encode_request(
         &self,
@@ -350,6 +368,14 @@ impl rtu::Command for GetSn {
 /// response: 01 03 04 33 33 F3 40 40 78
 /// values:   ph = 7.6
 /// ```
+///
+/// Example (figures 23, 24, 25), manual for software 1.1:
+///
+/// ```text
+/// request:  01 03 28 00 00 02 CD AB
+/// response: 01 03 04 33 33 F3 40 40 78
+/// values:   ph = 7.6
+/// ```
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub struct GetPh;
 
@@ -365,9 +391,9 @@ impl GetPh {
 /// Reply to [`GetPh`]. The pH, temperature-compensated by the probe.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GetPhResponse {
-    /// pH value. Unit: pH.
+    /// pH value (measuring range 2-12 pH per the Y532-B user manual). Unit: pH.
     ///
-    /// Wire: `f32`, little-endian image (`dcba`), data bytes 0..4.
+    /// Wire: `f32`, little-endian image (`dcba`), data bytes 0..4. Valid range 2..=12; encoding refuses other values.
     pub ph: f32,
 }
 
@@ -410,6 +436,7 @@ impl rtu::Command for GetPh {
         count: 2,
         fixed_slave: None,
         extra_byte_counts: &[],
+        trigger: false,
     };
     fn encode_request(
         &self,
@@ -448,7 +475,7 @@ impl rtu::Command for GetPh {
 /// The potential (ORP) and the pH in one read. The title names pH first,
 /// but the registers hold the potential first (erratum E15).
 ///
-/// Manual section 2.2.4, figures 26, 27, 28, 29. Reads (function 0x03) 4 registers at 0x2600.
+/// Manual section 2.2.4, figures 26, 27, 28, 29. Reads (function 0x03) 4 registers at 0x2600. Added in software revision 1.7.
 ///
 /// Example (figures 27, 28, 29):
 ///
@@ -476,9 +503,9 @@ pub struct GetOrpAndPhResponse {
     ///
     /// Wire: `f32`, little-endian image (`dcba`), data bytes 0..4.
     pub orp_mv: f32,
-    /// pH value. Unit: pH.
+    /// pH value (measuring range 2-12 pH per the Y532-B user manual). Unit: pH.
     ///
-    /// Wire: `f32`, little-endian image (`dcba`), data bytes 4..8.
+    /// Wire: `f32`, little-endian image (`dcba`), data bytes 4..8. Valid range 2..=12; encoding refuses other values.
     pub ph: f32,
 }
 
@@ -533,6 +560,7 @@ impl rtu::Command for GetOrpAndPh {
         count: 4,
         fixed_slave: None,
         extra_byte_counts: &[],
+        trigger: false,
     };
     fn encode_request(
         &self,
@@ -568,11 +596,19 @@ impl rtu::Command for GetOrpAndPh {
 
 /// Get potential value (ORP).
 ///
-/// The oxidation-reduction potential.
+/// The oxidation-reduction potential. SW 1.1's manual titles it "Get potential value".
 ///
 /// Manual section 2.2.5, figures 30, 31, 32, 33. Reads (function 0x03) 2 registers at 0x1200.
 ///
 /// Example (figures 31, 32, 33):
+///
+/// ```text
+/// request:  01 03 12 00 00 02 C1 73
+/// response: 01 03 04 E1 7A 24 C1 37 46
+/// values:   orp_mv = -10.28
+/// ```
+///
+/// Example (figures 30, 31, 32), manual for software 1.1:
 ///
 /// ```text
 /// request:  01 03 12 00 00 02 C1 73
@@ -642,6 +678,7 @@ impl rtu::Command for GetOrp {
         count: 2,
         fixed_slave: None,
         extra_byte_counts: &[],
+        trigger: false,
     };
     fn encode_request(
         &self,
@@ -678,10 +715,10 @@ impl rtu::Command for GetOrp {
 /// Get Software and Hardware Rev.
 ///
 /// Reads the hardware and software revisions, one register each, read as
-/// major.minor byte pairs (a reading that fits both manuals' examples; the
+/// major.minor byte pairs (a reading that fits every manual's example; the
 /// manuals do not define the encoding).
 ///
-/// Manual section 2.2.6, figures 34, 35, 36. Reads (function 0x03) 2 registers at 0x0700. Shared by every Yosemitech probe (`yosemitech_common`).
+/// Manual section 2.2.6, figures 34, 35, 36. Reads (function 0x03) 2 registers at 0x0700. Role: `version`. Shared by every Yosemitech probe (`yosemitech_common`).
 ///
 /// Example (figures 35, 36):
 ///
@@ -692,6 +729,16 @@ impl rtu::Command for GetOrp {
 /// ```
 ///
 /// The scope says HW 1.2 / SW 1.7, the example 1.1 / 1.1 (erratum E13).
+///
+/// Example (figures 27, 28), manual for software 1.1:
+///
+/// ```text
+/// request:  01 03 07 00 00 02 C5 7F
+/// response: 01 03 04 01 01 01 01 6A 5F
+/// values:   hardware = 1.1, software = 1.1
+/// ```
+///
+/// Section 2.2.4 in SW 1.1's manual, whose scope (HW 1.1 / SW 1.1) the example matches.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub struct GetVersion;
 
@@ -704,7 +751,7 @@ impl GetVersion {
     }
 }
 
-/// Reply to [`GetVersion`]. Reads the hardware and software revisions, one register each, read as major.minor byte pairs (a reading that fits both manuals' examples; the manuals do not define the encoding).
+/// Reply to [`GetVersion`]. Reads the hardware and software revisions, one register each, read as major.minor byte pairs (a reading that fits every manual's example; the manuals do not define the encoding).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub struct GetVersionResponse {
     /// Hardware revision, major.minor.
@@ -762,6 +809,7 @@ impl rtu::Command for GetVersion {
         count: 2,
         fixed_slave: None,
         extra_byte_counts: &[],
+        trigger: false,
     };
     fn encode_request(
         &self,
@@ -802,7 +850,7 @@ impl rtu::Command for GetVersion {
 /// 25 °C) after it has settled for at least a minute. Read the calibration
 /// status after the third point.
 ///
-/// Manual section 2.2.7, figures 37, 38, 39. Writes (function 0x10) 2 registers at 0x2300.
+/// Manual section 2.2.7, figures 37, 38, 39. Writes (function 0x10) 2 registers at 0x2300. Role: `calibration_point`.
 ///
 /// Example (figures 38, 39):
 ///
@@ -813,6 +861,16 @@ impl rtu::Command for GetVersion {
 /// ```
 ///
 /// Fig 38 prints the value as "4.00"; the bytes 00 00 80 40 are the only ones the printed CRC verifies.
+///
+/// Example (figures 34, 35), manual for software 1.1:
+///
+/// ```text
+/// request:  01 10 23 00 00 02 04 00 00 80 40 1E AE
+/// response: 01 10 23 00 00 02 4A 4C
+/// values:   standard_ph = 4
+/// ```
+///
+/// Fig 34 prints the value as "4.00"; the bytes 00 00 80 40 are the only ones the printed CRC verifies.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct StartPhCalibration {
     /// pH of the standard solution. Unit: pH.
@@ -876,6 +934,7 @@ impl rtu::Command for StartPhCalibration {
         count: 2,
         fixed_slave: None,
         extra_byte_counts: &[],
+        trigger: false,
     };
     fn encode_request(
         &self,
@@ -913,7 +972,7 @@ impl rtu::Command for StartPhCalibration {
 /// previous coefficients itself. The status sits in the first byte of the
 /// register (as the slave address does; the manual does not say).
 ///
-/// Manual section 2.2.8, figures 40, 41, 42, 43. Reads (function 0x03) 1 register at 0x0E00.
+/// Manual section 2.2.8, figures 40, 41, 42, 43. Reads (function 0x03) 1 register at 0x0E00. Role: `calibration_status`.
 ///
 /// Example (figures 41, 42, 43):
 ///
@@ -925,6 +984,18 @@ impl rtu::Command for StartPhCalibration {
 /// ```
 ///
 /// Erratum E5 (figure 42): The CRC cells are empty and the status is printed as the word "Status 0". Here the printed frame is rejected.
+///
+/// Example (figures 37, 38, 39), manual for software 1.1:
+///
+/// ```text
+/// request:  01 03 0E 00 00 01 86 E2
+/// response: 01 03 02 00 00 [B8 44] (CRC not printed; computed)
+/// values:   status = success
+/// ```
+///
+/// Fig 38 has the defect of v1.7's Fig 42 (erratum E5): the CRC cells
+/// are empty and the register is printed as "Status 0" (the word under
+/// byte 3, the 0 under byte 4). Read as status 0, success, as in E5.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub struct GetCalibrationStatus;
 
@@ -986,6 +1057,7 @@ impl rtu::Command for GetCalibrationStatus {
         count: 1,
         fixed_slave: None,
         extra_byte_counts: &[],
+        trigger: false,
     };
     fn encode_request(
         &self,
@@ -1032,6 +1104,14 @@ impl rtu::Command for GetCalibrationStatus {
 /// response: 01 03 04 CD CC 7C 41 E4 50
 /// values:   temperature_c = 15.8
 /// ```
+///
+/// Example (figures 41, 42, 43), manual for software 1.1:
+///
+/// ```text
+/// request:  01 03 24 00 00 02 CE FB
+/// response: 01 03 04 CD CC 7C 41 E4 50
+/// values:   temperature_c = 15.8
+/// ```
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub struct GetTemperature;
 
@@ -1047,9 +1127,9 @@ impl GetTemperature {
 /// Reply to [`GetTemperature`]. The temperature of the solution.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GetTemperatureResponse {
-    /// Temperature in degrees Celsius. Unit: degC.
+    /// Temperature in degrees Celsius (operating range 0-50 °C per the Y532-B user manual). Unit: degC.
     ///
-    /// Wire: `f32`, little-endian image (`dcba`), data bytes 0..4.
+    /// Wire: `f32`, little-endian image (`dcba`), data bytes 0..4. Valid range 0..=50; encoding refuses other values.
     pub temperature_c: f32,
 }
 
@@ -1095,6 +1175,7 @@ impl rtu::Command for GetTemperature {
         count: 2,
         fixed_slave: None,
         extra_byte_counts: &[],
+        trigger: false,
     };
     fn encode_request(
         &self,
@@ -1133,11 +1214,21 @@ impl rtu::Command for GetTemperature {
 /// Writes the electrode coefficients K1..K6 ("recover pH factory
 /// calibration coefficients"; defaults 6.86, -6.72, 0.04, 6.86, -6.56,
 /// -1.04). The figure captions call this block "customer calibration
-/// coefficients", the name of the 0x1100 K/B block (erratum E14).
+/// coefficients", the name of the 0x1100 K/B block (erratum E14): SW 1.1's
+/// manual, which has no 0x1100 block, titles this command "Set Customer
+/// Calibration Coefficients" (section 2.2.9).
 ///
 /// Manual section 2.2.10, figures 48, 49, 50, 51. Writes (function 0x10) 12 registers at 0x2900.
 ///
 /// Example (figures 49, 50, 51):
+///
+/// ```text
+/// request:  01 10 29 00 00 0C 18 1F 85 DB 40 3D 0A D7 C0 0A D7 23 3D 1F 85 DB 40 85 EB D1 C0 B8 1E 85 BF 94 59
+/// response: 01 10 29 00 00 0C C8 50
+/// values:   k1 = 6.86, k2 = -6.72, k3 = 0.04, k4 = 6.86, k5 = -6.56, k6 = -1.04
+/// ```
+///
+/// Example (figures 45, 46, 47), manual for software 1.1:
 ///
 /// ```text
 /// request:  01 10 29 00 00 0C 18 1F 85 DB 40 3D 0A D7 C0 0A D7 23 3D 1F 85 DB 40 85 EB D1 C0 B8 1E 85 BF 94 59
@@ -1303,6 +1394,7 @@ impl rtu::Command for SetPhElectrodeCoefficients {
         count: 12,
         fixed_slave: None,
         extra_byte_counts: &[],
+        trigger: false,
     };
     fn encode_request(
         &self,
@@ -1341,7 +1433,7 @@ impl rtu::Command for SetPhElectrodeCoefficients {
 /// 0x0C (erratum E4). Whether real firmware sends 0x0C or 0x18 is unknown,
 /// so the reply is framed by its length and both counts are accepted.
 ///
-/// Manual section 2.2.11, figures 52, 53, 54, 55. Reads (function 0x03) 12 registers at 0x2900. The reply is framed by its length; besides 0x18 its byte count may be 0x0C (see the example's erratum).
+/// Manual section 2.2.11, figures 52, 53, 54, 55. Reads (function 0x03) 12 registers at 0x2900. Added in software revision 1.7. The reply is framed by its length; besides 0x18 its byte count may be 0x0C (see the example's erratum).
 ///
 /// Example (figures 53, 54, 55):
 ///
@@ -1519,6 +1611,7 @@ impl rtu::Command for GetPhElectrodeCoefficients {
         count: 12,
         fixed_slave: None,
         extra_byte_counts: &[0x0C],
+        trigger: false,
     };
     fn encode_request(
         &self,
@@ -1556,7 +1649,7 @@ impl rtu::Command for GetPhElectrodeCoefficients {
 ///
 /// Writes the ORP calibration coefficients K and B (ORP = K·raw + B by analogy with conductivity; the manual gives no equation).
 ///
-/// Manual section 2.2.12, figures 56, 57, 58, 59. Writes (function 0x10) 4 registers at 0x3400.
+/// Manual section 2.2.12, figures 56, 57, 58, 59. Writes (function 0x10) 4 registers at 0x3400. Added in software revision 1.7.
 ///
 /// Example (figures 57, 58, 59):
 ///
@@ -1637,6 +1730,7 @@ impl rtu::Command for SetOrpCalibration {
         count: 4,
         fixed_slave: None,
         extra_byte_counts: &[],
+        trigger: false,
     };
     fn encode_request(
         &self,
@@ -1672,7 +1766,7 @@ impl rtu::Command for SetOrpCalibration {
 ///
 /// Reads the ORP calibration coefficients K and B.
 ///
-/// Manual section 2.2.13, figures 60, 61, 62, 63. Reads (function 0x03) 4 registers at 0x3400.
+/// Manual section 2.2.13, figures 60, 61, 62, 63. Reads (function 0x03) 4 registers at 0x3400. Added in software revision 1.7.
 ///
 /// Example (figures 61, 62, 63):
 ///
@@ -1764,6 +1858,7 @@ impl rtu::Command for GetOrpCalibration {
         count: 4,
         fixed_slave: None,
         extra_byte_counts: &[],
+        trigger: false,
     };
     fn encode_request(
         &self,
@@ -1801,7 +1896,7 @@ impl rtu::Command for GetOrpCalibration {
 ///
 /// Writes the pH customer calibration coefficients K and B.
 ///
-/// Manual section 2.2.14, figures 64, 65, 66, 67. Writes (function 0x10) 4 registers at 0x1100.
+/// Manual section 2.2.14, figures 64, 65, 66, 67. Writes (function 0x10) 4 registers at 0x1100. Added in software revision 1.7.
 ///
 /// Example (figures 65, 66, 67):
 ///
@@ -1882,6 +1977,7 @@ impl rtu::Command for SetPhCalibration {
         count: 4,
         fixed_slave: None,
         extra_byte_counts: &[],
+        trigger: false,
     };
     fn encode_request(
         &self,
@@ -1917,7 +2013,7 @@ impl rtu::Command for SetPhCalibration {
 ///
 /// Reads the pH customer calibration coefficients K and B.
 ///
-/// Manual section 2.2.15, figures 68, 69, 70, 71. Reads (function 0x03) 4 registers at 0x1100.
+/// Manual section 2.2.15, figures 68, 69, 70, 71. Reads (function 0x03) 4 registers at 0x1100. Added in software revision 1.7.
 ///
 /// Example (figures 69, 70, 71):
 ///
@@ -2005,6 +2101,7 @@ impl rtu::Command for GetPhCalibration {
         count: 4,
         fixed_slave: None,
         extra_byte_counts: &[],
+        trigger: false,
     };
     fn encode_request(
         &self,
@@ -2040,11 +2137,14 @@ impl rtu::Command for GetPhCalibration {
 
 /// Get Slave Device ID.
 ///
-/// Reads the probe's slave address by sending to the wildcard address
-/// 0xFF; the reply also comes from 0xFF (erratum E3). Works only with a
-/// single device on the bus.
+/// Reads the probe's slave address. Request and reply both use the
+/// wildcard address 0xFF, not the probe's own, so this works only with a
+/// single device on the bus. The address sits in the first byte of the
+/// register and the second byte is reserved, as in Set Slave Device ID.
+/// The manuals' register tables list function 0x10; every printed frame
+/// uses 0x03 (each sensor records this as a table erratum).
 ///
-/// Manual section 2.2.16, figures 72, 73, 74. Reads (function 0x03) 1 register at 0x3000. Always sent to slave 0xFF, and the reply comes from 0xFF, whatever the probe's address.
+/// Manual section 2.2.16, figures 72, 73, 74. Reads (function 0x03) 1 register at 0x3000. Added in software revision 1.7. Role: `get_slave_address`. Always sent to slave 0xFF, and the reply comes from 0xFF, whatever the probe's address. Shared by every Yosemitech probe (`yosemitech_common`).
 ///
 /// Example (figures 73, 74):
 ///
@@ -2069,7 +2169,7 @@ impl GetSlaveId {
     }
 }
 
-/// Reply to [`GetSlaveId`]. Reads the probe's slave address by sending to the wildcard address 0xFF; the reply also comes from 0xFF (erratum E3).
+/// Reply to [`GetSlaveId`]. Reads the probe's slave address.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub struct GetSlaveIdResponse {
     /// The current slave address.
@@ -2111,6 +2211,7 @@ impl rtu::Command for GetSlaveId {
         count: 1,
         fixed_slave: Some(0xFF),
         extra_byte_counts: &[],
+        trigger: false,
     };
     fn encode_request(
         &self,
@@ -2942,6 +3043,82 @@ pub fn identify_request(frame: &[u8]) -> Option<CommandId> {
                 && layout.count == count
         })
 }
+
+/// Every command's spec name, in spec order.
+pub const COMMAND_NAMES: [&str; 16] = [
+    "set_slave_id",
+    "get_sn",
+    "get_ph",
+    "get_orp_and_ph",
+    "get_orp",
+    "get_version",
+    "start_ph_calibration",
+    "get_calibration_status",
+    "get_temperature",
+    "set_ph_electrode_coefficients",
+    "get_ph_electrode_coefficients",
+    "set_orp_calibration",
+    "get_orp_calibration",
+    "set_ph_calibration",
+    "get_ph_calibration",
+    "get_slave_id",
+];
+
+/// This module as data, for code that serves every sensor without naming one
+/// (`crate::SENSORS` lists them all).
+pub const MODULE: rtu::SensorModule = rtu::SensorModule {
+    info: SENSOR,
+    commands: &COMMAND_NAMES,
+    layout: |name| CommandId::from_name(name).map(CommandId::layout),
+    identify_request: |frame| identify_request(frame).map(CommandId::name),
+    visit_request: |name, frame, visit| {
+        let id = CommandId::from_name(name)?;
+        Some(
+            id
+                .decode_request(frame)
+                .map(|(slave, request)| {
+                    for (info, value) in request.fields() {
+                        visit(info, value);
+                    }
+                    slave
+                }),
+        )
+    },
+    reencode_request: |name, frame, out| {
+        let id = CommandId::from_name(name)?;
+        Some(
+            id
+                .decode_request(frame)
+                .map_err(rtu::RoundTripError::Frame)
+                .and_then(|(slave, request)| {
+                    request.encode(slave, out).map_err(rtu::RoundTripError::Encode)
+                }),
+        )
+    },
+    reencode_response: |name, slave, frame, out| {
+        let id = CommandId::from_name(name)?;
+        Some(
+            id
+                .decode_response(slave, frame)
+                .map_err(rtu::RoundTripError::Frame)
+                .and_then(|response| {
+                    response.encode(slave, out).map_err(rtu::RoundTripError::Encode)
+                }),
+        )
+    },
+    visit_response: |name, slave, frame, visit| {
+        let id = CommandId::from_name(name)?;
+        Some(
+            id
+                .decode_response(slave, frame)
+                .map(|response| {
+                    for (info, value) in response.fields() {
+                        visit(info, value);
+                    }
+                }),
+        )
+    },
+};
 
 #[cfg(feature = "std")]
 /// One Optical pH / ORP probe on a bus: a borrowed [`rtu::Client`] and the probe's slave address, with one method per command.

@@ -13,7 +13,7 @@ use std::collections::BTreeMap;
 use std::path::PathBuf;
 use std::sync::OnceLock;
 
-use yosemitech_rtu::{EncodeError, FieldValue, FrameError, Layout, Version};
+use yosemitech_rtu::{EncodeError, FieldValue, FrameError, Layout, RoundTripError, SensorModule, Version};
 use yosemitech_spec::{FieldKind, Spec, Value};
 
 /// A decoded field value, owned, with floats as bits.
@@ -27,6 +27,8 @@ pub enum Val {
     Text(Vec<u8>),
     /// A version.
     Version(Version),
+    /// A BCD byte, raw.
+    Bcd(u8),
     /// An enum code.
     Enum { raw: u16, name: Option<&'static str> },
 }
@@ -38,6 +40,7 @@ impl Val {
             FieldValue::Int(i) => Self::Int(i),
             FieldValue::Text(t) => Self::Text(t.to_vec()),
             FieldValue::Version(v) => Self::Version(v),
+            FieldValue::Bcd(b) => Self::Bcd(b.0),
             FieldValue::Enum { raw, name } => Self::Enum { raw, name },
         }
     }
@@ -54,6 +57,7 @@ impl Val {
             Self::Int(i) => FieldValue::Int(*i),
             Self::Text(bytes) => FieldValue::Text(bytes),
             Self::Version(v) => FieldValue::Version(*v),
+            Self::Bcd(b) => FieldValue::Bcd(yosemitech_rtu::Bcd(*b)),
             Self::Enum { raw, name } => FieldValue::Enum { raw: *raw, name: *name },
         }
     }
@@ -68,6 +72,7 @@ impl Val {
             Self::Text(bytes) if bytes.is_ascii() => Value::Text(bytes.iter().map(|&b| char::from(b)).collect()),
             Self::Text(_) => return None,
             Self::Version(v) => Value::Version(*v),
+            Self::Bcd(b) => Value::Bcd(yosemitech_rtu::Bcd(*b)),
             Self::Enum { raw, name } => Value::Enum { raw: *raw, name: name.map(str::to_owned) },
         })
     }
@@ -122,45 +127,45 @@ pub struct Api {
     pub commands: Vec<Cmd>,
 }
 
-/// Builds the [`Api`] of a generated module from its dispatch API.
-macro_rules! api {
-    ($m:path) => {{
-        use $m as m;
-        fn identify(frame: &[u8]) -> Option<&'static str> {
-            m::identify_request(frame).map(m::CommandId::name)
-        }
-        Api {
-            sensor: m::SENSOR.name,
-            commands: m::CommandId::ALL
-                .iter()
-                .map(|&id| Cmd {
-                    name: id.name(),
-                    layout: id.layout(),
-                    decode_request: Box::new(move |frame: &[u8]| {
-                        let (slave, r) = id.decode_request(frame)?;
-                        assert_eq!(r.command(), id);
-                        let mut buf = [0u8; 256];
-                        Ok(Decoded {
-                            slave,
-                            values: r.fields().map(|(info, v)| (info.name, Val::of(v))).collect(),
-                            encoded: r.encode(slave, &mut buf).map(|n| buf[..n].to_vec()),
-                        })
-                    }),
-                    decode_response: Box::new(move |slave: u8, frame: &[u8]| {
-                        let r = id.decode_response(slave, frame)?;
-                        assert_eq!(r.command(), id);
-                        let mut buf = [0u8; 256];
-                        Ok(Decoded {
-                            slave,
-                            values: r.fields().map(|(info, v)| (info.name, Val::of(v))).collect(),
-                            encoded: r.encode(slave, &mut buf).map(|n| buf[..n].to_vec()),
-                        })
-                    }),
-                    identify,
-                })
-                .collect(),
-        }
-    }};
+/// Builds the [`Api`] of a generated module from its `MODULE` (the
+/// generated dispatch as data), so no test names a sensor.
+fn api(module: &'static SensorModule) -> Api {
+    Api {
+        sensor: module.info.name,
+        commands: module
+            .commands
+            .iter()
+            .map(|&name| Cmd {
+                name,
+                layout: (module.layout)(name).expect("a listed command has a layout"),
+                decode_request: Box::new(move |frame: &[u8]| {
+                    let mut values = Vec::new();
+                    let slave = (module.visit_request)(name, frame, &mut |info, v| values.push((info.name, Val::of(v))))
+                        .expect("a listed command")?;
+                    let mut buf = [0u8; 256];
+                    let encoded = match (module.reencode_request)(name, frame, &mut buf).expect("a listed command") {
+                        Ok(n) => Ok(buf[..n].to_vec()),
+                        Err(RoundTripError::Encode(e)) => Err(e),
+                        Err(RoundTripError::Frame(e)) => return Err(e),
+                    };
+                    Ok(Decoded { slave, values, encoded })
+                }),
+                decode_response: Box::new(move |slave: u8, frame: &[u8]| {
+                    let mut values = Vec::new();
+                    (module.visit_response)(name, slave, frame, &mut |info, v| values.push((info.name, Val::of(v))))
+                        .expect("a listed command")?;
+                    let mut buf = [0u8; 256];
+                    let encoded = match (module.reencode_response)(name, slave, frame, &mut buf).expect("a listed command") {
+                        Ok(n) => Ok(buf[..n].to_vec()),
+                        Err(RoundTripError::Encode(e)) => Err(e),
+                        Err(RoundTripError::Frame(e)) => return Err(e),
+                    };
+                    Ok(Decoded { slave, values, encoded })
+                }),
+                identify: module.identify_request,
+            })
+            .collect(),
+    }
 }
 
 /// The workspace's spec directory.
@@ -187,7 +192,7 @@ pub fn spec() -> &'static Spec {
 /// Every generated module with its spec sensor, checked to be one-to-one
 /// with the spec, and every module's commands checked against the spec's.
 pub fn sensors() -> Vec<(Api, &'static yosemitech_spec::Sensor)> {
-    let apis = vec![api!(yosemitech::ph_orp), api!(yosemitech::conductivity), api!(yosemitech_tests::do_probe)];
+    let apis: Vec<Api> = yosemitech::SENSORS.iter().chain(&yosemitech_tests::fixture::SENSORS).map(api).collect();
     let spec = spec();
     let listed: Vec<&str> = apis.iter().map(|a| a.sensor).collect();
     let in_spec: Vec<&str> = spec.sensors.iter().map(|s| s.name.as_str()).collect();
@@ -197,7 +202,7 @@ pub fn sensors() -> Vec<(Api, &'static yosemitech_spec::Sensor)> {
     b.sort();
     assert_eq!(
         a, b,
-        "the modules under test must be exactly the spec's sensors: add new sensors to codec_common::sensors"
+        "the generated modules (yosemitech::SENSORS and the fixture's) must be exactly the spec's sensors"
     );
     apis.into_iter()
         .map(|api| {
@@ -239,7 +244,7 @@ pub fn request_frame(command: &yosemitech_spec::Command, slave: u8, data: &[u8])
 /// A reply frame with `data` as register data (reads), built by the runtime's framing.
 pub fn response_frame(command: &yosemitech_spec::Command, slave: u8, data: &[u8]) -> Vec<u8> {
     let layout = command.layout();
-    let data = if command.is_read() { data } else { &[][..] };
+    let data = if command.is_read() && !command.trigger { data } else { &[][..] };
     let mut out = vec![0u8; layout.response_len()];
     let n = layout.encode_response(slave, data, &mut out).expect("valid layout");
     out.truncate(n);

@@ -5,9 +5,7 @@ use std::io::Write;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use yosemitech::procedures::ScaledSleep;
 use yosemitech::procedures::coefficients::{read_conductivity, read_ph_orp};
-use yosemitech::procedures::conductivity::MeasurementConfig;
 use yosemitech::{conductivity, ph_orp};
 use yosemitech_rtu::{Client, ClientConfig, Transport};
 use yosemitech_sim::{ServeConfig, Server, Simulator, Variation, line_timing};
@@ -169,18 +167,17 @@ pub fn run(catalog: &Catalog, args: &DemoArgs, out: &mut dyn Write) -> Result<()
         row(out, "user K, B", join(&c.user_calibration))?;
     }
 
-    // The manual's measurement procedure, waits scaled down.
-    let config = MeasurementConfig::default();
-    writeln!(
-        out,
-        "\nconductivity measurement (manual section 3: start, warm up {} s, average {} readings {} s apart),",
-        config.warm_up.as_secs_f64(),
-        config.readings,
-        config.interval.as_secs_f64()
-    )?;
+    // The manual's measurement procedure, as the spec states it, waits scaled down.
+    let sensor = &cond_entry.sensor;
+    let procedure = sensor.procedure.as_ref().ok_or_else(|| {
+        CliError::usage("the built-in conductivity spec states no procedure").hint("this is a bug in the build")
+    })?;
+    let timing = measure::Timing::of(procedure);
+    writeln!(out, "\nconductivity measurement (manual section 3: {}),", measure::describe(procedure, timing))?;
     writeln!(out, "waits shortened {}x for the demo:", (1.0 / TIME_SCALE).round())?;
     out.flush()?;
-    let m = measure::run_procedure(&mut cond.opened, address, &config, ScaledSleep { factor: TIME_SCALE })?;
+    let mut sleep = |d: Duration| std::thread::sleep(d.mul_f64(TIME_SCALE));
+    let m = measure::run_procedure(&mut cond.opened, sensor, address, timing, &mut sleep)?;
     measure::show(&m, Some(4), out)?;
 
     let requests = ph.server.device().stats().requests + cond.server.device().stats().requests;

@@ -3,7 +3,7 @@
 use std::io::Write;
 
 use serde_json::{Value as Json, json};
-use yosemitech_spec::{Command, Field, Sensor};
+use yosemitech_spec::{Command, Field, Manual, Parity, Serial, Sensor};
 
 use crate::catalog::{Catalog, Entry, Origin};
 use crate::cli::ListArgs;
@@ -40,32 +40,79 @@ fn origin_text(origin: &Origin) -> String {
     }
 }
 
+/// `9600 8N1` (and `2 stop bits` spelled out when there are two, the easy detail to miss).
+pub fn serial_text(serial: &Serial) -> String {
+    let parity = match serial.parity {
+        Parity::None => 'N',
+        Parity::Even => 'E',
+        Parity::Odd => 'O',
+    };
+    let stops = if serial.stop_bits == 2 { " (2 stop bits)" } else { "" };
+    format!("{} {}{parity}{}{stops}", serial.baud, serial.data_bits, serial.stop_bits)
+}
+
+/// `model Y520, model code 09 (serial numbers YL09...)`, as far as the spec states them.
+pub fn model_text(s: &Sensor) -> Option<String> {
+    let model = s.model.as_ref().map(|m| format!("model {m}"));
+    let code = s.model_code.as_ref().map(|c| format!("model code {c} (serial numbers YL{c}...)"));
+    let parts: Vec<String> = model.into_iter().chain(code).collect();
+    (!parts.is_empty()).then(|| parts.join(", "))
+}
+
+/// The manuals of a sensor, oldest firmware first (manuals without a
+/// software revision last), each with the serial settings of that firmware.
+pub fn manuals(s: &Sensor) -> Vec<(&Manual, Serial, Option<&str>, bool)> {
+    let mut all: Vec<(&Manual, Serial, Option<&str>, bool)> = std::iter::once((&s.manual, None, true))
+        .chain(s.revisions.iter().map(|r| (&r.manual, r.doc.as_deref(), false)))
+        .map(|(m, doc, main)| (m, m.software.as_deref().map_or(s.serial, |sw| s.serial_for(sw)), doc, main))
+        .collect();
+    all.sort_by_key(|(m, ..)| m.software.as_deref().map_or((u16::MAX, u16::MAX), software_key));
+    all
+}
+
+/// A software revision as a sortable key (`1.10` after `1.9`).
+pub fn software_key(text: &str) -> (u16, u16) {
+    let mut parts = text.trim().split('.').map(|p| p.trim().parse::<u16>().unwrap_or(0));
+    (parts.next().unwrap_or(0), parts.next().unwrap_or(0))
+}
+
 fn show_sensor(entry: &Entry, with_fields: bool, out: &mut dyn Write) -> Result<()> {
     let s: &Sensor = &entry.sensor;
     writeln!(out, "{} — {} ({})", s.name, s.title, origin_text(&entry.origin))?;
-    writeln!(out, "  manual: {} ({})", s.manual.title, s.manual.revision)?;
+    if let Some(model) = model_text(s) {
+        writeln!(out, "  {model}")?;
+    }
+    for (manual, serial, _, main) in manuals(s) {
+        let sw = manual.software.as_deref().map(|v| format!("SW {v}: ")).unwrap_or_default();
+        let cited = if main && !s.revisions.is_empty() { " [figures cited by default]" } else { "" };
+        writeln!(out, "  manual {sw}{} ({}), {}{cited}", manual.title, manual.revision, serial_text(&serial))?;
+    }
     writeln!(
         out,
-        "  serial: {} baud, {}{}{}; addresses {}..={}, factory address {}",
-        s.serial.baud,
-        s.serial.data_bits,
-        match s.serial.parity {
-            yosemitech_spec::Parity::None => 'N',
-            yosemitech_spec::Parity::Even => 'E',
-            yosemitech_spec::Parity::Odd => 'O',
-        },
-        s.serial.stop_bits,
+        "  serial: {} (newest firmware); addresses {}..={}, factory address {}",
+        serial_text(&s.serial),
         s.min_address,
         s.max_address,
         s.default_address
     )?;
+    if let Some(p) = &s.procedure {
+        let timing = crate::commands::measure::Timing::of(p);
+        writeln!(
+            out,
+            "  procedure: {} (`yosemitech measure {}`)",
+            crate::commands::measure::describe(p, timing),
+            s.name
+        )?;
+    }
     let width = s.commands.iter().map(|c| c.name.len()).max().unwrap_or(0);
     for c in &s.commands {
         let function = if c.is_read() { "read " } else { "write" };
         let fixed = c.fixed_slave.map(|a| format!(" (to address 0x{a:02X})")).unwrap_or_default();
+        let role = c.role.map(|r| format!(" [{}]", r.name())).unwrap_or_default();
+        let since = c.since.as_ref().map(|v| format!(" (since SW {v})")).unwrap_or_default();
         writeln!(
             out,
-            "  {:width$}  {function} 0x{:04X} x{:<2}  {}{fixed}",
+            "  {:width$}  {function} 0x{:04X} x{:<2}  {}{fixed}{role}{since}",
             c.name,
             c.address,
             c.count,
@@ -99,14 +146,29 @@ fn field_line(f: &Field) -> String {
 /// One sensor as JSON.
 pub fn sensor_json(entry: &Entry) -> Json {
     let s = &entry.sensor;
+    let manual_json = |m: &Manual| {
+        json!({ "title": m.title, "revision": m.revision, "software": m.software, "file": m.file })
+    };
     json!({
         "name": s.name,
         "title": s.title,
         "doc": s.doc,
+        "model": s.model,
+        "model_code": s.model_code,
         "origin": match &entry.origin { Origin::BuiltIn => "built-in".to_owned(), Origin::Loaded(p) => p.display().to_string() },
-        "manual": { "title": s.manual.title, "revision": s.manual.revision },
+        "manual": manual_json(&s.manual),
+        "manuals": manuals(s).into_iter().map(|(m, serial, doc, main)| {
+            let mut j = manual_json(m);
+            if let Some(o) = j.as_object_mut() {
+                o.insert("serial".into(), json!(serial));
+                o.insert("doc".into(), json!(doc));
+                o.insert("default".into(), json!(main));
+            }
+            j
+        }).collect::<Vec<_>>(),
         "serial": s.serial,
         "addresses": { "min": s.min_address, "max": s.max_address, "default": s.default_address },
+        "procedure": s.procedure,
         "commands": s.commands.iter().map(command_json).collect::<Vec<_>>(),
     })
 }
@@ -123,6 +185,8 @@ pub fn command_json(c: &Command) -> Json {
         "count": c.count,
         "fixed_slave": c.fixed_slave,
         "trigger": c.trigger,
+        "role": c.role.map(|r| r.name()),
+        "since": c.since,
         "request_len": c.layout().request_len(),
         "response_len": c.layout().response_len(),
         "fields": c.fields.iter().map(|f| json!({

@@ -19,7 +19,7 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 
 use crate::catalog::Catalog;
-use crate::cli::{CalibrateCommand, Cli, CoefficientsCommand, Command, MeasureCommand};
+use crate::cli::{CalibrateCommand, Cli, CoefficientsCommand, Command};
 use crate::error::Result;
 
 /// A flag set by Ctrl-C (SIGINT, SIGTERM, SIGHUP), for the commands that
@@ -50,7 +50,7 @@ pub fn run(cli: &Cli) -> Result<()> {
         Command::Read(args) => read::run(&catalog, global, args, &mut out),
         Command::Write(args) => write::run(&catalog, global, args, &mut out),
         Command::Poll(args) => poll::run(&catalog, global, args, &ctrl_c_flag(), &mut out),
-        Command::Measure(MeasureCommand::Conductivity(args)) => measure::run(&catalog, global, args, &mut out),
+        Command::Measure(args) => measure::run(&catalog, global, args, &mut out),
         Command::Calibrate(CalibrateCommand::Ph(args)) => calibrate::run(&catalog, global, args, &mut out),
         Command::Coefficients(CoefficientsCommand::Backup(args)) => {
             coefficients::backup(&catalog, global, args, &mut out)

@@ -5,13 +5,16 @@ use std::io::Write;
 use std::time::Duration;
 
 use serde_json::json;
-use yosemitech_rtu::Error as RtuError;
-use yosemitech_spec::Value;
+use yosemitech_rtu::{Error as RtuError, FrameError, Version};
+use yosemitech_spec::interp::{decode_field, decode_fields};
+use yosemitech_spec::{Command, FieldKind, Manual, Role, Sensor, Serial, Value};
 
-use crate::catalog::{Catalog, common_probe, signature_read};
+use crate::catalog::Catalog;
 use crate::cli::{Global, ScanArgs};
-use crate::error::{CliError, Result, request_failed};
-use crate::{port, progress};
+use crate::commands::list::software_key;
+use crate::error::{CliError, Result, request_failed, short};
+use crate::port::{self, Opened};
+use crate::progress;
 
 /// Parses `1-247`, `1,5,10-20` or `3` into sorted, distinct addresses.
 pub fn parse_addresses(text: &str) -> Result<Vec<u8>> {
@@ -41,67 +44,302 @@ pub fn parse_addresses(text: &str) -> Result<Vec<u8>> {
     Ok(out)
 }
 
+/// A serial-number read and the loaded sensors that share its wire layout.
+struct SnRead<'c> {
+    /// The first sensor's command (they all encode and decode alike).
+    command: &'c Command,
+    /// The sensors whose serial-number read this is, in load order.
+    sensors: Vec<&'c Sensor>,
+}
+
+/// True when two commands are the same on the wire: framing and fields.
+fn same_wire(a: &Command, b: &Command) -> bool {
+    a.layout() == b.layout()
+        && a.fields.len() == b.fields.len()
+        && a.fields.iter().zip(&b.fields).all(|(x, y)| x.offset == y.offset && x.kind == y.kind)
+}
+
+/// Groups `(sensor, command)` pairs by wire layout, the group of most
+/// sensors first (ties: load order).
+fn group<'c>(pairs: impl Iterator<Item = (&'c Sensor, &'c Command)>) -> Vec<SnRead<'c>> {
+    let mut groups: Vec<SnRead<'c>> = Vec::new();
+    for (sensor, command) in pairs {
+        match groups.iter_mut().find(|g| same_wire(g.command, command)) {
+            Some(g) => g.sensors.push(sensor),
+            None => groups.push(SnRead { command, sensors: vec![sensor] }),
+        }
+    }
+    groups.sort_by_key(|g| std::cmp::Reverse(g.sensors.len()));
+    groups
+}
+
+/// The distinct serial-number reads of the loaded sensors, most common first.
+fn sn_reads(catalog: &Catalog) -> Vec<SnRead<'_>> {
+    group(catalog.entries().iter().filter_map(|e| {
+        let command = e.sensor.command_with_role(Role::SerialNumber).filter(|c| c.fixed_slave.is_none())?;
+        Some((e.sensor.as_ref(), command))
+    }))
+}
+
+/// The serial number and the model code a serial-number reply carries:
+/// the byte before the text when it is not 0 (real probes send the code
+/// there: 0x09 is "09"), and the text's characters 3-4 (`YL09...`).
+fn read_sn(command: &Command, data: &[u8]) -> (Option<String>, Option<String>, Option<String>) {
+    let Some(field) = command.named_fields().find(|f| matches!(f.kind, FieldKind::Ascii { .. })) else {
+        return (None, None, None);
+    };
+    let text = data.get(field.offset..field.offset + field.size()).map(|b| decode_field(field, b));
+    let text = match text {
+        Some(Value::Text(t)) => Some(t),
+        _ => None,
+    };
+    let before = field
+        .offset
+        .checked_sub(1)
+        .filter(|&at| command.fields.iter().any(|f| f.is_reserved() && f.offset <= at && at < f.offset + f.size()))
+        .and_then(|at| data.get(at).copied())
+        .filter(|&b| b != 0)
+        .map(|b| format!("{b:02X}"));
+    let in_text = text.as_deref().and_then(|t| {
+        let code: String = t.chars().skip(2).take(2).collect();
+        (code.chars().count() == 2 && code.chars().all(|c| c.is_ascii_alphanumeric())).then_some(code)
+    });
+    (text, before, in_text)
+}
+
 /// What answered at one address.
-struct Found {
+struct Found<'c> {
     address: u8,
     serial_number: Option<String>,
-    sensors: Vec<String>,
-    note: Option<String>,
+    model_code: Option<String>,
+    /// The sensors it may be; one when identified.
+    candidates: Vec<&'c Sensor>,
+    /// The sensor, when exactly one matches.
+    identified: Option<&'c Sensor>,
+    /// Why it is not identified.
+    reason: Option<String>,
+    hardware: Option<Version>,
+    software: Option<Version>,
+    /// The manual that covers its firmware.
+    manual: Option<&'c Manual>,
+    notes: Vec<String>,
+}
+
+/// A serial number as printed: control and non-ASCII characters escaped.
+fn printable(text: &str) -> String {
+    text.chars()
+        .map(|c| if c.is_ascii_graphic() || c == ' ' { c.to_string() } else { format!("\\x{:02X}", u32::from(c)) })
+        .collect()
+}
+
+/// `conductivity (Y520, code 09)`.
+fn sensor_text(s: &Sensor) -> String {
+    let about: Vec<String> =
+        s.model.iter().cloned().chain(s.model_code.iter().map(|c| format!("code {c}"))).collect();
+    if about.is_empty() { s.name.clone() } else { format!("{} ({})", s.name, about.join(", ")) }
+}
+
+/// The newest manual of `sensor` whose software revision is at most `software`.
+fn manual_for<'s>(sensor: &'s Sensor, software: Version) -> Option<&'s Manual> {
+    let probe = (u16::from(software.major), u16::from(software.minor));
+    sensor
+        .manuals()
+        .filter_map(|m| m.software.as_deref().map(|sw| (software_key(sw), m)))
+        .filter(|(key, _)| *key <= probe)
+        .max_by_key(|(key, _)| *key)
+        .map(|(_, m)| m)
+}
+
+/// The serial settings most loaded sensors use (9600 8N1 when none is loaded).
+fn common_serial(catalog: &Catalog) -> Serial {
+    let mut counts: Vec<(Serial, usize)> = Vec::new();
+    for e in catalog.entries() {
+        match counts.iter_mut().find(|(s, _)| *s == e.sensor.serial) {
+            Some((_, n)) => *n += 1,
+            None => counts.push((e.sensor.serial, 1)),
+        }
+    }
+    counts.iter().max_by_key(|(_, n)| *n).map_or(port::YOSEMITECH_SERIAL, |(s, _)| *s)
+}
+
+/// Sends a read with no values to `address`: its register data, `None`
+/// for silence, or what else came back (as a note).
+fn probe(
+    opened: &mut Opened,
+    command: &Command,
+    address: u8,
+) -> Result<std::result::Result<Option<Vec<u8>>, (bool, String)>> {
+    let request = command
+        .encode_request(address, &BTreeMap::new())
+        .map_err(|e| CliError::usage(format!("cannot build the {} request: {e}", command.name)))?;
+    let layout = command.layout();
+    match opened.bus.call_raw(&request, &layout) {
+        Ok(reply) => Ok(match layout.decode_response(address, reply) {
+            Ok(data) => Ok(Some(data.to_vec())),
+            Err(e) => Err((false, format!("answers {}, but not as specified: {e}", command.name))),
+        }),
+        Err(e @ RtuError::Io(_)) => Err(request_failed(&e, &opened.context(address, &command.name))),
+        Err(RtuError::Timeout { received }) if received.is_empty() => Ok(Ok(None)),
+        Err(e @ RtuError::Frame { error: FrameError::Exception { .. }, .. }) => {
+            Ok(Err((true, format!("refuses {} ({})", command.name, short(&e)))))
+        }
+        Err(e) => Ok(Err((false, format!("answers {} with {}", command.name, short(&e))))),
+    }
+}
+
+/// Identifies the device at `address`; `None` when nothing answers.
+fn identify<'c>(
+    catalog: &'c Catalog,
+    reads: &[SnRead<'c>],
+    opened: &mut Opened,
+    address: u8,
+) -> Result<Option<Found<'c>>> {
+    let mut found = Found {
+        address,
+        serial_number: None,
+        model_code: None,
+        candidates: Vec::new(),
+        identified: None,
+        reason: None,
+        hardware: None,
+        software: None,
+        manual: None,
+        notes: Vec::new(),
+    };
+    let mut answered = false;
+    let mut sn = None;
+    for read in reads {
+        match probe(opened, read.command, address)? {
+            Ok(Some(data)) => {
+                sn = Some((read, data));
+                break;
+            }
+            Ok(None) => {}
+            Err((_, note)) => {
+                answered = true;
+                found.notes.push(note);
+            }
+        }
+    }
+    match sn {
+        Some((read, data)) => {
+            let (text, before, in_text) = read_sn(read.command, &data);
+            found.serial_number = text;
+            let matching = |code: &Option<String>| -> Vec<&'c Sensor> {
+                code.as_ref().map_or_else(Vec::new, |c| {
+                    read.sensors.iter().copied().filter(|s| s.model_code.as_ref() == Some(c)).collect()
+                })
+            };
+            // The byte before the text first, unless it names no sensor and the text does.
+            let (by_before, by_text) = (matching(&before), matching(&in_text));
+            let (code, mut matches) = if before.is_some() && (!by_before.is_empty() || by_text.is_empty()) {
+                (before, by_before)
+            } else {
+                (in_text, by_text)
+            };
+            found.model_code = code.clone();
+            let at = format!("0x{:04X}", read.command.address);
+            match matches.len() {
+                1 => {
+                    found.identified = matches.first().copied();
+                    found.candidates = std::mem::take(&mut matches);
+                }
+                0 => {
+                    found.candidates = read.sensors.clone();
+                    found.reason = Some(match &code {
+                        Some(c) => format!(
+                            "model code {c} is declared by no loaded sensor that reads its serial number at {at}"
+                        ),
+                        None => "the serial number carries no model code".to_owned(),
+                    });
+                }
+                n => {
+                    found.candidates = matches;
+                    found.reason = Some(format!(
+                        "{n} loaded sensors read their serial number at {at} and declare model code {}",
+                        code.as_deref().unwrap_or("?")
+                    ));
+                }
+            }
+        }
+        None if answered => {
+            // It refuses or garbles every serial-number read: one of the
+            // loaded sensors without one, if any.
+            found.candidates = catalog
+                .entries()
+                .iter()
+                .map(|e| e.sensor.as_ref())
+                .filter(|s| s.command_with_role(Role::SerialNumber).is_none())
+                .collect();
+            found.reason = Some("it answers no serial-number read of the loaded sensors".to_owned());
+        }
+        None => return Ok(None),
+    }
+
+    // One more read: the revisions, with the version read most candidates share.
+    let versions =
+        group(found.candidates.iter().filter_map(|s| s.command_with_role(Role::Version).map(|c| (*s, c))));
+    if let Some(read) = versions.first() {
+        match probe(opened, read.command, address)? {
+            Ok(Some(data)) => {
+                let values: Vec<(String, Version)> = decode_fields(read.command, &data)
+                    .into_iter()
+                    .filter_map(|(name, v)| match v {
+                        Value::Version(v) => Some((name, v)),
+                        _ => None,
+                    })
+                    .collect();
+                // The role reads hardware then software; names decide where the spec gives them.
+                let named = |n: &str| values.iter().find(|(name, _)| name == n).map(|(_, v)| *v);
+                found.software = named("software").or_else(|| values.last().map(|(_, v)| *v));
+                found.hardware =
+                    named("hardware").or_else(|| (values.len() > 1).then(|| values.first().map(|(_, v)| *v)).flatten());
+            }
+            Ok(None) => found.notes.push(format!("no reply to {}", read.command.name)),
+            Err((_, note)) => found.notes.push(note),
+        }
+    }
+    if let (Some(sensor), Some(software)) = (found.identified, found.software) {
+        found.manual = manual_for(sensor, software);
+        if found.manual.is_none() {
+            found.notes.push(format!("no manual of {} covers SW {software}", sensor.name));
+        }
+    }
+    Ok(Some(found))
 }
 
 /// Runs `scan`.
 pub fn run(catalog: &Catalog, global: &Global, args: &ScanArgs, out: &mut dyn Write) -> Result<()> {
     let addresses = parse_addresses(&args.addresses)?;
-    let probe = common_probe(catalog).ok_or_else(|| {
-        CliError::usage("the loaded sensors share no read command to probe with")
-            .hint("scan needs a read every sensor has (get_sn); check the --spec files")
-    })?;
-    // The serial settings of the sensors that share the probe, if they
-    // agree; else Yosemitech's 9600 8N1.
-    let serial = catalog
-        .entries()
-        .iter()
-        .filter(|e| e.sensor.command(&probe.name).is_some_and(|c| c.layout() == probe.layout()))
-        .map(|e| e.sensor.serial)
-        .reduce(|a, b| if a == b { a } else { port::YOSEMITECH_SERIAL })
-        .unwrap_or(port::YOSEMITECH_SERIAL);
+    let reads = sn_reads(catalog);
+    if reads.is_empty() {
+        return Err(CliError::usage("no loaded sensor has a serial-number read to identify probes with")
+            .hint("scan reads the command with `role: serial_number` (get_sn); check the --spec files"));
+    }
+    let serial = common_serial(catalog);
     let mut opened = port::open_with(&args.port, global, &serial, Duration::from_millis(100), 0)?;
     if !args.json {
-        writeln!(out, "scanning {} address(es) on {} with {}", addresses.len(), opened.port, probe.name)?;
+        let with: Vec<String> = reads
+            .iter()
+            .map(|r| {
+                let n = r.sensors.len();
+                format!("0x{:04X} ({n} sensor{})", r.command.address, if n == 1 { "" } else { "s" })
+            })
+            .collect();
+        writeln!(
+            out,
+            "scanning {} address(es) on {}; serial number at {}",
+            addresses.len(),
+            opened.port,
+            with.join(", then ")
+        )?;
         out.flush()?;
     }
     let bar = progress::bar(addresses.len() as u64, "{msg:12} [{bar:30}] {pos}/{len} addresses");
     let mut found = Vec::new();
     for &address in &addresses {
         bar.set_message(format!("address {address}"));
-        let request = probe
-            .encode_request(address, &BTreeMap::new())
-            .map_err(|e| CliError::usage(format!("cannot build the {} request: {e}", probe.name)))?;
-        let answer = match opened.bus.call_raw(&request, &probe.layout()) {
-            Ok(reply) => Some(Ok(probe.decode_response(address, reply).unwrap_or_default())),
-            Err(e @ RtuError::Io(_)) => return Err(request_failed(&e, &opened.context(address, &probe.name))),
-            Err(RtuError::Timeout { received }) if received.is_empty() => None,
-            Err(e) => Some(Err(e)),
-        };
-        if let Some(answer) = answer {
-            let mut item = Found { address, serial_number: None, sensors: Vec::new(), note: None };
-            match answer {
-                Ok(values) => {
-                    item.serial_number = values.into_iter().find_map(|(_, v)| match v {
-                        Value::Text(t) => Some(t),
-                        _ => None,
-                    });
-                }
-                Err(e) => item.note = Some(format!("answers, but not {}: {e}", probe.name)),
-            }
-            for entry in catalog.entries() {
-                if let Some(read) = signature_read(catalog, &entry.sensor)
-                    && let Ok(request) = read.encode_request(address, &BTreeMap::new())
-                    && opened.bus.call_raw(&request, &read.layout()).is_ok()
-                {
-                    item.sensors.push(entry.sensor.name.clone());
-                }
-            }
+        if let Some(item) = identify(catalog, &reads, &mut opened, address)? {
             if !args.json {
                 let line = found_line(&item);
                 bar.suspend(|| writeln!(out, "{line}"))?;
@@ -112,10 +350,7 @@ pub fn run(catalog: &Catalog, global: &Global, args: &ScanArgs, out: &mut dyn Wr
     }
     bar.finish_and_clear();
     if args.json {
-        let items: Vec<_> = found
-            .iter()
-            .map(|f| json!({ "address": f.address, "serial_number": f.serial_number, "sensors": f.sensors, "note": f.note }))
-            .collect();
+        let items: Vec<_> = found.iter().map(found_json).collect();
         writeln!(out, "{}", serde_json::to_string_pretty(&json!({ "devices": items })).unwrap_or_default())?;
     } else {
         writeln!(out, "found {} device(s)", found.len())?;
@@ -127,11 +362,56 @@ pub fn run(catalog: &Catalog, global: &Global, args: &ScanArgs, out: &mut dyn Wr
     Ok(())
 }
 
-fn found_line(f: &Found) -> String {
-    let sensors = if f.sensors.is_empty() { "unknown kind".to_owned() } else { f.sensors.join(", ") };
-    let mut line = format!("address {:3}  SN {:14}  {sensors}", f.address, f.serial_number.as_deref().unwrap_or("?"));
-    if let Some(note) = &f.note {
-        line.push_str(&format!("  ({note})"));
+fn found_json(f: &Found<'_>) -> serde_json::Value {
+    json!({
+        "address": f.address,
+        "serial_number": f.serial_number,
+        "model_code": f.model_code,
+        "sensors": f.candidates.iter().map(|s| s.name.as_str()).collect::<Vec<_>>(),
+        "sensor": f.identified.map(|s| s.name.as_str()),
+        "model": f.identified.and_then(|s| s.model.as_deref()),
+        "reason": f.reason,
+        "hardware": f.hardware.map(|v| v.to_string()),
+        "software": f.software.map(|v| v.to_string()),
+        "manual": f.manual.map(|m| json!({
+            "title": m.title,
+            "revision": m.revision,
+            "software": m.software,
+            "file": m.file,
+        })),
+        "notes": f.notes,
+    })
+}
+
+fn found_line(f: &Found<'_>) -> String {
+    let sn = f.serial_number.as_deref().map_or_else(|| "?".to_owned(), printable);
+    let mut line = format!("address {:3}  SN {sn:12}  ", f.address);
+    match (f.identified, &f.reason) {
+        (Some(sensor), _) => line.push_str(&sensor_text(sensor)),
+        (None, reason) => {
+            let candidates: Vec<String> = f.candidates.iter().map(|s| sensor_text(s)).collect();
+            let which = match candidates.as_slice() {
+                [] => "no loaded sensor".to_owned(),
+                [one] => format!("perhaps {one}"),
+                many => format!("one of {}", many.join(", ")),
+            };
+            line.push_str(&format!("not identified: {which}"));
+            if let Some(reason) = reason {
+                line.push_str(&format!(" ({reason})"));
+            }
+        }
+    }
+    if let Some(hw) = f.hardware {
+        line.push_str(&format!("  HW {hw}"));
+    }
+    if let Some(sw) = f.software {
+        line.push_str(&format!(" SW {sw}"));
+    }
+    if let Some(sw) = f.manual.and_then(|m| m.software.as_deref()) {
+        line.push_str(&format!("  manual SW {sw}"));
+    }
+    if !f.notes.is_empty() {
+        line.push_str(&format!("  ({})", f.notes.join("; ")));
     }
     line
 }

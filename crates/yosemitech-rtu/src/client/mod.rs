@@ -300,6 +300,7 @@ impl<T: Transport> Client<T> {
         decode: impl Fn(&[u8]) -> Result<R, FrameError>,
     ) -> Result<(R, Range<usize>), Error> {
         let normal_len = layout.response_len();
+        let short_len = layout.short_response_len();
         if normal_len > MAX_ADU {
             return Err(EncodeError::BufferTooSmall { needed: normal_len }.into());
         }
@@ -307,7 +308,7 @@ impl<T: Transport> Client<T> {
         let policy = self.config.retry;
         let mut attempt: u32 = 0;
         loop {
-            let result = self.attempt(len, function, normal_len).and_then(|range| {
+            let result = self.attempt(len, function, normal_len, short_len).and_then(|range| {
                 let frame = self.rx.get(range.clone()).unwrap_or(&[]);
                 match decode(frame) {
                     Ok(response) => Ok((response, range)),
@@ -326,11 +327,17 @@ impl<T: Transport> Client<T> {
     }
 
     /// One request and its reply: returns the reply frame's place in `rx`.
-    fn attempt(&mut self, len: usize, function: u8, normal_len: usize) -> Result<Range<usize>, Error> {
+    fn attempt(
+        &mut self,
+        len: usize,
+        function: u8,
+        normal_len: usize,
+        short_len: Option<usize>,
+    ) -> Result<Range<usize>, Error> {
         self.prepare()?;
         let sent = self.send(len)?;
         let deadline = sent.checked_add(self.config.timeout.min(MAX_WAIT)).unwrap_or(sent);
-        self.receive(function, normal_len, deadline)
+        self.receive(function, normal_len, short_len, deadline)
     }
 
     /// Waits for bus silence and drops stale input.
@@ -406,7 +413,16 @@ impl<T: Transport> Client<T> {
     /// error is reported). After the deadline, at most [`MAX_ADU`] more bytes
     /// are looked at, so a device that never stops talking cannot hold the
     /// client.
-    fn receive(&mut self, function: u8, normal_len: usize, deadline: Instant) -> Result<Range<usize>, Error> {
+    ///
+    /// A trigger read may also be answered by a `short_len` frame (byte count
+    /// 0, no data): it is taken as soon as that many bytes check.
+    fn receive(
+        &mut self,
+        function: u8,
+        normal_len: usize,
+        short_len: Option<usize>,
+        deadline: Instant,
+    ) -> Result<Range<usize>, Error> {
         let exception = function | EXCEPTION_BIT;
         let more_bytes_wait = self.inter_frame_delay().max(self.config.min_inter_frame_delay);
         // The first complete candidate whose CRC failed, kept in case no better one follows.
@@ -428,6 +444,15 @@ impl<T: Transport> Client<T> {
             } else {
                 frame::reply_len(head, function, normal_len).unwrap_or(normal_len)
             };
+            if let Some(short) = short_len
+                && head.len() >= short
+                && head.get(1) == Some(&function)
+                && head.get(2) == Some(&0)
+                && head.get(..short).is_some_and(crc_ok)
+            {
+                debug!(frame = %Hex(head.get(..short).unwrap_or(&[])), "rx (short trigger reply)");
+                return Ok(start..start + short);
+            }
             if head.len() >= target {
                 let frame = start..start + target;
                 let bytes = self.rx.get(frame.clone()).unwrap_or(&[]);
