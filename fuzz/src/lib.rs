@@ -19,22 +19,24 @@ use std::path::PathBuf;
 use std::sync::OnceLock;
 use std::time::Duration;
 
-use yosemitech::{conductivity, ph_orp};
+use yosemitech::SENSORS;
 use yosemitech_rtu::frame::{EXCEPTION_BIT, MAX_ADU};
 use yosemitech_rtu::{
-    Client, ClientConfig, EncodeError, Error, FieldValue, FrameError, Function, Hex, LineTiming, RetryPolicy,
-    Transport, crc_ok,
+    Client, ClientConfig, EncodeError, Error, FieldInfo, FieldValue, FrameError, Function, Hex, LineTiming,
+    RetryPolicy, RoundTripError, SensorModule, Transport, crc_ok,
 };
 use yosemitech_spec::interp::decode_fields;
 use yosemitech_spec::sources::MemSources;
 use yosemitech_spec::{Command, Spec, Values, load_with, parse_hex};
 
-/// The real spec files, compiled in so that the targets need no files at run time.
-pub const SPEC_FILES: [(&str, &str); 3] = [
-    ("spec/ph-orp-optical.yaml", include_str!("../../spec/ph-orp-optical.yaml")),
-    ("spec/conductivity.yaml", include_str!("../../spec/conductivity.yaml")),
-    ("spec/yosemitech-common.yaml", include_str!("../../spec/yosemitech-common.yaml")),
-];
+// `SPEC_FILES`: every `spec/*.yaml`, listed by build.rs.
+include!(concat!(env!("OUT_DIR"), "/spec_files.rs"));
+
+/// Whether a spec file describes a sensor (a top-level `sensor:` key) rather
+/// than holding a fragment of shared commands.
+pub fn is_sensor_file(text: &str) -> bool {
+    text.lines().any(|line| line.starts_with("sensor:"))
+}
 
 /// The real spec, loaded once.
 pub fn spec() -> &'static Spec {
@@ -56,112 +58,157 @@ fn spec_command(sensor: &str, name: &str) -> &'static Command {
         .unwrap_or_else(|| panic!("generated command {sensor}.{name} is not in the spec"))
 }
 
+/// The generated module of the spec sensor called `sensor`.
+fn module(sensor: &str) -> &'static SensorModule {
+    SENSORS
+        .iter()
+        .find(|m| m.info.name == sensor)
+        .unwrap_or_else(|| panic!("spec sensor {sensor} has no generated module"))
+}
+
 // ---------------------------------------------------------------------------
 // decode_response
 
 /// Input: `[slave, frame...]`. Decodes the frame as a reply and as a request
-/// of every command of every sensor through the generated dispatch
-/// (`<sensor>::decode_response(id, slave, frame)`, `CommandId::decode_request`,
-/// `identify_request`), and checks each result against the reference
-/// interpreter (same verdict, same values) and against re-encoding (a
-/// decoded value encodes back to the frame, apart from reserved bytes and a
-/// byte count the spec lists as a firmware quirk).
+/// of every command of every generated sensor module ([`yosemitech::SENSORS`],
+/// through each module's [`SensorModule`] functions), and checks each result
+/// against the reference interpreter (same verdict, same values) and against
+/// re-encoding (a decoded value encodes back to the frame, apart from
+/// reserved bytes and a byte count the spec lists as a firmware quirk; a
+/// trigger read's reply, which may take several forms, re-encodes to the
+/// manuals' form, which the interpreter accepts in turn).
 pub fn decode_response(data: &[u8]) {
     let Some((&slave, frame)) = data.split_first() else { return };
-    check_ph_orp(slave, frame);
-    check_conductivity(slave, frame);
+    check_all_sensors(slave, frame);
 }
 
-macro_rules! check_sensor {
-    ($name:ident, $module:ident) => {
-        fn $name(slave: u8, frame: &[u8]) {
-            let sensor = stringify!($module);
-            for id in $module::CommandId::ALL {
-                let command = spec_command(sensor, id.name());
-                assert_eq!(id.layout(), command.layout(), "{sensor}.{id}: generated and spec layouts differ");
+/// The [`decode_response`] checks, for every command of every sensor.
+fn check_all_sensors(slave: u8, frame: &[u8]) {
+    for module in &SENSORS {
+        check_sensor(module, slave, frame);
+    }
+}
 
-                // As a reply.
-                let typed = $module::decode_response(id, slave, frame);
-                let interpreted = command.decode_response(slave, frame);
-                match (&typed, &interpreted) {
-                    (Ok(response), Ok(values)) => {
-                        assert_eq!(response.command(), id);
-                        same_values(sensor, id.name(), response.fields().map(|(info, v)| (info.name, v)), values);
-                        let mut out = [0u8; MAX_ADU];
-                        let n = response
-                            .encode(slave, &mut out)
-                            .unwrap_or_else(|e| panic!("{sensor}.{id}: a decoded reply does not encode: {e}"));
-                        same_frame(command, Direction::Response, frame, out.get(..n).unwrap_or(&[]));
-                    }
-                    (Err(a), Err(b)) => {
-                        assert_eq!(a, b, "{sensor}.{id}: typed and interpreted decoding reject differently")
-                    }
-                    (a, b) => panic!(
-                        "{sensor}.{id}: typed decoding gives {:?}, the interpreter {:?} for reply {}",
-                        a.as_ref().map(|_| "a value"),
-                        b.as_ref().map(|_| "a value"),
-                        Hex(frame)
-                    ),
-                }
+/// Compares the typed fields a [`SensorModule`] visitor hands out, one at a
+/// time, with the interpreter's values (when the interpreter accepted the
+/// frame), and counts them.
+struct FieldCheck<'v> {
+    sensor: &'static str,
+    command: &'static str,
+    expected: Option<&'v Values>,
+    seen: usize,
+}
 
-                // As a request.
-                let typed = id.decode_request(frame);
-                let interpreted = command.decode_request(frame);
-                match (&typed, &interpreted) {
-                    (Ok((s, request)), Ok((t, values))) => {
-                        assert_eq!(s, t);
-                        assert_eq!(request.command(), id);
-                        same_values(sensor, id.name(), request.fields().map(|(info, v)| (info.name, v)), values);
-                        let mut out = [0u8; MAX_ADU];
-                        match request.encode(*s, &mut out) {
-                            Ok(n) => same_frame(command, Direction::Request, frame, out.get(..n).unwrap_or(&[])),
-                            // Decoding takes what the wire carries; encoding refuses
-                            // values outside the spec's ranges and unusable addresses.
-                            Err(EncodeError::OutOfRange { .. } | EncodeError::InvalidSlave { .. }) => {}
-                            Err(e) => panic!("{sensor}.{id}: a decoded request does not encode: {e}"),
-                        }
-                        let found = $module::identify_request(frame);
-                        assert!(found.is_some(), "{sensor}.{id}: a valid request is not identified");
-                    }
-                    (Err(a), Err(b)) => {
-                        assert_eq!(a, b, "{sensor}.{id}: typed and interpreted request decoding disagree")
-                    }
-                    _ => panic!("{sensor}.{id}: typed and interpreted request decoding disagree on {}", Hex(frame)),
-                }
-            }
-            if let Some(id) = $module::identify_request(frame) {
-                let layout = id.layout();
-                assert_eq!(frame.get(1), Some(&layout.function.code()));
-                assert_eq!(frame.get(2..4), Some(&layout.address.to_be_bytes()[..]));
-                assert_eq!(frame.get(4..6), Some(&layout.count.to_be_bytes()[..]));
-            }
+impl FieldCheck<'_> {
+    fn visit(&mut self, info: FieldInfo, typed: FieldValue<'_>) {
+        let (sensor, command) = (self.sensor, self.command);
+        if let Some(values) = self.expected {
+            let Some((name, value)) = values.get(self.seen) else {
+                panic!("{sensor}.{command}: typed decoding has more fields than the interpreter ({})", values.len())
+            };
+            assert_eq!(info.name, name, "{sensor}.{command}: field order differs");
+            assert!(value.matches(&typed), "{sensor}.{command}.{name}: typed {typed:?}, interpreted {value:?}");
         }
-    };
+        self.seen += 1;
+    }
+
+    fn finish(&self) {
+        if let Some(values) = self.expected {
+            assert_eq!(self.seen, values.len(), "{}.{}: field counts differ", self.sensor, self.command);
+        }
+    }
 }
 
-check_sensor!(check_ph_orp, ph_orp);
-check_sensor!(check_conductivity, conductivity);
+fn check_sensor(module: &SensorModule, slave: u8, frame: &[u8]) {
+    let sensor = module.info.name;
+    for &name in module.commands {
+        let command = spec_command(sensor, name);
+        let layout = (module.layout)(name).unwrap_or_else(|| panic!("{sensor}.{name}: listed but has no layout"));
+        assert_eq!(layout, command.layout(), "{sensor}.{name}: generated and spec layouts differ");
+
+        // As a reply.
+        let interpreted = command.decode_response(slave, frame);
+        let mut fields = FieldCheck { sensor, command: name, expected: interpreted.as_ref().ok(), seen: 0 };
+        let typed = (module.visit_response)(name, slave, frame, &mut |info, value| fields.visit(info, value))
+            .unwrap_or_else(|| panic!("{sensor}.{name}: listed but visit_response does not know it"));
+        match (&typed, &interpreted) {
+            (Ok(()), Ok(_)) => {
+                fields.finish();
+                let mut out = [0u8; MAX_ADU];
+                let n = match (module.reencode_response)(name, slave, frame, &mut out) {
+                    Some(Ok(n)) => n,
+                    Some(Err(RoundTripError::Encode(e))) => panic!("{sensor}.{name}: a decoded reply does not encode: {e}"),
+                    Some(Err(RoundTripError::Frame(e))) => {
+                        panic!("{sensor}.{name}: a reply decoded once is rejected on re-encoding: {e}")
+                    }
+                    None => panic!("{sensor}.{name}: listed but reencode_response does not know it"),
+                };
+                let encoded = out.get(..n).unwrap_or(&[]);
+                if command.trigger && command.is_read() {
+                    // Several reply forms are accepted; encoding writes the
+                    // manuals' form, which must decode in turn.
+                    if let Err(e) = command.decode_response(slave, encoded) {
+                        panic!(
+                            "{sensor}.{name}: reply {} re-encodes to {}, which the interpreter rejects: {e}",
+                            Hex(frame),
+                            Hex(encoded)
+                        );
+                    }
+                } else {
+                    same_frame(command, Direction::Response, frame, encoded);
+                }
+            }
+            (Err(a), Err(b)) => assert_eq!(a, b, "{sensor}.{name}: typed and interpreted decoding reject differently"),
+            (a, b) => panic!(
+                "{sensor}.{name}: typed decoding gives {:?}, the interpreter {:?} for reply {}",
+                a.as_ref().map(|_| "a value"),
+                b.as_ref().map(|_| "a value"),
+                Hex(frame)
+            ),
+        }
+
+        // As a request.
+        let interpreted = command.decode_request(frame);
+        let mut fields =
+            FieldCheck { sensor, command: name, expected: interpreted.as_ref().ok().map(|(_, v)| v), seen: 0 };
+        let typed = (module.visit_request)(name, frame, &mut |info, value| fields.visit(info, value))
+            .unwrap_or_else(|| panic!("{sensor}.{name}: listed but visit_request does not know it"));
+        match (&typed, &interpreted) {
+            (Ok(s), Ok((t, _))) => {
+                assert_eq!(s, t, "{sensor}.{name}: typed and interpreted request slaves differ");
+                fields.finish();
+                let mut out = [0u8; MAX_ADU];
+                match (module.reencode_request)(name, frame, &mut out) {
+                    Some(Ok(n)) => same_frame(command, Direction::Request, frame, out.get(..n).unwrap_or(&[])),
+                    // Decoding takes what the wire carries; encoding refuses
+                    // values outside the spec's ranges and unusable addresses.
+                    Some(Err(RoundTripError::Encode(EncodeError::OutOfRange { .. } | EncodeError::InvalidSlave { .. }))) => {}
+                    Some(Err(RoundTripError::Encode(e))) => panic!("{sensor}.{name}: a decoded request does not encode: {e}"),
+                    Some(Err(RoundTripError::Frame(e))) => {
+                        panic!("{sensor}.{name}: a request decoded once is rejected on re-encoding: {e}")
+                    }
+                    None => panic!("{sensor}.{name}: listed but reencode_request does not know it"),
+                }
+                let found = (module.identify_request)(frame);
+                assert!(found.is_some(), "{sensor}.{name}: a valid request is not identified");
+            }
+            (Err(a), Err(b)) => assert_eq!(a, b, "{sensor}.{name}: typed and interpreted request decoding disagree"),
+            _ => panic!("{sensor}.{name}: typed and interpreted request decoding disagree on {}", Hex(frame)),
+        }
+    }
+    if let Some(name) = (module.identify_request)(frame) {
+        assert!(module.commands.contains(&name), "{sensor}: identify_request names an unlisted command {name}");
+        let layout = (module.layout)(name).unwrap_or_else(|| panic!("{sensor}.{name}: identified but has no layout"));
+        assert_eq!(frame.get(1), Some(&layout.function.code()));
+        assert_eq!(frame.get(2..4), Some(&layout.address.to_be_bytes()[..]));
+        assert_eq!(frame.get(4..6), Some(&layout.count.to_be_bytes()[..]));
+    }
+}
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Direction {
     Request,
     Response,
-}
-
-/// Typed field values equal the interpreter's, bit for bit.
-fn same_values<'a>(
-    sensor: &str,
-    command: &str,
-    typed: impl Iterator<Item = (&'a str, FieldValue<'a>)>,
-    values: &Values,
-) {
-    let typed: Vec<(&str, FieldValue<'_>)> = typed.collect();
-    assert_eq!(typed.len(), values.len(), "{sensor}.{command}: field counts differ");
-    for ((name, t), (other, v)) in typed.iter().zip(values) {
-        assert_eq!(name, other, "{sensor}.{command}: field order differs");
-        let same = v.matches(t);
-        assert!(same, "{sensor}.{command}.{name}: typed {t:?}, interpreted {v:?}");
-    }
 }
 
 /// `encoded` is `original` again, except where the spec lets them differ:
@@ -304,14 +351,22 @@ pub fn frame_reader(data: &[u8]) {
     let mut client = Client::with_config(replay, config);
     let result = client.call_raw(request, &layout).map(<[u8]>::to_vec);
 
-    let reply_len = layout.response_len();
-    let clean = stream.get(..reply_len).filter(|head| layout.decode_response(slave, head).is_ok());
+    // The valid reply `bytes` start with: a trigger read's short form is
+    // taken as soon as it checks, before the full-length form.
+    let first_reply = |bytes: &'_ [u8]| -> Option<usize> {
+        layout
+            .short_response_len()
+            .into_iter()
+            .chain([layout.response_len()])
+            .find(|&len| bytes.get(..len).is_some_and(|head| layout.decode_response(slave, head).is_ok()))
+    };
+    let clean = first_reply(stream).and_then(|len| stream.get(..len));
     // Line noise (up to 4 bytes that hold no frame of their own) and then
     // exactly one valid reply: the client must find the reply, whatever the
     // noise looks like (function codes, the slave's own address).
     let after_noise = (1..=4usize.min(stream.len())).find_map(|k| {
         let (noise, rest) = stream.split_at(k);
-        (rest.len() == reply_len && layout.decode_response(slave, rest).is_ok() && !holds_frame(noise)).then_some(rest)
+        (first_reply(rest) == Some(rest.len()) && !holds_frame(noise)).then_some(rest)
     });
     let exception = stream
         .get(..5)
@@ -381,13 +436,11 @@ fn holds_frame(bytes: &[u8]) -> bool {
 
 /// The generated decoder of `sensor` accepts a frame the client accepted.
 fn typed_accepts(sensor: &str, command: &str, slave: u8, frame: &[u8]) {
-    let ok = match sensor {
-        "ph_orp" => ph_orp::CommandId::from_name(command).map(|id| ph_orp::decode_response(id, slave, frame).is_ok()),
-        "conductivity" => conductivity::CommandId::from_name(command)
-            .map(|id| conductivity::decode_response(id, slave, frame).is_ok()),
-        _ => None,
-    };
-    assert_eq!(ok, Some(true), "{sensor}.{command}: the generated decoder rejects {}", Hex(frame));
+    let ok = (module(sensor).visit_response)(command, slave, frame, &mut |_, _| {});
+    if let Some(Err(e)) = ok {
+        panic!("{sensor}.{command}: the generated decoder rejects {} ({e})", Hex(frame));
+    }
+    assert_eq!(ok, Some(Ok(())), "{sensor}.{command}: the generated module does not know the command");
 }
 
 // ---------------------------------------------------------------------------
@@ -396,23 +449,52 @@ fn typed_accepts(sensor: &str, command: &str, slave: u8, frame: &[u8]) {
 /// Inputs up to this size that load also go through the generator.
 pub const CODEGEN_MAX_INPUT: usize = 4096;
 
-/// Input: two YAML files separated by the first NUL byte: `spec/sensor.yaml`
-/// and `spec/yosemitech-common.yaml` (so `include: [yosemitech-common.yaml]`
-/// resolves), both loaded as the directory `spec/` from memory. Invalid
-/// UTF-8 is replaced (files on disk are checked for UTF-8 before parsing).
+/// Where [`spec_loader`] puts the first of its two input files.
+pub const SENSOR_FILE: &str = "spec/sensor.yaml";
+/// Where [`spec_loader`] puts the second of its two input files: the
+/// fragment every sensor file includes.
+pub const COMMON_FRAGMENT: &str = "spec/yosemitech-common.yaml";
+
+/// The fragments of the real spec (every embedded file without a top-level
+/// `sensor:` key) but the common one, as fixed files of `spec/`.
+fn fixed_fragments() -> &'static MemSources {
+    static FRAGMENTS: OnceLock<MemSources> = OnceLock::new();
+    FRAGMENTS.get_or_init(|| {
+        SPEC_FILES
+            .iter()
+            .filter(|(path, text)| *path != COMMON_FRAGMENT && !is_sensor_file(text))
+            .fold(MemSources::default(), |s, (path, text)| s.with(*path, *text))
+    })
+}
+
+/// The directory `spec/` [`spec_loader`] loads for `data`: the real spec's
+/// fragments, then the input's two files as [`SENSOR_FILE`] and
+/// [`COMMON_FRAGMENT`] (replacing the real common fragment).
+pub fn spec_loader_sources(data: &[u8]) -> MemSources {
+    let (first, second) = match data.iter().position(|&b| b == 0) {
+        Some(at) => (&data[..at], &data[at + 1..]),
+        None => (data, &[][..]),
+    };
+    fixed_fragments()
+        .clone()
+        .with(SENSOR_FILE, String::from_utf8_lossy(first).into_owned())
+        .with(COMMON_FRAGMENT, String::from_utf8_lossy(second).into_owned())
+}
+
+/// Input: two YAML files separated by the first NUL byte: [`SENSOR_FILE`]
+/// and [`COMMON_FRAGMENT`] (so `include: [yosemitech-common.yaml]`
+/// resolves), loaded as the directory `spec/` from memory together with the
+/// real spec's other fragments (`yosemitech-optical.yaml`, ...: every
+/// embedded file without a `sensor:` key), so that every real sensor file
+/// loads as the first input. Invalid UTF-8 is replaced (files on disk are
+/// checked for UTF-8 before parsing).
 ///
 /// The loader must not panic; a rejection has at least one diagnostic with a
 /// position; an accepted spec (up to [`CODEGEN_MAX_INPUT`] bytes) generates code (or reports a name collision or
 /// an unsupported value), and the generated code always parses: text from
 /// the spec never escapes its string literals.
 pub fn spec_loader(data: &[u8]) {
-    let (first, second) = match data.iter().position(|&b| b == 0) {
-        Some(at) => (&data[..at], &data[at + 1..]),
-        None => (data, &[][..]),
-    };
-    let sources = MemSources::default()
-        .with("spec/sensor.yaml", String::from_utf8_lossy(first).into_owned())
-        .with("spec/yosemitech-common.yaml", String::from_utf8_lossy(second).into_owned());
+    let sources = spec_loader_sources(data);
     match load_with(&sources, &[PathBuf::from("spec")]) {
         Ok(spec) => {
             let _ = spec.summary();
@@ -490,13 +572,26 @@ pub fn cli_decode(data: &[u8]) {
         }
     }
     // The generated side must agree with the interpreter on this frame too.
-    check_ph_orp(frame[0], &frame);
-    check_conductivity(frame[0], &frame);
+    check_all_sensors(frame[0], &frame);
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The generated modules are the spec's sensors, with the spec's commands in spec order.
+    #[test]
+    fn generated_modules_match_the_spec() {
+        let mut modules: Vec<&str> = SENSORS.iter().map(|m| m.info.name).collect();
+        let mut sensors: Vec<&str> = spec().sensors.iter().map(|s| s.name.as_str()).collect();
+        modules.sort_unstable();
+        sensors.sort_unstable();
+        assert_eq!(modules, sensors);
+        for sensor in &spec().sensors {
+            let names: Vec<&str> = sensor.commands.iter().map(|c| c.name.as_str()).collect();
+            assert_eq!(module(&sensor.name).commands, names, "{}", sensor.name);
+        }
+    }
 
     /// Every example frame of the spec passes every target.
     #[test]
@@ -505,18 +600,35 @@ mod tests {
             for c in &sensor.commands {
                 for e in &c.examples {
                     let slave = e.slave();
-                    let mut input = vec![slave];
-                    input.extend_from_slice(e.true_response());
-                    decode_response(&input);
-                    cli_decode(Hex(e.true_response()).to_string().as_bytes());
-                    cli_decode(Hex(e.true_request()).to_string().as_bytes());
+                    for frame in [e.true_request(), e.true_response()].into_iter().flatten() {
+                        decode_response(&[&[slave], frame].concat());
+                        cli_decode(Hex(frame).to_string().as_bytes());
+                    }
                 }
             }
         }
-        for (_, text) in SPEC_FILES {
+    }
+
+    /// Every spec file passes the loader target, and every sensor file,
+    /// followed by the common fragment (the seeds of `cargo xtask fuzz`),
+    /// loads as the target loads it.
+    #[test]
+    fn spec_files_pass_the_loader_target() {
+        let common = SPEC_FILES.iter().find(|(path, _)| *path == COMMON_FRAGMENT).map(|(_, text)| *text);
+        let common = common.expect("the spec has the common fragment");
+        let mut sensor_files = 0;
+        for (path, text) in SPEC_FILES {
             spec_loader(text.as_bytes());
+            if !is_sensor_file(text) {
+                continue;
+            }
+            sensor_files += 1;
+            let joined = [text.as_bytes(), &[0], common.as_bytes()].concat();
+            spec_loader(&joined);
+            if let Err(d) = load_with(&spec_loader_sources(&joined), &[PathBuf::from("spec")]) {
+                panic!("{path} does not load as the spec_loader target's input:\n{d}");
+            }
         }
-        let joined = [SPEC_FILES[0].1.as_bytes(), &[0], SPEC_FILES[2].1.as_bytes()].concat();
-        spec_loader(&joined);
+        assert_eq!(sensor_files, spec().sensors.len());
     }
 }

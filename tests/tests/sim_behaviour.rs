@@ -5,9 +5,12 @@ mod sim_common;
 
 use std::time::Duration;
 
-use sim_common::{command, exception, exchange, request, same, sensor, sim, with_crc};
-use yosemitech_sim::{Bus, Device, MeasurementState, Simulator, Variation, WarmUpPolicy};
-use yosemitech_spec::Value;
+use sim_common::{
+    client, command, exception, exchange, request, same, sensor, sim, sim_with_exceptions, spec, with_crc,
+};
+use yosemitech_rtu::{Error, Function, ResponderTransport};
+use yosemitech_sim::{Bus, Device, MeasurementState, Simulator, UnknownRequestPolicy, Variation, WarmUpPolicy};
+use yosemitech_spec::{Command, Role, Sensor, Value};
 
 fn f(v: f32) -> Value {
     Value::Float(v)
@@ -48,12 +51,22 @@ fn readings_set_by_name_are_served() {
     let get_ph = command(&ph, "get_ph");
     let reply = exchange(&mut sim, &request(&get_ph, 1, &[]));
     assert_eq!(reply, [0x01, 0x03, 0x04, 0x00, 0x00, 0xE0, 0x40, 0xB2, 0x03]);
-    assert_eq!(sim.set_everywhere("ph", f(8.5)).unwrap(), 2, "get_ph and get_orp_and_ph");
+    let with_ph = ph.commands.iter().filter(|c| c.is_read() && c.field("ph").is_some()).count();
+    assert!(with_ph >= 2, "get_ph and get_orp_and_ph");
+    assert_eq!(sim.set_everywhere("ph", f(8.5)).unwrap(), with_ph);
     assert_eq!(sim.get("get_orp_and_ph", "ph").unwrap(), f(8.5));
     assert!(sim.set("get_ph", "nope", f(1.0)).is_err());
     assert!(sim.set("nope", "ph", f(1.0)).is_err());
-    assert!(sim.set("start_ph_calibration", "standard_ph", f(15.0)).is_err(), "outside the field's range");
+    assert!(sim.set("start_ph_calibration", "standard_ph", f(15.0)).is_err(), "outside the write field's range");
+    // A read's range is the measuring range, which a probe may leave: a client test may set it.
+    let (_, max) = get_ph_range(&ph);
+    sim.set("get_ph", "ph", f(max as f32 + 5.0)).unwrap();
+    assert_eq!(sim.get("get_ph", "ph").unwrap(), f(max as f32 + 5.0));
     assert!(sim.is_measurement("get_ph") && !sim.is_measurement("get_ph_calibration") && !sim.is_measurement("get_sn"));
+}
+
+fn get_ph_range(ph: &Sensor) -> (f64, f64) {
+    command(ph, "get_ph").field("ph").and_then(|f| f.range).unwrap_or((0.0, 14.0))
 }
 
 #[test]
@@ -91,14 +104,94 @@ fn get_slave_id_via_the_wildcard_reports_the_current_address() {
     // 0xFF with anything but the wildcard command is not for us.
     let other = with_crc(&[0xFF, 0x03, 0x28, 0x00, 0x00, 0x02]);
     assert!(exchange(&mut sim, &other).is_empty());
-    // The conductivity spec has no get_slave_id: 0xFF is nobody's address.
-    let mut cond = sim_common::sim("conductivity");
-    assert!(exchange(&mut cond, &request(&get_id, 0xFF, &[])).is_empty());
+    // A sensor without a fixed-slave command: 0xFF is nobody's address,
+    // even when exceptions are asked for.
+    for sensor in spec().sensors.iter().filter(|s| s.commands.iter().all(|c| c.fixed_slave.is_none())) {
+        let mut other = Simulator::new(sensor.clone());
+        other.set_unknown_request_policy(UnknownRequestPolicy::Exception);
+        assert!(exchange(&mut other, &request(&get_id, 0xFF, &[])).is_empty(), "{}", sensor.name);
+        assert_eq!(other.stats().ignored_other_slave, 1);
+    }
+}
+
+/// Requests that match no command of `sensor`, with the exception code each
+/// gets under [`UnknownRequestPolicy::Exception`]: an unknown function, a
+/// read at an address no read uses, a known read with another count, a
+/// write to a register no write uses.
+fn unknown_requests(sensor: &Sensor, slave: u8) -> Vec<(&'static str, Vec<u8>, u8)> {
+    let exists = |function: Function, address: u16| {
+        sensor.commands.iter().any(|c| c.function == function && c.address == address)
+    };
+    let free = |function: Function| (0..=u16::MAX).find(|a| !exists(function, *a)).expect("a free address");
+    let [hi, lo] = free(Function::Read).to_be_bytes();
+    let mut unknown = vec![
+        ("unknown function", with_crc(&[slave, 0x04, 0x00, 0x00, 0x00, 0x01]), 0x01),
+        ("unknown address", with_crc(&[slave, 0x03, hi, lo, 0x00, 0x01]), 0x02),
+    ];
+    let read_with_another_count = sensor.commands.iter().filter(|c| c.is_read() && c.fixed_slave.is_none()).find(|c| {
+        !sensor.commands.iter().any(|o| o.is_read() && o.address == c.address && o.count == c.count + 1)
+            && c.count < 125
+    });
+    if let Some(c) = read_with_another_count {
+        let [hi, lo] = c.address.to_be_bytes();
+        let [ch, cl] = (c.count + 1).to_be_bytes();
+        unknown.push(("wrong count", with_crc(&[slave, 0x03, hi, lo, ch, cl]), 0x03));
+    }
+    if let Some(read_only) = sensor.commands.iter().find(|c| c.is_read() && !exists(Function::Write, c.address)) {
+        let [hi, lo] = read_only.address.to_be_bytes();
+        unknown.push(("write to a read-only block", with_crc(&[slave, 0x10, hi, lo, 0x00, 0x01, 0x02, 0, 0]), 0x02));
+    }
+    unknown
 }
 
 #[test]
-fn exceptions_for_unknown_function_address_and_bad_counts() {
-    let mut sim = sim("ph_orp");
+fn every_sensor_ignores_requests_that_match_no_command_by_default() {
+    for sensor in &spec().sensors {
+        let slave = sensor.default_address;
+        let unknown = unknown_requests(sensor, slave);
+        let mut sim = Simulator::new(sensor.clone());
+        for (what, frame, _) in &unknown {
+            assert!(exchange(&mut sim, frame).is_empty(), "{}: {what} answered", sensor.name);
+        }
+        let stats = *sim.stats();
+        assert_eq!(stats.ignored_unknown, unknown.len() as u64, "{}", sensor.name);
+        assert_eq!((stats.replies, stats.exceptions), (0, 0), "{}", sensor.name);
+        // The same requests with exceptions asked for.
+        sim.set_unknown_request_policy(UnknownRequestPolicy::Exception);
+        for (what, frame, code) in &unknown {
+            assert_eq!(exchange(&mut sim, frame), exception(slave, frame[1], *code), "{}: {what}", sensor.name);
+        }
+        assert_eq!(sim.stats().exceptions, unknown.len() as u64, "{}", sensor.name);
+        assert_eq!(sim.stats().ignored_unknown, unknown.len() as u64, "{}: unchanged", sensor.name);
+    }
+}
+
+#[test]
+fn a_client_asking_for_a_register_the_probe_lacks_times_out() {
+    let ph = sensor("ph_orp");
+    // A conductivity command sent to a pH probe: the pH probe has no such register.
+    let cond = sensor("conductivity");
+    let foreign = cond
+        .commands
+        .iter()
+        .find(|c| c.is_read() && !ph.commands.iter().any(|p| p.function == c.function && p.address == c.address))
+        .expect("a conductivity read at an address the pH probe lacks");
+    let mut client = client(ResponderTransport::new(Simulator::new(ph.clone())), Duration::from_millis(20));
+    match client.call_raw(&request(foreign, 1, &[]), &foreign.layout()) {
+        Err(Error::Timeout { received }) => assert!(received.is_empty(), "{received}"),
+        other => panic!("expected a timeout, got {other:?}"),
+    }
+    let stats = *client.transport().responder().stats();
+    assert!(stats.ignored_unknown >= 1 && stats.replies == 0, "{stats:?}");
+    // With exceptions asked for: 02, at once.
+    client.transport_mut().responder_mut().set_unknown_request_policy(UnknownRequestPolicy::Exception);
+    let err = client.call_raw(&request(foreign, 1, &[]), &foreign.layout()).unwrap_err();
+    assert_eq!(err.exception(), Some(yosemitech_rtu::ExceptionCode::IllegalDataAddress), "{err}");
+}
+
+#[test]
+fn exceptions_for_unknown_function_address_and_bad_counts_when_asked_for() {
+    let mut sim = sim_with_exceptions("ph_orp");
     // Unknown function (0x04, read input registers): 01.
     assert_eq!(exchange(&mut sim, &with_crc(&[1, 0x04, 0x28, 0x00, 0x00, 0x02])), exception(1, 0x04, 0x01));
     // No command at 0x2700: 02.
@@ -124,6 +217,7 @@ fn exceptions_for_unknown_function_address_and_bad_counts() {
     assert_eq!(exchange(&mut sim, &bad), exception(1, 0x10, 0x03));
     assert_eq!(sim.calibration_points(), [] as [f32; 0]);
     assert_eq!(sim.stats().exceptions, 8);
+    assert_eq!(sim.stats().ignored_unknown, 0);
     // Exceptions to another slave or broadcast: nothing.
     assert!(exchange(&mut sim, &with_crc(&[2, 0x04, 0x28, 0x00, 0x00, 0x02])).is_empty());
     assert!(exchange(&mut sim, &with_crc(&[0, 0x04, 0x28, 0x00, 0x00, 0x02])).is_empty());
@@ -171,11 +265,15 @@ fn bus_with_two_sensors_only_the_addressed_one_answers() {
     assert_eq!(get_ph.decode_response(1, &reply).unwrap()[0].1, f(6.5));
     let reply = exchange(&mut bus, &request(&get_tc, 2, &[]));
     assert_eq!(get_tc.decode_response(2, &reply).unwrap()[1].1, f(1.5));
-    // get_ph's registers at address 2 (conductivity has none there): 02 from 2 only.
+    // get_ph's registers at address 2 (conductivity has none there): silence,
+    // or 02 from 2 only when it is asked to answer exceptions.
+    assert!(exchange(&mut bus, &request(&get_ph, 2, &[])).is_empty());
+    assert_eq!(bus.device(2).unwrap().stats().ignored_unknown, 1);
+    bus.device_mut(2).unwrap().set_unknown_request_policy(UnknownRequestPolicy::Exception);
     assert_eq!(exchange(&mut bus, &request(&get_ph, 2, &[])), exception(2, 0x03, 0x02));
     assert!(exchange(&mut bus, &request(&get_ph, 3, &[])).is_empty(), "nobody at 3");
     assert_eq!(bus.collisions(), 0);
-    assert_eq!(bus.device(1).unwrap().stats().ignored_other_slave, 3, "two requests to 2, one to 3");
+    assert_eq!(bus.device(1).unwrap().stats().ignored_other_slave, 4, "three requests to 2, one to 3");
     // Two pH probes answering the 0xFF wildcard collide.
     let mut two =
         Bus::new().with(Simulator::new(ph.clone()).with_address(3)).with(Simulator::new(ph.clone()).with_address(5));
@@ -188,10 +286,12 @@ fn bus_with_two_sensors_only_the_addressed_one_answers() {
 #[test]
 fn ph_three_point_calibration_status() {
     let ph = sensor("ph_orp");
-    let (point, status) = (command(&ph, "start_ph_calibration"), command(&ph, "get_calibration_status"));
+    let point = ph.command_with_role(Role::CalibrationPoint).expect("a calibration point command").clone();
+    let status = ph.command_with_role(Role::CalibrationStatus).expect("a calibration status command").clone();
+    let standard = point.named_fields().next().and_then(|f| f.name.clone()).unwrap();
     let mut sim = Simulator::new(ph.clone());
     let calibrate = |sim: &mut Simulator, v: f32| {
-        let reply = exchange(sim, &request(&point, 1, &[("standard_ph", f(v))]));
+        let reply = exchange(sim, &request(&point, 1, &[(standard.as_str(), f(v))]));
         assert_eq!(reply[1], 0x10, "echo");
     };
     let read_status = |sim: &mut Simulator| -> String {
@@ -230,23 +330,92 @@ fn ph_three_point_calibration_status() {
 #[test]
 fn conductivity_measurement_trigger_and_warm_up() {
     let cond = sensor("conductivity");
-    let (start, read) = (command(&cond, "start_measurement"), command(&cond, "get_temperature_and_conductivity"));
+    let start = cond.command_with_role(Role::StartMeasurement).expect("a start command").clone();
+    let read = command(&cond, "get_temperature_and_conductivity");
+    let warm_up = Duration::from_millis(u64::from(cond.procedure.as_ref().unwrap().warm_up_ms));
+    assert!(warm_up > Duration::from_secs(4), "{warm_up:?}");
     let mut sim = Simulator::new(cond.clone()).with_manual_clock();
-    assert_eq!(sim.measurement_state(), MeasurementState::Idle);
+    assert_eq!(sim.measurement_state(), MeasurementState::Idle, "the procedure starts the measurement");
     // Plain policy: readings before the trigger are served as they are.
     assert_eq!(exchange(&mut sim, &request(&read, 1, &[]))[1], 0x03);
     sim.set_warm_up_policy(WarmUpPolicy::Busy);
     assert_eq!(exchange(&mut sim, &request(&read, 1, &[])), exception(1, 0x03, 0x06));
     assert_eq!(exchange(&mut sim, &request(&start, 1, &[])), [0x01, 0x10, 0x1C, 0x00, 0x00, 0x00, 0xC7, 0x99]);
-    assert_eq!(sim.measurement_state(), MeasurementState::WarmingUp { remaining: Duration::from_secs(10) });
+    assert_eq!(sim.measurement_state(), MeasurementState::WarmingUp { remaining: warm_up });
     sim.advance(Duration::from_secs(4));
     assert_eq!(exchange(&mut sim, &request(&read, 1, &[])), exception(1, 0x03, 0x06));
-    assert_eq!(sim.measurement_state(), MeasurementState::WarmingUp { remaining: Duration::from_secs(6) });
-    sim.advance(Duration::from_secs(6));
+    assert_eq!(sim.measurement_state(), MeasurementState::WarmingUp { remaining: warm_up - Duration::from_secs(4) });
+    sim.advance(warm_up - Duration::from_secs(4));
     assert_eq!(sim.measurement_state(), MeasurementState::Measuring);
-    assert_eq!(exchange(&mut sim, &request(&read, 1, &[])).len(), 15);
-    // Non-measurement reads are never busy.
-    assert_eq!(sim_common::sim("ph_orp").measurement_state(), MeasurementState::Measuring, "no trigger: free-running");
+    assert_eq!(exchange(&mut sim, &request(&read, 1, &[])).len(), read.layout().response_len());
+    // SW 1.8's Stop Measurement (a trigger read) stops it: busy again.
+    if let Some(stop) = cond.command_with_role(Role::StopMeasurement) {
+        let reply = exchange(&mut sim, &request(stop, 1, &[]));
+        assert!(stop.decode_response(1, &reply).is_ok(), "{reply:02X?}");
+        assert_eq!(sim.measurement_state(), MeasurementState::Idle);
+        assert_eq!(exchange(&mut sim, &request(&read, 1, &[])), exception(1, 0x03, 0x06));
+    }
+    // A sensor with no start or stop command is free-running.
+    for sensor in spec().sensors.iter().filter(|s| {
+        s.command_with_role(Role::StartMeasurement).is_none() && s.command_with_role(Role::StopMeasurement).is_none()
+    }) {
+        assert_eq!(Simulator::new(sensor.clone()).measurement_state(), MeasurementState::Measuring, "{}", sensor.name);
+    }
+}
+
+/// The reply a trigger read gets: the manuals' form from the layout.
+fn manual_form(command: &Command, slave: u8) -> Vec<u8> {
+    let mut out = vec![0u8; command.layout().response_len()];
+    let n = command.layout().encode_response(slave, &[], &mut out).unwrap();
+    out.truncate(n);
+    out
+}
+
+#[test]
+fn every_start_and_stop_command_is_answered_and_moves_the_measurement_state() {
+    let mut checked = 0;
+    for sensor in &spec().sensors {
+        let start = sensor.command_with_role(Role::StartMeasurement);
+        let stop = sensor.command_with_role(Role::StopMeasurement);
+        if start.is_none() && stop.is_none() {
+            continue;
+        }
+        let warm_up = Duration::from_millis(u64::from(sensor.procedure.as_ref().map_or(0, |p| p.warm_up_ms)));
+        let slave = sensor.default_address;
+        let mut sim = Simulator::new(sensor.clone()).with_manual_clock();
+        sim.set_warm_up_policy(WarmUpPolicy::Busy);
+        let send = |sim: &mut Simulator, command: &Command| {
+            let reply = exchange(sim, &request(command, slave, &[]));
+            if command.trigger && command.is_read() {
+                assert_eq!(reply, manual_form(command, slave), "{}.{}: the manuals' form", sensor.name, command.name);
+            }
+            assert!(command.decode_response(slave, &reply).is_ok(), "{}.{}: {reply:02X?}", sensor.name, command.name);
+        };
+        if let Some(stop) = stop {
+            send(&mut sim, stop);
+            assert_eq!(sim.measurement_state(), MeasurementState::Idle, "{}", sensor.name);
+        }
+        if let Some(start) = start {
+            send(&mut sim, start);
+            let expected = if warm_up.is_zero() {
+                MeasurementState::Measuring
+            } else {
+                MeasurementState::WarmingUp { remaining: warm_up }
+            };
+            assert_eq!(sim.measurement_state(), expected, "{}: the procedure's warm-up", sensor.name);
+            sim.advance(warm_up);
+            assert_eq!(sim.measurement_state(), MeasurementState::Measuring, "{}", sensor.name);
+            // The procedure's reads are served once measuring.
+            for name in sensor.procedure.iter().flat_map(|p| &p.read) {
+                let read = command(sensor, name);
+                let reply = exchange(&mut sim, &request(&read, slave, &[]));
+                assert!(read.decode_response(slave, &reply).is_ok(), "{}.{name}: {reply:02X?}", sensor.name);
+            }
+        }
+        assert_eq!(sim.stats().exceptions, 0, "{}", sensor.name);
+        checked += 1;
+    }
+    assert!(checked > 0, "some sensor has a start or stop command");
 }
 
 #[test]
@@ -341,6 +510,9 @@ commands:
     assert_eq!(sim.get("get_threshold", "threshold").unwrap(), Value::Int(500));
     let over = with_crc(&[9, 0x10, 0x20, 0x00, 0x00, 0x01, 0x02, 0x03, 0xE9]);
     assert_eq!(exchange(&mut sim, &over), exception(9, 0x10, 0x03), "1001 is outside the range");
+    assert!(exchange(&mut sim, &with_crc(&[9, 0x03, 0x30, 0x00, 0x00, 0x01])).is_empty(), "no such register");
+    assert!(exchange(&mut sim, &with_crc(&[0xFF, 0x03, 0x30, 0x00, 0x00, 0x01])).is_empty(), "no wildcard");
+    assert_eq!((sim.stats().ignored_unknown, sim.stats().ignored_other_slave), (1, 1));
     assert_eq!(sim.measurement_state(), MeasurementState::Measuring);
     assert!(sim.calibration_points().is_empty());
 }

@@ -1,25 +1,36 @@
 //! The simulator against the manuals: every example request yields exactly
-//! the example's true reply frame.
+//! the example's true reply frame (with the serial number as printed), and
+//! the serial number as a real probe sends it differs from the manual's only
+//! by the model code.
 
 mod sim_common;
 
 use sim_common::{exchange, spec};
 use yosemitech_rtu::Hex;
-use yosemitech_sim::Simulator;
-use yosemitech_spec::Value;
+use yosemitech_sim::{SerialNumberPolicy, Simulator};
+use yosemitech_spec::{Command, Example, FieldKind, Role, Sensor, Value};
 
 /// The address a fresh simulator needs to answer `example` as printed: the
 /// request's slave, or for a fixed-slave command (get_slave_id at 0xFF) the
-/// `slave_address` the example reports.
-fn address_for(command: &yosemitech_spec::Command, example: &yosemitech_spec::Example) -> u8 {
+/// address the example reports (its first named field).
+fn address_for(command: &Command, example: &Example) -> u8 {
     if command.fixed_slave.is_some() {
-        match example.values.get("slave_address") {
+        let field =
+            command.named_fields().next().and_then(|f| f.name.as_deref()).expect("a fixed-slave command's field");
+        match example.values.get(field) {
             Some(Value::Int(a)) => u8::try_from(*a).expect("an address"),
-            other => panic!("{}: a fixed-slave example states its slave_address, got {other:?}", command.name),
+            other => panic!("{}: a fixed-slave example states its {field}, got {other:?}", command.name),
         }
     } else {
         example.slave()
     }
+}
+
+/// A fresh simulator of `sensor` that answers exactly as the manual prints.
+fn as_printed(sensor: &Sensor) -> Simulator {
+    let mut sim = Simulator::new(sensor.clone());
+    sim.set_serial_number_policy(SerialNumberPolicy::AsPrinted);
+    sim
 }
 
 #[test]
@@ -30,7 +41,7 @@ fn every_example_request_yields_the_true_reply() {
         for command in &sensor.commands {
             for example in &command.examples {
                 let Some((true_request, true_response)) = example.true_pair() else { continue };
-                let mut sim = Simulator::new(sensor.clone()).with_address(address_for(command, example));
+                let mut sim = as_printed(sensor).with_address(address_for(command, example));
                 let reply = exchange(&mut sim, true_request);
                 if command.trigger {
                     // A trigger's reply carries no value: the simulator answers
@@ -54,7 +65,13 @@ fn every_example_request_yields_the_true_reply() {
             }
         }
     }
-    let complete = spec.sensors.iter().flat_map(|s| &s.commands).flat_map(|c| &c.examples).filter(|e| e.true_pair().is_some()).count();
+    let complete = spec
+        .sensors
+        .iter()
+        .flat_map(|s| &s.commands)
+        .flat_map(|c| &c.examples)
+        .filter(|e| e.true_pair().is_some())
+        .count();
     assert_eq!(checked, complete, "every example with both frames complete");
     assert!(checked > 0);
     yosemitech_tests::report!("{checked} example exchanges match the manuals");
@@ -70,6 +87,8 @@ fn examples_replayed_in_order_on_one_device_per_sensor() {
     let spec = spec();
     for sensor in &spec.sensors {
         let mut sim = Simulator::new(sensor.clone());
+        // Where set_slave_id's examples leave the device.
+        let mut expected_address = sim.address();
         for command in &sensor.commands {
             for example in &command.examples {
                 let Some((true_request, true_response)) = example.true_pair() else { continue };
@@ -85,13 +104,20 @@ fn examples_replayed_in_order_on_one_device_per_sensor() {
                 assert!(!reply.is_empty(), "{}.{}: no reply", sensor.name, command.name);
                 assert_eq!(reply[0], command.fixed_slave.unwrap_or(before), "reply from the old address");
                 assert_eq!(reply[1], true_response[1], "{}.{}: {}", sensor.name, command.name, Hex(&reply));
-                if command.name == "get_slave_id" {
+                if command.role == Some(Role::GetSlaveAddress) {
                     assert_eq!(reply[3], sim.address(), "get_slave_id reports the current address");
+                }
+                if command.role == Some(Role::SetSlaveAddress) {
+                    let field = command.named_fields().next().and_then(|f| f.name.as_deref()).unwrap();
+                    if let Some(Value::Int(a)) = example.values.get(field) {
+                        expected_address = u8::try_from(*a).unwrap();
+                    }
                 }
             }
         }
-        assert_eq!(sim.address(), 20, "{}: set_slave_id's example moved the device to 20", sensor.name);
+        assert_eq!(sim.address(), expected_address, "{}: where set_slave_id's examples moved the device", sensor.name);
         assert_eq!(sim.stats().exceptions, 0, "{}", sensor.name);
+        assert_eq!(sim.stats().ignored_unknown, 0, "{}: every example request matches a command", sensor.name);
     }
 }
 
@@ -111,4 +137,56 @@ fn byte_count_quirk_reproduces_the_printed_frame() {
     assert_eq!(exchange(&mut sim, request), printed, "the printed (quirky) frame");
     sim.set_byte_count_quirk(false);
     assert_eq!(exchange(&mut sim, request), reply);
+}
+
+#[test]
+fn the_serial_number_carries_the_model_code_and_differs_from_the_manual_only_there() {
+    // Real probes send the model code in the byte before the serial number
+    // (0x09 on a Y520 whose serial number is YL09...), where the manuals
+    // print 0x00, and their own code in the serial number, where several
+    // manuals print a sibling's.
+    let spec = spec();
+    let mut checked = 0;
+    for sensor in &spec.sensors {
+        let Some(command) = sensor.command_with_role(Role::SerialNumber) else { continue };
+        let text = command.fields.iter().find(|f| matches!(f.kind, FieldKind::Ascii { .. })).expect("an ascii field");
+        let has_byte_before = command.fields.iter().any(|f| f.is_reserved() && f.offset + f.size() == text.offset);
+        for example in &command.examples {
+            let Some((request, printed)) = example.true_pair() else { continue };
+            let mut sim = Simulator::new(sensor.clone()).with_address(example.slave());
+            let reply = exchange(&mut sim, request);
+            let context = format!(
+                "{} (figures {:?}): got {}, manual {}",
+                sensor.name,
+                example.figures,
+                Hex(&reply),
+                Hex(printed)
+            );
+            assert_eq!(reply.len(), printed.len(), "{context}");
+            let Some(code) = &sensor.model_code else {
+                assert_eq!(reply, printed, "{context}: no model code, the manual's bytes");
+                checked += 1;
+                continue;
+            };
+            // Register data starts at byte 3 of a read reply.
+            let text_at = 3 + text.offset;
+            let mut changed: Vec<usize> = vec![text_at + 2, text_at + 3];
+            if has_byte_before {
+                assert_eq!(reply[text_at - 1], u8::from_str_radix(code, 16).unwrap(), "{context}: the model code byte");
+                changed.push(text_at - 1);
+            }
+            assert_eq!(&reply[text_at + 2..text_at + 4], code.as_bytes(), "{context}: the own model code");
+            // Everything else but the CRC is the manual's.
+            let body = reply.len() - 2;
+            for at in (0..body).filter(|at| !changed.contains(at)) {
+                assert_eq!(reply[at], printed[at], "{context}: byte {at}");
+            }
+            let Value::Text(sn) = &command.decode_response(example.slave(), &reply).unwrap()[0].1 else { panic!() };
+            let manual = sensor.example_serial_number().unwrap();
+            assert_eq!(sn, &format!("{}{code}{}", &manual[..2], &manual[4..]), "{context}");
+            checked += 1;
+        }
+    }
+    assert!(checked > 0);
+    yosemitech_tests::report!("{checked} serial-number replies carry the probe's own model code");
 }

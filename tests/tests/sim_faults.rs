@@ -9,12 +9,12 @@ use std::collections::BTreeMap;
 use std::thread;
 use std::time::{Duration, Instant};
 
-use sim_common::{client, command, request, same, sensor};
+use sim_common::{client, command, request, same, sensor, spec};
 use yosemitech_rtu::{
     Client, ClientConfig, Error, ExceptionCode, FrameError, ResponderTransport, RetryPolicy, Transport,
 };
 use yosemitech_sim::{Bus, FaultConfig, FaultKind, Rng, ServeConfig, Simulator, serve_memory};
-use yosemitech_spec::{Command, FieldKind, Sensor, Value};
+use yosemitech_spec::{Command, Field, FieldKind, Role, Sensor, Value};
 
 const TIMEOUT: Duration = Duration::from_millis(20);
 
@@ -109,19 +109,35 @@ fn a_delayed_reply_arrives_after_the_deadline_when_served_in_a_thread() {
     server.stop().unwrap();
 }
 
+/// A random value of `field`'s type, within its range.
+fn random_value(field: &Field, rng: &mut Rng) -> Value {
+    let int = |rng: &mut Rng, (min, max): (f64, f64)| Value::Int(min as i64 + rng.below((max - min) as u64 + 1) as i64);
+    let range = |default: (f64, f64)| field.range.unwrap_or(default);
+    match &field.kind {
+        FieldKind::F32 { .. } => {
+            let (min, max) = range((-100.0, 100.0));
+            Value::Float((min + rng.next_f64() * (max - min)) as f32)
+        }
+        FieldKind::I8 | FieldKind::I16 { .. } | FieldKind::I32 { .. } => int(rng, range((-100.0, 100.0))),
+        FieldKind::U8 | FieldKind::U16 { .. } | FieldKind::U32 { .. } => int(rng, range((0.0, 100.0))),
+        FieldKind::Bcd => int(rng, range((0.0, 99.0))),
+        FieldKind::Enum { variants, .. } => {
+            Value::Int(i64::from(variants[rng.below(variants.len() as u64) as usize].value))
+        }
+        FieldKind::Flags { flags, .. } => {
+            Value::Int(flags.iter().filter(|_| rng.chance(0.5)).fold(0, |bits, f| bits | i64::from(f.mask)))
+        }
+        FieldKind::Ascii { len, .. } => {
+            Value::Text((0..*len).map(|_| char::from(b'A' + rng.below(26) as u8)).collect())
+        }
+        FieldKind::Version => Value::Text(format!("{}.{}", rng.below(10), rng.below(10))),
+        FieldKind::Reserved { .. } => Value::Int(0),
+    }
+}
+
 /// Random values for a write command's fields, within their ranges.
 fn random_values(command: &Command, rng: &mut Rng) -> BTreeMap<String, Value> {
-    command
-        .named_fields()
-        .map(|f| {
-            let (min, max) = f.range.unwrap_or((-100.0, 100.0));
-            let v = match f.kind {
-                FieldKind::F32 { .. } => Value::Float((min + rng.next_f64() * (max - min)) as f32),
-                _ => Value::Int(min as i64 + rng.below((max - min) as u64 + 1) as i64),
-            };
-            (f.name.clone().unwrap(), v)
-        })
-        .collect()
+    command.named_fields().map(|f| (f.name.clone().unwrap(), random_value(f, rng))).collect()
 }
 
 /// How one soak transaction ended.
@@ -147,10 +163,13 @@ fn failure_kind(e: &Error) -> String {
 #[test]
 fn soak_10k_transactions_with_10_percent_faults_accepts_no_wrong_value() {
     const TRANSACTIONS: usize = 10_000;
-    let (ph, cond) = (sensor("ph_orp"), sensor("conductivity"));
-    let bus = Bus::new()
-        .with(Simulator::new(ph.clone()).with_address(1).with_faults(FaultConfig::uniform(11, 0.10)))
-        .with(Simulator::new(cond.clone()).with_address(2).with_faults(FaultConfig::uniform(22, 0.10)));
+    // Every sensor of the spec on one bus, at addresses 1, 2, ...
+    let spec = spec();
+    let sensors: Vec<(u8, &Sensor)> = spec.sensors.iter().enumerate().map(|(i, s)| (i as u8 + 1, s)).collect();
+    let bus = sensors.iter().fold(Bus::new(), |bus, &(address, sensor)| {
+        let faults = FaultConfig::uniform(11 * u64::from(address), 0.10);
+        bus.with(Simulator::new(sensor.clone()).with_address(address).with_faults(faults))
+    });
     let config = ClientConfig {
         timeout: Duration::from_millis(2),
         retry: RetryPolicy { retries: 3, backoff: Duration::ZERO, ..RetryPolicy::default() },
@@ -159,10 +178,11 @@ fn soak_10k_transactions_with_10_percent_faults_accepts_no_wrong_value() {
     let mut client = Client::with_config(ResponderTransport::new(bus), config);
     // Every command but the address-changing one and the 0xFF wildcard (two
     // devices would collide on it).
-    let plan: Vec<(u8, &Sensor, &Command)> = [(1u8, &ph), (2u8, &cond)]
-        .into_iter()
+    let plan: Vec<(u8, &Sensor, &Command)> = sensors
+        .iter()
+        .copied()
         .flat_map(|(address, sensor)| sensor.commands.iter().map(move |c| (address, sensor, c)))
-        .filter(|(_, _, c)| c.fixed_slave.is_none() && c.field("slave_address").is_none())
+        .filter(|(_, _, c)| c.fixed_slave.is_none() && c.role != Some(Role::SetSlaveAddress))
         .collect();
     let mut rng = Rng::new(2024);
     let mut tally = Tally::default();
@@ -191,9 +211,10 @@ fn soak_10k_transactions_with_10_percent_faults_accepts_no_wrong_value() {
                     let got = cmd.decode_response(address, &reply).unwrap();
                     same(&got, &device.values(&cmd.name).unwrap())
                 } else {
-                    // The write's echo was accepted: the device must hold the values.
-                    let held = device.values(&cmd.name).unwrap();
-                    held.iter().all(|(k, v)| values.get(k).is_some_and(|w| w.same_as(v)))
+                    // The write's echo was accepted: the device must hold the
+                    // values, byte for byte as the request carried them.
+                    let sent = cmd.layout().decode_request(&req).unwrap().1;
+                    device.registers().read(cmd.address, cmd.count) == sent
                 };
                 if !good {
                     wrong += 1;

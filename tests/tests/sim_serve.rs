@@ -8,7 +8,7 @@ use std::time::{Duration, Instant};
 
 use sim_common::{command, exception, request, sensor, with_crc};
 use yosemitech_rtu::{CharFormat, Client, ClientConfig, LineTiming, RetryPolicy, TcpTransport, Transport};
-use yosemitech_sim::{Bus, Endpoint, ServeConfig, Simulator, serve_memory, serve_tcp};
+use yosemitech_sim::{Bus, Endpoint, ServeConfig, Simulator, UnknownRequestPolicy, serve_memory, serve_tcp};
 use yosemitech_spec::Value;
 
 fn config() -> ClientConfig {
@@ -31,8 +31,11 @@ fn read_n(transport: &mut impl Transport, n: usize) -> Vec<u8> {
 #[test]
 fn tcp_serves_a_bus_of_two_sensors() {
     let (ph, cond) = (sensor("ph_orp"), sensor("conductivity"));
-    let bus =
-        Bus::new().with(Simulator::new(ph.clone()).with_address(1)).with(Simulator::new(cond.clone()).with_address(2));
+    // The pH probe is silent for unknown requests, as a real probe; the
+    // conductivity probe answers them with exceptions.
+    let mut cond_sim = Simulator::new(cond.clone()).with_address(2);
+    cond_sim.set_unknown_request_policy(UnknownRequestPolicy::Exception);
+    let bus = Bus::new().with(Simulator::new(ph.clone()).with_address(1)).with(cond_sim);
     let server = serve_tcp(bus, "127.0.0.1:0", ServeConfig::default()).unwrap();
     let addr = server.local_addr().unwrap();
     assert!(addr.ip().is_loopback());
@@ -49,13 +52,18 @@ fn tcp_serves_a_bus_of_two_sensors() {
         let values = get_tc.decode_response(2, reply).unwrap();
         assert_eq!(values[0].1, Value::Float(17.625), "the manual's example reading");
         assert_eq!(values[1].1, Value::Float(17.625));
-        // An unknown function, framed by silence, answered with 01.
+        // An unknown function, framed by silence: ignored by the pH probe,
+        // answered with 01 by the conductivity probe.
         let t = client.transport_mut();
+        t.write_all(&with_crc(&[1, 0x2B, 0x0E, 0x01, 0x00])).unwrap();
+        let mut nothing = [0u8; 5];
+        assert_eq!(t.read(&mut nothing, Duration::from_millis(100)).unwrap(), 0, "{nothing:02X?}");
         t.write_all(&with_crc(&[2, 0x2B, 0x0E, 0x01, 0x00])).unwrap();
         assert_eq!(read_n(t, 5), exception(2, 0x2B, 0x01));
     }
     let stats = server.device().device(1).unwrap().stats().to_owned();
     assert_eq!(stats.reads, 2);
+    assert_eq!(stats.ignored_unknown, 2);
     server.stop().unwrap();
 }
 
@@ -137,7 +145,12 @@ mod pty {
 
     /// Opens the server's pty as a client, or `None` (reason printed) where ptys are unavailable.
     fn open(config: ServeConfig) -> Option<(yosemitech_sim::Server<Simulator>, SerialTransport)> {
-        let server = match serve_pty(Simulator::new(sensor("ph_orp")), config) {
+        open_with(Simulator::new(sensor("ph_orp")), config)
+    }
+
+    /// [`open`] for a given simulator.
+    fn open_with(sim: Simulator, config: ServeConfig) -> Option<(yosemitech_sim::Server<Simulator>, SerialTransport)> {
+        let server = match serve_pty(sim, config) {
             Ok(server) => server,
             Err(e) => {
                 eprintln!("skipping: cannot create a pty: {e}");
@@ -156,7 +169,9 @@ mod pty {
 
     #[test]
     fn pty_serves_the_rtu_serial_transport() {
-        let Some((server, transport)) = open(ServeConfig::default()) else { return };
+        let mut sim = Simulator::new(sensor("ph_orp"));
+        sim.set_unknown_request_policy(UnknownRequestPolicy::Exception);
+        let Some((server, transport)) = open_with(sim, ServeConfig::default()) else { return };
         println!("serving on {}", server.endpoint());
         let ph = sensor("ph_orp");
         let (get_ph, set_cal, get_cal) =
@@ -168,7 +183,7 @@ mod pty {
         client.call_raw(&write, &set_cal.layout()).unwrap();
         let reply = client.call_raw(&request(&get_cal, 1, &[]), &get_cal.layout()).unwrap();
         assert_eq!(get_cal.decode_response(1, reply).unwrap()[0].1, Value::Float(0.9));
-        // Unknown function over the pty: framed by silence, exception 01.
+        // Unknown function over the pty: framed by silence, exception 01 (asked for).
         let t = client.transport_mut();
         t.write_all(&with_crc(&[1, 0x08, 0x00, 0x00, 0xA5, 0x37])).unwrap();
         assert_eq!(read_n(t, 5), exception(1, 0x08, 0x01));

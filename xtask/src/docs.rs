@@ -327,9 +327,9 @@ fn command_section(d: &mut String, c: &Command) {
             let table = e.table_says();
             let _ = writeln!(
                 d,
-                "Erratum **{}** (figure {}): the table gives {}. {}\n",
+                "Erratum **{}** ({}): the table gives {}. {}\n",
                 cell(&e.id),
-                e.figure,
+                text::figure_ref(e.figure),
                 table.join(", "),
                 e.note.trim()
             );

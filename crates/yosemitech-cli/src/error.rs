@@ -143,13 +143,15 @@ pub fn short(e: &RtuError) -> String {
 /// A failed request, with what it was, where it went and what to try.
 pub fn request_failed(e: &RtuError, ctx: &Context) -> CliError {
     let Context { port, slave, what, timeout } = ctx;
-    let scan = format!("`yosemitech scan --port {}` lists the devices on the bus", crate::shell::quote(port));
+    let scan = format!("`yosemitech scan --port {}` identifies the probes on the bus", crate::shell::quote(port));
     match e {
         RtuError::Timeout { received } if received.is_empty() => CliError::device(format!(
             "no reply to {what} from address {slave} on {port} within {}",
             show_duration(*timeout)
         ))
-        .hint(format!("check power, wiring (A/B), the baud rate (--baud) and the address (--address); {scan}")),
+        .hint(format!(
+            "check power, wiring (A/B), the baud rate (--baud), the address (--address) and the sensor type (a probe does not answer a command it lacks); {scan}"
+        )),
         RtuError::Timeout { received } => CliError::device(format!(
             "incomplete reply to {what} from address {slave} on {port}: {} bytes in {} ({received})",
             received.len(),

@@ -24,11 +24,12 @@ pub fn value_text(value: &Value) -> String {
     }
 }
 
-/// A value as text for its field: flag fields by the names of the bits
-/// set (`none` for 0, unnamed bits in hex), every other value as
-/// [`value_text`] shows it.
+/// A value as text for its field: enums by name (`unknown (255)` when
+/// the code has none), flag fields by the names of the bits set (`none`
+/// for 0, unnamed bits in hex), every other value as [`value_text`] shows it.
 pub fn field_value_text(field: &Field, value: &Value) -> String {
     match (&field.kind, value) {
+        (_, Value::Enum { name: Some(name), .. }) => name.clone(),
         (FieldKind::Flags { flags, .. }, Value::Int(raw)) => {
             if *raw == 0 {
                 return "none".to_owned();
@@ -286,7 +287,8 @@ pub fn parse_value(field: &Field, text: &str) -> Result<Value> {
         FieldKind::Reserved { .. } => Value::Int(0),
         FieldKind::Bcd => {
             let v = parse_int(text).ok_or_else(|| bad("a whole number"))?;
-            let digits = u8::try_from(v).ok().and_then(yosemitech_rtu::Bcd::from_value).ok_or_else(|| bad("a number 0..=99"))?;
+            let digits =
+                u8::try_from(v).ok().and_then(yosemitech_rtu::Bcd::from_value).ok_or_else(|| bad("a number 0..=99"))?;
             Value::Bcd(digits)
         }
         FieldKind::Flags { flags, .. } => {
@@ -294,11 +296,13 @@ pub fn parse_value(field: &Field, text: &str) -> Result<Value> {
             for part in text.split(['|', ',', '+']).map(str::trim).filter(|p| !p.is_empty() && *p != "none") {
                 match flags.iter().find(|f| f.name == part) {
                     Some(f) => raw |= i64::from(f.mask),
-                    None => raw |= parse_int(part).ok_or_else(|| {
-                        let names: Vec<&str> = flags.iter().map(|f| f.name.as_str()).collect();
-                        CliError::usage(format!("`{part}` is not a flag of `{name}`"))
-                            .hint(format!("flags joined by `|`: {} (or a number)", names.join(", ")))
-                    })?,
+                    None => {
+                        raw |= parse_int(part).ok_or_else(|| {
+                            let names: Vec<&str> = flags.iter().map(|f| f.name.as_str()).collect();
+                            CliError::usage(format!("`{part}` is not a flag of `{name}`"))
+                                .hint(format!("flags joined by `|`: {} (or a number)", names.join(", ")))
+                        })?
+                    }
                 }
             }
             Value::Int(raw)

@@ -9,10 +9,12 @@ use std::io::{BufRead, BufReader};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-use common::{bus, fixture_spec_dir, number_after, sim, yosemitech, yosemitech_with_input};
+use std::sync::Arc;
+
+use common::{fixture_spec_dir, number_after, sim, spec, yosemitech, yosemitech_with_input};
 use serde_json::Value as Json;
-use yosemitech_sim::{FaultConfig, FaultKind};
-use yosemitech_spec::Value;
+use yosemitech_sim::{Bus, FaultConfig, FaultKind, Simulator, UnknownRequestPolicy};
+use yosemitech_spec::{Command as SpecCommand, Role, Value};
 
 /// Short timeouts for requests that are meant to fail.
 const FAST: [&str; 4] = ["--timeout", "150ms", "--retries", "0"];
@@ -42,15 +44,15 @@ fn demo_runs_both_probes_and_prints_the_values() {
         "mS/cm",
         "range status    ok",
         "electrode K1-K6 6.86 -6.72 0.04 6.86 -6.56 -1.04",
-        "TDS",
         "mean of 10 readings",
+        "ok (all 10 readings)",
     ] {
         assert!(out.contains(needle), "`{needle}` missing from the demo:\n{out}");
     }
+    // The spec's procedure, waits shortened: the mean of the simulated 1.413 mS/cm.
     let measurement = out.split("waits shortened").nth(1).expect("the measurement section");
-    let conductivity = number_after(measurement, "conductivity  ");
-    let tds = number_after(measurement, "TDS");
-    assert!((tds - conductivity * 640.0).abs() < 0.2, "TDS {tds} vs mean {conductivity}");
+    let conductivity = number_after(measurement, "conductivity_ms_cm");
+    assert!((conductivity - 1.413).abs() < 0.01, "{measurement}");
     assert!((number_after(out, "pH  ") - 7.02).abs() < 0.05, "{out}");
 }
 
@@ -86,7 +88,15 @@ fn a_silent_address_times_out_cleanly() {
     let err = run.fails_with_hint(1);
     assert!(err.contains("no reply to get_ph from address 9") && err.contains("within 100ms"), "{err}");
     assert!(err.contains("yosemitech scan"), "{err}");
-    // A command the probe does not have: its exception, explained.
+    // A command the probe does not have: real probes stay silent, and the hint says so.
+    let mut args = vec!["read", "conductivity", "get_temperature_and_conductivity", "-p", &s.path];
+    args.extend(FAST);
+    let err = yosemitech(&args).fails_with_hint(1).to_owned();
+    assert!(err.contains("no reply to get_temperature_and_conductivity") && err.contains("lacks"), "{err}");
+    // A device that answers exceptions instead: the exception, explained.
+    let mut device = Simulator::new(common::sensor("ph_orp"));
+    device.set_unknown_request_policy(UnknownRequestPolicy::Exception);
+    let s = common::serve(device);
     let run = yosemitech(&["read", "conductivity", "get_temperature_and_conductivity", "-p", &s.path]);
     assert!(
         run.fails_with_hint(1)
@@ -325,43 +335,307 @@ fn calibrate_ph_stops_on_q_and_prints_the_restore_command() {
     assert_eq!(s.server.device().stats().writes, before);
 }
 
-#[test]
-fn measure_conductivity_prints_tds_as_mean_times_640() {
-    let s = sim("conductivity", 1);
-    s.server.device().set("get_temperature_and_conductivity", "conductivity_ms_cm", Value::Float(1.413)).unwrap();
-    let run = yosemitech(&["measure", "conductivity", "-p", &s.path, "--fast", "--readings", "4"]);
-    let out = run.ok();
-    let mean = number_after(out, "conductivity");
-    let tds = number_after(out, "TDS");
-    assert_eq!(mean as f32, 1.413);
-    assert!((tds - mean * 640.0).abs() < 1e-3, "TDS {tds} = {mean} x 640\n{out}");
-    assert!(out.contains("mean of 4 readings") && out.contains("mg/L"), "{out}");
-    let json: Json = serde_json::from_str(
-        yosemitech(&["measure", "conductivity", "-p", &s.path, "--warm-up", "10ms", "--interval", "5ms", "--json"])
-            .ok(),
-    )
-    .unwrap();
-    assert_eq!(json["readings"], 10);
-    assert!((json["tds_mg_l"].as_f64().unwrap() - 904.32).abs() < 0.01, "{json}");
-    // The manual's Start Measurement trigger was sent.
-    assert!(s.server.device().stats().writes >= 2);
+/// The sensors of the spec that state a procedure.
+fn sensors_with_a_procedure() -> Vec<yosemitech_spec::Sensor> {
+    let with: Vec<_> = spec().sensors.into_iter().filter(|s| s.procedure.is_some()).collect();
+    assert!(!with.is_empty(), "some sensor of the spec states a procedure");
+    with
 }
 
 #[test]
-fn scan_finds_each_probe_and_its_kind() {
-    let s = bus(&[("ph_orp", 1), ("conductivity", 3)]);
-    let run = yosemitech(&["scan", "-p", &s.path, "--addresses", "1-4"]);
+fn measure_runs_every_procedure_and_prints_each_field() {
+    for sensor in sensors_with_a_procedure() {
+        let procedure = sensor.procedure.clone().unwrap();
+        let s = sim(&sensor.name, 1);
+        let run = yosemitech(&["measure", &sensor.name, "-p", &s.path, "--fast", "--readings", "3"]);
+        let out = run.ok().to_owned();
+        let reads: Vec<&SpecCommand> = procedure.read.iter().map(|r| sensor.command(r).unwrap()).collect();
+        for read in &reads {
+            for field in read.named_fields() {
+                let name = field.display_name();
+                assert!(
+                    out.lines().any(|l| l.trim_start().starts_with(name) || l.contains(&format!(".{name} "))),
+                    "{}: field `{name}` missing:\n{out}",
+                    sensor.name
+                );
+            }
+        }
+        for name in procedure.before.iter().chain(&procedure.read) {
+            assert!(out.contains(name.as_str()), "{}: the procedure line names `{name}`:\n{out}", sensor.name);
+        }
+        // Every request of the procedure reached the probe: before, 3 x the reads, after.
+        let sent = procedure.before.len() + 3 * reads.len() + procedure.after.len();
+        assert!(s.server.device().stats().requests >= sent as u64, "{}", sensor.name);
+
+        // JSON: each averaged value is the simulated one (no noise: every reading alike).
+        let json = yosemitech(&["measure", &sensor.name, "-p", &s.path, "--fast", "--readings", "2", "--json"]).json();
+        assert_eq!(json["readings"], 2, "{json}");
+        assert_eq!(json["sensor"], sensor.name.as_str());
+        let fields = json["fields"].as_array().unwrap();
+        assert_eq!(fields.len(), reads.iter().map(|r| r.named_fields().count()).sum::<usize>());
+        for f in fields {
+            let (command, field) = (f["command"].as_str().unwrap(), f["field"].as_str().unwrap());
+            let spec_field = sensor.command(command).unwrap().field(field).unwrap();
+            let label = f["name"].as_str().unwrap();
+            assert_eq!(json["values"][label], f["value"], "{json}");
+            let Value::Float(want) = s.server.device().get(command, field).unwrap() else { continue };
+            if spec_field.absent == Some(f64::from(want)) {
+                assert_eq!(f["value"], Json::Null, "{} {field} reads absent: {json}", sensor.name);
+                assert_eq!(f["absent"], 2);
+                assert!(out.contains("absent"), "{out}");
+            } else {
+                assert_eq!(f["value"].as_f64().map(|v| v as f32), Some(want), "{} {field}: {json}", sensor.name);
+                assert_eq!(f["readings"], 2);
+            }
+        }
+    }
+}
+
+#[test]
+fn measure_averages_the_readings() {
+    // A float field of the first procedure read, set to a known value.
+    let sensor = sensors_with_a_procedure().into_iter().next().unwrap();
+    let procedure = sensor.procedure.clone().unwrap();
+    let read = sensor.command(&procedure.read[0]).unwrap();
+    let field = read
+        .named_fields()
+        .find(|f| matches!(f.kind, yosemitech_spec::FieldKind::F32 { .. }) && f.absent != Some(1.413))
+        .expect("a float field");
+    let s = sim(&sensor.name, 4);
+    s.server.device().set(&read.name, field.display_name(), Value::Float(1.413)).unwrap();
+    let run = yosemitech(&[
+        "measure",
+        &sensor.name,
+        "-p",
+        &s.path,
+        "-a",
+        "4",
+        "--warm-up",
+        "10ms",
+        "--interval",
+        "5ms",
+        "--readings",
+        "4",
+    ]);
     let out = run.ok();
-    assert!(out.contains("address   1  SN YL4314010022    ph_orp"), "{out}");
-    assert!(out.contains("address   3  SN YL0914010022    conductivity"), "{out}");
-    assert!(out.contains("found 2 device(s)"), "{out}");
-    let json = yosemitech(&["scan", "-p", &s.path, "--addresses", "2,3", "--json"]).json();
-    assert_eq!(
-        json["devices"],
-        serde_json::json!([{ "address": 3, "serial_number": "YL0914010022", "sensors": ["conductivity"], "note": null }])
+    let label = field.display_name();
+    assert_eq!(number_after(out, label) as f32, 1.413, "{out}");
+    let line = out.lines().find(|l| l.trim_start().starts_with(label)).unwrap();
+    assert!(line.contains("mean of 4 readings"), "{line}");
+    if let Some(unit) = &field.unit {
+        let shown = if unit == "degC" { "°C" } else { unit.as_str() };
+        assert!(line.contains(shown), "{line}");
+    }
+}
+
+#[test]
+fn measure_refuses_a_sensor_without_a_procedure() {
+    // The fixture DO probe states no procedure.
+    let dir = fixture_spec_dir();
+    let spec_arg = dir.to_str().unwrap();
+    let run = yosemitech(&["--spec", spec_arg, "measure", "do_probe", "-p", "/dev/null"]);
+    let err = run.fails_with_hint(2);
+    assert!(err.contains("`do_probe` states no measuring procedure"), "{err}");
+    for sensor in sensors_with_a_procedure() {
+        assert!(err.contains(&sensor.name), "`{}` not offered:\n{err}", sensor.name);
+    }
+    yosemitech(&["measure", "no_such_sensor", "-p", "/dev/null"]).fails_with_hint(2);
+    let first = &sensors_with_a_procedure()[0].name;
+    assert!(
+        yosemitech(&["measure", first, "-p", "/dev/null", "--readings", "0"])
+            .fails_with_hint(2)
+            .contains("--readings 0")
     );
-    let run = yosemitech(&["scan", "-p", &s.path, "--addresses", "5-6"]);
+}
+
+/// The serial number a probe of `sensor` carries: the manual's, with the
+/// sensor's own model code in characters 3-4 (what real probes send, and
+/// the simulator too).
+fn own_serial_number(sensor: &yosemitech_spec::Sensor) -> String {
+    let printed = sensor.example_serial_number().unwrap_or_else(|| "YL0014010022".into());
+    match &sensor.model_code {
+        Some(code) => format!("{}{code}{}", &printed[..2], &printed[4..]),
+        None => printed,
+    }
+}
+
+/// The serial-number read of `sensor` and its text field.
+fn sn_field(sensor: &yosemitech_spec::Sensor) -> (&SpecCommand, &yosemitech_spec::Field) {
+    let command = sensor.command_with_role(Role::SerialNumber).unwrap();
+    let field = command.named_fields().find(|f| matches!(f.kind, yosemitech_spec::FieldKind::Ascii { .. })).unwrap();
+    (command, field)
+}
+
+/// The sensors `scan` can identify: a serial-number read and a model code.
+fn identifiable() -> Vec<yosemitech_spec::Sensor> {
+    let all: Vec<_> = spec()
+        .sensors
+        .into_iter()
+        .filter(|s| s.model_code.is_some() && s.command_with_role(Role::SerialNumber).is_some())
+        .collect();
+    assert!(all.len() >= 2, "the spec has sensors scan can tell apart");
+    all
+}
+
+/// The distinct serial-number reads of the spec.
+fn sn_layouts() -> usize {
+    let mut layouts: Vec<(u16, u16)> = spec()
+        .sensors
+        .iter()
+        .filter_map(|s| s.command_with_role(Role::SerialNumber).map(|c| (c.address, c.count)))
+        .collect();
+    layouts.sort_unstable();
+    layouts.dedup();
+    layouts.len()
+}
+
+/// The newest manual of `sensor` whose software is at most `software`.
+fn manual_for(sensor: &yosemitech_spec::Sensor, software: &str) -> Option<String> {
+    let key = |v: &str| -> (u32, u32) {
+        let (a, b) = v.split_once('.').unwrap_or((v, "0"));
+        (a.parse().unwrap(), b.parse().unwrap())
+    };
+    sensor.manuals().filter_map(|m| m.software.clone()).filter(|sw| key(sw) <= key(software)).max_by_key(|sw| key(sw))
+}
+
+#[test]
+fn scan_names_each_sensor_of_the_spec_alone() {
+    let sensors = identifiable();
+    let mut bus = Bus::new();
+    for (i, sensor) in sensors.iter().enumerate() {
+        bus.push(Simulator::new(Arc::new(sensor.clone())).with_address(i as u8 + 1));
+    }
+    let s = common::serve(bus);
+    let last = sensors.len() + 1;
+    let addresses = format!("1-{last}");
+    let run = yosemitech(&["scan", "-p", &s.path, "--addresses", &addresses, "--timeout", "1s"]);
+    let out = run.ok().to_owned();
+    for (i, sensor) in sensors.iter().enumerate() {
+        let code = sensor.model_code.as_deref().unwrap();
+        let line = out
+            .lines()
+            .find(|l| l.starts_with(&format!("address {:3}  ", i + 1)))
+            .unwrap_or_else(|| panic!("no line for address {}:\n{out}", i + 1));
+        let named = match &sensor.model {
+            Some(model) => format!("{} ({model}, code {code})", sensor.name),
+            None => format!("{} (code {code})", sensor.name),
+        };
+        assert!(line.contains(&format!("SN {}  {named}", own_serial_number(sensor))), "{line}");
+        assert!(!line.contains("not identified"), "{line}");
+    }
+    assert!(out.contains(&format!("found {} device(s)", sensors.len())), "{out}");
+    // Few reads per address: the serial-number reads tried, and one for the revisions.
+    let requests = s.server.device().devices()[0].stats().requests;
+    assert!(requests <= (last * (sn_layouts() + 1)) as u64, "{requests} requests for {last} addresses");
+
+    let json = yosemitech(&["scan", "-p", &s.path, "--addresses", &addresses, "--timeout", "1s", "--json"]).json();
+    let devices = json["devices"].as_array().unwrap();
+    assert_eq!(devices.len(), sensors.len(), "{json}");
+    for (device, sensor) in devices.iter().zip(&sensors) {
+        assert_eq!(device["sensor"], sensor.name.as_str(), "{device}");
+        assert_eq!(device["sensors"], serde_json::json!([sensor.name]), "{device}");
+        assert_eq!(device["model"].as_str(), sensor.model.as_deref(), "{device}");
+        assert_eq!(device["model_code"].as_str(), sensor.model_code.as_deref(), "{device}");
+        assert_eq!(device["serial_number"], own_serial_number(sensor).as_str());
+        assert_eq!(device["reason"], Json::Null);
+        // The revisions, and the manual that covers that firmware.
+        let bus = s.server.device();
+        let sim = &bus.devices()[device["address"].as_u64().unwrap() as usize - 1];
+        match sensor.command_with_role(Role::Version) {
+            Some(version) => {
+                let software = version.named_fields().last().unwrap().display_name().to_owned();
+                let Value::Version(sw) = sim.get(&version.name, &software).unwrap() else { panic!() };
+                assert_eq!(device["software"], sw.to_string().as_str(), "{device}");
+                let manual = manual_for(sensor, &sw.to_string());
+                assert_eq!(device["manual"]["software"].as_str(), manual.as_deref(), "{device}");
+            }
+            None => assert_eq!(device["software"], Json::Null),
+        }
+    }
+    let run = yosemitech(&["scan", "-p", &s.path, "--addresses", &format!("{}", last + 1)]);
     assert!(run.fails_with_hint(1).contains("no device answered"), "{}", run.stderr);
+}
+
+#[test]
+fn scan_takes_the_model_code_from_the_byte_before_the_serial_number() {
+    // Real probes send the code in the byte the manuals print as 0x00; the
+    // text may carry another (the manuals print a sibling's serial number).
+    let sensors: Vec<_> = identifiable()
+        .into_iter()
+        .filter(|s| {
+            let (command, field) = sn_field(s);
+            field.offset > 0 && command.fields.iter().any(|f| f.is_reserved() && f.offset + f.size() == field.offset)
+        })
+        .collect();
+    let mut bus = Bus::new();
+    for (i, sensor) in sensors.iter().enumerate() {
+        let (command, field) = sn_field(sensor);
+        let code = sensor.model_code.as_deref().unwrap();
+        let byte = u8::from_str_radix(code, 16).unwrap();
+        let mut device = Simulator::new(Arc::new(sensor.clone())).with_address(i as u8 + 1);
+        device.set(&command.name, field.display_name(), Value::Text("YL9914010022".into())).unwrap();
+        device.registers_mut().write_bytes(command.address, field.offset - 1, &[byte]);
+        bus.push(device);
+    }
+    let s = common::serve(bus);
+    let addresses = format!("1-{}", sensors.len());
+    let json = yosemitech(&["scan", "-p", &s.path, "--addresses", &addresses, "--timeout", "1s", "--json"]).json();
+    let devices = json["devices"].as_array().unwrap();
+    assert_eq!(devices.len(), sensors.len());
+    for (device, sensor) in devices.iter().zip(&sensors) {
+        assert_eq!(device["sensor"], sensor.name.as_str(), "{device}");
+        assert_eq!(device["model_code"].as_str(), sensor.model_code.as_deref());
+        assert_eq!(device["serial_number"], "YL9914010022");
+    }
+}
+
+#[test]
+fn scan_lists_the_candidates_where_it_cannot_decide() {
+    let sensor = identifiable().into_iter().next().unwrap();
+    let (command, field) = sn_field(&sensor);
+    // A model code no loaded sensor declares: every sensor that reads its
+    // serial number the same way is a candidate.
+    let mut device = Simulator::new(Arc::new(sensor.clone())).with_address(2);
+    device.set(&command.name, field.display_name(), Value::Text("YL9914010022".into())).unwrap();
+    if let Some(before) = field.offset.checked_sub(1) {
+        device.registers_mut().write_bytes(command.address, before, &[0x99]);
+    }
+    let s = common::serve(device);
+    let json = yosemitech(&["scan", "-p", &s.path, "--addresses", "2", "--timeout", "1s", "--json"]).json();
+    let found = &json["devices"][0];
+    assert_eq!(found["sensor"], Json::Null, "{found}");
+    assert_eq!(found["model_code"], "99");
+    let same_read: Vec<String> = spec()
+        .sensors
+        .iter()
+        .filter(|s| {
+            s.command_with_role(Role::SerialNumber)
+                .is_some_and(|c| (c.address, c.count) == (command.address, command.count))
+        })
+        .map(|s| s.name.clone())
+        .collect();
+    assert_eq!(found["sensors"], serde_json::json!(same_read), "{found}");
+    assert!(found["reason"].as_str().unwrap().contains("model code 99"), "{found}");
+    let run = yosemitech(&["scan", "-p", &s.path, "--addresses", "2", "--timeout", "1s"]);
+    let out = run.ok();
+    assert!(out.contains("not identified") && out.contains(&sensor.name) && out.contains("model code 99"), "{out}");
+
+    // Two loaded sensors declaring one code: both are listed.
+    let dir = tempfile::tempdir().unwrap();
+    let text = std::fs::read_to_string(&sensor.file).unwrap();
+    let twin = format!("{}_twin", sensor.name);
+    let renamed = text.replacen(&format!("name: {}\n", sensor.name), &format!("name: {twin}\n"), 1);
+    assert_ne!(renamed, text, "the sensor's name line");
+    std::fs::write(dir.path().join("twin.yaml"), renamed).unwrap();
+    let spec_arg = dir.path().to_str().unwrap();
+    s.server.device().set(&command.name, field.display_name(), Value::Text(own_serial_number(&sensor))).unwrap();
+    let json =
+        yosemitech(&["--spec", spec_arg, "scan", "-p", &s.path, "--addresses", "2", "--timeout", "1s", "--json"])
+            .json();
+    let found = &json["devices"][0];
+    assert_eq!(found["sensor"], Json::Null, "{found}");
+    assert_eq!(found["sensors"], serde_json::json!([sensor.name, twin]), "{found}");
+    assert!(found["reason"].as_str().unwrap().contains("2 loaded sensors"), "{found}");
 }
 
 /// `yosemitech simulate` in a child process: the port it prints, and a clean

@@ -84,10 +84,12 @@ fn help_works_for_every_subcommand() {
         let run = yosemitech(&[sub, "--help"]);
         assert!(run.ok().contains("Usage:"), "{sub} --help:\n{}", run.stdout);
     }
-    for nested in
-        [["measure", "conductivity"], ["calibrate", "ph"], ["coefficients", "backup"], ["coefficients", "restore"]]
-    {
+    for nested in [["calibrate", "ph"], ["coefficients", "backup"], ["coefficients", "restore"]] {
         assert!(yosemitech(&[nested[0], nested[1], "--help"]).ok().contains("Usage:"));
+    }
+    // `measure SENSOR --help` for every sensor (the help of `measure`).
+    for sensor in spec().sensors {
+        assert!(yosemitech(&["measure", &sensor.name, "--help"]).ok().contains("Usage:"), "{}", sensor.name);
     }
     assert!(yosemitech(&["--version"]).ok().starts_with("yosemitech "));
 }
@@ -103,15 +105,41 @@ fn usage_errors_exit_2() {
     yosemitech(&["poll", "ph_orp", "--interval", "fast"]).fails(2);
 }
 
+/// `9600 8N1`, as `list` shows serial settings.
+fn serial_text(serial: &yosemitech_spec::Serial) -> String {
+    let parity = match serial.parity {
+        yosemitech_spec::Parity::None => 'N',
+        yosemitech_spec::Parity::Even => 'E',
+        yosemitech_spec::Parity::Odd => 'O',
+    };
+    format!("{} {}{parity}{}", serial.baud, serial.data_bits, serial.stop_bits)
+}
+
 #[test]
 fn list_json_has_every_command_with_its_layout() {
     let json = yosemitech(&["list", "--json"]).json();
     let sensors = json["sensors"].as_array().expect("sensors");
-    let names: Vec<&str> = sensors.iter().filter_map(|s| s["name"].as_str()).collect();
-    assert_eq!(names, ["conductivity", "ph_orp"]);
     let spec = spec();
+    let names: Vec<&str> = sensors.iter().filter_map(|s| s["name"].as_str()).collect();
+    let want: Vec<&str> = spec.sensors.iter().map(|s| s.name.as_str()).collect();
+    assert_eq!(names, want);
     for s in sensors {
         let sensor = spec.sensor(s["name"].as_str().unwrap()).unwrap();
+        assert_eq!(s["model"].as_str(), sensor.model.as_deref());
+        assert_eq!(s["model_code"].as_str(), sensor.model_code.as_deref());
+        // Every manual, with the serial settings of its firmware.
+        let manuals = s["manuals"].as_array().expect("manuals");
+        assert_eq!(manuals.len(), 1 + sensor.revisions.len(), "{}", sensor.name);
+        for manual in sensor.manuals() {
+            let m = manuals
+                .iter()
+                .find(|m| m["title"] == manual.title.as_str() && m["software"].as_str() == manual.software.as_deref());
+            let m = m.unwrap_or_else(|| panic!("{}: manual {:?} missing", sensor.name, manual.software));
+            let serial = manual.software.as_deref().map_or(sensor.serial, |sw| sensor.serial_for(sw));
+            assert_eq!(m["serial"]["stop_bits"].as_u64(), Some(u64::from(serial.stop_bits)));
+            assert_eq!(m["serial"]["baud"].as_u64(), Some(u64::from(serial.baud)));
+        }
+        assert_eq!(s["procedure"].is_null(), sensor.procedure.is_none(), "{}", sensor.name);
         let commands = s["commands"].as_array().expect("commands");
         assert_eq!(commands.len(), sensor.commands.len());
         for c in commands {
@@ -122,35 +150,81 @@ fn list_json_has_every_command_with_its_layout() {
             assert_eq!(c["address"].as_u64(), Some(u64::from(command.address)));
             assert_eq!(c["count"].as_u64(), Some(u64::from(command.count)));
             assert_eq!(c["function"].as_str(), Some(if command.is_read() { "read" } else { "write" }));
+            assert_eq!(c["since"].as_str(), command.since.as_deref(), "{}", command.name);
+            assert_eq!(c["role"].as_str(), command.role.map(|r| r.name()), "{}", command.name);
             let fields = c["fields"].as_array().unwrap();
             assert_eq!(fields.len(), command.fields.len());
             let size: u64 = fields.iter().map(|f| f["size"].as_u64().unwrap()).sum();
-            assert_eq!(size, 2 * u64::from(command.count), "fields fill the registers of {}", command.name);
-            for f in fields {
+            if !command.trigger {
+                assert_eq!(size, 2 * u64::from(command.count), "fields fill the registers of {}", command.name);
+            }
+            for (f, field) in fields.iter().zip(&command.fields) {
                 for key in ["name", "type", "unit", "offset", "size", "byte_order"] {
                     assert!(f.get(key).is_some(), "{key} missing in {f}");
                 }
+                assert_eq!(f["name"].as_str(), field.name.as_deref());
+                assert_eq!(f["type"], field.kind.type_name());
+                assert_eq!(f["unit"].as_str(), field.unit.as_deref());
+                assert_eq!(f["offset"].as_u64(), Some(field.offset as u64));
+                assert_eq!(f["size"].as_u64(), Some(field.size() as u64));
             }
         }
     }
-    let ph = &sensors[1]["commands"].as_array().unwrap().iter().find(|c| c["name"] == "get_ph").unwrap()["fields"][0];
-    assert_eq!(ph["name"], "ph");
-    assert_eq!(ph["type"], "f32");
-    assert_eq!(ph["unit"], "pH");
-    assert_eq!(ph["offset"], 0);
-    assert_eq!(ph["size"], 4);
-    assert_eq!(ph["byte_order"], "dcba");
-
-    let one = yosemitech(&["list", "conductivity", "--json"]).json();
-    assert_eq!(one["sensors"].as_array().unwrap().len(), 1);
+    for sensor in &spec.sensors {
+        let one = yosemitech(&["list", &sensor.name, "--json"]).json();
+        assert_eq!(one["sensors"].as_array().unwrap().len(), 1);
+        assert_eq!(one["sensors"][0]["name"], sensor.name.as_str());
+    }
 }
 
 #[test]
 fn list_shows_sensors_commands_and_fields() {
     let all = yosemitech(&["list"]);
     let text = all.ok();
-    assert!(text.contains("ph_orp") && text.contains("conductivity"));
-    assert!(text.contains("get_ph") && text.contains("0x2800"));
+    for sensor in spec().sensors {
+        assert!(text.contains(&format!("{} — {}", sensor.name, sensor.title)), "{}", sensor.name);
+        let one = yosemitech(&["list", &sensor.name]).ok().to_owned();
+        if let Some(model) = &sensor.model {
+            assert!(one.contains(&format!("model {model}")), "{one}");
+        }
+        if let Some(code) = &sensor.model_code {
+            assert!(one.contains(&format!("model code {code}")), "{one}");
+        }
+        for manual in sensor.manuals() {
+            let serial = manual.software.as_deref().map_or(sensor.serial, |sw| sensor.serial_for(sw));
+            let line = one
+                .lines()
+                .find(|l| {
+                    l.contains(&manual.title)
+                        && manual.software.as_ref().is_none_or(|sw| l.contains(&format!("SW {sw}:")))
+                })
+                .unwrap_or_else(|| panic!("no line for the manual {:?}:\n{one}", manual.software));
+            assert!(line.contains(&serial_text(&serial)), "{line}");
+            if serial.stop_bits == 2 {
+                assert!(line.contains("2 stop bits"), "{line}");
+            }
+        }
+        if sensor.procedure.is_some() {
+            assert!(one.contains(&format!("`yosemitech measure {}`", sensor.name)), "{one}");
+        }
+        for command in &sensor.commands {
+            let line = one
+                .lines()
+                .find(|l| l.trim_start().starts_with(&format!("{} ", command.name)))
+                .unwrap_or_else(|| panic!("no line for {}:\n{one}", command.name));
+            assert!(line.contains(&format!("0x{:04X}", command.address)), "{line}");
+            if let Some(role) = command.role {
+                assert!(line.contains(&format!("[{}]", role.name())), "{line}");
+            }
+            if let Some(since) = &command.since {
+                assert!(line.contains(&format!("since SW {since}")), "{line}");
+            }
+            for field in command.named_fields() {
+                let shown = format!("{}: {}", field.display_name(), field.kind.type_name());
+                assert!(one.contains(&shown), "`{shown}` missing:\n{one}");
+            }
+        }
+    }
     let one = yosemitech(&["list", "ph"]);
     assert!(one.ok().contains("ph: f32 dcba [pH]"), "{}", one.stdout);
 }
@@ -367,9 +441,9 @@ fn spec_files_load_at_run_time_with_the_shared_commands_built_in() {
     // yosemitech-common.yaml falls back to the built-in copy.
     let dir = tempfile::tempdir().unwrap();
     std::fs::write(
-        dir.path().join("turbidity.yaml"),
+        dir.path().join("test-probe.yaml"),
         r#"sensor:
-  name: turbidity
+  name: test_probe
   title: Turbidity probe (test)
   doc: A made-up probe for the CLI's --spec test.
   manual: {title: Test manual, revision: "1.0"}
@@ -399,13 +473,24 @@ commands:
     let spec = dir.path().to_str().unwrap();
     let json = yosemitech(&["--spec", spec, "list", "--json"]).json();
     let names: Vec<&str> = json["sensors"].as_array().unwrap().iter().filter_map(|s| s["name"].as_str()).collect();
-    assert_eq!(names, ["conductivity", "ph_orp", "turbidity"]);
-    let turbidity = yosemitech(&["list", "turbidity", "--json", "--spec", spec]).json();
+    let built_in = common::spec();
+    let want: Vec<&str> = built_in.sensors.iter().map(|s| s.name.as_str()).chain(["test_probe"]).collect();
+    assert_eq!(names, want, "the built-in sensors, then the --spec one");
+    let turbidity = yosemitech(&["list", "test_probe", "--json", "--spec", spec]).json();
     let commands: Vec<&str> =
         turbidity["sensors"][0]["commands"].as_array().unwrap().iter().filter_map(|c| c["name"].as_str()).collect();
     assert!(commands.contains(&"get_sn") && commands.contains(&"get_turbidity"), "{commands:?}");
-    let run = yosemitech(&["decode", "01 03 04 00 00 20 41 23 C3", "--spec", spec, "--command", "get_turbidity"]);
+    let run = yosemitech(&[
+        "decode",
+        "01 03 04 00 00 20 41 23 C3",
+        "--spec",
+        spec,
+        "--sensor",
+        "test_probe",
+        "--command",
+        "get_turbidity",
+    ]);
     assert!(run.ok().contains("10 NTU"), "{}", run.stdout);
-    let run = yosemitech(&["encode", "turbidity", "get_turbidity", "--spec", spec]);
+    let run = yosemitech(&["encode", "test_probe", "get_turbidity", "--spec", spec]);
     assert_eq!(run.ok().trim(), "01 03 26 00 00 02 CF 43");
 }

@@ -856,9 +856,9 @@ fn command_doc(c: &Command) -> String {
         .map(|e| {
             let table = e.table_says();
             format!(
-                "- **{}** (figure {}): the table gives {}. {}",
+                "- **{}** ({}): the table gives {}. {}",
                 one_line(&e.id),
-                e.figure,
+                text::figure_ref(e.figure),
                 table.join(", "),
                 one_line(&e.note)
             )

@@ -145,6 +145,15 @@ pub fn printed_frame(frame: &yosemitech_spec::PrintedFrame) -> String {
     s
 }
 
+/// "figure 23", "table 4", or "an unnumbered table".
+pub fn figure_ref(figure: Option<yosemitech_spec::Figure>) -> String {
+    match figure {
+        Some(yosemitech_spec::Figure::Table(n)) => format!("table {n}"),
+        Some(f) => format!("figure {f}"),
+        None => "an unnumbered table".to_owned(),
+    }
+}
+
 /// Name of a 4-byte order.
 pub fn order4(order: Order4) -> &'static str {
     match order {

@@ -59,6 +59,21 @@ impl core::fmt::Display for RoundTripError {
     }
 }
 
+/// A visitor of decoded fields: each field's name and unit, and its value.
+pub type FieldVisitor<'v> = &'v mut dyn FnMut(FieldInfo, FieldValue<'_>);
+
+/// `(command name, frame, visitor)`: decodes a request and visits its fields.
+pub type VisitRequestFn = fn(&str, &[u8], FieldVisitor<'_>) -> Option<Result<u8, FrameError>>;
+
+/// `(command name, slave, frame, visitor)`: decodes a reply and visits its fields.
+pub type VisitResponseFn = fn(&str, u8, &[u8], FieldVisitor<'_>) -> Option<Result<(), FrameError>>;
+
+/// `(command name, frame, out)`: decodes a request and encodes it again.
+pub type ReencodeRequestFn = fn(&str, &[u8], &mut [u8]) -> Option<Result<usize, RoundTripError>>;
+
+/// `(command name, slave, frame, out)`: decodes a reply and encodes it again.
+pub type ReencodeResponseFn = fn(&str, u8, &[u8], &mut [u8]) -> Option<Result<usize, RoundTripError>>;
+
 /// A generated sensor module as data: what code that serves every sensor
 /// (loggers, tests, the CLI) needs without naming one. Each generated module
 /// declares one `MODULE`; the generated crate lists them in `SENSORS`. Every
@@ -77,18 +92,16 @@ pub struct SensorModule {
     /// Decodes a request to the named command, passes each field of a
     /// write's data (in wire order) to the visitor, and returns the slave
     /// address the request is for.
-    #[allow(clippy::type_complexity)]
-    pub visit_request: fn(&str, &[u8], &mut dyn FnMut(FieldInfo, FieldValue<'_>)) -> Option<Result<u8, FrameError>>,
+    pub visit_request: VisitRequestFn,
     /// Decodes a request to the named command and encodes the typed request
     /// again into `out`: the length written.
-    pub reencode_request: fn(&str, &[u8], &mut [u8]) -> Option<Result<usize, RoundTripError>>,
+    pub reencode_request: ReencodeRequestFn,
     /// Decodes a reply (from a request sent to the slave given) to the named
     /// command and encodes the typed reply again into `out`.
-    pub reencode_response: fn(&str, u8, &[u8], &mut [u8]) -> Option<Result<usize, RoundTripError>>,
+    pub reencode_response: ReencodeResponseFn,
     /// Decodes a reply to the named command and passes each field, in wire
     /// order, to the visitor.
-    #[allow(clippy::type_complexity)]
-    pub visit_response: fn(&str, u8, &[u8], &mut dyn FnMut(FieldInfo, FieldValue<'_>)) -> Option<Result<(), FrameError>>,
+    pub visit_response: VisitResponseFn,
 }
 
 impl core::fmt::Debug for SensorModule {

@@ -569,9 +569,10 @@ pub struct ExampleDoc {
     /// Whether the reply's CRC is printed.
     #[schemars(with = "Option<CrcDoc>")]
     pub response_crc: Option<Spanned<CrcDoc>>,
-    /// The values the manual states, by field name.
-    #[schemars(with = "BTreeMap<String, StatedValue>")]
-    pub values: Spanned<BTreeMap<String, Spanned<StatedValue>>>,
+    /// The values the manual states, by field name (none for an example
+    /// whose frames carry no values).
+    #[schemars(with = "Option<BTreeMap<String, StatedValue>>")]
+    pub values: Option<Spanned<BTreeMap<String, Spanned<StatedValue>>>>,
     /// Remarks on the example.
     #[schemars(with = "Option<String>")]
     pub doc: Option<Spanned<String>>,
@@ -625,9 +626,9 @@ pub struct CommandErratumDoc {
     /// Identifier in datasheet-notes.md (E1, E2, …).
     #[schemars(with = "String")]
     pub id: Spanned<String>,
-    /// The figure with the wrong table.
-    #[schemars(with = "FigureDoc")]
-    pub figure: Spanned<FigureDoc>,
+    /// The figure or table with the wrong table; none for a table the manual does not number.
+    #[schemars(with = "Option<FigureDoc>")]
+    pub figure: Option<Spanned<FigureDoc>>,
     /// The manual (its `software` revision) when not the file's `manual`.
     #[schemars(with = "Option<String>")]
     pub manual: Option<Spanned<String>>,

@@ -130,7 +130,10 @@ pub(crate) fn check_example(
     r: &mut Reporter<'_>,
 ) -> Option<Example> {
     let errors_before = r.out.len();
-    let at = e.request.as_ref().or(e.response.as_ref()).map_or_else(|| Pos::at(&e.values), Pos::at);
+    let no_values = BTreeMap::new();
+    let stated = e.values.as_ref().map_or(&no_values, |v| &v.value);
+    let values_at = |fallback: Pos| e.values.as_ref().map_or(fallback, Pos::at);
+    let at = e.request.as_ref().or(e.response.as_ref()).map_or_else(|| values_at(Pos::default()), Pos::at);
     let figures = resolve_figures(&e.figures, &format!("{key}.figures"), at, r);
     let manual = e.manual.as_ref().map(|m| check_text(m, &format!("{key}.manual"), r));
     if e.request.is_none() && e.response.is_none() {
@@ -240,14 +243,14 @@ pub(crate) fn check_example(
         let Some(c) = corrected else { continue };
         match printed.as_ref().and_then(|p| p.complete.as_ref()) {
             Some(p) if p == c => r.error(
-                span.as_ref().map_or_else(|| Pos::at(&e.values), Pos::at),
+                span.as_ref().map_or_else(|| values_at(at), Pos::at),
                 format!("{key}.erratum.corrected_{what}"),
                 format!("the corrected {what} is the printed one: nothing to correct"),
                 Some(format!("remove `corrected_{what}`, or give the frame the device really sends")),
             ),
             Some(_) => {}
             None => r.error(
-                span.as_ref().map_or_else(|| Pos::at(&e.values), Pos::at),
+                span.as_ref().map_or_else(|| values_at(at), Pos::at),
                 format!("{key}.erratum.corrected_{what}"),
                 format!("a correction needs a complete printed {what} to correct"),
                 Some("record a frame the manual prints without a CRC with `*_crc: missing` instead".into()),
@@ -267,7 +270,7 @@ pub(crate) fn check_example(
 
     // Stated values, by field.
     let mut values = BTreeMap::new();
-    for (name, v) in &e.values.value {
+    for (name, v) in stated {
         let vk = format!("{key}.values.{name}");
         match cmd.field(name) {
             Some(field) if !field.is_reserved() => {
@@ -305,11 +308,11 @@ pub(crate) fn check_example(
         let missing: Vec<String> = cmd
             .named_fields()
             .map(|f| f.display_name())
-            .filter(|n| !e.values.value.contains_key(*n))
+            .filter(|n| !stated.contains_key(*n))
             .map(|n| format!("`{n}`"))
             .collect();
         if !missing.is_empty() {
-            let pos = value_span.as_ref().map_or(Pos::at(&e.values), |s| Pos::at(&e.values).max(Pos::at(s)));
+            let pos = value_span.as_ref().map_or(values_at(at), |s| values_at(at).max(Pos::at(s)));
             r.error(
                 pos,
                 format!("{key}.values"),
@@ -367,7 +370,7 @@ pub(crate) fn check_example(
                 Some("check `values` against the request's data bytes".into()),
             ),
             Err(err) => r.error(
-                Pos::at(&e.values),
+                values_at(at),
                 format!("{key}.values"),
                 format!("the stated values do not encode: {err}"),
                 Some("state values the command can send (see the fields' types and `range`)".into()),
@@ -446,7 +449,7 @@ pub(crate) fn check_example(
             let (Some(bytes), Some(want)) = (bytes, values.get(field.display_name())) else { continue };
             let got = decode_field(field, &bytes);
             if !got.same_as(want) {
-                let pos = e.values.value.get(field.display_name()).map(Pos::at).unwrap_or_default();
+                let pos = stated.get(field.display_name()).map(Pos::at).unwrap_or_default();
                 r.error(
                     pos,
                     format!("{key}.values.{}", field.display_name()),
@@ -531,7 +534,7 @@ fn compare_values(
     for (name, got) in decoded {
         let Some(want) = stated.get(name) else { continue };
         if !got.same_as(want) {
-            let pos = e.values.value.get(name).map(Pos::at).unwrap_or_default();
+            let pos = e.values.as_ref().and_then(|v| v.value.get(name)).map(Pos::at).unwrap_or_default();
             r.error(
                 pos,
                 format!("{key}.values.{name}"),

@@ -373,8 +373,8 @@ impl Command {
 pub struct CommandErratum {
     /// Identifier (E1, …).
     pub id: String,
-    /// The figure with the wrong table.
-    pub figure: Figure,
+    /// The figure or table with the wrong table; `None` for a table the manual does not number.
+    pub figure: Option<Figure>,
     /// The manual's software revision when not the sensor's `manual`.
     pub manual: Option<String>,
     /// The start address the table prints, if wrong.

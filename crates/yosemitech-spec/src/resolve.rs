@@ -2097,8 +2097,12 @@ fn resolve_command_extras(c: &CommandDoc, i: usize, cmd: &mut Command, r: &mut R
                 Some("add `table: {address: 0x1100}` (or `count`, `function`) as the table prints it".into()),
             );
         }
-        let Some(figure) = resolve_figure(&e.figure.value, &format!("{ek}.figure"), Pos::at(&e.figure), r) else {
-            continue;
+        let figure = match &e.figure {
+            Some(f) => match resolve_figure(&f.value, &format!("{ek}.figure"), Pos::at(f), r) {
+                Some(figure) => Some(figure),
+                None => continue,
+            },
+            None => None,
         };
         cmd.errata.push(CommandErratum {
             id: e.id.value.clone(),

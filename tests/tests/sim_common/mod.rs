@@ -5,7 +5,7 @@ use std::collections::BTreeMap;
 use std::time::Duration;
 
 use yosemitech_rtu::{Client, ClientConfig, RetryPolicy, Transport, crc16};
-use yosemitech_sim::{Device, Simulator};
+use yosemitech_sim::{Device, Simulator, UnknownRequestPolicy};
 use yosemitech_spec::{Command, Sensor, Spec, Value};
 
 /// The workspace's spec directory, loaded.
@@ -21,6 +21,14 @@ pub fn sensor(name: &str) -> Sensor {
 /// A simulator of `name` at its factory address.
 pub fn sim(name: &str) -> Simulator {
     Simulator::new(sensor(name))
+}
+
+/// A simulator of `name` that answers requests matching no command with
+/// exceptions ([`UnknownRequestPolicy::Exception`]) instead of silence.
+pub fn sim_with_exceptions(name: &str) -> Simulator {
+    let mut sim = sim(name);
+    sim.set_unknown_request_policy(UnknownRequestPolicy::Exception);
+    sim
 }
 
 /// A command of a sensor.

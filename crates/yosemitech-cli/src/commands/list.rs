@@ -3,7 +3,7 @@
 use std::io::Write;
 
 use serde_json::{Value as Json, json};
-use yosemitech_spec::{Command, Field, Manual, Parity, Serial, Sensor};
+use yosemitech_spec::{Command, Field, Manual, Parity, Sensor, Serial};
 
 use crate::catalog::{Catalog, Entry, Origin};
 use crate::cli::ListArgs;
@@ -146,9 +146,8 @@ fn field_line(f: &Field) -> String {
 /// One sensor as JSON.
 pub fn sensor_json(entry: &Entry) -> Json {
     let s = &entry.sensor;
-    let manual_json = |m: &Manual| {
-        json!({ "title": m.title, "revision": m.revision, "software": m.software, "file": m.file })
-    };
+    let manual_json =
+        |m: &Manual| json!({ "title": m.title, "revision": m.revision, "software": m.software, "file": m.file });
     json!({
         "name": s.name,
         "title": s.title,

@@ -230,7 +230,9 @@ pub fn run_procedure(
             }
             for read in &reads {
                 for (name, value) in device::read(opened, read, slave)? {
-                    if let Some(r) = fields.iter_mut().find(|r| r.command == read.name && r.field.name.as_deref() == Some(&name)) {
+                    if let Some(r) =
+                        fields.iter_mut().find(|r| r.command == read.name && r.field.name.as_deref() == Some(&name))
+                    {
                         r.add(value);
                     }
                 }
@@ -297,7 +299,11 @@ fn timing(procedure: &Procedure, args: &MeasureArgs) -> Result<Timing> {
 
 /// `10 s`, `1.5 s`, `250 ms`.
 fn seconds(d: Duration) -> String {
-    if d.as_millis() < 1000 && !d.is_zero() { format!("{} ms", d.as_millis()) } else { format!("{} s", d.as_secs_f64()) }
+    if d.as_millis() < 1000 && !d.is_zero() {
+        format!("{} ms", d.as_millis())
+    } else {
+        format!("{} s", d.as_secs_f64())
+    }
 }
 
 /// The procedure in a line: `start_measurement, wait 10 s, 10 readings of get_x 3 s apart`.
@@ -325,7 +331,13 @@ pub fn run(catalog: &Catalog, global: &Global, args: &MeasureArgs, out: &mut dyn
     let mut opened = port::open(&args.port, global, &sensor.serial)?;
     if !args.json {
         let section = procedure.source.as_ref().map(|s| format!(" (manual section {})", s.section)).unwrap_or_default();
-        writeln!(out, "{} at address {slave} on {}: {}{section}", sensor.title, opened.port, describe(procedure, timing))?;
+        writeln!(
+            out,
+            "{} at address {slave} on {}: {}{section}",
+            sensor.title,
+            opened.port,
+            describe(procedure, timing)
+        )?;
         out.flush()?;
     }
     let m = run_procedure(&mut opened, sensor, slave, timing, &mut std::thread::sleep)?;
@@ -401,7 +413,8 @@ pub fn show(m: &Measurement, digits: Option<usize>, out: &mut dyn Write) -> Resu
                         .filter(|(min, max)| !(*min..=*max).contains(&mean))
                         .map(|(min, max)| format!(" [outside the measuring range {min}..={max}]"))
                         .unwrap_or_default();
-                    let of = if r.count == 1 { "1 reading".to_owned() } else { format!("mean of {} readings", r.count) };
+                    let of =
+                        if r.count == 1 { "1 reading".to_owned() } else { format!("mean of {} readings", r.count) };
                     format!("{}{unit}{outside} ({of}{extra})", r.number_text(mean, digits))
                 }
                 None if r.absent > 0 && r.not_finite == 0 => {
@@ -459,7 +472,8 @@ mod tests {
                             assert_eq!(r.value_json(), json!(2.5));
                         }
                         FieldKind::Enum { variants, .. } if variants.len() >= 2 => {
-                            let v = |i: usize| Value::Enum { raw: variants[i].value, name: Some(variants[i].name.clone()) };
+                            let v =
+                                |i: usize| Value::Enum { raw: variants[i].value, name: Some(variants[i].name.clone()) };
                             for value in [v(0), v(0), v(1)] {
                                 r.add(value);
                             }

@@ -134,8 +134,7 @@ fn printable(text: &str) -> String {
 
 /// `conductivity (Y520, code 09)`.
 fn sensor_text(s: &Sensor) -> String {
-    let about: Vec<String> =
-        s.model.iter().cloned().chain(s.model_code.iter().map(|c| format!("code {c}"))).collect();
+    let about: Vec<String> = s.model.iter().cloned().chain(s.model_code.iter().map(|c| format!("code {c}"))).collect();
     if about.is_empty() { s.name.clone() } else { format!("{} ({})", s.name, about.join(", ")) }
 }
 
@@ -277,8 +276,7 @@ fn identify<'c>(
     }
 
     // One more read: the revisions, with the version read most candidates share.
-    let versions =
-        group(found.candidates.iter().filter_map(|s| s.command_with_role(Role::Version).map(|c| (*s, c))));
+    let versions = group(found.candidates.iter().filter_map(|s| s.command_with_role(Role::Version).map(|c| (*s, c))));
     if let Some(read) = versions.first() {
         match probe(opened, read.command, address)? {
             Ok(Some(data)) => {
@@ -302,7 +300,11 @@ fn identify<'c>(
     if let (Some(sensor), Some(software)) = (found.identified, found.software) {
         found.manual = manual_for(sensor, software);
         if found.manual.is_none() {
-            found.notes.push(format!("no manual of {} covers SW {software}", sensor.name));
+            let oldest = sensor.manuals().filter_map(|m| m.software.as_deref()).min_by_key(|sw| software_key(sw));
+            found.notes.push(match oldest {
+                Some(oldest) => format!("no manual covers SW {software}: the oldest is for SW {oldest}"),
+                None => "its manuals state no software revision".to_owned(),
+            });
         }
     }
     Ok(Some(found))
@@ -419,6 +421,79 @@ fn found_line(f: &Found<'_>) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    fn catalog() -> Catalog {
+        Catalog::load(&[]).unwrap()
+    }
+
+    #[test]
+    fn groups_the_serial_number_reads_most_common_first() {
+        let catalog = catalog();
+        let reads = sn_reads(&catalog);
+        assert!(!reads.is_empty());
+        assert!(reads.windows(2).all(|w| w[0].sensors.len() >= w[1].sensors.len()));
+        for entry in catalog.entries() {
+            let s = &entry.sensor;
+            let Some(own) = s.command_with_role(Role::SerialNumber) else { continue };
+            let groups: Vec<&SnRead<'_>> =
+                reads.iter().filter(|r| r.sensors.iter().any(|g| g.name == s.name)).collect();
+            assert_eq!(groups.len(), 1, "{} is in one group", s.name);
+            assert!(same_wire(groups[0].command, own));
+        }
+    }
+
+    #[test]
+    fn reads_the_model_code_from_the_byte_before_or_the_text() {
+        for entry in catalog().entries() {
+            let s = &entry.sensor;
+            let (Some(command), Some(code)) = (s.command_with_role(Role::SerialNumber), &s.model_code) else {
+                continue;
+            };
+            let field = command.named_fields().find(|f| matches!(f.kind, FieldKind::Ascii { .. })).unwrap();
+            let sn = format!("YL{code}14010022");
+            let values = BTreeMap::from([(field.display_name().to_owned(), Value::Text(sn.clone()))]);
+            let mut data = yosemitech_spec::interp::encode_fields(command, &values).unwrap();
+            assert_eq!(read_sn(command, &data), (Some(sn.clone()), None, Some(code.clone())), "{}", s.name);
+            if field.offset > 0 {
+                data[field.offset - 1] = u8::from_str_radix(code, 16).unwrap();
+                assert_eq!(read_sn(command, &data).1.as_ref(), Some(code), "{}", s.name);
+            }
+        }
+        // Garbage is shown, never a panic.
+        let catalog = catalog();
+        let command = sn_reads(&catalog)[0].command;
+        let garbage = vec![0xC3; 2 * usize::from(command.count)];
+        let (text, _, code) = read_sn(command, &garbage);
+        assert!(printable(&text.unwrap()).contains("\\x"));
+        assert_eq!(code, None);
+    }
+
+    #[test]
+    fn names_the_newest_manual_the_firmware_reaches() {
+        let v = |(major, minor): (u16, u16)| Version::new(major as u8, minor as u8);
+        for entry in catalog().entries() {
+            let s = &entry.sensor;
+            let mut softwares: Vec<(u16, u16)> =
+                s.manuals().filter_map(|m| m.software.as_deref().map(software_key)).collect();
+            softwares.sort_unstable();
+            for &(major, minor) in &softwares {
+                let next = Some((major, minor + 1)).filter(|p| !softwares.contains(p));
+                for probe in std::iter::once((major, minor)).chain(next) {
+                    let m = manual_for(s, v(probe)).unwrap();
+                    assert_eq!(m.software.as_deref().map(software_key), Some((major, minor)), "{}", s.name);
+                }
+            }
+            // Firmware older than every manual: none covers it.
+            let older = match softwares.first() {
+                Some(&(major, minor)) if minor > 0 => Some((major, minor - 1)),
+                Some(&(major, _)) if major > 0 => Some((major - 1, 255)),
+                _ => None,
+            };
+            if let Some(older) = older {
+                assert!(manual_for(s, v(older)).is_none(), "{}", s.name);
+            }
+        }
+    }
 
     #[test]
     fn parses_address_ranges() {
