@@ -137,7 +137,9 @@ fn check_sensor(module: &SensorModule, slave: u8, frame: &[u8]) {
                 let mut out = [0u8; MAX_ADU];
                 let n = match (module.reencode_response)(name, slave, frame, &mut out) {
                     Some(Ok(n)) => n,
-                    Some(Err(RoundTripError::Encode(e))) => panic!("{sensor}.{name}: a decoded reply does not encode: {e}"),
+                    Some(Err(RoundTripError::Encode(e))) => {
+                        panic!("{sensor}.{name}: a decoded reply does not encode: {e}")
+                    }
                     Some(Err(RoundTripError::Frame(e))) => {
                         panic!("{sensor}.{name}: a reply decoded once is rejected on re-encoding: {e}")
                     }
@@ -182,8 +184,12 @@ fn check_sensor(module: &SensorModule, slave: u8, frame: &[u8]) {
                     Some(Ok(n)) => same_frame(command, Direction::Request, frame, out.get(..n).unwrap_or(&[])),
                     // Decoding takes what the wire carries; encoding refuses
                     // values outside the spec's ranges and unusable addresses.
-                    Some(Err(RoundTripError::Encode(EncodeError::OutOfRange { .. } | EncodeError::InvalidSlave { .. }))) => {}
-                    Some(Err(RoundTripError::Encode(e))) => panic!("{sensor}.{name}: a decoded request does not encode: {e}"),
+                    Some(Err(RoundTripError::Encode(
+                        EncodeError::OutOfRange { .. } | EncodeError::InvalidSlave { .. },
+                    ))) => {}
+                    Some(Err(RoundTripError::Encode(e))) => {
+                        panic!("{sensor}.{name}: a decoded request does not encode: {e}")
+                    }
                     Some(Err(RoundTripError::Frame(e))) => {
                         panic!("{sensor}.{name}: a request decoded once is rejected on re-encoding: {e}")
                     }

@@ -286,19 +286,51 @@ fn stream_seeds(spec: &Spec) -> Vec<Vec<u8>> {
     seeds
 }
 
-/// spec_loader: a file, or a file, a NUL and the fragment it includes.
+/// The fragment every sensor file includes: the spec_loader target takes it
+/// as the second of its two files, after a NUL.
+const COMMON_FRAGMENT: &str = "yosemitech-common.yaml";
+
+/// Whether a spec file describes a sensor (a top-level `sensor:` key) rather
+/// than holding a fragment of shared commands.
+fn is_sensor_file(text: &[u8]) -> bool {
+    text.split(|&b| b == b'\n').any(|line| line.starts_with(b"sensor:"))
+}
+
+/// spec_loader: every sensor file of `spec/`, a NUL and the common fragment
+/// (the target supplies the other fragments); every fragment alone; the
+/// malformed and hostile spec corpora.
 fn spec_seeds(root: &Path) -> anyhow::Result<Vec<Vec<u8>>> {
-    let read = |p: PathBuf| fs::read(&p).with_context(|| format!("cannot read {}", p.display()));
+    let read = |p: &Path| fs::read(p).with_context(|| format!("cannot read {}", p.display()));
+    let yaml_files = |dir: &Path| -> anyhow::Result<Vec<PathBuf>> {
+        let entries = fs::read_dir(dir).with_context(|| format!("cannot list {}", dir.display()))?;
+        let mut files: Vec<PathBuf> = entries
+            .flatten()
+            .map(|e| e.path())
+            .filter(|p| p.is_file() && matches!(p.extension().and_then(|e| e.to_str()), Some("yaml" | "yml")))
+            .collect();
+        files.sort();
+        Ok(files)
+    };
     let spec = root.join("spec");
-    let common = read(spec.join("yosemitech-common.yaml"))?;
-    let mut seeds = Vec::new();
-    for file in ["ph-orp-optical.yaml", "conductivity.yaml"] {
-        let mut s = read(spec.join(file))?;
-        s.push(0);
-        s.extend_from_slice(&common);
-        seeds.push(s);
+    let common = read(&spec.join(COMMON_FRAGMENT))?;
+    let mut sensors = Vec::new();
+    let mut fragments = Vec::new();
+    for file in yaml_files(&spec)? {
+        let text = read(&file)?;
+        if is_sensor_file(&text) {
+            let mut s = text;
+            s.push(0);
+            s.extend_from_slice(&common);
+            sensors.push(s);
+        } else {
+            fragments.push(text);
+        }
     }
-    seeds.push(common);
+    if sensors.is_empty() {
+        bail!("{} holds no sensor file (a file with a top-level `sensor:` key)", spec.display());
+    }
+    let mut seeds = sensors;
+    seeds.extend(fragments);
     for dir in [
         "tests/specs/malformed",
         "tests/specs/malformed/hostile-but-valid",
@@ -309,7 +341,7 @@ fn spec_seeds(root: &Path) -> anyhow::Result<Vec<Vec<u8>>> {
         let mut files: Vec<PathBuf> = entries.flatten().map(|e| e.path()).filter(|p| p.is_file()).collect();
         files.sort();
         for f in files {
-            seeds.push(read(f)?);
+            seeds.push(read(&f)?);
         }
     }
     Ok(seeds)
@@ -482,6 +514,23 @@ mod tests {
         assert_eq!(r.crashes, 1);
         assert_eq!(r.artifacts, [PathBuf::from("fuzz/artifacts/cli_decode/crash-3fee")]);
         assert!(r.finding.as_deref().is_some_and(|f| f.contains("panicked at src/lib.rs:462")), "{:?}", r.finding);
+    }
+
+    #[test]
+    fn every_sensor_file_is_a_spec_loader_seed() {
+        let root = crate::root();
+        let seeds = spec_seeds(&root).unwrap();
+        let spec = load_paths(&[root.join("spec")]).unwrap();
+        let common = fs::read(root.join("spec").join(COMMON_FRAGMENT)).unwrap();
+        for sensor in &spec.sensors {
+            let mut expected = fs::read(&sensor.file).unwrap();
+            assert!(is_sensor_file(&expected), "{}", sensor.file.display());
+            expected.push(0);
+            expected.extend_from_slice(&common);
+            assert!(seeds.contains(&expected), "no seed for {}", sensor.file.display());
+        }
+        assert!(!is_sensor_file(&common));
+        assert!(seeds.contains(&common));
     }
 
     #[test]

@@ -3,8 +3,12 @@
 //! Every subcommand is in [`commands`]; the command line is in [`cli`]. The
 //! spec files of the workspace's `spec/` directory are compiled in
 //! ([`catalog`]); `--spec DIR` adds more at run time. Generic commands go
-//! through the spec's reference interpreter and `Client::call_raw`;
-//! procedures through the typed `yosemitech` crate.
+//! through the spec's reference interpreter and `Client::call_raw`: `scan`
+//! identifies probes by the serial-number and version roles and each
+//! spec's `model_code`, `measure` runs the `procedure` a spec states. No
+//! code names a sensor of the spec except the typed procedures (calibrate,
+//! coefficients, set-address, demo), which go through the typed `yosemitech`
+//! crate.
 //!
 //! The binary is a thin `main` over [`main`]; [`decode_text`] exposes the
 //! `decode` subcommand's path to the fuzzer.

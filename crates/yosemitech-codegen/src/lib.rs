@@ -133,9 +133,29 @@ impl Config {
         };
         let mut sensors = Vec::new();
         let mut modules = TokenStream::new();
+        // Commands several sensors share are generated once, in a module per
+        // fragment; each sensor module re-exports them.
+        let mut shared = Vec::new();
+        for fragment in &spec.fragments {
+            if spec.sensors.iter().any(|s| s.name == fragment.name) {
+                return Err(Error::NameCollision {
+                    sensor: fragment.name.clone(),
+                    detail: format!("the fragment `{}` and a sensor have the same module name", fragment.name),
+                });
+            }
+            let Some(generated) = sensor::fragment_module(fragment, &options)? else { continue };
+            let source = format_tokens(&fragment.name, generated.tokens.clone(), &header(&fragment.file))?;
+            modules.extend(sensor::fragment_declaration(fragment, &generated.commands, &format!("{}.rs", fragment.name)));
+            sensors.push(GeneratedSensor {
+                name: fragment.name.clone(),
+                file_name: format!("{}.rs", fragment.name),
+                source,
+            });
+            shared.push(generated);
+        }
         for s in &spec.sensors {
             let names = Names::plan(s)?;
-            let tokens = sensor::module(s, &names, &options)?;
+            let tokens = sensor::module(s, &names, &options, &shared)?;
             let source = format_tokens(&s.name, tokens, &header(&s.file))?;
             modules.extend(sensor::module_declaration(s, &format!("{}.rs", s.name)));
             sensors.push(GeneratedSensor { name: s.name.clone(), file_name: format!("{}.rs", s.name), source });
@@ -192,7 +212,8 @@ impl Config {
 /// The generated sources.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct Generated {
-    /// One module per sensor, in spec order.
+    /// One module per shared fragment (its commands, generated once), then
+    /// one module per sensor, in spec order.
     pub sensors: Vec<GeneratedSensor>,
     /// The contents of [`MODULES_FILE`]: `pub mod <sensor> { include!("<sensor>.rs"); }` for each sensor.
     pub modules: String,
@@ -227,10 +248,10 @@ impl Generated {
     }
 }
 
-/// The generated module of one sensor.
+/// The generated module of one sensor or shared fragment.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct GeneratedSensor {
-    /// The sensor's (module's) name.
+    /// The sensor's or fragment's (module's) name.
     pub name: String,
     /// `<name>.rs`.
     pub file_name: String,

@@ -82,8 +82,103 @@ pub fn module_declaration(s: &Sensor, file: &str) -> TokenStream {
     }
 }
 
+/// A fragment's shared commands, generated once.
+pub struct SharedModule {
+    /// The fragment's (module's) name.
+    pub fragment: String,
+    /// The commands generated in it.
+    pub commands: Vec<Command>,
+    /// Their items.
+    pub tokens: TokenStream,
+}
+
+/// What makes a command the same everywhere it is used: wire layout and
+/// fields (names, types, offsets, units, ranges). Titles, docs and examples
+/// may differ by manual; units and enums may not, since they are part of the
+/// generated type.
+fn same_type(a: &Command, b: &Command) -> bool {
+    let field = |f: &yosemitech_spec::Field| (f.name.clone(), f.kind.clone(), f.offset, f.unit.clone(), f.range, f.absent);
+    a.name == b.name
+        && a.layout() == b.layout()
+        && a.fields.len() == b.fields.len()
+        && a.fields.iter().zip(&b.fields).all(|(x, y)| field(x) == field(y))
+}
+
+/// A command can be shared when its type needs nothing module-level: no
+/// enum types (whose names a sensor module plans for itself).
+fn shareable(c: &Command) -> bool {
+    !c.fields.iter().any(|f| matches!(f.kind, FieldKind::Enum { .. }))
+}
+
+/// The module of a fragment's shareable commands; `None` when it has none.
+pub fn fragment_module(fragment: &yosemitech_spec::Fragment, o: &Options) -> Result<Option<SharedModule>, Error> {
+    let commands: Vec<Command> = fragment.commands.iter().filter(|c| shareable(c)).cloned().collect();
+    if commands.is_empty() {
+        return Ok(None);
+    }
+    let pseudo = Sensor {
+        name: fragment.name.clone(),
+        title: fragment.name.clone(),
+        doc: fragment.doc.clone(),
+        model: None,
+        model_code: None,
+        manual: yosemitech_spec::Manual { title: String::new(), revision: String::new(), software: None, file: None },
+        revisions: Vec::new(),
+        serial: yosemitech_spec::Serial { baud: 9600, data_bits: 8, parity: Parity::None, stop_bits: 1 },
+        min_address: 1,
+        max_address: 247,
+        default_address: 1,
+        commands: commands.clone(),
+        procedure: None,
+        constants: Vec::new(),
+        errata: Vec::new(),
+        file: fragment.file.clone(),
+        files: vec![fragment.file.clone()],
+    };
+    let names = Names::plan(&pseudo)?;
+    let rt = &o.runtime;
+    let mut tokens = quote! {
+        use #rt as rtu;
+    };
+    for (ci, c) in commands.iter().enumerate() {
+        tokens.extend(command(&names, ci, c));
+    }
+    Ok(Some(SharedModule { fragment: fragment.name.clone(), commands, tokens }))
+}
+
+/// `pub mod <fragment> { include!("<file>"); }` with the fragment's documentation.
+pub fn fragment_declaration(fragment: &yosemitech_spec::Fragment, commands: &[Command], file: &str) -> TokenStream {
+    let name = ident(&fragment.name);
+    let file = lit(file);
+    let list: Vec<String> = commands.iter().map(|c| format!("`{}`", c.name)).collect();
+    let d = format!(
+        "{}
+
+Commands of the shared fragment `{}`, generated once: every sensor module that uses them re-exports these types ({}), so one type serves every probe.",
+        text::clean(&fragment.doc).trim_end(),
+        fragment.name,
+        list.join(", ")
+    );
+    let docs = doc(&d);
+    quote! {
+        #docs
+        pub mod #name {
+            include!(#file);
+        }
+    }
+}
+
+/// The shared module and type that stand for a sensor's command, if any.
+fn shared_for<'m>(c: &Command, names: &crate::naming::CommandNames, shared: &'m [SharedModule]) -> Option<&'m SharedModule> {
+    let from = c.shared_from.as_deref()?;
+    let module = shared.iter().find(|m| m.fragment == from)?;
+    let def = module.commands.iter().find(|d| d.name == c.name)?;
+    let ty = heck::ToUpperCamelCase::to_upper_camel_case(c.name.as_str());
+    (same_type(def, c) && names.ty == ty && names.response == format!("{ty}Response")).then_some(module)
+}
+
 /// Every item of one sensor's module.
-pub fn module(s: &Sensor, names: &Names, o: &Options) -> Result<TokenStream, Error> {
+pub fn module(s: &Sensor, names: &Names, o: &Options, shared: &[SharedModule]) -> Result<TokenStream, Error> {
     let rt = &o.runtime;
     let mut out = quote! {
         use #rt as rtu;
@@ -96,7 +191,26 @@ pub fn module(s: &Sensor, names: &Names, o: &Options) -> Result<TokenStream, Err
         out.extend(enum_type(s, e)?);
     }
     for (ci, c) in s.commands.iter().enumerate() {
-        out.extend(command(names, ci, c));
+        match shared_for(c, &names.commands[ci], shared) {
+            Some(module) => {
+                let m = ident(&module.fragment);
+                let ty = ident(&names.commands[ci].ty);
+                let docs = doc(&command_doc(c));
+                if c.is_read() {
+                    let resp = ident(&names.commands[ci].response);
+                    out.extend(quote! {
+                        #docs
+                        pub use super::#m::{#ty, #resp};
+                    });
+                } else {
+                    out.extend(quote! {
+                        #docs
+                        pub use super::#m::#ty;
+                    });
+                }
+            }
+            None => out.extend(command(names, ci, c)),
+        }
     }
     out.extend(dispatch(s, names));
     if o.device_handles {

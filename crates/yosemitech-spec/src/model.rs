@@ -15,6 +15,23 @@ use yosemitech_rtu::{ByteOrder2, ByteOrder4, Function, Layout};
 pub struct Spec {
     /// Sensors, in file-name order.
     pub sensors: Vec<Sensor>,
+    /// The fragments the sensors include, with their commands as the
+    /// fragment defines them (before any sensor's `use` adds its own title,
+    /// units and examples), in file-name order.
+    pub fragments: Vec<Fragment>,
+}
+
+/// A file of commands several sensors share.
+#[derive(Debug, Clone, Serialize)]
+pub struct Fragment {
+    /// snake_case name.
+    pub name: String,
+    /// What it holds.
+    pub doc: String,
+    /// The file.
+    pub file: PathBuf,
+    /// Its commands, as defined there.
+    pub commands: Vec<Command>,
 }
 
 impl Spec {

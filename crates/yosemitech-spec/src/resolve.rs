@@ -60,8 +60,9 @@ pub fn load_with(sources: &dyn Sources, paths: &[PathBuf]) -> Result<Spec, Diagn
         }
     }
     loader.check_unique_sensors(&sensors);
+    let fragments = loader.fragments(&sensors);
     let diags = finish(loader.diags);
-    if diags.is_empty() { Ok(Spec { sensors }) } else { Err(Diagnostics(diags)) }
+    if diags.is_empty() { Ok(Spec { sensors, fragments }) } else { Err(Diagnostics(diags)) }
 }
 
 /// Drops repeated diagnostics (a fragment is checked once per including
@@ -349,6 +350,34 @@ impl Loader<'_> {
         };
         self.diags.extend(diags);
         sensor.flatten()
+    }
+
+    /// The fragments some sensor includes, with their own definitions.
+    /// (Their problems were reported while resolving the sensors.)
+    fn fragments(&self, sensors: &[Sensor]) -> Vec<Fragment> {
+        let mut out = Vec::new();
+        for (path, parsed) in &self.files {
+            let Some(doc) = &parsed.doc else { continue };
+            let Some(fragment) = &doc.fragment else { continue };
+            if !sensors.iter().any(|s| s.files.contains(path)) {
+                continue;
+            }
+            let mut ignored = Vec::new();
+            let mut r = Reporter { file: path, text: &parsed.text, out: &mut ignored };
+            let commands = doc
+                .commands
+                .iter()
+                .enumerate()
+                .filter_map(|(i, c)| resolve_command(c, None, i, Some(fragment.name.value.clone()), &mut r))
+                .collect();
+            out.push(Fragment {
+                name: fragment.name.value.clone(),
+                doc: fragment.doc.value.clone(),
+                file: path.clone(),
+                commands,
+            });
+        }
+        out
     }
 
     /// Reports sensors defined twice, at the second definition's name.

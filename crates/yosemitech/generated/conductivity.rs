@@ -125,89 +125,7 @@ impl ::core::fmt::Display for RangeStatus {
 /// response: 01 10 30 00 00 01 0E C9
 /// values:   slave_address = 20
 /// ```
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-pub struct SetSlaveId {
-    /// The new slave address.
-    ///
-    /// Wire: `u8`, data byte 0. Valid range 1..=247; encoding refuses other values.
-    pub slave_address: u8,
-}
-
-impl SetSlaveId {
-    /// Name and unit of each field, in wire order.
-    pub const FIELDS: [rtu::FieldInfo; 1] = [
-        rtu::FieldInfo {
-            name: "slave_address",
-            unit: None,
-        },
-    ];
-    /// Each field's value, in the order of [`Self::FIELDS`].
-    pub fn fields(&self) -> [rtu::FieldValue<'_>; 1] {
-        [rtu::FieldValue::Int(i64::from(self.slave_address))]
-    }
-    /// Bytes of register data: two per register.
-    pub const DATA_LEN: usize = 2;
-    /// Decodes register data; reserved bytes are ignored.
-    pub const fn from_data(data: &[u8; 2]) -> Self {
-        Self { slave_address: data[0] }
-    }
-    /// Encodes register data, reserved bytes with their fill. Does not
-    /// check ranges: see [`Self::validate`].
-    pub const fn to_data(&self) -> [u8; 2] {
-        [self.slave_address, 0x00]
-    }
-    /// Checks every field against the range the spec allows
-    /// ([`rtu::EncodeError::OutOfRange`] names the first that is not).
-    pub fn validate(&self) -> Result<(), rtu::EncodeError> {
-        if !(1..=247).contains(&self.slave_address) {
-            return Err(rtu::EncodeError::OutOfRange {
-                field: "slave_address",
-            });
-        }
-        Ok(())
-    }
-}
-
-impl rtu::Command for SetSlaveId {
-    type Response = ();
-    const NAME: &'static str = "set_slave_id";
-    const LAYOUT: rtu::Layout<'static> = rtu::Layout {
-        function: rtu::Function::Write,
-        address: 0x3000,
-        count: 1,
-        fixed_slave: None,
-        extra_byte_counts: &[],
-        trigger: false,
-    };
-    fn encode_request(
-        &self,
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        self.validate()?;
-        Self::LAYOUT.encode_request(slave, &self.to_data(), out)
-    }
-    fn decode_request(frame: &[u8]) -> Result<(u8, Self), rtu::FrameError> {
-        let (slave, data) = Self::LAYOUT.decode_request(frame)?;
-        let data = <&[u8; 2]>::try_from(data)
-            .map_err(|_| rtu::FrameError::Truncated {
-                expected: Self::REQUEST_LEN,
-                actual: frame.len(),
-            })?;
-        Ok((slave, Self::from_data(data)))
-    }
-    fn encode_response(
-        _response: &(),
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        Self::LAYOUT.encode_response(slave, &[], out)
-    }
-    fn decode_response(slave: u8, frame: &[u8]) -> Result<(), rtu::FrameError> {
-        Self::LAYOUT.decode_response(slave, frame)?;
-        Ok(())
-    }
-}
+pub use super::yosemitech_common::SetSlaveId;
 
 /// Get SN.
 ///
@@ -231,114 +149,7 @@ impl rtu::Command for SetSlaveId {
 /// response: 01 03 0E 00 59 4C 30 39 31 34 30 31 30 30 32 32 00 98 8C
 /// values:   serial_number = "YL0914010022"
 /// ```
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
-pub struct GetSn;
-
-impl GetSn {
-    /// Name and unit of each field, in wire order.
-    pub const FIELDS: [rtu::FieldInfo; 0] = [];
-    /// Each field's value, in the order of [`Self::FIELDS`].
-    pub fn fields(&self) -> [rtu::FieldValue<'_>; 0] {
-        []
-    }
-}
-
-/// Reply to [`GetSn`]. Reads the probe's serial number: 14 bytes, a 0x00, twelve ASCII characters ("YL…") and a 0x00.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-pub struct GetSnResponse {
-    /// The serial number, twelve ASCII characters.
-    ///
-    /// Wire: 12 ASCII bytes padded with 0x00, data bytes 1..13.
-    pub serial_number: rtu::Ascii<12>,
-}
-
-impl GetSnResponse {
-    /// Name and unit of each field, in wire order.
-    pub const FIELDS: [rtu::FieldInfo; 1] = [
-        rtu::FieldInfo {
-            name: "serial_number",
-            unit: None,
-        },
-    ];
-    /// Each field's value, in the order of [`Self::FIELDS`].
-    pub fn fields(&self) -> [rtu::FieldValue<'_>; 1] {
-        [rtu::FieldValue::Text(self.serial_number.trimmed())]
-    }
-    /// Bytes of register data: two per register.
-    pub const DATA_LEN: usize = 14;
-    /// Decodes register data; reserved bytes are ignored.
-    pub const fn from_data(data: &[u8; 14]) -> Self {
-        Self {
-            serial_number: rtu::Ascii::from_wire(
-                [
-                    data[1],
-                    data[2],
-                    data[3],
-                    data[4],
-                    data[5],
-                    data[6],
-                    data[7],
-                    data[8],
-                    data[9],
-                    data[10],
-                    data[11],
-                    data[12],
-                ],
-                0x00,
-            ),
-        }
-    }
-    /// Encodes register data, reserved bytes with their fill.
-    pub const fn to_data(&self) -> [u8; 14] {
-        let [b1, b2, b3, b4, b5, b6, b7, b8, b9, b10, b11, b12] = self
-            .serial_number
-            .to_wire();
-        [0x00, b1, b2, b3, b4, b5, b6, b7, b8, b9, b10, b11, b12, 0x00]
-    }
-}
-
-impl rtu::Command for GetSn {
-    type Response = GetSnResponse;
-    const NAME: &'static str = "get_sn";
-    const LAYOUT: rtu::Layout<'static> = rtu::Layout {
-        function: rtu::Function::Read,
-        address: 0x0900,
-        count: 7,
-        fixed_slave: None,
-        extra_byte_counts: &[],
-        trigger: false,
-    };
-    fn encode_request(
-        &self,
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        Self::LAYOUT.encode_request(slave, &[], out)
-    }
-    fn decode_request(frame: &[u8]) -> Result<(u8, Self), rtu::FrameError> {
-        let (slave, _) = Self::LAYOUT.decode_request(frame)?;
-        Ok((slave, Self))
-    }
-    fn encode_response(
-        response: &GetSnResponse,
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        Self::LAYOUT.encode_response(slave, &response.to_data(), out)
-    }
-    fn decode_response(
-        slave: u8,
-        frame: &[u8],
-    ) -> Result<GetSnResponse, rtu::FrameError> {
-        let data = Self::LAYOUT.decode_response(slave, frame)?;
-        let data = <&[u8; 14]>::try_from(data)
-            .map_err(|_| rtu::FrameError::Truncated {
-                expected: Self::RESPONSE_LEN,
-                actual: frame.len(),
-            })?;
-        Ok(GetSnResponse::from_data(data))
-    }
-}
+pub use super::yosemitech_common::{GetSn, GetSnResponse};
 
 /// Start Measurement.
 ///
@@ -466,13 +277,13 @@ impl GetTemperatureAndConductivity {
 /// Reply to [`GetTemperatureAndConductivity`]. Temperature, conductivity (user calibration applied) and the range-switching error flag.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GetTemperatureAndConductivityResponse {
-    /// Temperature in degrees Celsius (working range 0-50 °C per the Y520 user manual). Unit: degC.
+    /// Temperature in degrees Celsius. Unit: degC.
     ///
-    /// Wire: `f32`, little-endian image (`dcba`), data bytes 0..4. Valid range 0..=50; encoding refuses other values.
+    /// Wire: `f32`, little-endian image (`dcba`), data bytes 0..4.
     pub temperature_c: f32,
-    /// Conductivity in millisiemens per centimetre (range 1 µS/cm to 200 mS/cm per the Y520 user manual). Unit: mS/cm.
+    /// Conductivity in millisiemens per centimetre. Unit: mS/cm.
     ///
-    /// Wire: `f32`, little-endian image (`dcba`), data bytes 4..8. Valid range 0.001..=200; encoding refuses other values.
+    /// Wire: `f32`, little-endian image (`dcba`), data bytes 4..8.
     pub conductivity_ms_cm: f32,
     /// Whether automatic range switching worked; discard the reading on an error.
     ///
@@ -605,109 +416,7 @@ impl rtu::Command for GetTemperatureAndConductivity {
 /// ```
 ///
 /// SW 1.8's manual keeps the 1.0 / 1.0 example under its SW 1.8 scope (erratum Y520-3).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
-pub struct GetVersion;
-
-impl GetVersion {
-    /// Name and unit of each field, in wire order.
-    pub const FIELDS: [rtu::FieldInfo; 0] = [];
-    /// Each field's value, in the order of [`Self::FIELDS`].
-    pub fn fields(&self) -> [rtu::FieldValue<'_>; 0] {
-        []
-    }
-}
-
-/// Reply to [`GetVersion`]. Reads the hardware and software revisions, one register each, read as major.minor byte pairs (a reading that fits every manual's example; the manuals do not define the encoding).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-pub struct GetVersionResponse {
-    /// Hardware revision, major.minor.
-    ///
-    /// Wire: major byte, minor byte, data bytes 0..2.
-    pub hardware: rtu::Version,
-    /// Software revision, major.minor.
-    ///
-    /// Wire: major byte, minor byte, data bytes 2..4.
-    pub software: rtu::Version,
-}
-
-impl GetVersionResponse {
-    /// Name and unit of each field, in wire order.
-    pub const FIELDS: [rtu::FieldInfo; 2] = [
-        rtu::FieldInfo {
-            name: "hardware",
-            unit: None,
-        },
-        rtu::FieldInfo {
-            name: "software",
-            unit: None,
-        },
-    ];
-    /// Each field's value, in the order of [`Self::FIELDS`].
-    pub fn fields(&self) -> [rtu::FieldValue<'_>; 2] {
-        [
-            rtu::FieldValue::Version(self.hardware),
-            rtu::FieldValue::Version(self.software),
-        ]
-    }
-    /// Bytes of register data: two per register.
-    pub const DATA_LEN: usize = 4;
-    /// Decodes register data; reserved bytes are ignored.
-    pub const fn from_data(data: &[u8; 4]) -> Self {
-        Self {
-            hardware: rtu::Version::from_wire([data[0], data[1]]),
-            software: rtu::Version::from_wire([data[2], data[3]]),
-        }
-    }
-    /// Encodes register data, reserved bytes with their fill.
-    pub const fn to_data(&self) -> [u8; 4] {
-        let [b0, b1] = self.hardware.to_wire();
-        let [b2, b3] = self.software.to_wire();
-        [b0, b1, b2, b3]
-    }
-}
-
-impl rtu::Command for GetVersion {
-    type Response = GetVersionResponse;
-    const NAME: &'static str = "get_version";
-    const LAYOUT: rtu::Layout<'static> = rtu::Layout {
-        function: rtu::Function::Read,
-        address: 0x0700,
-        count: 2,
-        fixed_slave: None,
-        extra_byte_counts: &[],
-        trigger: false,
-    };
-    fn encode_request(
-        &self,
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        Self::LAYOUT.encode_request(slave, &[], out)
-    }
-    fn decode_request(frame: &[u8]) -> Result<(u8, Self), rtu::FrameError> {
-        let (slave, _) = Self::LAYOUT.decode_request(frame)?;
-        Ok((slave, Self))
-    }
-    fn encode_response(
-        response: &GetVersionResponse,
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        Self::LAYOUT.encode_response(slave, &response.to_data(), out)
-    }
-    fn decode_response(
-        slave: u8,
-        frame: &[u8],
-    ) -> Result<GetVersionResponse, rtu::FrameError> {
-        let data = Self::LAYOUT.decode_response(slave, frame)?;
-        let data = <&[u8; 4]>::try_from(data)
-            .map_err(|_| rtu::FrameError::Truncated {
-                expected: Self::RESPONSE_LEN,
-                actual: frame.len(),
-            })?;
-        Ok(GetVersionResponse::from_data(data))
-    }
-}
+pub use super::yosemitech_common::{GetVersion, GetVersionResponse};
 
 /// Stop Measurement.
 ///
@@ -724,68 +433,7 @@ impl rtu::Command for GetVersion {
 /// request:  01 03 2E 00 00 01 8D 22
 /// response: 01 03 00 ... (CRC not printed)
 /// ```
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
-pub struct StopMeasurement;
-
-impl StopMeasurement {
-    /// Name and unit of each field, in wire order.
-    pub const FIELDS: [rtu::FieldInfo; 0] = [];
-    /// Each field's value, in the order of [`Self::FIELDS`].
-    pub fn fields(&self) -> [rtu::FieldValue<'_>; 0] {
-        []
-    }
-}
-
-/// Reply to [`StopMeasurement`]: an acknowledgement that carries no value.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
-pub struct StopMeasurementResponse;
-
-impl StopMeasurementResponse {
-    /// Name and unit of each field, in wire order.
-    pub const FIELDS: [rtu::FieldInfo; 0] = [];
-    /// Each field's value, in the order of [`Self::FIELDS`].
-    pub fn fields(&self) -> [rtu::FieldValue<'_>; 0] {
-        []
-    }
-}
-
-impl rtu::Command for StopMeasurement {
-    type Response = StopMeasurementResponse;
-    const NAME: &'static str = "stop_measurement";
-    const LAYOUT: rtu::Layout<'static> = rtu::Layout {
-        function: rtu::Function::Read,
-        address: 0x2E00,
-        count: 1,
-        fixed_slave: None,
-        extra_byte_counts: &[],
-        trigger: true,
-    };
-    fn encode_request(
-        &self,
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        Self::LAYOUT.encode_request(slave, &[], out)
-    }
-    fn decode_request(frame: &[u8]) -> Result<(u8, Self), rtu::FrameError> {
-        let (slave, _) = Self::LAYOUT.decode_request(frame)?;
-        Ok((slave, Self))
-    }
-    fn encode_response(
-        _response: &StopMeasurementResponse,
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        Self::LAYOUT.encode_response(slave, &[], out)
-    }
-    fn decode_response(
-        slave: u8,
-        frame: &[u8],
-    ) -> Result<StopMeasurementResponse, rtu::FrameError> {
-        Self::LAYOUT.decode_response(slave, frame)?;
-        Ok(StopMeasurementResponse)
-    }
-}
+pub use super::yosemitech_optical::{StopMeasurement, StopMeasurementResponse};
 
 /// Get User Calibration Coefficients.
 ///
@@ -1068,93 +716,7 @@ impl rtu::Command for SetUserCalibration {
 /// # Errata
 ///
 /// - **Y520-1** (figure 43): the table gives function 0x10. As in the pH manual (Fig 72, erratum E2), the table lists function 0x10, but this is a read with no data and the CRC-valid example (Fig 44) uses 0x03.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
-pub struct GetSlaveId;
-
-impl GetSlaveId {
-    /// Name and unit of each field, in wire order.
-    pub const FIELDS: [rtu::FieldInfo; 0] = [];
-    /// Each field's value, in the order of [`Self::FIELDS`].
-    pub fn fields(&self) -> [rtu::FieldValue<'_>; 0] {
-        []
-    }
-}
-
-/// Reply to [`GetSlaveId`]. Reads the probe's slave address.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-pub struct GetSlaveIdResponse {
-    /// The current slave address.
-    ///
-    /// Wire: `u8`, data byte 0.
-    pub slave_address: u8,
-}
-
-impl GetSlaveIdResponse {
-    /// Name and unit of each field, in wire order.
-    pub const FIELDS: [rtu::FieldInfo; 1] = [
-        rtu::FieldInfo {
-            name: "slave_address",
-            unit: None,
-        },
-    ];
-    /// Each field's value, in the order of [`Self::FIELDS`].
-    pub fn fields(&self) -> [rtu::FieldValue<'_>; 1] {
-        [rtu::FieldValue::Int(i64::from(self.slave_address))]
-    }
-    /// Bytes of register data: two per register.
-    pub const DATA_LEN: usize = 2;
-    /// Decodes register data; reserved bytes are ignored.
-    pub const fn from_data(data: &[u8; 2]) -> Self {
-        Self { slave_address: data[0] }
-    }
-    /// Encodes register data, reserved bytes with their fill.
-    pub const fn to_data(&self) -> [u8; 2] {
-        [self.slave_address, 0x00]
-    }
-}
-
-impl rtu::Command for GetSlaveId {
-    type Response = GetSlaveIdResponse;
-    const NAME: &'static str = "get_slave_id";
-    const LAYOUT: rtu::Layout<'static> = rtu::Layout {
-        function: rtu::Function::Read,
-        address: 0x3000,
-        count: 1,
-        fixed_slave: Some(0xFF),
-        extra_byte_counts: &[],
-        trigger: false,
-    };
-    fn encode_request(
-        &self,
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        Self::LAYOUT.encode_request(slave, &[], out)
-    }
-    fn decode_request(frame: &[u8]) -> Result<(u8, Self), rtu::FrameError> {
-        let (slave, _) = Self::LAYOUT.decode_request(frame)?;
-        Ok((slave, Self))
-    }
-    fn encode_response(
-        response: &GetSlaveIdResponse,
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        Self::LAYOUT.encode_response(slave, &response.to_data(), out)
-    }
-    fn decode_response(
-        slave: u8,
-        frame: &[u8],
-    ) -> Result<GetSlaveIdResponse, rtu::FrameError> {
-        let data = Self::LAYOUT.decode_response(slave, frame)?;
-        let data = <&[u8; 2]>::try_from(data)
-            .map_err(|_| rtu::FrameError::Truncated {
-                expected: Self::RESPONSE_LEN,
-                actual: frame.len(),
-            })?;
-        Ok(GetSlaveIdResponse::from_data(data))
-    }
-}
+pub use super::yosemitech_common::{GetSlaveId, GetSlaveIdResponse};
 
 /// Every command of this sensor, for code that picks commands at run
 /// time (CLIs, simulators, tests).

@@ -1175,89 +1175,7 @@ impl rtu::Command for GetTime {
 /// ```
 ///
 /// Table 15 prints the data as "0x14 0".
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-pub struct SetSlaveId {
-    /// The new slave address.
-    ///
-    /// Wire: `u8`, data byte 0. Valid range 1..=247; encoding refuses other values.
-    pub slave_address: u8,
-}
-
-impl SetSlaveId {
-    /// Name and unit of each field, in wire order.
-    pub const FIELDS: [rtu::FieldInfo; 1] = [
-        rtu::FieldInfo {
-            name: "slave_address",
-            unit: None,
-        },
-    ];
-    /// Each field's value, in the order of [`Self::FIELDS`].
-    pub fn fields(&self) -> [rtu::FieldValue<'_>; 1] {
-        [rtu::FieldValue::Int(i64::from(self.slave_address))]
-    }
-    /// Bytes of register data: two per register.
-    pub const DATA_LEN: usize = 2;
-    /// Decodes register data; reserved bytes are ignored.
-    pub const fn from_data(data: &[u8; 2]) -> Self {
-        Self { slave_address: data[0] }
-    }
-    /// Encodes register data, reserved bytes with their fill. Does not
-    /// check ranges: see [`Self::validate`].
-    pub const fn to_data(&self) -> [u8; 2] {
-        [self.slave_address, 0x00]
-    }
-    /// Checks every field against the range the spec allows
-    /// ([`rtu::EncodeError::OutOfRange`] names the first that is not).
-    pub fn validate(&self) -> Result<(), rtu::EncodeError> {
-        if !(1..=247).contains(&self.slave_address) {
-            return Err(rtu::EncodeError::OutOfRange {
-                field: "slave_address",
-            });
-        }
-        Ok(())
-    }
-}
-
-impl rtu::Command for SetSlaveId {
-    type Response = ();
-    const NAME: &'static str = "set_slave_id";
-    const LAYOUT: rtu::Layout<'static> = rtu::Layout {
-        function: rtu::Function::Write,
-        address: 0x3000,
-        count: 1,
-        fixed_slave: None,
-        extra_byte_counts: &[],
-        trigger: false,
-    };
-    fn encode_request(
-        &self,
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        self.validate()?;
-        Self::LAYOUT.encode_request(slave, &self.to_data(), out)
-    }
-    fn decode_request(frame: &[u8]) -> Result<(u8, Self), rtu::FrameError> {
-        let (slave, data) = Self::LAYOUT.decode_request(frame)?;
-        let data = <&[u8; 2]>::try_from(data)
-            .map_err(|_| rtu::FrameError::Truncated {
-                expected: Self::REQUEST_LEN,
-                actual: frame.len(),
-            })?;
-        Ok((slave, Self::from_data(data)))
-    }
-    fn encode_response(
-        _response: &(),
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        Self::LAYOUT.encode_response(slave, &[], out)
-    }
-    fn decode_response(slave: u8, frame: &[u8]) -> Result<(), rtu::FrameError> {
-        Self::LAYOUT.decode_response(slave, frame)?;
-        Ok(())
-    }
-}
+pub use super::yosemitech_common::SetSlaveId;
 
 /// Get the supply voltage.
 ///
@@ -1275,7 +1193,7 @@ impl rtu::Command for SetSlaveId {
 ///
 /// # Errata
 ///
-/// - **Y4000-6** (figure T17): the table gives count 1. The register table (unnumbered, just before Table 17) gives 0x01 registers; the request of Table 17 asks for 0x0002 and the reply of Table 18 carries 4 bytes, a float.
+/// - **Y4000-6** (table 17): the table gives count 1. The register table (unnumbered, just before Table 17) gives 0x01 registers; the request of Table 17 asks for 0x0002 and the reply of Table 18 carries 4 bytes, a float.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub struct GetSupplyVoltage;
 

@@ -139,7 +139,7 @@ fn sensor_text(s: &Sensor) -> String {
 }
 
 /// The newest manual of `sensor` whose software revision is at most `software`.
-fn manual_for<'s>(sensor: &'s Sensor, software: Version) -> Option<&'s Manual> {
+fn manual_for(sensor: &Sensor, software: Version) -> Option<&Manual> {
     let probe = (u16::from(software.major), u16::from(software.minor));
     sensor
         .manuals()
@@ -161,28 +161,33 @@ fn common_serial(catalog: &Catalog) -> Serial {
     counts.iter().max_by_key(|(_, n)| *n).map_or(port::YOSEMITECH_SERIAL, |(s, _)| *s)
 }
 
-/// Sends a read with no values to `address`: its register data, `None`
-/// for silence, or what else came back (as a note).
-fn probe(
-    opened: &mut Opened,
-    command: &Command,
-    address: u8,
-) -> Result<std::result::Result<Option<Vec<u8>>, (bool, String)>> {
+/// What came back to a read.
+enum Answer {
+    /// The reply's register data.
+    Data(Vec<u8>),
+    /// Nothing: no device, or one that lacks the register.
+    Silent,
+    /// Something else (an exception, a garbled reply), as a note.
+    Other(String),
+}
+
+/// Sends a read with no values to `address`.
+fn probe(opened: &mut Opened, command: &Command, address: u8) -> Result<Answer> {
     let request = command
         .encode_request(address, &BTreeMap::new())
         .map_err(|e| CliError::usage(format!("cannot build the {} request: {e}", command.name)))?;
     let layout = command.layout();
     match opened.bus.call_raw(&request, &layout) {
         Ok(reply) => Ok(match layout.decode_response(address, reply) {
-            Ok(data) => Ok(Some(data.to_vec())),
-            Err(e) => Err((false, format!("answers {}, but not as specified: {e}", command.name))),
+            Ok(data) => Answer::Data(data.to_vec()),
+            Err(e) => Answer::Other(format!("answers {}, but not as specified: {e}", command.name)),
         }),
         Err(e @ RtuError::Io(_)) => Err(request_failed(&e, &opened.context(address, &command.name))),
-        Err(RtuError::Timeout { received }) if received.is_empty() => Ok(Ok(None)),
+        Err(RtuError::Timeout { received }) if received.is_empty() => Ok(Answer::Silent),
         Err(e @ RtuError::Frame { error: FrameError::Exception { .. }, .. }) => {
-            Ok(Err((true, format!("refuses {} ({})", command.name, short(&e)))))
+            Ok(Answer::Other(format!("refuses {} ({})", command.name, short(&e))))
         }
-        Err(e) => Ok(Err((false, format!("answers {} with {}", command.name, short(&e))))),
+        Err(e) => Ok(Answer::Other(format!("answers {} with {}", command.name, short(&e)))),
     }
 }
 
@@ -209,12 +214,12 @@ fn identify<'c>(
     let mut sn = None;
     for read in reads {
         match probe(opened, read.command, address)? {
-            Ok(Some(data)) => {
+            Answer::Data(data) => {
                 sn = Some((read, data));
                 break;
             }
-            Ok(None) => {}
-            Err((_, note)) => {
+            Answer::Silent => {}
+            Answer::Other(note) => {
                 answered = true;
                 found.notes.push(note);
             }
@@ -279,7 +284,7 @@ fn identify<'c>(
     let versions = group(found.candidates.iter().filter_map(|s| s.command_with_role(Role::Version).map(|c| (*s, c))));
     if let Some(read) = versions.first() {
         match probe(opened, read.command, address)? {
-            Ok(Some(data)) => {
+            Answer::Data(data) => {
                 let values: Vec<(String, Version)> = decode_fields(read.command, &data)
                     .into_iter()
                     .filter_map(|(name, v)| match v {
@@ -293,8 +298,8 @@ fn identify<'c>(
                 found.hardware =
                     named("hardware").or_else(|| (values.len() > 1).then(|| values.first().map(|(_, v)| *v)).flatten());
             }
-            Ok(None) => found.notes.push(format!("no reply to {}", read.command.name)),
-            Err((_, note)) => found.notes.push(note),
+            Answer::Silent => found.notes.push(format!("no reply to {}", read.command.name)),
+            Answer::Other(note) => found.notes.push(note),
         }
     }
     if let (Some(sensor), Some(software)) = (found.identified, found.software) {
