@@ -47,12 +47,8 @@ fn spec_with_fixture(name: &str) -> PathBuf {
 }
 
 fn fixture_name(spec: &Spec, before: &Spec) -> String {
-    let added: Vec<&str> = spec
-        .sensors
-        .iter()
-        .map(|s| s.name.as_str())
-        .filter(|n| before.sensor(n).is_none())
-        .collect();
+    let added: Vec<&str> =
+        spec.sensors.iter().map(|s| s.name.as_str()).filter(|n| before.sensor(n).is_none()).collect();
     assert_eq!(added.len(), 1, "the fixture adds one sensor: {added:?}");
     added[0].to_owned()
 }
@@ -61,7 +57,8 @@ fn fixture_name(spec: &Spec, before: &Spec) -> String {
 fn a_new_sensor_file_validates_and_replays_through_the_interpreter_and_simulator() {
     let dir = spec_with_fixture("replay");
     let before = yosemitech_spec::load_paths(&[workspace().join("spec")]).unwrap_or_else(|d| panic!("{d}"));
-    let spec = yosemitech_spec::load_paths(&[dir.clone()]).unwrap_or_else(|d| panic!("the drop-in spec:\n{d}"));
+    let spec =
+        yosemitech_spec::load_paths(std::slice::from_ref(&dir)).unwrap_or_else(|d| panic!("the drop-in spec:\n{d}"));
     let name = fixture_name(&spec, &before);
     let sensor = spec.sensor(&name).unwrap();
     assert_eq!(spec.summary().sensors, before.summary().sensors + 1);
@@ -91,7 +88,10 @@ fn a_new_sensor_file_validates_and_replays_through_the_interpreter_and_simulator
 #[test]
 fn a_new_sensor_file_generates_a_crate_that_compiles() {
     let dir = spec_with_fixture("codegen");
-    let generated = yosemitech_codegen::Config::new().std_feature(None).generate(&[dir.clone()]).unwrap_or_else(|e| panic!("{e}"));
+    let generated = yosemitech_codegen::Config::new()
+        .std_feature(None)
+        .generate(std::slice::from_ref(&dir))
+        .unwrap_or_else(|e| panic!("{e}"));
     let crate_dir = dir.parent().unwrap().join("check");
     let src = crate_dir.join("src");
     std::fs::create_dir_all(src.join("generated")).unwrap();

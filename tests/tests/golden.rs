@@ -91,7 +91,10 @@ fn every_printed_frame_replays() {
                         }
                         Some(request) => {
                             frames += 1;
-                            assert!((cmd.decode_request)(request).is_err(), "{what}: the printed request is wrong but decodes");
+                            assert!(
+                                (cmd.decode_request)(request).is_err(),
+                                "{what}: the printed request is wrong but decodes"
+                            );
                         }
                         None => {
                             partial += 1;

@@ -284,7 +284,9 @@ fn command_section(d: &mut String, c: &Command) {
         let figures = if ex.figures.is_empty() { String::new() } else { format!(" (figures {})", join(&ex.figures)) };
         let manual = ex.manual.as_ref().map(|m| format!(", manual for software {m}")).unwrap_or_default();
         let _ = writeln!(d, "Example{figures}{manual}:\n\n```text");
-        let shown = |f: &Option<yosemitech_spec::PrintedFrame>| f.as_ref().map_or_else(|| "(not printed)".to_owned(), text::printed_frame);
+        let shown = |f: &Option<yosemitech_spec::PrintedFrame>| {
+            f.as_ref().map_or_else(|| "(not printed)".to_owned(), text::printed_frame)
+        };
         let _ = writeln!(d, "request:  {}", shown(&ex.request));
         let _ = writeln!(d, "response: {}", shown(&ex.response));
         if let Some(err) = &ex.erratum {

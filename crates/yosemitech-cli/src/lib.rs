@@ -1,8 +1,8 @@
 //! `yosemitech`: the field tool for Yosemitech water-quality probes on Modbus RTU.
 //!
-//! Every subcommand is in [`commands`]; the command line is in [`cli`]. The
+//! Every subcommand is in the `commands` module; the command line is in `cli`. The
 //! spec files of the workspace's `spec/` directory are compiled in
-//! ([`catalog`]); `--spec DIR` adds more at run time. Generic commands go
+//! (the `catalog` module); `--spec DIR` adds more at run time. Generic commands go
 //! through the spec's reference interpreter and `Client::call_raw`: `scan`
 //! identifies probes by the serial-number and version roles and each
 //! spec's `model_code`, `measure` runs the `procedure` a spec states. No
@@ -13,7 +13,7 @@
 //! The binary is a thin `main` over [`main`]; [`decode_text`] exposes the
 //! `decode` subcommand's path to the fuzzer.
 //!
-//! Errors are one `error:` line and one `hint:` line on stderr ([`error`]),
+//! Errors are one `error:` line and one `hint:` line on stderr (the `error` module),
 //! with exit code 1 for device and protocol errors and 2 for usage errors;
 //! nothing the user, a device or a file supplies can make it panic.
 #![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used, clippy::panic))]

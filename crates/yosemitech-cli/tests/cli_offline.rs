@@ -308,25 +308,49 @@ fn encode_reproduces_every_manual_frame() {
 
 #[test]
 fn decode_identifies_unambiguous_frames_on_its_own() {
-    // Conductivity Fig 27: only the conductivity probe reads 5 registers at 0x2600.
-    let run = yosemitech(&["decode", "01 03 0A 00 00 8D 41 00 00 8D 41 00 00 C7 33"]);
-    let text = run.ok();
-    assert!(text.contains("conductivity get_temperature_and_conductivity"), "{text}");
-    assert!(text.contains("17.625 mS/cm") && text.contains("17.625 °C") && text.contains("ok (0)"), "{text}");
-    assert!(text.contains("CRC         C7 33 (ok)"), "{text}");
-    // pH Fig 54 as printed: byte count 0x0C over 24 bytes (erratum E4).
-    let run = yosemitech(&["decode", "01030C1F85DB403D0AD7C00AD7233D1F85DB4085EBD1C0B81E85BFABF5", "--json"]);
-    let json = run.json();
-    assert_eq!(json["command"]["name"], "get_ph_electrode_coefficients");
-    assert_eq!(json["values"]["k2"].as_f64().map(|v| v as f32), Some(-6.72));
-    assert!(json["notes"][0].as_str().unwrap().contains("quirk"), "{json}");
-    // get_sn is shared by both probes: one candidate.
-    let run = yosemitech(&["decode", "0x01 0x03 0x09 0x00 0x00 0x07 0x07 0x94"]);
-    assert!(run.ok().contains("conductivity/ph_orp get_sn"), "{}", run.stdout);
-    // A read request that two probes answer differently is named with both.
-    let run = yosemitech(&["decode", "01:03:11:00:00:04:41:35"]);
-    let text = run.ok();
-    assert!(text.contains("one of:") && text.contains("get_ph_calibration") && text.contains("get_user_calibration"));
+    // Every complete example reply that exactly one (sensor, command) of the
+    // spec accepts is named without --sensor/--command; a reply several
+    // commands accept is named with all of them.
+    let spec = spec();
+    let mut named_alone = 0;
+    let mut ambiguous = 0;
+    for (sensor, command, example) in examples() {
+        let Some(reply) = example.true_response() else { continue };
+        if !command.is_read() || command.trigger {
+            continue;
+        }
+        let accepting: Vec<String> = spec
+            .sensors
+            .iter()
+            .flat_map(|s| s.commands.iter().map(move |c| (s, c)))
+            .filter(|(_, c)| c.is_read() && !c.trigger && c.decode_response(example.slave(), reply).is_ok())
+            .map(|(s, c)| format!("{} {}", s.name, c.name))
+            .collect();
+        let run = yosemitech(&["decode", &hex(reply)]);
+        let text = run.stdout.clone();
+        if accepting.len() == 1 {
+            assert!(text.contains(&format!("{} {}", sensor.name, command.name)), "{text}");
+            assert!(text.contains("(ok)"), "{text}");
+            named_alone += 1;
+        } else {
+            assert!(accepting.contains(&format!("{} {}", sensor.name, command.name)));
+            ambiguous += 1;
+        }
+    }
+    assert!(named_alone > 0, "some reply is unambiguous");
+    println!("{named_alone} replies named alone, {ambiguous} fit several commands");
+    // A printed frame the spec accepts as a documented firmware quirk decodes with a note.
+    for (_, command, example) in examples() {
+        let Some(err) = &example.erratum else { continue };
+        let Some(printed) = example.response.as_ref().and_then(|f| f.complete.as_ref()) else { continue };
+        if !err.printed_decodes || err.corrected_response.is_none() {
+            continue;
+        }
+        let run = yosemitech(&["decode", &hex(printed), "--json"]);
+        let json = run.json();
+        assert_eq!(json["command"]["name"], command.name.as_str(), "{json}");
+        assert!(json["notes"][0].as_str().is_some_and(|n| n.contains("quirk")), "{json}");
+    }
 }
 
 #[test]

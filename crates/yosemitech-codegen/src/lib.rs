@@ -145,7 +145,11 @@ impl Config {
             }
             let Some(generated) = sensor::fragment_module(fragment, &options)? else { continue };
             let source = format_tokens(&fragment.name, generated.tokens.clone(), &header(&fragment.file))?;
-            modules.extend(sensor::fragment_declaration(fragment, &generated.commands, &format!("{}.rs", fragment.name)));
+            modules.extend(sensor::fragment_declaration(
+                fragment,
+                &generated.commands,
+                &format!("{}.rs", fragment.name),
+            ));
             sensors.push(GeneratedSensor {
                 name: fragment.name.clone(),
                 file_name: format!("{}.rs", fragment.name),

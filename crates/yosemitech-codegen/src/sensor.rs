@@ -97,7 +97,8 @@ pub struct SharedModule {
 /// may differ by manual; units and enums may not, since they are part of the
 /// generated type.
 fn same_type(a: &Command, b: &Command) -> bool {
-    let field = |f: &yosemitech_spec::Field| (f.name.clone(), f.kind.clone(), f.offset, f.unit.clone(), f.range, f.absent);
+    let field =
+        |f: &yosemitech_spec::Field| (f.name.clone(), f.kind.clone(), f.offset, f.unit.clone(), f.range, f.absent);
     a.name == b.name
         && a.layout() == b.layout()
         && a.fields.len() == b.fields.len()
@@ -169,7 +170,11 @@ Commands of the shared fragment `{}`, generated once: every sensor module that u
 }
 
 /// The shared module and type that stand for a sensor's command, if any.
-fn shared_for<'m>(c: &Command, names: &crate::naming::CommandNames, shared: &'m [SharedModule]) -> Option<&'m SharedModule> {
+fn shared_for<'m>(
+    c: &Command,
+    names: &crate::naming::CommandNames,
+    shared: &'m [SharedModule],
+) -> Option<&'m SharedModule> {
     let from = c.shared_from.as_deref()?;
     let module = shared.iter().find(|m| m.fragment == from)?;
     let def = module.commands.iter().find(|d| d.name == c.name)?;
@@ -656,7 +661,10 @@ fn range_check(g: &FieldGen<'_>) -> Option<TokenStream> {
     let (type_lo, type_hi): (i64, i64) = match &g.field.kind {
         FieldKind::Bcd => {
             // An invalid digit is never sent; in range means the digits' value.
-            let (lo, hi) = (Literal::u8_unsuffixed(min.ceil().clamp(0.0, 99.0) as u8), Literal::u8_unsuffixed(max.floor().clamp(0.0, 99.0) as u8));
+            let (lo, hi) = (
+                Literal::u8_unsuffixed(min.ceil().clamp(0.0, 99.0) as u8),
+                Literal::u8_unsuffixed(max.floor().clamp(0.0, 99.0) as u8),
+            );
             return Some(quote! {
                 match self.#name.value() {
                     Some(v) if (#lo..=#hi).contains(&v) => {}
@@ -751,9 +759,17 @@ fn message_impl(ty: &Ident, gens: &[FieldGen<'_>], c: &Command, with_data: bool,
                 EnumRepr::U16(_) => quote!(u16),
             };
             let consts = flags.iter().map(|f| {
-                let c = format_ident!("{}_{}", yosemitech_spec::names::shouty(g.field.display_name()), yosemitech_spec::names::shouty(&f.name));
+                let c = format_ident!(
+                    "{}_{}",
+                    yosemitech_spec::names::shouty(g.field.display_name()),
+                    yosemitech_spec::names::shouty(&f.name)
+                );
                 let m = hex(u32::from(f.mask), if matches!(repr, EnumRepr::U8) { 2 } else { 4 });
-                let d = doc(&format!("Bit of `{}`: {}", g.field.display_name(), f.doc.as_deref().map(one_line).unwrap_or_else(|| f.name.clone())));
+                let d = doc(&format!(
+                    "Bit of `{}`: {}",
+                    g.field.display_name(),
+                    f.doc.as_deref().map(one_line).unwrap_or_else(|| f.name.clone())
+                ));
                 quote!(#d pub const #c: #raw_ty = #m;)
             });
             let method = format_ident!("{}_names", g.field.display_name());
@@ -763,7 +779,10 @@ fn message_impl(ty: &Ident, gens: &[FieldGen<'_>], c: &Command, with_data: bool,
                 quote!((#m, #n))
             });
             let count = Literal::usize_unsuffixed(flags.len());
-            let d = doc(&format!("The names of the flags set in `{}`, in mask order; bits no flag names are not listed.", g.field.display_name()));
+            let d = doc(&format!(
+                "The names of the flags set in `{}`, in mask order; bits no flag names are not listed.",
+                g.field.display_name()
+            ));
             extras.extend(quote! {
                 #(#consts)*
                 #d

@@ -17,6 +17,15 @@ pub fn doc(text: &str) -> TokenStream {
     let mut out = TokenStream::new();
     for line in clean(text).lines() {
         let line = line.trim_end();
+        // A spec line that starts with `+ ` is arithmetic ("+ B"), not a Markdown list.
+        let escaped;
+        let line = match line.trim_start().strip_prefix("+ ") {
+            Some(rest) => {
+                escaped = format!("{}\\+ {rest}", &line[..line.len() - line.trim_start().len()]);
+                escaped.as_str()
+            }
+            None => line,
+        };
         let line = if line.is_empty() { String::new() } else { format!(" {line}") };
         out.extend(quote!(#[doc = #line]));
     }
@@ -108,7 +117,9 @@ pub fn encoding(field: &Field) -> String {
         }
         FieldKind::Reserved { len, fill } => format!("{len} reserved bytes, sent as 0x{fill:02X}"),
         FieldKind::Bcd => "one byte, two decimal digits (BCD: 0x59 = 59)".to_owned(),
-        FieldKind::Flags { repr: yosemitech_spec::EnumRepr::U8, flags } => format!("one byte of bit flags ({})", flag_list(flags)),
+        FieldKind::Flags { repr: yosemitech_spec::EnumRepr::U8, flags } => {
+            format!("one byte of bit flags ({})", flag_list(flags))
+        }
         FieldKind::Flags { repr: yosemitech_spec::EnumRepr::U16(order), flags } => {
             format!("two bytes of bit flags, {} ({})", order2(*order), flag_list(flags))
         }

@@ -437,10 +437,22 @@ mod tests {
     use super::*;
     use crate::ExceptionCode;
 
-    const GET_PH: Layout<'static> =
-        Layout { function: Function::Read, address: 0x2800, count: 2, fixed_slave: None, extra_byte_counts: &[], trigger: false };
-    const START: Layout<'static> =
-        Layout { function: Function::Write, address: 0x1C00, count: 0, fixed_slave: None, extra_byte_counts: &[], trigger: true };
+    const GET_PH: Layout<'static> = Layout {
+        function: Function::Read,
+        address: 0x2800,
+        count: 2,
+        fixed_slave: None,
+        extra_byte_counts: &[],
+        trigger: false,
+    };
+    const START: Layout<'static> = Layout {
+        function: Function::Write,
+        address: 0x1C00,
+        count: 0,
+        fixed_slave: None,
+        extra_byte_counts: &[],
+        trigger: true,
+    };
 
     #[test]
     fn encodes_manual_requests() {
@@ -453,8 +465,14 @@ mod tests {
         assert_eq!(f.as_bytes(), [0x01, 0x10, 0x1C, 0x00, 0x00, 0x00, 0xC7, 0x99]);
     }
 
-    const START_OPTICAL: Layout<'static> =
-        Layout { function: Function::Read, address: 0x2500, count: 1, fixed_slave: None, extra_byte_counts: &[], trigger: true };
+    const START_OPTICAL: Layout<'static> = Layout {
+        function: Function::Read,
+        address: 0x2500,
+        count: 1,
+        fixed_slave: None,
+        extra_byte_counts: &[],
+        trigger: true,
+    };
 
     #[test]
     fn trigger_reads_accept_each_form_the_manuals_allow_and_return_no_data() {

@@ -106,6 +106,9 @@ pub struct SensorModule {
 
 impl core::fmt::Debug for SensorModule {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
-        f.debug_struct("SensorModule").field("info", &self.info).field("commands", &self.commands).finish_non_exhaustive()
+        f.debug_struct("SensorModule")
+            .field("info", &self.info)
+            .field("commands", &self.commands)
+            .finish_non_exhaustive()
     }
 }

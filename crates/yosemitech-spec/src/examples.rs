@@ -15,7 +15,9 @@ use crate::diag::{Pos, Reporter};
 use crate::document::{CrcDoc, ExampleDoc};
 use crate::interp::{Value, decode_field};
 use crate::model::{Command, Example, ExampleErratum, PrintedFrame};
-use crate::resolve::{check_erratum_id, check_text, crc_text, parse_hex, resolve_figure, resolve_figures, stated_value};
+use crate::resolve::{
+    check_erratum_id, check_text, crc_text, parse_hex, resolve_figure, resolve_figures, stated_value,
+};
 
 fn hex(text: &Spanned<String>, key: &str, r: &mut Reporter<'_>) -> Option<Vec<u8>> {
     match parse_hex(&text.value) {
@@ -333,11 +335,8 @@ pub(crate) fn check_example(
     let response_at = e.response.as_ref().map_or(at, Pos::at);
 
     // The slave the exchange is addressed to.
-    let mut slave = request
-        .as_ref()
-        .and_then(|f| f.byte(0))
-        .or_else(|| response.as_ref().and_then(|f| f.byte(0)))
-        .unwrap_or(1);
+    let mut slave =
+        request.as_ref().and_then(|f| f.byte(0)).or_else(|| response.as_ref().and_then(|f| f.byte(0))).unwrap_or(1);
 
     // The request: exactly what the spec encodes, or its stated header.
     if let Some(true_req) = &true_req {
@@ -453,7 +452,11 @@ pub(crate) fn check_example(
                 r.error(
                     pos,
                     format!("{key}.values.{}", field.display_name()),
-                    format!("bytes {} give {} = {got}, but the example states {want}", Hex(&bytes), field.display_name()),
+                    format!(
+                        "bytes {} give {} = {got}, but the example states {want}",
+                        Hex(&bytes),
+                        field.display_name()
+                    ),
                     Some("check the stated value against the printed bytes".into()),
                 );
             }

@@ -348,7 +348,9 @@ fn encode_field_checked(field: &Field, value: &Value, ranges: bool) -> Result<Ve
             match raw.value() {
                 Some(v) => check_range(ranges, field, f64::from(v))?,
                 // A write never sends a byte that is not two digits.
-                None if ranges => return Err(out_of_range(field, format!("0x{:02X} is not two decimal digits", raw.0))),
+                None if ranges => {
+                    return Err(out_of_range(field, format!("0x{:02X} is not two decimal digits", raw.0)));
+                }
                 None => {}
             }
             vec![raw.0]

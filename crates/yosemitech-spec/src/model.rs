@@ -116,10 +116,7 @@ impl Sensor {
 
     /// The serial settings of a probe running `software` (the newest when unknown).
     pub fn serial_for(&self, software: &str) -> Serial {
-        self.revisions
-            .iter()
-            .find(|r| r.manual.software.as_deref() == Some(software))
-            .map_or(self.serial, |r| r.serial)
+        self.revisions.iter().find(|r| r.manual.software.as_deref() == Some(software)).map_or(self.serial, |r| r.serial)
     }
 
     /// The serial number the manual prints (the first example of the
@@ -267,7 +264,10 @@ impl Figure {
     pub fn parse(text: &str) -> Result<Self, String> {
         let t = text.trim();
         let bad = || {
-            format!("`{}` is not a figure: use a number (23), `T<n>` for a table, `<n>b` for a repeated number", crate::names::escape(t))
+            format!(
+                "`{}` is not a figure: use a number (23), `T<n>` for a table, `<n>b` for a repeated number",
+                crate::names::escape(t)
+            )
         };
         if let Some(n) = t.strip_prefix('T').or_else(|| t.strip_prefix("Table ")) {
             return n.parse::<u32>().map(Figure::Table).map_err(|_| bad());
@@ -761,11 +761,7 @@ impl Example {
 
     /// Printed frames whose every byte and CRC the manual gives.
     pub fn frames_printed_complete(&self) -> usize {
-        [&self.request, &self.response]
-            .into_iter()
-            .flatten()
-            .filter(|f| f.crc_printed && f.is_complete())
-            .count()
+        [&self.request, &self.response].into_iter().flatten().filter(|f| f.crc_printed && f.is_complete()).count()
     }
 }
 

@@ -613,7 +613,10 @@ impl Loader<'_> {
                     origin.pos,
                     format!("{}.role", origin.key),
                     format!("`{}` and `{}` both have role `{}`", commands[j].name, cmd.name, role.name()),
-                    Some("a sensor has at most one command per role; include the fragment with `only:` to leave one out".into()),
+                    Some(
+                        "a sensor has at most one command per role; include the fragment with `only:` to leave one out"
+                            .into(),
+                    ),
                 );
             } else {
                 roles.insert(role, k);
@@ -663,7 +666,12 @@ fn check_manual_refs(sensor: &SensorDoc, doc: &SpecFile, r: &mut Reporter<'_>) {
             } else {
                 format!("the file's manuals document software {}", known.join(", "))
             };
-            r.error(Pos::at(value), key, format!("no manual of this sensor documents software `{}`", escape(&value.value)), Some(help));
+            r.error(
+                Pos::at(value),
+                key,
+                format!("no manual of this sensor documents software `{}`", escape(&value.value)),
+                Some(help),
+            );
         }
     };
     for (i, c) in doc.commands.iter().enumerate() {
@@ -709,7 +717,12 @@ fn resolve_procedure(p: &ProcedureDoc, commands: &[Command], r: &mut Reporter<'_
                         Some(best) => format!("did you mean `{best}`?"),
                         None => format!("commands: {}", names.join(", ")),
                     };
-                    r.error(Pos::at(name), key, format!("the sensor has no command called `{}`", escape(&name.value)), Some(help));
+                    r.error(
+                        Pos::at(name),
+                        key,
+                        format!("the sensor has no command called `{}`", escape(&name.value)),
+                        Some(help),
+                    );
                     *ok = false;
                 }
                 Some(c) if what == "read" && !(c.is_read() && c.named_fields().next().is_some()) => {
@@ -989,7 +1002,10 @@ fn resolve_sensor_head(s: &SensorDoc, r: &mut Reporter<'_>) -> Option<Head> {
                         Pos::at(sw),
                         format!("{key}.manual.software"),
                         format!("software `{}` is already the revision of another manual", escape(&sw.value)),
-                        Some(format!("each manual documents one software revision (the first is at line {})", first.line)),
+                        Some(format!(
+                            "each manual documents one software revision (the first is at line {})",
+                            first.line
+                        )),
                     );
                     ok = false;
                 }
@@ -1169,7 +1185,9 @@ fn collect_includes<'d>(
             for (j, name) in only.iter().enumerate() {
                 if !defined.contains(&name.value.as_str()) {
                     let help = match crate::yaml::closest(&name.value, &defined) {
-                        Some(best) => format!("did you mean `{best}`? `{}` defines: {}", inc.value.file, defined.join(", ")),
+                        Some(best) => {
+                            format!("did you mean `{best}`? `{}` defines: {}", inc.value.file, defined.join(", "))
+                        }
                         None => format!("`{}` defines: {}", inc.value.file, defined.join(", ")),
                     };
                     r.error(
@@ -1239,7 +1257,12 @@ pub(crate) fn resolve_figure(doc: &FigureDoc, key: &str, at: Pos, r: &mut Report
     match parsed {
         Ok(f) => Some(f),
         Err(why) => {
-            r.error(at, key, why, Some("figures are `23`, `\"T4\"` (Table 4) or `\"43b\"` (the second figure 43)".into()));
+            r.error(
+                at,
+                key,
+                why,
+                Some("figures are `23`, `\"T4\"` (Table 4) or `\"43b\"` (the second figure 43)".into()),
+            );
             None
         }
     }
@@ -1400,7 +1423,9 @@ fn check_role_shape(role: Role, cmd: &Command) -> Result<(), String> {
     match role {
         Role::SetSlaveAddress => write(!cmd.is_read()).and_then(|()| one(|k| matches!(k, FieldKind::U8), "a `u8`")),
         Role::GetSlaveAddress => read(cmd.is_read()).and_then(|()| one(|k| matches!(k, FieldKind::U8), "a `u8`")),
-        Role::SerialNumber => read(cmd.is_read()).and_then(|()| one(|k| matches!(k, FieldKind::Ascii { .. }), "an `ascii`")),
+        Role::SerialNumber => {
+            read(cmd.is_read()).and_then(|()| one(|k| matches!(k, FieldKind::Ascii { .. }), "an `ascii`"))
+        }
         Role::Version => {
             read(cmd.is_read())?;
             if !named.is_empty() && named.iter().all(|f| matches!(f.kind, FieldKind::Version)) {
@@ -1410,22 +1435,22 @@ fn check_role_shape(role: Role, cmd: &Command) -> Result<(), String> {
             }
         }
         Role::StartMeasurement | Role::StopMeasurement | Role::Wipe => {
-            if cmd.trigger { Ok(()) } else { Err("it must be a `trigger`".into()) }
+            if cmd.trigger {
+                Ok(())
+            } else {
+                Err("it must be a `trigger`".into())
+            }
         }
         Role::CalibrationPoint => write(!cmd.is_read()).and_then(|()| {
             one(|k| matches!(k, FieldKind::F32 { .. } | FieldKind::U16 { .. } | FieldKind::I16 { .. }), "a number")
         }),
-        Role::CalibrationStatus => read(cmd.is_read()).and_then(|()| one(|k| matches!(k, FieldKind::Enum { .. }), "an `enum`")),
+        Role::CalibrationStatus => {
+            read(cmd.is_read()).and_then(|()| one(|k| matches!(k, FieldKind::Enum { .. }), "an `enum`"))
+        }
     }
 }
 
-fn check_count(
-    f: Function,
-    n: &Spanned<u32>,
-    trigger: bool,
-    key: &str,
-    r: &mut Reporter<'_>,
-) -> Option<u16> {
+fn check_count(f: Function, n: &Spanned<u32>, trigger: bool, key: &str, r: &mut Reporter<'_>) -> Option<u16> {
     let v = n.value;
     let k = format!("{key}.count");
     if trigger && f == Function::Read {
@@ -1903,7 +1928,12 @@ fn resolve_flags(f: &FieldDoc, key: &str, at: Pos, r: &mut Reporter<'_>) -> Opti
         }
     };
     let Some(flags) = &f.flags else {
-        r.error(at, format!("{key}.flags"), "a `flags` field needs `flags`", Some("list `- {name: ..., mask: 0x01}` entries".into()));
+        r.error(
+            at,
+            format!("{key}.flags"),
+            "a `flags` field needs `flags`",
+            Some("list `- {name: ..., mask: 0x01}` entries".into()),
+        );
         return None;
     };
     if flags.value.is_empty() {

@@ -50,7 +50,8 @@ fn summary_counts_printed_frames_honestly() {
     assert_eq!(s.sensors, spec.sensors.len());
     assert_eq!(s.commands, spec.sensors.iter().map(|x| x.commands.len()).sum::<usize>());
     assert_eq!(s.examples, examples.len());
-    let printed: usize = examples.iter().map(|e| usize::from(e.request.is_some()) + usize::from(e.response.is_some())).sum();
+    let printed: usize =
+        examples.iter().map(|e| usize::from(e.request.is_some()) + usize::from(e.response.is_some())).sum();
     assert_eq!(s.printed_frames, printed);
     let corrections: usize = examples
         .iter()
@@ -76,8 +77,7 @@ fn every_printed_frame_is_kept_as_printed() {
         for c in &sensor.commands {
             for e in &c.examples {
                 for f in [&e.request, &e.response].into_iter().flatten() {
-                    let known: Option<Vec<u8>> =
-                        if f.open_ended { None } else { f.bytes.iter().copied().collect() };
+                    let known: Option<Vec<u8>> = if f.open_ended { None } else { f.bytes.iter().copied().collect() };
                     match (&f.complete, known) {
                         (Some(all), Some(known)) if f.crc_printed => assert_eq!(all, &known),
                         (Some(all), Some(known)) => {

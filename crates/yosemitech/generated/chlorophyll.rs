@@ -324,7 +324,7 @@ pub use super::yosemitech_optical::{StopMeasurement, StopMeasurementResponse};
 ///
 /// Reads the user calibration of the chlorophyll, meant to correct drift
 /// from ageing and similar causes: chlorophyll = K x measured chlorophyll
-/// + B, with K = 1 and B = 0 by default. The user manual calibrates at one
+/// \+ B, with K = 1 and B = 0 by default. The user manual calibrates at one
 /// or two points with a rhodamine B standard.
 ///
 /// Manual section 2.2.7, figures 35, 36, 37, 38. Reads (function 0x03) 4 registers at 0x1100. Shared by every Yosemitech probe (`yosemitech_calibration`).

@@ -140,8 +140,9 @@ fn api(module: &'static SensorModule) -> Api {
                 layout: (module.layout)(name).expect("a listed command has a layout"),
                 decode_request: Box::new(move |frame: &[u8]| {
                     let mut values = Vec::new();
-                    let slave = (module.visit_request)(name, frame, &mut |info, v| values.push((info.name, Val::of(v))))
-                        .expect("a listed command")?;
+                    let slave =
+                        (module.visit_request)(name, frame, &mut |info, v| values.push((info.name, Val::of(v))))
+                            .expect("a listed command")?;
                     let mut buf = [0u8; 256];
                     let encoded = match (module.reencode_request)(name, frame, &mut buf).expect("a listed command") {
                         Ok(n) => Ok(buf[..n].to_vec()),
@@ -155,11 +156,12 @@ fn api(module: &'static SensorModule) -> Api {
                     (module.visit_response)(name, slave, frame, &mut |info, v| values.push((info.name, Val::of(v))))
                         .expect("a listed command")?;
                     let mut buf = [0u8; 256];
-                    let encoded = match (module.reencode_response)(name, slave, frame, &mut buf).expect("a listed command") {
-                        Ok(n) => Ok(buf[..n].to_vec()),
-                        Err(RoundTripError::Encode(e)) => Err(e),
-                        Err(RoundTripError::Frame(e)) => return Err(e),
-                    };
+                    let encoded =
+                        match (module.reencode_response)(name, slave, frame, &mut buf).expect("a listed command") {
+                            Ok(n) => Ok(buf[..n].to_vec()),
+                            Err(RoundTripError::Encode(e)) => Err(e),
+                            Err(RoundTripError::Frame(e)) => return Err(e),
+                        };
                     Ok(Decoded { slave, values, encoded })
                 }),
                 identify: module.identify_request,

@@ -16,8 +16,14 @@ pub struct GetPh;
 impl Command for GetPh {
     type Response = f32;
     const NAME: &'static str = "get_ph";
-    const LAYOUT: Layout<'static> =
-        Layout { function: Function::Read, address: 0x2800, count: 2, fixed_slave: None, extra_byte_counts: &[], trigger: false };
+    const LAYOUT: Layout<'static> = Layout {
+        function: Function::Read,
+        address: 0x2800,
+        count: 2,
+        fixed_slave: None,
+        extra_byte_counts: &[],
+        trigger: false,
+    };
 
     fn encode_request(&self, slave: u8, out: &mut [u8]) -> Result<usize, EncodeError> {
         Self::LAYOUT.encode_request(slave, &[], out)
@@ -45,8 +51,14 @@ pub struct StartMeasurement;
 impl Command for StartMeasurement {
     type Response = ();
     const NAME: &'static str = "start_measurement";
-    const LAYOUT: Layout<'static> =
-        Layout { function: Function::Write, address: 0x1C00, count: 0, fixed_slave: None, extra_byte_counts: &[], trigger: true };
+    const LAYOUT: Layout<'static> = Layout {
+        function: Function::Write,
+        address: 0x1C00,
+        count: 0,
+        fixed_slave: None,
+        extra_byte_counts: &[],
+        trigger: true,
+    };
 
     fn encode_request(&self, slave: u8, out: &mut [u8]) -> Result<usize, EncodeError> {
         Self::LAYOUT.encode_request(slave, &[], out)
@@ -72,8 +84,14 @@ pub struct GetSlaveId;
 impl Command for GetSlaveId {
     type Response = u8;
     const NAME: &'static str = "get_slave_id";
-    const LAYOUT: Layout<'static> =
-        Layout { function: Function::Read, address: 0x3000, count: 1, fixed_slave: Some(0xFF), extra_byte_counts: &[], trigger: false };
+    const LAYOUT: Layout<'static> = Layout {
+        function: Function::Read,
+        address: 0x3000,
+        count: 1,
+        fixed_slave: Some(0xFF),
+        extra_byte_counts: &[],
+        trigger: false,
+    };
 
     fn encode_request(&self, slave: u8, out: &mut [u8]) -> Result<usize, EncodeError> {
         Self::LAYOUT.encode_request(slave, &[], out)
