@@ -27,13 +27,17 @@ pub fn run(args: &[String]) -> anyhow::Result<ExitCode> {
     match loaded {
         Ok(spec) => {
             let s = spec.summary();
+            let manuals: usize = spec.sensors.iter().map(|x| x.manuals().count()).sum();
             println!(
-                "validated {}, {}, {} ({} frames, {} printed), {}",
+                "validated {} ({}), {}, {}: {} frames printed ({} complete with their CRC, {} without a CRC or with placeholders), {} checked with the errata's corrections; {}",
                 count(s.sensors, "sensor", "sensors"),
+                count(manuals, "manual", "manuals"),
                 count(s.commands, "command", "commands"),
                 count(s.examples, "example", "examples"),
-                s.frames,
                 s.printed_frames,
+                s.complete_frames,
+                s.printed_frames - s.complete_frames,
+                s.frames,
                 count(s.errata, "erratum", "errata"),
             );
             Ok(ExitCode::SUCCESS)

@@ -34,23 +34,31 @@ pub fn module_declaration(s: &Sensor, file: &str) -> TokenStream {
     let name = ident(&s.name);
     let file = lit(file);
     let mut d = format!("{}\n\n{}\n\n", one_line(&s.title), text::clean(&s.doc).trim_end());
+    if let (Some(model), Some(code)) = (&s.model, &s.model_code) {
+        let _ = writeln!(
+            d,
+            "Model {}, model code {} (serial numbers `YL{}...`).\n",
+            one_line(model),
+            one_line(code),
+            one_line(code)
+        );
+    }
     let _ = writeln!(
         d,
-        "Generated from the spec of the manual \"{}\" ({}). Serial: {} baud, {}{}{}; slave addresses {}..={}, factory address {}.",
+        "Generated from the spec of the manual \"{}\" ({}). Serial: {}; slave addresses {}..={}, factory address {}.",
         one_line(&s.manual.title),
         one_line(&s.manual.revision),
-        s.serial.baud,
-        s.serial.data_bits,
-        match s.serial.parity {
-            Parity::None => 'N',
-            Parity::Even => 'E',
-            Parity::Odd => 'O',
-        },
-        s.serial.stop_bits,
+        text::serial(&s.serial),
         s.min_address,
         s.max_address,
         s.default_address
     );
+    if !s.revisions.is_empty() {
+        d.push_str("\nManual revisions (commands a later firmware added say since when):\n\n");
+        for line in text::manuals(s) {
+            let _ = writeln!(d, "- {line}");
+        }
+    }
     d.push_str("\n| Command | Function | Address | Registers | Request | Reply |\n|---|---|---|---|---|---|\n");
     for c in &s.commands {
         let ty = heck::ToUpperCamelCase::to_upper_camel_case(c.name.as_str());

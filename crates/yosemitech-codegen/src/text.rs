@@ -156,6 +156,43 @@ pub fn printed_frame(frame: &yosemitech_spec::PrintedFrame) -> String {
     s
 }
 
+/// "9600 baud, 8N1".
+pub fn serial(serial: &yosemitech_spec::Serial) -> String {
+    let parity = match serial.parity {
+        yosemitech_spec::Parity::None => 'N',
+        yosemitech_spec::Parity::Even => 'E',
+        yosemitech_spec::Parity::Odd => 'O',
+    };
+    format!("{} baud, {}{parity}{}", serial.baud, serial.data_bits, serial.stop_bits)
+}
+
+/// One line per manual of a sensor, oldest software first when stated:
+/// "SW 1.1: <title> (<revision>), 9600 baud, 8N2".
+pub fn manuals(sensor: &yosemitech_spec::Sensor) -> Vec<String> {
+    let mut manuals: Vec<(&yosemitech_spec::Manual, yosemitech_spec::Serial, Option<&str>)> =
+        vec![(&sensor.manual, sensor.serial, None)];
+    manuals.extend(sensor.revisions.iter().map(|r| (&r.manual, r.serial, r.doc.as_deref())));
+    manuals.sort_by(|a, b| {
+        let key = |m: &yosemitech_spec::Manual| {
+            m.software.as_deref().map(|s| s.split('.').map(|p| p.parse::<u32>().unwrap_or(0)).collect::<Vec<_>>())
+        };
+        key(a.0).cmp(&key(b.0))
+    });
+    manuals
+        .into_iter()
+        .map(|(m, serial_settings, doc)| {
+            let software = m.software.as_deref().map(|s| format!("SW {}: ", one_line(s))).unwrap_or_default();
+            let note = doc.map(|d| format!(" {}", one_line(d))).unwrap_or_default();
+            format!(
+                "{software}\"{}\" ({}), {}.{note}",
+                one_line(&m.title),
+                one_line(&m.revision),
+                serial(&serial_settings)
+            )
+        })
+        .collect()
+}
+
 /// "figure 23", "table 4", or "an unnumbered table".
 pub fn figure_ref(figure: Option<yosemitech_spec::Figure>) -> String {
     match figure {

@@ -11,13 +11,11 @@ use std::collections::{BTreeMap, BTreeSet};
 use serde_saphyr::Spanned;
 use yosemitech_rtu::{Function, Hex, crc_ok, crc16};
 
+use crate::check::{check_erratum_id, check_text, crc_text, parse_hex, resolve_figure, resolve_figures, stated_value};
 use crate::diag::{Pos, Reporter};
 use crate::document::{CrcDoc, ExampleDoc};
 use crate::interp::{Value, decode_field};
 use crate::model::{Command, Example, ExampleErratum, PrintedFrame};
-use crate::resolve::{
-    check_erratum_id, check_text, crc_text, parse_hex, resolve_figure, resolve_figures, stated_value,
-};
 
 fn hex(text: &Spanned<String>, key: &str, r: &mut Reporter<'_>) -> Option<Vec<u8>> {
     match parse_hex(&text.value) {

@@ -761,7 +761,11 @@ impl Example {
 
     /// Printed frames whose every byte and CRC the manual gives.
     pub fn frames_printed_complete(&self) -> usize {
-        [&self.request, &self.response].into_iter().flatten().filter(|f| f.crc_printed && f.is_complete()).count()
+        [&self.request, &self.response]
+            .into_iter()
+            .flatten()
+            .filter(|f| f.crc_printed && f.complete.as_deref().is_some_and(yosemitech_rtu::crc_ok))
+            .count()
     }
 }
 

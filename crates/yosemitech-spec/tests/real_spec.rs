@@ -63,7 +63,7 @@ fn summary_counts_printed_frames_honestly() {
         .iter()
         .flat_map(|e| [&e.request, &e.response])
         .flatten()
-        .filter(|f| f.crc_printed && f.complete.is_some())
+        .filter(|f| f.crc_printed && f.complete.as_deref().is_some_and(yosemitech_rtu::crc_ok))
         .count();
     assert_eq!(s.complete_frames, complete);
     assert!(s.complete_frames <= s.printed_frames);

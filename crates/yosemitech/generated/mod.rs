@@ -37,6 +37,8 @@ pub mod yosemitech_wiper {
 /// drawing under 50 mA, and RS-485 on the white (B) and green (A) wires.
 /// The Modbus manual labels the chlorophyll mg/L (erratum Y514-4).
 ///
+/// Model Y514, model code 48 (serial numbers `YL48...`).
+///
 /// Generated from the spec of the manual "Optical Chlorophyll Sensor, MODBUS RTU Programmer Manuel" (HW Rev1.0 / SW Rev1.6 or later). Serial: 9600 baud, 8N1; slave addresses 1..=247, factory address 1.
 ///
 /// | Command | Function | Address | Registers | Request | Reply |
@@ -80,7 +82,14 @@ pub mod chlorophyll {
 ///
 /// Yosemitech conductivity probe; conductivity in mS/cm with automatic range switching, and temperature.
 ///
+/// Model Y520, model code 09 (serial numbers `YL09...`).
+///
 /// Generated from the spec of the manual "MODBUS RTU for conductivity probes" (HW Rev1.0 / SW Rev1.0 or later). Serial: 9600 baud, 8N1; slave addresses 1..=247, factory address 1.
+///
+/// Manual revisions (commands a later firmware added say since when):
+///
+/// - SW 1.0: "MODBUS RTU for conductivity probes" (HW Rev1.0 / SW Rev1.0 or later), 9600 baud, 8N1.
+/// - SW 1.8: "MODBUS RTU for conductivity probes" (HW Rev1.0 / SW Rev1.8 or later), 9600 baud, 8N1. Adds Stop Measurement (a read of 0x2E00 used as a trigger) and Get Slave Device ID (0x3000 at the wildcard address 0xFF). The probe measures from power-on by default, and the procedure starts with the power-on wait instead of Start Measurement. Sections from 2.2.6 and figures from 32 on are renumbered; every other command and frame is unchanged.
 ///
 /// | Command | Function | Address | Registers | Request | Reply |
 /// |---|---|---|---|---|---|
@@ -123,6 +132,8 @@ pub mod conductivity {
 /// reports error flags, its supply voltage and a real-time clock. Power
 /// 12 V ±5 %, 100 mA (user manual).
 ///
+/// Model Y4000, model code 38 (serial numbers `YL38...`).
+///
 /// Generated from the spec of the manual "MODBUS RTU for the multi-parameter sensor" (SW Rev1.6 or later). Serial: 9600 baud, 8N1; slave addresses 1..=247, factory address 1.
 ///
 /// | Command | Function | Address | Registers | Request | Reply |
@@ -164,7 +175,14 @@ pub mod sonde {
 ///
 /// Yosemitech optical pH (or ORP) probe; pH is temperature-compensated by the probe.
 ///
+/// Model Y532, model code 43 (serial numbers `YL43...`).
+///
 /// Generated from the spec of the manual "MODBUS RTU for optical pH (or ORP) probes" (HW Rev1.2 / SW Rev1.7 or later). Serial: 9600 baud, 8N1; slave addresses 1..=247, factory address 1.
+///
+/// Manual revisions (commands a later firmware added say since when):
+///
+/// - SW 1.1: "MODBUS RTU for optical pH probes" (HW Rev1.1 / SW Rev1.1 or later), 9600 baud, 8N2. The older manual. It documents pH, potential, temperature, the revisions, the three-point pH calibration and the write of the electrode coefficients K1..K6 (titled "Set Customer Calibration Coefficients" there). SW 1.7 adds the potential-and-pH block, the read of K1..K6, the ORP and pH K/B calibrations and Get Slave Device ID; no command was removed and no layout changed. SW 1.1 uses two stop bits.
+/// - SW 1.7: "MODBUS RTU for optical pH (or ORP) probes" (HW Rev1.2 / SW Rev1.7 or later), 9600 baud, 8N1.
 ///
 /// | Command | Function | Address | Registers | Request | Reply |
 /// |---|---|---|---|---|---|
@@ -212,6 +230,8 @@ pub mod ph_orp {
 /// 0 to 50 degC, a DC 5 to 12 V supply drawing under 50 mA, and RS-485 on the
 /// white (B) and green (A) wires.
 ///
+/// Model Y510, model code 10 (serial numbers `YL10...`).
+///
 /// Generated from the spec of the manual "Optical Turbidity Sensor, MODBUS RTU Programmer Manuel" (HW Rev1.0 / SW Rev1.7 or later). Serial: 9600 baud, 8N1; slave addresses 1..=247, factory address 1.
 ///
 /// | Command | Function | Address | Registers | Request | Reply |
@@ -255,6 +275,8 @@ pub mod turbidity {
 /// supply drawing under 50 mA without the wiper, at most 1 bar, and RS-485
 /// on the white (B) and green (A) wires. Its TOC range (0.3 to 150 mg/L) has
 /// no register in the Modbus manual.
+///
+/// Model Y551, model code 47 (serial numbers `YL47...`).
 ///
 /// Generated from the spec of the manual "Optical COD Sensor, MODBUS RTU Programmer Manuel" (HW Rev1.0 / SW Rev1.5 or later). Serial: 9600 baud, 8N1; slave addresses 1..=247, factory address 1.
 ///

@@ -7,13 +7,13 @@ use std::time::{Duration, Instant};
 
 use yosemitech::procedures::coefficients::{read_conductivity, read_ph_orp};
 use yosemitech::{conductivity, ph_orp};
-use yosemitech_rtu::{Client, ClientConfig, Transport};
-use yosemitech_sim::{ServeConfig, Server, Simulator, Variation, line_timing};
+use yosemitech_rtu::{Client, ClientConfig, RetryPolicy, Transport};
+use yosemitech_sim::{Bus, Device, ServeConfig, Server, Simulator, Variation, line_timing};
 use yosemitech_spec::{Sensor, Value};
 
 use crate::catalog::Catalog;
 use crate::cli::DemoArgs;
-use crate::commands::measure;
+use crate::commands::{measure, scan};
 use crate::device::{is_typed, procedure_failed};
 use crate::error::{CliError, Context, Result, request_failed};
 use crate::port::Opened;
@@ -26,6 +26,12 @@ const PH: f32 = 7.02;
 const ORP_MV: f32 = 215.4;
 const WATER_C: f32 = 21.3;
 const CONDUCTIVITY_MS_CM: f32 = 1.413;
+
+/// The reply timeout on the family bus. The simulators answer at once (in
+/// ~30 ms with `--line-timing`), so a read no probe answers (a serial-number
+/// read of another layout) costs little; no retries, as every address is
+/// taken.
+const BUS_TIMEOUT: Duration = Duration::from_millis(200);
 
 /// A simulated probe served for the demo, and the client talking to it.
 struct Probe {
@@ -49,11 +55,11 @@ fn setup(sensor: &Arc<Sensor>, values: &[(&str, f32)], noise: f32, line: bool) -
 
 /// Serves `sim` on a pty and opens it as a serial port.
 #[cfg(unix)]
-fn serve(
-    sim: Simulator,
+fn serve<D: Device + Send + 'static>(
+    sim: D,
     config: ServeConfig,
     baud: u32,
-) -> Result<(Server<Simulator>, String, Box<dyn Transport + Send>)> {
+) -> Result<(Server<D>, String, Box<dyn Transport + Send>)> {
     use yosemitech_rtu::{SerialConfig, SerialTransport};
     let server = yosemitech_sim::serve_pty(sim, config).map_err(|e| {
         CliError::device(format!("cannot create a pseudo-terminal: {e}")).hint("the demo needs ptys (/dev/ptmx)")
@@ -66,11 +72,11 @@ fn serve(
 
 /// Without ptys, serves `sim` as an RTU-over-TCP gateway on localhost.
 #[cfg(not(unix))]
-fn serve(
-    sim: Simulator,
+fn serve<D: Device + Send + 'static>(
+    sim: D,
     config: ServeConfig,
     _baud: u32,
-) -> Result<(Server<Simulator>, String, Box<dyn Transport + Send>)> {
+) -> Result<(Server<D>, String, Box<dyn Transport + Send>)> {
     use yosemitech_rtu::TcpTransport;
     let server = yosemitech_sim::serve_tcp(sim, "127.0.0.1:0", config)
         .map_err(|e| CliError::device(format!("cannot serve the simulator: {e}")))?;
@@ -180,7 +186,9 @@ pub fn run(catalog: &Catalog, args: &DemoArgs, out: &mut dyn Write) -> Result<()
     let m = measure::run_procedure(&mut cond.opened, sensor, address, timing, &mut sleep)?;
     measure::show(&m, Some(4), out)?;
 
-    let requests = ph.server.device().stats().requests + cond.server.device().stats().requests;
+    let family = family(catalog, args, out)?;
+
+    let requests = ph.server.device().stats().requests + cond.server.device().stats().requests + family;
     writeln!(
         out,
         "\n{requests} requests answered over the serial code path in {:.1} s.",
@@ -190,5 +198,58 @@ pub fn run(catalog: &Catalog, args: &DemoArgs, out: &mut dyn Write) -> Result<()
         out,
         "Next: `yosemitech simulate ph_orp` serves a probe; `yosemitech read ph_orp get_ph --port <its path>` reads it."
     )?;
+    writeln!(out, "`yosemitech scan --port <path>` identifies the probes on a real bus.")?;
     Ok(())
+}
+
+/// Every sensor of the catalog simulated at its own address (1, 2, 3, ...)
+/// on one pty bus, identified by `scan`'s reads through the serial code.
+/// Returns the requests the bus answered.
+fn family(catalog: &Catalog, args: &DemoArgs, out: &mut dyn Write) -> Result<u64> {
+    let started = Instant::now();
+    let mut bus = Bus::new();
+    let mut addresses = Vec::new();
+    for (address, entry) in (1..=247u8).zip(catalog.entries()) {
+        bus.push(Simulator::new(Arc::clone(&entry.sensor)).with_address(address));
+        addresses.push(address);
+    }
+    let (Some(&first), Some(&last)) = (addresses.first(), addresses.last()) else {
+        return Ok(0);
+    };
+    let serial = scan::common_serial(catalog);
+    let timing = catalog.entries().iter().find(|e| e.sensor.serial == serial).map(|e| line_timing(&e.sensor));
+    let config = match timing {
+        Some(timing) if args.line_timing => ServeConfig::emulating(timing),
+        _ => ServeConfig::default(),
+    };
+    let (server, port, transport) = serve(bus, config, serial.baud)?;
+    let config = ClientConfig { timeout: BUS_TIMEOUT, retry: RetryPolicy::NONE, ..ClientConfig::default() };
+    let mut opened = Opened { bus: Client::with_config(transport, config), port, timeout: config.timeout };
+
+    let n = addresses.len();
+    writeln!(out, "\nthe whole family on one RS-485 bus: {n} simulated probes on {}", opened.port)?;
+    writeln!(out, "({} baud, addresses {first}-{last}), identified as `yosemitech scan` does:", serial.baud)?;
+    out.flush()?;
+    let mut identified = 0;
+    for &address in &addresses {
+        match scan::identify_at(catalog, &mut opened, address)? {
+            Some(found) => {
+                identified += usize::from(found.sensor.is_some());
+                writeln!(out, "  {}", found.line)?;
+            }
+            None => writeln!(out, "  address {address:3}  no reply to the serial-number reads")?,
+        }
+        out.flush()?;
+    }
+    let bus = server.device();
+    // Every device hears every request; the replies are the answered ones.
+    let requests = bus.devices().first().map_or(0, |d| d.stats().requests);
+    let answered = bus.devices().iter().map(|d| d.stats().replies).sum();
+    let of = if identified == n { String::new() } else { format!(" of {n}") };
+    writeln!(
+        out,
+        "{identified}{of} probes identified in {requests} requests ({:.1} s).",
+        started.elapsed().as_secs_f64()
+    )?;
+    Ok(answered)
 }

@@ -150,7 +150,7 @@ fn manual_for(sensor: &Sensor, software: Version) -> Option<&Manual> {
 }
 
 /// The serial settings most loaded sensors use (9600 8N1 when none is loaded).
-fn common_serial(catalog: &Catalog) -> Serial {
+pub fn common_serial(catalog: &Catalog) -> Serial {
     let mut counts: Vec<(Serial, usize)> = Vec::new();
     for e in catalog.entries() {
         match counts.iter_mut().find(|(s, _)| *s == e.sensor.serial) {
@@ -313,6 +313,23 @@ fn identify<'c>(
         }
     }
     Ok(Some(found))
+}
+
+/// A device identified as `scan` identifies it, for other commands (the demo).
+pub struct Identification<'c> {
+    /// The line `scan` prints for it.
+    pub line: String,
+    /// The sensor, when exactly one loaded sensor matches.
+    pub sensor: Option<&'c Sensor>,
+}
+
+/// Identifies the device at `address` on `opened` with the reads `scan`
+/// makes; `None` when nothing answers (or no loaded sensor has a
+/// serial-number read).
+pub fn identify_at<'c>(catalog: &'c Catalog, opened: &mut Opened, address: u8) -> Result<Option<Identification<'c>>> {
+    let reads = sn_reads(catalog);
+    let found = identify(catalog, &reads, opened, address)?;
+    Ok(found.map(|f| Identification { line: found_line(&f), sensor: f.identified }))
 }
 
 /// Runs `scan`.

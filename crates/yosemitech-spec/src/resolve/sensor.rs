@@ -1,0 +1,263 @@
+//! The sensor header: name, title, model, the manual and its revisions,
+//! the serial line and the address range; and the references to manuals
+//! (`since`, `source`, `manual`) throughout a sensor file.
+//!
+//! A header resolves only when all of it is valid: the serial line is
+//! plausible (baud, data and stop bits), addresses are a range within
+//! 1..=247 holding the default address, and each revision states the
+//! software it documents, once. Every `since` and `manual` of the file names
+//! the software of one of the sensor's manuals.
+
+use std::collections::BTreeMap;
+
+use serde_saphyr::Spanned;
+
+use crate::check::{check_name, check_role, check_text, resolve_figures};
+use crate::diag::{Pos, Reporter};
+use crate::document::{ManualDoc, ParityDoc, SensorDoc, SerialDoc, SourceDoc, SpecFile};
+use crate::model::{Manual, Parity, Revision, Serial, Source};
+use crate::names::escape;
+
+use super::command::command_key;
+
+/// Every `since` and `manual` of a sensor file names one of its manuals' `software`.
+pub(super) fn check_manual_refs(sensor: &SensorDoc, doc: &SpecFile, r: &mut Reporter<'_>) {
+    let known: Vec<&str> = std::iter::once(&sensor.manual)
+        .chain(sensor.revisions.iter().map(|rev| &rev.manual))
+        .filter_map(|m| m.software.as_ref().map(|s| s.value.as_str()))
+        .collect();
+    let check = |value: &Spanned<String>, key: String, r: &mut Reporter<'_>| {
+        if !known.contains(&value.value.as_str()) {
+            let help = if known.is_empty() {
+                "state the manuals' software revisions: `sensor.manual.software` and `sensor.revisions`".to_string()
+            } else {
+                format!("the file's manuals document software {}", known.join(", "))
+            };
+            r.error(
+                Pos::at(value),
+                key,
+                format!("no manual of this sensor documents software `{}`", escape(&value.value)),
+                Some(help),
+            );
+        }
+    };
+    for (i, c) in doc.commands.iter().enumerate() {
+        let key = command_key(i, c);
+        if let Some(since) = &c.since {
+            check(since, format!("{key}.since"), r);
+        }
+        if let Some(m) = c.source.as_ref().and_then(|s| s.manual.as_ref()) {
+            check(m, format!("{key}.source.manual"), r);
+        }
+        for (j, e) in c.examples.iter().enumerate() {
+            if let Some(m) = &e.manual {
+                check(m, format!("{key}.examples[{j}].manual"), r);
+            }
+        }
+        for (j, e) in c.errata.iter().enumerate() {
+            if let Some(m) = &e.manual {
+                check(m, format!("{key}.errata[{j}].manual"), r);
+            }
+        }
+    }
+    for (i, e) in doc.errata.iter().enumerate() {
+        if let Some(m) = &e.manual {
+            check(m, format!("errata[{i}].manual"), r);
+        }
+    }
+    if let Some(m) = doc.procedure.as_ref().and_then(|p| p.source.as_ref()).and_then(|s| s.manual.as_ref()) {
+        check(m, "procedure.source.manual".into(), r);
+    }
+}
+
+/// A sensor's header, checked.
+pub(super) struct Head {
+    pub(super) name: String,
+    pub(super) title: String,
+    pub(super) doc: String,
+    pub(super) model: Option<String>,
+    pub(super) model_code: Option<String>,
+    pub(super) manual: Manual,
+    pub(super) revisions: Vec<Revision>,
+    pub(super) serial: Serial,
+    pub(super) min_address: u8,
+    pub(super) max_address: u8,
+    pub(super) default_address: u8,
+}
+
+pub(super) fn resolve_sensor_head(s: &SensorDoc, r: &mut Reporter<'_>) -> Option<Head> {
+    let name_ok = check_name(&s.name, "sensor.name", r)
+        && check_role(
+            &s.name,
+            "sensor.name",
+            crate::names::check_sensor_name,
+            "rename the sensor, e.g. `<name>_probe`",
+            r,
+        );
+    let title = check_text(&s.title, "sensor.title", r);
+    let doc = check_text(&s.doc, "sensor.doc", r);
+    let manual = resolve_manual(&s.manual, "sensor.manual", r);
+    let model = s.model.as_ref().map(|m| check_text(m, "sensor.model", r));
+    let model_code = s.model_code.as_ref().map(|m| {
+        let code = m.value.trim();
+        if code.len() != 2 || !code.chars().all(|c| c.is_ascii_digit()) {
+            r.error(
+                Pos::at(m),
+                "sensor.model_code",
+                format!("model code `{}` is not two digits", escape(&m.value)),
+                Some("write the two digits after `YL` in the serial number, quoted: `model_code: \"09\"`".into()),
+            );
+        }
+        code.to_string()
+    });
+    let mut ok = name_ok;
+    let serial = resolve_serial(&s.serial, "sensor.serial", r);
+    ok &= serial.is_some();
+    let mut revisions = Vec::new();
+    let mut softwares: BTreeMap<String, Pos> = BTreeMap::new();
+    if let Some(sw) = &s.manual.software {
+        softwares.insert(sw.value.clone(), Pos::at(sw));
+    }
+    for (i, rev) in s.revisions.iter().enumerate() {
+        let key = format!("sensor.revisions[{i}]");
+        let rev_manual = resolve_manual(&rev.manual, &format!("{key}.manual"), r);
+        match &rev.manual.software {
+            None => {
+                r.error(
+                    Pos::at(&rev.manual.title),
+                    format!("{key}.manual.software"),
+                    "a revision's manual needs `software`, the firmware revision it documents",
+                    Some("add `software: \"1.8\"` as the manual's scope line states it".into()),
+                );
+                ok = false;
+            }
+            Some(sw) => {
+                if s.manual.software.is_none() {
+                    r.error(
+                        Pos::at(&s.manual.title),
+                        "sensor.manual.software",
+                        "a sensor with `revisions` states the `software` of its `manual` too",
+                        Some("add `software:` to `sensor.manual`".into()),
+                    );
+                    ok = false;
+                }
+                if let Some(first) = softwares.insert(sw.value.clone(), Pos::at(sw)) {
+                    r.error(
+                        Pos::at(sw),
+                        format!("{key}.manual.software"),
+                        format!("software `{}` is already the revision of another manual", escape(&sw.value)),
+                        Some(format!(
+                            "each manual documents one software revision (the first is at line {})",
+                            first.line
+                        )),
+                    );
+                    ok = false;
+                }
+            }
+        }
+        let rev_serial = match &rev.serial {
+            Some(sd) => resolve_serial(sd, &format!("{key}.serial"), r),
+            None => serial,
+        };
+        let doc = rev.doc.as_ref().map(|d| check_text(d, &format!("{key}.doc"), r));
+        match rev_serial {
+            Some(serial) => revisions.push(Revision { manual: rev_manual, doc, serial }),
+            None => ok = false,
+        }
+    }
+    let min = s.addresses.min.value;
+    let max = s.addresses.max.value;
+    if !(1..=247).contains(&min) || !(1..=247).contains(&max) || min > max {
+        r.error(
+            Pos::at(&s.addresses.min),
+            "sensor.addresses",
+            format!("address range {min}..={max} is not a range of Modbus slave addresses"),
+            Some("use min <= max within 1..=247".into()),
+        );
+        ok = false;
+    }
+    let default = s.default_address.value;
+    if default < min || default > max {
+        r.error(
+            Pos::at(&s.default_address),
+            "sensor.default_address",
+            format!("default address {default} is outside {min}..={max}"),
+            Some("the factory address must be one of `addresses`".into()),
+        );
+        ok = false;
+    }
+    if !ok {
+        return None;
+    }
+    Some(Head {
+        name: s.name.value.clone(),
+        title,
+        doc,
+        model,
+        model_code,
+        manual,
+        revisions,
+        serial: serial?,
+        min_address: min as u8,
+        max_address: max as u8,
+        default_address: default as u8,
+    })
+}
+
+fn resolve_manual(m: &ManualDoc, key: &str, r: &mut Reporter<'_>) -> Manual {
+    Manual {
+        title: check_text(&m.title, &format!("{key}.title"), r),
+        revision: check_text(&m.revision, &format!("{key}.revision"), r),
+        software: m.software.as_ref().map(|s| check_text(s, &format!("{key}.software"), r)),
+        file: m.file.as_ref().map(|f| check_text(f, &format!("{key}.file"), r)),
+    }
+}
+
+fn resolve_serial(serial: &SerialDoc, key: &str, r: &mut Reporter<'_>) -> Option<Serial> {
+    let mut ok = true;
+    let baud = serial.baud.value;
+    if !(300..=1_000_000).contains(&baud) {
+        r.error(
+            Pos::at(&serial.baud),
+            format!("{key}.baud"),
+            format!("baud rate {baud} is not plausible"),
+            Some("use 300..=1000000 (the manuals say 9600)".into()),
+        );
+        ok = false;
+    }
+    let data_bits = serial.data_bits.value;
+    if !(7..=8).contains(&data_bits) {
+        r.error(
+            Pos::at(&serial.data_bits),
+            format!("{key}.data_bits"),
+            format!("a serial line has 7 or 8 data bits, not {data_bits}"),
+            Some("use 7 or 8 (the manuals say 8)".into()),
+        );
+        ok = false;
+    }
+    let stop_bits = serial.stop_bits.value;
+    if !(1..=2).contains(&stop_bits) {
+        r.error(
+            Pos::at(&serial.stop_bits),
+            format!("{key}.stop_bits"),
+            format!("a serial line has 1 or 2 stop bits, not {stop_bits}"),
+            Some("use 1 or 2 (the manuals say 1)".into()),
+        );
+        ok = false;
+    }
+    let parity = match serial.parity {
+        ParityDoc::None => Parity::None,
+        ParityDoc::Even => Parity::Even,
+        ParityDoc::Odd => Parity::Odd,
+    };
+    ok.then_some(Serial { baud, data_bits: data_bits as u8, parity, stop_bits: stop_bits as u8 })
+}
+
+pub(super) fn resolve_source(s: &SourceDoc, key: &str, r: &mut Reporter<'_>) -> Source {
+    let at = Pos::at(&s.section);
+    Source {
+        section: check_text(&s.section, &format!("{key}.section"), r),
+        figures: resolve_figures(&s.figures, &format!("{key}.figures"), at, r),
+        manual: s.manual.as_ref().map(|m| check_text(m, &format!("{key}.manual"), r)),
+    }
+}
