@@ -157,12 +157,12 @@ pub fn register_map(s: &Sensor) -> String {
     );
 
     d.push_str(
-        "## Commands\n\n| Command | Title | Function | Address | Registers | Section |\n|---|---|---|---|---|---|\n",
+        "## Commands\n\n| Command | Title | Function | Address | Registers | Section | Since |\n|---|---|---|---|---|---|---|\n",
     );
     for c in &s.commands {
         let _ = writeln!(
             d,
-            "| [`{}`](#{}) | {} | 0x{:02X} ({}) | 0x{:04X} | {} | {} |",
+            "| [`{}`](#{}) | {} | 0x{:02X} ({}) | 0x{:04X} | {} | {} | {} |",
             c.name,
             c.name.replace('_', "-").to_lowercase(),
             cell(&c.title),
@@ -170,7 +170,8 @@ pub fn register_map(s: &Sensor) -> String {
             if c.is_read() { "read" } else { "write" },
             c.address,
             c.count,
-            cell(&c.source.section)
+            cell(&c.source.section),
+            c.since.as_deref().map_or_else(|| "every revision".to_owned(), |v| format!("SW {}", cell(v)))
         );
     }
     d.push('\n');
