@@ -57,6 +57,47 @@ fn demo_runs_both_probes_and_prints_the_values() {
 }
 
 #[test]
+fn demo_identifies_every_sensor_of_the_spec_on_one_bus() {
+    let run = yosemitech(&["demo"]);
+    let out = run.ok();
+    let section =
+        out.split("the whole family on one RS-485 bus").nth(1).unwrap_or_else(|| panic!("no family section:\n{out}"));
+    let sensors = spec().sensors;
+    let mut addresses = Vec::new();
+    for sensor in &sensors {
+        let code = sensor.model_code.as_deref().unwrap_or_else(|| panic!("{} declares no model code", sensor.name));
+        let named = match &sensor.model {
+            Some(model) => format!("{} ({model}, code {code})", sensor.name),
+            None => format!("{} (code {code})", sensor.name),
+        };
+        let identified = format!("SN {}  {named}", own_serial_number(sensor));
+        let line = section
+            .lines()
+            .find(|l| l.contains(&identified))
+            .unwrap_or_else(|| panic!("`{identified}` missing from the family section:\n{section}"));
+        let address: usize =
+            line.trim().strip_prefix("address").and_then(|a| a.split_whitespace().next()).unwrap().parse().unwrap();
+        addresses.push(address);
+        // The firmware, and the manual that covers it.
+        if sensor.command_with_role(Role::Version).is_some() {
+            let newest = sensor.manuals().filter_map(|m| m.software.clone()).max_by_key(|sw| {
+                let (a, b) = sw.split_once('.').unwrap_or((sw, "0"));
+                (a.parse::<u32>().unwrap(), b.parse::<u32>().unwrap())
+            });
+            if let Some(sw) = newest {
+                assert!(line.contains(&format!(" SW {sw}  manual SW {sw}")), "{line}");
+            }
+        }
+    }
+    addresses.sort_unstable();
+    assert_eq!(addresses, (1..=sensors.len()).collect::<Vec<_>>(), "one address each:\n{section}");
+    assert!(!section.contains("not identified"), "{section}");
+    let count = format!("{} probes identified in ", sensors.len());
+    let requests = number_after(section, &count) as usize;
+    assert!(requests <= sensors.len() * (sn_layouts() + 1), "{requests} requests:\n{section}");
+}
+
+#[test]
 fn read_shows_values_with_units() {
     let s = sim("ph_orp", 1);
     let out = yosemitech(&["read", "ph_orp", "get_ph", "--port", &s.path]).ok().to_owned();

@@ -106,6 +106,15 @@
 //!   (`set_orp_calibration(SetOrpCalibration { k_slope: 1.0, b_offset: 0.0 })`).
 //!   `Device::call` sends any command. Commands with a fixed slave address
 //!   (`get_slave_id`, 0xFF) use it instead of the device's.
+//! - **Shared commands**: a command several probes take from the same
+//!   fragment of the spec (the serial number, the slave address, the
+//!   optical start/stop triggers, ...) is generated once, in a module named
+//!   after the fragment ([`yosemitech_common`]), and each sensor module
+//!   re-exports it: `ph_orp::GetSn` and `conductivity::GetSn` are one type.
+//! - **All sensors as data**: [`SENSORS`] lists every generated module as a
+//!   [`SensorModule`](rtu::SensorModule) (layout, identification, typed decode
+//!   and re-encode by command name), for code that serves any probe without
+//!   naming one.
 //! - **Constants** of the procedures (`ph_orp::PH_CALIBRATION_STANDARDS`,
 //!   `conductivity::MEASUREMENT_WARM_UP_MS`) and `SENSOR`, a [`SensorInfo`]
 //!   with the serial settings and address range.
@@ -135,6 +144,11 @@
 //!   (erratum E4: the manual's example prints 0x0C over 24 data bytes).
 //! - `get_slave_id` is sent to and answered from 0xFF (erratum E3).
 //! - `conductivity::StartMeasurement` writes zero registers (erratum E11).
+//! - The optical probes' Start/Stop Measurement are reads used as triggers:
+//!   their reply carries no value and is accepted in each form the manuals'
+//!   figures allow (see `rtu::Layout::trigger`).
+//! - Real probes do not answer a register they lack: a command a probe's
+//!   firmware predates (`since` in the spec) times out.
 //!
 //! # Features
 //!

@@ -7,12 +7,13 @@ use std::time::{Duration, Instant};
 
 use yosemitech::procedures::coefficients::{read_conductivity, read_ph_orp};
 use yosemitech::{conductivity, ph_orp};
-use yosemitech_rtu::{Client, ClientConfig, RetryPolicy, Transport};
+use yosemitech_rtu::{Client, ClientConfig, RetryPolicy, Transport, Version};
 use yosemitech_sim::{Bus, Device, ServeConfig, Server, Simulator, Variation, line_timing};
-use yosemitech_spec::{Sensor, Value};
+use yosemitech_spec::{FieldKind, Role, Sensor, Value};
 
 use crate::catalog::Catalog;
 use crate::cli::DemoArgs;
+use crate::commands::list::software_key;
 use crate::commands::{measure, scan};
 use crate::device::{is_typed, procedure_failed};
 use crate::error::{CliError, Context, Result, request_failed};
@@ -27,11 +28,12 @@ const ORP_MV: f32 = 215.4;
 const WATER_C: f32 = 21.3;
 const CONDUCTIVITY_MS_CM: f32 = 1.413;
 
-/// The reply timeout on the family bus. The simulators answer at once (in
-/// ~30 ms with `--line-timing`), so a read no probe answers (a serial-number
-/// read of another layout) costs little; no retries, as every address is
-/// taken.
-const BUS_TIMEOUT: Duration = Duration::from_millis(200);
+/// The reply timeout on the family bus, far below scan's usual second: the
+/// simulators answer at once (in ~30 ms with `--line-timing`), and only
+/// taken addresses are scanned, so the timeout is spent only on a
+/// serial-number read of another layout, which no probe answers. No
+/// retries: they would repeat those reads.
+const BUS_TIMEOUT: Duration = Duration::from_millis(300);
 
 /// A simulated probe served for the demo, and the client talking to it.
 struct Probe {
@@ -210,7 +212,9 @@ fn family(catalog: &Catalog, args: &DemoArgs, out: &mut dyn Write) -> Result<u64
     let mut bus = Bus::new();
     let mut addresses = Vec::new();
     for (address, entry) in (1..=247u8).zip(catalog.entries()) {
-        bus.push(Simulator::new(Arc::clone(&entry.sensor)).with_address(address));
+        let mut sim = Simulator::new(Arc::clone(&entry.sensor)).with_address(address);
+        run_newest_firmware(&mut sim, &entry.sensor)?;
+        bus.push(sim);
         addresses.push(address);
     }
     let (Some(&first), Some(&last)) = (addresses.first(), addresses.last()) else {
@@ -252,4 +256,21 @@ fn family(catalog: &Catalog, args: &DemoArgs, out: &mut dyn Write) -> Result<u64
         started.elapsed().as_secs_f64()
     )?;
     Ok(answered)
+}
+
+/// Makes a simulated probe report the software revision of its newest
+/// manual: the register examples it starts from often show an older one
+/// (1.0), and the scan would then find no manual covering it.
+fn run_newest_firmware(sim: &mut Simulator, sensor: &Sensor) -> Result<()> {
+    let Some(command) = sensor.command_with_role(Role::Version) else { return Ok(()) };
+    let versions: Vec<_> = command.named_fields().filter(|f| matches!(f.kind, FieldKind::Version)).collect();
+    let Some(field) = versions.iter().find(|f| f.display_name() == "software").or(versions.last()) else {
+        return Ok(());
+    };
+    let Some((major, minor)) = sensor.manuals().filter_map(|m| m.software.as_deref()).map(software_key).max() else {
+        return Ok(());
+    };
+    let (Ok(major), Ok(minor)) = (u8::try_from(major), u8::try_from(minor)) else { return Ok(()) };
+    sim.set(&command.name, field.display_name(), Value::Version(Version::new(major, minor)))
+        .map_err(|e| CliError::device(format!("cannot set up the simulated {}: {e}", sensor.name)))
 }
