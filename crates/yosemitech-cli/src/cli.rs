@@ -515,4 +515,12 @@ pub struct SimulateArgs {
     /// Emulate the serial line's timing (9600 baud: about 25 ms per get_ph).
     #[arg(long)]
     pub line_timing: bool,
+    /// Answer requests for registers the probe lacks with Modbus exceptions
+    /// (01/02/03), as a general Modbus stack does; a real probe stays silent.
+    #[arg(long)]
+    pub exceptions: bool,
+    /// Send the serial number exactly as the manual prints it (0x00 before
+    /// it, the manual's text), instead of with the model code, as real probes do.
+    #[arg(long)]
+    pub serial_as_printed: bool,
 }

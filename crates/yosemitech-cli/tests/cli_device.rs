@@ -724,6 +724,37 @@ fn simulate_serves_rtu_over_tcp() {
 }
 
 #[test]
+fn simulate_is_silent_for_registers_the_probe_lacks_unless_asked_for_exceptions() {
+    // A read the first sensor of the spec lacks, from another sensor's command.
+    let spec = spec();
+    let sensor = &spec.sensors[0];
+    let (owner, foreign) = spec
+        .sensors
+        .iter()
+        .flat_map(|s| s.commands.iter().map(move |c| (s, c)))
+        .find(|(_, c)| {
+            c.is_read()
+                && !c.trigger
+                && c.fixed_slave.is_none()
+                && !sensor.commands.iter().any(|m| m.function == c.function && m.address == c.address)
+        })
+        .expect("some sensor reads a register the first one lacks");
+    for (flags, expected) in [(&[][..], "no reply"), (&["--exceptions"][..], "Modbus exception")] {
+        let mut args = vec![sensor.name.as_str(), "--tcp", "127.0.0.1:0"];
+        args.extend_from_slice(flags);
+        let (child, port) = spawn_simulate(&args);
+        let run =
+            yosemitech(&["read", &owner.name, &foreign.name, "-p", &port, "--timeout", "500ms", "--retries", "0"]);
+        assert_eq!(run.code, 1, "{flags:?}: {}", run.stderr);
+        assert!(run.stderr.contains(expected), "{flags:?}: {}", run.stderr);
+        let err = interrupt(child);
+        if flags.is_empty() {
+            assert!(err.contains("1 ignored (registers the probe lacks)"), "{err}");
+        }
+    }
+}
+
+#[test]
 fn simulate_injects_faults_the_client_retries() {
     let (child, port) = spawn_simulate(&["ph_orp", "--faults", "drop=0.3,corrupt_crc=0.2", "--seed", "5"]);
     let run = yosemitech(&[

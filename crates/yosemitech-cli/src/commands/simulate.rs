@@ -5,7 +5,10 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Duration;
 
-use yosemitech_sim::{FaultConfig, FaultKind, ServeConfig, Server, Simulator, Variation, line_timing, serve_tcp};
+use yosemitech_sim::{
+    FaultConfig, FaultKind, SerialNumberPolicy, ServeConfig, Server, Simulator, UnknownRequestPolicy, Variation,
+    line_timing, serve_tcp,
+};
 
 use crate::catalog::Catalog;
 use crate::cli::SimulateArgs;
@@ -63,6 +66,12 @@ pub fn run(catalog: &Catalog, args: &SimulateArgs, stop: &Arc<AtomicBool>, out: 
     if let Some(noise) = args.noise {
         sim.set_variation(Some(Variation { seed: args.seed, noise, drift_per_read: 0.0 }));
     }
+    if args.exceptions {
+        sim.set_unknown_request_policy(UnknownRequestPolicy::Exception);
+    }
+    if args.serial_as_printed {
+        sim.set_serial_number_policy(SerialNumberPolicy::AsPrinted);
+    }
     let config = if args.line_timing { ServeConfig::emulating(line_timing(&sensor)) } else { ServeConfig::default() };
     let (server, endpoint): (Server<Simulator>, String) = match &args.tcp {
         Some(addr) => {
@@ -90,11 +99,12 @@ pub fn run(catalog: &Catalog, args: &SimulateArgs, stop: &Arc<AtomicBool>, out: 
     };
     let _ = writeln!(
         std::io::stderr().lock(),
-        "stopped: {} requests, {} replies, {} exceptions, {} ignored (bad CRC), faults: {faults}",
+        "stopped: {} requests, {} replies, {} exceptions, {} ignored (bad CRC), {} ignored (registers the probe lacks), faults: {faults}",
         stats.requests,
         stats.replies,
         stats.exceptions,
-        stats.ignored_bad_crc
+        stats.ignored_bad_crc,
+        stats.ignored_unknown
     );
     server.stop().map_err(|e| CliError::device(format!("the simulator stopped with an error: {e}")))
 }
