@@ -65,10 +65,36 @@ fn decode(c: &mut Criterion) {
     group.finish();
 }
 
+/// Every complete example reply of every sensor of the spec, decoded by
+/// name through the generated dispatch (`yosemitech::SENSORS`): the cost of
+/// the family's replies, with no sensor named here.
+fn decode_every_example(c: &mut Criterion) {
+    let mut group = c.benchmark_group("decode_every_example");
+    for module in yosemitech::SENSORS {
+        let Ok(sensor) = yosemitech_bench::sensor(module.info.name) else { continue };
+        for command in sensor.commands.iter().filter(|c| c.is_read()) {
+            let Some(example) = command.examples.iter().find(|e| e.true_pair().is_some()) else { continue };
+            let Some(reply) = example.true_response().map(<[u8]>::to_vec) else { continue };
+            let slave = example.slave();
+            let name = command.name.clone();
+            let decoded = (module.visit_response)(&name, slave, &reply, &mut |_, _| {});
+            assert_eq!(decoded, Some(Ok(())), "{}.{name}", module.info.name);
+            group.bench_function(format!("{}/{name}", module.info.name), |b| {
+                b.iter(|| {
+                    let mut fields = 0usize;
+                    let _ = (module.visit_response)(&name, black_box(slave), black_box(&reply), &mut |_, _| fields += 1);
+                    fields
+                })
+            });
+        }
+    }
+    group.finish();
+}
+
 criterion_group! {
     name = benches;
     // Short defaults for a shared machine; `-- --measurement-time N` overrides.
     config = Criterion::default().warm_up_time(Duration::from_secs(1)).measurement_time(Duration::from_secs(3));
-    targets = crc, encode, decode
+    targets = crc, encode, decode, decode_every_example
 }
 criterion_main!(benches);
