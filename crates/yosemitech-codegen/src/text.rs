@@ -167,7 +167,7 @@ pub fn serial(serial: &yosemitech_spec::Serial) -> String {
 }
 
 /// One line per manual of a sensor, oldest software first when stated:
-/// "SW 1.1: <title> (<revision>), 9600 baud, 8N2".
+/// `SW 1.1: "TITLE" (REVISION), 9600 baud, 8N2`.
 pub fn manuals(sensor: &yosemitech_spec::Sensor) -> Vec<String> {
     let mut manuals: Vec<(&yosemitech_spec::Manual, yosemitech_spec::Serial, Option<&str>)> =
         vec![(&sensor.manual, sensor.serial, None)];
