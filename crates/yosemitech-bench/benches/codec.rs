@@ -82,7 +82,8 @@ fn decode_every_example(c: &mut Criterion) {
             group.bench_function(format!("{}/{name}", module.info.name), |b| {
                 b.iter(|| {
                     let mut fields = 0usize;
-                    let _ = (module.visit_response)(&name, black_box(slave), black_box(&reply), &mut |_, _| fields += 1);
+                    let _ =
+                        (module.visit_response)(&name, black_box(slave), black_box(&reply), &mut |_, _| fields += 1);
                     fields
                 })
             });

@@ -1054,56 +1054,46 @@ fn command(names: &Names, ci: usize, c: &Command) -> TokenStream {
     let docs = doc(&command_doc(c));
     let mut out = TokenStream::new();
     match c.function {
-        Function::Read if !c.trigger => {
+        Function::Read => {
             let resp = ident(&n.response);
-            let resp_docs = doc(&format!(
-                "Reply to [`{}`]. {}",
-                n.ty,
-                one_line(&c.doc).split(". ").next().unwrap_or_default().trim_end_matches('.').to_owned() + "."
-            ));
-            out.extend(struct_def(&ty, &[], docs));
-            out.extend(message_impl(&ty, &[], c, false, false));
-            let validate_response =
-                if has_validate(&gens, false) { quote!(response.validate()?;) } else { TokenStream::new() };
-            out.extend(struct_def(&resp, &gens, resp_docs));
-            out.extend(message_impl(&resp, &gens, c, true, false));
-            out.extend(quote! {
-                impl rtu::Command for #ty {
-                    type Response = #resp;
-                    const NAME: &'static str = #name;
-                    const LAYOUT: rtu::Layout<'static> = #layout;
-
-                    fn encode_request(&self, slave: u8, out: &mut [u8]) -> Result<usize, rtu::EncodeError> {
-                        Self::LAYOUT.encode_request(slave, &[], out)
-                    }
-
-                    fn decode_request(frame: &[u8]) -> Result<(u8, Self), rtu::FrameError> {
-                        let (slave, _) = Self::LAYOUT.decode_request(frame)?;
-                        Ok((slave, Self))
-                    }
-
-                    fn encode_response(response: &#resp, slave: u8, out: &mut [u8]) -> Result<usize, rtu::EncodeError> {
+            // A trigger read (a read used as a command) ignores its reply's data.
+            let (resp_gens, resp_docs, encode_body, decode_body) = if c.trigger {
+                (
+                    &[][..],
+                    doc(&format!("Reply to [`{}`]: an acknowledgement that carries no value.", n.ty)),
+                    quote!(Self::LAYOUT.encode_response(slave, &[], out)),
+                    quote! {
+                        Self::LAYOUT.decode_response(slave, frame)?;
+                        Ok(#resp)
+                    },
+                )
+            } else {
+                let validate_response =
+                    if has_validate(&gens, false) { quote!(response.validate()?;) } else { TokenStream::new() };
+                (
+                    &gens[..],
+                    doc(&format!(
+                        "Reply to [`{}`]. {}",
+                        n.ty,
+                        one_line(&c.doc).split(". ").next().unwrap_or_default().trim_end_matches('.').to_owned() + "."
+                    )),
+                    quote! {
                         #validate_response
                         Self::LAYOUT.encode_response(slave, &response.to_data(), out)
-                    }
-
-                    fn decode_response(slave: u8, frame: &[u8]) -> Result<#resp, rtu::FrameError> {
+                    },
+                    quote! {
                         let data = Self::LAYOUT.decode_response(slave, frame)?;
                         let data = <&[u8; #len_lit]>::try_from(data)
                             .map_err(|_| rtu::FrameError::Truncated { expected: Self::RESPONSE_LEN, actual: frame.len() })?;
                         Ok(#resp::from_data(data))
-                    }
-                }
-            });
-        }
-        Function::Read => {
-            // A read used as a command: the reply's data is never read.
-            let resp = ident(&n.response);
-            let resp_docs = doc(&format!("Reply to [`{}`]: an acknowledgement that carries no value.", n.ty));
+                    },
+                )
+            };
+            let response_param = if c.trigger { format_ident!("_response") } else { format_ident!("response") };
             out.extend(struct_def(&ty, &[], docs));
             out.extend(message_impl(&ty, &[], c, false, false));
-            out.extend(struct_def(&resp, &[], resp_docs));
-            out.extend(message_impl(&resp, &[], c, false, false));
+            out.extend(struct_def(&resp, resp_gens, resp_docs));
+            out.extend(message_impl(&resp, resp_gens, c, !c.trigger, false));
             out.extend(quote! {
                 impl rtu::Command for #ty {
                     type Response = #resp;
@@ -1119,13 +1109,12 @@ fn command(names: &Names, ci: usize, c: &Command) -> TokenStream {
                         Ok((slave, Self))
                     }
 
-                    fn encode_response(_response: &#resp, slave: u8, out: &mut [u8]) -> Result<usize, rtu::EncodeError> {
-                        Self::LAYOUT.encode_response(slave, &[], out)
+                    fn encode_response(#response_param: &#resp, slave: u8, out: &mut [u8]) -> Result<usize, rtu::EncodeError> {
+                        #encode_body
                     }
 
                     fn decode_response(slave: u8, frame: &[u8]) -> Result<#resp, rtu::FrameError> {
-                        Self::LAYOUT.decode_response(slave, frame)?;
-                        Ok(#resp)
+                        #decode_body
                     }
                 }
             });

@@ -444,20 +444,25 @@ fn resolve_field(f: &FieldDoc, key: &str, at: Pos, offset: usize, r: &mut Report
     ok.then_some(field)
 }
 
-fn resolve_flags(f: &FieldDoc, key: &str, at: Pos, r: &mut Reporter<'_>) -> Option<FieldKind> {
-    let repr = match f.size.as_ref().map(|s| (s.value, Pos::at(s))) {
+/// The size (and order) of an enum or flags code: 1 byte, or 2 with a `byte_order`.
+fn code_repr(f: &FieldDoc, what: &str, key: &str, at: Pos, r: &mut Reporter<'_>) -> Option<EnumRepr> {
+    match f.size.as_ref().map(|s| (s.value, Pos::at(s))) {
         None | Some((1, _)) => Some(EnumRepr::U8),
         Some((2, _)) => order2(f.byte_order.as_ref(), &format!("{key}.byte_order"), at, r).map(EnumRepr::U16),
         Some((s, pos)) => {
             r.error(
                 pos,
                 format!("{key}.size"),
-                format!("a flags field is 1 or 2 bytes, not {s}"),
+                format!("{what} is 1 or 2 bytes, not {s}"),
                 Some("use `size: 1`, or `size: 2` with a `byte_order`".into()),
             );
             None
         }
-    };
+    }
+}
+
+fn resolve_flags(f: &FieldDoc, key: &str, at: Pos, r: &mut Reporter<'_>) -> Option<FieldKind> {
+    let repr = code_repr(f, "a flags field", key, at, r);
     let Some(flags) = &f.flags else {
         r.error(
             at,
@@ -522,19 +527,7 @@ fn type_name(ty: FieldTypeDoc) -> &'static str {
 }
 
 fn resolve_enum(f: &FieldDoc, key: &str, at: Pos, r: &mut Reporter<'_>) -> Option<FieldKind> {
-    let repr = match f.size.as_ref().map(|s| (s.value, Pos::at(s))) {
-        None | Some((1, _)) => Some(EnumRepr::U8),
-        Some((2, _)) => order2(f.byte_order.as_ref(), &format!("{key}.byte_order"), at, r).map(EnumRepr::U16),
-        Some((s, pos)) => {
-            r.error(
-                pos,
-                format!("{key}.size"),
-                format!("an enum code is 1 or 2 bytes, not {s}"),
-                Some("use `size: 1`, or `size: 2` with a `byte_order`".into()),
-            );
-            None
-        }
-    };
+    let repr = code_repr(f, "an enum code", key, at, r);
     let Some(variants) = &f.variants else {
         r.error(
             at,
