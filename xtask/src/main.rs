@@ -6,6 +6,7 @@
 //! cargo xtask codegen [--check]    write the generated code where people can read it
 //! cargo xtask docs [--check]       write docs/sensors/<sensor>.md
 //! cargo xtask fuzz --seconds N     run every fuzz target for N seconds
+//! cargo xtask import MANUAL [--name NAME] [--out FILE] | --accuracy [--write]
 //! ```
 
 use std::path::PathBuf;
@@ -14,6 +15,7 @@ use std::process::ExitCode;
 mod codegen;
 mod docs;
 mod fuzz;
+mod import;
 mod schema;
 mod validate;
 
@@ -40,7 +42,7 @@ pub fn check_flag(args: &[String], usage: &str) -> anyhow::Result<Option<bool>> 
     Ok(Some(check))
 }
 
-const USAGE: &str = "usage: cargo xtask <validate [PATH...] | schema [--check] | codegen [--check] | docs [--check] | fuzz --seconds N>";
+const USAGE: &str = "usage: cargo xtask <validate [PATH...] | schema [--check] | codegen [--check] | docs [--check] | fuzz --seconds N | import MANUAL [--name NAME] [--out FILE] | import --accuracy [--write]>";
 
 fn main() -> ExitCode {
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -54,6 +56,7 @@ fn main() -> ExitCode {
         "codegen" => codegen::run(rest),
         "docs" => docs::run(rest),
         "fuzz" => fuzz::run(rest),
+        "import" => import::run(rest),
         "-h" | "--help" | "help" => {
             println!("{USAGE}");
             return ExitCode::SUCCESS;

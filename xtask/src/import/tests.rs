@@ -1,0 +1,130 @@
+//! Unit tests of the importer. The accuracy test needs the vendor manuals in
+//! `../shared/` (never copied into the repository); it skips, loudly, without them.
+
+use super::*;
+
+/// A made-up manual in the template's shape (no vendor text).
+fn synthetic(crc: &str) -> String {
+    format!(
+        "Yosemitech test probe\n\nMODBUS RTU\n\n1.1 Scope\nA probe with hardware Rev2.0 and software Rev3.4 or later.\nBaud rate: 19200bps\n8 data bits\nNo parity\n1 stop bit\n\n\
+2.2 Command Description\n\n2.2.1 Get Level\nStart address   Number of registers   Register 1-2   MODBUS function code\n  0x2600          0x02                Level           0x03\nFigure 5: Register definition of Get Level\n\
+Definition  Address  Function  Start address  Number of registers  CRC\n Byte  0  1  2  3  4  5  6  7\n Value  0x01  0x03  0x26  0x00  0x00  0x02  {crc}\nFigure 6: Request frame to Get Level\n\
+Definition  Address  Function  Number of bytes  Register value  CRC\n Byte  0  1  2  3-6  7  8\n Value  0x01  0x03  0x04  17.625\nFigure 7: Response frame for Get Level\n\n3 Procedure\n"
+    )
+}
+
+fn import(text: &str) -> Result<Draft, BadInput> {
+    import_with(text, "probe", "test.txt", &[])
+}
+
+#[test]
+fn synthetic_manual_is_drafted() {
+    let crc = yosemitech_rtu::crc16(&[0x01, 0x03, 0x26, 0x00, 0x00, 0x02]).to_le_bytes();
+    let d = import(&synthetic(&format!("0x{:02X}  0x{:02X}", crc[0], crc[1]))).expect("imports");
+    assert_eq!(d.commands.len(), 1);
+    let c = &d.commands[0];
+    assert_eq!((c.function, c.address, c.count), (Some(0x03), Some(0x2600), Some(2)));
+    assert_eq!(c.fields.len(), 1);
+    assert_eq!((c.fields[0].ty, c.fields[0].order, c.fields[0].offset), ("f32", Some("dcba"), 0));
+    assert_eq!(c.examples.len(), 1);
+    let e = &c.examples[0];
+    assert!(e.request.as_ref().is_some_and(Frame::crc_verified));
+    assert_eq!(e.response.as_ref().map(Frame::text).as_deref(), Some("01 03 04 00 00 8D 41"));
+    assert!(d.yaml.contains("response_crc: missing"), "{}", d.yaml);
+    assert!(d.yaml.contains("revision: \"HW Rev2.0 / SW Rev3.4 or later\""), "{}", d.yaml);
+    assert!(d.yaml.contains("serial: {baud: 19200, data_bits: 8, parity: none, stop_bits: 1}"), "{}", d.yaml);
+    assert!(d.yaml.contains("values: {level: 17.625}"), "{}", d.yaml);
+    let r = d.report();
+    assert!(r.contains("frames found: 2; CRC verified: 1; CRC wrong: 0 (drafted as errata); without CRC: 1"), "{r}");
+}
+
+#[test]
+fn wrong_crc_becomes_an_erratum_with_the_right_crc() {
+    let d = import(&synthetic("0x12  0x34")).expect("imports");
+    let crc = yosemitech_rtu::crc16(&[0x01, 0x03, 0x26, 0x00, 0x00, 0x02]).to_le_bytes();
+    assert!(d.yaml.contains("request: \"01 03 26 00 00 02 12 34\""), "{}", d.yaml);
+    let corrected = format!("corrected_request: \"01 03 26 00 00 02 {:02X} {:02X}\"", crc[0], crc[1]);
+    assert!(d.yaml.contains(&corrected), "{}", d.yaml);
+    assert!(d.yaml.contains("printed_decodes: false"));
+    assert!(d.report().contains("CRC wrong: 1"), "{}", d.report());
+}
+
+#[test]
+fn placeholder_data_is_left_unknown_and_marked() {
+    let text = synthetic("0x00 0x00").replace("17.625", "Value");
+    let d = import(&text).expect("imports");
+    let e = &d.commands[0].examples[0];
+    assert_eq!(e.response.as_ref().map(Frame::text).as_deref(), Some("01 03 04 ?? ?? ?? ??"));
+    assert!(d.yaml.contains("todo_import:"), "validate must keep failing: {}", d.yaml);
+    assert!(d.todo_count() >= 1);
+}
+
+#[test]
+fn bad_inputs_are_refused() {
+    for (text, what) in [
+        ("", "empty"),
+        ("   \n\t\n", "empty"),
+        ("Quarterly report\nRevenue grew.\n", "Yosemitech"),
+        ("Yosemitech datasheet\nMODBUS\nno commands here\n", "Command Description"),
+    ] {
+        let e = import(text).expect_err(text);
+        assert!(e.0.contains(what), "{text:?}: {}", e.0);
+    }
+    assert!(decode_text(b"\x00\x01\x02binary").unwrap_err().0.contains("binary"));
+    assert!(decode_text(&[0xff, 0xfe, 0x41]).unwrap_err().0.contains("UTF-8"));
+}
+
+#[test]
+fn huge_and_missing_files_are_refused() {
+    let dir = std::env::temp_dir().join(format!("xtask-import-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let big = dir.join("big.txt");
+    let f = std::fs::File::create(&big).unwrap();
+    f.set_len(100 * 1024 * 1024).unwrap(); // sparse: costs nothing
+    assert!(read_manual(&big).unwrap_err().0.contains("too large"));
+    assert!(read_manual(&dir.join("absent.txt")).unwrap_err().0.contains("cannot read"));
+    assert!(read_manual(&dir).unwrap_err().0.contains("directory"));
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// Each manual held to its figures (right, of total): commands, fields, frames; and a TODO ceiling.
+/// Raise these when the importer improves; a regression fails.
+const FLOORS: &[(&str, usize, usize, usize, usize)] = &[
+    ("Y4000-Sonde-1.6-ModbusInstruction-en.txt", 10, 5, 20, 13),
+    ("Y510-Turbidity_1.7-ModbusInstruction-en.txt", 9, 15, 18, 3),
+    ("Y514-Chlorophyl+Wiper-v1.6_ModbusInstructions.txt", 12, 17, 24, 4),
+    ("Y520-Conductivity-v1.8_ModbusInstructions.txt", 9, 15, 18, 3),
+    ("Y532-pH-v1.1_ModbusInstructions.txt", 9, 11, 16, 4),
+    ("Y551-UV254-COD_Modbus_v2020-05-11.txt", 13, 18, 26, 4),
+    ("conductivity-probe-modbus-manual.txt", 7, 13, 14, 1),
+    ("ph-orp-optical-probe-modbus-manual.txt", 16, 23, 29, 7),
+];
+
+#[test]
+fn accuracy_against_the_reviewed_specs() {
+    let Some(rows) = accuracy_all().expect("spec/ loads") else {
+        eprintln!(
+            "\n*** SKIPPED: ../shared (the vendor manuals) is absent next to the repository; the importer's accuracy was NOT checked ***\n"
+        );
+        return;
+    };
+    assert_eq!(rows.len(), FLOORS.len(), "manuals found: {:?}", rows.iter().map(|r| &r.manual).collect::<Vec<_>>());
+    for (file, commands, fields, frames, todos) in FLOORS {
+        let r = rows.iter().find(|r| r.manual == *file).unwrap_or_else(|| panic!("{file} not imported"));
+        assert!(r.commands.0 >= *commands, "{file}: commands {:?} < {commands}", r.commands);
+        assert!(r.fields.0 >= *fields, "{file}: fields {:?} < {fields}", r.fields);
+        assert!(r.frames.0 >= *frames, "{file}: frames {:?} < {frames}", r.frames);
+        assert!(r.todos <= *todos, "{file}: {} TODOs > {todos}", r.todos);
+        assert!(r.millis < 1000.0, "{file}: import took {} ms", r.millis);
+    }
+}
+
+#[test]
+fn docs_table_is_current() {
+    let Some(rows) = accuracy_all().expect("spec/ loads") else {
+        eprintln!("\n*** SKIPPED: ../shared is absent; docs/importer.md's table was NOT checked ***\n");
+        return;
+    };
+    let doc = std::fs::read_to_string(crate::root().join("docs/importer.md")).expect("docs/importer.md");
+    assert!(doc.contains(&table(&rows)), "docs/importer.md is stale: run `cargo xtask import --accuracy --write`");
+}
