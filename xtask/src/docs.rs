@@ -2,13 +2,10 @@
 //! register map per sensor, from `spec/`. `--check` fails when a map is stale
 //! or left over (CI).
 
-use std::collections::BTreeSet;
 use std::fmt::Write as _;
-use std::fs;
 use std::path::Path;
 use std::process::ExitCode;
 
-use anyhow::Context as _;
 use yosemitech_codegen::text;
 use yosemitech_spec::{Command, EnumRepr, Field, FieldKind, Order2, Order4, Sensor, Value};
 
@@ -21,57 +18,15 @@ pub fn run(args: &[String]) -> anyhow::Result<ExitCode> {
     };
     let root = crate::root();
     let spec = yosemitech_spec::load_paths(&[root.join("spec")]).map_err(|e| anyhow::anyhow!("{e}"))?;
-    let dir = root.join("docs/sensors");
-    let files: Vec<(String, String)> =
-        spec.sensors.iter().map(|s| (format!("{}.md", s.name), register_map(s))).collect();
-    let wanted: BTreeSet<&str> = files.iter().map(|(n, _)| n.as_str()).collect();
-    let mut extra = Vec::new();
-    if let Ok(entries) = fs::read_dir(&dir) {
-        for entry in entries {
-            let name = entry?.file_name().to_string_lossy().into_owned();
-            if name.ends_with(".md") && !wanted.contains(name.as_str()) {
-                extra.push(name);
-            }
-        }
+    let files = spec.sensors.iter().map(|s| (format!("{}.md", s.name), register_map(s))).collect();
+    crate::generated_files::GeneratedFiles {
+        what: "register maps",
+        command: "cargo xtask docs",
+        dir: root.join("docs/sensors"),
+        files,
+        owns_suffix: Some(".md"),
     }
-    extra.sort();
-
-    if check {
-        let mut stale = Vec::new();
-        for (name, contents) in &files {
-            if fs::read_to_string(dir.join(name)).ok().as_deref() != Some(contents.as_str()) {
-                stale.push(format!("docs/sensors/{name} is stale or missing"));
-            }
-        }
-        for name in &extra {
-            stale.push(format!("docs/sensors/{name} describes no sensor of the spec"));
-        }
-        if stale.is_empty() {
-            println!("register maps are up to date ({} files)", files.len());
-            return Ok(ExitCode::SUCCESS);
-        }
-        for s in &stale {
-            eprintln!("error: {s}");
-        }
-        eprintln!("run `cargo xtask docs` and commit the result");
-        return Ok(ExitCode::FAILURE);
-    }
-
-    fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
-    for (name, contents) in &files {
-        let path = dir.join(name);
-        if fs::read_to_string(&path).ok().as_deref() == Some(contents.as_str()) {
-            continue;
-        }
-        fs::write(&path, contents).with_context(|| format!("writing {}", path.display()))?;
-        println!("wrote docs/sensors/{name}");
-    }
-    for name in &extra {
-        fs::remove_file(dir.join(name)).with_context(|| format!("removing docs/sensors/{name}"))?;
-        println!("removed docs/sensors/{name}");
-    }
-    println!("register maps are up to date ({} files)", files.len());
-    Ok(ExitCode::SUCCESS)
+    .ensure(check)
 }
 
 /// Text on one line, safe inside a Markdown table cell.

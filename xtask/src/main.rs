@@ -15,6 +15,7 @@ use std::process::ExitCode;
 mod codegen;
 mod docs;
 mod fuzz;
+mod generated_files;
 mod import;
 mod schema;
 mod validate;
