@@ -1046,6 +1046,23 @@ pub fn import_with(text: &str, name: &str, file: &str, shared: &[Shared]) -> Res
         }
         commands.push(c);
     }
+    // The read and the write of the same registers share one layout.
+    for k in 0..commands.len() {
+        let c = &commands[k];
+        if !c.fields.is_empty() || c.uses.is_some() || c.address.is_none() || c.count.is_none_or(|n| n == 0) {
+            continue;
+        }
+        let twin = commands
+            .iter()
+            .find(|o| o.address == c.address && o.count == c.count && o.uses.is_none() && !o.fields.is_empty());
+        if let Some(o) = twin {
+            let (fields, section) = (o.fields.clone(), o.section.clone());
+            let c = &mut commands[k];
+            c.fields = fields;
+            c.todos.retain(|t| !t.starts_with("register data layout") && !t.contains("field type"));
+            c.todos.push(format!("fields as in section {section} (same registers): check them"));
+        }
+    }
     let mut todos = Vec::new();
     if header.revision.is_none() {
         todos.push("the manual's scope line names no software revision".into());
@@ -1191,6 +1208,40 @@ fn import_command(sec: &[String], shared: &[Shared]) -> DCommand {
     {
         c.fields = infer_fields(&b.data, usize::from(count) * 2, &labels, sec, &mut c.todos);
     }
+    // One register printed as a word ("Flag", "Status") over a code table.
+    if let (Some((_, b)), Some(1)) = (carrier, c.count)
+        && c.fields.is_empty()
+        && (b.frame.open_ended || b.data.iter().any(|d| matches!(d.1, Item::Word(_))))
+    {
+        let mut codes = code_table(sec, 0);
+        if codes.len() < 2 {
+            // Text converted without `-layout`: single spaces between cells.
+            let spaced: Vec<String> = sec.iter().map(|l| l.split_whitespace().collect::<Vec<_>>().join("  ")).collect();
+            codes = code_table(&spaced, 0);
+        }
+        if codes.len() >= 2 {
+            let label = labels.first().cloned().unwrap_or_default();
+            let name = snake(&label);
+            let name = if name.is_empty() { "value".to_string() } else { name };
+            let flag_word = label.to_ascii_lowercase().contains("flag");
+            c.fields.extend(code_fields(0, name, codes, Some(flag_word)));
+            c.todos.retain(|t| !t.contains("field type") && !t.starts_with("fields cover"));
+            c.todos.push("bytes 0..1: the code sits in the register's first byte; check the code names".into());
+        }
+    }
+    // A byte table naming the data's bytes, printed apart from the frame.
+    if let (Some((_, b)), Some(count)) = (carrier, c.count)
+        && c.fields.is_empty()
+        && count > 0
+    {
+        let data_start = if b.is_request { 7 } else { 3 };
+        let printed: Vec<u8> = b.frame.bytes.iter().skip(data_start).flatten().copied().collect();
+        let fields = layout::fields_from_tables(sec, data_start, usize::from(count) * 2, &printed);
+        if !fields.is_empty() {
+            c.todos.retain(|t| !t.contains("field type") && !t.starts_with("fields cover"));
+            c.fields = fields;
+        }
+    }
     if c.count.is_some_and(|n| n > 0)
         && c.fields.is_empty()
         && !(c.function == Some(0x03)
@@ -1321,25 +1372,7 @@ fn infer_fields(
                     let codes = code_table(sec, 0);
                     let l = label_iter.next().cloned().unwrap_or_else(|| format!("value_{off}"));
                     if codes.len() >= 2 {
-                        let nonzero: Vec<u16> = codes.iter().map(|c| c.0).filter(|v| *v != 0).collect();
-                        let is_flags = nonzero.len() >= 3 && nonzero.iter().all(|v| v.is_power_of_two());
-                        let codes = if is_flags { codes.into_iter().filter(|c| c.0 != 0).collect() } else { codes };
-                        fields.push(DField {
-                            name: Some(name_at(*off, &l)),
-                            ty: if is_flags { "flags" } else { "enum" },
-                            order: None,
-                            offset: *off,
-                            size: 1,
-                            codes,
-                        });
-                        fields.push(DField {
-                            name: None,
-                            ty: "reserved",
-                            order: None,
-                            offset: off + 1,
-                            size: 1,
-                            codes: Vec::new(),
-                        });
+                        fields.extend(code_fields(*off, name_at(*off, &l), codes, None));
                         todos.push(format!(
                             "bytes {off}..{}: the code sits in the register's first byte; check the code names",
                             off + 1
@@ -1358,6 +1391,26 @@ fn infer_fields(
                             off + 1
                         ));
                     }
+                } else if run == 4 && off % 2 == 0 && {
+                    let printed: Vec<u8> = data[k..j]
+                        .iter()
+                        .filter_map(|d| match d.1 {
+                            Item::Byte(b) => Some(b),
+                            _ => None,
+                        })
+                        .collect();
+                    printed.len() == 4 && layout::reads_as_printed_decimal(sec, &printed)
+                } {
+                    // The section prints the decimal these bytes read as.
+                    let l = label_iter.next().cloned().unwrap_or_else(|| format!("value_{off}"));
+                    fields.push(DField {
+                        name: Some(name_at(*off, &l)),
+                        ty: "f32",
+                        order: Some("dcba"),
+                        offset: *off,
+                        size: 4,
+                        codes: Vec::new(),
+                    });
                 } else {
                     todos.push(format!("bytes {off}..{}: field type unknown", run_end - 1));
                     return Vec::new();
@@ -1374,6 +1427,30 @@ fn infer_fields(
         return Vec::new();
     }
     fields
+}
+
+/// A one-register code: an `enum` (or `flags` when every non-zero code is
+/// a single bit) in the first byte, the second reserved.
+/// `flag_word`: whether the register's label calls it a flag, when known.
+fn code_fields(off: usize, name: String, codes: Vec<(u16, String)>, flag_word: Option<bool>) -> [DField; 2] {
+    let nonzero: Vec<u16> = codes.iter().map(|c| c.0).filter(|v| *v != 0).collect();
+    let bits = nonzero.iter().all(|v| v.is_power_of_two());
+    let is_flags = match flag_word {
+        Some(w) => w && bits && nonzero.len() >= 2,
+        None => nonzero.len() >= 3 && bits,
+    };
+    let codes = if is_flags { codes.into_iter().filter(|c| c.0 != 0).collect() } else { codes };
+    [
+        DField {
+            name: Some(name),
+            ty: if is_flags { "flags" } else { "enum" },
+            order: None,
+            offset: off,
+            size: 1,
+            codes,
+        },
+        DField { name: None, ty: "reserved", order: None, offset: off + 1, size: 1, codes: Vec::new() },
+    ]
 }
 
 fn example_values(fields: &[DField], data: &[(usize, Item)]) -> Vec<(usize, String)> {
@@ -1866,5 +1943,6 @@ fn accuracy_task(write: bool) -> anyhow::Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
+mod layout;
 #[cfg(test)]
 mod tests;
