@@ -154,10 +154,7 @@ fn every_printed_frame_replays() {
                         if spec_cmd.is_read() {
                             // The byte count the manual prints must be one the command accepts.
                             let count = printed.byte(2).unwrap_or((2 * layout.count) as u8);
-                            let accepted = count == (2 * layout.count) as u8
-                                || (layout.trigger && count == 0)
-                                || layout.extra_byte_counts.contains(&count);
-                            assert!(accepted, "{what}: printed byte count 0x{count:02X}");
+                            assert!(layout.accepts_byte_count(count), "{what}: printed byte count 0x{count:02X}");
                             head.push(count);
                             if layout.trigger && count == 0 {
                                 // What the manual states of a trigger's reply, completed with

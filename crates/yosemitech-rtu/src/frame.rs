@@ -110,6 +110,14 @@ impl Layout<'_> {
         }
     }
 
+    /// Whether a read reply may carry byte count `count` in front of its
+    /// `2 * count` data bytes: the Modbus count, a documented firmware quirk
+    /// (`extra_byte_counts`), or 0 for a trigger read. The one rule every
+    /// decoder, the spec validator and the CLI apply.
+    pub fn accepts_byte_count(&self, count: u8) -> bool {
+        usize::from(count) == self.data_len() || self.extra_byte_counts.contains(&count) || (self.trigger && count == 0)
+    }
+
     /// Bytes of register data in the request (writes) or zero (reads).
     pub const fn request_data_len(&self) -> usize {
         match self.function {
@@ -252,16 +260,13 @@ impl Layout<'_> {
         check_slave(frame, expected_slave)?;
         check_function(frame, function)?;
         match self.function {
-            Function::Read if self.trigger => {
-                let count = byte(frame, 2);
-                if count != 0 {
-                    check_byte_count(count, self.data_len(), self.extra_byte_counts)?;
-                }
-                Ok(&[])
-            }
             Function::Read => {
-                check_byte_count(byte(frame, 2), self.data_len(), self.extra_byte_counts)?;
-                Ok(frame.get(3..3 + self.data_len()).unwrap_or(&[]))
+                let count = byte(frame, 2);
+                if !self.accepts_byte_count(count) {
+                    let expected = u8::try_from(self.data_len()).unwrap_or(u8::MAX);
+                    return Err(FrameError::ByteCount { expected, actual: count });
+                }
+                Ok(frame.get(3..3 + self.response_data_len()).unwrap_or(&[]))
             }
             Function::Write => {
                 check_echo(frame, EchoField::Address, 2, self.address)?;

@@ -1551,11 +1551,13 @@ fn decode_one(filter: &Filter<'_>, json_out: bool, frame: &[u8], out: &mut dyn W
             let n = frame.get(2).copied().unwrap_or(0);
             byte_count = Some(n);
             if let Some(c) = chosen.map(|c| c.command) {
-                let data = frame.get(3..len - 2).unwrap_or(&[]);
+                let data = frame.get(3..len.saturating_sub(2)).unwrap_or(&[]);
                 values = decode_fields(c, data);
                 let want = 2 * usize::from(c.count);
                 if usize::from(n) != want {
-                    if c.extra_byte_counts.contains(&n) {
+                    if c.trigger && c.layout().accepts_byte_count(n) {
+                        notes.push(format!("byte count 0x{n:02X}: a trigger's reply carries no value, accepted"));
+                    } else if c.layout().accepts_byte_count(n) {
                         notes.push(format!(
                             "byte count 0x{n:02X} over {want} data bytes: a firmware quirk the spec documents, accepted"
                         ));
