@@ -10,7 +10,7 @@ use yosemitech_rtu::{
     CharFormat, DataBits, EncodeError, ExceptionCode, Function, Layout, LineTiming, Parity, Responder, StopBits, codec,
     crc_ok, crc16,
 };
-use yosemitech_spec::interp::{EncodeValuesError, decode_field, decode_fields, encode_field};
+use yosemitech_spec::interp::{EncodeValuesError, decode_field, decode_fields, encode_command_field, encode_field};
 use yosemitech_spec::{Command, EnumRepr, Field, FieldKind, Role, Sensor, Value, Values};
 
 use crate::Device;
@@ -400,11 +400,7 @@ impl Simulator {
                 .enumerate()
                 .find(|(_, f)| f.name.as_deref() == Some(field))
                 .ok_or_else(|| SimError::UnknownField { command: command.into(), field: field.into() })?;
-        let bytes = if cmd.is_read() {
-            encode_field(&Field { range: None, ..spec_field.clone() }, &value)?
-        } else {
-            encode_field(spec_field, &value)?
-        };
+        let bytes = encode_command_field(cmd, spec_field, &value)?;
         let address_field = self.address_slots.iter().any(|s| s.command == index && s.field.name == spec_field.name);
         if address_field
             && let Value::Int(a) = value

@@ -194,7 +194,6 @@ pub fn decode_field(field: &Field, bytes: &[u8]) -> Value {
 /// reserved bytes get their fill. Ranges are checked for a write's data; on
 /// a read a range is the measuring range, which a probe may leave.
 pub fn encode_fields(command: &Command, values: &BTreeMap<String, Value>) -> Result<Vec<u8>, EncodeValuesError> {
-    let ranges = !command.is_read();
     if let Some(unknown) = values.keys().find(|k| command.field(k).is_none()) {
         return Err(EncodeValuesError::Unknown(unknown.clone()));
     }
@@ -204,7 +203,7 @@ pub fn encode_fields(command: &Command, values: &BTreeMap<String, Value>) -> Res
             None => encode_reserved(field),
             Some(name) => {
                 let value = values.get(name).ok_or_else(|| EncodeValuesError::Missing(name.clone()))?;
-                encode_field_checked(field, value, ranges)?
+                encode_command_field(command, field, value)?
             }
         };
         if let Some(slot) = data.get_mut(field.offset..field.offset + bytes.len()) {
@@ -251,6 +250,13 @@ fn check_range(ranges: bool, field: &Field, v: f64) -> Result<(), EncodeValuesEr
         }
         _ => Ok(()),
     }
+}
+
+/// Encodes one field of `command` by the command's rule: a write's values
+/// must be in their field's `range`; a read's range is the measuring range,
+/// which a probe may leave, so it is not enforced.
+pub fn encode_command_field(command: &Command, field: &Field, value: &Value) -> Result<Vec<u8>, EncodeValuesError> {
+    encode_field_checked(field, value, !command.is_read())
 }
 
 /// Encodes one field, checking its `range`.
