@@ -29,8 +29,15 @@ use yosemitech_spec::interp::decode_fields;
 use yosemitech_spec::sources::MemSources;
 use yosemitech_spec::{Command, Spec, Values, load_with, parse_hex};
 
-// `SPEC_FILES`: every `spec/*.yaml`, listed by build.rs.
-include!(concat!(env!("OUT_DIR"), "/spec_files.rs"));
+/// Every `spec/*.yaml` of the workspace as `spec/<file name>` and text: the
+/// files the CLI embeds (`yosemitech_cli::embedded_spec`), so the targets
+/// need no files at run time and a new spec file needs no change here.
+pub fn spec_files() -> &'static [(String, &'static str)] {
+    static FILES: OnceLock<Vec<(String, &'static str)>> = OnceLock::new();
+    FILES.get_or_init(|| {
+        yosemitech_cli::embedded_spec().iter().map(|(name, text)| (format!("spec/{name}"), *text)).collect()
+    })
+}
 
 /// Whether a spec file describes a sensor (a top-level `sensor:` key) rather
 /// than holding a fragment of shared commands.
@@ -42,7 +49,7 @@ pub fn is_sensor_file(text: &str) -> bool {
 pub fn spec() -> &'static Spec {
     static SPEC: OnceLock<Spec> = OnceLock::new();
     SPEC.get_or_init(|| {
-        let sources = SPEC_FILES.iter().fold(MemSources::default(), |s, (path, text)| s.with(*path, *text));
+        let sources = spec_files().iter().fold(MemSources::default(), |s, (path, text)| s.with(path.as_str(), *text));
         match load_with(&sources, &[PathBuf::from("spec")]) {
             Ok(spec) => spec,
             Err(d) => panic!("the real spec does not load:\n{d}"),
@@ -466,10 +473,10 @@ pub const COMMON_FRAGMENT: &str = "spec/yosemitech-common.yaml";
 fn fixed_fragments() -> &'static MemSources {
     static FRAGMENTS: OnceLock<MemSources> = OnceLock::new();
     FRAGMENTS.get_or_init(|| {
-        SPEC_FILES
+        spec_files()
             .iter()
-            .filter(|(path, text)| *path != COMMON_FRAGMENT && !is_sensor_file(text))
-            .fold(MemSources::default(), |s, (path, text)| s.with(*path, *text))
+            .filter(|(path, text)| path != COMMON_FRAGMENT && !is_sensor_file(text))
+            .fold(MemSources::default(), |s, (path, text)| s.with(path.as_str(), *text))
     })
 }
 
@@ -620,10 +627,10 @@ mod tests {
     /// loads as the target loads it.
     #[test]
     fn spec_files_pass_the_loader_target() {
-        let common = SPEC_FILES.iter().find(|(path, _)| *path == COMMON_FRAGMENT).map(|(_, text)| *text);
+        let common = spec_files().iter().find(|(path, _)| path == COMMON_FRAGMENT).map(|(_, text)| *text);
         let common = common.expect("the spec has the common fragment");
         let mut sensor_files = 0;
-        for (path, text) in SPEC_FILES {
+        for (path, text) in spec_files() {
             spec_loader(text.as_bytes());
             if !is_sensor_file(text) {
                 continue;

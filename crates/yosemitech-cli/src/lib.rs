@@ -88,6 +88,13 @@ pub fn main() -> ExitCode {
     }
 }
 
+/// The spec files compiled into the tool (every `spec/*.yaml` of the
+/// workspace at build time), by file name, in name order: what the tool
+/// serves without `--spec`, and what the fuzz targets load.
+pub fn embedded_spec() -> &'static [(&'static str, &'static str)] {
+    catalog::EMBEDDED_SPEC
+}
+
 /// Runs `yosemitech decode TEXT [--json]` against the built-in spec, writing
 /// what the tool prints to `out`, and returns the message the tool would put
 /// on stderr, if any. The fuzz target `cli_decode` drives the CLI's own
