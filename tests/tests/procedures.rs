@@ -2,19 +2,21 @@
 
 mod sim_common;
 
-use sim_common::sensor;
+use sim_common::{sensor, spec};
 
 use std::time::Duration;
 
+use yosemitech::conductivity::{GetTemperatureAndConductivity, GetTemperatureAndConductivityResponse, RangeStatus};
 use yosemitech::procedures::address::{AddressChangeError, Whereabouts, change_address};
 use yosemitech::procedures::coefficients::{self, PhOrpCoefficients};
 use yosemitech::procedures::conductivity::{MeasurementConfig, MeasurementEvent, measure, tds_mg_l};
 use yosemitech::procedures::ph::{CalibrationConfig, CalibrationGuide, calibrate};
 use yosemitech::procedures::{NoSleep, ProcedureError, Sleep};
 use yosemitech::rtu::transport::Responder;
-use yosemitech::{Client, ClientConfig, ResponderTransport, RetryPolicy, conductivity, ph_orp};
+use yosemitech::yosemitech_common::{GetSn, SetSlaveId};
+use yosemitech::{Client, ClientConfig, Command, Layout, ResponderTransport, RetryPolicy, conductivity, ph_orp};
 use yosemitech_sim::{Bus, Simulator};
-use yosemitech_spec::Value;
+use yosemitech_spec::{Role, Sensor};
 
 fn fast() -> ClientConfig {
     ClientConfig {
@@ -29,16 +31,53 @@ fn client<R: Responder>(responder: R) -> Client<ResponderTransport<R>> {
     Client::with_config(ResponderTransport::new(responder), fast())
 }
 
+/// Whether `sensor`'s command with `role` is the shared command of `layout`.
+fn plays(sensor: &Sensor, role: Role, layout: Layout<'static>) -> bool {
+    sensor.command_with_role(role).is_some_and(|c| c.layout() == layout)
+}
+
+/// Every sensor of the spec whose slave-address write and serial-number read
+/// are the shared `SetSlaveId` and `GetSn`: each one the generic address
+/// change can move with those types, picked from the spec by role.
+fn address_sensors() -> Vec<Sensor> {
+    let sensors: Vec<Sensor> = spec()
+        .sensors
+        .into_iter()
+        .filter(|s| plays(s, Role::SetSlaveAddress, SetSlaveId::LAYOUT) && plays(s, Role::SerialNumber, GetSn::LAYOUT))
+        .collect();
+    assert!(sensors.len() >= 2, "the spec has sensors with the shared address commands");
+    sensors
+}
+
+/// The conductivity manual's reading in the simulator's registers, changed
+/// through the generated reply type (no field names in strings).
+fn set_reading(sim: &mut Simulator, change: impl FnOnce(&mut GetTemperatureAndConductivityResponse)) {
+    let (address, count) = (GetTemperatureAndConductivity::ADDRESS, GetTemperatureAndConductivity::COUNT);
+    let data = sim.registers().read(address, count);
+    let data = data.as_slice().try_into().expect("the reply's registers");
+    let mut reading = GetTemperatureAndConductivityResponse::from_data(data);
+    change(&mut reading);
+    sim.registers_mut().write(address, &reading.to_data());
+}
+
+/// Whether `request` is the conductivity manual's reading.
+fn is_reading(request: &[u8]) -> bool {
+    conductivity::identify_request(request) == Some(conductivity::CommandId::GetTemperatureAndConductivity)
+}
+
 #[test]
 fn conductivity_measurement_averages_the_manuals_count_and_computes_tds() {
-    let mut sim = Simulator::new(sensor("conductivity"));
+    // Covers the conductivity manual's measurement (warm-up, averaging, TDS).
+    let mut sim = Simulator::new(sensor(conductivity::SENSOR.name));
     let mut reads = 0u32;
     // Readings 1.0, 2.0, ... so the mean of the first ten is 5.5.
     let responder = move |request: &[u8], reply: &mut Vec<u8>| {
-        if request.get(1) == Some(&0x03) && request.get(2) == Some(&0x26) {
+        if is_reading(request) {
             reads += 1;
-            sim.set_f32("get_temperature_and_conductivity", "conductivity_ms_cm", reads as f32).unwrap();
-            sim.set_f32("get_temperature_and_conductivity", "temperature_c", 20.0).unwrap();
+            set_reading(&mut sim, |r| {
+                r.conductivity_ms_cm = reads as f32;
+                r.temperature_c = 20.0;
+            });
         }
         sim.respond(request, reply);
     };
@@ -60,17 +99,18 @@ fn conductivity_measurement_averages_the_manuals_count_and_computes_tds() {
 
 #[test]
 fn flagged_readings_are_discarded_and_replaced() {
-    let mut sim = Simulator::new(sensor("conductivity"));
+    // Covers the conductivity manual's measurement: range-switch flags.
+    let mut sim = Simulator::new(sensor(conductivity::SENSOR.name));
     let mut reads = 0u32;
     let responder = move |request: &[u8], reply: &mut Vec<u8>| {
-        if request.get(1) == Some(&0x03) && request.get(2) == Some(&0x26) {
+        if is_reading(request) {
             reads += 1;
             // Every third reading has a range-switch error and an absurd value.
             let flagged = reads.is_multiple_of(3);
-            let status = if flagged { "range_switch_error" } else { "ok" };
-            sim.set("get_temperature_and_conductivity", "range_status", Value::Text(status.into())).unwrap();
-            let value = if flagged { 999.0 } else { 2.0 };
-            sim.set_f32("get_temperature_and_conductivity", "conductivity_ms_cm", value).unwrap();
+            set_reading(&mut sim, |r| {
+                r.range_status = if flagged { RangeStatus::RangeSwitchError } else { RangeStatus::Ok };
+                r.conductivity_ms_cm = if flagged { 999.0 } else { 2.0 };
+            });
         }
         sim.respond(request, reply);
     };
@@ -85,8 +125,9 @@ fn flagged_readings_are_discarded_and_replaced() {
 
 #[test]
 fn measurement_gives_up_when_every_reading_is_flagged() {
-    let mut sim = Simulator::new(sensor("conductivity"));
-    sim.set("get_temperature_and_conductivity", "range_status", Value::Text("range_switch_error".into())).unwrap();
+    // Covers the conductivity manual's measurement: range-switch flags.
+    let mut sim = Simulator::new(sensor(conductivity::SENSOR.name));
+    set_reading(&mut sim, |r| r.range_status = RangeStatus::RangeSwitchError);
     let mut client = client(sim);
     let mut probe = conductivity::Device::new(&mut client, 1);
     let config = MeasurementConfig { readings: 3, max_reads: 5, ..MeasurementConfig::default() };
@@ -124,7 +165,8 @@ impl CalibrationGuide for Recorder {
 
 #[test]
 fn ph_calibration_runs_the_three_points_in_order_after_a_backup() {
-    let mut client = client(Simulator::new(sensor("ph_orp")));
+    // Covers the pH/ORP manual's three-point pH calibration.
+    let mut client = client(Simulator::new(sensor(ph_orp::SENSOR.name)));
     let mut probe = ph_orp::Device::new(&mut client, 1);
     let before = coefficients::read_ph_orp(&mut probe).unwrap();
     let mut guide = Recorder::default();
@@ -140,7 +182,8 @@ fn ph_calibration_runs_the_three_points_in_order_after_a_backup() {
 
 #[test]
 fn ph_calibration_in_the_wrong_order_reports_the_probes_status() {
-    let mut client = client(Simulator::new(sensor("ph_orp")));
+    // Covers the pH/ORP manual's three-point pH calibration.
+    let mut client = client(Simulator::new(sensor(ph_orp::SENSOR.name)));
     let mut probe = ph_orp::Device::new(&mut client, 1);
     let config = CalibrationConfig { standards: [6.86, 4.00, 9.18], ..CalibrationConfig::default() };
     let report = calibrate(&mut probe, &config, &mut Recorder::default(), &mut NoSleep::default()).unwrap();
@@ -150,7 +193,8 @@ fn ph_calibration_in_the_wrong_order_reports_the_probes_status() {
 
 #[test]
 fn nothing_is_written_when_the_backup_cannot_be_kept() {
-    let sim = Simulator::new(sensor("ph_orp"));
+    // Covers the pH/ORP manual's three-point pH calibration (its backup).
+    let sim = Simulator::new(sensor(ph_orp::SENSOR.name));
     let mut client = client(sim);
     let mut probe = ph_orp::Device::new(&mut client, 1);
     let mut guide = Recorder { refuse_backup: true, ..Recorder::default() };
@@ -163,7 +207,8 @@ fn nothing_is_written_when_the_backup_cannot_be_kept() {
 
 #[test]
 fn coefficients_restore_with_read_back() {
-    let mut client = client(Simulator::new(sensor("ph_orp")));
+    // Covers the pH/ORP and conductivity manuals' coefficient backup and restore.
+    let mut client = client(Simulator::new(sensor(ph_orp::SENSOR.name)));
     let mut probe = ph_orp::Device::new(&mut client, 1);
     let original = coefficients::read_ph_orp(&mut probe).unwrap();
     assert_eq!(original.electrode, ph_orp::DEFAULT_ELECTRODE_COEFFICIENTS);
@@ -173,7 +218,7 @@ fn coefficients_restore_with_read_back() {
     coefficients::write_ph_orp(&mut probe, &original).unwrap();
     assert_eq!(coefficients::read_ph_orp(&mut probe).unwrap(), original);
 
-    let mut client = self::client(Simulator::new(sensor("conductivity")));
+    let mut client = self::client(Simulator::new(sensor(conductivity::SENSOR.name)));
     let mut probe = conductivity::Device::new(&mut client, 1);
     let c = coefficients::ConductivityCoefficients { user_calibration: [1.02, -0.003] };
     coefficients::write_conductivity(&mut probe, &c).unwrap();
@@ -182,7 +227,8 @@ fn coefficients_restore_with_read_back() {
 
 #[test]
 fn a_write_that_does_not_stick_is_caught_by_read_back() {
-    let mut sim = Simulator::new(sensor("conductivity"));
+    // Covers the conductivity manual's coefficient restore.
+    let mut sim = Simulator::new(sensor(conductivity::SENSOR.name));
     // A probe that acknowledges the write but keeps its old coefficients.
     let responder = move |request: &[u8], reply: &mut Vec<u8>| {
         if request.get(1) == Some(&0x10) {
@@ -201,57 +247,75 @@ fn a_write_that_does_not_stick_is_caught_by_read_back() {
 
 #[test]
 fn address_change_is_validated_confirmed_and_verified() {
-    let mut client = client(Simulator::new(sensor("ph_orp")));
-    let reply = change_address(&mut client, 1, 20, &ph_orp::SetSlaveId { slave_address: 20 }, &ph_orp::GetSn).unwrap();
-    assert_eq!(reply.serial_number.as_str(), Some("YL4314010022"));
-    assert!(client.call(1, &ph_orp::GetSn).is_err(), "the old address is gone");
-    assert!(client.call(20, &ph_orp::GetSn).is_ok());
+    for sensor in address_sensors() {
+        let (name, model_code) = (sensor.name.clone(), sensor.model_code.clone());
+        let mut client = client(Simulator::new(sensor).with_address(1));
+        let before = client.call(1, &GetSn).unwrap();
+        let serial = before.serial_number.as_str().expect("a text serial number").to_owned();
+        if let Some(code) = model_code {
+            assert!(serial.starts_with(&format!("YL{code}")), "{name}: {serial} carries the model code {code}");
+        }
+        let reply = change_address(&mut client, 1, 20, &SetSlaveId { slave_address: 20 }, &GetSn).unwrap();
+        assert_eq!(reply.serial_number.as_str(), Some(serial.as_str()), "{name}: the same probe answers at 20");
+        assert!(client.call(1, &GetSn).is_err(), "{name}: the old address is gone");
+        assert!(client.call(20, &GetSn).is_ok(), "{name}");
 
-    for bad in [0u8, 248] {
-        let err = change_address(&mut client, 20, bad, &ph_orp::SetSlaveId { slave_address: bad }, &ph_orp::GetSn);
-        assert!(matches!(err, Err(AddressChangeError::InvalidAddress(a)) if a == bad));
+        for bad in [0u8, 248] {
+            let err = change_address(&mut client, 20, bad, &SetSlaveId { slave_address: bad }, &GetSn);
+            assert!(matches!(err, Err(AddressChangeError::InvalidAddress(a)) if a == bad), "{name}");
+        }
+        let same = change_address(&mut client, 20, 20, &SetSlaveId { slave_address: 20 }, &GetSn);
+        assert!(matches!(same, Err(AddressChangeError::SameAddress(20))), "{name}");
+        let missing = change_address(&mut client, 7, 8, &SetSlaveId { slave_address: 8 }, &GetSn);
+        assert!(matches!(missing, Err(AddressChangeError::NotFound { address: 7, .. })), "{name}");
     }
-    let same = change_address(&mut client, 20, 20, &ph_orp::SetSlaveId { slave_address: 20 }, &ph_orp::GetSn);
-    assert!(matches!(same, Err(AddressChangeError::SameAddress(20))));
-    let missing = change_address(&mut client, 7, 8, &ph_orp::SetSlaveId { slave_address: 8 }, &ph_orp::GetSn);
-    assert!(matches!(missing, Err(AddressChangeError::NotFound { address: 7, .. })));
 }
 
 #[test]
 fn address_change_refuses_an_address_in_use() {
-    let bus = Bus::new()
-        .with(Simulator::new(sensor("ph_orp")).with_address(1))
-        .with(Simulator::new(sensor("conductivity")).with_address(2));
-    let mut client = client(bus);
-    let err = change_address(&mut client, 1, 2, &ph_orp::SetSlaveId { slave_address: 2 }, &ph_orp::GetSn);
-    assert!(matches!(err, Err(AddressChangeError::AddressInUse(2))));
-    let bus = client.into_transport().into_responder();
-    assert_eq!(bus.device(1).map(|d| d.stats().writes), Some(0), "nothing was written");
+    // Each sensor at 1, another sensor of the spec at 2.
+    let sensors = address_sensors();
+    for (i, sensor) in sensors.iter().enumerate() {
+        let other = &sensors[(i + 1) % sensors.len()];
+        let bus = Bus::new()
+            .with(Simulator::new(sensor.clone()).with_address(1))
+            .with(Simulator::new(other.clone()).with_address(2));
+        let mut client = client(bus);
+        let err = change_address(&mut client, 1, 2, &SetSlaveId { slave_address: 2 }, &GetSn);
+        let context = format!("{} with {} at 2", sensor.name, other.name);
+        assert!(matches!(err, Err(AddressChangeError::AddressInUse(2))), "{context}");
+        let bus = client.into_transport().into_responder();
+        assert_eq!(bus.device(1).map(|d| d.stats().writes), Some(0), "{context}: nothing was written");
+    }
 }
 
 #[test]
 fn a_lost_confirmation_still_tells_where_the_probe_is() {
-    let mut sim = Simulator::new(sensor("ph_orp"));
-    // The probe applies the new address but its reply is lost on the line.
-    let responder = move |request: &[u8], reply: &mut Vec<u8>| {
-        sim.respond(request, reply);
-        if request.get(1) == Some(&0x10) {
-            reply.clear();
+    for sensor in address_sensors() {
+        let name = sensor.name.clone();
+        let mut sim = Simulator::new(sensor).with_address(1);
+        // The probe applies the new address but its reply is lost on the line.
+        let responder = move |request: &[u8], reply: &mut Vec<u8>| {
+            sim.respond(request, reply);
+            if SetSlaveId::decode_request(request).is_ok() {
+                reply.clear();
+            }
+        };
+        let mut client = client(responder);
+        match change_address(&mut client, 1, 30, &SetSlaveId { slave_address: 30 }, &GetSn) {
+            Err(AddressChangeError::Failed { error, whereabouts }) => {
+                assert!(error.is_timeout(), "{name}");
+                assert_eq!(whereabouts, Whereabouts::New(30), "{name}");
+            }
+            other => panic!("{name}: expected a failure with whereabouts, got {other:?}"),
         }
-    };
-    let mut client = client(responder);
-    match change_address(&mut client, 1, 30, &ph_orp::SetSlaveId { slave_address: 30 }, &ph_orp::GetSn) {
-        Err(AddressChangeError::Failed { error, whereabouts }) => {
-            assert!(error.is_timeout());
-            assert_eq!(whereabouts, Whereabouts::New(30));
-        }
-        other => panic!("expected a failure with whereabouts, got {other:?}"),
     }
 }
 
 #[test]
 fn non_finite_coefficients_are_refused_before_any_write() {
-    let mut client = client(Simulator::new(sensor("conductivity")));
+    // Covers the conductivity manual's coefficient restore.
+    let mut client = client(Simulator::new(sensor(conductivity::SENSOR.name)));
     let mut probe = conductivity::Device::new(&mut client, 1);
     for bad in [f32::NAN, f32::INFINITY] {
         let c = coefficients::ConductivityCoefficients { user_calibration: [bad, 0.0] };
@@ -263,7 +327,8 @@ fn non_finite_coefficients_are_refused_before_any_write() {
 
 #[test]
 fn device_handles_change_their_address_with_verification() {
-    let mut bus = client(Simulator::new(sensor("conductivity")));
+    // Covers the typed handles of the conductivity and pH/ORP manuals (procedures/device.rs).
+    let mut bus = client(Simulator::new(sensor(conductivity::SENSOR.name)));
     let mut probe = conductivity::Device::new(&mut bus, 1);
     probe.set_slave_address(42).unwrap();
     assert_eq!(probe.address(), 42);
@@ -271,7 +336,7 @@ fn device_handles_change_their_address_with_verification() {
     assert!(matches!(probe.set_slave_address(0), Err(AddressChangeError::InvalidAddress(0))));
     assert_eq!(probe.address(), 42, "a refused change leaves the handle where the probe is");
 
-    let mut bus = client(Simulator::new(sensor("ph_orp")));
+    let mut bus = client(Simulator::new(sensor(ph_orp::SENSOR.name)));
     let mut probe = ph_orp::Device::new(&mut bus, 1);
     probe.set_slave_address(7).unwrap();
     assert_eq!(probe.ph().unwrap(), 7.6);

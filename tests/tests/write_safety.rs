@@ -13,7 +13,7 @@
 
 mod sim_common;
 
-use sim_common::sensor;
+use sim_common::{sensor, spec};
 
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
@@ -24,8 +24,10 @@ use yosemitech::procedures::coefficients::{self, PhOrpCoefficients};
 use yosemitech::procedures::ph::{CalibrationConfig, CalibrationGuide, calibrate};
 use yosemitech::procedures::{NoSleep, ProcedureError, Sleep};
 use yosemitech::rtu::transport::Responder;
-use yosemitech::{Client, ClientConfig, ResponderTransport, RetryPolicy, ph_orp};
+use yosemitech::yosemitech_common::{GetSn, GetSnResponse, SetSlaveId};
+use yosemitech::{Client, ClientConfig, Command, Layout, ResponderTransport, RetryPolicy, ph_orp};
 use yosemitech_sim::{FaultConfig, FaultKind, Simulator};
+use yosemitech_spec::{Role, Sensor};
 
 fn fast() -> ClientConfig {
     ClientConfig {
@@ -93,8 +95,8 @@ impl Responder for Link {
             self.writes.fetch_add(1, Ordering::SeqCst);
         }
         self.sim.respond(request, reply);
-        // start_ph_calibration: a write to 0x2300.
-        if request.get(1..3) == Some(&[0x10, 0x23][..]) {
+        // A calibration point of the pH manual (start_ph_calibration).
+        if ph_orp::identify_request(request) == Some(ph_orp::CommandId::StartPhCalibration) {
             self.points += 1;
             if Some(self.points) == self.cut_after_points {
                 self.alive.store(false, Ordering::SeqCst);
@@ -103,12 +105,29 @@ impl Responder for Link {
     }
 }
 
+/// Whether `sensor`'s command with `role` is the shared command of `layout`.
+fn plays(sensor: &Sensor, role: Role, layout: Layout<'static>) -> bool {
+    sensor.command_with_role(role).is_some_and(|c| c.layout() == layout)
+}
+
+/// Every sensor of the spec whose slave-address write and serial-number read
+/// are the shared `SetSlaveId` and `GetSn`, picked from the spec by role.
+fn address_sensors() -> Vec<Sensor> {
+    let sensors: Vec<Sensor> = spec()
+        .sensors
+        .into_iter()
+        .filter(|s| plays(s, Role::SetSlaveAddress, SetSlaveId::LAYOUT) && plays(s, Role::SerialNumber, GetSn::LAYOUT))
+        .collect();
+    assert!(!sensors.is_empty(), "the spec has sensors with the shared address commands");
+    sensors
+}
+
 fn probe_with(
     coefficients: &PhOrpCoefficients,
     faults: FaultConfig,
     cut_after_points: Option<usize>,
 ) -> (Client<ResponderTransport<Link>>, Arc<AtomicUsize>, Arc<AtomicBool>) {
-    let mut client = Client::with_config(ResponderTransport::new(Simulator::new(sensor("ph_orp"))), fast());
+    let mut client = Client::with_config(ResponderTransport::new(Simulator::new(sensor(ph_orp::SENSOR.name))), fast());
     coefficients::write_ph_orp(&mut ph_orp::Device::new(&mut client, 1), coefficients)
         .expect("set up the coefficients");
     let mut sim = client.into_transport().into_responder();
@@ -121,6 +140,7 @@ fn probe_with(
 
 #[test]
 fn a_calibration_cut_off_after_point_2_leaves_a_backup_that_restores() {
+    // Covers the pH/ORP manual's three-point pH calibration and its coefficient backup.
     let before = custom();
     let (mut client, writes, alive) = probe_with(&before, FaultConfig::none(), Some(2));
     let mut guide = Guide::new(Arc::clone(&writes));
@@ -145,6 +165,7 @@ fn a_calibration_cut_off_after_point_2_leaves_a_backup_that_restores() {
 
 #[test]
 fn a_fault_at_any_step_of_a_calibration_never_loses_the_backup() {
+    // Covers the pH/ORP manual's three-point pH calibration and its coefficient backup.
     let before = custom();
     let mut outcomes = [0usize; 3]; // completed, failed before the backup, failed after it
     for kind in [FaultKind::Drop, FaultKind::CorruptCrc, FaultKind::Truncate, FaultKind::WrongSlave, FaultKind::Busy] {
@@ -191,7 +212,7 @@ fn a_fault_at_any_step_of_a_calibration_never_loses_the_backup() {
 
 /// Where the simulated probe answers after `change_address`, checked
 /// against what the result told the caller.
-fn told_address(result: &Result<ph_orp::GetSnResponse, AddressChangeError>, from: u8, to: u8) -> Option<u8> {
+fn told_address(result: &Result<GetSnResponse, AddressChangeError>, from: u8, to: u8) -> Option<u8> {
     match result {
         Ok(_) => Some(to),
         Err(AddressChangeError::Failed { whereabouts: Whereabouts::New(a), .. }) => Some(*a),
@@ -204,54 +225,61 @@ fn told_address(result: &Result<ph_orp::GetSnResponse, AddressChangeError>, from
 #[test]
 fn an_address_change_with_a_fault_at_any_step_says_where_the_probe_is() {
     let (from, to) = (1u8, 20u8);
+    let sensors = address_sensors();
     let mut checked = 0;
-    for kind in [
-        FaultKind::Drop,
-        FaultKind::CorruptCrc,
-        FaultKind::Truncate,
-        FaultKind::WrongSlave,
-        FaultKind::Busy,
-        FaultKind::Garbage,
-    ] {
-        // Replies: the probe at `from`, the write's confirmation, the probe at `to`, then locating.
-        for at in 0..6 {
-            let mut script = vec![None; at];
-            script.push(Some(kind));
-            let sim = Simulator::new(sensor("ph_orp")).with_address(from).with_faults(FaultConfig::scripted(script));
-            let mut client = Client::with_config(ResponderTransport::new(sim), fast());
-            let result =
-                change_address(&mut client, from, to, &ph_orp::SetSlaveId { slave_address: to }, &ph_orp::GetSn);
-            let sim = client.into_transport().into_responder();
-            let context = format!("{kind} at reply {at}: {result:?}");
-            let told = told_address(&result, from, to);
-            assert_eq!(told, Some(sim.address()), "{context}: the probe is at {}", sim.address());
-            if matches!(result, Err(AddressChangeError::NotFound { .. } | AddressChangeError::AddressInUse(_))) {
-                assert_eq!(sim.stats().writes, 0, "{context}: written although refused");
+    for sensor in &sensors {
+        for kind in [
+            FaultKind::Drop,
+            FaultKind::CorruptCrc,
+            FaultKind::Truncate,
+            FaultKind::WrongSlave,
+            FaultKind::Busy,
+            FaultKind::Garbage,
+        ] {
+            // Replies: the probe at `from`, the write's confirmation, the probe at `to`, then locating.
+            for at in 0..6 {
+                let mut script = vec![None; at];
+                script.push(Some(kind));
+                let sim = Simulator::new(sensor.clone()).with_address(from).with_faults(FaultConfig::scripted(script));
+                let mut client = Client::with_config(ResponderTransport::new(sim), fast());
+                let result = change_address(&mut client, from, to, &SetSlaveId { slave_address: to }, &GetSn);
+                let sim = client.into_transport().into_responder();
+                let context = format!("{}: {kind} at reply {at}: {result:?}", sensor.name);
+                let told = told_address(&result, from, to);
+                assert_eq!(told, Some(sim.address()), "{context}: the probe is at {}", sim.address());
+                if matches!(result, Err(AddressChangeError::NotFound { .. } | AddressChangeError::AddressInUse(_))) {
+                    assert_eq!(sim.stats().writes, 0, "{context}: written although refused");
+                }
+                checked += 1;
             }
-            checked += 1;
         }
     }
     yosemitech_tests::report!(
-        "write safety: {checked} address changes with a fault at one step each, all told the truth"
+        "write safety: {checked} address changes ({} sensors picked from the spec by role) with a fault at one \
+         step each, all told the truth",
+        sensors.len()
     );
 }
 
 #[test]
 fn an_address_answered_with_an_exception_is_in_use() {
-    // Another kind of device at 2 answers every request, with exception 02
-    // (it has no serial-number register). It is there: moving the probe to 2
-    // would put two devices at one address.
-    let mut sim = Simulator::new(sensor("ph_orp")).with_address(1);
-    let responder = move |request: &[u8], reply: &mut Vec<u8>| match request.first() {
-        Some(&2) => {
-            let mut frame = vec![2, request.get(1).copied().unwrap_or(0) | 0x80, 0x02];
-            frame.extend_from_slice(&yosemitech::rtu::crc16(&frame).to_le_bytes());
-            reply.extend_from_slice(&frame);
-        }
-        _ => sim.respond(request, reply),
-    };
-    let mut client = Client::with_config(ResponderTransport::new(responder), fast());
-    let result = change_address(&mut client, 1, 2, &ph_orp::SetSlaveId { slave_address: 2 }, &ph_orp::GetSn);
-    assert!(matches!(result, Err(AddressChangeError::AddressInUse(2))), "{result:?}");
-    assert!(client.call(1, &ph_orp::GetSn).is_ok(), "the probe stays at 1");
+    for sensor in address_sensors() {
+        let name = sensor.name.clone();
+        // Another kind of device at 2 answers every request, with exception 02
+        // (it has no serial-number register). It is there: moving the probe to 2
+        // would put two devices at one address.
+        let mut sim = Simulator::new(sensor).with_address(1);
+        let responder = move |request: &[u8], reply: &mut Vec<u8>| match request.first() {
+            Some(&2) => {
+                let mut frame = vec![2, request.get(1).copied().unwrap_or(0) | 0x80, 0x02];
+                frame.extend_from_slice(&yosemitech::rtu::crc16(&frame).to_le_bytes());
+                reply.extend_from_slice(&frame);
+            }
+            _ => sim.respond(request, reply),
+        };
+        let mut client = Client::with_config(ResponderTransport::new(responder), fast());
+        let result = change_address(&mut client, 1, 2, &SetSlaveId { slave_address: 2 }, &GetSn);
+        assert!(matches!(result, Err(AddressChangeError::AddressInUse(2))), "{name}: {result:?}");
+        assert!(client.call(1, &GetSn).is_ok(), "{name}: the probe stays at 1");
+    }
 }
