@@ -66,10 +66,6 @@ fn printed_frames_behave_as_the_errata_say() {
             checked += 1;
         }
     }
-    yosemitech_spec_report(checked);
-}
-
-fn yosemitech_spec_report(checked: usize) {
     println!("{checked} printed frames with errata behave as their errata say");
 }
 
