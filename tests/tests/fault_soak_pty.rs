@@ -1,8 +1,8 @@
 //! Fault soak through the serial path: simulators served on pseudo-terminals
 //! (`yosemitech_sim::serve_pty`), a `SerialTransport` client on each with no
 //! retries, so that every injected fault is observed by exactly one call.
-//! Thousands of typed calls (reads and writes) with faults of every kind,
-//! drawn from a script:
+//! Thousands of calls (reads and writes) through the generated typed codecs
+//! (`yosemitech::SENSORS`), with faults of every kind, drawn from a script:
 //!
 //! - zero wrong values: every `Ok` equals the simulator's truth, bit for bit;
 //! - each failed call fails with the error its fault implies (the fault is
@@ -29,23 +29,25 @@
 //!   has finished with the request, so that a late reply cannot reach the
 //!   next call and the counters and the device state are final.
 //!
-//! The probes sit at addresses that look like function codes: the pH probe
-//! at 3 (its read replies start `03 03`), the conductivity probe at 16
-//! (0x10: its write replies start `10 10`), so line noise before a reply
-//! (the garbage fault) exercises the client's realignment.
+//! The probes are chosen from the spec: the first two sensors with float
+//! reads and a float write read back at the same registers (a calibration's
+//! K and B). They sit at addresses that look like function codes: the first
+//! at 3 (its read replies start `03 03`), the second at 16 (0x10: its write
+//! replies start `10 10`), so line noise before a reply (the garbage fault)
+//! exercises the client's realignment.
 #![cfg(unix)]
 #![allow(clippy::result_large_err)]
 
+mod sim_common;
+
 use std::collections::BTreeMap;
-use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
-use yosemitech::{
-    Client, ClientConfig, Error, ExceptionCode, FieldValue, FrameError, RetryPolicy, conductivity, ph_orp,
-};
-use yosemitech_rtu::{SerialConfig, SerialTransport, Transport, crc_ok, crc16};
+use sim_common::{float_write_with_readback, is_f32, is_float_read, request, spec};
+use yosemitech::{Client, ClientConfig, Error, ExceptionCode, FieldValue, FrameError, RetryPolicy};
+use yosemitech_rtu::{SensorModule, SerialConfig, SerialTransport, Transport, crc_ok, crc16};
 use yosemitech_sim::{FaultConfig, FaultCounts, FaultKind, ServeConfig, Server, Simulator, serve_pty};
-use yosemitech_spec::{Spec, Value, load_paths};
+use yosemitech_spec::{Command, Sensor, Spec, Value};
 
 /// The client's timeout for a call whose reply comes: generous, since a
 /// loaded machine may hold a reply back for a while, and free on an idle
@@ -68,18 +70,40 @@ const REALIGN_WAIT: Duration = Duration::from_millis(50);
 const SETTLE: Duration = Duration::from_secs(10);
 /// No call returns later than this after its timeout (a hang, not load).
 const HANG: Duration = Duration::from_secs(10);
-/// Calls in all (two thirds to the pH probe).
+/// Calls in all (two thirds to the first probe).
 const CALLS: usize = 2100;
-/// The pH probe's address (0x03, the read function code).
-const PH_ADDRESS: u8 = 3;
-/// The conductivity probe's address (0x10, the write function code).
-const COND_ADDRESS: u8 = 16;
+/// The first probe's address (0x03, the read function code).
+const FIRST_ADDRESS: u8 = 3;
+/// The second probe's address (0x10, the write function code).
+const SECOND_ADDRESS: u8 = 16;
 /// The address of the barrier requests [`settle`] sends: no probe's, so the
 /// simulator reads and ignores them (and counts them).
 const BARRIER_ADDRESS: u8 = 200;
 
-fn spec() -> Spec {
-    load_paths(&[PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../spec")]).expect("the spec loads")
+/// What the soak does with one sensor of the spec: its float reads, and a
+/// float write with the read that reads it back.
+struct Choice {
+    sensor: Sensor,
+    reads: Vec<Command>,
+    write: (Command, Command),
+}
+
+/// The first two sensors of the spec with float reads and a float write
+/// read back, whose generated module the `yosemitech` crate has.
+fn probes(spec: &Spec) -> (Choice, Choice) {
+    let mut chosen = spec.sensors.iter().filter(|s| module(&s.name).is_some()).filter_map(|s| {
+        let reads: Vec<Command> = s.commands.iter().filter(|c| is_float_read(c)).cloned().collect();
+        let write = float_write_with_readback(s)?;
+        (!reads.is_empty()).then(|| Choice { sensor: s.clone(), reads, write })
+    });
+    let first = chosen.next().expect("a sensor with float reads and a float write read back");
+    let second = chosen.next().expect("a second sensor with float reads and a float write read back");
+    (first, second)
+}
+
+/// The generated module of the sensor called `name`.
+fn module(name: &str) -> Option<SensorModule> {
+    yosemitech::SENSORS.iter().find(|m| m.info.name == name).copied()
 }
 
 /// A deterministic generator (xorshift64*).
@@ -129,6 +153,9 @@ fn script(rng: &mut Rng, calls: usize) -> Vec<Option<FaultKind>> {
 struct Probe {
     server: Server<Simulator>,
     client: Client<SerialTransport>,
+    /// The sensor's spec and its generated module.
+    sensor: Sensor,
+    module: SensorModule,
     address: u8,
     /// The simulator's fault script (its copy is consumed as it replies).
     script: Vec<Option<FaultKind>>,
@@ -136,10 +163,10 @@ struct Probe {
     barriers: u64,
 }
 
-fn open(spec: &Spec, sensor: &str, address: u8, script: Vec<Option<FaultKind>>) -> Option<Probe> {
-    let sensor = spec.sensor(sensor).expect("the sensor").clone();
+fn open(sensor: &Sensor, address: u8, script: Vec<Option<FaultKind>>) -> Option<Probe> {
+    let module = module(&sensor.name).expect("the sensor's generated module");
     let faults = FaultConfig { delay_by: DELAY_BY, ..FaultConfig::scripted(script.clone()) };
-    let sim = Simulator::new(sensor).with_address(address).with_faults(faults);
+    let sim = Simulator::new(sensor.clone()).with_address(address).with_faults(faults);
     // The client writes each request at once; a generous gap allowance keeps
     // a descheduled simulator thread from dropping a request half read.
     let serve = ServeConfig { inter_char_timeout: Duration::from_secs(2), ..ServeConfig::default() };
@@ -168,7 +195,8 @@ fn open(spec: &Spec, sensor: &str, address: u8, script: Vec<Option<FaultKind>>) 
         min_inter_frame_delay: REALIGN_WAIT,
         ..ClientConfig::default()
     };
-    Some(Probe { server, client: Client::with_config(transport, config), address, script, barriers: 0 })
+    let client = Client::with_config(transport, config);
+    Some(Probe { server, client, sensor: sensor.clone(), module, address, script, barriers: 0 })
 }
 
 /// A field value, owned; floats by their bits.
@@ -205,45 +233,59 @@ fn truth(probe: &Probe, command: &str) -> Vec<(String, Owned)> {
     values.iter().map(|(n, v)| (n.clone(), owned_value(v))).collect()
 }
 
-/// One call of the soak.
-#[derive(Debug, Clone, Copy)]
+/// One call of the soak, by command name.
+#[derive(Debug, Clone)]
 enum Op {
-    Read(&'static str),
-    /// A write of K and B, and the read command that reads them back.
-    WriteKb(&'static str, &'static str),
+    Read(String),
+    /// A write of K and B (fields alternately), and the read command that reads them back.
+    WriteKb(String, String),
+}
+
+/// The soak's operations on a sensor: every float read, and the write.
+fn ops(choice: &Choice) -> Vec<Op> {
+    let mut ops: Vec<Op> = choice.reads.iter().map(|c| Op::Read(c.name.clone())).collect();
+    ops.push(Op::WriteKb(choice.write.0.name.clone(), choice.write.1.name.clone()));
+    ops
+}
+
+/// The values a write of K and B sends: its fields alternately K and B.
+fn kb_values(write: &Command, k: f32, b: f32) -> Vec<(String, Value)> {
+    write
+        .fields
+        .iter()
+        .enumerate()
+        .map(|(i, f)| (f.name.clone().expect("a named field"), Value::Float(if i % 2 == 0 { k } else { b })))
+        .collect()
 }
 
 /// What a call returned: a read's fields, or a write's `()`.
 type Outcome = Result<Option<Vec<(String, Owned)>>, Error>;
 
-fn fields_of<'a>(it: impl Iterator<Item = (yosemitech::FieldInfo, FieldValue<'a>)>) -> Option<Vec<(String, Owned)>> {
-    Some(it.map(|(i, v)| (i.name.to_owned(), owned(&v))).collect())
-}
-
-/// Performs `op` through the typed API.
-fn call(probe: &mut Probe, op: Op, k: f32, b: f32) -> Outcome {
-    let a = probe.address;
-    let c = &mut probe.client;
-    match op {
-        Op::Read("get_ph") => c.call(a, &ph_orp::GetPh).map(|r| fields_of(ph_orp::Response::from(r).fields())),
-        Op::Read("get_temperature") => {
-            c.call(a, &ph_orp::GetTemperature).map(|r| fields_of(ph_orp::Response::from(r).fields()))
-        }
-        Op::Read("get_orp") => c.call(a, &ph_orp::GetOrp).map(|r| fields_of(ph_orp::Response::from(r).fields())),
-        Op::Read("get_orp_and_ph") => {
-            c.call(a, &ph_orp::GetOrpAndPh).map(|r| fields_of(ph_orp::Response::from(r).fields()))
-        }
-        Op::Read("get_temperature_and_conductivity") => c
-            .call(a, &conductivity::GetTemperatureAndConductivity)
-            .map(|r| fields_of(conductivity::Response::from(r).fields())),
-        Op::WriteKb("set_orp_calibration", _) => {
-            c.call(a, &ph_orp::SetOrpCalibration { k_slope: k, b_offset: b }).map(|()| None)
-        }
-        Op::WriteKb("set_user_calibration", _) => {
-            c.call(a, &conductivity::SetUserCalibration { k_slope: k, b_offset: b }).map(|()| None)
-        }
-        other => panic!("no such operation {other:?}"),
+/// Performs `op` through the generated typed codecs: the request the spec
+/// interpreter builds, checked against the typed encoding, sent as it is;
+/// the reply decoded by the typed decoder.
+fn call(probe: &mut Probe, op: &Op, k: f32, b: f32) -> Outcome {
+    let (name, values) = match op {
+        Op::Read(name) => (name, Vec::new()),
+        Op::WriteKb(name, _) => (name, kb_values(probe.sensor.command(name).expect("the write"), k, b)),
+    };
+    let command = probe.sensor.command(name).expect("the command");
+    let values: Vec<(&str, Value)> = values.iter().map(|(n, v)| (n.as_str(), v.clone())).collect();
+    let frame = request(command, probe.address, &values);
+    let mut typed = [0u8; 256];
+    let n = (probe.module.reencode_request)(name, &frame, &mut typed).expect("a generated command").expect("typed");
+    assert_eq!(typed[..n], frame[..], "{name}: the typed request is the interpreter's");
+    let layout = (probe.module.layout)(name).expect("the command's layout");
+    let reply = probe.client.call_raw(&frame, &layout)?;
+    if !command.is_read() {
+        return Ok(None);
     }
+    let mut fields = Vec::new();
+    let decoded = (probe.module.visit_response)(name, probe.address, reply, &mut |info, value| {
+        fields.push((info.name.to_owned(), owned(&value)));
+    });
+    decoded.expect("a generated command").expect("the typed decoder takes the checked reply");
+    Ok(Some(fields))
 }
 
 /// The one fault the simulator injected between two snapshots of its counters.
@@ -376,10 +418,10 @@ struct Tally {
 fn soak(probe: &mut Probe, ops: &[Op], calls: usize, rng: &mut Rng, tally: &mut Tally) {
     let mut previous_fault: Option<FaultKind> = None;
     for n in 0..calls {
-        let op = ops[rng.below(ops.len() as u64) as usize];
+        let op = ops[rng.below(ops.len() as u64) as usize].clone();
         let (k, b) = (rng.value(), rng.value());
         // New readings for a read; the current K and B for a write.
-        let expected = match op {
+        let expected = match &op {
             Op::Read(command) => {
                 let mut sim = probe.server.device();
                 let names: Vec<String> = sim
@@ -388,7 +430,7 @@ fn soak(probe: &mut Probe, ops: &[Op], calls: usize, rng: &mut Rng, tally: &mut 
                     .expect("the command")
                     .fields
                     .iter()
-                    .filter(|f| matches!(f.kind, yosemitech_spec::FieldKind::F32 { .. }))
+                    .filter(|f| is_f32(f))
                     .filter_map(|f| f.name.clone())
                     .collect();
                 for name in names {
@@ -406,7 +448,7 @@ fn soak(probe: &mut Probe, ops: &[Op], calls: usize, rng: &mut Rng, tally: &mut 
         let timeout = if no_reply(scripted) { NO_REPLY_TIMEOUT } else { REPLY_TIMEOUT };
         probe.client.config_mut().timeout = timeout;
         let started = Instant::now();
-        let outcome = call(probe, op, k, b);
+        let outcome = call(probe, &op, k, b);
         let took = started.elapsed();
         let timed_out = matches!(outcome, Err(Error::Timeout { .. }));
         if timed_out {
@@ -450,22 +492,22 @@ fn soak(probe: &mut Probe, ops: &[Op], calls: usize, rng: &mut Rng, tally: &mut 
             tally.recoveries_due += 1;
             tally.recoveries += usize::from(outcome.is_ok());
         }
-        match (op, &outcome) {
+        match (&op, &outcome) {
             (Op::Read(_), Ok(values)) => {
                 let values = values.as_ref().expect("a read returns fields");
                 assert_eq!(values, &expected, "{context}: a wrong value");
                 tally.values_checked += values.len();
             }
-            (Op::WriteKb(_, readback), _) => {
+            (Op::WriteKb(write, readback), _) => {
                 // Applied unless the device was busy (it did not process it),
                 // whatever the client saw (a timed-out call has settled).
                 let now = truth(probe, readback);
-                let written = vec![
-                    ("k_slope".to_owned(), Owned::Float(k.to_bits())),
-                    ("b_offset".to_owned(), Owned::Float(b.to_bits())),
-                ];
+                let written: Vec<(String, Owned)> = kb_values(probe.sensor.command(write).expect("the write"), k, b)
+                    .iter()
+                    .map(|(n, v)| (n.clone(), owned_value(v)))
+                    .collect();
                 let want = if fault == Some(FaultKind::Busy) { expected.clone() } else { written };
-                assert_eq!(now[..2], want[..], "{context}: the device state after the write");
+                assert_eq!(now, want, "{context}: the device state after the write");
                 tally.writes_checked += 1;
             }
             _ => {}
@@ -487,26 +529,18 @@ fn check_requests(probe: &Probe) {
 fn fault_soak_through_the_pty() {
     let spec = spec();
     let mut rng = Rng(0x5EED_0FFA_1700);
-    let ph_calls = CALLS * 2 / 3;
-    let cond_calls = CALLS - ph_calls;
-    let ph_script = script(&mut rng, ph_calls);
-    let cond_script = script(&mut rng, cond_calls);
-    let Some(mut ph) = open(&spec, "ph_orp", PH_ADDRESS, ph_script) else { return };
-    let Some(mut cond) = open(&spec, "conductivity", COND_ADDRESS, cond_script) else { return };
+    let (first, second) = probes(&spec);
+    let first_calls = CALLS * 2 / 3;
+    let second_calls = CALLS - first_calls;
+    let first_script = script(&mut rng, first_calls);
+    let second_script = script(&mut rng, second_calls);
+    let Some(mut one) = open(&first.sensor, FIRST_ADDRESS, first_script) else { return };
+    let Some(mut two) = open(&second.sensor, SECOND_ADDRESS, second_script) else { return };
 
     let started = Instant::now();
     let mut tally = Tally::default();
-    let ph_ops = [
-        Op::Read("get_ph"),
-        Op::Read("get_temperature"),
-        Op::Read("get_orp"),
-        Op::Read("get_orp_and_ph"),
-        Op::WriteKb("set_orp_calibration", "get_orp_calibration"),
-    ];
-    soak(&mut ph, &ph_ops, ph_calls, &mut rng, &mut tally);
-    let cond_ops =
-        [Op::Read("get_temperature_and_conductivity"), Op::WriteKb("set_user_calibration", "get_user_calibration")];
-    soak(&mut cond, &cond_ops, cond_calls, &mut rng, &mut tally);
+    soak(&mut one, &ops(&first), first_calls, &mut rng, &mut tally);
+    soak(&mut two, &ops(&second), second_calls, &mut rng, &mut tally);
     let elapsed = started.elapsed();
 
     tally.reply_times.sort();
@@ -517,9 +551,11 @@ fn fault_soak_through_the_pty() {
         .map(|(k, n)| format!("{k} {}/{n}", tally.as_specified.get(k).copied().unwrap_or(0)))
         .collect();
     yosemitech_tests::report!(
-        "fault soak over ptys: {} calls in {:.1} s ({} ok, {} values and {} writes checked, {}/{} recoveries, \
+        "fault soak over ptys ({}, {}): {} calls in {:.1} s ({} ok, {} values and {} writes checked, {}/{} recoveries, \
          {} stalled, {} late, {} truncated replies seen, {} delayed replies read late), \
          replies in {median:?} (median), slowest call {:?}; as specified/calls by fault: {}",
+        first.sensor.name,
+        second.sensor.name,
         tally.calls,
         elapsed.as_secs_f64(),
         tally.ok,
@@ -558,10 +594,10 @@ fn fault_soak_through_the_pty() {
     // A client that waited for its deadline instead of the reply's end would
     // take REPLY_TIMEOUT per call; load costs milliseconds.
     assert!(median < REPLY_TIMEOUT / 10, "replies took {median:?} (median): the client waits out its timeout");
-    check_requests(&ph);
-    check_requests(&cond);
-    ph.server.stop().expect("the pH server stops");
-    cond.server.stop().expect("the conductivity server stops");
+    check_requests(&one);
+    check_requests(&two);
+    one.server.stop().expect("the first server stops");
+    two.server.stop().expect("the second server stops");
 }
 
 #[test]
@@ -570,38 +606,49 @@ fn function_code_addresses_with_noise_through_the_pty() {
     // before the client learned to realign (`AA 03 03 04 ...`). A reply held
     // up past REPLY_TIMEOUT by a stalled machine is tolerated, not more.
     let spec = spec();
-    let Some(mut ph) = open(&spec, "ph_orp", PH_ADDRESS, vec![Some(FaultKind::Garbage); 200]) else { return };
-    let Some(mut cond) = open(&spec, "conductivity", COND_ADDRESS, vec![Some(FaultKind::Garbage); 200]) else { return };
+    let (first, second) = probes(&spec);
+    let Some(mut one) = open(&first.sensor, FIRST_ADDRESS, vec![Some(FaultKind::Garbage); 200]) else { return };
+    let Some(mut two) = open(&second.sensor, SECOND_ADDRESS, vec![Some(FaultKind::Garbage); 200]) else { return };
+    let read = Op::Read(first.reads[0].name.clone());
+    let field = first.reads[0].fields[0].name.clone().expect("a named field");
+    let (write, readback) = (&second.write.0, &second.write.1);
+    let written = Op::WriteKb(write.name.clone(), readback.name.clone());
     let (mut ok, mut stalled) = (0, 0);
     for i in 0..200 {
         let v = i as f32 * 0.5;
-        ph.server.device().set("get_ph", "ph", Value::Float(v)).expect("set");
-        match ph.client.call(PH_ADDRESS, &ph_orp::GetPh) {
+        one.server.device().set(&first.reads[0].name, &field, Value::Float(v)).expect("set");
+        match call(&mut one, &read, 0.0, 0.0) {
             Ok(reply) => {
-                assert_eq!(reply.ph.to_bits(), v.to_bits(), "get_ph {i} after noise: a wrong value");
+                let reply = reply.expect("a read returns fields");
+                assert_eq!(
+                    reply[0],
+                    (field.clone(), Owned::Float(v.to_bits())),
+                    "{read:?} {i} after noise: a wrong value"
+                );
                 ok += 1;
             }
             Err(Error::Timeout { .. }) => {
-                settle(&mut ph);
+                settle(&mut one);
                 stalled += 1;
             }
-            Err(e) => panic!("get_ph {i} after noise: {e}"),
+            Err(e) => panic!("{read:?} {i} after noise: {e}"),
         }
-        match cond.client.call(COND_ADDRESS, &conductivity::SetUserCalibration { k_slope: v, b_offset: -v }) {
-            Ok(()) => ok += 1,
+        match call(&mut two, &written, v, -v) {
+            Ok(_) => ok += 1,
             Err(Error::Timeout { .. }) => {
-                settle(&mut cond);
+                settle(&mut two);
                 stalled += 1;
             }
             Err(e) => panic!("write {i} to 0x10 after noise: {e}"),
         }
-        let calibration = cond.server.device().values("get_user_calibration").expect("the calibration");
-        let k = calibration.iter().find(|(name, _)| name == "k_slope").map(|(_, v)| owned_value(v));
-        assert_eq!(k, Some(Owned::Float(v.to_bits())), "write {i} to 0x10 after noise: applied");
+        let now = truth(&two, &readback.name);
+        let want: Vec<(String, Owned)> =
+            kb_values(write, v, -v).iter().map(|(n, x)| (n.clone(), owned_value(x))).collect();
+        assert_eq!(now, want, "write {i} to 0x10 after noise: applied");
     }
     assert!(ok >= 200, "only {ok} of 400 calls succeeded after noise ({stalled} stalled)");
-    assert_eq!(ph.server.device().faults().get(FaultKind::Garbage), 200);
-    assert_eq!(cond.server.device().faults().get(FaultKind::Garbage), 200);
-    check_requests(&ph);
-    check_requests(&cond);
+    assert_eq!(one.server.device().faults().get(FaultKind::Garbage), 200);
+    assert_eq!(two.server.device().faults().get(FaultKind::Garbage), 200);
+    check_requests(&one);
+    check_requests(&two);
 }

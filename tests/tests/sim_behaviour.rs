@@ -6,7 +6,8 @@ mod sim_common;
 use std::time::Duration;
 
 use sim_common::{
-    client, command, exception, exchange, request, same, sensor, sim, sim_with_exceptions, spec, with_crc,
+    client, command, example_reading, example_reply, exception, exchange, f32_bytes, first_field, float_read,
+    float_write_with_readback, is_f32, is_float_read, request, same, sensor_with_role, spec, with_crc, with_role,
 };
 use yosemitech_rtu::{Error, Function, ResponderTransport};
 use yosemitech_sim::{Bus, Device, MeasurementState, Simulator, UnknownRequestPolicy, Variation, WarmUpPolicy};
@@ -18,91 +19,139 @@ fn f(v: f32) -> Value {
 
 #[test]
 fn writes_are_read_back() {
-    let cond = sensor("conductivity");
-    let (set, get) = (command(&cond, "set_user_calibration"), command(&cond, "get_user_calibration"));
-    let mut sim = Simulator::new(cond.clone());
-    assert!(same(
-        &sim.values("get_user_calibration").unwrap(),
-        &[("k_slope".into(), f(1.0)), ("b_offset".into(), f(0.0))]
-    ));
-    let write = request(&set, 1, &[("k_slope", f(1.25)), ("b_offset", f(-0.5))]);
-    assert_eq!(exchange(&mut sim, &write), set.encode_response(1, &Default::default()).unwrap(), "echo");
-    let reply = exchange(&mut sim, &request(&get, 1, &[]));
-    let values = get.decode_response(1, &reply).unwrap();
-    assert!(same(&values, &[("k_slope".into(), f(1.25)), ("b_offset".into(), f(-0.5))]), "{values:?}");
-
-    // pH: K1..K6 through 0x2900, both directions.
-    let ph = sensor("ph_orp");
-    let (set, get) = (command(&ph, "set_ph_electrode_coefficients"), command(&ph, "get_ph_electrode_coefficients"));
-    let mut sim = Simulator::new(ph.clone());
-    let ks: Vec<(&str, Value)> = ["k1", "k2", "k3", "k4", "k5", "k6"].iter().map(|k| (*k, f(0.5))).collect();
-    exchange(&mut sim, &request(&set, 1, &ks));
-    let values = get.decode_response(1, &exchange(&mut sim, &request(&get, 1, &[]))).unwrap();
-    assert!(values.iter().all(|(_, v)| v.same_as(&f(0.5))), "{values:?}");
-    assert_eq!(sim.stats().writes, 1);
-    assert_eq!(sim.stats().reads, 1);
+    // Every float write the spec reads back at the same registers, both directions.
+    let mut checked = 0;
+    for sensor in &spec().sensors {
+        let Some((set, get)) = float_write_with_readback(sensor) else { continue };
+        let slave = sensor.default_address;
+        let mut sim = Simulator::new(sensor.clone());
+        if let Some(reading) = example_reading(&get) {
+            assert!(
+                same(&sim.values(&get.name).unwrap(), &reading),
+                "{}.{}: the manual's example",
+                sensor.name,
+                get.name
+            );
+        }
+        let written: Vec<(String, Value)> = set
+            .fields
+            .iter()
+            .enumerate()
+            .map(|(i, field)| (field.name.clone().unwrap(), f(if i % 2 == 0 { 1.25 } else { -0.5 })))
+            .collect();
+        let values: Vec<(&str, Value)> = written.iter().map(|(n, v)| (n.as_str(), v.clone())).collect();
+        let write = request(&set, slave, &values);
+        assert_eq!(exchange(&mut sim, &write), set.encode_response(slave, &Default::default()).unwrap(), "echo");
+        let reply = exchange(&mut sim, &request(&get, slave, &[]));
+        let values = get.decode_response(slave, &reply).unwrap();
+        assert!(same(&values, &written), "{}.{}: {values:?}", sensor.name, get.name);
+        assert_eq!(sim.stats().writes, 1);
+        assert_eq!(sim.stats().reads, 1);
+        checked += 1;
+    }
+    assert!(checked >= 2, "float writes read back in several sensors: {checked}");
 }
 
 #[test]
 fn readings_set_by_name_are_served() {
-    let ph = sensor("ph_orp");
-    let mut sim = Simulator::new(ph.clone());
-    sim.set("get_ph", "ph", f(7.0)).unwrap();
-    let get_ph = command(&ph, "get_ph");
-    let reply = exchange(&mut sim, &request(&get_ph, 1, &[]));
-    assert_eq!(reply, [0x01, 0x03, 0x04, 0x00, 0x00, 0xE0, 0x40, 0xB2, 0x03]);
-    let with_ph = ph.commands.iter().filter(|c| c.is_read() && c.field("ph").is_some()).count();
-    assert!(with_ph >= 2, "get_ph and get_orp_and_ph");
-    assert_eq!(sim.set_everywhere("ph", f(8.5)).unwrap(), with_ph);
-    assert_eq!(sim.get("get_orp_and_ph", "ph").unwrap(), f(8.5));
-    assert!(sim.set("get_ph", "nope", f(1.0)).is_err());
-    assert!(sim.set("nope", "ph", f(1.0)).is_err());
-    assert!(sim.set("start_ph_calibration", "standard_ph", f(15.0)).is_err(), "outside the write field's range");
+    let (probe, get) = float_read(&spec());
+    let (slave, name) = (probe.default_address, first_field(&get));
+    let mut sim = Simulator::new(probe.clone());
+    sim.set(&get.name, &name, f(7.0)).unwrap();
+    let reply = exchange(&mut sim, &request(&get, slave, &[]));
+    let mut expected = vec![slave, 0x03, 0x04];
+    expected.extend_from_slice(&f32_bytes(&get.fields[0], 7.0));
+    assert_eq!(reply, with_crc(&expected));
+    let with_field: Vec<&Command> = probe.commands.iter().filter(|c| c.is_read() && c.field(&name).is_some()).collect();
+    assert_eq!(sim.set_everywhere(&name, f(8.5)).unwrap(), with_field.len());
+    for read in &with_field {
+        assert_eq!(sim.get(&read.name, &name).unwrap(), f(8.5), "{}", read.name);
+    }
+    assert!(sim.set(&get.name, "nope", f(1.0)).is_err());
+    assert!(sim.set("nope", &name, f(1.0)).is_err());
+    // A write field's range is enforced.
+    if let Some((write, field, max)) = probe
+        .commands
+        .iter()
+        .filter(|c| !c.is_read())
+        .find_map(|c| c.fields.iter().find(|fl| is_f32(fl)).and_then(|fl| Some((c, fl.name.clone()?, fl.range?.1))))
+    {
+        assert!(sim.set(&write.name, &field, f(max as f32 + 1.0)).is_err(), "outside the write field's range");
+    }
     // A read's range is the measuring range, which a probe may leave: a client test may set it.
-    let (_, max) = get_ph_range(&ph);
-    sim.set("get_ph", "ph", f(max as f32 + 5.0)).unwrap();
-    assert_eq!(sim.get("get_ph", "ph").unwrap(), f(max as f32 + 5.0));
-    assert!(sim.is_measurement("get_ph") && !sim.is_measurement("get_ph_calibration") && !sim.is_measurement("get_sn"));
+    let (_, max) = get.fields[0].range.unwrap_or((0.0, 14.0));
+    sim.set(&get.name, &name, f(max as f32 + 5.0)).unwrap();
+    assert_eq!(sim.get(&get.name, &name).unwrap(), f(max as f32 + 5.0));
+    assert!(sim.is_measurement(&get.name));
+    if let Some((_, readback)) = float_write_with_readback(&probe) {
+        assert!(!sim.is_measurement(&readback.name), "{}", readback.name);
+    }
+    if let Some(sn) = probe.command_with_role(Role::SerialNumber) {
+        assert!(!sim.is_measurement(&sn.name));
+    }
 }
 
-fn get_ph_range(ph: &Sensor) -> (f64, f64) {
-    command(ph, "get_ph").field("ph").and_then(|f| f.range).unwrap_or((0.0, 14.0))
+/// A sensor with slave address commands (the getter answering the 0xFF
+/// wildcard) and a float read.
+fn addressable() -> (Sensor, Command) {
+    let sensor = spec()
+        .sensors
+        .iter()
+        .find(|s| {
+            s.command_with_role(Role::SetSlaveAddress).is_some()
+                && s.command_with_role(Role::GetSlaveAddress).is_some_and(|c| c.fixed_slave == Some(0xFF))
+                && s.commands.iter().any(is_float_read)
+        })
+        .expect("a sensor with slave address commands")
+        .clone();
+    let read = sensor.commands.iter().find(|c| is_float_read(c)).unwrap().clone();
+    (sensor, read)
 }
 
 #[test]
 fn set_slave_id_takes_effect_after_the_reply() {
-    let ph = sensor("ph_orp");
-    let (set_id, get_ph) = (command(&ph, "set_slave_id"), command(&ph, "get_ph"));
-    let mut sim = Simulator::new(ph.clone());
-    let reply = exchange(&mut sim, &request(&set_id, 1, &[("slave_address", Value::Int(20))]));
-    assert_eq!(reply, [0x01, 0x10, 0x30, 0x00, 0x00, 0x01, 0x0E, 0xC9], "Fig 17: from the old address");
+    let (probe, read) = addressable();
+    let slave = probe.default_address;
+    let set_id = with_role(&probe, Role::SetSlaveAddress);
+    let field = first_field(&set_id);
+    let mut sim = Simulator::new(probe.clone());
+    let reply = exchange(&mut sim, &request(&set_id, slave, &[(field.as_str(), Value::Int(20))]));
+    assert_eq!(reply, set_id.encode_response(slave, &Default::default()).unwrap(), "from the old address");
     assert_eq!(sim.address(), 20);
-    assert!(exchange(&mut sim, &request(&get_ph, 1, &[])).is_empty(), "the old address is silent");
-    let reply = exchange(&mut sim, &request(&get_ph, 20, &[]));
+    assert!(exchange(&mut sim, &request(&read, slave, &[])).is_empty(), "the old address is silent");
+    let reply = exchange(&mut sim, &request(&read, 20, &[]));
     assert_eq!(reply[0], 20);
     assert_eq!(sim.stats().address_changes, 1);
-    // Out of the field's range (1..=247): exception 03, address kept.
-    let frame = with_crc(&[20, 0x10, 0x30, 0x00, 0x00, 0x01, 0x02, 248, 0x00]);
+    // Out of the field's range: exception 03, address kept.
+    let mut frame = request(&set_id, 20, &[(field.as_str(), Value::Int(20))]);
+    let at = 7 + set_id.fields[0].offset;
+    frame[at] = probe.max_address + 1;
+    let frame = with_crc(&frame[..frame.len() - 2]);
     assert_eq!(exchange(&mut sim, &frame), exception(20, 0x10, 0x03));
     assert_eq!(sim.address(), 20);
 }
 
 #[test]
 fn get_slave_id_via_the_wildcard_reports_the_current_address() {
-    let ph = sensor("ph_orp");
-    let get_id = command(&ph, "get_slave_id");
-    let mut sim = Simulator::new(ph.clone()).with_address(7);
-    let reply = exchange(&mut sim, &request(&get_id, 0xFF, &[]));
-    assert_eq!(reply[0], 0xFF, "E3: the reply comes from 0xFF");
+    let (probe, read) = addressable();
+    let get_id = with_role(&probe, Role::GetSlaveAddress);
+    let mut sim = Simulator::new(probe.clone()).with_address(7);
+    let wildcard = exchange(&mut sim, &request(&get_id, 0xFF, &[]));
+    let reply = wildcard.clone();
+    assert_eq!(reply[0], 0xFF, "the reply comes from the fixed slave 0xFF");
     let values = get_id.decode_response(0xFF, &reply).unwrap();
-    assert_eq!(values, [("slave_address".to_string(), Value::Int(7))]);
+    assert_eq!(values, [(first_field(&get_id), Value::Int(7))]);
     // The same registers at the device's own address: answered from it.
     let mut own = request(&get_id, 0xFF, &[])[..6].to_vec();
     own[0] = 7;
     let reply = exchange(&mut sim, &with_crc(&own));
-    assert_eq!(reply[..4], [7, 0x03, 0x02, 7]);
+    assert_eq!(reply[..3], [7, 0x03, 2 * get_id.count as u8]);
+    assert_eq!(reply[3..reply.len() - 2], wildcard[3..wildcard.len() - 2], "the same address data");
     // 0xFF with anything but the wildcard command is not for us.
-    let other = with_crc(&[0xFF, 0x03, 0x28, 0x00, 0x00, 0x02]);
+    let mut other = request(&read, 7, &[])[..6].to_vec();
+    assert!(other[1..] != own[1..], "another command than the wildcard's");
+    other[0] = 0xFF;
+    let other = with_crc(&other);
     assert!(exchange(&mut sim, &other).is_empty());
     // A sensor without a fixed-slave command: 0xFF is nobody's address,
     // even when exceptions are asked for.
@@ -168,16 +217,23 @@ fn every_sensor_ignores_requests_that_match_no_command_by_default() {
 
 #[test]
 fn a_client_asking_for_a_register_the_probe_lacks_times_out() {
-    let ph = sensor("ph_orp");
-    // A conductivity command sent to a pH probe: the pH probe has no such register.
-    let cond = sensor("conductivity");
-    let foreign = cond
-        .commands
+    // A read of one sensor sent to another that has no such register.
+    let sensors = spec().sensors;
+    let (probe, foreign) = sensors
         .iter()
-        .find(|c| c.is_read() && !ph.commands.iter().any(|p| p.function == c.function && p.address == c.address))
-        .expect("a conductivity read at an address the pH probe lacks");
-    let mut client = client(ResponderTransport::new(Simulator::new(ph.clone())), Duration::from_millis(20));
-    match client.call_raw(&request(foreign, 1, &[]), &foreign.layout()) {
+        .flat_map(|p| sensors.iter().filter(move |o| o.name != p.name).map(move |o| (p, o)))
+        .find_map(|(p, o)| {
+            let lacks = |c: &&Command| !p.commands.iter().any(|q| q.function == c.function && q.address == c.address);
+            o.commands
+                .iter()
+                .filter(|c| c.is_read() && c.fixed_slave.is_none())
+                .find(lacks)
+                .map(|c| (p.clone(), c.clone()))
+        })
+        .expect("a read of one sensor at an address another lacks");
+    let slave = probe.default_address;
+    let mut client = client(ResponderTransport::new(Simulator::new(probe.clone())), Duration::from_millis(20));
+    match client.call_raw(&request(&foreign, slave, &[]), &foreign.layout()) {
         Err(Error::Timeout { received }) => assert!(received.is_empty(), "{received}"),
         other => panic!("expected a timeout, got {other:?}"),
     }
@@ -185,49 +241,96 @@ fn a_client_asking_for_a_register_the_probe_lacks_times_out() {
     assert!(stats.ignored_unknown >= 1 && stats.replies == 0, "{stats:?}");
     // With exceptions asked for: 02, at once.
     client.transport_mut().responder_mut().set_unknown_request_policy(UnknownRequestPolicy::Exception);
-    let err = client.call_raw(&request(foreign, 1, &[]), &foreign.layout()).unwrap_err();
+    let err = client.call_raw(&request(&foreign, slave, &[]), &foreign.layout()).unwrap_err();
     assert_eq!(err.exception(), Some(yosemitech_rtu::ExceptionCode::IllegalDataAddress), "{err}");
+}
+
+/// The sensor whose spec has a calibration point command, with its single
+/// float point field and the standards (the list constant in the field's
+/// unit, as the simulator finds them).
+fn calibrating() -> (Sensor, Command, String, Vec<f32>) {
+    let probe = sensor_with_role(&spec(), Role::CalibrationPoint);
+    let point = with_role(&probe, Role::CalibrationPoint);
+    let field = point.named_fields().next().expect("a point field");
+    let unit = field.unit.clone().expect("the point's unit");
+    let standards = probe
+        .constants
+        .iter()
+        .find(|c| c.is_list && c.unit.as_deref() == Some(unit.as_str()))
+        .expect("the calibration standards")
+        .values
+        .iter()
+        .map(|v| *v as f32)
+        .collect();
+    let name = field.name.clone().unwrap();
+    (probe, point, name, standards)
 }
 
 #[test]
 fn exceptions_for_unknown_function_address_and_bad_counts_when_asked_for() {
-    let mut sim = sim_with_exceptions("ph_orp");
+    let (probe, point, standard, standards) = calibrating();
+    let slave = probe.default_address;
+    let mut sim = Simulator::new(probe.clone());
+    sim.set_unknown_request_policy(UnknownRequestPolicy::Exception);
+    let read = probe
+        .commands
+        .iter()
+        .find(|c| {
+            is_float_read(c)
+                && !probe.commands.iter().any(|o| o.is_read() && o.address == c.address && o.count == c.count + 1)
+                && !probe.commands.iter().any(|o| !o.is_read() && o.address == c.address)
+        })
+        .expect("a read-only float read")
+        .clone();
+    let [rh, rl] = read.address.to_be_bytes();
+    let [ch, cl] = read.count.to_be_bytes();
     // Unknown function (0x04, read input registers): 01.
-    assert_eq!(exchange(&mut sim, &with_crc(&[1, 0x04, 0x28, 0x00, 0x00, 0x02])), exception(1, 0x04, 0x01));
-    // No command at 0x2700: 02.
-    assert_eq!(exchange(&mut sim, &with_crc(&[1, 0x03, 0x27, 0x00, 0x00, 0x02])), exception(1, 0x03, 0x02));
-    // get_ph's address, wrong count: 03.
-    assert_eq!(exchange(&mut sim, &with_crc(&[1, 0x03, 0x28, 0x00, 0x00, 0x03])), exception(1, 0x03, 0x03));
+    assert_eq!(exchange(&mut sim, &with_crc(&[slave, 0x04, rh, rl, ch, cl])), exception(slave, 0x04, 0x01));
+    // No command at a free address: 02.
+    let free = (0..=u16::MAX).find(|a| !probe.commands.iter().any(|c| c.is_read() && c.address == *a)).unwrap();
+    let [fh, fl] = free.to_be_bytes();
+    assert_eq!(exchange(&mut sim, &with_crc(&[slave, 0x03, fh, fl, ch, cl])), exception(slave, 0x03, 0x02));
+    // A read's address, wrong count: 03.
+    let [wh, wl] = (read.count + 1).to_be_bytes();
+    assert_eq!(exchange(&mut sim, &with_crc(&[slave, 0x03, rh, rl, wh, wl])), exception(slave, 0x03, 0x03));
     // A write to a read-only block: 02.
-    let write = with_crc(&[1, 0x10, 0x28, 0x00, 0x00, 0x02, 0x04, 0, 0, 0, 0]);
-    assert_eq!(exchange(&mut sim, &write), exception(1, 0x10, 0x02));
+    let mut write = vec![slave, 0x10, rh, rl, ch, cl, 2 * read.count as u8];
+    write.resize(write.len() + 2 * usize::from(read.count), 0);
+    assert_eq!(exchange(&mut sim, &with_crc(&write)), exception(slave, 0x10, 0x02));
     // Byte count inconsistent with the register count: 03.
-    let write = with_crc(&[1, 0x10, 0x23, 0x00, 0x00, 0x02, 0x02, 0, 0]);
-    assert_eq!(exchange(&mut sim, &write), exception(1, 0x10, 0x03));
+    let [ph, pl] = point.address.to_be_bytes();
+    let [pch, pcl] = point.count.to_be_bytes();
+    let bytes = 2 * point.count as u8;
+    let mut write = vec![slave, 0x10, ph, pl, pch, pcl, bytes - 2];
+    write.resize(write.len() + usize::from(bytes - 2), 0);
+    assert_eq!(exchange(&mut sim, &with_crc(&write)), exception(slave, 0x10, 0x03));
     // Byte count inconsistent with the frame's length: 03.
-    let write = with_crc(&[1, 0x10, 0x23, 0x00, 0x00, 0x02, 0x04, 0, 0, 0x80]);
-    assert_eq!(exchange(&mut sim, &write), exception(1, 0x10, 0x03));
+    let mut write = vec![slave, 0x10, ph, pl, pch, pcl, bytes];
+    write.resize(write.len() + usize::from(bytes - 2), 0);
+    write.push(0x80);
+    assert_eq!(exchange(&mut sim, &with_crc(&write)), exception(slave, 0x10, 0x03));
     // A read frame of the wrong length: 03.
-    assert_eq!(exchange(&mut sim, &with_crc(&[1, 0x03, 0x28, 0x00, 0x00, 0x02, 0x00])), exception(1, 0x03, 0x03));
-    // standard_ph outside 0..14: 03, nothing stored.
-    let cal = command(&sensor("ph_orp"), "start_ph_calibration");
-    let mut bad = request(&cal, 1, &[("standard_ph", f(4.0))]);
-    bad[7..11].copy_from_slice(&20.0f32.to_le_bytes());
+    assert_eq!(exchange(&mut sim, &with_crc(&[slave, 0x03, rh, rl, ch, cl, 0x00])), exception(slave, 0x03, 0x03));
+    // A point outside its field's range: 03, nothing stored.
+    let field = point.field(&standard).unwrap();
+    let (_, max) = field.range.expect("the point's range");
+    let mut bad = request(&point, slave, &[(standard.as_str(), f(standards[0]))]);
+    bad[7 + field.offset..11 + field.offset].copy_from_slice(&f32_bytes(field, max as f32 + 6.0));
     let bad = with_crc(&bad[..bad.len() - 2]);
-    assert_eq!(exchange(&mut sim, &bad), exception(1, 0x10, 0x03));
+    assert_eq!(exchange(&mut sim, &bad), exception(slave, 0x10, 0x03));
     assert_eq!(sim.calibration_points(), [] as [f32; 0]);
     assert_eq!(sim.stats().exceptions, 8);
     assert_eq!(sim.stats().ignored_unknown, 0);
     // Exceptions to another slave or broadcast: nothing.
-    assert!(exchange(&mut sim, &with_crc(&[2, 0x04, 0x28, 0x00, 0x00, 0x02])).is_empty());
-    assert!(exchange(&mut sim, &with_crc(&[0, 0x04, 0x28, 0x00, 0x00, 0x02])).is_empty());
+    assert!(exchange(&mut sim, &with_crc(&[slave + 1, 0x04, rh, rl, ch, cl])).is_empty());
+    assert!(exchange(&mut sim, &with_crc(&[0, 0x04, rh, rl, ch, cl])).is_empty());
 }
 
 #[test]
 fn bad_crc_and_noise_are_ignored_silently() {
-    let ph = sensor("ph_orp");
-    let mut sim = Simulator::new(ph.clone());
-    let mut req = request(&command(&ph, "get_ph"), 1, &[]);
+    let (probe, read) = float_read(&spec());
+    let mut sim = Simulator::new(probe.clone());
+    let mut req = request(&read, probe.default_address, &[]);
     req[7] ^= 0x01;
     assert!(exchange(&mut sim, &req).is_empty());
     assert!(exchange(&mut sim, &[]).is_empty());
@@ -238,122 +341,161 @@ fn bad_crc_and_noise_are_ignored_silently() {
 
 #[test]
 fn broadcast_writes_are_applied_without_reply() {
-    let ph = sensor("ph_orp");
-    let set = command(&ph, "set_orp_calibration");
-    let mut bus =
-        Bus::new().with(Simulator::new(ph.clone()).with_address(1)).with(Simulator::new(ph.clone()).with_address(2));
-    let write = request(&set, 0, &[("k_slope", f(2.0)), ("b_offset", f(3.0))]);
-    assert!(exchange(&mut bus, &write).is_empty());
+    let (probe, (set, get)) = spec()
+        .sensors
+        .iter()
+        .find_map(|s| Some((s.clone(), float_write_with_readback(s)?)))
+        .expect("a sensor with a float write read back");
+    let mut bus = Bus::new()
+        .with(Simulator::new(probe.clone()).with_address(1))
+        .with(Simulator::new(probe.clone()).with_address(2));
+    let written: Vec<(String, Value)> =
+        set.fields.iter().enumerate().map(|(i, fl)| (fl.name.clone().unwrap(), f(2.0 + i as f32))).collect();
+    let values: Vec<(&str, Value)> = written.iter().map(|(n, v)| (n.as_str(), v.clone())).collect();
+    assert!(exchange(&mut bus, &request(&set, 0, &values)).is_empty());
     for device in bus.devices() {
-        assert_eq!(device.get("get_orp_calibration", "k_slope").unwrap(), f(2.0));
+        assert!(same(&device.values(&get.name).unwrap(), &written));
         assert_eq!(device.stats().broadcasts, 1);
     }
     // A broadcast read is not a thing: ignored.
-    assert!(exchange(&mut bus, &with_crc(&[0, 0x03, 0x28, 0x00, 0x00, 0x02])).is_empty());
+    let mut read = request(&get, 1, &[])[..6].to_vec();
+    read[0] = 0;
+    assert!(exchange(&mut bus, &with_crc(&read)).is_empty());
 }
 
 #[test]
 fn bus_with_two_sensors_only_the_addressed_one_answers() {
-    let (ph, cond) = (sensor("ph_orp"), sensor("conductivity"));
+    // A single-float read of one sensor, and another sensor with no register there.
+    let spec = spec();
+    let (one, get_one) = float_read(&spec);
+    let (two, get_two) = spec
+        .sensors
+        .iter()
+        .filter(|s| !s.commands.iter().any(|c| c.is_read() && c.address == get_one.address))
+        .find_map(|s| Some((s.clone(), s.commands.iter().find(|c| is_float_read(c))?.clone())))
+        .expect("another sensor with a float read and no register at the first's");
+    let (name_one, name_two) = (first_field(&get_one), get_two.fields.last().unwrap().name.clone().unwrap());
     let mut bus =
-        Bus::new().with(Simulator::new(ph.clone()).with_address(1)).with(Simulator::new(cond.clone()).with_address(2));
-    bus.device_mut(1).unwrap().set("get_ph", "ph", f(6.5)).unwrap();
-    bus.device_mut(2).unwrap().set("get_temperature_and_conductivity", "conductivity_ms_cm", f(1.5)).unwrap();
-    let get_ph = command(&ph, "get_ph");
-    let get_tc = command(&cond, "get_temperature_and_conductivity");
-    let reply = exchange(&mut bus, &request(&get_ph, 1, &[]));
-    assert_eq!(get_ph.decode_response(1, &reply).unwrap()[0].1, f(6.5));
-    let reply = exchange(&mut bus, &request(&get_tc, 2, &[]));
-    assert_eq!(get_tc.decode_response(2, &reply).unwrap()[1].1, f(1.5));
-    // get_ph's registers at address 2 (conductivity has none there): silence,
+        Bus::new().with(Simulator::new(one.clone()).with_address(1)).with(Simulator::new(two.clone()).with_address(2));
+    bus.device_mut(1).unwrap().set(&get_one.name, &name_one, f(6.5)).unwrap();
+    bus.device_mut(2).unwrap().set(&get_two.name, &name_two, f(1.5)).unwrap();
+    let reply = exchange(&mut bus, &request(&get_one, 1, &[]));
+    assert_eq!(get_one.decode_response(1, &reply).unwrap()[0].1, f(6.5));
+    let reply = exchange(&mut bus, &request(&get_two, 2, &[]));
+    assert_eq!(get_two.decode_response(2, &reply).unwrap().last().unwrap().1, f(1.5));
+    // The first read's registers at address 2 (the second has none there): silence,
     // or 02 from 2 only when it is asked to answer exceptions.
-    assert!(exchange(&mut bus, &request(&get_ph, 2, &[])).is_empty());
+    assert!(exchange(&mut bus, &request(&get_one, 2, &[])).is_empty());
     assert_eq!(bus.device(2).unwrap().stats().ignored_unknown, 1);
     bus.device_mut(2).unwrap().set_unknown_request_policy(UnknownRequestPolicy::Exception);
-    assert_eq!(exchange(&mut bus, &request(&get_ph, 2, &[])), exception(2, 0x03, 0x02));
-    assert!(exchange(&mut bus, &request(&get_ph, 3, &[])).is_empty(), "nobody at 3");
+    assert_eq!(exchange(&mut bus, &request(&get_one, 2, &[])), exception(2, 0x03, 0x02));
+    assert!(exchange(&mut bus, &request(&get_one, 3, &[])).is_empty(), "nobody at 3");
     assert_eq!(bus.collisions(), 0);
     assert_eq!(bus.device(1).unwrap().stats().ignored_other_slave, 4, "three requests to 2, one to 3");
-    // Two pH probes answering the 0xFF wildcard collide.
-    let mut two =
-        Bus::new().with(Simulator::new(ph.clone()).with_address(3)).with(Simulator::new(ph.clone()).with_address(5));
-    let get_id = command(&ph, "get_slave_id");
+    // Two probes answering the 0xFF wildcard collide.
+    let (probe, _) = addressable();
+    let mut two = Bus::new()
+        .with(Simulator::new(probe.clone()).with_address(3))
+        .with(Simulator::new(probe.clone()).with_address(5));
+    let get_id = with_role(&probe, Role::GetSlaveAddress);
     let reply = exchange(&mut two, &request(&get_id, 0xFF, &[]));
     assert_eq!(two.collisions(), 1);
     assert!(get_id.decode_response(0xFF, &reply).is_err(), "collided bytes do not decode: {reply:02X?}");
 }
 
 #[test]
-fn ph_three_point_calibration_status() {
-    let ph = sensor("ph_orp");
-    let point = ph.command_with_role(Role::CalibrationPoint).expect("a calibration point command").clone();
-    let status = ph.command_with_role(Role::CalibrationStatus).expect("a calibration status command").clone();
-    let standard = point.named_fields().next().and_then(|f| f.name.clone()).unwrap();
-    let mut sim = Simulator::new(ph.clone());
+fn three_point_calibration_status_of_the_calibration_point_role() {
+    // The manual's own procedure (the pH probe's three-point rule): the
+    // sensor whose spec has the calibration point role.
+    let (probe, point, standard, standards) = calibrating();
+    assert!(standards.len() >= 2, "{standards:?}");
+    let status = with_role(&probe, Role::CalibrationStatus);
+    let slave = probe.default_address;
+    let mut sim = Simulator::new(probe.clone());
     let calibrate = |sim: &mut Simulator, v: f32| {
-        let reply = exchange(sim, &request(&point, 1, &[(standard.as_str(), f(v))]));
+        let reply = exchange(sim, &request(&point, slave, &[(standard.as_str(), f(v))]));
         assert_eq!(reply[1], 0x10, "echo");
     };
     let read_status = |sim: &mut Simulator| -> String {
-        let values = status.decode_response(1, &exchange(sim, &request(&status, 1, &[]))).unwrap();
+        let values = status.decode_response(slave, &exchange(sim, &request(&status, slave, &[]))).unwrap();
         match &values[0].1 {
             Value::Enum { name: Some(name), .. } => name.clone(),
             other => panic!("{other:?}"),
         }
     };
+    let (first, second, last) = (standards[0], standards[1], standards[standards.len() - 1]);
+    let all_but_last = &standards[..standards.len() - 1];
     assert_eq!(read_status(&mut sim), "success", "as the manual's example");
-    calibrate(&mut sim, 4.0);
+    calibrate(&mut sim, first);
     assert_eq!(read_status(&mut sim), "fewer_than_three_points");
-    calibrate(&mut sim, 6.86);
-    assert_eq!(sim.calibration_points(), [4.0, 6.86]);
+    for &v in &all_but_last[1..] {
+        calibrate(&mut sim, v);
+    }
+    assert_eq!(sim.calibration_points(), all_but_last);
     assert_eq!(read_status(&mut sim), "fewer_than_three_points");
-    calibrate(&mut sim, 9.18);
+    calibrate(&mut sim, last);
     assert_eq!(read_status(&mut sim), "success");
-    // Not a standard.
-    calibrate(&mut sim, 4.0);
-    calibrate(&mut sim, 7.0);
+    // Not a standard: between the first two.
+    calibrate(&mut sim, first);
+    calibrate(&mut sim, (first + second) / 2.0);
     assert_eq!(read_status(&mut sim), "not_a_calibration_standard");
     assert!(sim.calibration_points().is_empty());
-    // Out of order: 6.86 first is not the expected standard.
-    calibrate(&mut sim, 6.86);
+    // Out of order: the second standard first is not the expected standard.
+    calibrate(&mut sim, second);
     assert_eq!(read_status(&mut sim), "not_a_calibration_standard");
-    // Restart in the middle: 4.00 again starts over.
-    calibrate(&mut sim, 4.0);
-    calibrate(&mut sim, 6.86);
-    calibrate(&mut sim, 4.0);
-    assert_eq!(sim.calibration_points(), [4.0]);
-    calibrate(&mut sim, 6.86);
-    calibrate(&mut sim, 9.18);
+    // Restart in the middle: the first standard again starts over.
+    calibrate(&mut sim, first);
+    calibrate(&mut sim, second);
+    calibrate(&mut sim, first);
+    assert_eq!(sim.calibration_points(), [first]);
+    for &v in &standards[1..] {
+        calibrate(&mut sim, v);
+    }
     assert_eq!(read_status(&mut sim), "success");
 }
 
 #[test]
-fn conductivity_measurement_trigger_and_warm_up() {
-    let cond = sensor("conductivity");
-    let start = cond.command_with_role(Role::StartMeasurement).expect("a start command").clone();
-    let read = command(&cond, "get_temperature_and_conductivity");
-    let warm_up = Duration::from_millis(u64::from(cond.procedure.as_ref().unwrap().warm_up_ms));
-    assert!(warm_up > Duration::from_secs(4), "{warm_up:?}");
-    let mut sim = Simulator::new(cond.clone()).with_manual_clock();
+fn measurement_trigger_and_warm_up() {
+    // A sensor whose procedure starts the measurement and waits for it.
+    let probe = spec()
+        .sensors
+        .iter()
+        .find(|s| {
+            s.command_with_role(Role::StartMeasurement).is_some_and(|start| {
+                s.procedure
+                    .as_ref()
+                    .is_some_and(|p| p.before.contains(&start.name) && p.warm_up_ms > 0 && !p.read.is_empty())
+            })
+        })
+        .expect("a sensor with a start command and a warm-up")
+        .clone();
+    let slave = probe.default_address;
+    let start = with_role(&probe, Role::StartMeasurement);
+    let procedure = probe.procedure.as_ref().unwrap();
+    let read = command(&probe, &procedure.read[0]);
+    let warm_up = Duration::from_millis(u64::from(procedure.warm_up_ms));
+    let part = warm_up / 2;
+    let mut sim = Simulator::new(probe.clone()).with_manual_clock();
     assert_eq!(sim.measurement_state(), MeasurementState::Idle, "the procedure starts the measurement");
     // Plain policy: readings before the trigger are served as they are.
-    assert_eq!(exchange(&mut sim, &request(&read, 1, &[]))[1], 0x03);
+    assert_eq!(exchange(&mut sim, &request(&read, slave, &[]))[1], 0x03);
     sim.set_warm_up_policy(WarmUpPolicy::Busy);
-    assert_eq!(exchange(&mut sim, &request(&read, 1, &[])), exception(1, 0x03, 0x06));
-    assert_eq!(exchange(&mut sim, &request(&start, 1, &[])), [0x01, 0x10, 0x1C, 0x00, 0x00, 0x00, 0xC7, 0x99]);
+    assert_eq!(exchange(&mut sim, &request(&read, slave, &[])), exception(slave, 0x03, 0x06));
+    let echo = example_reply(&start).unwrap_or_else(|| start.encode_response(slave, &Default::default()).unwrap());
+    assert_eq!(exchange(&mut sim, &request(&start, slave, &[])), echo);
     assert_eq!(sim.measurement_state(), MeasurementState::WarmingUp { remaining: warm_up });
-    sim.advance(Duration::from_secs(4));
-    assert_eq!(exchange(&mut sim, &request(&read, 1, &[])), exception(1, 0x03, 0x06));
-    assert_eq!(sim.measurement_state(), MeasurementState::WarmingUp { remaining: warm_up - Duration::from_secs(4) });
-    sim.advance(warm_up - Duration::from_secs(4));
+    sim.advance(part);
+    assert_eq!(exchange(&mut sim, &request(&read, slave, &[])), exception(slave, 0x03, 0x06));
+    assert_eq!(sim.measurement_state(), MeasurementState::WarmingUp { remaining: warm_up - part });
+    sim.advance(warm_up - part);
     assert_eq!(sim.measurement_state(), MeasurementState::Measuring);
-    assert_eq!(exchange(&mut sim, &request(&read, 1, &[])).len(), read.layout().response_len());
-    // SW 1.8's Stop Measurement (a trigger read) stops it: busy again.
-    if let Some(stop) = cond.command_with_role(Role::StopMeasurement) {
-        let reply = exchange(&mut sim, &request(stop, 1, &[]));
-        assert!(stop.decode_response(1, &reply).is_ok(), "{reply:02X?}");
+    assert_eq!(exchange(&mut sim, &request(&read, slave, &[])).len(), read.layout().response_len());
+    // A stop command (if any) stops it: busy again.
+    if let Some(stop) = probe.command_with_role(Role::StopMeasurement) {
+        let reply = exchange(&mut sim, &request(stop, slave, &[]));
+        assert!(stop.decode_response(slave, &reply).is_ok(), "{reply:02X?}");
         assert_eq!(sim.measurement_state(), MeasurementState::Idle);
-        assert_eq!(exchange(&mut sim, &request(&read, 1, &[])), exception(1, 0x03, 0x06));
+        assert_eq!(exchange(&mut sim, &request(&read, slave, &[])), exception(slave, 0x03, 0x06));
     }
     // A sensor with no start or stop command is free-running.
     for sensor in spec().sensors.iter().filter(|s| {
@@ -420,17 +562,17 @@ fn every_start_and_stop_command_is_answered_and_moves_the_measurement_state() {
 
 #[test]
 fn variation_is_deterministic_and_bounded() {
-    let ph = sensor("ph_orp");
-    let get_ph = command(&ph, "get_ph");
+    let (probe, read) = float_read(&spec());
+    let (slave, name) = (probe.default_address, first_field(&read));
     let run = |seed: u64| -> Vec<f32> {
-        let mut sim = Simulator::new(ph.clone());
+        let mut sim = Simulator::new(probe.clone());
         sim.set_variation(Some(Variation { seed, noise: 0.05, drift_per_read: 0.01 }));
-        sim.set("get_ph", "ph", f(7.0)).unwrap();
+        sim.set(&read.name, &name, f(7.0)).unwrap();
         (0..20)
             .map(|_| {
-                let reply = exchange(&mut sim, &request(&get_ph, 1, &[]));
-                let Value::Float(v) = get_ph.decode_response(1, &reply).unwrap()[0].1 else { panic!() };
-                assert_eq!(sim.get("get_ph", "ph").unwrap(), f(v), "the registers hold what was sent");
+                let reply = exchange(&mut sim, &request(&read, slave, &[]));
+                let Value::Float(v) = read.decode_response(slave, &reply).unwrap()[0].1 else { panic!() };
+                assert_eq!(sim.get(&read.name, &name).unwrap(), f(v), "the registers hold what was sent");
                 v
             })
             .collect()
@@ -446,30 +588,30 @@ fn variation_is_deterministic_and_bounded() {
 
 #[test]
 fn a_sensor_loaded_at_run_time_is_simulated_generically() {
-    // A made-up sensor: no Yosemitech names, so only the generic rules apply.
+    // A made-up sensor: no name of the spec, so only the generic rules apply.
     let dir = std::env::temp_dir().join(format!("yosemitech-sim-generic-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     std::fs::write(
-        dir.join("turbidity.yaml"),
+        dir.join("made_up.yaml"),
         r#"
 sensor:
-  name: turbidity
-  title: Turbidity probe
+  name: made_up
+  title: Made-up probe
   doc: A test sensor.
   manual: {title: Test manual, revision: "1"}
   serial: {baud: 19200, data_bits: 8, parity: even, stop_bits: 1}
   addresses: {min: 1, max: 247}
   default_address: 9
 commands:
-  - name: get_turbidity
-    title: Get turbidity
-    doc: Turbidity.
+  - name: get_reading
+    title: Get reading
+    doc: Reading.
     source: {section: "1"}
     function: read
     address: 0x1000
     count: 2
     fields:
-      - {name: ntu, type: f32, byte_order: abcd, unit: NTU, doc: Turbidity.}
+      - {name: reading, type: f32, byte_order: abcd, unit: NTU, doc: Reading.}
   - name: set_threshold
     title: Set threshold
     doc: Alarm threshold.
@@ -497,12 +639,12 @@ commands:
         Ok(spec) => spec,
         Err(e) => panic!("the test spec must load: {e}"),
     };
-    let sensor = spec.sensor("turbidity").unwrap().clone();
+    let sensor = spec.sensor("made_up").unwrap().clone();
     let mut sim = Simulator::new(sensor.clone());
     assert_eq!(sim.address(), 9);
     assert_eq!(sim.line_timing().bits_per_char(), 11);
-    sim.set("get_turbidity", "ntu", f(12.5)).unwrap();
-    let get = command(&sensor, "get_turbidity");
+    sim.set("get_reading", "reading", f(12.5)).unwrap();
+    let get = command(&sensor, "get_reading");
     let reply = exchange(&mut sim, &request(&get, 9, &[]));
     assert_eq!(&reply[3..7], 12.5f32.to_be_bytes());
     let set = command(&sensor, "set_threshold");
@@ -519,8 +661,9 @@ commands:
 
 #[test]
 fn a_device_trait_object_serves_too() {
-    let mut devices: Vec<Box<dyn Device>> = vec![Box::new(sim("ph_orp")), Box::new(Bus::new())];
-    let req = with_crc(&[1, 0x03, 0x28, 0x00, 0x00, 0x02]);
-    assert_eq!(exchange(&mut devices[0], &req).len(), 9);
+    let (probe, read) = float_read(&spec());
+    let req = request(&read, probe.default_address, &[]);
+    let mut devices: Vec<Box<dyn Device>> = vec![Box::new(Simulator::new(probe)), Box::new(Bus::new())];
+    assert_eq!(exchange(&mut devices[0], &req).len(), read.layout().response_len());
     assert!(exchange(&mut devices[1], &req).is_empty(), "an empty bus is silent");
 }

@@ -6,13 +6,33 @@ mod sim_common;
 
 use std::time::{Duration, Instant};
 
-use sim_common::{command, exception, request, sensor, with_crc};
+use sim_common::{
+    example_reading, example_reply, exception, first_field, float_read, float_write_with_readback, is_float_read,
+    request, spec, with_crc,
+};
 use yosemitech_rtu::{CharFormat, Client, ClientConfig, LineTiming, RetryPolicy, TcpTransport, Transport};
 use yosemitech_sim::{Bus, Endpoint, ServeConfig, Simulator, UnknownRequestPolicy, serve_memory, serve_tcp};
-use yosemitech_spec::Value;
+use yosemitech_spec::{Command, Role, Sensor, Value};
 
 fn config() -> ClientConfig {
     ClientConfig { timeout: Duration::from_secs(2), retry: RetryPolicy::NONE, ..ClientConfig::default() }
+}
+
+/// The sensor of the spec that the pty test needs: a float read with an
+/// example reply, a float write read back, and slave address commands (the
+/// getter answering the 0xFF wildcard); with those commands.
+fn addressable_probe() -> (Sensor, Command, (Command, Command), (Command, Command)) {
+    spec()
+        .sensors
+        .iter()
+        .find_map(|s| {
+            let read = s.commands.iter().find(|c| is_float_read(c) && example_reply(c).is_some())?.clone();
+            let cal = float_write_with_readback(s)?;
+            let set_id = s.command_with_role(Role::SetSlaveAddress)?.clone();
+            let get_id = s.command_with_role(Role::GetSlaveAddress).filter(|c| c.fixed_slave == Some(0xFF))?.clone();
+            Some((s.clone(), read, cal, (set_id, get_id)))
+        })
+        .expect("a sensor with a float read, a calibration write and the 0xFF slave id read")
 }
 
 /// Reads exactly `n` bytes through a transport within 2 s.
@@ -30,30 +50,42 @@ fn read_n(transport: &mut impl Transport, n: usize) -> Vec<u8> {
 
 #[test]
 fn tcp_serves_a_bus_of_two_sensors() {
-    let (ph, cond) = (sensor("ph_orp"), sensor("conductivity"));
-    // The pH probe is silent for unknown requests, as a real probe; the
-    // conductivity probe answers them with exceptions.
-    let mut cond_sim = Simulator::new(cond.clone()).with_address(2);
-    cond_sim.set_unknown_request_policy(UnknownRequestPolicy::Exception);
-    let bus = Bus::new().with(Simulator::new(ph.clone()).with_address(1)).with(cond_sim);
+    // A sensor with a single-float read, and another with a float read the
+    // manual gives an example reply of.
+    let spec = spec();
+    let (first, get_one) = float_read(&spec);
+    let (second, get_two, reading) = spec
+        .sensors
+        .iter()
+        .filter(|s| s.name != first.name)
+        .find_map(|s| {
+            let read = s.commands.iter().find(|c| is_float_read(c) && example_reading(c).is_some())?;
+            Some((s.clone(), read.clone(), example_reading(read)?))
+        })
+        .expect("another sensor with a float read and an example reply");
+    let field = first_field(&get_one);
+    // The first probe is silent for unknown requests, as a real probe; the
+    // second answers them with exceptions.
+    let mut second_sim = Simulator::new(second.clone()).with_address(2);
+    second_sim.set_unknown_request_policy(UnknownRequestPolicy::Exception);
+    let bus = Bus::new().with(Simulator::new(first.clone()).with_address(1)).with(second_sim);
     let server = serve_tcp(bus, "127.0.0.1:0", ServeConfig::default()).unwrap();
     let addr = server.local_addr().unwrap();
     assert!(addr.ip().is_loopback());
     assert_eq!(server.endpoint(), &Endpoint::Tcp(addr));
-    let (get_ph, get_tc) = (command(&ph, "get_ph"), command(&cond, "get_temperature_and_conductivity"));
     for round in 0..2 {
         // Two connections, one after the other.
         let transport = TcpTransport::connect(addr, Duration::from_secs(2)).unwrap();
         let mut client = Client::with_config(transport, config());
-        server.device().device_mut(1).unwrap().set("get_ph", "ph", Value::Float(6.0 + round as f32)).unwrap();
-        let reply = client.call_raw(&request(&get_ph, 1, &[]), &get_ph.layout()).unwrap();
-        assert_eq!(get_ph.decode_response(1, reply).unwrap()[0].1, Value::Float(6.0 + round as f32));
-        let reply = client.call_raw(&request(&get_tc, 2, &[]), &get_tc.layout()).unwrap();
-        let values = get_tc.decode_response(2, reply).unwrap();
-        assert_eq!(values[0].1, Value::Float(17.625), "the manual's example reading");
-        assert_eq!(values[1].1, Value::Float(17.625));
-        // An unknown function, framed by silence: ignored by the pH probe,
-        // answered with 01 by the conductivity probe.
+        let v = Value::Float(6.0 + round as f32);
+        server.device().device_mut(1).unwrap().set(&get_one.name, &field, v.clone()).unwrap();
+        let reply = client.call_raw(&request(&get_one, 1, &[]), &get_one.layout()).unwrap();
+        assert_eq!(get_one.decode_response(1, reply).unwrap()[0].1, v);
+        let reply = client.call_raw(&request(&get_two, 2, &[]), &get_two.layout()).unwrap();
+        let values = get_two.decode_response(2, reply).unwrap();
+        assert_eq!(values, reading, "the manual's example reading ({}.{})", second.name, get_two.name);
+        // An unknown function, framed by silence: ignored by the first probe,
+        // answered with 01 by the second.
         let t = client.transport_mut();
         t.write_all(&with_crc(&[1, 0x2B, 0x0E, 0x01, 0x00])).unwrap();
         let mut nothing = [0u8; 5];
@@ -69,24 +101,26 @@ fn tcp_serves_a_bus_of_two_sensors() {
 
 #[test]
 fn memory_serving_with_line_timing_approaches_the_wire_limit() {
-    let ph = sensor("ph_orp");
-    let get_ph = command(&ph, "get_ph");
+    let (probe, read) = float_read(&spec());
+    let slave = probe.default_address;
     let line = LineTiming::new(9600, CharFormat::EIGHT_N_1);
-    let (transport, server) = serve_memory(Simulator::new(ph), ServeConfig::emulating(line)).unwrap();
+    let (transport, server) = serve_memory(Simulator::new(probe), ServeConfig::emulating(line)).unwrap();
     let mut client = Client::with_config(transport, config());
-    let req = request(&get_ph, 1, &[]);
-    client.call_raw(&req, &get_ph.layout()).unwrap();
+    let req = request(&read, slave, &[]);
+    client.call_raw(&req, &read.layout()).unwrap();
     const N: u32 = 20;
     let start = Instant::now();
     for _ in 0..N {
-        client.call_raw(&req, &get_ph.layout()).unwrap();
+        client.call_raw(&req, &read.layout()).unwrap();
     }
     let per = start.elapsed() / N;
-    // The wire: 8 + 9 characters and two t3.5 gaps (the client keeps at least 4 ms).
-    let wire = line.frame_time(17) + line.t3_5() + client.inter_frame_delay();
-    let floor = line.frame_time(17) + line.t3_5();
+    // The wire: request and reply characters and two t3.5 gaps (the client keeps at least 4 ms).
+    let chars = req.len() + read.layout().response_len();
+    let wire = line.frame_time(chars) + line.t3_5() + client.inter_frame_delay();
+    let floor = line.frame_time(chars) + line.t3_5();
     println!(
-        "get_ph at 9600 8N1: {:.2} ms per transaction, wire limit {:.2} ms ({:.0}% efficiency, {:.1}/s)",
+        "{} at 9600 8N1: {:.2} ms per transaction, wire limit {:.2} ms ({:.0}% efficiency, {:.1}/s)",
+        read.name,
         per.as_secs_f64() * 1e3,
         wire.as_secs_f64() * 1e3,
         100.0 * wire.as_secs_f64() / per.as_secs_f64(),
@@ -99,12 +133,13 @@ fn memory_serving_with_line_timing_approaches_the_wire_limit() {
 
 #[test]
 fn stopping_and_dropping_servers_join_their_threads() {
-    let server = serve_tcp(Simulator::new(sensor("ph_orp")), "127.0.0.1:0", ServeConfig::default()).unwrap();
+    let (probe, _) = float_read(&spec());
+    let server = serve_tcp(Simulator::new(probe.clone()), "127.0.0.1:0", ServeConfig::default()).unwrap();
     assert!(server.is_running());
     let start = Instant::now();
     server.stop().unwrap();
     assert!(start.elapsed() < Duration::from_secs(1));
-    let (transport, server) = serve_memory(Simulator::new(sensor("ph_orp")), ServeConfig::default()).unwrap();
+    let (transport, server) = serve_memory(Simulator::new(probe), ServeConfig::default()).unwrap();
     drop(transport);
     let start = Instant::now();
     while server.is_running() {
@@ -116,21 +151,24 @@ fn stopping_and_dropping_servers_join_their_threads() {
 
 #[test]
 fn a_gap_inside_a_request_resynchronises() {
-    let ph = sensor("ph_orp");
-    let get_ph = command(&ph, "get_ph");
+    let (probe, read) = float_read(&spec());
+    let slave = probe.default_address;
     let serve = ServeConfig { inter_char_timeout: Duration::from_millis(30), ..ServeConfig::default() };
-    let (mut transport, server) = serve_memory(Simulator::new(ph), serve).unwrap();
-    let req = request(&get_ph, 1, &[]);
+    let (mut transport, server) = serve_memory(Simulator::new(probe), serve).unwrap();
+    let req = request(&read, slave, &[]);
+    let (reply_len, head) = (read.layout().response_len(), [slave, 0x03, 2 * read.count as u8]);
     // Half a request, a pause, then a whole one: the half is dropped.
     transport.write_all(&req[..4]).unwrap();
     std::thread::sleep(Duration::from_millis(100));
     transport.write_all(&req).unwrap();
-    assert_eq!(read_n(&mut transport, 9)[..3], [0x01, 0x03, 0x04]);
+    assert_eq!(read_n(&mut transport, reply_len)[..3], head);
     // Noise with a bad CRC is ignored and drained; the next request is served.
-    transport.write_all(&[0x01, 0x03, 0x28, 0x00, 0x00, 0x02, 0x00, 0x00]).unwrap();
+    let mut noise = req.clone();
+    noise[6..].fill(0);
+    transport.write_all(&noise).unwrap();
     std::thread::sleep(Duration::from_millis(100));
     transport.write_all(&req).unwrap();
-    assert_eq!(read_n(&mut transport, 9)[..3], [0x01, 0x03, 0x04]);
+    assert_eq!(read_n(&mut transport, reply_len)[..3], head);
     assert_eq!(server.device().stats().ignored_bad_crc, 1);
     assert_eq!(server.device().stats().reads, 2);
     server.stop().unwrap();
@@ -145,7 +183,7 @@ mod pty {
 
     /// Opens the server's pty as a client, or `None` (reason printed) where ptys are unavailable.
     fn open(config: ServeConfig) -> Option<(yosemitech_sim::Server<Simulator>, SerialTransport)> {
-        open_with(Simulator::new(sensor("ph_orp")), config)
+        open_with(Simulator::new(float_read(&spec()).0), config)
     }
 
     /// [`open`] for a given simulator.
@@ -169,29 +207,34 @@ mod pty {
 
     #[test]
     fn pty_serves_the_rtu_serial_transport() {
-        let mut sim = Simulator::new(sensor("ph_orp"));
+        let (probe, read, (set_cal, get_cal), (set_id, get_id)) = addressable_probe();
+        let slave = probe.default_address;
+        let mut sim = Simulator::new(probe.clone());
         sim.set_unknown_request_policy(UnknownRequestPolicy::Exception);
         let Some((server, transport)) = open_with(sim, ServeConfig::default()) else { return };
-        println!("serving on {}", server.endpoint());
-        let ph = sensor("ph_orp");
-        let (get_ph, set_cal, get_cal) =
-            (command(&ph, "get_ph"), command(&ph, "set_ph_calibration"), command(&ph, "get_ph_calibration"));
+        println!("serving on {} ({})", server.endpoint(), probe.name);
         let mut client = Client::with_config(transport, config());
-        let reply = client.call_raw(&request(&get_ph, 1, &[]), &get_ph.layout()).unwrap();
-        assert_eq!(reply, [0x01, 0x03, 0x04, 0x33, 0x33, 0xF3, 0x40, 0x40, 0x78]);
-        let write = request(&set_cal, 1, &[("k_slope", Value::Float(0.9)), ("b_offset", Value::Float(0.1))]);
-        client.call_raw(&write, &set_cal.layout()).unwrap();
-        let reply = client.call_raw(&request(&get_cal, 1, &[]), &get_cal.layout()).unwrap();
-        assert_eq!(get_cal.decode_response(1, reply).unwrap()[0].1, Value::Float(0.9));
+        let reply = client.call_raw(&request(&read, slave, &[]), &read.layout()).unwrap();
+        assert_eq!(reply, example_reply(&read).unwrap(), "the manual's example reply");
+        let written: Vec<(String, Value)> = set_cal
+            .fields
+            .iter()
+            .zip([0.9, 0.1, 0.2, 0.3])
+            .map(|(f, v)| (f.name.clone().unwrap(), Value::Float(v)))
+            .collect();
+        let values: Vec<(&str, Value)> = written.iter().map(|(n, v)| (n.as_str(), v.clone())).collect();
+        client.call_raw(&request(&set_cal, slave, &values), &set_cal.layout()).unwrap();
+        let reply = client.call_raw(&request(&get_cal, slave, &[]), &get_cal.layout()).unwrap();
+        assert_eq!(get_cal.decode_response(slave, reply).unwrap()[0].1, Value::Float(0.9));
         // Unknown function over the pty: framed by silence, exception 01 (asked for).
         let t = client.transport_mut();
-        t.write_all(&with_crc(&[1, 0x08, 0x00, 0x00, 0xA5, 0x37])).unwrap();
-        assert_eq!(read_n(t, 5), exception(1, 0x08, 0x01));
+        t.write_all(&with_crc(&[slave, 0x08, 0x00, 0x00, 0xA5, 0x37])).unwrap();
+        assert_eq!(read_n(t, 5), exception(slave, 0x08, 0x01));
         // get_slave_id via 0xFF after set_slave_id: the reply from the old address, then the new one.
-        let (set_id, get_id) = (command(&ph, "set_slave_id"), command(&ph, "get_slave_id"));
+        let address = first_field(&set_id);
         let reply =
-            client.call_raw(&request(&set_id, 1, &[("slave_address", Value::Int(9))]), &set_id.layout()).unwrap();
-        assert_eq!(reply[0], 1);
+            client.call_raw(&request(&set_id, slave, &[(address.as_str(), Value::Int(9))]), &set_id.layout()).unwrap();
+        assert_eq!(reply[0], slave);
         let reply = client.call_raw(&request(&get_id, 0xFF, &[]), &get_id.layout()).unwrap();
         assert_eq!(get_id.decode_response(0xFF, reply).unwrap()[0].1, Value::Int(9));
         assert_eq!(server.device().address(), 9);
@@ -203,19 +246,20 @@ mod pty {
     fn pty_with_line_timing_emulation() {
         let line = LineTiming::new(9600, CharFormat::EIGHT_N_1);
         let Some((server, transport)) = open(ServeConfig::emulating(line)) else { return };
-        let get_ph = command(&sensor("ph_orp"), "get_ph");
+        let (probe, read) = float_read(&spec());
         let mut client = Client::with_config(transport, config());
-        let req = request(&get_ph, 1, &[]);
-        client.call_raw(&req, &get_ph.layout()).unwrap();
+        let req = request(&read, probe.default_address, &[]);
+        client.call_raw(&req, &read.layout()).unwrap();
         const N: u32 = 10;
         let start = Instant::now();
         for _ in 0..N {
-            client.call_raw(&req, &get_ph.layout()).unwrap();
+            client.call_raw(&req, &read.layout()).unwrap();
         }
         let per = start.elapsed() / N;
-        let floor = line.frame_time(17) + line.t3_5();
+        let floor = line.frame_time(req.len() + read.layout().response_len()) + line.t3_5();
         println!(
-            "pty get_ph at 9600 8N1: {:.2} ms per transaction (floor {:.2} ms)",
+            "pty {} at 9600 8N1: {:.2} ms per transaction (floor {:.2} ms)",
+            read.name,
             per.as_secs_f64() * 1e3,
             floor.as_secs_f64() * 1e3
         );
@@ -227,14 +271,14 @@ mod pty {
     #[test]
     fn pty_server_outlives_its_clients() {
         let Some((server, transport)) = open(ServeConfig::default()) else { return };
-        let get_ph = command(&sensor("ph_orp"), "get_ph");
-        let req = request(&get_ph, 1, &[]);
+        let (probe, read) = float_read(&spec());
+        let req = request(&read, probe.default_address, &[]);
         let mut client = Client::with_config(transport, config());
-        client.call_raw(&req, &get_ph.layout()).unwrap();
+        client.call_raw(&req, &read.layout()).unwrap();
         drop(client);
         let transport = SerialTransport::open(&SerialConfig::new(server.tty_path().unwrap())).unwrap();
         let mut client = Client::with_config(transport, config());
-        client.call_raw(&req, &get_ph.layout()).unwrap();
+        client.call_raw(&req, &read.layout()).unwrap();
         assert_eq!(server.device().stats().reads, 2);
     }
 }

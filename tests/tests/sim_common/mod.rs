@@ -71,3 +71,93 @@ pub fn client<T: Transport>(transport: T, timeout: Duration) -> Client<T> {
 pub fn same(a: &[(String, Value)], b: &[(String, Value)]) -> bool {
     a.len() == b.len() && a.iter().zip(b).all(|((na, va), (nb, vb))| na == nb && va.same_as(vb))
 }
+
+// Choices from the spec: tests pick what they need by role, field type and
+// layout, so that a new manual needs no Rust edit.
+
+/// True for an f32 field.
+pub fn is_f32(field: &yosemitech_spec::Field) -> bool {
+    matches!(field.kind, yosemitech_spec::FieldKind::F32 { .. })
+}
+
+/// True for a read a plain request gets at the probe's own address: no
+/// fixed slave, not a trigger, with fields, every one a named f32.
+pub fn is_float_read(command: &Command) -> bool {
+    command.is_read()
+        && command.fixed_slave.is_none()
+        && !command.trigger
+        && !command.fields.is_empty()
+        && command.fields.iter().all(|f| f.name.is_some() && is_f32(f))
+}
+
+/// The first sensor of the spec with a read whose only field is an f32, and that read.
+pub fn float_read(spec: &Spec) -> (Sensor, Command) {
+    spec.sensors
+        .iter()
+        .find_map(|s| {
+            s.commands.iter().find(|c| is_float_read(c) && c.fields.len() == 1).map(|c| (s.clone(), c.clone()))
+        })
+        .expect("a sensor with a read whose only field is an f32")
+}
+
+/// The name of a command's first field.
+pub fn first_field(command: &Command) -> String {
+    command.fields[0].name.clone().expect("a named field")
+}
+
+/// `v` as an f32 field puts it on the wire.
+pub fn f32_bytes(field: &yosemitech_spec::Field, v: f32) -> [u8; 4] {
+    use yosemitech_spec::{FieldKind, Order4};
+    let [a, b, c, d] = v.to_be_bytes();
+    match field.kind {
+        FieldKind::F32 { order: Order4::Abcd } => [a, b, c, d],
+        FieldKind::F32 { order: Order4::Dcba } => [d, c, b, a],
+        FieldKind::F32 { order: Order4::Cdab } => [c, d, a, b],
+        FieldKind::F32 { order: Order4::Badc } => [b, a, d, c],
+        ref other => panic!("not an f32: {other:?}"),
+    }
+}
+
+/// A write of f32 fields without a range, and the read at the same
+/// registers that reads the same fields back: `(write, read)`.
+pub fn float_write_with_readback(sensor: &Sensor) -> Option<(Command, Command)> {
+    sensor.commands.iter().filter(|w| !w.is_read() && w.fixed_slave.is_none()).find_map(|w| {
+        let fields_ok =
+            !w.fields.is_empty() && w.fields.iter().all(|f| f.name.is_some() && is_f32(f) && f.range.is_none());
+        let read = sensor.commands.iter().find(|r| {
+            is_float_read(r)
+                && r.address == w.address
+                && r.count == w.count
+                && r.fields.iter().map(|f| &f.name).eq(w.fields.iter().map(|f| &f.name))
+        });
+        read.filter(|_| fields_ok).map(|r| (w.clone(), r.clone()))
+    })
+}
+
+/// The first sensor of the spec with a command of `role`.
+pub fn sensor_with_role(spec: &Spec, role: yosemitech_spec::Role) -> Sensor {
+    spec.sensors
+        .iter()
+        .find(|s| s.command_with_role(role).is_some())
+        .unwrap_or_else(|| panic!("a sensor with a {} command", role.name()))
+        .clone()
+}
+
+/// The command of `role` of `sensor`.
+pub fn with_role(sensor: &Sensor, role: yosemitech_spec::Role) -> Command {
+    sensor.command_with_role(role).unwrap_or_else(|| panic!("{}: no {} command", sensor.name, role.name())).clone()
+}
+
+/// The reply data of the last example of `read` with a reply, decoded:
+/// what a simulator serves before anything is set.
+pub fn example_reading(read: &Command) -> Option<yosemitech_spec::Values> {
+    read.examples
+        .iter()
+        .rev()
+        .find_map(|e| e.true_response().and_then(|frame| read.decode_response(e.slave(), frame).ok()))
+}
+
+/// The reply frame of the last example of `read` with a reply.
+pub fn example_reply(read: &Command) -> Option<Vec<u8>> {
+    read.examples.iter().rev().find_map(|e| e.true_response().map(<[u8]>::to_vec))
+}
