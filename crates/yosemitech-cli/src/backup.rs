@@ -21,9 +21,9 @@
 //! Blocks are named after the write command that restores them (the
 //! spec's coefficient blocks: see [`crate::catalog::coefficient_blocks`]).
 //! Floats are written the shortest way that reads back bit-exactly.
-//! Built-in sensors go through the `yosemitech` crate's
-//! `procedures::coefficients` (with read-back); `--spec` sensors through
-//! the interpreter, with the same read-back.
+//! Every sensor, built in or `--spec`, goes through the interpreter: a
+//! backup reads every block; a restore writes each block and reads it back,
+//! comparing bit for bit.
 
 use std::collections::BTreeMap;
 use std::fs::OpenOptions;
@@ -32,14 +32,12 @@ use std::path::{Path, PathBuf};
 use std::time::SystemTime;
 
 use serde_json::{Map, Value as Json, json};
-use yosemitech::procedures::coefficients::{
-    ConductivityCoefficients, PhOrpCoefficients, read_conductivity, read_ph_orp, write_conductivity, write_ph_orp,
-};
-use yosemitech::{Command as _, FieldInfo, conductivity, ph_orp};
-use yosemitech_spec::Value;
+use yosemitech::procedures::coefficients::PhOrpCoefficients;
+use yosemitech::{Command as _, FieldInfo, ph_orp};
+use yosemitech_spec::{Command, Value, Values};
 
 use crate::catalog::{Catalog, Entry, coefficient_blocks};
-use crate::device::{self, is_typed, procedure_failed};
+use crate::device;
 use crate::error::{CliError, Result};
 use crate::format::{f32_json, json_f32};
 use crate::port::Opened;
@@ -128,26 +126,13 @@ impl Backup {
     }
 }
 
-fn block(fields: &[FieldInfo], values: &[f32]) -> BTreeMap<String, f32> {
-    fields.iter().zip(values).map(|(f, v)| (f.name.to_owned(), *v)).collect()
-}
-
-fn take<const N: usize>(blocks: &Blocks, name: &str, fields: &[FieldInfo; N]) -> Result<[f32; N]> {
-    let values = blocks.get(name).ok_or_else(|| {
-        CliError::usage(format!("the backup has no `{name}` block")).hint("restore from a complete backup file")
-    })?;
-    let mut out = [0f32; N];
-    for (slot, field) in out.iter_mut().zip(fields) {
-        *slot = *values.get(field.name).ok_or_else(|| {
-            CliError::usage(format!("the backup's `{name}` block has no `{}`", field.name))
-                .hint("restore from a complete backup file")
-        })?;
-    }
-    Ok(out)
-}
-
-/// A pH/ORP probe's coefficients as backup blocks.
+/// A pH/ORP probe's coefficients as backup blocks: the result of the typed
+/// crate's pH `calibrate` procedure, named like the blocks [`read_blocks`]
+/// reads.
 pub fn ph_orp_blocks(c: &PhOrpCoefficients) -> Blocks {
+    fn block(fields: &[FieldInfo], values: &[f32]) -> BTreeMap<String, f32> {
+        fields.iter().zip(values).map(|(f, v)| (f.name.to_owned(), *v)).collect()
+    }
     Blocks::from([
         (
             ph_orp::SetPhElectrodeCoefficients::NAME.to_owned(),
@@ -158,60 +143,45 @@ pub fn ph_orp_blocks(c: &PhOrpCoefficients) -> Blocks {
     ])
 }
 
-/// Every coefficient of the probe at `slave`.
+/// The values a coefficient read returned, under the names of the write
+/// command that restores them (the two share address and register count,
+/// so their fields pair up in order).
+fn named_as_write(write: &Command, values: Values) -> Result<BTreeMap<String, f32>> {
+    let names: Vec<&str> = write.named_fields().map(|f| f.display_name()).collect();
+    let floats: Vec<f32> = values
+        .into_iter()
+        .filter_map(|(_, v)| match v {
+            Value::Float(f) => Some(f),
+            _ => None,
+        })
+        .collect();
+    if floats.len() != names.len() {
+        return Err(CliError::device(format!(
+            "the coefficient read for {} returned {} values, not {}",
+            write.name,
+            floats.len(),
+            names.len()
+        )));
+    }
+    Ok(names.into_iter().map(str::to_owned).zip(floats).collect())
+}
+
+/// Every coefficient of the probe at `slave`: one block per coefficient
+/// block of the spec (see [`coefficient_blocks`]).
 pub fn read_blocks(opened: &mut Opened, entry: &Entry, slave: u8) -> Result<Blocks> {
-    let ctx = opened.context(slave, "the coefficient reads");
-    if is_typed(entry, "ph_orp") {
-        let mut probe = ph_orp::Device::new(&mut opened.bus, slave);
-        return read_ph_orp(&mut probe).map(|c| ph_orp_blocks(&c)).map_err(|e| procedure_failed(&e, &ctx));
-    }
-    if is_typed(entry, "conductivity") {
-        let mut probe = conductivity::Device::new(&mut opened.bus, slave);
-        let c = read_conductivity(&mut probe).map_err(|e| procedure_failed(&e, &ctx))?;
-        let name = conductivity::SetUserCalibration::NAME.to_owned();
-        return Ok(Blocks::from([(name, block(&conductivity::SetUserCalibration::FIELDS, &c.user_calibration))]));
-    }
     let mut blocks = Blocks::new();
     for (write, read) in coefficient_blocks(&entry.sensor) {
         let values = device::read(opened, read, slave)?;
-        let fields = values
-            .into_iter()
-            .filter_map(|(name, v)| match v {
-                Value::Float(f) => Some((name, f)),
-                _ => None,
-            })
-            .collect();
-        blocks.insert(write.name.clone(), fields);
+        blocks.insert(write.name.clone(), named_as_write(write, values)?);
     }
     Ok(blocks)
 }
 
-/// Writes every coefficient to the probe at `slave` and reads it back.
+/// Writes every coefficient to the probe at `slave` and reads each block
+/// back, comparing bit for bit. The whole file is checked before anything
+/// is written.
 pub fn write_blocks(opened: &mut Opened, entry: &Entry, slave: u8, blocks: &Blocks) -> Result<()> {
-    let ctx = opened.context(slave, "the coefficient writes");
-    if is_typed(entry, "ph_orp") {
-        let c = PhOrpCoefficients {
-            electrode: take(
-                blocks,
-                ph_orp::SetPhElectrodeCoefficients::NAME,
-                &ph_orp::SetPhElectrodeCoefficients::FIELDS,
-            )?,
-            ph_calibration: take(blocks, ph_orp::SetPhCalibration::NAME, &ph_orp::SetPhCalibration::FIELDS)?,
-            orp_calibration: take(blocks, ph_orp::SetOrpCalibration::NAME, &ph_orp::SetOrpCalibration::FIELDS)?,
-        };
-        let mut probe = ph_orp::Device::new(&mut opened.bus, slave);
-        return write_ph_orp(&mut probe, &c).map_err(|e| procedure_failed(&e, &ctx));
-    }
-    if is_typed(entry, "conductivity") {
-        let user_calibration =
-            take(blocks, conductivity::SetUserCalibration::NAME, &conductivity::SetUserCalibration::FIELDS)?;
-        let mut probe = conductivity::Device::new(&mut opened.bus, slave);
-        return write_conductivity(&mut probe, &ConductivityCoefficients { user_calibration })
-            .map_err(|e| procedure_failed(&e, &ctx));
-    }
-    let sensor = entry.sensor.clone();
-    let pairs = coefficient_blocks(&sensor);
-    // Check the whole file before writing anything.
+    let pairs = coefficient_blocks(&entry.sensor);
     let mut planned = Vec::new();
     for (write, read) in &pairs {
         let values = blocks.get(&write.name).ok_or_else(|| {
@@ -230,8 +200,9 @@ pub fn write_blocks(opened: &mut Opened, entry: &Entry, slave: u8, blocks: &Bloc
     }
     for (write, read, fields) in planned {
         device::call(opened, write, slave, &fields)?;
-        let back = device::read(opened, read, slave)?;
-        let same = back.iter().all(|(name, v)| fields.get(name).is_none_or(|want| want.same_as(v)));
+        let back = named_as_write(write, device::read(opened, read, slave)?)?;
+        let same =
+            fields.iter().all(|(name, want)| back.get(name).is_some_and(|got| want.same_as(&Value::Float(*got))));
         if !same {
             return Err(CliError::device(format!("verification failed: {} did not read back as written", write.name))
                 .hint("the probe did not keep the values written; read them with `yosemitech read` and retry"));

@@ -97,148 +97,381 @@ fn demo_identifies_every_sensor_of_the_spec_on_one_bus() {
     assert!(requests <= sensors.len() * (sn_layouts() + 1), "{requests} requests:\n{section}");
 }
 
+/// The example of `command` in the sensor's own manual, with values.
+fn stated_example(command: &SpecCommand) -> Option<&yosemitech_spec::Example> {
+    command.examples.iter().find(|e| e.manual.is_none() && e.erratum.is_none() && !e.values.is_empty())
+}
+
+/// `value unit` as `read` shows a field.
+fn shown(value: &Value, unit: Option<&str>) -> String {
+    let value = match value {
+        Value::Float(f) => f.to_string(),
+        Value::Int(i) => i.to_string(),
+        Value::Text(t) => t.clone(),
+        other => panic!("{other:?}"),
+    };
+    // The CLI shows `degC` as `°C`.
+    unit.map_or(value.clone(), |u| format!("{value} {}", if u == "degC" { "°C" } else { u }))
+}
+
 #[test]
 fn read_shows_values_with_units() {
-    let s = sim("ph_orp", 1);
-    let out = yosemitech(&["read", "ph_orp", "get_ph", "--port", &s.path]).ok().to_owned();
-    assert_eq!(out.trim(), "ph  7.6 pH");
-    let out = yosemitech(&["read", "ph", "orp_and_ph", "-p", &s.path]).ok().to_owned();
-    assert!(out.contains("orp_mv  -6.56 mV") && out.contains("ph      7 pH"), "{out}");
-    let json = yosemitech(&["read", "ph_orp", "get_version", "-p", &s.path, "--json"]).json();
-    assert_eq!(json["values"], serde_json::json!({ "hardware": "1.1", "software": "1.1" }));
-    assert!(json["timestamp"].as_str().unwrap().ends_with('Z'));
-    // get_slave_id goes to the wildcard address 0xFF whatever --address says.
-    let out = yosemitech(&["read", "ph_orp", "get_slave_id", "-p", &s.path, "-a", "9"]).ok().to_owned();
-    assert_eq!(out.trim(), "slave_address  1");
+    let (mut checked, mut addressed) = (0, 0);
+    for sensor in spec().sensors {
+        let name = sensor.name.as_str();
+        let s = sim(name, 1);
+        // Every measurement read with a stated f32 value: each field on a
+        // line, `name  value unit`, as the manual's example states it.
+        for command in sensor.commands.iter().filter(|c| c.is_read() && c.role.is_none()) {
+            let Some(example) = stated_example(command) else { continue };
+            let f32_with_unit: Vec<_> = command
+                .named_fields()
+                .filter(|f| matches!(f.kind, yosemitech_spec::FieldKind::F32 { .. }) && f.unit.is_some())
+                .collect();
+            if f32_with_unit.is_empty() || command.named_fields().count() != f32_with_unit.len() {
+                continue;
+            }
+            if f32_with_unit.iter().any(|f| {
+                example
+                    .values
+                    .get(f.display_name())
+                    .is_none_or(|v| !v.same_as(&s.server.device().get(&command.name, f.display_name()).unwrap()))
+            }) {
+                continue; // the simulator does not answer this example
+            }
+            let out = yosemitech(&["read", name, &command.name, "--port", &s.path]).ok().to_owned();
+            // Names may be shortened: a unique prefix of the sensor, the command without `get_`.
+            if checked == 0
+                && let Some(short) = command.name.strip_prefix("get_")
+            {
+                let names: Vec<String> = spec().sensors.iter().map(|s| s.name.clone()).collect();
+                let prefix = (1..=name.len())
+                    .map(|n| &name[..n])
+                    .find(|p| names.iter().filter(|n| n.starts_with(p)).count() == 1)
+                    .unwrap();
+                assert_eq!(yosemitech(&["read", prefix, short, "-p", &s.path]).ok(), out, "{prefix} {short}");
+            }
+            let width = f32_with_unit.iter().map(|f| f.display_name().len()).max().unwrap();
+            for field in &f32_with_unit {
+                let value = &example.values[field.display_name()];
+                let line = format!("{:width$}  {}", field.display_name(), shown(value, field.unit.as_deref()));
+                assert!(out.lines().any(|l| l == line), "{name} {}: `{line}` in:\n{out}", command.name);
+            }
+            assert_eq!(out.lines().count(), f32_with_unit.len(), "{out}");
+            checked += 1;
+        }
+        // The version, as JSON.
+        if let Some(version) = sensor.command_with_role(Role::Version) {
+            let json = yosemitech(&["read", name, &version.name, "-p", &s.path, "--json"]).json();
+            for field in version.named_fields() {
+                let want = s.server.device().get(&version.name, field.display_name()).unwrap();
+                assert_eq!(json["values"][field.display_name()], serde_json::to_value(&want).unwrap(), "{json}");
+            }
+            assert!(json["timestamp"].as_str().unwrap().ends_with('Z'));
+        }
+        // The slave address read goes to the wildcard address 0xFF whatever --address says.
+        if let Some(get) = sensor.command_with_role(Role::GetSlaveAddress) {
+            let field = get.named_fields().next().unwrap().display_name().to_owned();
+            let out = yosemitech(&["read", name, &get.name, "-p", &s.path, "-a", "9"]).ok().to_owned();
+            assert_eq!(out.trim(), format!("{field}  1"));
+            addressed += 1;
+        }
+    }
+    assert!(checked > 0 && addressed > 0, "some read states an f32 value, some sensor reads its address");
+    eprintln!("checked {checked} reads");
 }
 
 #[test]
 fn port_and_baud_come_from_the_environment() {
-    let s = sim("conductivity", 1);
-    let mut cmd = common::command();
-    cmd.args(["read", "conductivity", "get_sn"]).env("YOSEMITECH_PORT", &s.path).env("YOSEMITECH_BAUD", "9600");
-    let run = common::run_command(cmd, None);
-    assert!(run.ok().contains("YL0914010022"));
+    for sensor in identifiable() {
+        let s = sim(&sensor.name, 1);
+        let (sn, _) = sn_field(&sensor);
+        let mut cmd = common::command();
+        cmd.args(["read", &sensor.name, &sn.name])
+            .env("YOSEMITECH_PORT", &s.path)
+            .env("YOSEMITECH_BAUD", sensor.serial.baud.to_string());
+        let run = common::run_command(cmd, None);
+        assert!(run.ok().contains(&own_serial_number(&sensor)), "{}: {}", sensor.name, run.stdout);
+    }
+}
+
+/// A measurement read of `sensor`: a read with no role.
+fn measurement_read(sensor: &yosemitech_spec::Sensor) -> &SpecCommand {
+    sensor
+        .commands
+        .iter()
+        .find(|c| c.is_read() && c.role.is_none() && c.fixed_slave.is_none())
+        .expect("a measurement read")
 }
 
 #[test]
 fn a_silent_address_times_out_cleanly() {
-    let s = sim("ph_orp", 1);
-    let run =
-        yosemitech(&["read", "ph_orp", "get_ph", "-p", &s.path, "-a", "9", "--timeout", "100ms", "--retries", "1"]);
-    let err = run.fails_with_hint(1);
-    assert!(err.contains("no reply to get_ph from address 9") && err.contains("within 100ms"), "{err}");
+    let sensors = spec().sensors;
+    let sensor = &sensors[0];
+    let read = measurement_read(sensor);
+    let s = sim(&sensor.name, 1);
+    let mut args = vec!["read", sensor.name.as_str(), read.name.as_str(), "-p", &s.path, "-a", "9"];
+    args.extend(["--timeout", "100ms", "--retries", "1"]);
+    let err = yosemitech(&args).fails_with_hint(1).to_owned();
+    assert!(
+        err.contains(&format!("no reply to {} from address 9", read.name)) && err.contains("within 100ms"),
+        "{err}"
+    );
     assert!(err.contains("yosemitech scan"), "{err}");
-    // A command the probe does not have: real probes stay silent, and the hint says so.
-    let mut args = vec!["read", "conductivity", "get_temperature_and_conductivity", "-p", &s.path];
+    // A command the probe does not have (another sensor's read at registers
+    // this one lacks): real probes stay silent, and the hint says so.
+    let (other, foreign) = sensors
+        .iter()
+        .flat_map(|o| o.commands.iter().map(move |c| (o, c)))
+        .find(|(_, c)| {
+            c.is_read() && c.fixed_slave.is_none() && !sensor.commands.iter().any(|m| m.address == c.address)
+        })
+        .expect("a read another sensor has at registers the first lacks");
+    let mut args = vec!["read", other.name.as_str(), foreign.name.as_str(), "-p", &s.path];
     args.extend(FAST);
     let err = yosemitech(&args).fails_with_hint(1).to_owned();
-    assert!(err.contains("no reply to get_temperature_and_conductivity") && err.contains("lacks"), "{err}");
-    // A device that answers exceptions instead: the exception, explained.
-    let mut device = Simulator::new(common::sensor("ph_orp"));
+    assert!(err.contains(&format!("no reply to {}", foreign.name)) && err.contains("lacks"), "{err}");
+    // A device that answers exceptions instead: the exception (no register
+    // there), explained.
+    let mut device = Simulator::new(common::sensor(&sensor.name));
     device.set_unknown_request_policy(UnknownRequestPolicy::Exception);
     let s = common::serve(device);
-    let run = yosemitech(&["read", "conductivity", "get_temperature_and_conductivity", "-p", &s.path]);
-    assert!(
-        run.fails_with_hint(1)
-            .contains("refused get_temperature_and_conductivity with Modbus exception illegal data value"),
-        "{}",
-        run.stderr
-    );
+    let run = yosemitech(&["read", &other.name, &foreign.name, "-p", &s.path]);
+    let want = format!("refused {} with Modbus exception illegal data address", foreign.name);
+    assert!(run.fails_with_hint(1).contains(&want), "{}", run.stderr);
+}
+
+/// `name=value` arguments of `values`.
+fn assignments(values: &std::collections::BTreeMap<String, Value>) -> Vec<String> {
+    values
+        .iter()
+        .map(|(k, v)| match v {
+            Value::Float(f) => format!("{k}={f}"),
+            Value::Int(i) => format!("{k}={i}"),
+            other => panic!("{k} = {other:?} is not a number"),
+        })
+        .collect()
+}
+
+/// True when some read of `sensor` covers the registers `write` writes.
+fn read_covers(sensor: &yosemitech_spec::Sensor, write: &SpecCommand) -> bool {
+    let end = u32::from(write.address) + u32::from(write.count);
+    sensor
+        .commands
+        .iter()
+        .any(|r| r.is_read() && r.address <= write.address && u32::from(r.address) + u32::from(r.count) >= end)
 }
 
 #[test]
 fn write_backs_up_coefficients_confirms_and_reads_back() {
-    let s = sim("ph_orp", 1);
+    let sensor = common::sensors_with_coefficients().into_iter().next().expect("a sensor with coefficients");
+    let name = sensor.name.as_str();
+    let blocks = common::coefficient_blocks(&sensor);
+    let (write, read) = blocks[0];
+    let fields: Vec<String> = write.named_fields().map(|f| f.display_name().to_owned()).collect();
+    let s = sim(name, 1);
+    let old: Vec<(String, String, f32)> = blocks
+        .iter()
+        .flat_map(|(_, r)| r.named_fields().map(|f| (r.name.clone(), f.display_name().to_owned())).collect::<Vec<_>>())
+        .map(|(c, f)| {
+            let v = float(&s, &c, &f);
+            (c, f, v)
+        })
+        .collect();
+    // New values, exact in f32 and unlike any default.
+    let new: std::collections::BTreeMap<String, Value> =
+        fields.iter().enumerate().map(|(j, f)| (f.clone(), Value::Float(1.25 * (j as f32 + 1.0) + 0.5))).collect();
     let dir = tempfile::tempdir().unwrap();
     let backup_dir = dir.path().to_str().unwrap();
     // Without a terminal and without --yes, nothing is sent.
-    let run = yosemitech(&["write", "ph_orp", "set_ph_calibration", "1.02", "-0.05", "-p", &s.path]);
+    let positional: Vec<String> = fields.iter().map(|f| format!("{}", float_of(&new[f]))).collect();
+    let mut args = vec!["write", name, write.name.as_str()];
+    args.extend(positional.iter().map(String::as_str));
+    args.extend(["-p", &s.path]);
+    let run = yosemitech(&args);
     assert!(run.fails_with_hint(2).contains("--yes") || run.stderr.contains("stdin is not a terminal"));
-    assert_eq!(float(&s, "get_ph_calibration", "k_slope"), 1.0);
+    for (c, f, v) in &old {
+        assert_eq!(float(&s, c, f).to_bits(), v.to_bits(), "nothing sent");
+    }
 
-    let run = yosemitech(&[
-        "write",
-        "ph_orp",
-        "set_ph_calibration",
-        "k_slope=1.02",
-        "b_offset=-0.05",
-        "-p",
-        &s.path,
-        "--yes",
-        "--backup-dir",
-        backup_dir,
-    ]);
+    let named = assignments(&new);
+    let mut args = vec!["write", name, write.name.as_str()];
+    args.extend(named.iter().map(String::as_str));
+    args.extend(["-p", &s.path, "--yes", "--backup-dir", backup_dir]);
+    let run = yosemitech(&args);
     let out = run.ok();
-    assert!(out.contains("frame: 01 10 11 00 00 04 08 5C 8F 82 3F CD CC 4C BD F1 CF"), "{out}");
-    assert!(out.contains("k_slope = 1.02 (matches)") && out.contains("verified"), "{out}");
-    assert!(out.contains("restore with: yosemitech coefficients restore ph_orp --port"), "{out}");
-    assert_eq!(float(&s, "get_ph_calibration", "k_slope"), 1.02);
+    let frame = write.encode_request(1, &new).unwrap();
+    let frame: Vec<String> = frame.iter().map(|b| format!("{b:02X}")).collect();
+    assert!(out.contains(&format!("frame: {}", frame.join(" "))), "{out}");
+    for f in &fields {
+        let shown = format!("{f} = {}", float_of(&new[f]));
+        let line = out.lines().map(str::trim).find(|l| l.starts_with(&format!("{shown} ")) && l.ends_with("(matches)"));
+        assert!(line.is_some(), "`{shown} ... (matches)` in:\n{out}");
+    }
+    assert!(out.contains("verified"), "{out}");
+    assert!(out.contains(&format!("restore with: yosemitech coefficients restore {name} --port")), "{out}");
+    for f in &fields {
+        assert_eq!(float(&s, &read.name, f).to_bits(), float_of(&new[f]).to_bits());
+    }
     let files: Vec<_> = std::fs::read_dir(dir.path()).unwrap().collect();
     assert_eq!(files.len(), 1, "one backup file");
     let backup: Json =
         serde_json::from_str(&std::fs::read_to_string(files[0].as_ref().unwrap().path()).unwrap()).unwrap();
-    assert_eq!(backup["coefficients"]["set_ph_calibration"]["k_slope"], 1.0, "the backup holds the old values");
-    assert_eq!(backup["coefficients"]["set_ph_electrode_coefficients"]["k2"], -6.72);
+    // The backup holds the old values of every block.
+    for (w, r) in &blocks {
+        for (c, f, v) in old.iter().filter(|(c, _, _)| *c == r.name) {
+            let saved = backup["coefficients"][&w.name][f].as_f64().unwrap_or_else(|| panic!("{c}.{f}: {backup}"));
+            assert_eq!((saved as f32).to_bits(), v.to_bits(), "{c}.{f}: {backup}");
+        }
+    }
 
-    // A write that is not a coefficient: no backup, and no read-back command.
-    let out = yosemitech(&["write", "ph_orp", "start_ph_calibration", "4", "-p", &s.path, "--yes"]).ok().to_owned();
+    // A write that is not a coefficient and that no read covers: no backup,
+    // and no read-back. Any such write of the spec with an example's values.
+    let (other, command, values) = spec()
+        .sensors
+        .iter()
+        .flat_map(|s| s.commands.iter().map(move |c| (s, c)))
+        .filter(|(s, c)| !c.is_read() && c.count > 0 && !read_covers(s, c))
+        .find_map(|(s, c)| {
+            let e = c.examples.iter().find(|e| !e.values.is_empty() && e.erratum.is_none())?;
+            Some((s.clone(), c.clone(), e.values.clone()))
+        })
+        .expect("a write no read covers, with an example");
+    let s2 = sim(&other.name, 1);
+    let values = assignments(&values);
+    let mut args = vec!["write", other.name.as_str(), command.name.as_str()];
+    args.extend(values.iter().map(String::as_str));
+    args.extend(["-p", &s2.path, "--yes"]);
+    let out = yosemitech(&args).ok().to_owned();
     assert!(out.contains("nothing to read back") && !out.contains("saved every coefficient"), "{out}");
     // A write with a read of the same registers at another address (get_slave_id at 0xFF).
-    let out = yosemitech(&["write", "ph_orp", "set_slave_id", "12", "-p", &s.path, "--yes"]).ok().to_owned();
-    assert!(out.contains("slave_address = 12 (matches)"), "{out}");
+    let set = sensor.command_with_role(Role::SetSlaveAddress).expect("a set-address command");
+    let field = set.named_fields().next().unwrap().display_name().to_owned();
+    let out = yosemitech(&["write", name, &set.name, "12", "-p", &s.path, "--yes"]).ok().to_owned();
+    assert!(out.contains(&format!("{field} = 12 (matches)")), "{out}");
     assert_eq!(s.server.device().address(), 12);
+}
+
+fn float_of(v: &Value) -> f32 {
+    match v {
+        Value::Float(f) => *f,
+        other => panic!("{other:?}"),
+    }
+}
+
+/// The columns `poll` shows for `sensor`: (read, field, column name) of
+/// every field of every measurement read (a read no write overlaps, with a
+/// unit); a field name two reads share is qualified by the read.
+fn poll_columns(sensor: &yosemitech_spec::Sensor) -> Vec<(String, String, String)> {
+    let overlaps = |r: &SpecCommand| {
+        let (start, end) = (u32::from(r.address), u32::from(r.address) + u32::from(r.count));
+        sensor
+            .commands
+            .iter()
+            .any(|w| !w.is_read() && u32::from(w.address) < end && start < u32::from(w.address) + u32::from(w.count))
+    };
+    let reads: Vec<&SpecCommand> = sensor
+        .commands
+        .iter()
+        .filter(|r| r.is_read() && r.fields.iter().any(|f| f.unit.is_some()) && !overlaps(r))
+        .collect();
+    let fields = || reads.iter().flat_map(|r| r.named_fields().map(move |f| (*r, f.display_name().to_owned())));
+    fields()
+        .map(|(r, f)| {
+            let shared = fields().filter(|(_, g)| *g == f).count() > 1;
+            let name = if shared { format!("{}.{f}", r.name) } else { f.clone() };
+            (r.name.clone(), f, name)
+        })
+        .collect()
+}
+
+/// A simulated value as `poll` writes it in CSV: numbers plain, `None`
+/// for anything else (enums by name).
+fn plain(value: &Value) -> Option<String> {
+    match value {
+        Value::Float(f) => Some(f.to_string()),
+        Value::Int(i) => Some(i.to_string()),
+        _ => None,
+    }
 }
 
 #[test]
 fn poll_csv_gives_one_row_per_poll() {
-    let s = sim("ph_orp", 1);
-    let run = yosemitech(&["poll", "ph_orp", "-p", &s.path, "--count", "3", "--interval", "0", "--format", "csv"]);
-    let out = run.ok();
-    let lines: Vec<&str> = out.lines().collect();
-    assert_eq!(lines.len(), 4, "a header and 3 rows:\n{out}");
-    assert_eq!(
-        lines[0],
-        "timestamp,get_ph.ph,get_orp_and_ph.orp_mv,get_orp_and_ph.ph,get_orp.orp_mv,temperature_c,error"
-    );
-    for row in &lines[1..] {
-        let cells: Vec<&str> = row.split(',').collect();
-        assert_eq!(cells.len(), 7, "{row}");
-        assert!(cells[0].len() == 24 && cells[0].ends_with('Z') && cells[0].as_bytes()[10] == b'T', "{row}");
-        assert_eq!(&cells[1..], ["7.6", "-6.56", "7", "-10.28", "15.8", ""]);
+    for sensor in spec().sensors {
+        let columns = poll_columns(&sensor);
+        if columns.is_empty() {
+            continue;
+        }
+        let name = sensor.name.as_str();
+        let s = sim(name, 1);
+        let run = yosemitech(&["poll", name, "-p", &s.path, "--count", "3", "--interval", "0", "--format", "csv"]);
+        let out = run.ok();
+        let lines: Vec<&str> = out.lines().collect();
+        assert_eq!(lines.len(), 4, "a header and 3 rows:\n{out}");
+        let names: Vec<&str> = columns.iter().map(|(_, _, n)| n.as_str()).collect();
+        assert_eq!(lines[0], format!("timestamp,{},error", names.join(",")));
+        for row in &lines[1..] {
+            let cells: Vec<&str> = row.split(',').collect();
+            assert_eq!(cells.len(), columns.len() + 2, "{row}");
+            assert!(cells[0].len() == 24 && cells[0].ends_with('Z') && cells[0].as_bytes()[10] == b'T', "{row}");
+            for ((read, field, _), cell) in columns.iter().zip(&cells[1..]) {
+                let want = s.server.device().get(read, field).unwrap();
+                match plain(&want) {
+                    Some(want) => assert_eq!(*cell, want, "{name} {read}.{field}: {row}"),
+                    None => assert!(!cell.is_empty(), "{name} {read}.{field}: {row}"),
+                }
+            }
+            assert_eq!(cells.last(), Some(&""), "no error: {row}");
+        }
     }
 }
 
 #[test]
 fn poll_reports_errors_per_row_and_goes_on() {
-    let s = sim("conductivity", 1);
-    // The first reply is lost: that row carries the error, the next ones do not.
-    s.server.device().set_faults(FaultConfig::scripted([Some(FaultKind::Drop)]));
-    let mut args = vec!["poll", "conductivity", "-p", &s.path, "-n", "3", "-i", "0", "-f", "json"];
-    args.extend(FAST);
-    let run = yosemitech(&args);
-    let rows: Vec<Json> = run.ok().lines().map(|l| serde_json::from_str(l).unwrap()).collect();
-    assert_eq!(rows.len(), 3);
-    assert_eq!(rows[0]["error"], "get_temperature_and_conductivity: no reply");
-    assert_eq!(rows[0]["values"]["conductivity_ms_cm"], Json::Null);
-    assert_eq!(rows[1]["error"], Json::Null);
-    assert_eq!(rows[1]["values"]["conductivity_ms_cm"], 17.625);
-    assert_eq!(rows[2]["values"]["range_status"]["name"], "ok");
+    let mut polled = 0;
+    for sensor in spec().sensors {
+        let columns = poll_columns(&sensor);
+        let Some((first, _, _)) = columns.first().cloned() else { continue };
+        let name = sensor.name.as_str();
+        let s = sim(name, 1);
+        // The first reply is lost: that row carries the error, the next ones do not.
+        s.server.device().set_faults(FaultConfig::scripted([Some(FaultKind::Drop)]));
+        let mut args = vec!["poll", name, "-p", &s.path, "-n", "3", "-i", "0", "-f", "json"];
+        args.extend(FAST);
+        let run = yosemitech(&args);
+        let rows: Vec<Json> = run.ok().lines().map(|l| serde_json::from_str(l).unwrap()).collect();
+        assert_eq!(rows.len(), 3);
+        assert_eq!(rows[0]["error"], format!("{first}: no reply").as_str(), "{name}");
+        assert_eq!(rows[1]["error"], Json::Null);
+        for (read, field, column) in &columns {
+            if *read == first {
+                assert_eq!(rows[0]["values"][column], Json::Null, "{name} {column}");
+            }
+            if let Value::Float(v) = s.server.device().get(read, field).unwrap() {
+                let got = rows[1]["values"][column].as_f64().unwrap_or_else(|| panic!("{name} {column}: {}", rows[1]));
+                assert_eq!((got as f32).to_bits(), v.to_bits(), "{name} {column}");
+            }
+            assert_eq!(rows[2]["values"][column], rows[1]["values"][column], "{name} {column}");
+        }
 
-    // Every poll failing is exit 1, after every row was printed.
-    let mut args = vec!["poll", "conductivity", "-p", &s.path, "-a", "7", "-n", "2", "-i", "0", "-f", "table"];
-    args.extend(FAST);
-    let run = yosemitech(&args);
-    run.fails_with_hint(1);
-    assert_eq!(run.stdout.lines().count(), 3, "{}", run.stdout);
-    assert!(run.stdout.contains("no reply"), "{}", run.stdout);
+        // Every poll failing is exit 1, after every row was printed.
+        let mut args = vec!["poll", name, "-p", &s.path, "-a", "7", "-n", "2", "-i", "0", "-f", "table"];
+        args.extend(FAST);
+        let run = yosemitech(&args);
+        run.fails_with_hint(1);
+        assert_eq!(run.stdout.lines().count(), 3, "{}", run.stdout);
+        assert!(run.stdout.contains("no reply"), "{}", run.stdout);
+        polled += 1;
+    }
+    assert!(polled > 0);
 }
 
 #[test]
 fn poll_stops_cleanly_on_ctrl_c() {
-    let s = sim("ph_orp", 1);
+    let sensor = spec().sensors.into_iter().find(|s| !poll_columns(s).is_empty()).expect("a sensor to poll");
+    let s = sim(&sensor.name, 1);
     let mut child = common::command()
-        .args(["poll", "ph_orp", "-p", &s.path, "--interval", "50ms", "--format", "csv"])
+        .args(["poll", &sensor.name, "-p", &s.path, "--interval", "50ms", "--format", "csv"])
         .stdin(Stdio::null())
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
@@ -259,11 +492,12 @@ fn poll_stops_cleanly_on_ctrl_c() {
 
 #[test]
 fn set_address_changes_and_verifies() {
-    let s = sim("conductivity", 1);
-    let mut args = vec!["set-address", "-p", &s.path, "--from", "1", "--to", "42", "--yes", "--sensor", "conductivity"];
+    let sensor = identifiable().into_iter().next().unwrap();
+    let s = sim(&sensor.name, 1);
+    let mut args = vec!["set-address", "-p", &s.path, "--from", "1", "--to", "42", "--yes", "--sensor", &sensor.name];
     args.extend(FAST);
     let out = yosemitech(&args).ok().to_owned();
-    assert!(out.contains("now answers at address 42") && out.contains("YL0914010022"), "{out}");
+    assert!(out.contains("now answers at address 42") && out.contains(&own_serial_number(&sensor)), "{out}");
     assert_eq!(s.server.device().address(), 42);
     // Nothing answers at the old address any more: refused, nothing written.
     let mut args = vec!["set-address", "-p", &s.path, "--from", "1", "--to", "43", "--yes"];
@@ -279,7 +513,7 @@ fn set_address_changes_and_verifies() {
 
 #[test]
 fn set_address_refuses_0_and_248() {
-    let s = sim("ph_orp", 1);
+    let s = sim(&spec().sensors[0].name, 1);
     for (from, to) in [("0", "5"), ("1", "0"), ("1", "248"), ("248", "1")] {
         let run = yosemitech(&["set-address", "-p", &s.path, "--from", from, "--to", to, "--yes"]);
         assert!(run.fails_with_hint(2).contains("outside 1..=247"), "{}", run.stderr);
@@ -289,53 +523,94 @@ fn set_address_refuses_0_and_248() {
 
 #[test]
 fn coefficients_backup_and_restore_round_trip() {
-    let s = sim("ph_orp", 1);
-    let dir = tempfile::tempdir().unwrap();
-    let file = dir.path().join("ph backup.json");
-    let file = file.to_str().unwrap();
-    s.server.device().set("get_orp_calibration", "k_slope", Value::Float(0.987_654_3)).unwrap();
-    let out = yosemitech(&["coefficients", "backup", "ph_orp", "-p", &s.path, "--file", file]).ok().to_owned();
-    assert!(out.contains("restore with:") && out.contains("'"), "the path with a space is quoted:\n{out}");
-    // Never overwritten.
-    yosemitech(&["coefficients", "backup", "ph_orp", "-p", &s.path, "--file", file]).fails_with_hint(2);
+    let sensors = common::sensors_with_coefficients();
+    assert!(!sensors.is_empty(), "the spec has coefficient blocks");
+    for (i, sensor) in sensors.iter().enumerate() {
+        let name = sensor.name.as_str();
+        let address = 5u8.to_string();
+        let s = sim(name, 5);
+        let dir = tempfile::tempdir().unwrap();
+        let file = dir.path().join(format!("{name} backup.json"));
+        let file = file.to_str().unwrap();
+        let blocks = common::coefficient_blocks(sensor);
+        // A value only bit-exact float handling keeps, in every block.
+        let fields =
+            |read: &SpecCommand| -> Vec<String> { read.named_fields().map(|f| f.display_name().to_owned()).collect() };
+        for (_, read) in &blocks {
+            let first = &fields(read)[0];
+            s.server.device().set(&read.name, first, Value::Float(0.987_654_3)).unwrap();
+        }
+        let before: Vec<(String, String, f32)> = blocks
+            .iter()
+            .flat_map(|(_, read)| fields(read).into_iter().map(|f| (read.name.clone(), f)))
+            .map(|(c, f)| {
+                let v = float(&s, &c, &f);
+                (c, f, v)
+            })
+            .collect();
+        let args = ["coefficients", "backup", name, "-p", &s.path, "-a", &address, "--file", file];
+        let out = yosemitech(&args).ok().to_owned();
+        assert!(out.contains("restore with:") && out.contains("'"), "the path with a space is quoted:\n{out}");
+        // Never overwritten.
+        yosemitech(&args).fails_with_hint(2);
+        // The file: one block per write command, named by its fields.
+        let json: Json = serde_json::from_str(&std::fs::read_to_string(file).unwrap()).unwrap();
+        assert_eq!(json["sensor"], name);
+        let saved = json["coefficients"].as_object().unwrap();
+        assert_eq!(saved.len(), blocks.len(), "{name}: {json}");
+        for (write, _) in &blocks {
+            let mut names: Vec<String> = write.named_fields().map(|f| f.display_name().to_owned()).collect();
+            names.sort();
+            let keys: Vec<String> = saved[&write.name].as_object().unwrap().keys().cloned().collect();
+            assert_eq!(keys, names, "{name}.{}", write.name);
+        }
 
-    // Change everything, then restore.
-    for (command, field) in [("get_orp_calibration", "k_slope"), ("get_ph_calibration", "b_offset")] {
-        s.server.device().set(command, field, Value::Float(42.0)).unwrap();
+        // Change everything, then restore.
+        for (c, f, _) in &before {
+            s.server.device().set(c, f, Value::Float(42.0)).unwrap();
+        }
+        // Restoring needs confirmation.
+        let restore = ["coefficients", "restore", name, "-p", &s.path, "-a", &address, "--file", file];
+        yosemitech(&restore).fails_with_hint(2);
+        for (c, f, _) in &before {
+            assert_eq!(float(&s, c, f), 42.0, "nothing written without --yes");
+        }
+        let mut args = restore.to_vec();
+        args.push("--yes");
+        let out = yosemitech(&args).ok().to_owned();
+        assert!(out.contains("restored and verified"), "{out}");
+        assert!(out.contains("saved the probe's current coefficients to"), "restore keeps what it overwrites:\n{out}");
+        for (c, f, v) in &before {
+            assert_eq!(float(&s, c, f).to_bits(), v.to_bits(), "{name}: {c}.{f} restored bit for bit");
+        }
+        // One sensor's backup is not another's.
+        let other = &sensors[(i + 1) % sensors.len()].name;
+        if other != name {
+            let mut args = vec!["coefficients", "restore", other.as_str(), "-p", &s.path, "-a", &address];
+            args.extend(["--file", file, "--yes"]);
+            let err = yosemitech(&args).fails_with_hint(2).to_owned();
+            assert!(err.contains(&format!("`{name}` probe")), "{err}");
+        }
     }
-    s.server.device().set("get_ph_electrode_coefficients", "k6", Value::Float(-3.5)).unwrap();
-    // Restoring needs confirmation.
-    yosemitech(&["coefficients", "restore", "ph_orp", "-p", &s.path, "--file", file]).fails_with_hint(2);
-    assert_eq!(float(&s, "get_orp_calibration", "k_slope"), 42.0);
-    let out =
-        yosemitech(&["coefficients", "restore", "ph_orp", "-p", &s.path, "--file", file, "--yes"]).ok().to_owned();
-    assert!(out.contains("restored and verified"), "{out}");
-    assert!(out.contains("saved the probe's current coefficients to"), "restore keeps what it overwrites:\n{out}");
-    assert_eq!(float(&s, "get_orp_calibration", "k_slope").to_bits(), 0.987_654_3f32.to_bits());
-    assert_eq!(float(&s, "get_ph_calibration", "b_offset"), 0.0);
-    assert_eq!(float(&s, "get_ph_electrode_coefficients", "k6"), -1.04);
-    // A pH backup is not a conductivity backup.
-    let err = yosemitech(&["coefficients", "restore", "conductivity", "-p", &s.path, "--file", file, "--yes"])
-        .fails_with_hint(2)
-        .to_owned();
-    assert!(err.contains("`ph_orp` probe"), "{err}");
 }
 
-#[test]
-fn conductivity_coefficients_round_trip() {
-    let s = sim("conductivity", 5);
-    let dir = tempfile::tempdir().unwrap();
-    let file = dir.path().join("c.json");
-    let file = file.to_str().unwrap();
-    yosemitech(&["coefficients", "backup", "conductivity", "-p", &s.path, "-a", "5", "-f", file]).ok();
-    s.server.device().set("get_user_calibration", "k_slope", Value::Float(2.5)).unwrap();
-    yosemitech(&["coefficients", "restore", "cond", "-p", &s.path, "-a", "5", "-f", file, "-y"]).ok();
-    assert_eq!(float(&s, "get_user_calibration", "k_slope"), 1.0);
+/// The sensor `calibrate ph` drives: the one whose spec has a
+/// `calibration_point` command (the pH manual's own procedure).
+fn calibrated_sensor() -> String {
+    let with: Vec<String> = spec()
+        .sensors
+        .into_iter()
+        .filter(|s| s.command_with_role(Role::CalibrationPoint).is_some())
+        .map(|s| s.name)
+        .collect();
+    assert_eq!(with.len(), 1, "one sensor has a calibration point: {with:?}");
+    with[0].clone()
 }
 
 #[test]
 fn calibrate_ph_guides_three_points_and_reports_success() {
-    let s = sim("ph_orp", 1);
+    let name = calibrated_sensor();
+    let s = sim(&name, 1);
     let dir = tempfile::tempdir().unwrap();
     let backup_dir = dir.path().to_str().unwrap();
     let run = yosemitech_with_input(
@@ -352,7 +627,8 @@ fn calibrate_ph_guides_three_points_and_reports_success() {
 
 #[test]
 fn calibrate_ph_stops_on_q_and_prints_the_restore_command() {
-    let s = sim("ph_orp", 1);
+    let name = calibrated_sensor();
+    let s = sim(&name, 1);
     let dir = tempfile::tempdir().unwrap();
     let backup_dir = dir.path().to_str().unwrap();
     let run = yosemitech_with_input(
@@ -361,7 +637,7 @@ fn calibrate_ph_stops_on_q_and_prints_the_restore_command() {
     );
     let err = run.fails(1);
     assert!(err.contains("stopped by the user at point 2"), "{err}");
-    assert!(err.contains("yosemitech coefficients restore ph_orp"), "{err}");
+    assert!(err.contains(&format!("yosemitech coefficients restore {name}")), "{err}");
     assert_eq!(s.server.device().calibration_points().len(), 1, "one point written");
     // Without --yes and without a terminal, nothing starts.
     let run = yosemitech(&["calibrate", "ph", "-p", &s.path, "--skip-wait", "--backup-dir", backup_dir]);
@@ -704,22 +980,57 @@ fn interrupt(mut child: std::process::Child) -> String {
     err
 }
 
+/// A measurement read whose example (in the sensor's own manual) the
+/// simulator answers: the sensor, the read, the true request and reply,
+/// and the line `read` shows for its one f32 field (`name  value unit`).
+fn stated_read() -> (yosemitech_spec::Sensor, SpecCommand, Vec<u8>, Vec<u8>, String) {
+    for sensor in spec().sensors {
+        let device = Simulator::new(Arc::new(sensor.clone()));
+        for command in sensor.commands.iter().filter(|c| c.is_read() && c.role.is_none() && c.fixed_slave.is_none()) {
+            let mut named = command.named_fields();
+            let (Some(field), None) = (named.next(), named.next()) else { continue };
+            if !matches!(field.kind, yosemitech_spec::FieldKind::F32 { .. }) || field.unit.is_none() {
+                continue;
+            }
+            let Some(example) = stated_example(command) else { continue };
+            let (Some((request, reply)), Some(value)) = (example.true_pair(), example.values.get(field.display_name()))
+            else {
+                continue;
+            };
+            if example.slave() != 1 || !device.get(&command.name, field.display_name()).is_ok_and(|v| v.same_as(value))
+            {
+                continue;
+            }
+            let line = format!("{}  {}", field.display_name(), shown(value, field.unit.as_deref()));
+            return (sensor.clone(), command.clone(), request.to_vec(), reply.to_vec(), line);
+        }
+    }
+    panic!("no measurement read whose stated example the simulator answers")
+}
+
+fn hex(bytes: &[u8]) -> String {
+    bytes.iter().map(|b| format!("{b:02X}")).collect::<Vec<_>>().join(" ")
+}
+
 #[test]
 fn simulate_serves_a_pty_until_interrupted() {
-    let (child, port) = spawn_simulate(&["conductivity", "--address", "4"]);
+    let (sensor, command, _, _, line) = stated_read();
+    let (child, port) = spawn_simulate(&[&sensor.name, "--address", "4"]);
     assert!(port.starts_with("/dev/"), "{port}");
-    let out = yosemitech(&["read", "conductivity", "get_temperature_and_conductivity", "-p", &port, "-a", "4"]);
-    assert!(out.ok().contains("conductivity_ms_cm  17.625 mS/cm"), "{}", out.stdout);
+    let out = yosemitech(&["read", &sensor.name, &command.name, "-p", &port, "-a", "4"]);
+    assert!(out.ok().contains(&line), "{}", out.stdout);
     let err = interrupt(child);
-    assert!(err.contains("simulating Conductivity probe") && err.contains("stopped: 1 requests"), "{err}");
+    let title = format!("simulating {} ({})", sensor.title, sensor.name);
+    assert!(err.contains(&title) && err.contains("stopped: 1 requests"), "{err}");
 }
 
 #[test]
 fn simulate_serves_rtu_over_tcp() {
-    let (child, port) = spawn_simulate(&["ph_orp", "--tcp", "127.0.0.1:0"]);
+    let (sensor, command, _, _, line) = stated_read();
+    let (child, port) = spawn_simulate(&[&sensor.name, "--tcp", "127.0.0.1:0"]);
     assert!(port.starts_with("tcp://127.0.0.1:"), "{port}");
-    let out = yosemitech(&["read", "ph_orp", "get_temperature", "-p", &port]);
-    assert_eq!(out.ok().trim(), "temperature_c  15.8 °C");
+    let out = yosemitech(&["read", &sensor.name, &command.name, "-p", &port]);
+    assert_eq!(out.ok().trim(), line);
     interrupt(child);
 }
 
@@ -756,10 +1067,20 @@ fn simulate_is_silent_for_registers_the_probe_lacks_unless_asked_for_exceptions(
 
 #[test]
 fn simulate_injects_faults_the_client_retries() {
-    let (child, port) = spawn_simulate(&["ph_orp", "--faults", "drop=0.3,corrupt_crc=0.2", "--seed", "5"]);
+    // The sensor with the most measurement reads: the most requests per poll.
+    let sensor = spec()
+        .sensors
+        .into_iter()
+        .max_by_key(|s| {
+            let mut reads: Vec<String> = poll_columns(s).into_iter().map(|(r, _, _)| r).collect();
+            reads.dedup();
+            reads.len()
+        })
+        .unwrap();
+    let (child, port) = spawn_simulate(&[&sensor.name, "--faults", "drop=0.3,corrupt_crc=0.2", "--seed", "5"]);
     let run = yosemitech(&[
         "poll",
-        "ph_orp",
+        &sensor.name,
         "-p",
         &port,
         "-n",
@@ -816,36 +1137,65 @@ fn spec_sensors_work_through_the_interpreter() {
 
 #[test]
 fn verbose_shows_frame_dumps() {
-    let s = sim("ph_orp", 1);
-    let run = yosemitech(&["read", "ph_orp", "get_ph", "-p", &s.path, "-v"]);
+    let (sensor, command, request, reply, _) = stated_read();
+    let s = sim(&sensor.name, 1);
+    let run = yosemitech(&["read", &sensor.name, &command.name, "-p", &s.path, "-v"]);
     run.ok();
-    assert!(run.stderr.contains("tx") && run.stderr.contains("01 03 28 00 00 02 CD AB"), "{}", run.stderr);
-    assert!(run.stderr.contains("rx") && run.stderr.contains("01 03 04 33 33 F3 40 40 78"), "{}", run.stderr);
+    assert!(run.stderr.contains("tx") && run.stderr.contains(&hex(&request)), "{}", run.stderr);
+    assert!(run.stderr.contains("rx") && run.stderr.contains(&hex(&reply)), "{}", run.stderr);
     assert!(!run.stderr.contains('\u{1b}'), "no colour codes when stderr is not a terminal");
 }
 
 #[test]
 fn a_spec_file_replacing_a_built_in_sensor_goes_through_the_interpreter() {
-    // The pH manual's spec loaded at run time replaces the built-in sensor:
-    // coefficients go through the interpreter (with the same read-back), and
-    // the typed procedures refuse.
+    // The calibrated sensor's manual (its spec file) loaded at run time
+    // replaces the built-in sensor: coefficients go through the interpreter
+    // (with the same read-back), and the typed procedures refuse.
+    let name = calibrated_sensor();
     let dir = tempfile::tempdir().unwrap();
-    let text = std::fs::read_to_string(common::spec_dir().join("ph-orp-optical.yaml")).unwrap();
-    std::fs::write(dir.path().join("ph-orp-optical.yaml"), text).unwrap();
-    let spec = dir.path().to_str().unwrap();
-    let s = sim("ph_orp", 1);
+    let own = std::fs::read_dir(common::spec_dir())
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .find(|p| {
+            p.extension().is_some_and(|e| e == "yaml")
+                && std::fs::read_to_string(p).unwrap().contains(&format!("\n  name: {name}\n"))
+        })
+        .expect("the calibrated sensor's spec file");
+    std::fs::copy(&own, dir.path().join(own.file_name().unwrap())).unwrap();
+    let spec_arg = dir.path().to_str().unwrap();
+    let s = sim(&name, 1);
     let file = dir.path().join("backup.json");
     let file = file.to_str().unwrap();
+    let sensor = common::sensor(&name);
+    let blocks = common::coefficient_blocks(&sensor);
+    let (_, first_read) = blocks[0];
+    let first_field = first_read.named_fields().next().unwrap().display_name().to_owned();
+    let first_value = float(&s, &first_read.name, &first_field);
     let out =
-        yosemitech(&["--spec", spec, "coefficients", "backup", "ph_orp", "-p", &s.path, "-f", file]).ok().to_owned();
-    assert!(out.contains("k1=6.86") && out.contains(&format!("--spec {spec}")), "{out}");
-    s.server.device().set("get_ph_electrode_coefficients", "k1", Value::Float(1.5)).unwrap();
-    s.server.device().set("get_orp_calibration", "b_offset", Value::Float(-2.0)).unwrap();
-    let out = yosemitech(&["--spec", spec, "coefficients", "restore", "ph_orp", "-p", &s.path, "-f", file, "--yes"]);
+        yosemitech(&["--spec", spec_arg, "coefficients", "backup", &name, "-p", &s.path, "-f", file]).ok().to_owned();
+    assert!(
+        out.contains(&format!("{first_field}={first_value}")) && out.contains(&format!("--spec {spec_arg}")),
+        "{out}"
+    );
+    let before: Vec<(String, String, f32)> = blocks
+        .iter()
+        .flat_map(|(_, r)| r.named_fields().map(|f| (r.name.clone(), f.display_name().to_owned())).collect::<Vec<_>>())
+        .map(|(c, f)| {
+            let v = float(&s, &c, &f);
+            (c, f, v)
+        })
+        .collect();
+    for (i, (c, f, _)) in before.iter().enumerate() {
+        s.server.device().set(c, f, Value::Float(1.5 + i as f32)).unwrap();
+    }
+    let out = yosemitech(&["--spec", spec_arg, "coefficients", "restore", &name, "-p", &s.path, "-f", file, "--yes"]);
     assert!(out.ok().contains("restored and verified"));
-    assert_eq!(float(&s, "get_ph_electrode_coefficients", "k1"), 6.86);
-    assert_eq!(float(&s, "get_orp_calibration", "b_offset"), 0.0);
-    let run =
-        yosemitech_with_input(&["--spec", spec, "calibrate", "ph", "-p", &s.path, "--yes", "--skip-wait"], "\n\n\n");
-    assert!(run.fails_with_hint(2).contains("built-in ph_orp"), "{}", run.stderr);
+    for (c, f, v) in &before {
+        assert_eq!(float(&s, c, f).to_bits(), v.to_bits(), "{c}.{f}");
+    }
+    let run = yosemitech_with_input(
+        &["--spec", spec_arg, "calibrate", "ph", "-p", &s.path, "--yes", "--skip-wait"],
+        "\n\n\n",
+    );
+    assert!(run.fails_with_hint(2).contains(&format!("built-in {name}")), "{}", run.stderr);
 }

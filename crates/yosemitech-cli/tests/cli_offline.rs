@@ -102,7 +102,7 @@ fn usage_errors_exit_2() {
     assert!(run.stderr.contains("Usage:"), "{}", run.stderr);
     yosemitech(&["frobnicate"]).fails(2);
     yosemitech(&["decode"]).fails(2);
-    yosemitech(&["poll", "ph_orp", "--interval", "fast"]).fails(2);
+    yosemitech(&["poll", &spec().sensors[0].name, "--interval", "fast"]).fails(2);
 }
 
 /// `9600 8N1`, as `list` shows serial settings.
@@ -181,6 +181,7 @@ fn list_json_has_every_command_with_its_layout() {
 fn list_shows_sensors_commands_and_fields() {
     let all = yosemitech(&["list"]);
     let text = all.ok();
+    let mut f32_units = 0;
     for sensor in spec().sensors {
         assert!(text.contains(&format!("{} — {}", sensor.name, sensor.title)), "{}", sensor.name);
         let one = yosemitech(&["list", &sensor.name]).ok().to_owned();
@@ -222,11 +223,17 @@ fn list_shows_sensors_commands_and_fields() {
             for field in command.named_fields() {
                 let shown = format!("{}: {}", field.display_name(), field.kind.type_name());
                 assert!(one.contains(&shown), "`{shown}` missing:\n{one}");
+                // An f32 field: its byte order and unit too.
+                if let (yosemitech_spec::FieldKind::F32 { order }, Some(unit)) = (&field.kind, &field.unit) {
+                    let unit = if unit == "degC" { "°C" } else { unit }; // as the CLI shows it
+                    let full = format!("{shown} {} [{unit}]", format!("{order:?}").to_lowercase());
+                    assert!(one.contains(&full), "`{full}` missing:\n{one}");
+                    f32_units += 1;
+                }
             }
         }
     }
-    let one = yosemitech(&["list", "ph"]);
-    assert!(one.ok().contains("ph: f32 dcba [pH]"), "{}", one.stdout);
+    assert!(f32_units > 0, "some f32 field states a unit");
 }
 
 #[test]
@@ -353,31 +360,77 @@ fn decode_identifies_unambiguous_frames_on_its_own() {
     }
 }
 
+/// A reply the manuals print that several reads of the spec fit: a
+/// measurement read (no role) of one f32 field with a unit, its example's
+/// true reply, and the field. The first in spec order.
+fn ambiguous_reply() -> (Command, Vec<u8>, String, String) {
+    let spec = spec();
+    let reads: Vec<&Command> = spec.sensors.iter().flat_map(|s| &s.commands).filter(|c| c.is_read()).collect();
+    reads
+        .iter()
+        .filter(|c| c.role.is_none() && c.fixed_slave.is_none() && c.named_fields().count() == 1)
+        .find_map(|c| {
+            let field = c.named_fields().next()?;
+            let unit = field.unit.clone()?;
+            if !matches!(field.kind, yosemitech_spec::FieldKind::F32 { .. }) {
+                return None;
+            }
+            let others = reads.iter().filter(|o| o.name != c.name && o.count == c.count).count();
+            let example = c.examples.iter().find(|e| e.manual.is_none() && e.erratum.is_none())?;
+            let reply = example.true_response()?.to_vec();
+            let value = match example.values.get(field.display_name())? {
+                Value::Float(v) => v.to_string(),
+                _ => return None,
+            };
+            (others > 0).then(|| ((*c).clone(), reply, field.display_name().to_owned(), format!("{value} {unit}")))
+        })
+        .expect("a reply several reads fit")
+}
+
 #[test]
 fn decode_asks_which_command_when_a_reply_is_ambiguous() {
-    let run = yosemitech(&["decode", "01 03 04 33 33 F3 40 40 78"]);
+    let (command, reply, field, shown) = ambiguous_reply();
+    let frame = hex(&reply);
+    let run = yosemitech(&["decode", &frame]);
     let err = run.fails_with_hint(2);
-    for candidate in ["get_ph", "get_orp", "get_temperature", "get_version"] {
-        assert!(err.contains(candidate), "{candidate} not listed:\n{err}");
+    // Every read of the same size is a candidate.
+    let spec = spec();
+    let same_size: Vec<&Command> = spec
+        .sensors
+        .iter()
+        .flat_map(|s| &s.commands)
+        .filter(|c| c.is_read() && c.fixed_slave.is_none() && c.count == command.count)
+        .collect();
+    assert!(same_size.len() > 1);
+    for candidate in same_size {
+        assert!(err.contains(&candidate.name), "{} not listed:\n{err}", candidate.name);
     }
-    assert!(err.contains("ph = 7.6 pH"), "{err}");
+    assert!(err.contains(&format!("{field} = {shown}")), "{err}");
     assert!(err.contains("--sensor") && err.contains("--command"), "{err}");
     // Narrowing by command alone is enough.
-    let run = yosemitech(&["decode", "01 03 04 33 33 F3 40 40 78", "--command", "get_ph"]);
-    assert!(run.ok().contains("7.6 pH"));
+    let run = yosemitech(&["decode", &frame, "--command", &command.name]);
+    assert!(run.ok().contains(&shown));
 }
 
 #[test]
 fn decode_reports_a_wrong_crc_with_the_expected_one() {
-    let run = yosemitech(&["decode", "01 03 04 33 33 F3 40 40 79", "--sensor", "ph_orp", "--command", "get_ph"]);
+    let (command, reply, _, shown) = ambiguous_reply();
+    let sensor = spec().sensors.into_iter().find(|s| s.command(&command.name).is_some()).unwrap();
+    let n = reply.len();
+    let right = hex(&reply[n - 2..]);
+    let mut bad = reply.clone();
+    bad[n - 1] = bad[n - 1].wrapping_add(1);
+    let wrong = hex(&bad[n - 2..]);
+    let frame = hex(&bad);
+    let run = yosemitech(&["decode", &frame, "--sensor", &sensor.name, "--command", &command.name]);
     let err = run.fails_with_hint(1);
-    assert!(run.stdout.contains("40 79 (wrong: the bytes give 40 78)"), "{}", run.stdout);
-    assert!(run.stdout.contains("7.6 pH"), "fields still shown:\n{}", run.stdout);
-    assert!(err.contains("40 78"));
-    let run = yosemitech(&["decode", "01 03 04 33 33 F3 40 40 79", "--command", "get_ph", "--json"]);
+    assert!(run.stdout.contains(&format!("{wrong} (wrong: the bytes give {right})")), "{}", run.stdout);
+    assert!(run.stdout.contains(&shown), "fields still shown:\n{}", run.stdout);
+    assert!(err.contains(&right));
+    let run = yosemitech(&["decode", &frame, "--command", &command.name, "--json"]);
     assert_eq!(run.code, 1);
     let json: Json = serde_json::from_str(&run.stdout).unwrap();
-    assert_eq!(json["crc"], serde_json::json!({ "ok": false, "received": "40 79", "expected": "40 78" }));
+    assert_eq!(json["crc"], serde_json::json!({ "ok": false, "received": wrong, "expected": right }));
 }
 
 #[test]
@@ -392,58 +445,220 @@ fn decode_explains_exceptions() {
 
 #[test]
 fn decode_rejects_a_frame_that_does_not_fit_the_command() {
-    let err =
-        yosemitech(&["decode", "01 03 04 33 33 F3 40 40 78", "--command", "get_sn"]).fails_with_hint(2).to_owned();
-    assert!(err.contains("does not fit `get_sn`"), "{err}");
-    let err =
-        yosemitech(&["decode", "01 03 04 33 33 F3 40 40 78", "--command", "get_phh"]).fails_with_hint(2).to_owned();
-    assert!(err.contains("did you mean `get_ph`"), "{err}");
+    let (command, reply, _, _) = ambiguous_reply();
+    let frame = hex(&reply);
+    // The serial-number read of the same sensor: another size.
+    let sensor = spec().sensors.into_iter().find(|s| s.command(&command.name).is_some()).unwrap();
+    let sn = sensor.command_with_role(yosemitech_spec::Role::SerialNumber).expect("a serial-number read");
+    assert_ne!(sn.count, command.count);
+    let err = yosemitech(&["decode", &frame, "--command", &sn.name]).fails_with_hint(2).to_owned();
+    assert!(err.contains(&format!("does not fit `{}`", sn.name)), "{err}");
+    let typo = format!("{}{}", command.name, command.name.chars().last().unwrap());
+    let err = yosemitech(&["decode", &frame, "--command", &typo]).fails_with_hint(2).to_owned();
+    assert!(err.contains(&format!("did you mean `{}`", command.name)), "{err}");
+}
+
+/// `name` with its last character changed: a typo `did you mean` catches.
+fn typo(name: &str) -> String {
+    let last = if name.ends_with('q') { 'z' } else { 'q' };
+    format!("{}{last}", &name[..name.len() - 1])
 }
 
 #[test]
 fn bad_input_gets_one_error_and_a_hint() {
-    let cases: &[(&[&str], i32, &str)] = &[
+    // A sensor with a coefficient block of two or more fields, a
+    // measurement read and the slave-address commands, from the spec.
+    let spec = spec();
+    let sensor = spec
+        .sensors
+        .iter()
+        .find(|s| {
+            s.command_with_role(yosemitech_spec::Role::SetSlaveAddress).is_some()
+                && s.command_with_role(yosemitech_spec::Role::GetSlaveAddress).is_some_and(|c| c.fixed_slave.is_some())
+                && s.commands.iter().any(|c| c.is_read() && c.role.is_none())
+                && s.commands.iter().any(|w| {
+                    !w.is_read()
+                        && w.named_fields().count() >= 2
+                        && w.named_fields().all(|f| matches!(f.kind, yosemitech_spec::FieldKind::F32 { .. }))
+                })
+        })
+        .expect("a sensor with coefficients, a measurement and the address commands");
+    let name = sensor.name.as_str();
+    let read = sensor.commands.iter().find(|c| c.is_read() && c.role.is_none()).unwrap().name.as_str();
+    let write = sensor
+        .commands
+        .iter()
+        .find(|w| {
+            !w.is_read()
+                && w.named_fields().count() >= 2
+                && w.named_fields().all(|f| matches!(f.kind, yosemitech_spec::FieldKind::F32 { .. }))
+        })
+        .unwrap();
+    let fields: Vec<&str> = write.named_fields().map(|f| f.display_name()).collect();
+    let set_id = sensor.command_with_role(yosemitech_spec::Role::SetSlaveAddress).unwrap();
+    let address_field = set_id.named_fields().next().unwrap().display_name();
+    let get_id = sensor.command_with_role(yosemitech_spec::Role::GetSlaveAddress).unwrap();
+    let fixed = format!("0x{:02X}", get_id.fixed_slave.unwrap());
+    // A write of the spec with a range, given a value beyond it.
+    let (ranged_sensor, ranged, beyond) = spec
+        .sensors
+        .iter()
+        .flat_map(|s| s.commands.iter().map(move |c| (s, c)))
+        .find_map(|(s, c)| {
+            let mut named = c.named_fields();
+            let (only, none) = (named.next()?, named.next());
+            let (_, max) = only.range?;
+            (!c.is_read() && none.is_none()).then(|| (s.name.as_str(), c.name.as_str(), (max + 1.0).to_string()))
+        })
+        .expect("a write with a stated range");
+    let first = format!("{}=1", fields[0]);
+    let dropped = {
+        let mid = address_field.len() / 2;
+        format!("{}{}=3", &address_field[..mid], &address_field[mid + 1..])
+    };
+    let owned: Vec<(Vec<String>, i32, String)> = vec![
+        (
+            vec!["read".into(), typo(name), read.into(), "--port".into(), "/dev/null".into()],
+            2,
+            format!("did you mean `{name}`"),
+        ),
+        (
+            vec!["read".into(), name.into(), typo(read), "--port".into(), "/dev/null".into()],
+            2,
+            format!("did you mean `{read}`"),
+        ),
+        (vec!["read".into(), name.into(), read.into()], 2, "no port given".into()),
+        (
+            vec!["read".into(), name.into(), read.into(), "--port".into(), "/dev/yosemitech-no-such-port".into()],
+            1,
+            "not found".into(),
+        ),
+        (
+            vec![
+                "read".into(),
+                name.into(),
+                read.into(),
+                "--port".into(),
+                "/dev/null".into(),
+                "--address".into(),
+                "0".into(),
+            ],
+            2,
+            "outside 1..=247".into(),
+        ),
+        (
+            vec![
+                "read".into(),
+                name.into(),
+                read.into(),
+                "--port".into(),
+                "/dev/null".into(),
+                "--address".into(),
+                "248".into(),
+            ],
+            2,
+            "outside 1..=247".into(),
+        ),
+        (
+            vec!["read".into(), name.into(), write.name.clone(), "--port".into(), "/dev/null".into()],
+            2,
+            "write command".into(),
+        ),
+        (vec!["write".into(), name.into(), read.into(), "--port".into(), "/dev/null".into()], 2, "read command".into()),
+        (
+            vec![
+                "write".into(),
+                ranged_sensor.into(),
+                ranged.into(),
+                beyond,
+                "--port".into(),
+                "/dev/null".into(),
+                "--yes".into(),
+            ],
+            2,
+            "outside the valid range".into(),
+        ),
+        (
+            vec!["write".into(), name.into(), write.name.clone(), first, "--port".into(), "/dev/null".into()],
+            2,
+            format!("no value for `{}`", fields[1]),
+        ),
+        (
+            vec![
+                "write".into(),
+                name.into(),
+                write.name.clone(),
+                "1".into(),
+                "x".into(),
+                "--port".into(),
+                "/dev/null".into(),
+            ],
+            2,
+            "not a number".into(),
+        ),
+        (
+            vec![
+                "write".into(),
+                name.into(),
+                write.name.clone(),
+                "1".into(),
+                "0".into(),
+                "--port".into(),
+                "/dev/null".into(),
+            ],
+            2,
+            "stdin is not a terminal".into(),
+        ),
+        (
+            vec!["encode".into(), name.into(), set_id.name.clone(), "0".into()],
+            2,
+            "outside the valid range 1..=247".into(),
+        ),
+        (
+            vec!["encode".into(), name.into(), set_id.name.clone(), "248".into()],
+            2,
+            "outside the valid range 1..=247".into(),
+        ),
+        (
+            vec!["encode".into(), name.into(), set_id.name.clone(), dropped],
+            2,
+            format!("did you mean `{address_field}`"),
+        ),
+        (vec!["encode".into(), name.into(), read.into(), "7.6".into()], 2, "carries no values".into()),
+        (vec!["encode".into(), name.into(), get_id.name.clone(), "--address".into(), "3".into()], 2, fixed),
+        (vec!["simulate".into(), name.into(), "--faults".into(), "dorp=0.1".into()], 2, "did you mean `drop`".into()),
+        (
+            vec![
+                "coefficients".into(),
+                "restore".into(),
+                name.into(),
+                "--port".into(),
+                "/dev/null".into(),
+                "--file".into(),
+                "/nonexistent.json".into(),
+            ],
+            2,
+            "cannot read".into(),
+        ),
+    ];
+    let fixed_cases: &[(&[&str], i32, &str)] = &[
         (&["decode", "01 03 0"], 2, "odd number"),
         (&["decode", "01 03 zz"], 2, "not a hex digit"),
         (&["decode", "0103"], 2, "too short"),
         (&["decode", "01 2B 0E 01 00 70 77"], 1, "function 0x2B"),
-        (&["read", "ph_ors", "get_ph", "--port", "/dev/null"], 2, "did you mean `ph_orp`"),
-        (&["read", "ph_orp", "get_pj", "--port", "/dev/null"], 2, "did you mean `get_ph`"),
-        (&["read", "ph_orp", "get_ph"], 2, "no port given"),
-        (&["read", "ph_orp", "get_ph", "--port", "/dev/yosemitech-no-such-port"], 1, "not found"),
-        (&["read", "ph_orp", "get_ph", "--port", "/dev/null", "--address", "0"], 2, "outside 1..=247"),
-        (&["read", "ph_orp", "get_ph", "--port", "/dev/null", "--address", "248"], 2, "outside 1..=247"),
-        (&["read", "ph_orp", "set_ph_calibration", "--port", "/dev/null"], 2, "write command"),
-        (&["write", "ph_orp", "get_ph", "--port", "/dev/null"], 2, "read command"),
-        (
-            &["write", "ph_orp", "start_ph_calibration", "15", "--port", "/dev/null", "--yes"],
-            2,
-            "outside the valid range",
-        ),
-        (&["write", "ph_orp", "set_ph_calibration", "k_slope=1", "--port", "/dev/null"], 2, "no value for `b_offset`"),
-        (&["write", "ph_orp", "set_ph_calibration", "1", "x", "--port", "/dev/null"], 2, "not a number"),
-        (&["write", "ph_orp", "set_ph_calibration", "1", "0", "--port", "/dev/null"], 2, "stdin is not a terminal"),
-        (&["encode", "ph_orp", "set_slave_id", "0"], 2, "outside the valid range 1..=247"),
-        (&["encode", "ph_orp", "set_slave_id", "248"], 2, "outside the valid range 1..=247"),
-        (&["encode", "ph_orp", "set_slave_id", "slave_adress=3"], 2, "did you mean `slave_address`"),
-        (&["encode", "ph_orp", "get_ph", "7.6"], 2, "carries no values"),
-        (&["encode", "ph_orp", "get_slave_id", "--address", "3"], 2, "0xFF"),
         (&["set-address", "--port", "/dev/null", "--from", "0", "--to", "5"], 2, "--from 0 is outside 1..=247"),
         (&["set-address", "--port", "/dev/null", "--from", "1", "--to", "248"], 2, "--to 248 is outside 1..=247"),
         (&["scan", "--port", "/dev/null", "--addresses", "0-3"], 2, "outside 1..=247"),
         (&["scan", "--port", "/dev/null", "--addresses", "a-b"], 2, "not an address"),
-        (&["simulate", "ph_orp", "--faults", "dorp=0.1"], 2, "did you mean `drop`"),
         (&["list", "nonexistent_sensor"], 2, "unknown sensor"),
         (&["list", "--spec", "/nonexistent/spec/dir"], 2, "no such file"),
-        (
-            &["coefficients", "restore", "ph_orp", "--port", "/dev/null", "--file", "/nonexistent.json"],
-            2,
-            "cannot read",
-        ),
     ];
+    let owned: Vec<(Vec<&str>, i32, &str)> =
+        owned.iter().map(|(a, c, n)| (a.iter().map(String::as_str).collect(), *c, n.as_str())).collect();
+    let cases = fixed_cases.iter().map(|(a, c, n)| (a.to_vec(), *c, *n)).chain(owned);
     for (args, code, needle) in cases {
-        let run = yosemitech(args);
-        let err = run.fails_with_hint(*code);
+        let run = yosemitech(&args);
+        let err = run.fails_with_hint(code);
         assert!(err.starts_with("error: "), "{args:?}: stderr starts with the error:\n{err}");
         assert!(err.contains(needle), "{args:?}: `{needle}` not in:\n{err}");
         assert_eq!(err.lines().filter(|l| l.starts_with("error:")).count(), 1, "{args:?}: one error line:\n{err}");
