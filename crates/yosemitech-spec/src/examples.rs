@@ -249,12 +249,20 @@ pub(crate) fn check_example(
                 Some(format!("remove `corrected_{what}`, or give the frame the device really sends")),
             ),
             Some(_) => {}
-            None => r.error(
-                span.as_ref().map_or_else(|| values_at(at), Pos::at),
-                format!("{key}.erratum.corrected_{what}"),
-                format!("a correction needs a complete printed {what} to correct"),
-                Some("record a frame the manual prints without a CRC with `*_crc: missing` instead".into()),
-            ),
+            // A partial frame (placeholders, no CRC) may be completed by an
+            // erratum, as long as the correction keeps every byte it prints.
+            None => {
+                if let Some(problem) =
+                    printed.as_ref().map_or(Some(format!("no {what} is printed")), |p| contradiction(p, c))
+                {
+                    r.error(
+                        span.as_ref().map_or_else(|| values_at(at), Pos::at),
+                        format!("{key}.erratum.corrected_{what}"),
+                        format!("the corrected {what} cannot stand for the printed one: {problem}"),
+                        Some("a correction keeps every byte the manual prints and fills the rest".into()),
+                    );
+                }
+            }
         }
     }
 
@@ -486,6 +494,19 @@ pub(crate) fn check_example(
         }
     }
     (r.out.len() == errors_before).then_some(Example { figures, manual, request, response, values, doc, erratum })
+}
+
+/// Why `corrected` cannot be the frame a partial `printed` frame stands for:
+/// a printed byte it changes, or a length the printed frame rules out.
+fn contradiction(printed: &PrintedFrame, corrected: &[u8]) -> Option<String> {
+    if let Some((at, want)) =
+        printed.bytes.iter().enumerate().find_map(|(i, b)| b.filter(|b| corrected.get(i) != Some(b)).map(|b| (i, b)))
+    {
+        return Some(format!("byte {at} is printed as {want:02X}"));
+    }
+    let printed_len = printed.bytes.len() + if printed.crc_printed { 0 } else { 2 };
+    let length_fits = if printed.open_ended { corrected.len() >= printed_len } else { corrected.len() == printed_len };
+    (!length_fits).then(|| format!("it is {} bytes where the printed frame has {printed_len}", corrected.len()))
 }
 
 /// Every byte a partial frame states in its header matches what the command sends.

@@ -139,6 +139,31 @@ fn example_crcs_verify_unless_an_erratum_says_otherwise() {
 }
 
 #[test]
+fn an_erratum_may_complete_a_partial_frame_but_not_change_a_printed_byte() {
+    // The manual prints a placeholder and no CRC; the erratum gives the true frame.
+    let example = |corrected: &str| {
+        format!(
+            "commands:{GET_PH}    examples:\n      - figures: [1]\n        request: \"01 03 28 00 00 02 CD AB\"\n        response: \"01 03 04 ?? 33 F3 40\"\n        response_crc: missing\n        values: {{ph: 7.6}}\n        erratum:\n          id: E9\n          figure: 1\n          printed: A word where byte 3 should be.\n          corrected_response: \"{corrected}\"\n          printed_decodes: false\n"
+        )
+    };
+    let text = format!("{HEAD}{}", example("01 03 04 33 33 F3 40 40 78"));
+    let spec = load(&[("spec/probe.yaml", &text)]).unwrap_or_else(|d| panic!("{d}"));
+    assert_eq!(spec.summary().frames, 3, "the request, the printed reply and its correction");
+
+    // A correction that changes a printed byte stands for another frame.
+    let d = errors(&example("01 03 04 33 34 F3 40 F1 B9"));
+    assert_error(&d, 26, "commands[0] (get_ph).examples[0].erratum.corrected_response", "byte 4 is printed as 33");
+    // Nor may it be longer than the printed frame plus its missing CRC.
+    let d = errors(&example("01 03 04 33 33 F3 40 00 79 F0"));
+    assert_error(
+        &d,
+        26,
+        "commands[0] (get_ph).examples[0].erratum.corrected_response",
+        "10 bytes where the printed frame has 9",
+    );
+}
+
+#[test]
 fn stated_values_must_match_the_frame() {
     let text = format!(
         "commands:{GET_PH}    examples:\n      - figures: [1]\n        request: \"01 03 28 00 00 02 CD AB\"\n        response: \"01 03 04 33 33 F3 40 40 78\"\n        values: {{ph: 7.5}}\n"

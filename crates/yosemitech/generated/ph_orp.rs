@@ -687,7 +687,7 @@ impl rtu::Command for StartPhCalibration {
 ///
 /// ```text
 /// request:  01 03 0E 00 00 01 86 E2
-/// response: 01 03 02 00 00
+/// response: 01 03 02 ?? 00 (CRC not printed)
 /// true response: 01 03 02 00 00 B8 44
 /// values:   status = success
 /// ```
@@ -698,13 +698,13 @@ impl rtu::Command for StartPhCalibration {
 ///
 /// ```text
 /// request:  01 03 0E 00 00 01 86 E2
-/// response: 01 03 02 00 00 [B8 44] (CRC not printed; computed)
-/// values:   status = success
+/// response: 01 03 02 ?? 00 (CRC not printed)
 /// ```
 ///
 /// Fig 38 has the defect of v1.7's Fig 42 (erratum E5): the CRC cells
 /// are empty and the register is printed as "Status 0" (the word under
-/// byte 3, the 0 under byte 4). Read as status 0, success, as in E5.
+/// byte 3, the 0 under byte 4). E5's corrected frame reads it as
+/// status 0, success.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub struct GetCalibrationStatus;
 
