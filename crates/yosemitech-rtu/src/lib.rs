@@ -4,18 +4,16 @@
 //! encoding and checking ([`frame::Layout`]), register value codecs
 //! ([`codec`]), the [`Command`] trait and typed errors. The core is `no_std`
 //! and allocation-free; the `std` feature adds [`transport`]s (serial with
-//! the `serial` feature, RTU-over-TCP, in-memory) and the [`Client`].
+//! the `serial` feature, RTU-over-TCP, in-memory) and the blocking [`Client`] over the sans-IO [`ClientCore`].
 #![cfg_attr(not(feature = "std"), no_std)]
 #![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used, clippy::panic, clippy::indexing_slicing))]
 
-#[cfg(feature = "std")]
 pub mod client;
 pub mod codec;
 mod command;
 mod crc;
 mod error;
 pub mod frame;
-mod raw;
 mod sensor;
 pub mod timing;
 #[cfg(feature = "std")]
@@ -27,13 +25,13 @@ pub use command::Command;
 pub use crc::{CRC_INIT, crc_ok, crc16, crc16_update};
 pub use error::{EchoField, EncodeError, ExceptionCode, FrameError};
 pub use frame::{Frame, Function, Layout};
-pub use raw::RawBytes;
 pub use sensor::{RoundTripError, SensorInfo, SensorModule};
 pub use timing::{CharFormat, DataBits, LineTiming, Parity, StopBits};
 pub use value::{FieldInfo, FieldValue};
 
 #[cfg(feature = "std")]
-pub use client::{Client, ClientConfig, Error, RetryPolicy};
+pub use client::{Client, Error};
+pub use client::{ClientConfig, ClientCore, ClientError, RetryPolicy};
 #[cfg(feature = "std")]
 pub use transport::{MemoryTransport, Responder, ResponderTransport, TcpTransport, Transport};
 #[cfg(feature = "serial")]

@@ -1,5 +1,4 @@
 //! The client against an in-process responder: framing, checks, retries and deadlines.
-#![allow(clippy::result_large_err)]
 
 mod common;
 
@@ -73,7 +72,7 @@ fn exception_reply_is_reported_and_not_retried() {
         err.frame_error(),
         Some(FrameError::Exception { function: 0x03, code: ExceptionCode::IllegalDataAddress })
     );
-    assert_eq!(err.raw(), Some(&exception[..]));
+    assert_eq!(client.last_reply(), &exception[..]);
     assert_eq!(requests(&log), 1, "exceptions are not retried");
 }
 
@@ -96,7 +95,7 @@ fn crc_corruption_without_retries_reports_the_bytes() {
     let (mut client, log) = client_with(config(0), move |_, _, out| out.extend_from_slice(&corrupt));
     let err = client.call(1, &GetPh).unwrap_err();
     assert!(matches!(err.frame_error(), Some(FrameError::Crc { .. })), "{err}");
-    assert_eq!(err.raw(), Some(&corrupt[..]));
+    assert_eq!(client.last_reply(), &corrupt[..]);
     assert_eq!(requests(&log), 1);
 }
 
@@ -110,7 +109,7 @@ fn reply_from_another_slave_is_retried_then_reported() {
     });
     let err = client.call(1, &GetPh).unwrap_err();
     assert_eq!(err.frame_error(), Some(FrameError::WrongSlave { expected: 1, actual: 2 }), "{err}");
-    assert_eq!(err.raw().map(|r| r[0]), Some(2));
+    assert_eq!(client.last_reply().first(), Some(&2));
     assert_eq!(requests(&log), 3, "first attempt and two retries");
 
     // A foreign reply once, then ours.
@@ -130,10 +129,10 @@ fn truncated_reply_times_out_with_the_partial_bytes() {
     let (mut client, log) = client_with(config(0), |_, _, out| out.extend_from_slice(&GET_PH_REPLY[..5]));
     let err = client.call(1, &GetPh).unwrap_err();
     match &err {
-        Error::Timeout { received } => assert_eq!(received.as_bytes(), &GET_PH_REPLY[..5]),
+        Error::Timeout { received } => assert_eq!((*received, client.last_reply()), (5, &GET_PH_REPLY[..5])),
         other => panic!("expected a timeout, got {other:?}"),
     }
-    assert!(err.to_string().contains("5 bytes received: 01 03 04 33 33"), "{err}");
+    assert!(err.to_string().contains("5 bytes received"), "{err}");
     assert_eq!(requests(&log), 1);
 }
 
@@ -184,7 +183,7 @@ fn silent_device_times_out_at_the_deadline() {
     let start = Instant::now();
     let err = client.call(1, &GetPh).unwrap_err();
     let elapsed = start.elapsed();
-    assert!(matches!(&err, Error::Timeout { received } if received.is_empty()), "{err:?}");
+    assert!(matches!(&err, Error::Timeout { received: 0 }), "{err:?}");
     assert!(elapsed >= timeout, "returned before the deadline: {elapsed:?}");
     assert!(elapsed < timeout + Duration::from_secs(2), "deadline overrun: {elapsed:?}");
     assert_eq!(requests(&log), 1);
@@ -224,7 +223,7 @@ fn write_echo_mismatch_is_reported_and_not_retried() {
         Some(FrameError::EchoMismatch { field: EchoField::Address, expected: 0x1C00, actual: 0x1C01 }),
         "{err}"
     );
-    assert_eq!(err.raw(), Some(&bad_echo[..]));
+    assert_eq!(client.last_reply(), &bad_echo[..]);
     assert_eq!(requests(&log), 1);
 
     let (mut client, log) = client_with(config(0), |_, req, out| ph_probe(1, 7.6, req, out));
@@ -393,11 +392,14 @@ proptest! {
                 prop_assert!(found, "value {value} from {reply:02X?} without a valid frame in it");
             }
             Err(Error::Timeout { received }) => {
-                prop_assert!(reply.starts_with(received.as_bytes()), "{received} is not what was sent");
+                let bytes = client.last_reply();
+                prop_assert_eq!(bytes.len(), received);
+                prop_assert!(reply.starts_with(bytes), "{bytes:02X?} is not what was sent");
             }
-            Err(Error::Frame { error, raw }) => {
+            Err(Error::Frame { error }) => {
+                let raw = client.last_reply();
                 prop_assert!(!matches!(error, FrameError::Truncated { .. } | FrameError::TooLong { .. }), "{error}");
-                prop_assert!(reply.windows(raw.len()).any(|w| w == raw.as_bytes()), "{raw} is not what was sent");
+                prop_assert!(reply.windows(raw.len()).any(|w| w == raw), "{raw:02X?} is not what was sent");
             }
             Err(other) => prop_assert!(false, "unexpected error {other}"),
         }

@@ -1,5 +1,5 @@
 //! Hand-written `Command`s and a simulated pH probe shared by the integration tests.
-#![allow(dead_code, clippy::result_large_err)]
+#![allow(dead_code)]
 
 use yosemitech_rtu::codec::{ByteOrder4, f32_from_wire, f32_to_wire};
 use yosemitech_rtu::frame::encode_exception;
