@@ -118,10 +118,8 @@ fn responses_round_trip_bit_exactly() {
                     _ => None,
                 }) {
                     if spec_cmd.is_read() {
-                        let bits = yosemitech_rtu::codec::u32_from_wire(
-                            order.rtu(),
-                            data[offset..offset + 4].try_into().unwrap(),
-                        );
+                        let bits =
+                            yosemitech_rtu::codec::u32_from_wire(order, data[offset..offset + 4].try_into().unwrap());
                         let got = decoded.values.iter().find(|(n, _)| *n == name).map(|(_, v)| v.clone());
                         prop_assert_eq!(got, Some(codec_common::Val::F32(bits)));
                     }

@@ -948,23 +948,8 @@ pub fn shared_commands(spec_dir: &Path) -> Vec<Shared> {
 }
 
 fn dfield(f: &yosemitech_spec::Field) -> DField {
-    use yosemitech_spec::{EnumRepr, FieldKind as K, Order2, Order4};
-    let o2 = |o: &Order2| match o {
-        Order2::Ab => "ab",
-        Order2::Ba => "ba",
-    };
-    let o4 = |o: &Order4| match o {
-        Order4::Abcd => "abcd",
-        Order4::Dcba => "dcba",
-        Order4::Cdab => "cdab",
-        Order4::Badc => "badc",
-    };
-    let order = match &f.kind {
-        K::F32 { order } | K::U32 { order } | K::I32 { order } => Some(o4(order)),
-        K::U16 { order } | K::I16 { order } => Some(o2(order)),
-        K::Enum { repr: EnumRepr::U16(o), .. } | K::Flags { repr: EnumRepr::U16(o), .. } => Some(o2(o)),
-        _ => None,
-    };
+    use yosemitech_spec::FieldKind as K;
+    let order = f.kind.byte_order_name();
     let codes = match &f.kind {
         K::Enum { variants, .. } => variants.iter().map(|v| (v.value, v.name.clone())).collect(),
         K::Flags { flags, .. } => flags.iter().map(|v| (v.mask, v.name.clone())).collect(),

@@ -4,7 +4,7 @@ use std::collections::BTreeMap;
 use std::time::Duration;
 
 use serde_json::{Map, Value as Json, json};
-use yosemitech_spec::{Command, Field, FieldKind, Order2, Order4, Value};
+use yosemitech_spec::{Command, Field, FieldKind, Value};
 
 use crate::error::{CliError, Result};
 
@@ -119,26 +119,6 @@ pub fn fields_json(command: &Command, values: &[(String, Value)]) -> Json {
             })
             .collect(),
     )
-}
-
-/// The byte order of a field, as the spec writes it, if it has one.
-pub fn byte_order(field: &Field) -> Option<&'static str> {
-    let two = |o: Order2| match o {
-        Order2::Ab => "ab",
-        Order2::Ba => "ba",
-    };
-    let four = |o: Order4| match o {
-        Order4::Abcd => "abcd",
-        Order4::Dcba => "dcba",
-        Order4::Cdab => "cdab",
-        Order4::Badc => "badc",
-    };
-    match &field.kind {
-        FieldKind::F32 { order } | FieldKind::U32 { order } | FieldKind::I32 { order } => Some(four(*order)),
-        FieldKind::U16 { order } | FieldKind::I16 { order } => Some(two(*order)),
-        FieldKind::Enum { repr: yosemitech_spec::EnumRepr::U16(order), .. } => Some(two(*order)),
-        _ => None,
-    }
 }
 
 /// Bytes as `01 03 28 00`.

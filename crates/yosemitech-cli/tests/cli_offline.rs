@@ -105,16 +105,6 @@ fn usage_errors_exit_2() {
     yosemitech(&["poll", &spec().sensors[0].name, "--interval", "fast"]).fails(2);
 }
 
-/// `9600 8N1`, as `list` shows serial settings.
-fn serial_text(serial: &yosemitech_spec::Serial) -> String {
-    let parity = match serial.parity {
-        yosemitech_spec::Parity::None => 'N',
-        yosemitech_spec::Parity::Even => 'E',
-        yosemitech_spec::Parity::Odd => 'O',
-    };
-    format!("{} {}{parity}{}", serial.baud, serial.data_bits, serial.stop_bits)
-}
-
 #[test]
 fn list_json_has_every_command_with_its_layout() {
     let json = yosemitech(&["list", "--json"]).json();
@@ -136,7 +126,7 @@ fn list_json_has_every_command_with_its_layout() {
                 .find(|m| m["title"] == manual.title.as_str() && m["software"].as_str() == manual.software.as_deref());
             let m = m.unwrap_or_else(|| panic!("{}: manual {:?} missing", sensor.name, manual.software));
             let serial = manual.software.as_deref().map_or(sensor.serial, |sw| sensor.serial_for(sw));
-            assert_eq!(m["serial"]["stop_bits"].as_u64(), Some(u64::from(serial.stop_bits)));
+            assert_eq!(m["serial"]["stop_bits"].as_u64(), Some(u64::from(serial.format.stop_bits.bits())));
             assert_eq!(m["serial"]["baud"].as_u64(), Some(u64::from(serial.baud)));
         }
         assert_eq!(s["procedure"].is_null(), sensor.procedure.is_none(), "{}", sensor.name);
@@ -200,8 +190,8 @@ fn list_shows_sensors_commands_and_fields() {
                         && manual.software.as_ref().is_none_or(|sw| l.contains(&format!("SW {sw}:")))
                 })
                 .unwrap_or_else(|| panic!("no line for the manual {:?}:\n{one}", manual.software));
-            assert!(line.contains(&serial_text(&serial)), "{line}");
-            if serial.stop_bits == 2 {
+            assert!(line.contains(&serial.to_string()), "{line}");
+            if serial.format.stop_bits == yosemitech_rtu::StopBits::Two {
                 assert!(line.contains("2 stop bits"), "{line}");
             }
         }

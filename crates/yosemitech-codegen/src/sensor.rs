@@ -2,10 +2,11 @@
 
 use std::fmt::Write as _;
 
+use heck::ToUpperCamelCase;
 use proc_macro2::{Ident, Literal, Span, TokenStream};
 use quote::{format_ident, quote};
-use yosemitech_rtu::Function;
-use yosemitech_spec::{Command, Constant, ConstantType, EnumRepr, Field, FieldKind, Order2, Order4, Parity, Sensor};
+use yosemitech_rtu::{ByteOrder2, ByteOrder4, DataBits, Function, LineSettings, Parity, StopBits};
+use yosemitech_spec::{Command, Constant, ConstantType, EnumRepr, Field, FieldKind, Sensor};
 
 use crate::Error;
 use crate::naming::{EnumDef, Names};
@@ -48,7 +49,7 @@ pub fn module_declaration(s: &Sensor, file: &str) -> TokenStream {
         "Generated from the spec of the manual \"{}\" ({}). Serial: {}; slave addresses {}..={}, factory address {}.",
         one_line(&s.manual.title),
         one_line(&s.manual.revision),
-        text::serial(&s.serial),
+        s.serial,
         s.min_address,
         s.max_address,
         s.default_address
@@ -133,7 +134,7 @@ pub fn fragment_module(fragment: &yosemitech_spec::Fragment, o: &Options) -> Res
         model_code: None,
         manual: yosemitech_spec::Manual { title: String::new(), revision: String::new(), software: None, file: None },
         revisions: Vec::new(),
-        serial: yosemitech_spec::Serial { baud: 9600, data_bits: 8, parity: Parity::None, stop_bits: 1 },
+        serial: LineSettings::default(),
         min_address: 1,
         max_address: 247,
         default_address: 1,
@@ -238,20 +239,18 @@ fn sensor_info(s: &Sensor) -> Result<TokenStream, Error> {
     let manual = lit(&one_line(&s.manual.title));
     let revision = lit(&one_line(&s.manual.revision));
     let baud = Literal::u32_unsuffixed(s.serial.baud);
-    let data_bits = match s.serial.data_bits {
-        7 => quote!(Seven),
-        8 => quote!(Eight),
-        n => return Err(unsupported(s, format!("{n} data bits (the runtime knows 7 and 8)"))),
+    let data_bits = match s.serial.format.data_bits {
+        DataBits::Seven => quote!(Seven),
+        DataBits::Eight => quote!(Eight),
     };
-    let parity = match s.serial.parity {
+    let parity = match s.serial.format.parity {
         Parity::None => quote!(None),
         Parity::Even => quote!(Even),
         Parity::Odd => quote!(Odd),
     };
-    let stop_bits = match s.serial.stop_bits {
-        1 => quote!(One),
-        2 => quote!(Two),
-        n => return Err(unsupported(s, format!("{n} stop bits (the runtime knows 1 and 2)"))),
+    let stop_bits = match s.serial.format.stop_bits {
+        StopBits::One => quote!(One),
+        StopBits::Two => quote!(Two),
     };
     let (min, max, default) = (
         Literal::u8_unsuffixed(s.min_address),
@@ -495,20 +494,16 @@ fn field_gens<'a>(names: &Names, ci: usize, c: &'a Command) -> Vec<FieldGen<'a>>
         .collect()
 }
 
-fn order4(o: Order4) -> TokenStream {
-    match o {
-        Order4::Abcd => quote!(rtu::ByteOrder4::Abcd),
-        Order4::Dcba => quote!(rtu::ByteOrder4::Dcba),
-        Order4::Cdab => quote!(rtu::ByteOrder4::Cdab),
-        Order4::Badc => quote!(rtu::ByteOrder4::Badc),
-    }
+/// `rtu::ByteOrder4::Dcba`: the variant is the order's name in CamelCase.
+fn order4(o: ByteOrder4) -> TokenStream {
+    let variant = format_ident!("{}", o.name().to_upper_camel_case());
+    quote!(rtu::ByteOrder4::#variant)
 }
 
-fn order2(o: Order2) -> TokenStream {
-    match o {
-        Order2::Ab => quote!(rtu::ByteOrder2::Ab),
-        Order2::Ba => quote!(rtu::ByteOrder2::Ba),
-    }
+/// `rtu::ByteOrder2::Ba`: the variant is the order's name in CamelCase.
+fn order2(o: ByteOrder2) -> TokenStream {
+    let variant = format_ident!("{}", o.name().to_upper_camel_case());
+    quote!(rtu::ByteOrder2::#variant)
 }
 
 /// `[data[3], data[4], data[5], data[6]]`.

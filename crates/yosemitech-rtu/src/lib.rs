@@ -29,7 +29,7 @@ pub use error::{EchoField, EncodeError, ExceptionCode, FrameError};
 pub use frame::{Frame, Function, Layout};
 pub use raw::RawBytes;
 pub use sensor::{RoundTripError, SensorInfo, SensorModule};
-pub use timing::{CharFormat, DataBits, LineTiming, Parity, StopBits};
+pub use timing::{CharFormat, DataBits, LineSettings, LineTiming, Parity, StopBits};
 pub use value::{FieldInfo, FieldValue};
 
 #[cfg(feature = "std")]

@@ -62,7 +62,7 @@ pub use registers::RegisterMap;
 #[cfg(all(unix, feature = "pty"))]
 pub use serve::serve_pty;
 pub use serve::{Endpoint, ServeConfig, Server, serve_memory, serve_tcp, serve_transport};
-pub use simulator::{SimError, Simulator, Stats, UnknownRequestPolicy, Variation, line_timing};
+pub use simulator::{SimError, Simulator, Stats, UnknownRequestPolicy, Variation};
 
 /// Something on the bus that answers request frames: a [`Simulator`] or a
 /// [`Bus`] of them. The serving functions take any `Device`.

@@ -6,10 +6,7 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use yosemitech_rtu::frame::{BROADCAST, encode_exception};
-use yosemitech_rtu::{
-    CharFormat, DataBits, EncodeError, ExceptionCode, Function, Layout, LineTiming, Parity, Responder, StopBits, codec,
-    crc_ok, crc16,
-};
+use yosemitech_rtu::{EncodeError, ExceptionCode, Function, Layout, LineTiming, Responder, codec, crc_ok, crc16};
 use yosemitech_spec::interp::{EncodeValuesError, decode_field, decode_fields, encode_command_field, encode_field};
 use yosemitech_spec::{Command, EnumRepr, Field, FieldKind, Role, Sensor, Value, Values};
 
@@ -330,7 +327,7 @@ impl Simulator {
 
     /// The line timing of the sensor's serial settings.
     pub fn line_timing(&self) -> LineTiming {
-        line_timing(&self.sensor)
+        self.sensor.serial.timing()
     }
 
     /// The slave address the device answers.
@@ -777,21 +774,6 @@ impl fmt::Debug for Simulator {
     }
 }
 
-/// The line timing of a sensor's serial settings.
-pub fn line_timing(sensor: &Sensor) -> LineTiming {
-    let serial = &sensor.serial;
-    let format = CharFormat {
-        data_bits: if serial.data_bits == 7 { DataBits::Seven } else { DataBits::Eight },
-        parity: match serial.parity {
-            yosemitech_spec::Parity::None => Parity::None,
-            yosemitech_spec::Parity::Even => Parity::Even,
-            yosemitech_spec::Parity::Odd => Parity::Odd,
-        },
-        stop_bits: if serial.stop_bits == 2 { StopBits::Two } else { StopBits::One },
-    };
-    LineTiming::new(serial.baud, format)
-}
-
 /// A measurement read: no write command covers its registers, and a field has a unit.
 fn is_measurement(sensor: &Sensor, command: &Command) -> bool {
     let end = |c: &Command| u32::from(c.address) + u32::from(c.count);
@@ -807,13 +789,13 @@ fn address_bytes(field: &Field, address: u8) -> Option<Vec<u8>> {
     match &field.kind {
         FieldKind::U8 | FieldKind::I8 | FieldKind::Enum { repr: EnumRepr::U8, .. } => Some(vec![address]),
         FieldKind::U16 { order } | FieldKind::I16 { order } => {
-            Some(codec::u16_to_wire(order.rtu(), u16::from(address)).to_vec())
+            Some(codec::u16_to_wire(*order, u16::from(address)).to_vec())
         }
         FieldKind::Enum { repr: EnumRepr::U16(order), .. } => {
-            Some(codec::u16_to_wire(order.rtu(), u16::from(address)).to_vec())
+            Some(codec::u16_to_wire(*order, u16::from(address)).to_vec())
         }
         FieldKind::U32 { order } | FieldKind::I32 { order } => {
-            Some(codec::u32_to_wire(order.rtu(), u32::from(address)).to_vec())
+            Some(codec::u32_to_wire(*order, u32::from(address)).to_vec())
         }
         _ => None,
     }
@@ -982,9 +964,9 @@ mod tests {
             examples: Vec::new(),
         };
         assert_eq!(address_bytes(&field(FieldKind::U8), 7), Some(vec![7]));
-        let be = FieldKind::U16 { order: yosemitech_spec::Order2::Ab };
+        let be = FieldKind::U16 { order: yosemitech_rtu::ByteOrder2::Ab };
         assert_eq!(address_bytes(&field(be), 7), Some(vec![0, 7]));
-        let le = FieldKind::U16 { order: yosemitech_spec::Order2::Ba };
+        let le = FieldKind::U16 { order: yosemitech_rtu::ByteOrder2::Ba };
         assert_eq!(address_bytes(&field(le), 7), Some(vec![7, 0]));
         assert_eq!(address_bytes(&field(FieldKind::Version), 7), None);
     }

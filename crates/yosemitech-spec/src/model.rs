@@ -8,7 +8,7 @@ use std::collections::BTreeMap;
 use std::path::PathBuf;
 
 use serde::Serialize;
-use yosemitech_rtu::{ByteOrder2, ByteOrder4, Function, Layout};
+use yosemitech_rtu::{ByteOrder2, ByteOrder4, Function, Layout, LineSettings};
 
 /// All sensors of a spec directory.
 #[derive(Debug, Clone, Serialize)]
@@ -67,7 +67,8 @@ pub struct Sensor {
     /// Other manuals of the same probe, in the order written.
     pub revisions: Vec<Revision>,
     /// Serial settings (of the newest firmware).
-    pub serial: Serial,
+    #[serde(serialize_with = "ser_line")]
+    pub serial: LineSettings,
     /// Lowest valid slave address.
     pub min_address: u8,
     /// Highest valid slave address.
@@ -115,7 +116,7 @@ impl Sensor {
     }
 
     /// The serial settings of a probe running `software` (the newest when unknown).
-    pub fn serial_for(&self, software: &str) -> Serial {
+    pub fn serial_for(&self, software: &str) -> LineSettings {
         self.revisions.iter().find(|r| r.manual.software.as_deref() == Some(software)).map_or(self.serial, |r| r.serial)
     }
 
@@ -138,7 +139,8 @@ pub struct Revision {
     /// What changed against the sensor's `manual`.
     pub doc: Option<String>,
     /// Serial settings of this firmware (the sensor's when the manual states no others).
-    pub serial: Serial,
+    #[serde(serialize_with = "ser_line")]
+    pub serial: LineSettings,
 }
 
 /// What a command is for, where the simulator or the CLI must know. A sensor
@@ -197,36 +199,27 @@ pub struct Manual {
     pub file: Option<String>,
 }
 
-/// Serial line settings.
-#[derive(Debug, Clone, Copy, Serialize, PartialEq, Eq)]
-pub struct Serial {
-    /// Bits per second.
-    pub baud: u32,
-    /// Data bits.
-    pub data_bits: u8,
-    /// Parity.
-    pub parity: Parity,
-    /// Stop bits.
-    pub stop_bits: u8,
-}
+/// Serializes line settings in the spec's own form,
+/// `{"baud": 9600, "data_bits": 8, "parity": "none", "stop_bits": 1}`, as
+/// the model's `serial` fields are serialized and the CLI's JSON shows them.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct LineSettingsJson(pub LineSettings);
 
-impl Serial {
-    /// Bits on the line per character: start, data, parity, stop.
-    pub fn bits_per_char(&self) -> u32 {
-        1 + u32::from(self.data_bits) + u32::from(self.parity != Parity::None) + u32::from(self.stop_bits)
+impl Serialize for LineSettingsJson {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        use serde::ser::SerializeStruct;
+        let Self(line) = self;
+        let mut out = s.serialize_struct("LineSettings", 4)?;
+        out.serialize_field("baud", &line.baud)?;
+        out.serialize_field("data_bits", &line.format.data_bits.bits())?;
+        out.serialize_field("parity", line.format.parity.name())?;
+        out.serialize_field("stop_bits", &line.format.stop_bits.bits())?;
+        out.end()
     }
 }
 
-/// Parity.
-#[derive(Debug, Clone, Copy, Serialize, PartialEq, Eq)]
-#[serde(rename_all = "snake_case")]
-pub enum Parity {
-    /// None.
-    None,
-    /// Even.
-    Even,
-    /// Odd.
-    Odd,
+fn ser_line<S: serde::Serializer>(line: &LineSettings, s: S) -> Result<S::Ok, S::Error> {
+    LineSettingsJson(*line).serialize(s)
 }
 
 /// Where the manual documents something.
@@ -504,50 +497,12 @@ impl Field {
     }
 }
 
-/// Wire order of a 2-byte value.
-#[derive(Debug, Clone, Copy, Serialize, PartialEq, Eq)]
-#[serde(rename_all = "snake_case")]
-pub enum Order2 {
-    /// Big-endian.
-    Ab,
-    /// Little-endian.
-    Ba,
+fn ser_order2<S: serde::Serializer>(o: &ByteOrder2, s: S) -> Result<S::Ok, S::Error> {
+    s.serialize_str(o.name())
 }
 
-impl Order2 {
-    /// The runtime's byte order.
-    pub fn rtu(self) -> ByteOrder2 {
-        match self {
-            Self::Ab => ByteOrder2::Ab,
-            Self::Ba => ByteOrder2::Ba,
-        }
-    }
-}
-
-/// Wire order of a 4-byte value.
-#[derive(Debug, Clone, Copy, Serialize, PartialEq, Eq)]
-#[serde(rename_all = "snake_case")]
-pub enum Order4 {
-    /// Big-endian.
-    Abcd,
-    /// Little-endian memory image.
-    Dcba,
-    /// Word-swapped.
-    Cdab,
-    /// Byte-swapped.
-    Badc,
-}
-
-impl Order4 {
-    /// The runtime's byte order.
-    pub fn rtu(self) -> ByteOrder4 {
-        match self {
-            Self::Abcd => ByteOrder4::Abcd,
-            Self::Dcba => ByteOrder4::Dcba,
-            Self::Cdab => ByteOrder4::Cdab,
-            Self::Badc => ByteOrder4::Badc,
-        }
-    }
+fn ser_order4<S: serde::Serializer>(o: &ByteOrder4, s: S) -> Result<S::Ok, S::Error> {
+    s.serialize_str(o.name())
 }
 
 /// The size of an enum code.
@@ -557,7 +512,7 @@ pub enum EnumRepr {
     /// One byte.
     U8,
     /// Two bytes in the given order.
-    U16(Order2),
+    U16(#[serde(serialize_with = "ser_order2")] ByteOrder2),
 }
 
 /// A named enum code.
@@ -578,7 +533,8 @@ pub enum FieldKind {
     /// IEEE 754 single.
     F32 {
         /// Byte order.
-        order: Order4,
+        #[serde(serialize_with = "ser_order4")]
+        order: ByteOrder4,
     },
     /// Unsigned byte.
     U8,
@@ -587,22 +543,26 @@ pub enum FieldKind {
     /// Unsigned 16-bit.
     U16 {
         /// Byte order.
-        order: Order2,
+        #[serde(serialize_with = "ser_order2")]
+        order: ByteOrder2,
     },
     /// Signed 16-bit.
     I16 {
         /// Byte order.
-        order: Order2,
+        #[serde(serialize_with = "ser_order2")]
+        order: ByteOrder2,
     },
     /// Unsigned 32-bit.
     U32 {
         /// Byte order.
-        order: Order4,
+        #[serde(serialize_with = "ser_order4")]
+        order: ByteOrder4,
     },
     /// Signed 32-bit.
     I32 {
         /// Byte order.
-        order: Order4,
+        #[serde(serialize_with = "ser_order4")]
+        order: ByteOrder4,
     },
     /// Fixed-length text.
     Ascii {
@@ -650,6 +610,20 @@ impl FieldKind {
             Self::Ascii { len, .. } | Self::Reserved { len, .. } => *len,
             Self::Enum { repr: EnumRepr::U8, .. } => 1,
             Self::Enum { repr: EnumRepr::U16(_), .. } => 2,
+        }
+    }
+
+    /// The spec's name (`dcba`, `ab`) of the byte order of a multi-byte
+    /// number, enum or flags field; `None` for a field of one byte, text, a
+    /// version or reserved bytes, which have no byte order.
+    pub fn byte_order_name(&self) -> Option<&'static str> {
+        match self {
+            Self::F32 { order } | Self::U32 { order } | Self::I32 { order } => Some(order.name()),
+            Self::U16 { order }
+            | Self::I16 { order }
+            | Self::Enum { repr: EnumRepr::U16(order), .. }
+            | Self::Flags { repr: EnumRepr::U16(order), .. } => Some(order.name()),
+            _ => None,
         }
     }
 

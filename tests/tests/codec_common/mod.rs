@@ -284,7 +284,7 @@ pub fn data_with_specials(command: &yosemitech_spec::Command, mut data: Vec<u8>,
     });
     for ((offset, order), special) in floats.zip(specials) {
         if let Some(bits) = special {
-            let bytes = yosemitech_rtu::codec::f32_to_wire(order.rtu(), f32::from_bits(*bits));
+            let bytes = yosemitech_rtu::codec::f32_to_wire(order, f32::from_bits(*bits));
             data[offset..offset + 4].copy_from_slice(&bytes);
         }
     }

@@ -107,13 +107,14 @@ pub fn first_field(command: &Command) -> String {
 
 /// `v` as an f32 field puts it on the wire.
 pub fn f32_bytes(field: &yosemitech_spec::Field, v: f32) -> [u8; 4] {
-    use yosemitech_spec::{FieldKind, Order4};
+    use yosemitech_rtu::ByteOrder4;
+    use yosemitech_spec::FieldKind;
     let [a, b, c, d] = v.to_be_bytes();
     match field.kind {
-        FieldKind::F32 { order: Order4::Abcd } => [a, b, c, d],
-        FieldKind::F32 { order: Order4::Dcba } => [d, c, b, a],
-        FieldKind::F32 { order: Order4::Cdab } => [c, d, a, b],
-        FieldKind::F32 { order: Order4::Badc } => [b, a, d, c],
+        FieldKind::F32 { order: ByteOrder4::Abcd } => [a, b, c, d],
+        FieldKind::F32 { order: ByteOrder4::Dcba } => [d, c, b, a],
+        FieldKind::F32 { order: ByteOrder4::Cdab } => [c, d, a, b],
+        FieldKind::F32 { order: ByteOrder4::Badc } => [b, a, d, c],
         ref other => panic!("not an f32: {other:?}"),
     }
 }

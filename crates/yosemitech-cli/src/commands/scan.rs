@@ -5,9 +5,9 @@ use std::io::Write;
 use std::time::Duration;
 
 use serde_json::json;
-use yosemitech_rtu::{Error as RtuError, FrameError, Version};
+use yosemitech_rtu::{Error as RtuError, FrameError, LineSettings, Version};
 use yosemitech_spec::interp::{decode_field, decode_fields};
-use yosemitech_spec::{Command, FieldKind, Manual, Role, Sensor, Serial, Value};
+use yosemitech_spec::{Command, FieldKind, Manual, Role, Sensor, Value};
 
 use crate::catalog::Catalog;
 use crate::cli::{Global, ScanArgs};
@@ -150,15 +150,15 @@ fn manual_for(sensor: &Sensor, software: Version) -> Option<&Manual> {
 }
 
 /// The serial settings most loaded sensors use (9600 8N1 when none is loaded).
-pub fn common_serial(catalog: &Catalog) -> Serial {
-    let mut counts: Vec<(Serial, usize)> = Vec::new();
+pub fn common_serial(catalog: &Catalog) -> LineSettings {
+    let mut counts: Vec<(LineSettings, usize)> = Vec::new();
     for e in catalog.entries() {
         match counts.iter_mut().find(|(s, _)| *s == e.sensor.serial) {
             Some((_, n)) => *n += 1,
             None => counts.push((e.sensor.serial, 1)),
         }
     }
-    counts.iter().max_by_key(|(_, n)| *n).map_or(port::YOSEMITECH_SERIAL, |(s, _)| *s)
+    counts.iter().max_by_key(|(_, n)| *n).map_or(LineSettings::default(), |(s, _)| *s)
 }
 
 /// What came back to a read.
