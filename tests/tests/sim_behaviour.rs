@@ -10,8 +10,8 @@ use sim_common::{
     float_write_with_readback, is_f32, is_float_read, request, same, sensor_with_role, spec, with_crc, with_role,
 };
 use yosemitech_rtu::{Error, Function, ResponderTransport};
-use yosemitech_sim::{Bus, Device, MeasurementState, Simulator, UnknownRequestPolicy, Variation, WarmUpPolicy};
-use yosemitech_spec::{Command, Role, Sensor, Value};
+use yosemitech_sim::{Bus, FrameHandler, MeasurementState, Simulator, UnknownRequestPolicy, Variation, WarmUpPolicy};
+use yosemitech_spec::{CommandSpec, Role, Sensor, Value};
 
 fn f(v: f32) -> Value {
     Value::Float(v)
@@ -62,7 +62,8 @@ fn readings_set_by_name_are_served() {
     let mut expected = vec![slave, 0x03, 0x04];
     expected.extend_from_slice(&f32_bytes(&get.fields[0], 7.0));
     assert_eq!(reply, with_crc(&expected));
-    let with_field: Vec<&Command> = probe.commands.iter().filter(|c| c.is_read() && c.field(&name).is_some()).collect();
+    let with_field: Vec<&CommandSpec> =
+        probe.commands.iter().filter(|c| c.is_read() && c.field(&name).is_some()).collect();
     assert_eq!(sim.set_everywhere(&name, f(8.5)).unwrap(), with_field.len());
     for read in &with_field {
         assert_eq!(sim.get(&read.name, &name).unwrap(), f(8.5), "{}", read.name);
@@ -93,7 +94,7 @@ fn readings_set_by_name_are_served() {
 
 /// A sensor with slave address commands (the getter answering the 0xFF
 /// wildcard) and a float read.
-fn addressable() -> (Sensor, Command) {
+fn addressable() -> (Sensor, CommandSpec) {
     let sensor = spec()
         .sensors
         .iter()
@@ -223,7 +224,8 @@ fn a_client_asking_for_a_register_the_probe_lacks_times_out() {
         .iter()
         .flat_map(|p| sensors.iter().filter(move |o| o.name != p.name).map(move |o| (p, o)))
         .find_map(|(p, o)| {
-            let lacks = |c: &&Command| !p.commands.iter().any(|q| q.function == c.function && q.address == c.address);
+            let lacks =
+                |c: &&CommandSpec| !p.commands.iter().any(|q| q.function == c.function && q.address == c.address);
             o.commands
                 .iter()
                 .filter(|c| c.is_read() && c.fixed_slave.is_none())
@@ -248,7 +250,7 @@ fn a_client_asking_for_a_register_the_probe_lacks_times_out() {
 /// The sensor whose spec has a calibration point command, with its single
 /// float point field and the standards (the list constant in the field's
 /// unit, as the simulator finds them).
-fn calibrating() -> (Sensor, Command, String, Vec<f32>) {
+fn calibrating() -> (Sensor, CommandSpec, String, Vec<f32>) {
     let probe = sensor_with_role(&spec(), Role::CalibrationPoint);
     let point = with_role(&probe, Role::CalibrationPoint);
     let field = point.named_fields().next().expect("a point field");
@@ -506,7 +508,7 @@ fn measurement_trigger_and_warm_up() {
 }
 
 /// The reply a trigger read gets: the manuals' form from the layout.
-fn manual_form(command: &Command, slave: u8) -> Vec<u8> {
+fn manual_form(command: &CommandSpec, slave: u8) -> Vec<u8> {
     let mut out = vec![0u8; command.layout().response_len()];
     let n = command.layout().encode_response(slave, &[], &mut out).unwrap();
     out.truncate(n);
@@ -526,7 +528,7 @@ fn every_start_and_stop_command_is_answered_and_moves_the_measurement_state() {
         let slave = sensor.default_address;
         let mut sim = Simulator::new(sensor.clone()).with_manual_clock();
         sim.set_warm_up_policy(WarmUpPolicy::Busy);
-        let send = |sim: &mut Simulator, command: &Command| {
+        let send = |sim: &mut Simulator, command: &CommandSpec| {
             let reply = exchange(sim, &request(command, slave, &[]));
             if command.trigger && command.is_read() {
                 assert_eq!(reply, manual_form(command, slave), "{}.{}: the manuals' form", sensor.name, command.name);
@@ -663,7 +665,7 @@ commands:
 fn a_device_trait_object_serves_too() {
     let (probe, read) = float_read(&spec());
     let req = request(&read, probe.default_address, &[]);
-    let mut devices: Vec<Box<dyn Device>> = vec![Box::new(Simulator::new(probe)), Box::new(Bus::new())];
+    let mut devices: Vec<Box<dyn FrameHandler>> = vec![Box::new(Simulator::new(probe)), Box::new(Bus::new())];
     assert_eq!(exchange(&mut devices[0], &req).len(), read.layout().response_len());
     assert!(exchange(&mut devices[1], &req).is_empty(), "an empty bus is silent");
 }

@@ -8,12 +8,12 @@ mod sim_common;
 use sim_common::{exchange, spec};
 use yosemitech_rtu::Hex;
 use yosemitech_sim::{SerialNumberPolicy, Simulator};
-use yosemitech_spec::{Command, Example, FieldKind, Role, Sensor, Value};
+use yosemitech_spec::{CommandSpec, Example, FieldKind, Role, Sensor, Value};
 
 /// The address a fresh simulator needs to answer `example` as printed: the
 /// request's slave, or for a fixed-slave command (get_slave_id at 0xFF) the
 /// address the example reports (its first named field).
-fn address_for(command: &Command, example: &Example) -> u8 {
+fn address_for(command: &CommandSpec, example: &Example) -> u8 {
     if command.fixed_slave.is_some() {
         let field =
             command.named_fields().next().and_then(|f| f.name.as_deref()).expect("a fixed-slave command's field");

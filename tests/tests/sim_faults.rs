@@ -14,7 +14,7 @@ use yosemitech_rtu::{
     Client, ClientConfig, Error, ExceptionCode, FrameError, ResponderTransport, RetryPolicy, Transport,
 };
 use yosemitech_sim::{Bus, FaultConfig, FaultKind, Rng, ServeConfig, Simulator, serve_memory};
-use yosemitech_spec::{Command, Field, FieldKind, Role, Sensor, Value};
+use yosemitech_spec::{CommandSpec, Field, FieldKind, Role, Sensor, Value};
 
 const TIMEOUT: Duration = Duration::from_millis(20);
 
@@ -136,7 +136,7 @@ fn random_value(field: &Field, rng: &mut Rng) -> Value {
 }
 
 /// Random values for a write command's fields, within their ranges.
-fn random_values(command: &Command, rng: &mut Rng) -> BTreeMap<String, Value> {
+fn random_values(command: &CommandSpec, rng: &mut Rng) -> BTreeMap<String, Value> {
     command.named_fields().map(|f| (f.name.clone().unwrap(), random_value(f, rng))).collect()
 }
 
@@ -178,7 +178,7 @@ fn soak_10k_transactions_with_10_percent_faults_accepts_no_wrong_value() {
     let mut client = Client::with_config(ResponderTransport::new(bus), config);
     // Every command but the address-changing one and the 0xFF wildcard (two
     // devices would collide on it).
-    let plan: Vec<(u8, &Sensor, &Command)> = sensors
+    let plan: Vec<(u8, &Sensor, &CommandSpec)> = sensors
         .iter()
         .copied()
         .flat_map(|(address, sensor)| sensor.commands.iter().map(move |c| (address, sensor, c)))

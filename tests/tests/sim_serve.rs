@@ -12,7 +12,7 @@ use sim_common::{
 };
 use yosemitech_rtu::{CharFormat, Client, ClientConfig, LineTiming, RetryPolicy, TcpTransport, Transport};
 use yosemitech_sim::{Bus, Endpoint, ServeConfig, Simulator, UnknownRequestPolicy, serve_memory, serve_tcp};
-use yosemitech_spec::{Command, Role, Sensor, Value};
+use yosemitech_spec::{CommandSpec, Role, Sensor, Value};
 
 fn config() -> ClientConfig {
     ClientConfig { timeout: Duration::from_secs(2), retry: RetryPolicy::NONE, ..ClientConfig::default() }
@@ -21,7 +21,7 @@ fn config() -> ClientConfig {
 /// The sensor of the spec that the pty test needs: a float read with an
 /// example reply, a float write read back, and slave address commands (the
 /// getter answering the 0xFF wildcard); with those commands.
-fn addressable_probe() -> (Sensor, Command, (Command, Command), (Command, Command)) {
+fn addressable_probe() -> (Sensor, CommandSpec, (CommandSpec, CommandSpec), (CommandSpec, CommandSpec)) {
     spec()
         .sensors
         .iter()

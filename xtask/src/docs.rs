@@ -7,7 +7,7 @@ use std::path::Path;
 use std::process::ExitCode;
 
 use yosemitech_codegen::text;
-use yosemitech_spec::{Command, EnumRepr, Field, FieldKind, Sensor, Value};
+use yosemitech_spec::{CommandSpec, EnumRepr, Field, FieldKind, Sensor, Value};
 
 const USAGE: &str = "usage: cargo xtask docs [--check]";
 
@@ -156,7 +156,7 @@ pub fn register_map(s: &Sensor) -> String {
     d
 }
 
-fn command_section(d: &mut String, c: &Command) {
+fn command_section(d: &mut String, c: &CommandSpec) {
     let _ = writeln!(d, "### {}\n", c.name);
     let _ = writeln!(d, "**{}**. {}\n", cell(&c.title), c.doc.trim());
     let func = if c.is_read() { "0x03 (read holding registers)" } else { "0x10 (write multiple registers)" };

@@ -4,7 +4,7 @@ use std::collections::BTreeMap;
 use std::time::Duration;
 
 use serde_json::{Map, Value as Json, json};
-use yosemitech_spec::{Command, Field, FieldKind, Value};
+use yosemitech_spec::{CommandSpec, Field, FieldKind, Value};
 
 use crate::error::{CliError, Result};
 
@@ -103,7 +103,7 @@ pub fn values_json(values: &[(String, Value)]) -> Json {
 }
 
 /// Decoded fields with their units and layout, as JSON.
-pub fn fields_json(command: &Command, values: &[(String, Value)]) -> Json {
+pub fn fields_json(command: &CommandSpec, values: &[(String, Value)]) -> Json {
     Json::Array(
         values
             .iter()
@@ -159,7 +159,7 @@ pub fn parse_duration(text: &str) -> std::result::Result<Duration, String> {
 
 /// Parses the values of a write (or of a read's reply, for `encode
 /// --response`): `field=value` pairs, or values in field order.
-pub fn parse_values(command: &Command, args: &[String]) -> Result<BTreeMap<String, Value>> {
+pub fn parse_values(command: &CommandSpec, args: &[String]) -> Result<BTreeMap<String, Value>> {
     let fields: Vec<&Field> = command.named_fields().collect();
     let names: Vec<&str> = fields.iter().map(|f| f.display_name()).collect();
     let mut out = BTreeMap::new();
@@ -210,7 +210,7 @@ fn is_identifier(text: &str) -> bool {
 }
 
 /// `name (type, unit, range)` for every field, for hints.
-pub fn fields_hint(command: &Command) -> String {
+pub fn fields_hint(command: &CommandSpec) -> String {
     command
         .named_fields()
         .map(|f| {

@@ -14,7 +14,7 @@ use crate::cli::Global;
 use crate::error::{CliError, Context, Result};
 
 /// A client on any transport.
-pub type Bus = Client<Box<dyn Transport + Send>>;
+pub type AnyClient = Client<Box<dyn Transport + Send>>;
 
 /// The port options every device command takes.
 #[derive(Args, Debug, Clone, Default)]
@@ -56,7 +56,7 @@ pub fn check_address(address: u32, what: &str) -> Result<u8> {
 /// An open bus, and how to name it in messages.
 pub struct Opened {
     /// The client.
-    pub bus: Bus,
+    pub bus: AnyClient,
     /// The port as given.
     pub port: String,
     /// The reply timeout.

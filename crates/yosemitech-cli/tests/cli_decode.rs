@@ -11,7 +11,7 @@ use std::path::Path;
 use common::{Run, spec, yosemitech, yosemitech_with_input};
 use serde_json::Value as Json;
 use yosemitech_rtu::{crc_ok, crc16};
-use yosemitech_spec::{Command, Example, Spec};
+use yosemitech_spec::{CommandSpec, Example, Spec};
 
 fn hex(bytes: &[u8]) -> String {
     bytes.iter().map(|b| format!("{b:02X}")).collect::<Vec<_>>().join(" ")
@@ -62,7 +62,7 @@ impl Pair {
 /// The example's true request and reply, when both are complete frames whose
 /// CRC checks and the request is the command's: examples with a frame absent,
 /// partial or open-ended are skipped.
-fn true_pair(sensor: &str, command: &Command, example: &Example) -> Option<Pair> {
+fn true_pair(sensor: &str, command: &CommandSpec, example: &Example) -> Option<Pair> {
     let v = serde_json::to_value(example).ok()?;
     let pick = |corrected: &str, printed: &str| bytes_of(&v["erratum"][corrected]).or_else(|| bytes_of(&v[printed]));
     let request = pick("corrected_request", "request")?;
@@ -145,7 +145,7 @@ fn json_lines(run: &Run) -> Vec<Json> {
 }
 
 /// The commands of every sensor whose request header is `request`'s.
-fn commands_with_request<'s>(spec: &'s Spec, request: &[u8]) -> Vec<(&'s str, &'s Command)> {
+fn commands_with_request<'s>(spec: &'s Spec, request: &[u8]) -> Vec<(&'s str, &'s CommandSpec)> {
     let word = |at: usize| u16::from_be_bytes([request[at], request[at + 1]]);
     spec.sensors
         .iter()
@@ -452,7 +452,7 @@ struct Twin {
 fn twin() -> Twin {
     let spec = spec();
     let command = |p: &Pair| spec.sensor(&p.sensor).and_then(|s| s.command(&p.command)).unwrap().clone();
-    let ordinary = |c: &Command| c.is_read() && c.fixed_slave.is_none() && !c.trigger && c.count <= 16;
+    let ordinary = |c: &CommandSpec| c.is_read() && c.fixed_slave.is_none() && !c.trigger && c.count <= 16;
     let all = pairs(&spec);
     let ambiguous =
         all.iter().find(|p| ordinary(&command(p)) && !p.is_exception()).cloned().expect("an example of a read");
@@ -471,7 +471,7 @@ fn twin() -> Twin {
             })
         })
     });
-    let read = |name: &str, c: &Command| {
+    let read = |name: &str, c: &CommandSpec| {
         let fields: Vec<String> = (0..c.count)
             .map(|i| format!("      - {{name: w{i}, type: u16, byte_order: ab, doc: Word {i}.}}"))
             .collect();

@@ -14,7 +14,7 @@ use std::sync::Arc;
 use common::{fixture_spec_dir, number_after, sim, spec, yosemitech, yosemitech_with_input};
 use serde_json::Value as Json;
 use yosemitech_sim::{Bus, FaultConfig, FaultKind, Simulator, UnknownRequestPolicy};
-use yosemitech_spec::{Command as SpecCommand, Role, Value};
+use yosemitech_spec::{CommandSpec, Role, Value};
 
 /// Short timeouts for requests that are meant to fail.
 const FAST: [&str; 4] = ["--timeout", "150ms", "--retries", "0"];
@@ -98,7 +98,7 @@ fn demo_identifies_every_sensor_of_the_spec_on_one_bus() {
 }
 
 /// The example of `command` in the sensor's own manual, with values.
-fn stated_example(command: &SpecCommand) -> Option<&yosemitech_spec::Example> {
+fn stated_example(command: &CommandSpec) -> Option<&yosemitech_spec::Example> {
     command.examples.iter().find(|e| e.manual.is_none() && e.erratum.is_none() && !e.values.is_empty())
 }
 
@@ -196,7 +196,7 @@ fn port_and_baud_come_from_the_environment() {
 }
 
 /// A measurement read of `sensor`: a read with no role.
-fn measurement_read(sensor: &yosemitech_spec::Sensor) -> &SpecCommand {
+fn measurement_read(sensor: &yosemitech_spec::Sensor) -> &CommandSpec {
     sensor
         .commands
         .iter()
@@ -254,7 +254,7 @@ fn assignments(values: &std::collections::BTreeMap<String, Value>) -> Vec<String
 }
 
 /// True when some read of `sensor` covers the registers `write` writes.
-fn read_covers(sensor: &yosemitech_spec::Sensor, write: &SpecCommand) -> bool {
+fn read_covers(sensor: &yosemitech_spec::Sensor, write: &CommandSpec) -> bool {
     let end = u32::from(write.address) + u32::from(write.count);
     sensor
         .commands
@@ -363,14 +363,14 @@ fn float_of(v: &Value) -> f32 {
 /// every field of every measurement read (a read no write overlaps, with a
 /// unit); a field name two reads share is qualified by the read.
 fn poll_columns(sensor: &yosemitech_spec::Sensor) -> Vec<(String, String, String)> {
-    let overlaps = |r: &SpecCommand| {
+    let overlaps = |r: &CommandSpec| {
         let (start, end) = (u32::from(r.address), u32::from(r.address) + u32::from(r.count));
         sensor
             .commands
             .iter()
             .any(|w| !w.is_read() && u32::from(w.address) < end && start < u32::from(w.address) + u32::from(w.count))
     };
-    let reads: Vec<&SpecCommand> = sensor
+    let reads: Vec<&CommandSpec> = sensor
         .commands
         .iter()
         .filter(|r| r.is_read() && r.fields.iter().any(|f| f.unit.is_some()) && !overlaps(r))
@@ -535,7 +535,7 @@ fn coefficients_backup_and_restore_round_trip() {
         let blocks = common::coefficient_blocks(sensor);
         // A value only bit-exact float handling keeps, in every block.
         let fields =
-            |read: &SpecCommand| -> Vec<String> { read.named_fields().map(|f| f.display_name().to_owned()).collect() };
+            |read: &CommandSpec| -> Vec<String> { read.named_fields().map(|f| f.display_name().to_owned()).collect() };
         for (_, read) in &blocks {
             let first = &fields(read)[0];
             s.server.device().set(&read.name, first, Value::Float(0.987_654_3)).unwrap();
@@ -666,7 +666,7 @@ fn measure_runs_every_procedure_and_prints_each_field() {
         let s = sim(&sensor.name, 1);
         let run = yosemitech(&["measure", &sensor.name, "-p", &s.path, "--fast", "--readings", "3"]);
         let out = run.ok().to_owned();
-        let reads: Vec<&SpecCommand> = procedure.read.iter().map(|r| sensor.command(r).unwrap()).collect();
+        let reads: Vec<&CommandSpec> = procedure.read.iter().map(|r| sensor.command(r).unwrap()).collect();
         for read in &reads {
             for field in read.named_fields() {
                 let name = field.display_name();
@@ -777,7 +777,7 @@ fn own_serial_number(sensor: &yosemitech_spec::Sensor) -> String {
 }
 
 /// The serial-number read of `sensor` and its text field.
-fn sn_field(sensor: &yosemitech_spec::Sensor) -> (&SpecCommand, &yosemitech_spec::Field) {
+fn sn_field(sensor: &yosemitech_spec::Sensor) -> (&CommandSpec, &yosemitech_spec::Field) {
     let command = sensor.command_with_role(Role::SerialNumber).unwrap();
     let field = command.named_fields().find(|f| matches!(f.kind, yosemitech_spec::FieldKind::Ascii { .. })).unwrap();
     (command, field)
@@ -983,7 +983,7 @@ fn interrupt(mut child: std::process::Child) -> String {
 /// A measurement read whose example (in the sensor's own manual) the
 /// simulator answers: the sensor, the read, the true request and reply,
 /// and the line `read` shows for its one f32 field (`name  value unit`).
-fn stated_read() -> (yosemitech_spec::Sensor, SpecCommand, Vec<u8>, Vec<u8>, String) {
+fn stated_read() -> (yosemitech_spec::Sensor, CommandSpec, Vec<u8>, Vec<u8>, String) {
     for sensor in spec().sensors {
         let device = Simulator::new(Arc::new(sensor.clone()));
         for command in sensor.commands.iter().filter(|c| c.is_read() && c.role.is_none() && c.fixed_slave.is_none()) {

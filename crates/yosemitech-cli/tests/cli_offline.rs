@@ -6,7 +6,7 @@ mod common;
 
 use common::{spec, yosemitech};
 use serde_json::Value as Json;
-use yosemitech_spec::{Command, Example, Sensor, Value};
+use yosemitech_spec::{CommandSpec, Example, Sensor, Value};
 
 const SUBCOMMANDS: [&str; 13] = [
     "demo",
@@ -55,7 +55,7 @@ fn arg(value: &Value) -> String {
 }
 
 /// Every example of every command, with its sensor and command.
-fn examples() -> Vec<(Sensor, Command, Example)> {
+fn examples() -> Vec<(Sensor, CommandSpec, Example)> {
     let spec = spec();
     let mut out = Vec::new();
     for sensor in &spec.sensors {
@@ -353,9 +353,9 @@ fn decode_identifies_unambiguous_frames_on_its_own() {
 /// A reply the manuals print that several reads of the spec fit: a
 /// measurement read (no role) of one f32 field with a unit, its example's
 /// true reply, and the field. The first in spec order.
-fn ambiguous_reply() -> (Command, Vec<u8>, String, String) {
+fn ambiguous_reply() -> (CommandSpec, Vec<u8>, String, String) {
     let spec = spec();
-    let reads: Vec<&Command> = spec.sensors.iter().flat_map(|s| &s.commands).filter(|c| c.is_read()).collect();
+    let reads: Vec<&CommandSpec> = spec.sensors.iter().flat_map(|s| &s.commands).filter(|c| c.is_read()).collect();
     reads
         .iter()
         .filter(|c| c.role.is_none() && c.fixed_slave.is_none() && c.named_fields().count() == 1)
@@ -385,7 +385,7 @@ fn decode_asks_which_command_when_a_reply_is_ambiguous() {
     let err = run.fails_with_hint(2);
     // Every read of the same size is a candidate.
     let spec = spec();
-    let same_size: Vec<&Command> = spec
+    let same_size: Vec<&CommandSpec> = spec
         .sensors
         .iter()
         .flat_map(|s| &s.commands)

@@ -6,7 +6,7 @@ use heck::ToUpperCamelCase;
 use proc_macro2::{Ident, Literal, Span, TokenStream};
 use quote::{format_ident, quote};
 use yosemitech_rtu::{ByteOrder2, ByteOrder4, DataBits, Function, LineSettings, Parity, StopBits};
-use yosemitech_spec::{Command, Constant, ConstantType, EnumRepr, Field, FieldKind, Sensor};
+use yosemitech_spec::{CommandSpec, Constant, ConstantType, EnumRepr, Field, FieldKind, Sensor};
 
 use crate::Error;
 use crate::naming::{EnumDef, Names};
@@ -96,7 +96,7 @@ pub struct SharedModule {
     /// The fragment's (module's) name.
     pub fragment: String,
     /// The commands generated in it.
-    pub commands: Vec<Command>,
+    pub commands: Vec<CommandSpec>,
     /// Their items.
     pub tokens: TokenStream,
 }
@@ -105,7 +105,7 @@ pub struct SharedModule {
 /// fields (names, types, offsets, units, ranges). Titles, docs and examples
 /// may differ by manual; units and enums may not, since they are part of the
 /// generated type.
-fn same_type(a: &Command, b: &Command) -> bool {
+fn same_type(a: &CommandSpec, b: &CommandSpec) -> bool {
     let field =
         |f: &yosemitech_spec::Field| (f.name.clone(), f.kind.clone(), f.offset, f.unit.clone(), f.range, f.absent);
     a.name == b.name
@@ -116,13 +116,13 @@ fn same_type(a: &Command, b: &Command) -> bool {
 
 /// A command can be shared when its type needs nothing module-level: no
 /// enum types (whose names a sensor module plans for itself).
-fn shareable(c: &Command) -> bool {
+fn shareable(c: &CommandSpec) -> bool {
     !c.fields.iter().any(|f| matches!(f.kind, FieldKind::Enum { .. }))
 }
 
 /// The module of a fragment's shareable commands; `None` when it has none.
 pub fn fragment_module(fragment: &yosemitech_spec::Fragment, o: &Options) -> Result<Option<SharedModule>, Error> {
-    let commands: Vec<Command> = fragment.commands.iter().filter(|c| shareable(c)).cloned().collect();
+    let commands: Vec<CommandSpec> = fragment.commands.iter().filter(|c| shareable(c)).cloned().collect();
     if commands.is_empty() {
         return Ok(None);
     }
@@ -157,7 +157,7 @@ pub fn fragment_module(fragment: &yosemitech_spec::Fragment, o: &Options) -> Res
 }
 
 /// `pub mod <fragment> { include!("<file>"); }` with the fragment's documentation.
-pub fn fragment_declaration(fragment: &yosemitech_spec::Fragment, commands: &[Command], file: &str) -> TokenStream {
+pub fn fragment_declaration(fragment: &yosemitech_spec::Fragment, commands: &[CommandSpec], file: &str) -> TokenStream {
     let name = ident(&fragment.name);
     let file = lit(file);
     let list: Vec<String> = commands.iter().map(|c| format!("`{}`", c.name)).collect();
@@ -180,7 +180,7 @@ Commands of the shared fragment `{}`, generated once: every sensor module that u
 
 /// The shared module and type that stand for a sensor's command, if any.
 fn shared_for<'m>(
-    c: &Command,
+    c: &CommandSpec,
     names: &crate::naming::CommandNames,
     shared: &'m [SharedModule],
 ) -> Option<&'m SharedModule> {
@@ -460,7 +460,7 @@ struct FieldGen<'a> {
     ty: TokenStream,
 }
 
-fn field_gens<'a>(names: &Names, ci: usize, c: &'a Command) -> Vec<FieldGen<'a>> {
+fn field_gens<'a>(names: &Names, ci: usize, c: &'a CommandSpec) -> Vec<FieldGen<'a>> {
     c.fields
         .iter()
         .enumerate()
@@ -723,7 +723,13 @@ fn has_validate(_gens: &[FieldGen<'_>], write_request: bool) -> bool {
     write_request
 }
 
-fn message_impl(ty: &Ident, gens: &[FieldGen<'_>], c: &Command, with_data: bool, write_request: bool) -> TokenStream {
+fn message_impl(
+    ty: &Ident,
+    gens: &[FieldGen<'_>],
+    c: &CommandSpec,
+    with_data: bool,
+    write_request: bool,
+) -> TokenStream {
     let validated = with_data && has_validate(gens, write_request);
     let n = Literal::usize_unsuffixed(gens.len());
     let infos = gens.iter().map(|g| {
@@ -933,7 +939,7 @@ fn struct_def(ty: &Ident, gens: &[FieldGen<'_>], docs: TokenStream) -> TokenStre
     }
 }
 
-fn command_doc(c: &Command) -> String {
+fn command_doc(c: &CommandSpec) -> String {
     let mut d = format!("{}.\n\n", one_line(&c.title).trim_end_matches('.'));
     d.push_str(text::clean(&c.doc).trim_end());
     d.push_str("\n\n");
@@ -1010,7 +1016,7 @@ fn command_doc(c: &Command) -> String {
     d
 }
 
-fn layout_expr(c: &Command) -> TokenStream {
+fn layout_expr(c: &CommandSpec) -> TokenStream {
     let function = match c.function {
         Function::Read => quote!(rtu::Function::Read),
         Function::Write => quote!(rtu::Function::Write),
@@ -1038,7 +1044,7 @@ fn layout_expr(c: &Command) -> TokenStream {
     }
 }
 
-fn command(names: &Names, ci: usize, c: &Command) -> TokenStream {
+fn command(names: &Names, ci: usize, c: &CommandSpec) -> TokenStream {
     let n = &names.commands[ci];
     let ty = ident(&n.ty);
     let gens = field_gens(names, ci, c);

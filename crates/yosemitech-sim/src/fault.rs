@@ -74,7 +74,7 @@ pub enum FaultKind {
     WrongSlave,
     /// The reply held back by [`FaultConfig::delay_by`] (threaded serving
     /// sleeps; in-process the reply is withheld, since it cannot arrive
-    /// late: see [`crate::Device`]).
+    /// late: see [`crate::FrameHandler`]).
     Delay,
     /// Exception 0x06 (server device busy) instead of processing the request.
     Busy,

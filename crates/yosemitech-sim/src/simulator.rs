@@ -8,9 +8,9 @@ use std::time::{Duration, Instant};
 use yosemitech_rtu::frame::{BROADCAST, encode_exception};
 use yosemitech_rtu::{EncodeError, ExceptionCode, Function, Layout, LineTiming, Responder, codec, crc_ok, crc16};
 use yosemitech_spec::interp::{EncodeValuesError, decode_field, decode_fields, encode_command_field, encode_field};
-use yosemitech_spec::{Command, EnumRepr, Field, FieldKind, Role, Sensor, Value, Values};
+use yosemitech_spec::{CommandSpec, EnumRepr, Field, FieldKind, Role, Sensor, Value, Values};
 
-use crate::Device;
+use crate::FrameHandler;
 use crate::behaviour::{
     AddressSlot, Behaviour, MeasurementState, SerialNumber, SerialNumberPolicy, WarmUpPolicy, address_slots, role_index,
 };
@@ -198,7 +198,7 @@ impl Clock {
 ///
 /// ```
 /// # let spec = yosemitech_spec::load_paths(&[concat!(env!("CARGO_MANIFEST_DIR"), "/../../spec").into()])?;
-/// use yosemitech_sim::{Device, Simulator};
+/// use yosemitech_sim::{FrameHandler, Simulator};
 /// use yosemitech_spec::Value;
 ///
 /// let mut sim = Simulator::new(spec.sensor("ph_orp").unwrap().clone());
@@ -654,7 +654,7 @@ impl Simulator {
     }
 
     /// Applies the variation to a measurement read about to be served.
-    fn vary(&mut self, index: usize, command: &Command) {
+    fn vary(&mut self, index: usize, command: &CommandSpec) {
         if !self.measurement.get(index).copied().unwrap_or(false) {
             return;
         }
@@ -686,7 +686,7 @@ impl Simulator {
     }
 }
 
-impl Device for Simulator {
+impl FrameHandler for Simulator {
     fn handle(&mut self, request: &[u8], reply: &mut Vec<u8>) -> Duration {
         self.stats.requests += 1;
         if request.len() < 4 || !crc_ok(request) {
@@ -753,7 +753,7 @@ impl Device for Simulator {
 }
 
 impl Responder for Simulator {
-    /// [`Device::handle`]; a delayed reply is withheld (it cannot arrive
+    /// [`FrameHandler::handle`]; a delayed reply is withheld (it cannot arrive
     /// late in-process, and a client has given up on it by then).
     fn respond(&mut self, request: &[u8], reply: &mut Vec<u8>) {
         if !self.handle(request, reply).is_zero() {
@@ -775,8 +775,8 @@ impl fmt::Debug for Simulator {
 }
 
 /// A measurement read: no write command covers its registers, and a field has a unit.
-fn is_measurement(sensor: &Sensor, command: &Command) -> bool {
-    let end = |c: &Command| u32::from(c.address) + u32::from(c.count);
+fn is_measurement(sensor: &Sensor, command: &CommandSpec) -> bool {
+    let end = |c: &CommandSpec| u32::from(c.address) + u32::from(c.count);
     command.is_read()
         && command.fields.iter().any(|f| f.unit.is_some())
         && !sensor.commands.iter().any(|w| {
@@ -802,7 +802,7 @@ fn address_bytes(field: &Field, address: u8) -> Option<Vec<u8>> {
 }
 
 /// Refuses write data with a value outside its field's `range` (or NaN).
-fn check_ranges(command: &Command, data: &[u8]) -> Result<(), ExceptionCode> {
+fn check_ranges(command: &CommandSpec, data: &[u8]) -> Result<(), ExceptionCode> {
     for field in command.fields.iter().filter(|f| f.range.is_some()) {
         let Some((min, max)) = field.range else { continue };
         let bytes = data.get(field.offset..field.offset + field.size()).ok_or(ExceptionCode::IllegalDataValue)?;

@@ -12,7 +12,7 @@ use std::fmt;
 use serde::Serialize;
 use yosemitech_rtu::{Bcd, FrameError, Version, codec};
 
-use crate::model::{Command, EnumRepr, Field, FieldKind, Variant};
+use crate::model::{CommandSpec, EnumRepr, Field, FieldKind, Variant};
 
 /// A decoded or stated field value.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -136,7 +136,7 @@ impl std::error::Error for EncodeValuesError {}
 ///
 /// `data` must be the command's full register data; shorter data decodes
 /// the fields that fit and stops (it never panics).
-pub fn decode_fields(command: &Command, data: &[u8]) -> Values {
+pub fn decode_fields(command: &CommandSpec, data: &[u8]) -> Values {
     let mut out = Vec::new();
     for field in &command.fields {
         let Some(name) = &field.name else { continue };
@@ -193,7 +193,7 @@ pub fn decode_field(field: &Field, bytes: &[u8]) -> Value {
 /// Encodes values into register data. Every named field needs a value;
 /// reserved bytes get their fill. Ranges are checked for a write's data; on
 /// a read a range is the measuring range, which a probe may leave.
-pub fn encode_fields(command: &Command, values: &BTreeMap<String, Value>) -> Result<Vec<u8>, EncodeValuesError> {
+pub fn encode_fields(command: &CommandSpec, values: &BTreeMap<String, Value>) -> Result<Vec<u8>, EncodeValuesError> {
     if let Some(unknown) = values.keys().find(|k| command.field(k).is_none()) {
         return Err(EncodeValuesError::Unknown(unknown.clone()));
     }
@@ -255,7 +255,7 @@ fn check_range(ranges: bool, field: &Field, v: f64) -> Result<(), EncodeValuesEr
 /// Encodes one field of `command` by the command's rule: a write's values
 /// must be in their field's `range`; a read's range is the measuring range,
 /// which a probe may leave, so it is not enforced.
-pub fn encode_command_field(command: &Command, field: &Field, value: &Value) -> Result<Vec<u8>, EncodeValuesError> {
+pub fn encode_command_field(command: &CommandSpec, field: &Field, value: &Value) -> Result<Vec<u8>, EncodeValuesError> {
     encode_field_checked(field, value, !command.is_read())
 }
 
@@ -379,7 +379,7 @@ pub fn parse_version(text: &str) -> Option<Version> {
     Some(Version::new(major.trim().parse().ok()?, minor.trim().parse().ok()?))
 }
 
-impl Command {
+impl CommandSpec {
     /// Encodes a request to `slave`: `values` are the write's fields (none for a read).
     pub fn encode_request(&self, slave: u8, values: &BTreeMap<String, Value>) -> Result<Vec<u8>, EncodeValuesError> {
         let data = if self.is_read() {

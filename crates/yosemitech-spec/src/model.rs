@@ -31,7 +31,7 @@ pub struct Fragment {
     /// The file.
     pub file: PathBuf,
     /// Its commands, as defined there.
-    pub commands: Vec<Command>,
+    pub commands: Vec<CommandSpec>,
 }
 
 impl Spec {
@@ -76,7 +76,7 @@ pub struct Sensor {
     /// Factory slave address.
     pub default_address: u8,
     /// Commands, in spec order (included ones where they are included).
-    pub commands: Vec<Command>,
+    pub commands: Vec<CommandSpec>,
     /// The manual's measuring procedure.
     pub procedure: Option<Procedure>,
     /// Numbers the procedures use.
@@ -91,7 +91,7 @@ pub struct Sensor {
 
 impl Sensor {
     /// The command called `name`.
-    pub fn command(&self, name: &str) -> Option<&Command> {
+    pub fn command(&self, name: &str) -> Option<&CommandSpec> {
         self.commands.iter().find(|c| c.name == name)
     }
 
@@ -106,7 +106,7 @@ impl Sensor {
     }
 
     /// The command with `role`, if the sensor has one.
-    pub fn command_with_role(&self, role: Role) -> Option<&Command> {
+    pub fn command_with_role(&self, role: Role) -> Option<&CommandSpec> {
         self.commands.iter().find(|c| c.role == Some(role))
     }
 
@@ -300,7 +300,7 @@ impl Serialize for Figure {
 
 /// One command.
 #[derive(Debug, Clone, Serialize)]
-pub struct Command {
+pub struct CommandSpec {
     /// snake_case name.
     pub name: String,
     /// Title from the manual.
@@ -344,7 +344,7 @@ fn ser_function<S: serde::Serializer>(f: &Function, s: S) -> Result<S::Ok, S::Er
     })
 }
 
-impl Command {
+impl CommandSpec {
     /// The wire layout, for framing.
     pub fn layout(&self) -> Layout<'_> {
         Layout {

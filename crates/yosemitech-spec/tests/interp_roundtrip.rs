@@ -6,14 +6,14 @@ use std::path::PathBuf;
 use std::sync::OnceLock;
 
 use proptest::prelude::*;
-use yosemitech_spec::{Command, FieldKind, Spec, Value, load_paths};
+use yosemitech_spec::{CommandSpec, FieldKind, Spec, Value, load_paths};
 
 fn spec() -> Spec {
     let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../spec");
     load_paths(&[dir]).unwrap_or_else(|d| panic!("spec/ does not load:\n{d}"))
 }
 
-fn commands(spec: &Spec) -> Vec<Command> {
+fn commands(spec: &Spec) -> Vec<CommandSpec> {
     spec.sensors.iter().flat_map(|s| s.commands.iter().cloned()).collect()
 }
 
@@ -116,7 +116,7 @@ fn value_for(kind: &FieldKind, bits: u64) -> Option<Value> {
 proptest! {
     #[test]
     fn values_survive_encode_and_decode(seeds in proptest::collection::vec(any::<u64>(), 12)) {
-        static COMMANDS: OnceLock<Vec<Command>> = OnceLock::new();
+        static COMMANDS: OnceLock<Vec<CommandSpec>> = OnceLock::new();
         for cmd in COMMANDS.get_or_init(|| commands(&spec())) {
             let mut values = BTreeMap::new();
             let mut ok = true;

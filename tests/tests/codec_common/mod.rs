@@ -221,7 +221,7 @@ pub fn sensors() -> Vec<(Api, &'static yosemitech_spec::Sensor)> {
 }
 
 /// Register data with every reserved byte set to its fill: what an encoder writes.
-pub fn normalized(command: &yosemitech_spec::Command, data: &[u8]) -> Vec<u8> {
+pub fn normalized(command: &yosemitech_spec::CommandSpec, data: &[u8]) -> Vec<u8> {
     let mut data = data.to_vec();
     for f in &command.fields {
         if let FieldKind::Reserved { len, fill } = f.kind {
@@ -234,7 +234,7 @@ pub fn normalized(command: &yosemitech_spec::Command, data: &[u8]) -> Vec<u8> {
 }
 
 /// A request frame with `data` as register data (writes), built by the runtime's framing.
-pub fn request_frame(command: &yosemitech_spec::Command, slave: u8, data: &[u8]) -> Vec<u8> {
+pub fn request_frame(command: &yosemitech_spec::CommandSpec, slave: u8, data: &[u8]) -> Vec<u8> {
     let layout = command.layout();
     let data = if command.is_read() { &[][..] } else { data };
     let mut out = vec![0u8; layout.request_len()];
@@ -244,7 +244,7 @@ pub fn request_frame(command: &yosemitech_spec::Command, slave: u8, data: &[u8])
 }
 
 /// A reply frame with `data` as register data (reads), built by the runtime's framing.
-pub fn response_frame(command: &yosemitech_spec::Command, slave: u8, data: &[u8]) -> Vec<u8> {
+pub fn response_frame(command: &yosemitech_spec::CommandSpec, slave: u8, data: &[u8]) -> Vec<u8> {
     let layout = command.layout();
     let data = if command.is_read() && !command.trigger { data } else { &[][..] };
     let mut out = vec![0u8; layout.response_len()];
@@ -254,7 +254,7 @@ pub fn response_frame(command: &yosemitech_spec::Command, slave: u8, data: &[u8]
 }
 
 /// A slave address the command may be sent to.
-pub fn usable_slave(command: &yosemitech_spec::Command, wanted: u8) -> u8 {
+pub fn usable_slave(command: &yosemitech_spec::CommandSpec, wanted: u8) -> u8 {
     command.fixed_slave.unwrap_or(wanted.clamp(1, 247))
 }
 
@@ -277,7 +277,11 @@ pub const SPECIAL_F32: [u32; 12] = [
 
 /// Register data of `command` from random bytes, with special f32 patterns
 /// put into some float fields (chosen by `specials`, one entry per float field).
-pub fn data_with_specials(command: &yosemitech_spec::Command, mut data: Vec<u8>, specials: &[Option<u32>]) -> Vec<u8> {
+pub fn data_with_specials(
+    command: &yosemitech_spec::CommandSpec,
+    mut data: Vec<u8>,
+    specials: &[Option<u32>],
+) -> Vec<u8> {
     let floats = command.fields.iter().filter_map(|f| match f.kind {
         FieldKind::F32 { order } => Some((f.offset, order)),
         _ => None,
@@ -293,7 +297,9 @@ pub fn data_with_specials(command: &yosemitech_spec::Command, mut data: Vec<u8>,
 
 /// Random register data for `command`, with special floats (NaN payloads,
 /// infinities, -0.0, …) in some f32 fields.
-pub fn data_strategy(command: &yosemitech_spec::Command) -> impl proptest::strategy::Strategy<Value = Vec<u8>> + use<> {
+pub fn data_strategy(
+    command: &yosemitech_spec::CommandSpec,
+) -> impl proptest::strategy::Strategy<Value = Vec<u8>> + use<> {
     use proptest::prelude::*;
     let floats = command.fields.iter().filter(|f| matches!(f.kind, FieldKind::F32 { .. })).count();
     let command = command.clone();
@@ -305,13 +311,13 @@ pub fn data_strategy(command: &yosemitech_spec::Command) -> impl proptest::strat
 }
 
 /// Register data bytes of a command's reply (reads) or request (writes).
-pub fn data_len(command: &yosemitech_spec::Command) -> usize {
+pub fn data_len(command: &yosemitech_spec::CommandSpec) -> usize {
     2 * usize::from(command.count)
 }
 
 /// `data` with every ASCII field made printable text of `len % (size + 1)`
 /// characters followed by padding, as a real device sends.
-pub fn asciified(command: &yosemitech_spec::Command, data: &[u8], len: usize) -> Vec<u8> {
+pub fn asciified(command: &yosemitech_spec::CommandSpec, data: &[u8], len: usize) -> Vec<u8> {
     let mut data = data.to_vec();
     for f in &command.fields {
         if let FieldKind::Ascii { len: size, padding } = f.kind {

@@ -28,8 +28,8 @@ fn synthetic_manual_is_drafted() {
     assert_eq!((c.fields[0].ty, c.fields[0].order, c.fields[0].offset), ("f32", Some("dcba"), 0));
     assert_eq!(c.examples.len(), 1);
     let e = &c.examples[0];
-    assert!(e.request.as_ref().is_some_and(Frame::crc_verified));
-    assert_eq!(e.response.as_ref().map(Frame::text).as_deref(), Some("01 03 04 00 00 8D 41"));
+    assert!(e.request.as_ref().is_some_and(DraftFrame::crc_verified));
+    assert_eq!(e.response.as_ref().map(DraftFrame::text).as_deref(), Some("01 03 04 00 00 8D 41"));
     assert!(d.yaml.contains("response_crc: missing"), "{}", d.yaml);
     assert!(d.yaml.contains("revision: \"HW Rev2.0 / SW Rev3.4 or later\""), "{}", d.yaml);
     assert!(d.yaml.contains("serial: {baud: 19200, data_bits: 8, parity: none, stop_bits: 1}"), "{}", d.yaml);
@@ -54,7 +54,7 @@ fn placeholder_data_is_left_unknown_and_marked() {
     let text = synthetic("0x00 0x00").replace("17.625", "Value");
     let d = import(&text).expect("imports");
     let e = &d.commands[0].examples[0];
-    assert_eq!(e.response.as_ref().map(Frame::text).as_deref(), Some("01 03 04 ?? ?? ?? ??"));
+    assert_eq!(e.response.as_ref().map(DraftFrame::text).as_deref(), Some("01 03 04 ?? ?? ?? ??"));
     assert!(d.yaml.contains("todo_import:"), "validate must keep failing: {}", d.yaml);
     assert!(d.todo_count() >= 1);
 }

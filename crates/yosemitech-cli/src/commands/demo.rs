@@ -8,7 +8,7 @@ use std::time::{Duration, Instant};
 use yosemitech::procedures::coefficients::{read_conductivity, read_ph_orp};
 use yosemitech::{conductivity, ph_orp};
 use yosemitech_rtu::{Client, ClientConfig, RetryPolicy, Transport, Version};
-use yosemitech_sim::{Bus, Device, ServeConfig, Server, Simulator, Variation};
+use yosemitech_sim::{Bus, FrameHandler, ServeConfig, Server, Simulator, Variation};
 use yosemitech_spec::{FieldKind, Role, Sensor, Value};
 
 use crate::catalog::Catalog;
@@ -57,7 +57,7 @@ fn setup(sensor: &Arc<Sensor>, values: &[(&str, f32)], noise: f32, line: bool) -
 
 /// Serves `sim` on a pty and opens it as a serial port.
 #[cfg(unix)]
-fn serve<D: Device + Send + 'static>(
+fn serve<D: FrameHandler + Send + 'static>(
     sim: D,
     config: ServeConfig,
     baud: u32,
@@ -74,7 +74,7 @@ fn serve<D: Device + Send + 'static>(
 
 /// Without ptys, serves `sim` as an RTU-over-TCP gateway on localhost.
 #[cfg(not(unix))]
-fn serve<D: Device + Send + 'static>(
+fn serve<D: FrameHandler + Send + 'static>(
     sim: D,
     config: ServeConfig,
     _baud: u32,

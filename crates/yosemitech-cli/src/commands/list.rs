@@ -4,7 +4,7 @@ use std::io::Write;
 
 use serde_json::{Value as Json, json};
 use yosemitech_rtu::{LineSettings, StopBits};
-use yosemitech_spec::{Command, Field, LineSettingsJson, Manual, Sensor};
+use yosemitech_spec::{CommandSpec, Field, LineSettingsJson, Manual, Sensor};
 
 use crate::catalog::{Catalog, Entry, Origin};
 use crate::cli::ListArgs;
@@ -169,7 +169,7 @@ pub fn sensor_json(entry: &Entry) -> Json {
 }
 
 /// One command as JSON.
-pub fn command_json(c: &Command) -> Json {
+pub fn command_json(c: &CommandSpec) -> Json {
     json!({
         "name": c.name,
         "title": c.title,

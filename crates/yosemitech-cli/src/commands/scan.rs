@@ -7,7 +7,7 @@ use std::time::Duration;
 use serde_json::json;
 use yosemitech_rtu::{Error as RtuError, FrameError, LineSettings, Version};
 use yosemitech_spec::interp::{decode_field, decode_fields};
-use yosemitech_spec::{Command, FieldKind, Manual, Role, Sensor, Value};
+use yosemitech_spec::{CommandSpec, FieldKind, Manual, Role, Sensor, Value};
 
 use crate::catalog::Catalog;
 use crate::cli::{Global, ScanArgs};
@@ -47,13 +47,13 @@ pub fn parse_addresses(text: &str) -> Result<Vec<u8>> {
 /// A serial-number read and the loaded sensors that share its wire layout.
 struct SnRead<'c> {
     /// The first sensor's command (they all encode and decode alike).
-    command: &'c Command,
+    command: &'c CommandSpec,
     /// The sensors whose serial-number read this is, in load order.
     sensors: Vec<&'c Sensor>,
 }
 
 /// True when two commands are the same on the wire: framing and fields.
-fn same_wire(a: &Command, b: &Command) -> bool {
+fn same_wire(a: &CommandSpec, b: &CommandSpec) -> bool {
     a.layout() == b.layout()
         && a.fields.len() == b.fields.len()
         && a.fields.iter().zip(&b.fields).all(|(x, y)| x.offset == y.offset && x.kind == y.kind)
@@ -61,7 +61,7 @@ fn same_wire(a: &Command, b: &Command) -> bool {
 
 /// Groups `(sensor, command)` pairs by wire layout, the group of most
 /// sensors first (ties: load order).
-fn group<'c>(pairs: impl Iterator<Item = (&'c Sensor, &'c Command)>) -> Vec<SnRead<'c>> {
+fn group<'c>(pairs: impl Iterator<Item = (&'c Sensor, &'c CommandSpec)>) -> Vec<SnRead<'c>> {
     let mut groups: Vec<SnRead<'c>> = Vec::new();
     for (sensor, command) in pairs {
         match groups.iter_mut().find(|g| same_wire(g.command, command)) {
@@ -84,7 +84,7 @@ fn sn_reads(catalog: &Catalog) -> Vec<SnRead<'_>> {
 /// The serial number and the model code a serial-number reply carries:
 /// the byte before the text when it is not 0 (real probes send the code
 /// there: 0x09 is "09"), and the text's characters 3-4 (`YL09...`).
-fn read_sn(command: &Command, data: &[u8]) -> (Option<String>, Option<String>, Option<String>) {
+fn read_sn(command: &CommandSpec, data: &[u8]) -> (Option<String>, Option<String>, Option<String>) {
     let Some(field) = command.named_fields().find(|f| matches!(f.kind, FieldKind::Ascii { .. })) else {
         return (None, None, None);
     };
@@ -172,7 +172,7 @@ enum Answer {
 }
 
 /// Sends a read with no values to `address`.
-fn probe(opened: &mut Opened, command: &Command, address: u8) -> Result<Answer> {
+fn probe(opened: &mut Opened, command: &CommandSpec, address: u8) -> Result<Answer> {
     let request = command
         .encode_request(address, &BTreeMap::new())
         .map_err(|e| CliError::usage(format!("cannot build the {} request: {e}", command.name)))?;

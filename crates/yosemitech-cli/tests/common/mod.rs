@@ -163,7 +163,7 @@ pub struct Sim<D> {
 }
 
 /// Serves `device` on a new pty.
-pub fn serve<D: yosemitech_sim::Device + Send + 'static>(device: D) -> Sim<D> {
+pub fn serve<D: yosemitech_sim::FrameHandler + Send + 'static>(device: D) -> Sim<D> {
     let server = serve_pty(device, ServeConfig::default()).expect("a pty can be created");
     let path = server.tty_path().expect("a pty path").to_owned();
     Sim { server, path }
@@ -198,7 +198,7 @@ pub fn number_after(text: &str, label: &str) -> f64 {
 /// The spec's coefficient blocks of `sensor`, as the CLI picks them: each
 /// all-f32 write (not a trigger, not the slave address) with a read of the
 /// same address and register count.
-pub fn coefficient_blocks(sensor: &Sensor) -> Vec<(&yosemitech_spec::Command, &yosemitech_spec::Command)> {
+pub fn coefficient_blocks(sensor: &Sensor) -> Vec<(&yosemitech_spec::CommandSpec, &yosemitech_spec::CommandSpec)> {
     sensor
         .commands
         .iter()
