@@ -9,7 +9,7 @@
 //! the same outcome: the same `FrameError`, or the same values bit for bit.
 //! On arbitrary values both encode the same frame or both refuse.
 
-mod codec_common;
+use yosemitech_tests::codec as codec_common;
 
 use codec_common::{Cmd, data_strategy, sensors, usable_slave};
 use proptest::prelude::*;

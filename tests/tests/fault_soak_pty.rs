@@ -38,7 +38,7 @@
 #![cfg(unix)]
 #![allow(clippy::result_large_err)]
 
-mod sim_common;
+use yosemitech_tests::sim as sim_common;
 
 use std::collections::BTreeMap;
 use std::time::{Duration, Instant};
@@ -529,7 +529,7 @@ fn check_requests(probe: &Probe) {
 fn fault_soak_through_the_pty() {
     let spec = spec();
     let mut rng = Rng(0x5EED_0FFA_1700);
-    let (first, second) = probes(&spec);
+    let (first, second) = probes(spec);
     let first_calls = CALLS * 2 / 3;
     let second_calls = CALLS - first_calls;
     let first_script = script(&mut rng, first_calls);
@@ -606,7 +606,7 @@ fn function_code_addresses_with_noise_through_the_pty() {
     // before the client learned to realign (`AA 03 03 04 ...`). A reply held
     // up past REPLY_TIMEOUT by a stalled machine is tolerated, not more.
     let spec = spec();
-    let (first, second) = probes(&spec);
+    let (first, second) = probes(spec);
     let Some(mut one) = open(&first.sensor, FIRST_ADDRESS, vec![Some(FaultKind::Garbage); 200]) else { return };
     let Some(mut two) = open(&second.sensor, SECOND_ADDRESS, vec![Some(FaultKind::Garbage); 200]) else { return };
     let read = Op::Read(first.reads[0].name.clone());

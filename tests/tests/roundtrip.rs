@@ -10,7 +10,7 @@
 //! - a valid frame with a bit flipped, cut short or with bytes appended
 //!   never decodes to `Ok` with different values.
 
-mod codec_common;
+use yosemitech_tests::codec as codec_common;
 
 use codec_common::{Api, Cmd, Decoded, data_strategy, normalized, sensors, usable_slave};
 use proptest::prelude::*;

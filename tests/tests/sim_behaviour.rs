@@ -1,7 +1,7 @@
 //! The simulator's device behaviour: state, addressing, exceptions,
 //! calibration, measurement trigger, the bus.
 
-mod sim_common;
+use yosemitech_tests::sim as sim_common;
 
 use std::time::Duration;
 
@@ -54,7 +54,7 @@ fn writes_are_read_back() {
 
 #[test]
 fn readings_set_by_name_are_served() {
-    let (probe, get) = float_read(&spec());
+    let (probe, get) = float_read(spec());
     let (slave, name) = (probe.default_address, first_field(&get));
     let mut sim = Simulator::new(probe.clone());
     sim.set(&get.name, &name, f(7.0)).unwrap();
@@ -219,7 +219,7 @@ fn every_sensor_ignores_requests_that_match_no_command_by_default() {
 #[test]
 fn a_client_asking_for_a_register_the_probe_lacks_times_out() {
     // A read of one sensor sent to another that has no such register.
-    let sensors = spec().sensors;
+    let sensors = spec().sensors.clone();
     let (probe, foreign) = sensors
         .iter()
         .flat_map(|p| sensors.iter().filter(move |o| o.name != p.name).map(move |o| (p, o)))
@@ -251,7 +251,7 @@ fn a_client_asking_for_a_register_the_probe_lacks_times_out() {
 /// float point field and the standards (the list constant in the field's
 /// unit, as the simulator finds them).
 fn calibrating() -> (Sensor, CommandSpec, String, Vec<f32>) {
-    let probe = sensor_with_role(&spec(), Role::CalibrationPoint);
+    let probe = sensor_with_role(spec(), Role::CalibrationPoint);
     let point = with_role(&probe, Role::CalibrationPoint);
     let field = point.named_fields().next().expect("a point field");
     let unit = field.unit.clone().expect("the point's unit");
@@ -330,7 +330,7 @@ fn exceptions_for_unknown_function_address_and_bad_counts_when_asked_for() {
 
 #[test]
 fn bad_crc_and_noise_are_ignored_silently() {
-    let (probe, read) = float_read(&spec());
+    let (probe, read) = float_read(spec());
     let mut sim = Simulator::new(probe.clone());
     let mut req = request(&read, probe.default_address, &[]);
     req[7] ^= 0x01;
@@ -369,7 +369,7 @@ fn broadcast_writes_are_applied_without_reply() {
 fn bus_with_two_sensors_only_the_addressed_one_answers() {
     // A single-float read of one sensor, and another sensor with no register there.
     let spec = spec();
-    let (one, get_one) = float_read(&spec);
+    let (one, get_one) = float_read(spec);
     let (two, get_two) = spec
         .sensors
         .iter()
@@ -564,7 +564,7 @@ fn every_start_and_stop_command_is_answered_and_moves_the_measurement_state() {
 
 #[test]
 fn variation_is_deterministic_and_bounded() {
-    let (probe, read) = float_read(&spec());
+    let (probe, read) = float_read(spec());
     let (slave, name) = (probe.default_address, first_field(&read));
     let run = |seed: u64| -> Vec<f32> {
         let mut sim = Simulator::new(probe.clone());
@@ -663,7 +663,7 @@ commands:
 
 #[test]
 fn a_device_trait_object_serves_too() {
-    let (probe, read) = float_read(&spec());
+    let (probe, read) = float_read(spec());
     let req = request(&read, probe.default_address, &[]);
     let mut devices: Vec<Box<dyn FrameHandler>> = vec![Box::new(Simulator::new(probe)), Box::new(Bus::new())];
     assert_eq!(exchange(&mut devices[0], &req).len(), read.layout().response_len());

@@ -3,7 +3,7 @@
 //! the serial number as a real probe sends it differs from the manual's only
 //! by the model code.
 
-mod sim_common;
+use yosemitech_tests::sim as sim_common;
 
 use sim_common::{exchange, spec};
 use yosemitech_rtu::Hex;

@@ -3,7 +3,7 @@
 //! wrong value.
 #![allow(clippy::result_large_err)]
 
-mod sim_common;
+use yosemitech_tests::sim as sim_common;
 
 use std::collections::BTreeMap;
 use std::thread;

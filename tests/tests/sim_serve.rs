@@ -2,7 +2,7 @@
 //! TCP (rtu TcpTransport), in memory, with line-timing emulation.
 #![allow(clippy::result_large_err)]
 
-mod sim_common;
+use yosemitech_tests::sim as sim_common;
 
 use std::time::{Duration, Instant};
 
@@ -53,7 +53,7 @@ fn tcp_serves_a_bus_of_two_sensors() {
     // A sensor with a single-float read, and another with a float read the
     // manual gives an example reply of.
     let spec = spec();
-    let (first, get_one) = float_read(&spec);
+    let (first, get_one) = float_read(spec);
     let (second, get_two, reading) = spec
         .sensors
         .iter()
@@ -101,7 +101,7 @@ fn tcp_serves_a_bus_of_two_sensors() {
 
 #[test]
 fn memory_serving_with_line_timing_approaches_the_wire_limit() {
-    let (probe, read) = float_read(&spec());
+    let (probe, read) = float_read(spec());
     let slave = probe.default_address;
     let line = LineTiming::new(9600, CharFormat::EIGHT_N_1);
     let (transport, server) = serve_memory(Simulator::new(probe), ServeConfig::emulating(line)).unwrap();
@@ -133,7 +133,7 @@ fn memory_serving_with_line_timing_approaches_the_wire_limit() {
 
 #[test]
 fn stopping_and_dropping_servers_join_their_threads() {
-    let (probe, _) = float_read(&spec());
+    let (probe, _) = float_read(spec());
     let server = serve_tcp(Simulator::new(probe.clone()), "127.0.0.1:0", ServeConfig::default()).unwrap();
     assert!(server.is_running());
     let start = Instant::now();
@@ -151,7 +151,7 @@ fn stopping_and_dropping_servers_join_their_threads() {
 
 #[test]
 fn a_gap_inside_a_request_resynchronises() {
-    let (probe, read) = float_read(&spec());
+    let (probe, read) = float_read(spec());
     let slave = probe.default_address;
     let serve = ServeConfig { inter_char_timeout: Duration::from_millis(30), ..ServeConfig::default() };
     let (mut transport, server) = serve_memory(Simulator::new(probe), serve).unwrap();
@@ -183,7 +183,7 @@ mod pty {
 
     /// Opens the server's pty as a client, or `None` (reason printed) where ptys are unavailable.
     fn open(config: ServeConfig) -> Option<(yosemitech_sim::Server<Simulator>, SerialTransport)> {
-        open_with(Simulator::new(float_read(&spec()).0), config)
+        open_with(Simulator::new(float_read(spec()).0), config)
     }
 
     /// [`open`] for a given simulator.
@@ -246,7 +246,7 @@ mod pty {
     fn pty_with_line_timing_emulation() {
         let line = LineTiming::new(9600, CharFormat::EIGHT_N_1);
         let Some((server, transport)) = open(ServeConfig::emulating(line)) else { return };
-        let (probe, read) = float_read(&spec());
+        let (probe, read) = float_read(spec());
         let mut client = Client::with_config(transport, config());
         let req = request(&read, probe.default_address, &[]);
         client.call_raw(&req, &read.layout()).unwrap();
@@ -271,7 +271,7 @@ mod pty {
     #[test]
     fn pty_server_outlives_its_clients() {
         let Some((server, transport)) = open(ServeConfig::default()) else { return };
-        let (probe, read) = float_read(&spec());
+        let (probe, read) = float_read(spec());
         let req = request(&read, probe.default_address, &[]);
         let mut client = Client::with_config(transport, config());
         client.call_raw(&req, &read.layout()).unwrap();

@@ -7,7 +7,6 @@
 //! [`sensors`] checks it against the spec directories: a sensor added to the
 //! spec without being listed here fails every test that uses it. Commands
 //! are never listed by hand.
-#![allow(dead_code)]
 
 use std::collections::BTreeMap;
 use std::path::PathBuf;
@@ -30,10 +29,16 @@ pub enum Val {
     /// A BCD byte, raw.
     Bcd(u8),
     /// An enum code.
-    Enum { raw: u16, name: Option<&'static str> },
+    Enum {
+        /// The code on the wire.
+        raw: u16,
+        /// The variant's name, when the code is known.
+        name: Option<&'static str>,
+    },
 }
 
 impl Val {
+    /// The owned form of a value generated code produced.
     pub fn of(v: FieldValue<'_>) -> Self {
         match v {
             FieldValue::F32(f) => Self::F32(f.to_bits()),
@@ -170,21 +175,16 @@ fn api(module: &'static SensorModule) -> Api {
     }
 }
 
-/// The workspace's spec directory.
-pub fn spec_dir() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../spec")
-}
-
 /// The fixture sensor's spec directory.
 pub fn fixture_dir() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("fixtures/do-probe/spec")
 }
 
 /// The spec of every generated module: the workspace's and the fixture's.
-pub fn spec() -> &'static Spec {
+pub fn generated_spec() -> &'static Spec {
     static SPEC: OnceLock<Spec> = OnceLock::new();
     SPEC.get_or_init(|| {
-        let mut spec = yosemitech_spec::load_paths(&[spec_dir()]).unwrap_or_else(|e| panic!("{e}"));
+        let mut spec = yosemitech_spec::load_paths(&[crate::spec_dir()]).unwrap_or_else(|e| panic!("{e}"));
         let fixture = yosemitech_spec::load_paths(&[fixture_dir()]).unwrap_or_else(|e| panic!("{e}"));
         spec.sensors.extend(fixture.sensors);
         spec
@@ -194,8 +194,8 @@ pub fn spec() -> &'static Spec {
 /// Every generated module with its spec sensor, checked to be one-to-one
 /// with the spec, and every module's commands checked against the spec's.
 pub fn sensors() -> Vec<(Api, &'static yosemitech_spec::Sensor)> {
-    let apis: Vec<Api> = yosemitech::SENSORS.iter().chain(&yosemitech_tests::fixture::SENSORS).map(api).collect();
-    let spec = spec();
+    let apis: Vec<Api> = yosemitech::SENSORS.iter().chain(&crate::fixture::SENSORS).map(api).collect();
+    let spec = generated_spec();
     let listed: Vec<&str> = apis.iter().map(|a| a.sensor).collect();
     let in_spec: Vec<&str> = spec.sensors.iter().map(|s| s.name.as_str()).collect();
     let mut a = listed.clone();

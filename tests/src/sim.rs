@@ -1,22 +1,14 @@
-//! Helpers shared by the simulator tests (`sim_*.rs`).
-#![allow(dead_code, clippy::result_large_err)]
+//! Simulator tests' kit: simulators of spec sensors, exchanges, and
+//! commands chosen from the spec by role, field type and layout.
 
 use std::collections::BTreeMap;
 use std::time::Duration;
 
-use yosemitech_rtu::{Client, ClientConfig, RetryPolicy, Transport, crc16};
+use yosemitech_rtu::{Client, ClientConfig, RetryPolicy, Transport};
 use yosemitech_sim::{FrameHandler, Simulator, UnknownRequestPolicy};
 use yosemitech_spec::{CommandSpec, Sensor, Spec, Value};
 
-/// The workspace's spec directory, loaded.
-pub fn spec() -> Spec {
-    yosemitech_spec::load_paths(&[concat!(env!("CARGO_MANIFEST_DIR"), "/../spec").into()]).expect("the spec loads")
-}
-
-/// One sensor of the spec.
-pub fn sensor(name: &str) -> Sensor {
-    spec().sensor(name).unwrap_or_else(|| panic!("no sensor {name}")).clone()
-}
+pub use crate::{sensor, spec, with_crc};
 
 /// A simulator of `name` at its factory address.
 pub fn sim(name: &str) -> Simulator {
@@ -40,13 +32,6 @@ pub fn command(sensor: &Sensor, name: &str) -> CommandSpec {
 pub fn request(command: &CommandSpec, slave: u8, values: &[(&str, Value)]) -> Vec<u8> {
     let values: BTreeMap<String, Value> = values.iter().map(|(k, v)| (k.to_string(), v.clone())).collect();
     command.encode_request(slave, &values).expect("the request encodes")
-}
-
-/// `bytes` followed by their CRC.
-pub fn with_crc(bytes: &[u8]) -> Vec<u8> {
-    let mut frame = bytes.to_vec();
-    frame.extend_from_slice(&crc16(bytes).to_le_bytes());
-    frame
 }
 
 /// The reply of `device` to `request` (empty for none); panics on a delay.
@@ -161,4 +146,26 @@ pub fn example_reading(read: &CommandSpec) -> Option<yosemitech_spec::Values> {
 /// The reply frame of the last example of `read` with a reply.
 pub fn example_reply(read: &CommandSpec) -> Option<Vec<u8>> {
     read.examples.iter().rev().find_map(|e| e.true_response().map(<[u8]>::to_vec))
+}
+
+/// Whether `sensor`'s command with `role` has `layout` on the wire.
+pub fn plays(sensor: &Sensor, role: yosemitech_spec::Role, layout: yosemitech_rtu::Layout<'static>) -> bool {
+    sensor.command_with_role(role).is_some_and(|c| c.layout() == layout)
+}
+
+/// Every sensor of the spec whose slave-address write has the layout
+/// `set_address` and whose serial-number read has the layout `serial_number`
+/// (the shared generated commands), picked by role: the sensors a generic
+/// address change can move with those two types.
+pub fn sensors_sharing_address_commands(
+    set_address: yosemitech_rtu::Layout<'static>,
+    serial_number: yosemitech_rtu::Layout<'static>,
+) -> Vec<Sensor> {
+    use yosemitech_spec::Role;
+    spec()
+        .sensors
+        .iter()
+        .filter(|s| plays(s, Role::SetSlaveAddress, set_address) && plays(s, Role::SerialNumber, serial_number))
+        .cloned()
+        .collect()
 }
