@@ -110,7 +110,7 @@ fn addressable() -> (Sensor, CommandSpec) {
 }
 
 #[test]
-fn set_slave_id_takes_effect_after_the_reply() {
+fn address_write_takes_effect_after_the_reply() {
     let (probe, read) = addressable();
     let slave = probe.default_address;
     let set_id = with_role(&probe, Role::SetSlaveAddress);
@@ -133,7 +133,7 @@ fn set_slave_id_takes_effect_after_the_reply() {
 }
 
 #[test]
-fn get_slave_id_via_the_wildcard_reports_the_current_address() {
+fn fixed_slave_read_via_the_wildcard_reports_the_current_address() {
     let (probe, read) = addressable();
     let get_id = with_role(&probe, Role::GetSlaveAddress);
     let mut sim = Simulator::new(probe.clone()).with_address(7);

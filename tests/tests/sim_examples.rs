@@ -105,7 +105,7 @@ fn examples_replayed_in_order_on_one_device_per_sensor() {
                 assert_eq!(reply[0], command.fixed_slave.unwrap_or(before), "reply from the old address");
                 assert_eq!(reply[1], true_response[1], "{}.{}: {}", sensor.name, command.name, Hex(&reply));
                 if command.role == Some(Role::GetSlaveAddress) {
-                    assert_eq!(reply[3], sim.address(), "get_slave_id reports the current address");
+                    assert_eq!(reply[3], sim.address(), "the wildcard address read reports the current address");
                 }
                 if command.role == Some(Role::SetSlaveAddress) {
                     let field = command.named_fields().next().and_then(|f| f.name.as_deref()).unwrap();
@@ -115,7 +115,12 @@ fn examples_replayed_in_order_on_one_device_per_sensor() {
                 }
             }
         }
-        assert_eq!(sim.address(), expected_address, "{}: where set_slave_id's examples moved the device", sensor.name);
+        assert_eq!(
+            sim.address(),
+            expected_address,
+            "{}: where the address write's examples moved the device",
+            sensor.name
+        );
         assert_eq!(sim.stats().exceptions, 0, "{}", sensor.name);
         assert_eq!(sim.stats().ignored_unknown, 0, "{}: every example request matches a command", sensor.name);
     }

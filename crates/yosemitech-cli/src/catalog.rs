@@ -257,9 +257,7 @@ mod tests {
     use super::*;
 
     /// The workspace's spec, read from disk: what the binary embeds.
-    fn spec() -> yosemitech_spec::Spec {
-        yosemitech_spec::load_paths(&[concat!(env!("CARGO_MANIFEST_DIR"), "/../../spec").into()]).unwrap()
-    }
+    use yosemitech_tests::spec;
 
     #[test]
     fn built_in_spec_loads_every_file() {
@@ -273,9 +271,9 @@ mod tests {
 
     #[test]
     fn suggests_close_names() {
-        assert_eq!(closest("ph_or", &["ph_orp", "conductivity"]), Some("ph_orp"));
-        assert_eq!(closest("conductivty", &["ph_orp", "conductivity"]), Some("conductivity"));
-        assert_eq!(closest("zzzzzzzz", &["ph_orp", "conductivity"]), None);
+        assert_eq!(closest("probe_a", &["probe_ab", "other"]), Some("probe_ab"));
+        assert_eq!(closest("othr", &["probe_ab", "other"]), Some("other"));
+        assert_eq!(closest("zzzzzzzz", &["probe_ab", "other"]), None);
         assert_eq!(edit_distance("kitten", "sitting"), 3);
         let catalog = Catalog::load(&[]).unwrap();
         for entry in catalog.entries() {

@@ -1527,7 +1527,7 @@ fn device(s: &Sensor, names: &Names, o: &Options) -> TokenStream {
         "One {title} on a bus: a borrowed [`rtu::Client`] and the probe's slave address, with one method per command.\n\n\
          Reads are named after the command without its `get_` prefix and return the reply, or its only field; writes \
          keep the command's name and take the field (one field) or the request (several). Commands with a fixed slave \
-         address (`get_slave_id`: 0xFF) use it instead of the device's."
+         address (a read at the wildcard address 0xFF) use it instead of the device's."
     ));
     quote! {
         #cfg

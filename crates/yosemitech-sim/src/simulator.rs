@@ -871,19 +871,7 @@ fn word(frame: &[u8], at: usize) -> u16 {
 mod tests {
     use super::*;
 
-    fn spec() -> yosemitech_spec::Spec {
-        yosemitech_spec::load_paths(&[concat!(env!("CARGO_MANIFEST_DIR"), "/../../spec").into()]).unwrap()
-    }
-
-    fn sensor(name: &str) -> Sensor {
-        spec().sensor(name).unwrap().clone()
-    }
-
-    fn with_crc(bytes: &[u8]) -> Vec<u8> {
-        let mut frame = bytes.to_vec();
-        frame.extend_from_slice(&crc16(bytes).to_le_bytes());
-        frame
-    }
+    use yosemitech_tests::{sensor, spec, with_crc};
 
     fn exchange(sim: &mut Simulator, request: &[u8]) -> Vec<u8> {
         let mut reply = Vec::new();
@@ -906,7 +894,7 @@ mod tests {
 
     #[test]
     fn the_address_lives_in_the_slave_address_role_fields_of_every_sensor() {
-        for sensor in spec().sensors {
+        for sensor in spec().sensors.clone() {
             let sim = Simulator::new(sensor.clone()).with_address(42);
             for role in [Role::SetSlaveAddress, Role::GetSlaveAddress] {
                 let Some(command) = sensor.command_with_role(role) else { continue };
@@ -921,7 +909,7 @@ mod tests {
     fn measurement_reads_are_the_uncovered_ones_with_units() {
         // The reads a sensor's procedure takes its measurements from.
         let mut measured = 0;
-        for sensor in spec().sensors {
+        for sensor in spec().sensors.clone() {
             for name in sensor.procedure.iter().flat_map(|p| &p.read) {
                 assert!(is_measurement(&sensor, sensor.command(name).unwrap()), "{}.{name}", sensor.name);
                 measured += 1;

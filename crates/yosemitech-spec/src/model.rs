@@ -148,6 +148,19 @@ pub struct Revision {
 pub use crate::document::RoleDoc as Role;
 
 impl Role {
+    /// Every role, in the order the spec language documents them.
+    pub const ALL: [Role; 9] = [
+        Role::SetSlaveAddress,
+        Role::GetSlaveAddress,
+        Role::SerialNumber,
+        Role::Version,
+        Role::StartMeasurement,
+        Role::StopMeasurement,
+        Role::Wipe,
+        Role::CalibrationPoint,
+        Role::CalibrationStatus,
+    ];
+
     /// The spec's name of the role.
     pub fn name(self) -> &'static str {
         match self {

@@ -444,9 +444,7 @@ pub fn show(m: &ProcedureResult, digits: Option<usize>, out: &mut dyn Write) -> 
 mod tests {
     use super::*;
 
-    fn spec() -> yosemitech_spec::Spec {
-        yosemitech_spec::load_paths(&[concat!(env!("CARGO_MANIFEST_DIR"), "/../../spec").into()]).unwrap()
-    }
+    use yosemitech_tests::spec;
 
     #[test]
     fn averages_numbers_tallies_enums_and_keeps_absent_values_apart() {

@@ -338,7 +338,7 @@ pub fn run(catalog: &Catalog, global: &Global, args: &ScanArgs, out: &mut dyn Wr
     let reads = sn_reads(catalog);
     if reads.is_empty() {
         return Err(CliError::usage("no loaded sensor has a serial-number read to identify probes with")
-            .hint("scan reads the command with `role: serial_number` (get_sn); check the --spec files"));
+            .hint("scan reads the command with `role: serial_number`; check the --spec files"));
     }
     let serial = common_serial(catalog);
     let mut opened = port::open_with(&args.port, global, &serial, Duration::from_millis(100), 0)?;

@@ -269,7 +269,7 @@ fn check_count(f: Function, n: &Spanned<u32>, trigger: bool, key: &str, r: &mut 
             Pos::at(n),
             k,
             "register count 0 is only valid for a trigger write".to_string(),
-            Some("declare `trigger: true` on a write that sends no data (like conductivity start measurement)".into()),
+            Some("declare `trigger: true` on a write that sends no data (like a start-measurement trigger)".into()),
         );
         return None;
     }
