@@ -136,9 +136,9 @@ pub const fn f32_to_wire(order: ByteOrder4, v: f32) -> [u8; 4] {
 /// A firmware or hardware revision sent as two bytes, major then minor.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Default)]
 pub struct Version {
-    /// The first byte.
+    /// The first wire byte (major revision).
     pub major: u8,
-    /// The second byte.
+    /// The second wire byte (minor revision).
     pub minor: u8,
 }
 
@@ -148,7 +148,7 @@ impl Version {
         Self { major, minor }
     }
 
-    /// The two wire bytes.
+    /// The two wire bytes: major, then minor.
     pub const fn to_wire(self) -> [u8; 2] {
         [self.major, self.minor]
     }
@@ -223,7 +223,7 @@ impl<const N: usize> Ascii<N> {
         Some(Self { bytes, pad })
     }
 
-    /// The raw wire bytes.
+    /// The raw wire bytes, padding included, as received or encoded.
     pub const fn to_wire(&self) -> [u8; N] {
         self.bytes
     }
@@ -239,7 +239,7 @@ impl<const N: usize> Ascii<N> {
         self.bytes.get(..end).unwrap_or(&[])
     }
 
-    /// The padding byte.
+    /// The byte that pads the text to `N` bytes.
     pub const fn pad(&self) -> u8 {
         self.pad
     }

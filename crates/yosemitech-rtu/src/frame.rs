@@ -58,7 +58,7 @@ impl Function {
 /// Where a command sits on the wire: everything framing needs to know.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub struct Layout<'a> {
-    /// Read or write.
+    /// `Read` (0x03) or `Write` (0x10).
     pub function: Function,
     /// The first register, as sent on the wire (no 1-based offset).
     pub address: u16,
@@ -418,7 +418,7 @@ impl Frame {
         Ok(frame)
     }
 
-    /// The frame's bytes.
+    /// The frame's bytes, CRC included (at most `MAX_ADU`).
     pub fn as_bytes(&self) -> &[u8] {
         self.bytes.get(..self.len).unwrap_or(&[])
     }

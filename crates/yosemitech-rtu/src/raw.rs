@@ -17,7 +17,7 @@ pub struct RawBytes {
 }
 
 impl RawBytes {
-    /// No bytes.
+    /// No bytes (length zero).
     pub const EMPTY: Self = Self { bytes: [0; MAX_ADU], len: 0, cut: false };
 
     /// A copy of the first [`MAX_ADU`] bytes of `bytes`.
@@ -33,7 +33,7 @@ impl RawBytes {
         raw
     }
 
-    /// The bytes.
+    /// The bytes held, at most `MAX_ADU`.
     pub fn as_bytes(&self) -> &[u8] {
         self.bytes.get(..usize::from(self.len)).unwrap_or(&[])
     }

@@ -38,7 +38,7 @@ pub struct Bus {
 }
 
 impl Bus {
-    /// A bus with no devices.
+    /// A bus with no devices: every request goes unanswered.
     pub fn new() -> Self {
         Self::default()
     }
@@ -50,7 +50,7 @@ impl Bus {
         self
     }
 
-    /// Connects a device.
+    /// Connects a device; requests reach devices in the order connected.
     pub fn push(&mut self, device: Simulator) {
         self.devices.push(device);
     }

@@ -120,7 +120,7 @@ pub struct Server<D> {
 }
 
 impl<D> Server<D> {
-    /// Where to connect.
+    /// Where a client connects: a pty path, a TCP address, or in memory.
     pub fn endpoint(&self) -> &Endpoint {
         &self.endpoint
     }
@@ -146,7 +146,7 @@ impl<D> Server<D> {
         lock(&self.device)
     }
 
-    /// The shared device.
+    /// The served device, shared with the serving thread (lock it briefly).
     pub fn shared(&self) -> Arc<Mutex<D>> {
         Arc::clone(&self.device)
     }

@@ -25,9 +25,9 @@ pub enum SimError {
     UnknownCommand(String),
     /// The command has no field of that name.
     UnknownField {
-        /// The command.
+        /// The command asked for (not one of the sensor's).
         command: String,
-        /// The field asked for.
+        /// The field asked for (not one of the command's).
         field: String,
     },
     /// No read command has a field of that name ([`Simulator::set_everywhere`]).
@@ -58,7 +58,7 @@ impl From<EncodeValuesError> for SimError {
 /// What the simulator did with the requests it was given.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct Stats {
-    /// Request frames handled.
+    /// Request frames handled, whatever their fate.
     pub requests: u64,
     /// Replies produced (normal or exception; before fault injection, so a
     /// dropped reply counts here and in [`FaultCounts`]).
@@ -78,7 +78,7 @@ pub struct Stats {
     /// [`UnknownRequestPolicy::Exception`]; 06 under [`WarmUpPolicy::Busy`]);
     /// injected busy faults are in [`FaultCounts`].
     pub exceptions: u64,
-    /// Reads served.
+    /// Reads answered with register data.
     pub reads: u64,
     /// Writes applied (broadcasts included).
     pub writes: u64,
@@ -99,7 +99,7 @@ pub struct Stats {
 /// client saw.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Variation {
-    /// Seed of the noise.
+    /// Seed of the noise: the same seed gives the same readings.
     pub seed: u64,
     /// Noise amplitude, in the field's unit.
     pub noise: f32,
@@ -138,7 +138,7 @@ pub enum UnknownRequestPolicy {
 /// How a request reached the device.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Route {
-    /// To its own address.
+    /// To its own address: the device answers.
     Unicast,
     /// To address 0: applied, never answered.
     Broadcast,
@@ -320,7 +320,7 @@ impl Simulator {
         }
     }
 
-    /// The sensor simulated.
+    /// The sensor simulated, as given to [`Simulator::new`].
     pub fn sensor(&self) -> &Sensor {
         &self.sensor
     }
@@ -349,7 +349,7 @@ impl Simulator {
         }
     }
 
-    /// The registers.
+    /// The register contents: what reads return and writes change.
     pub fn registers(&self) -> &RegisterMap {
         &self.registers
     }
