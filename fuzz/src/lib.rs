@@ -27,7 +27,7 @@ use yosemitech_rtu::{
 };
 use yosemitech_spec::interp::decode_fields;
 use yosemitech_spec::sources::MemSources;
-use yosemitech_spec::{Command, Spec, Values, load_with, parse_hex};
+use yosemitech_spec::{CommandSpec, Spec, Values, load_with, parse_hex};
 
 /// Every `spec/*.yaml` of the workspace as `spec/<file name>` and text: the
 /// files the CLI embeds (`yosemitech_cli::embedded_spec`), so the targets
@@ -58,7 +58,7 @@ pub fn spec() -> &'static Spec {
 }
 
 /// The spec's command called `name` of sensor `sensor`.
-fn spec_command(sensor: &str, name: &str) -> &'static Command {
+fn spec_command(sensor: &str, name: &str) -> &'static CommandSpec {
     spec()
         .sensor(sensor)
         .and_then(|s| s.command(name))
@@ -227,7 +227,7 @@ enum Direction {
 /// `encoded` is `original` again, except where the spec lets them differ:
 /// reserved bytes (decoding ignores them, encoding writes their fill) and a
 /// read reply's byte count when it is one the spec accepts as a quirk.
-fn same_frame(command: &Command, direction: Direction, original: &[u8], encoded: &[u8]) {
+fn same_frame(command: &CommandSpec, direction: Direction, original: &[u8], encoded: &[u8]) {
     let name = &command.name;
     assert_eq!(original.len(), encoded.len(), "{name}: re-encoded length differs");
     let len = original.len();
@@ -343,7 +343,7 @@ pub fn frame_reader(data: &[u8]) {
     let (chunks, rest) = rest.split_at(usize::from(*chunk_count % 16).min(rest.len()));
     let (stale, stream) = rest.split_at(usize::from(*stale_len).min(rest.len()));
 
-    let commands: Vec<(&str, &Command)> =
+    let commands: Vec<(&str, &CommandSpec)> =
         spec().sensors.iter().flat_map(|s| s.commands.iter().map(move |c| (s.name.as_str(), c))).collect();
     let (sensor, command) = commands[usize::from(*selector) % commands.len()];
     let layout = command.layout();

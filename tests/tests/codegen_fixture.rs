@@ -17,9 +17,7 @@ fn fixture_dir() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("fixtures/do-probe/spec")
 }
 
-fn spec_dir() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../spec")
-}
+use yosemitech_tests::spec_dir;
 
 #[test]
 fn fixture_decodes_its_own_examples() {
@@ -196,6 +194,7 @@ fn runtime_path_must_be_a_path() {
     let ok =
         yosemitech_codegen::Config::new().runtime_crate("crate::rtu").device_handles(false).generate(&[spec_dir()]);
     let ok = ok.unwrap();
-    let source = &ok.sensor("ph_orp").unwrap().source;
+    let first = &yosemitech_tests::spec().sensors[0].name;
+    let source = &ok.sensor(first).unwrap().source;
     assert!(source.contains("use crate::rtu as rtu;") && !source.contains("pub struct Device"));
 }

@@ -1,5 +1,5 @@
 //! Differential test: the generated codecs against the spec's reference
-//! interpreter (`yosemitech_spec::Command::{decode_request, decode_response,
+//! interpreter (`yosemitech_spec::CommandSpec::{decode_request, decode_response,
 //! encode_request, encode_response}`), two independent walks of the same
 //! spec, for every command of every generated module (through
 //! `CommandId::ALL`; none is listed here).
@@ -9,17 +9,17 @@
 //! the same outcome: the same `FrameError`, or the same values bit for bit.
 //! On arbitrary values both encode the same frame or both refuse.
 
-mod codec_common;
+use yosemitech_tests::codec as codec_common;
 
 use codec_common::{Cmd, data_strategy, sensors, usable_slave};
 use proptest::prelude::*;
 use proptest::test_runner::{Config, TestCaseError, TestRunner};
-use yosemitech_spec::Command;
+use yosemitech_spec::CommandSpec;
 
 const CASES: u32 = 512;
 
 /// Valid frames from random register data, and the slave they are for.
-fn valid_frames(command: &Command, request: bool) -> impl Strategy<Value = (Vec<u8>, u8)> + use<> {
+fn valid_frames(command: &CommandSpec, request: bool) -> impl Strategy<Value = (Vec<u8>, u8)> + use<> {
     let c = command.clone();
     (data_strategy(command), 1u8..=247).prop_map(move |(data, slave)| {
         let slave = usable_slave(&c, slave);
@@ -33,7 +33,7 @@ fn valid_frames(command: &Command, request: bool) -> impl Strategy<Value = (Vec<
 }
 
 /// Frames worth comparing on: valid ones, valid ones with a byte changed, and noise.
-fn frame_strategy(command: &Command, request: bool) -> impl Strategy<Value = (Vec<u8>, u8)> + use<> {
+fn frame_strategy(command: &CommandSpec, request: bool) -> impl Strategy<Value = (Vec<u8>, u8)> + use<> {
     let len = if request { command.layout().request_len() } else { command.layout().response_len() };
     prop_oneof![
         4 => valid_frames(command, request),
@@ -51,7 +51,7 @@ fn runner() -> TestRunner {
     TestRunner::new(Config { cases: CASES, failure_persistence: None, ..Config::default() })
 }
 
-fn for_each_command(name: &str, mut check: impl FnMut(&mut TestRunner, &Cmd, &Command) -> Result<(), String>) {
+fn for_each_command(name: &str, mut check: impl FnMut(&mut TestRunner, &Cmd, &CommandSpec) -> Result<(), String>) {
     let mut commands = 0;
     for (api, sensor) in &sensors() {
         for cmd in &api.commands {

@@ -13,7 +13,7 @@
 use std::path::PathBuf;
 use std::process::Command;
 
-use yosemitech_sim::{Device, Simulator};
+use yosemitech_sim::{FrameHandler, Simulator};
 use yosemitech_spec::Spec;
 
 fn workspace() -> PathBuf {

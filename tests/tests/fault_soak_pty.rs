@@ -37,7 +37,7 @@
 //! exercises the client's realignment.
 #![cfg(unix)]
 
-mod sim_common;
+use yosemitech_tests::sim as sim_common;
 
 use std::collections::BTreeMap;
 use std::time::{Duration, Instant};
@@ -46,7 +46,7 @@ use sim_common::{float_write_with_readback, is_f32, is_float_read, request, spec
 use yosemitech::{Client, ClientConfig, Error, ExceptionCode, FieldValue, FrameError, RetryPolicy};
 use yosemitech_rtu::{SensorModule, SerialConfig, SerialTransport, Transport, crc_ok, crc16};
 use yosemitech_sim::{FaultConfig, FaultCounts, FaultKind, ServeConfig, Server, Simulator, serve_pty};
-use yosemitech_spec::{Command, Sensor, Spec, Value};
+use yosemitech_spec::{CommandSpec, Sensor, Spec, Value};
 
 /// The client's timeout for a call whose reply comes: generous, since a
 /// loaded machine may hold a reply back for a while, and free on an idle
@@ -83,15 +83,15 @@ const BARRIER_ADDRESS: u8 = 200;
 /// float write with the read that reads it back.
 struct Choice {
     sensor: Sensor,
-    reads: Vec<Command>,
-    write: (Command, Command),
+    reads: Vec<CommandSpec>,
+    write: (CommandSpec, CommandSpec),
 }
 
 /// The first two sensors of the spec with float reads and a float write
 /// read back, whose generated module the `yosemitech` crate has.
 fn probes(spec: &Spec) -> (Choice, Choice) {
     let mut chosen = spec.sensors.iter().filter(|s| module(&s.name).is_some()).filter_map(|s| {
-        let reads: Vec<Command> = s.commands.iter().filter(|c| is_float_read(c)).cloned().collect();
+        let reads: Vec<CommandSpec> = s.commands.iter().filter(|c| is_float_read(c)).cloned().collect();
         let write = float_write_with_readback(s)?;
         (!reads.is_empty()).then(|| Choice { sensor: s.clone(), reads, write })
     });
@@ -248,7 +248,7 @@ fn ops(choice: &Choice) -> Vec<Op> {
 }
 
 /// The values a write of K and B sends: its fields alternately K and B.
-fn kb_values(write: &Command, k: f32, b: f32) -> Vec<(String, Value)> {
+fn kb_values(write: &CommandSpec, k: f32, b: f32) -> Vec<(String, Value)> {
     write
         .fields
         .iter()
@@ -529,7 +529,7 @@ fn check_requests(probe: &Probe) {
 fn fault_soak_through_the_pty() {
     let spec = spec();
     let mut rng = Rng(0x5EED_0FFA_1700);
-    let (first, second) = probes(&spec);
+    let (first, second) = probes(spec);
     let first_calls = CALLS * 2 / 3;
     let second_calls = CALLS - first_calls;
     let first_script = script(&mut rng, first_calls);
@@ -606,7 +606,7 @@ fn function_code_addresses_with_noise_through_the_pty() {
     // before the client learned to realign (`AA 03 03 04 ...`). A reply held
     // up past REPLY_TIMEOUT by a stalled machine is tolerated, not more.
     let spec = spec();
-    let (first, second) = probes(&spec);
+    let (first, second) = probes(spec);
     let Some(mut one) = open(&first.sensor, FIRST_ADDRESS, vec![Some(FaultKind::Garbage); 200]) else { return };
     let Some(mut two) = open(&second.sensor, SECOND_ADDRESS, vec![Some(FaultKind::Garbage); 200]) else { return };
     let read = Op::Read(first.reads[0].name.clone());

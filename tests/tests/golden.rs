@@ -15,7 +15,7 @@
 //!   decodable (E4, byte count 0x0C) decodes, one it marks as wrong (E5, no
 //!   CRC) is rejected with a typed error, and every corrected frame decodes.
 
-mod codec_common;
+use yosemitech_tests::codec as codec_common;
 
 use codec_common::{Decoded, sensors};
 use yosemitech_rtu::FrameError;
@@ -189,7 +189,7 @@ fn every_printed_frame_replays() {
         }
     }
     let manual_frames = frames - fixture_frames;
-    let summary = codec_common::spec().summary();
+    let summary = codec_common::generated_spec().summary();
     yosemitech_tests::report!(
         "golden: replayed {frames} complete frames ({manual_frames} from the manuals, {fixture_frames} from the fixture spec) \
          and checked {partial} partial ones; {examples} examples of {commands} commands, {} sensors; errata checked: {}",

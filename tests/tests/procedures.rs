@@ -1,8 +1,8 @@
 //! The manuals' procedures (yosemitech::procedures) against the simulator.
 
-mod sim_common;
+use yosemitech_tests::sim as sim_common;
 
-use sim_common::{sensor, spec};
+use sim_common::sensor;
 
 use std::time::Duration;
 
@@ -14,9 +14,9 @@ use yosemitech::procedures::ph::{CalibrationConfig, CalibrationGuide, calibrate}
 use yosemitech::procedures::{NoSleep, ProcedureError, Sleep};
 use yosemitech::rtu::transport::Responder;
 use yosemitech::yosemitech_common::{GetSn, SetSlaveId};
-use yosemitech::{Client, ClientConfig, Command, Layout, ResponderTransport, RetryPolicy, conductivity, ph_orp};
+use yosemitech::{Client, ClientConfig, Command, ResponderTransport, RetryPolicy, conductivity, ph_orp};
 use yosemitech_sim::{Bus, Simulator};
-use yosemitech_spec::{Role, Sensor};
+use yosemitech_spec::Sensor;
 
 fn fast() -> ClientConfig {
     ClientConfig {
@@ -31,20 +31,10 @@ fn client<R: Responder>(responder: R) -> Client<ResponderTransport<R>> {
     Client::with_config(ResponderTransport::new(responder), fast())
 }
 
-/// Whether `sensor`'s command with `role` is the shared command of `layout`.
-fn plays(sensor: &Sensor, role: Role, layout: Layout<'static>) -> bool {
-    sensor.command_with_role(role).is_some_and(|c| c.layout() == layout)
-}
-
 /// Every sensor of the spec whose slave-address write and serial-number read
-/// are the shared `SetSlaveId` and `GetSn`: each one the generic address
-/// change can move with those types, picked from the spec by role.
+/// are the shared `SetSlaveId` and `GetSn`, picked from the spec by role.
 fn address_sensors() -> Vec<Sensor> {
-    let sensors: Vec<Sensor> = spec()
-        .sensors
-        .into_iter()
-        .filter(|s| plays(s, Role::SetSlaveAddress, SetSlaveId::LAYOUT) && plays(s, Role::SerialNumber, GetSn::LAYOUT))
-        .collect();
+    let sensors = sim_common::sensors_sharing_address_commands(SetSlaveId::LAYOUT, GetSn::LAYOUT);
     assert!(sensors.len() >= 2, "the spec has sensors with the shared address commands");
     sensors
 }

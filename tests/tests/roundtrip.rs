@@ -10,13 +10,13 @@
 //! - a valid frame with a bit flipped, cut short or with bytes appended
 //!   never decodes to `Ok` with different values.
 
-mod codec_common;
+use yosemitech_tests::codec as codec_common;
 
 use codec_common::{Api, Cmd, Decoded, data_strategy, normalized, sensors, usable_slave};
 use proptest::prelude::*;
 use proptest::test_runner::{Config, TestCaseError, TestRunner};
 use yosemitech_rtu::EncodeError;
-use yosemitech_spec::{Command, FieldKind, Sensor};
+use yosemitech_spec::{CommandSpec, FieldKind, Sensor};
 
 const CASES: u32 = 256;
 
@@ -27,7 +27,7 @@ fn runner() -> TestRunner {
 /// Runs `check` for every command, counting cases.
 fn for_each_command(
     name: &str,
-    mut check: impl FnMut(&mut TestRunner, &Api, &Sensor, &Cmd, &Command) -> Result<(), String>,
+    mut check: impl FnMut(&mut TestRunner, &Api, &Sensor, &Cmd, &CommandSpec) -> Result<(), String>,
 ) {
     let mut commands = 0;
     for (api, sensor) in &sensors() {
@@ -53,7 +53,7 @@ fn fail(msg: String) -> TestCaseError {
 }
 
 /// Whether some range-checked field of `data` is outside its range (as the spec says).
-fn out_of_range(command: &Command, data: &[u8]) -> bool {
+fn out_of_range(command: &CommandSpec, data: &[u8]) -> bool {
     let values = yosemitech_spec::interp::decode_fields(command, data);
     let map = values.into_iter().collect();
     matches!(
@@ -118,10 +118,8 @@ fn responses_round_trip_bit_exactly() {
                     _ => None,
                 }) {
                     if spec_cmd.is_read() {
-                        let bits = yosemitech_rtu::codec::u32_from_wire(
-                            order.rtu(),
-                            data[offset..offset + 4].try_into().unwrap(),
-                        );
+                        let bits =
+                            yosemitech_rtu::codec::u32_from_wire(order, data[offset..offset + 4].try_into().unwrap());
                         let got = decoded.values.iter().find(|(n, _)| *n == name).map(|(_, v)| v.clone());
                         prop_assert_eq!(got, Some(codec_common::Val::F32(bits)));
                     }

@@ -1,7 +1,7 @@
 //! The simulator's device behaviour: state, addressing, exceptions,
 //! calibration, measurement trigger, the bus.
 
-mod sim_common;
+use yosemitech_tests::sim as sim_common;
 
 use std::time::Duration;
 
@@ -10,8 +10,8 @@ use sim_common::{
     float_write_with_readback, is_f32, is_float_read, request, same, sensor_with_role, spec, with_crc, with_role,
 };
 use yosemitech_rtu::{Error, Function, ResponderTransport};
-use yosemitech_sim::{Bus, Device, MeasurementState, Simulator, UnknownRequestPolicy, Variation, WarmUpPolicy};
-use yosemitech_spec::{Command, Role, Sensor, Value};
+use yosemitech_sim::{Bus, FrameHandler, MeasurementState, Simulator, UnknownRequestPolicy, Variation, WarmUpPolicy};
+use yosemitech_spec::{CommandSpec, Role, Sensor, Value};
 
 fn f(v: f32) -> Value {
     Value::Float(v)
@@ -54,7 +54,7 @@ fn writes_are_read_back() {
 
 #[test]
 fn readings_set_by_name_are_served() {
-    let (probe, get) = float_read(&spec());
+    let (probe, get) = float_read(spec());
     let (slave, name) = (probe.default_address, first_field(&get));
     let mut sim = Simulator::new(probe.clone());
     sim.set(&get.name, &name, f(7.0)).unwrap();
@@ -62,7 +62,8 @@ fn readings_set_by_name_are_served() {
     let mut expected = vec![slave, 0x03, 0x04];
     expected.extend_from_slice(&f32_bytes(&get.fields[0], 7.0));
     assert_eq!(reply, with_crc(&expected));
-    let with_field: Vec<&Command> = probe.commands.iter().filter(|c| c.is_read() && c.field(&name).is_some()).collect();
+    let with_field: Vec<&CommandSpec> =
+        probe.commands.iter().filter(|c| c.is_read() && c.field(&name).is_some()).collect();
     assert_eq!(sim.set_everywhere(&name, f(8.5)).unwrap(), with_field.len());
     for read in &with_field {
         assert_eq!(sim.get(&read.name, &name).unwrap(), f(8.5), "{}", read.name);
@@ -93,7 +94,7 @@ fn readings_set_by_name_are_served() {
 
 /// A sensor with slave address commands (the getter answering the 0xFF
 /// wildcard) and a float read.
-fn addressable() -> (Sensor, Command) {
+fn addressable() -> (Sensor, CommandSpec) {
     let sensor = spec()
         .sensors
         .iter()
@@ -109,7 +110,7 @@ fn addressable() -> (Sensor, Command) {
 }
 
 #[test]
-fn set_slave_id_takes_effect_after_the_reply() {
+fn address_write_takes_effect_after_the_reply() {
     let (probe, read) = addressable();
     let slave = probe.default_address;
     let set_id = with_role(&probe, Role::SetSlaveAddress);
@@ -132,7 +133,7 @@ fn set_slave_id_takes_effect_after_the_reply() {
 }
 
 #[test]
-fn get_slave_id_via_the_wildcard_reports_the_current_address() {
+fn fixed_slave_read_via_the_wildcard_reports_the_current_address() {
     let (probe, read) = addressable();
     let get_id = with_role(&probe, Role::GetSlaveAddress);
     let mut sim = Simulator::new(probe.clone()).with_address(7);
@@ -218,12 +219,13 @@ fn every_sensor_ignores_requests_that_match_no_command_by_default() {
 #[test]
 fn a_client_asking_for_a_register_the_probe_lacks_times_out() {
     // A read of one sensor sent to another that has no such register.
-    let sensors = spec().sensors;
+    let sensors = spec().sensors.clone();
     let (probe, foreign) = sensors
         .iter()
         .flat_map(|p| sensors.iter().filter(move |o| o.name != p.name).map(move |o| (p, o)))
         .find_map(|(p, o)| {
-            let lacks = |c: &&Command| !p.commands.iter().any(|q| q.function == c.function && q.address == c.address);
+            let lacks =
+                |c: &&CommandSpec| !p.commands.iter().any(|q| q.function == c.function && q.address == c.address);
             o.commands
                 .iter()
                 .filter(|c| c.is_read() && c.fixed_slave.is_none())
@@ -248,8 +250,8 @@ fn a_client_asking_for_a_register_the_probe_lacks_times_out() {
 /// The sensor whose spec has a calibration point command, with its single
 /// float point field and the standards (the list constant in the field's
 /// unit, as the simulator finds them).
-fn calibrating() -> (Sensor, Command, String, Vec<f32>) {
-    let probe = sensor_with_role(&spec(), Role::CalibrationPoint);
+fn calibrating() -> (Sensor, CommandSpec, String, Vec<f32>) {
+    let probe = sensor_with_role(spec(), Role::CalibrationPoint);
     let point = with_role(&probe, Role::CalibrationPoint);
     let field = point.named_fields().next().expect("a point field");
     let unit = field.unit.clone().expect("the point's unit");
@@ -328,7 +330,7 @@ fn exceptions_for_unknown_function_address_and_bad_counts_when_asked_for() {
 
 #[test]
 fn bad_crc_and_noise_are_ignored_silently() {
-    let (probe, read) = float_read(&spec());
+    let (probe, read) = float_read(spec());
     let mut sim = Simulator::new(probe.clone());
     let mut req = request(&read, probe.default_address, &[]);
     req[7] ^= 0x01;
@@ -367,7 +369,7 @@ fn broadcast_writes_are_applied_without_reply() {
 fn bus_with_two_sensors_only_the_addressed_one_answers() {
     // A single-float read of one sensor, and another sensor with no register there.
     let spec = spec();
-    let (one, get_one) = float_read(&spec);
+    let (one, get_one) = float_read(spec);
     let (two, get_two) = spec
         .sensors
         .iter()
@@ -506,7 +508,7 @@ fn measurement_trigger_and_warm_up() {
 }
 
 /// The reply a trigger read gets: the manuals' form from the layout.
-fn manual_form(command: &Command, slave: u8) -> Vec<u8> {
+fn manual_form(command: &CommandSpec, slave: u8) -> Vec<u8> {
     let mut out = vec![0u8; command.layout().response_len()];
     let n = command.layout().encode_response(slave, &[], &mut out).unwrap();
     out.truncate(n);
@@ -526,7 +528,7 @@ fn every_start_and_stop_command_is_answered_and_moves_the_measurement_state() {
         let slave = sensor.default_address;
         let mut sim = Simulator::new(sensor.clone()).with_manual_clock();
         sim.set_warm_up_policy(WarmUpPolicy::Busy);
-        let send = |sim: &mut Simulator, command: &Command| {
+        let send = |sim: &mut Simulator, command: &CommandSpec| {
             let reply = exchange(sim, &request(command, slave, &[]));
             if command.trigger && command.is_read() {
                 assert_eq!(reply, manual_form(command, slave), "{}.{}: the manuals' form", sensor.name, command.name);
@@ -562,7 +564,7 @@ fn every_start_and_stop_command_is_answered_and_moves_the_measurement_state() {
 
 #[test]
 fn variation_is_deterministic_and_bounded() {
-    let (probe, read) = float_read(&spec());
+    let (probe, read) = float_read(spec());
     let (slave, name) = (probe.default_address, first_field(&read));
     let run = |seed: u64| -> Vec<f32> {
         let mut sim = Simulator::new(probe.clone());
@@ -661,9 +663,9 @@ commands:
 
 #[test]
 fn a_device_trait_object_serves_too() {
-    let (probe, read) = float_read(&spec());
+    let (probe, read) = float_read(spec());
     let req = request(&read, probe.default_address, &[]);
-    let mut devices: Vec<Box<dyn Device>> = vec![Box::new(Simulator::new(probe)), Box::new(Bus::new())];
+    let mut devices: Vec<Box<dyn FrameHandler>> = vec![Box::new(Simulator::new(probe)), Box::new(Bus::new())];
     assert_eq!(exchange(&mut devices[0], &req).len(), read.layout().response_len());
     assert!(exchange(&mut devices[1], &req).is_empty(), "an empty bus is silent");
 }

@@ -3,17 +3,17 @@
 //! the serial number as a real probe sends it differs from the manual's only
 //! by the model code.
 
-mod sim_common;
+use yosemitech_tests::sim as sim_common;
 
 use sim_common::{exchange, spec};
 use yosemitech_rtu::Hex;
 use yosemitech_sim::{SerialNumberPolicy, Simulator};
-use yosemitech_spec::{Command, Example, FieldKind, Role, Sensor, Value};
+use yosemitech_spec::{CommandSpec, Example, FieldKind, Role, Sensor, Value};
 
 /// The address a fresh simulator needs to answer `example` as printed: the
 /// request's slave, or for a fixed-slave command (get_slave_id at 0xFF) the
 /// address the example reports (its first named field).
-fn address_for(command: &Command, example: &Example) -> u8 {
+fn address_for(command: &CommandSpec, example: &Example) -> u8 {
     if command.fixed_slave.is_some() {
         let field =
             command.named_fields().next().and_then(|f| f.name.as_deref()).expect("a fixed-slave command's field");
@@ -105,7 +105,7 @@ fn examples_replayed_in_order_on_one_device_per_sensor() {
                 assert_eq!(reply[0], command.fixed_slave.unwrap_or(before), "reply from the old address");
                 assert_eq!(reply[1], true_response[1], "{}.{}: {}", sensor.name, command.name, Hex(&reply));
                 if command.role == Some(Role::GetSlaveAddress) {
-                    assert_eq!(reply[3], sim.address(), "get_slave_id reports the current address");
+                    assert_eq!(reply[3], sim.address(), "the wildcard address read reports the current address");
                 }
                 if command.role == Some(Role::SetSlaveAddress) {
                     let field = command.named_fields().next().and_then(|f| f.name.as_deref()).unwrap();
@@ -115,7 +115,12 @@ fn examples_replayed_in_order_on_one_device_per_sensor() {
                 }
             }
         }
-        assert_eq!(sim.address(), expected_address, "{}: where set_slave_id's examples moved the device", sensor.name);
+        assert_eq!(
+            sim.address(),
+            expected_address,
+            "{}: where the address write's examples moved the device",
+            sensor.name
+        );
         assert_eq!(sim.stats().exceptions, 0, "{}", sensor.name);
         assert_eq!(sim.stats().ignored_unknown, 0, "{}: every example request matches a command", sensor.name);
     }

@@ -2,53 +2,60 @@
 //! counters that match, retries that recover, and a soak that accepts no
 //! wrong value.
 
-mod sim_common;
+use yosemitech_tests::sim as sim_common;
 
 use std::collections::BTreeMap;
 use std::thread;
 use std::time::{Duration, Instant};
 
-use sim_common::{client, command, request, same, sensor, spec};
+use sim_common::{client, exchange, float_read, request, same, spec};
 use yosemitech_rtu::{
     Client, ClientConfig, Error, ExceptionCode, FrameError, ResponderTransport, RetryPolicy, Transport,
 };
 use yosemitech_sim::{Bus, FaultConfig, FaultKind, Rng, ServeConfig, Simulator, serve_memory};
-use yosemitech_spec::{Command, Field, FieldKind, Role, Sensor, Value};
+use yosemitech_spec::{CommandSpec, Field, FieldKind, Role, Sensor, Value};
 
 const TIMEOUT: Duration = Duration::from_millis(20);
 
-/// get_ph on a pH simulator that injects `fault` into its first reply.
-/// Returns the result, the bytes the client received and the simulator.
-fn one_fault(fault: FaultKind) -> (Result<Vec<u8>, Error>, Vec<u8>, Simulator) {
-    let ph = sensor("ph_orp");
-    let get_ph = command(&ph, "get_ph");
-    let sim = Simulator::new(ph).with_faults(FaultConfig::scripted([Some(fault)]));
-    let mut client = client(ResponderTransport::new(sim), TIMEOUT);
-    let result = client.call_raw(&request(&get_ph, 1, &[]), &get_ph.layout()).map(<[u8]>::to_vec);
-    let received = client.last_reply().to_vec();
-    (result, received, client.into_transport().into_responder())
+/// The spec's first single-float read, its sensor, and the reply a
+/// fault-free simulator gives it at the sensor's factory address.
+fn float_read_with_reply() -> (Sensor, CommandSpec, Vec<u8>) {
+    let (probe, read) = float_read(spec());
+    let reply = exchange(&mut Simulator::new(probe.clone()), &request(&read, probe.default_address, &[]));
+    assert!(!reply.is_empty(), "{}: the simulator answers {}", probe.name, read.name);
+    (probe, read, reply)
 }
 
-const GET_PH_REPLY: [u8; 9] = [0x01, 0x03, 0x04, 0x33, 0x33, 0xF3, 0x40, 0x40, 0x78];
+/// A float read on a simulator that injects `fault` into its first reply,
+/// and the fault-free reply.
+/// Returns the result, the bytes the client received, the simulator and the
+/// fault-free reply.
+fn one_fault(fault: FaultKind) -> (Result<Vec<u8>, Error>, Vec<u8>, Simulator, Vec<u8>) {
+    let (probe, read, reply) = float_read_with_reply();
+    let slave = probe.default_address;
+    let sim = Simulator::new(probe).with_faults(FaultConfig::scripted([Some(fault)]));
+    let mut client = client(ResponderTransport::new(sim), TIMEOUT);
+    let result = client.call_raw(&request(&read, slave, &[]), &read.layout()).map(<[u8]>::to_vec);
+    let received = client.last_reply().to_vec();
+    (result, received, client.into_transport().into_responder(), reply)
+}
 
 #[test]
 fn each_fault_kind_is_seen_by_the_client_as_the_right_error() {
     for kind in FaultKind::ALL {
-        let (result, bytes, sim) = one_fault(kind);
+        let (result, bytes, sim, clean_reply) = one_fault(kind);
         match (kind, &result) {
             (FaultKind::Drop | FaultKind::Delay, Err(Error::Timeout { received })) => {
                 assert_eq!(*received, 0, "{kind}: silence, got {bytes:02X?}");
             }
             (FaultKind::CorruptCrc, Err(Error::Frame { error: FrameError::Crc { .. }, .. })) => {}
             (FaultKind::Truncate, Err(Error::Timeout { received })) => {
-                assert!(*received > 0 && GET_PH_REPLY.starts_with(&bytes), "{kind}: {bytes:02X?}");
+                assert!(*received > 0 && clean_reply.starts_with(&bytes), "{kind}: {bytes:02X?}");
             }
             // The rtu client skips noise before a frame: the reply is accepted.
-            (FaultKind::Garbage, Ok(reply)) => assert_eq!(reply, &GET_PH_REPLY),
-            (
-                FaultKind::WrongSlave,
-                Err(Error::Frame { error: FrameError::WrongSlave { expected: 1, actual: 2 }, .. }),
-            ) => {}
+            (FaultKind::Garbage, Ok(reply)) => assert_eq!(reply, &clean_reply),
+            (FaultKind::WrongSlave, Err(Error::Frame { error: FrameError::WrongSlave { expected, actual }, .. }))
+                if *expected == clean_reply[0] && actual != expected => {}
             (FaultKind::Busy, Err(e)) if e.exception() == Some(ExceptionCode::ServerDeviceBusy) => {}
             _ => panic!("{kind}: unexpected {result:?}"),
         }
@@ -61,51 +68,51 @@ fn each_fault_kind_is_seen_by_the_client_as_the_right_error() {
 
 #[test]
 fn retries_recover_from_a_scripted_sequence() {
-    let ph = sensor("ph_orp");
-    let get_ph = command(&ph, "get_ph");
+    let (probe, read, clean_reply) = float_read_with_reply();
+    let slave = probe.default_address;
     let script = [Some(FaultKind::Drop), Some(FaultKind::CorruptCrc), Some(FaultKind::WrongSlave), None];
-    let sim = Simulator::new(ph).with_faults(FaultConfig::scripted(script));
+    let sim = Simulator::new(probe).with_faults(FaultConfig::scripted(script));
     let config = ClientConfig {
         timeout: TIMEOUT,
         retry: RetryPolicy { retries: 3, backoff: Duration::ZERO, ..RetryPolicy::default() },
         ..ClientConfig::default()
     };
     let mut client = Client::with_config(ResponderTransport::new(sim), config);
-    let reply = client.call_raw(&request(&get_ph, 1, &[]), &get_ph.layout()).unwrap().to_vec();
-    assert_eq!(reply, GET_PH_REPLY);
+    let reply = client.call_raw(&request(&read, slave, &[]), &read.layout()).unwrap().to_vec();
+    assert_eq!(reply, clean_reply);
     let sim = client.transport().responder();
     assert_eq!(sim.faults().total(), 3);
     assert_eq!(sim.faults().replies(), 4);
     assert_eq!(sim.stats().reads, 4, "the device served every attempt");
     // A busy exception is not retried.
     client.transport_mut().responder_mut().set_faults(FaultConfig::scripted([Some(FaultKind::Busy)]));
-    let err = client.call_raw(&request(&get_ph, 1, &[]), &get_ph.layout()).unwrap_err();
+    let err = client.call_raw(&request(&read, slave, &[]), &read.layout()).unwrap_err();
     assert_eq!(err.exception(), Some(ExceptionCode::ServerDeviceBusy));
     assert_eq!(client.transport().responder().faults().get(FaultKind::Busy), 1, "counts go on across configurations");
 }
 
 #[test]
 fn a_delayed_reply_arrives_after_the_deadline_when_served_in_a_thread() {
-    let ph = sensor("ph_orp");
-    let get_ph = command(&ph, "get_ph");
+    let (probe, read, clean_reply) = float_read_with_reply();
+    let slave = probe.default_address;
     let delay = Duration::from_millis(200);
     let faults = FaultConfig { delay_by: delay, ..FaultConfig::scripted([Some(FaultKind::Delay)]) };
-    let (transport, server) = serve_memory(Simulator::new(ph).with_faults(faults), ServeConfig::default()).unwrap();
+    let (transport, server) = serve_memory(Simulator::new(probe).with_faults(faults), ServeConfig::default()).unwrap();
     let mut client = client(transport, Duration::from_millis(50));
     let start = Instant::now();
-    match client.call_raw(&request(&get_ph, 1, &[]), &get_ph.layout()) {
+    match client.call_raw(&request(&read, slave, &[]), &read.layout()) {
         Err(Error::Timeout { received }) => assert_eq!(received, 0),
         other => panic!("expected a timeout, got {other:?}"),
     }
     assert!(start.elapsed() < delay, "the client gave up before the reply came");
     // The late reply lands as stale input; the client discards it before the next request.
     let waiting = Instant::now();
-    while client.transport().available() < GET_PH_REPLY.len() {
+    while client.transport().available() < clean_reply.len() {
         assert!(waiting.elapsed() < Duration::from_secs(5), "the late reply never came");
         thread::sleep(Duration::from_millis(10));
     }
     assert!(start.elapsed() >= delay, "it came late");
-    assert_eq!(client.call_raw(&request(&get_ph, 1, &[]), &get_ph.layout()).unwrap(), GET_PH_REPLY);
+    assert_eq!(client.call_raw(&request(&read, slave, &[]), &read.layout()).unwrap(), clean_reply);
     assert_eq!(server.device().faults().get(FaultKind::Delay), 1);
     server.stop().unwrap();
 }
@@ -137,7 +144,7 @@ fn random_value(field: &Field, rng: &mut Rng) -> Value {
 }
 
 /// Random values for a write command's fields, within their ranges.
-fn random_values(command: &Command, rng: &mut Rng) -> BTreeMap<String, Value> {
+fn random_values(command: &CommandSpec, rng: &mut Rng) -> BTreeMap<String, Value> {
     command.named_fields().map(|f| (f.name.clone().unwrap(), random_value(f, rng))).collect()
 }
 
@@ -179,7 +186,7 @@ fn soak_10k_transactions_with_10_percent_faults_accepts_no_wrong_value() {
     let mut client = Client::with_config(ResponderTransport::new(bus), config);
     // Every command but the address-changing one and the 0xFF wildcard (two
     // devices would collide on it).
-    let plan: Vec<(u8, &Sensor, &Command)> = sensors
+    let plan: Vec<(u8, &Sensor, &CommandSpec)> = sensors
         .iter()
         .copied()
         .flat_map(|(address, sensor)| sensor.commands.iter().map(move |c| (address, sensor, c)))

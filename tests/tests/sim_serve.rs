@@ -1,7 +1,7 @@
 //! The simulator served from a thread: on a pty (rtu SerialTransport), over
 //! TCP (rtu TcpTransport), in memory, with line-timing emulation.
 
-mod sim_common;
+use yosemitech_tests::sim as sim_common;
 
 use std::time::{Duration, Instant};
 
@@ -11,7 +11,7 @@ use sim_common::{
 };
 use yosemitech_rtu::{CharFormat, Client, ClientConfig, LineTiming, RetryPolicy, TcpTransport, Transport};
 use yosemitech_sim::{Bus, Endpoint, ServeConfig, Simulator, UnknownRequestPolicy, serve_memory, serve_tcp};
-use yosemitech_spec::{Command, Role, Sensor, Value};
+use yosemitech_spec::{CommandSpec, Role, Sensor, Value};
 
 fn config() -> ClientConfig {
     ClientConfig { timeout: Duration::from_secs(2), retry: RetryPolicy::NONE, ..ClientConfig::default() }
@@ -20,7 +20,7 @@ fn config() -> ClientConfig {
 /// The sensor of the spec that the pty test needs: a float read with an
 /// example reply, a float write read back, and slave address commands (the
 /// getter answering the 0xFF wildcard); with those commands.
-fn addressable_probe() -> (Sensor, Command, (Command, Command), (Command, Command)) {
+fn addressable_probe() -> (Sensor, CommandSpec, (CommandSpec, CommandSpec), (CommandSpec, CommandSpec)) {
     spec()
         .sensors
         .iter()
@@ -52,7 +52,7 @@ fn tcp_serves_a_bus_of_two_sensors() {
     // A sensor with a single-float read, and another with a float read the
     // manual gives an example reply of.
     let spec = spec();
-    let (first, get_one) = float_read(&spec);
+    let (first, get_one) = float_read(spec);
     let (second, get_two, reading) = spec
         .sensors
         .iter()
@@ -100,7 +100,7 @@ fn tcp_serves_a_bus_of_two_sensors() {
 
 #[test]
 fn memory_serving_with_line_timing_approaches_the_wire_limit() {
-    let (probe, read) = float_read(&spec());
+    let (probe, read) = float_read(spec());
     let slave = probe.default_address;
     let line = LineTiming::new(9600, CharFormat::EIGHT_N_1);
     let (transport, server) = serve_memory(Simulator::new(probe), ServeConfig::emulating(line)).unwrap();
@@ -132,7 +132,7 @@ fn memory_serving_with_line_timing_approaches_the_wire_limit() {
 
 #[test]
 fn stopping_and_dropping_servers_join_their_threads() {
-    let (probe, _) = float_read(&spec());
+    let (probe, _) = float_read(spec());
     let server = serve_tcp(Simulator::new(probe.clone()), "127.0.0.1:0", ServeConfig::default()).unwrap();
     assert!(server.is_running());
     let start = Instant::now();
@@ -150,7 +150,7 @@ fn stopping_and_dropping_servers_join_their_threads() {
 
 #[test]
 fn a_gap_inside_a_request_resynchronises() {
-    let (probe, read) = float_read(&spec());
+    let (probe, read) = float_read(spec());
     let slave = probe.default_address;
     let serve = ServeConfig { inter_char_timeout: Duration::from_millis(30), ..ServeConfig::default() };
     let (mut transport, server) = serve_memory(Simulator::new(probe), serve).unwrap();
@@ -182,7 +182,7 @@ mod pty {
 
     /// Opens the server's pty as a client, or `None` (reason printed) where ptys are unavailable.
     fn open(config: ServeConfig) -> Option<(yosemitech_sim::Server<Simulator>, SerialTransport)> {
-        open_with(Simulator::new(float_read(&spec()).0), config)
+        open_with(Simulator::new(float_read(spec()).0), config)
     }
 
     /// [`open`] for a given simulator.
@@ -245,7 +245,7 @@ mod pty {
     fn pty_with_line_timing_emulation() {
         let line = LineTiming::new(9600, CharFormat::EIGHT_N_1);
         let Some((server, transport)) = open(ServeConfig::emulating(line)) else { return };
-        let (probe, read) = float_read(&spec());
+        let (probe, read) = float_read(spec());
         let mut client = Client::with_config(transport, config());
         let req = request(&read, probe.default_address, &[]);
         client.call_raw(&req, &read.layout()).unwrap();
@@ -270,7 +270,7 @@ mod pty {
     #[test]
     fn pty_server_outlives_its_clients() {
         let Some((server, transport)) = open(ServeConfig::default()) else { return };
-        let (probe, read) = float_read(&spec());
+        let (probe, read) = float_read(spec());
         let req = request(&read, probe.default_address, &[]);
         let mut client = Client::with_config(transport, config());
         client.call_raw(&req, &read.layout()).unwrap();

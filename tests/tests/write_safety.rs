@@ -10,9 +10,9 @@
 //!   failure's whereabouts) names the address the probe really answers at;
 //! - an address another device answers at, even with an exception, is in use.
 
-mod sim_common;
+use yosemitech_tests::sim as sim_common;
 
-use sim_common::{sensor, spec};
+use sim_common::sensor;
 
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
@@ -24,9 +24,9 @@ use yosemitech::procedures::ph::{CalibrationConfig, CalibrationGuide, calibrate}
 use yosemitech::procedures::{NoSleep, ProcedureError, Sleep};
 use yosemitech::rtu::transport::Responder;
 use yosemitech::yosemitech_common::{GetSn, GetSnResponse, SetSlaveId};
-use yosemitech::{Client, ClientConfig, Command, Layout, ResponderTransport, RetryPolicy, ph_orp};
+use yosemitech::{Client, ClientConfig, Command, ResponderTransport, RetryPolicy, ph_orp};
 use yosemitech_sim::{FaultConfig, FaultKind, Simulator};
-use yosemitech_spec::{Role, Sensor};
+use yosemitech_spec::Sensor;
 
 fn fast() -> ClientConfig {
     ClientConfig {
@@ -104,19 +104,10 @@ impl Responder for Link {
     }
 }
 
-/// Whether `sensor`'s command with `role` is the shared command of `layout`.
-fn plays(sensor: &Sensor, role: Role, layout: Layout<'static>) -> bool {
-    sensor.command_with_role(role).is_some_and(|c| c.layout() == layout)
-}
-
 /// Every sensor of the spec whose slave-address write and serial-number read
 /// are the shared `SetSlaveId` and `GetSn`, picked from the spec by role.
 fn address_sensors() -> Vec<Sensor> {
-    let sensors: Vec<Sensor> = spec()
-        .sensors
-        .into_iter()
-        .filter(|s| plays(s, Role::SetSlaveAddress, SetSlaveId::LAYOUT) && plays(s, Role::SerialNumber, GetSn::LAYOUT))
-        .collect();
+    let sensors = sim_common::sensors_sharing_address_commands(SetSlaveId::LAYOUT, GetSn::LAYOUT);
     assert!(!sensors.is_empty(), "the spec has sensors with the shared address commands");
     sensors
 }

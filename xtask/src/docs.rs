@@ -7,7 +7,7 @@ use std::path::Path;
 use std::process::ExitCode;
 
 use yosemitech_codegen::text;
-use yosemitech_spec::{Command, EnumRepr, Field, FieldKind, Order2, Order4, Sensor, Value};
+use yosemitech_spec::{CommandSpec, EnumRepr, Field, FieldKind, Sensor, Value};
 
 const USAGE: &str = "usage: cargo xtask docs [--check]";
 
@@ -46,40 +46,24 @@ fn file_name(path: &Path) -> String {
     path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default()
 }
 
-fn order4(o: Order4) -> &'static str {
-    match o {
-        Order4::Abcd => "ABCD (big-endian)",
-        Order4::Dcba => "DCBA (little-endian image)",
-        Order4::Cdab => "CDAB (word-swapped)",
-        Order4::Badc => "BADC (byte-swapped)",
-    }
-}
-
-fn order2(o: Order2) -> &'static str {
-    match o {
-        Order2::Ab => "AB (big-endian)",
-        Order2::Ba => "BA (little-endian)",
-    }
-}
-
 /// Type and byte order columns of a field.
 fn type_and_order(f: &Field) -> (String, String) {
     match &f.kind {
-        FieldKind::F32 { order } => ("f32".into(), order4(*order).into()),
+        FieldKind::F32 { order } => ("f32".into(), text::order4(*order)),
         FieldKind::U8 => ("u8".into(), "–".into()),
         FieldKind::I8 => ("i8".into(), "–".into()),
-        FieldKind::U16 { order } => ("u16".into(), order2(*order).into()),
-        FieldKind::I16 { order } => ("i16".into(), order2(*order).into()),
-        FieldKind::U32 { order } => ("u32".into(), order4(*order).into()),
-        FieldKind::I32 { order } => ("i32".into(), order4(*order).into()),
+        FieldKind::U16 { order } => ("u16".into(), text::order2(*order)),
+        FieldKind::I16 { order } => ("i16".into(), text::order2(*order)),
+        FieldKind::U32 { order } => ("u32".into(), text::order4(*order)),
+        FieldKind::I32 { order } => ("i32".into(), text::order4(*order)),
         FieldKind::Ascii { len, padding } => (format!("ascii[{len}], padded 0x{padding:02X}"), "as sent".into()),
         FieldKind::Version => ("version (major, minor)".into(), "major first".into()),
         FieldKind::Enum { repr: EnumRepr::U8, .. } => ("enum (1 byte)".into(), "–".into()),
-        FieldKind::Enum { repr: EnumRepr::U16(order), .. } => ("enum (2 bytes)".into(), order2(*order).into()),
+        FieldKind::Enum { repr: EnumRepr::U16(order), .. } => ("enum (2 bytes)".into(), text::order2(*order)),
         FieldKind::Reserved { fill, .. } => (format!("reserved, sent as 0x{fill:02X}"), "–".into()),
         FieldKind::Bcd => ("bcd (two decimal digits)".into(), "–".into()),
         FieldKind::Flags { repr: EnumRepr::U8, .. } => ("flags (1 byte)".into(), "–".into()),
-        FieldKind::Flags { repr: EnumRepr::U16(order), .. } => ("flags (2 bytes)".into(), order2(*order).into()),
+        FieldKind::Flags { repr: EnumRepr::U16(order), .. } => ("flags (2 bytes)".into(), text::order2(*order)),
     }
 }
 
@@ -103,7 +87,7 @@ pub fn register_map(s: &Sensor) -> String {
     for line in text::manuals(s) {
         let _ = writeln!(d, "- Manual {}", cell(&line));
     }
-    let _ = writeln!(d, "- Serial: {} (newest firmware)", text::serial(&s.serial));
+    let _ = writeln!(d, "- Serial: {} (newest firmware)", s.serial);
     let _ = writeln!(d, "- Slave addresses: {}..={} (factory: {})", s.min_address, s.max_address, s.default_address);
     let _ = writeln!(d, "- Rust module: `yosemitech::{}`\n", s.name);
     let _ = writeln!(
@@ -172,7 +156,7 @@ pub fn register_map(s: &Sensor) -> String {
     d
 }
 
-fn command_section(d: &mut String, c: &Command) {
+fn command_section(d: &mut String, c: &CommandSpec) {
     let _ = writeln!(d, "### {}\n", c.name);
     let _ = writeln!(d, "**{}**. {}\n", cell(&c.title), c.doc.trim());
     let func = if c.is_read() { "0x03 (read holding registers)" } else { "0x10 (write multiple registers)" };

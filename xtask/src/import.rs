@@ -333,7 +333,7 @@ fn first_word_lower(line: &str) -> String {
 
 /// A frame as printed: bytes (`None`: a placeholder), open-ended, CRC state.
 #[derive(Debug, Clone, PartialEq, Eq)]
-pub struct Frame {
+pub struct DraftFrame {
     /// Bytes before the CRC.
     pub bytes: Vec<Option<u8>>,
     /// Bytes of unknown number follow.
@@ -342,7 +342,7 @@ pub struct Frame {
     pub crc: Option<[u8; 2]>,
 }
 
-impl Frame {
+impl DraftFrame {
     /// The correct CRC, when every byte is known.
     pub fn computed_crc(&self) -> Option<[u8; 2]> {
         if self.open_ended {
@@ -403,9 +403,9 @@ pub struct DExample {
     /// Figure labels (`16`, `T3`).
     pub figures: Vec<String>,
     /// Request as printed.
-    pub request: Option<Frame>,
+    pub request: Option<DraftFrame>,
     /// Response as printed.
-    pub response: Option<Frame>,
+    pub response: Option<DraftFrame>,
     /// Values the manual states, by data offset: (offset, YAML value).
     pub values: Vec<(usize, String)>,
 }
@@ -451,7 +451,7 @@ pub struct Draft {
 }
 
 impl Draft {
-    fn frames(&self) -> impl Iterator<Item = &Frame> {
+    fn frames(&self) -> impl Iterator<Item = &DraftFrame> {
         self.commands.iter().flat_map(|c| c.examples.iter()).flat_map(|e| [&e.request, &e.response]).flatten()
     }
 
@@ -462,7 +462,7 @@ impl Draft {
 
     /// The import report.
     pub fn report(&self) -> String {
-        let frames: Vec<&Frame> = self.frames().collect();
+        let frames: Vec<&DraftFrame> = self.frames().collect();
         let verified = frames.iter().filter(|f| f.crc_verified()).count();
         let wrong = frames.iter().filter(|f| f.crc_wrong()).count();
         let without = frames.iter().filter(|f| f.crc.is_none()).count();
@@ -776,7 +776,7 @@ fn named_range_images(sec: &[String]) -> Vec<Image> {
 
 /// The data layout of one frame: items with their data offsets.
 struct Built {
-    frame: Frame,
+    frame: DraftFrame,
     function: u8,
     is_request: bool,
     data: Vec<(usize, Item)>,
@@ -837,7 +837,7 @@ fn build_items(
         // The labels and the byte count disagree ("meaningless" bytes, a byte
         // count over a different range): keep the header, the rest is unknown.
         return Ok(Built {
-            frame: Frame { bytes, open_ended: true, crc: None },
+            frame: DraftFrame { bytes, open_ended: true, crc: None },
             function,
             is_request,
             data,
@@ -905,7 +905,7 @@ fn build_items(
         [Item::Byte(a), Item::Byte(b)] => Some([*a, *b]),
         _ => return Err("the cells after the data are not a two-byte CRC".into()),
     };
-    Ok(Built { frame: Frame { bytes, open_ended: false, crc }, function, is_request, data, todo })
+    Ok(Built { frame: DraftFrame { bytes, open_ended: false, crc }, function, is_request, data, todo })
 }
 
 /// A frame whose column labels name every cell's bytes (`7-30` under
@@ -997,7 +997,7 @@ fn build_from_labelled_cells(
         ));
     }
     let todo = (!placeholders.is_empty()).then(|| placeholders.join("; "));
-    Some(Built { frame: Frame { bytes, open_ended: false, crc }, function: 0, is_request: false, data, todo })
+    Some(Built { frame: DraftFrame { bytes, open_ended: false, crc }, function: 0, is_request: false, data, todo })
 }
 
 fn snake(s: &str) -> String {
@@ -1131,23 +1131,8 @@ pub fn shared_commands(spec_dir: &Path) -> Vec<Shared> {
 }
 
 fn dfield(f: &yosemitech_spec::Field) -> DField {
-    use yosemitech_spec::{EnumRepr, FieldKind as K, Order2, Order4};
-    let o2 = |o: &Order2| match o {
-        Order2::Ab => "ab",
-        Order2::Ba => "ba",
-    };
-    let o4 = |o: &Order4| match o {
-        Order4::Abcd => "abcd",
-        Order4::Dcba => "dcba",
-        Order4::Cdab => "cdab",
-        Order4::Badc => "badc",
-    };
-    let order = match &f.kind {
-        K::F32 { order } | K::U32 { order } | K::I32 { order } => Some(o4(order)),
-        K::U16 { order } | K::I16 { order } => Some(o2(order)),
-        K::Enum { repr: EnumRepr::U16(o), .. } | K::Flags { repr: EnumRepr::U16(o), .. } => Some(o2(o)),
-        _ => None,
-    };
+    use yosemitech_spec::FieldKind as K;
+    let order = f.kind.byte_order_name();
     let codes = match &f.kind {
         K::Enum { variants, .. } => variants.iter().map(|v| (v.value, v.name.clone())).collect(),
         K::Flags { flags, .. } => flags.iter().map(|v| (v.mask, v.name.clone())).collect(),
@@ -1451,7 +1436,7 @@ fn import_command(sec: &[String], shared: &[Shared]) -> DCommand {
         }
     }
     // Examples: pair each request with the next response.
-    let mut pending: Option<(Option<String>, Frame)> = None;
+    let mut pending: Option<(Option<String>, DraftFrame)> = None;
     let data_of = |b: &Built| b.data.clone();
     let mut carrier_data: Vec<(usize, Item)> = Vec::new();
     for (label, b) in &built {
@@ -1961,10 +1946,10 @@ fn version_le(a: &str, b: &str) -> bool {
     p(a) <= p(b)
 }
 
-fn printed_key(f: &yosemitech_spec::PrintedFrame) -> Frame {
+fn printed_key(f: &yosemitech_spec::PrintedFrame) -> DraftFrame {
     let n = if f.crc_printed { f.bytes.len().saturating_sub(2) } else { f.bytes.len() };
     let crc = f.crc_printed.then(|| [f.bytes[n].unwrap_or(0), f.bytes[n + 1].unwrap_or(0)]);
-    Frame { bytes: f.bytes[..n].to_vec(), open_ended: f.open_ended, crc }
+    DraftFrame { bytes: f.bytes[..n].to_vec(), open_ended: f.open_ended, crc }
 }
 
 /// Compares a draft with the reviewed spec of the manual `file`.
@@ -1979,7 +1964,7 @@ pub fn compare(draft: &Draft, spec: &yosemitech_spec::Spec, file: &str) -> Optio
         todos: draft.todo_count(),
         ..Accuracy::default()
     };
-    let mut draft_frames: Vec<Frame> = draft.frames().cloned().collect();
+    let mut draft_frames: Vec<DraftFrame> = draft.frames().cloned().collect();
     for c in &sensor.commands {
         let in_manual = c.since.as_deref().is_none_or(|s| version_le(s, &software))
             && (c.examples.is_empty()

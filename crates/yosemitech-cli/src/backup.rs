@@ -34,7 +34,7 @@ use std::time::SystemTime;
 use serde_json::{Map, Value as Json, json};
 use yosemitech::procedures::coefficients::PhOrpCoefficients;
 use yosemitech::{Command as _, FieldInfo, ph_orp};
-use yosemitech_spec::{Command, Value, Values};
+use yosemitech_spec::{CommandSpec, Value, Values};
 
 use crate::catalog::{Catalog, Entry, coefficient_blocks};
 use crate::device;
@@ -146,7 +146,7 @@ pub fn ph_orp_blocks(c: &PhOrpCoefficients) -> Blocks {
 /// The values a coefficient read returned, under the names of the write
 /// command that restores them (the two share address and register count,
 /// so their fields pair up in order).
-fn named_as_write(write: &Command, values: Values) -> Result<BTreeMap<String, f32>> {
+fn named_as_write(write: &CommandSpec, values: Values) -> Result<BTreeMap<String, f32>> {
     let names: Vec<&str> = write.named_fields().map(|f| f.display_name()).collect();
     let floats: Vec<f32> = values
         .into_iter()

@@ -13,7 +13,7 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 use yosemitech_spec::sources::{FsSources, MemSources, Sources};
-use yosemitech_spec::{Command, Sensor, load_with};
+use yosemitech_spec::{CommandSpec, Sensor, load_with};
 
 use crate::error::{CliError, Result};
 
@@ -167,7 +167,7 @@ impl Catalog {
 
 /// The command called `name` of `sensor` (`-` for `_`, and `ph` for
 /// `get_ph` when that is a read), or an error suggesting the closest name.
-pub fn command<'s>(sensor: &'s Sensor, name: &str) -> Result<&'s Command> {
+pub fn command<'s>(sensor: &'s Sensor, name: &str) -> Result<&'s CommandSpec> {
     let wanted = name.replace('-', "_");
     if let Some(c) = sensor.command(&wanted).or_else(|| sensor.command(&format!("get_{wanted}"))) {
         return Ok(c);
@@ -211,7 +211,7 @@ fn edit_distance(a: &str, b: &str) -> usize {
 
 /// Reads a command `write` covers entirely (for read-back), if any: the
 /// smallest such read.
-pub fn read_back_for<'s>(sensor: &'s Sensor, write: &Command) -> Option<&'s Command> {
+pub fn read_back_for<'s>(sensor: &'s Sensor, write: &CommandSpec) -> Option<&'s CommandSpec> {
     if write.count == 0 {
         return None;
     }
@@ -226,7 +226,7 @@ pub fn read_back_for<'s>(sensor: &'s Sensor, write: &Command) -> Option<&'s Comm
 /// True for a read that no write covers and that has a field with a unit:
 /// a measurement (pH, temperature, conductivity, ORP), as the simulator
 /// defines it.
-pub fn is_measurement(sensor: &Sensor, read: &Command) -> bool {
+pub fn is_measurement(sensor: &Sensor, read: &CommandSpec) -> bool {
     let (start, end) = (u32::from(read.address), u32::from(read.address) + u32::from(read.count));
     read.is_read()
         && read.fields.iter().any(|f| f.unit.is_some())
@@ -239,7 +239,7 @@ pub fn is_measurement(sensor: &Sensor, read: &Command) -> bool {
 /// The calibration-coefficient blocks of a sensor: writes (not triggers)
 /// of float fields only, with a read of exactly the same registers, that
 /// do not set the slave address. Keyed by the write's name.
-pub fn coefficient_blocks(sensor: &Sensor) -> Vec<(&Command, &Command)> {
+pub fn coefficient_blocks(sensor: &Sensor) -> Vec<(&CommandSpec, &CommandSpec)> {
     sensor
         .commands
         .iter()
@@ -257,9 +257,7 @@ mod tests {
     use super::*;
 
     /// The workspace's spec, read from disk: what the binary embeds.
-    fn spec() -> yosemitech_spec::Spec {
-        yosemitech_spec::load_paths(&[concat!(env!("CARGO_MANIFEST_DIR"), "/../../spec").into()]).unwrap()
-    }
+    use yosemitech_tests::spec;
 
     #[test]
     fn built_in_spec_loads_every_file() {
@@ -273,9 +271,9 @@ mod tests {
 
     #[test]
     fn suggests_close_names() {
-        assert_eq!(closest("ph_or", &["ph_orp", "conductivity"]), Some("ph_orp"));
-        assert_eq!(closest("conductivty", &["ph_orp", "conductivity"]), Some("conductivity"));
-        assert_eq!(closest("zzzzzzzz", &["ph_orp", "conductivity"]), None);
+        assert_eq!(closest("probe_a", &["probe_ab", "other"]), Some("probe_ab"));
+        assert_eq!(closest("othr", &["probe_ab", "other"]), Some("other"));
+        assert_eq!(closest("zzzzzzzz", &["probe_ab", "other"]), None);
         assert_eq!(edit_distance("kitten", "sitting"), 3);
         let catalog = Catalog::load(&[]).unwrap();
         for entry in catalog.entries() {

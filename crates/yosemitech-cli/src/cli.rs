@@ -3,7 +3,7 @@
 use std::path::PathBuf;
 use std::time::Duration;
 
-use clap::{ArgAction, Args, Parser, Subcommand, ValueEnum};
+use clap::{ArgAction, Args, Parser, ValueEnum};
 
 use crate::format::parse_duration;
 use crate::port::{AddressArg, PortArgs};
@@ -52,7 +52,7 @@ pub struct Cli {
     pub global: Global,
     /// What to do.
     #[command(subcommand)]
-    pub command: Command,
+    pub command: Subcommand,
 }
 
 /// Options every subcommand takes.
@@ -74,8 +74,8 @@ pub struct Global {
 }
 
 /// The subcommands.
-#[derive(Subcommand, Debug)]
-pub enum Command {
+#[derive(clap::Subcommand, Debug)]
+pub enum Subcommand {
     /// Run simulated pH/ORP and conductivity probes on pseudo-terminals and talk to them.
     #[command(long_about = "\
 Start simulated pH/ORP and conductivity probes on pseudo-terminals (no hardware, no root) and
@@ -129,11 +129,11 @@ the readings when stderr is a terminal.")]
 
     /// Run a guided calibration.
     #[command(subcommand)]
-    Calibrate(CalibrateCommand),
+    Calibrate(CalibrateSubcommand),
 
     /// Back up or restore every calibration coefficient of a probe (JSON).
     #[command(subcommand)]
-    Coefficients(CoefficientsCommand),
+    Coefficients(CoefficientsSubcommand),
 
     /// Find the probes on a bus and name each one's model and firmware.
     #[command(long_about = "\
@@ -289,8 +289,8 @@ pub struct MeasureArgs {
 }
 
 /// `calibrate`.
-#[derive(Subcommand, Debug)]
-pub enum CalibrateCommand {
+#[derive(clap::Subcommand, Debug)]
+pub enum CalibrateSubcommand {
     /// Guided three-point pH calibration (buffers 4.00, 6.86, 9.18).
     #[command(long_about = "\
 The pH manual's three-point calibration. Every coefficient is first saved to a JSON file
@@ -321,8 +321,8 @@ pub struct CalibratePhArgs {
 }
 
 /// `coefficients`.
-#[derive(Subcommand, Debug)]
-pub enum CoefficientsCommand {
+#[derive(clap::Subcommand, Debug)]
+pub enum CoefficientsSubcommand {
     /// Save every calibration coefficient to a JSON file.
     Backup(CoefficientsBackupArgs),
     /// Write every calibration coefficient from a JSON file, then read it back.

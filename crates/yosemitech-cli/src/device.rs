@@ -3,20 +3,20 @@
 use std::collections::BTreeMap;
 
 use yosemitech::procedures::ProcedureError;
-use yosemitech_spec::{Command, Value, Values};
+use yosemitech_spec::{CommandSpec, Value, Values};
 
 use crate::catalog::{Entry, Origin};
 use crate::error::{CliError, Context, Result, request_failed};
 use crate::port::Opened;
 
 /// The slave a request of `command` goes to: its fixed address (get_slave_id: 0xFF) or `slave`.
-pub fn target(command: &Command, slave: u8) -> u8 {
+pub fn target(command: &CommandSpec, slave: u8) -> u8 {
     command.fixed_slave.unwrap_or(slave)
 }
 
 /// Encodes `command` for `slave` with `values` (a write's fields), sends it
 /// with the client's timing and retries, and decodes the reply (a read's values).
-pub fn call(opened: &mut Opened, command: &Command, slave: u8, values: &BTreeMap<String, Value>) -> Result<Values> {
+pub fn call(opened: &mut Opened, command: &CommandSpec, slave: u8, values: &BTreeMap<String, Value>) -> Result<Values> {
     let slave = target(command, slave);
     let request = command
         .encode_request(slave, values)
@@ -36,7 +36,7 @@ pub fn call(opened: &mut Opened, command: &Command, slave: u8, values: &BTreeMap
 /// the caller to report (the outer error: the request cannot be built).
 pub fn try_read(
     opened: &mut Opened,
-    command: &Command,
+    command: &CommandSpec,
     slave: u8,
 ) -> Result<std::result::Result<Values, yosemitech_rtu::Error>> {
     let slave = target(command, slave);
@@ -50,7 +50,7 @@ pub fn try_read(
 }
 
 /// A read with no values.
-pub fn read(opened: &mut Opened, command: &Command, slave: u8) -> Result<Values> {
+pub fn read(opened: &mut Opened, command: &CommandSpec, slave: u8) -> Result<Values> {
     call(opened, command, slave, &BTreeMap::new())
 }
 

@@ -4,7 +4,7 @@ use std::collections::BTreeMap;
 use std::time::Duration;
 
 use serde_json::{Map, Value as Json, json};
-use yosemitech_spec::{Command, Field, FieldKind, Order2, Order4, Value};
+use yosemitech_spec::{CommandSpec, Field, FieldKind, Value};
 
 use crate::error::{CliError, Result};
 
@@ -103,7 +103,7 @@ pub fn values_json(values: &[(String, Value)]) -> Json {
 }
 
 /// Decoded fields with their units and layout, as JSON.
-pub fn fields_json(command: &Command, values: &[(String, Value)]) -> Json {
+pub fn fields_json(command: &CommandSpec, values: &[(String, Value)]) -> Json {
     Json::Array(
         values
             .iter()
@@ -119,26 +119,6 @@ pub fn fields_json(command: &Command, values: &[(String, Value)]) -> Json {
             })
             .collect(),
     )
-}
-
-/// The byte order of a field, as the spec writes it, if it has one.
-pub fn byte_order(field: &Field) -> Option<&'static str> {
-    let two = |o: Order2| match o {
-        Order2::Ab => "ab",
-        Order2::Ba => "ba",
-    };
-    let four = |o: Order4| match o {
-        Order4::Abcd => "abcd",
-        Order4::Dcba => "dcba",
-        Order4::Cdab => "cdab",
-        Order4::Badc => "badc",
-    };
-    match &field.kind {
-        FieldKind::F32 { order } | FieldKind::U32 { order } | FieldKind::I32 { order } => Some(four(*order)),
-        FieldKind::U16 { order } | FieldKind::I16 { order } => Some(two(*order)),
-        FieldKind::Enum { repr: yosemitech_spec::EnumRepr::U16(order), .. } => Some(two(*order)),
-        _ => None,
-    }
 }
 
 /// Bytes as `01 03 28 00`.
@@ -179,7 +159,7 @@ pub fn parse_duration(text: &str) -> std::result::Result<Duration, String> {
 
 /// Parses the values of a write (or of a read's reply, for `encode
 /// --response`): `field=value` pairs, or values in field order.
-pub fn parse_values(command: &Command, args: &[String]) -> Result<BTreeMap<String, Value>> {
+pub fn parse_values(command: &CommandSpec, args: &[String]) -> Result<BTreeMap<String, Value>> {
     let fields: Vec<&Field> = command.named_fields().collect();
     let names: Vec<&str> = fields.iter().map(|f| f.display_name()).collect();
     let mut out = BTreeMap::new();
@@ -230,7 +210,7 @@ fn is_identifier(text: &str) -> bool {
 }
 
 /// `name (type, unit, range)` for every field, for hints.
-pub fn fields_hint(command: &Command) -> String {
+pub fn fields_hint(command: &CommandSpec) -> String {
     command
         .named_fields()
         .map(|f| {

@@ -7,16 +7,14 @@ use std::time::Duration;
 
 use clap::Args;
 use yosemitech_rtu::{
-    Client, ClientConfig, DataBits, Parity, RetryPolicy, SerialConfig, SerialTransport, StopBits, TcpTransport,
-    Transport,
+    Client, ClientConfig, LineSettings, RetryPolicy, SerialConfig, SerialTransport, TcpTransport, Transport,
 };
-use yosemitech_spec::{Parity as SpecParity, Serial};
 
 use crate::cli::Global;
 use crate::error::{CliError, Context, Result};
 
 /// A client on any transport.
-pub type Bus = Client<Box<dyn Transport + Send>>;
+pub type AnyClient = Client<Box<dyn Transport + Send>>;
 
 /// The port options every device command takes.
 #[derive(Args, Debug, Clone, Default)]
@@ -58,7 +56,7 @@ pub fn check_address(address: u32, what: &str) -> Result<u8> {
 /// An open bus, and how to name it in messages.
 pub struct Opened {
     /// The client.
-    pub bus: Bus,
+    pub bus: AnyClient,
     /// The port as given.
     pub port: String,
     /// The reply timeout.
@@ -90,18 +88,15 @@ pub fn client_config(global: &Global, default_timeout: Duration, default_retries
 
 /// Opens the port for a sensor with `serial` settings, with the default
 /// timeout (1 s) and retries (2).
-pub fn open(args: &PortArgs, global: &Global, serial: &Serial) -> Result<Opened> {
+pub fn open(args: &PortArgs, global: &Global, serial: &LineSettings) -> Result<Opened> {
     open_with(args, global, serial, Duration::from_secs(1), RetryPolicy::default().retries)
 }
-
-/// The serial settings of every Yosemitech probe: 9600 baud 8N1.
-pub const YOSEMITECH_SERIAL: Serial = Serial { baud: 9600, data_bits: 8, parity: SpecParity::None, stop_bits: 1 };
 
 /// Opens the port.
 pub fn open_with(
     args: &PortArgs,
     global: &Global,
-    serial: &Serial,
+    serial: &LineSettings,
     default_timeout: Duration,
     default_retries: u32,
 ) -> Result<Opened> {
@@ -121,13 +116,9 @@ pub fn open_with(
         None => {
             let config = SerialConfig {
                 baud,
-                data_bits: if serial.data_bits == 7 { DataBits::Seven } else { DataBits::Eight },
-                parity: match serial.parity {
-                    SpecParity::None => Parity::None,
-                    SpecParity::Even => Parity::Even,
-                    SpecParity::Odd => Parity::Odd,
-                },
-                stop_bits: if serial.stop_bits == 2 { StopBits::Two } else { StopBits::One },
+                data_bits: serial.format.data_bits,
+                parity: serial.format.parity,
+                stop_bits: serial.format.stop_bits,
                 ..SerialConfig::new(port.clone())
             };
             Box::new(SerialTransport::open(&config).map_err(|e| open_failed(&port, &e))?)

@@ -3,15 +3,17 @@
 //! (or is built from the spec's commands), so the tests follow the spec as
 //! sensors are added: nothing here names a frame or counts examples.
 
-mod common;
-
 use std::collections::BTreeMap;
 use std::path::Path;
 
-use common::{Run, spec, yosemitech, yosemitech_with_input};
+use yosemitech_tests::cli::{Binary, Run};
+use yosemitech_tests::spec;
+
+/// The binary under test.
+const YOSEMITECH: Binary = Binary(env!("CARGO_BIN_EXE_yosemitech"));
 use serde_json::Value as Json;
-use yosemitech_rtu::{crc_ok, crc16};
-use yosemitech_spec::{Command, Example, Spec};
+use yosemitech_rtu::crc_ok;
+use yosemitech_spec::{CommandSpec, Example, Spec};
 
 fn hex(bytes: &[u8]) -> String {
     bytes.iter().map(|b| format!("{b:02X}")).collect::<Vec<_>>().join(" ")
@@ -30,12 +32,8 @@ fn bytes_of(v: &Json) -> Option<Vec<u8>> {
 }
 
 /// A copy of `frame` with its CRC recomputed.
-fn with_crc(mut frame: Vec<u8>) -> Vec<u8> {
-    let n = frame.len().saturating_sub(2);
-    frame.truncate(n);
-    let crc = crc16(&frame).to_le_bytes();
-    frame.extend_from_slice(&crc);
-    frame
+fn with_crc(frame: Vec<u8>) -> Vec<u8> {
+    yosemitech_tests::with_crc(&frame[..frame.len().saturating_sub(2)])
 }
 
 /// A request and its reply as a bus carries them.
@@ -62,7 +60,7 @@ impl Pair {
 /// The example's true request and reply, when both are complete frames whose
 /// CRC checks and the request is the command's: examples with a frame absent,
 /// partial or open-ended are skipped.
-fn true_pair(sensor: &str, command: &Command, example: &Example) -> Option<Pair> {
+fn true_pair(sensor: &str, command: &CommandSpec, example: &Example) -> Option<Pair> {
     let v = serde_json::to_value(example).ok()?;
     let pick = |corrected: &str, printed: &str| bytes_of(&v["erratum"][corrected]).or_else(|| bytes_of(&v[printed]));
     let request = pick("corrected_request", "request")?;
@@ -145,7 +143,7 @@ fn json_lines(run: &Run) -> Vec<Json> {
 }
 
 /// The commands of every sensor whose request header is `request`'s.
-fn commands_with_request<'s>(spec: &'s Spec, request: &[u8]) -> Vec<(&'s str, &'s Command)> {
+fn commands_with_request<'s>(spec: &'s Spec, request: &[u8]) -> Vec<(&'s str, &'s CommandSpec)> {
     let word = |at: usize| u16::from_be_bytes([request[at], request[at + 1]]);
     spec.sensors
         .iter()
@@ -161,17 +159,17 @@ fn every_example_pair_decodes_as_its_command() {
     // The two-argument form and the text output are checked once per sensor
     // and per command shared by several sensors (each run loads the spec).
     let mut shown = std::collections::BTreeSet::new();
-    for pair in pairs(&spec) {
+    for pair in pairs(spec) {
         let (request, reply) = (hex(&pair.request), hex(&pair.reply));
         // Back to back in one argument.
-        let joined = yosemitech(&["decode", &format!("{request} {reply}"), "--json"]);
+        let joined = YOSEMITECH.run(&["decode", &format!("{request} {reply}"), "--json"]);
         let doc = document(&joined);
         assert_eq!(doc["type"], "transaction", "{}: {doc:#}", pair.what());
         assert_eq!(doc["request"]["frame"], request.as_str());
         assert_eq!(doc["reply"]["frame"], reply.as_str());
         assert_eq!(doc["slave"].as_u64(), Some(u64::from(pair.request[0])));
         check_decoding(&doc, &pair);
-        let sharing = commands_with_request(&spec, &pair.request);
+        let sharing = commands_with_request(spec, &pair.request);
         let mut text_label = None;
         match joined.code {
             0 => {
@@ -209,7 +207,7 @@ fn every_example_pair_decodes_as_its_command() {
                 assert!(doc["error"]["hint"].as_str().is_some_and(|h| h.contains("--sensor")), "{doc:#}");
                 assert!(sharing.len() >= 2, "{}: ambiguous, yet the spec has {sharing:?}", pair.what());
                 // Naming the sensor and command decides.
-                let run = yosemitech(&[
+                let run = YOSEMITECH.run(&[
                     "decode",
                     &request,
                     &reply,
@@ -231,10 +229,10 @@ fn every_example_pair_decodes_as_its_command() {
         let first = shown.insert(pair.sensor.clone());
         if first || (shared && shown.insert(format!("shared {}", pair.command))) {
             // Two arguments are the same stream as one.
-            let split = yosemitech(&["decode", &request, &reply, "--json"]);
+            let split = YOSEMITECH.run(&["decode", &request, &reply, "--json"]);
             assert_eq!(joined.stdout, split.stdout, "{}", pair.what());
             // The text output names the command (with every sensor that reads it alike).
-            let text = yosemitech(&["decode", &request, &reply]);
+            let text = YOSEMITECH.run(&["decode", &request, &reply]);
             let want = text_label.map_or_else(|| pair.command.clone(), |(_, label)| label);
             assert!(text.stdout.contains(&want), "{}: `{want}` not in\n{}", pair.what(), text.stdout);
         }
@@ -269,7 +267,7 @@ fn check_transactions(entries: &[Json], pairs: &[Pair]) {
 #[test]
 fn a_capture_of_several_sensors_with_noise_decodes_every_pair() {
     let spec = spec();
-    let pairs = pairs(&spec);
+    let pairs = pairs(spec);
     let sensors: std::collections::BTreeSet<&str> = pairs.iter().map(|p| p.sensor.as_str()).collect();
     assert!(sensors.len() >= 2 || spec.sensors.len() < 2, "examples of several sensors");
     let mut lines = capture_lines(&pairs);
@@ -281,7 +279,7 @@ fn a_capture_of_several_sensors_with_noise_decodes_every_pair() {
     std::fs::write(&file, lines.join("\n") + "\n").unwrap();
     let file = file.to_str().unwrap();
 
-    let run = yosemitech(&["decode", "--capture", file, "--json"]);
+    let run = YOSEMITECH.run(&["decode", "--capture", file, "--json"]);
     run.fails_with_hint(1);
     let entries = json_lines(&run);
     check_transactions(&entries, &pairs);
@@ -303,7 +301,7 @@ fn a_capture_of_several_sensors_with_noise_decodes_every_pair() {
     assert_eq!(entries[0]["reply"]["line"], 3);
 
     // The same capture on stdin, as text: one line per entry and a summary.
-    let text = yosemitech_with_input(&["decode", "--capture", "-"], &(lines.join("\n") + "\n"));
+    let text = YOSEMITECH.run_with_input(&["decode", "--capture", "-"], &(lines.join("\n") + "\n"));
     let err = text.fails_with_hint(1);
     assert!(err.contains("could not be decoded"), "{err}");
     assert!(text.stdout.contains(&format!("line {noise_line}")) && text.stdout.contains("noise"), "{}", text.stdout);
@@ -317,14 +315,15 @@ fn a_capture_of_several_sensors_with_noise_decodes_every_pair() {
 #[test]
 fn a_capture_of_one_sensor_decodes_every_pair_and_exits_0() {
     let spec = spec();
-    let all = pairs(&spec);
+    let all = pairs(spec);
     for sensor in &spec.sensors {
         let pairs: Vec<Pair> = all.iter().filter(|p| p.sensor == sensor.name).cloned().collect();
         if pairs.is_empty() {
             continue;
         }
         let capture = capture_lines(&pairs).join("\n");
-        let run = yosemitech_with_input(&["decode", "--capture", "-", "--sensor", &sensor.name, "--json"], &capture);
+        let run =
+            YOSEMITECH.run_with_input(&["decode", "--capture", "-", "--sensor", &sensor.name, "--json"], &capture);
         run.ok();
         let entries = json_lines(&run);
         check_transactions(&entries, &pairs);
@@ -338,7 +337,7 @@ fn a_capture_of_one_sensor_decodes_every_pair_and_exits_0() {
 #[test]
 fn a_hex_stream_splits_into_the_same_pairs() {
     let spec = spec();
-    let pairs = pairs(&spec);
+    let pairs = pairs(spec);
     // Everything back to back, with two bytes of noise (no frame starts with
     // address 0 and function 0) between pairs.
     let mut stream = Vec::new();
@@ -348,7 +347,7 @@ fn a_hex_stream_splits_into_the_same_pairs() {
         stream.extend_from_slice(&[0, 0]);
     }
     let compact: String = stream.iter().map(|b| format!("{b:02x}")).collect();
-    let run = yosemitech(&["decode", &compact, "--json"]);
+    let run = YOSEMITECH.run(&["decode", &compact, "--json"]);
     let entries = json_lines(&run);
     check_transactions(&entries, &pairs);
     let noise = entries.iter().filter(|e| e["type"] == "noise").count();
@@ -363,7 +362,7 @@ fn a_hex_stream_splits_into_the_same_pairs() {
         stream.extend_from_slice(&pair.reply);
     }
     let wrapped: Vec<String> = stream.chunks(16).map(hex).collect();
-    let run = yosemitech_with_input(&["decode", "--capture", "-", "--json"], &wrapped.join("\n"));
+    let run = YOSEMITECH.run_with_input(&["decode", "--capture", "-", "--json"], &wrapped.join("\n"));
     let entries = json_lines(&run);
     check_transactions(&entries, &pairs);
     let summary = entries.last().unwrap();
@@ -384,9 +383,9 @@ fn a_reply_from_0xff_fits_only_commands_with_that_fixed_slave() {
     };
     // Alone, a reply from a fixed address is read only as such a command.
     let mut seen = 0;
-    for pair in pairs(&spec).iter().filter(|p| fixed_slaves.contains(&p.reply[0])) {
+    for pair in pairs(spec).iter().filter(|p| fixed_slaves.contains(&p.reply[0])) {
         seen += 1;
-        let run = yosemitech(&["decode", &hex(&pair.reply), "--json"]);
+        let run = YOSEMITECH.run(&["decode", &hex(&pair.reply), "--json"]);
         let doc = document(&run);
         let slave = pair.reply[0];
         match run.code {
@@ -409,7 +408,7 @@ fn a_reply_from_0xff_fits_only_commands_with_that_fixed_slave() {
     // A read of an ordinary command answered from 0xFF: the reply is not the
     // request's (a reply comes from the request's slave) and, unpaired, fits
     // no command but one with fixed slave 0xFF.
-    let ordinary = pairs(&spec)
+    let ordinary = pairs(spec)
         .into_iter()
         .find(|p| {
             let c = spec.sensor(&p.sensor).and_then(|s| s.command(&p.command)).unwrap();
@@ -419,7 +418,7 @@ fn a_reply_from_0xff_fits_only_commands_with_that_fixed_slave() {
     let mut from_ff = ordinary.reply.clone();
     from_ff[0] = 0xFF;
     let from_ff = with_crc(from_ff);
-    let run = yosemitech(&["decode", &hex(&ordinary.request), &hex(&from_ff), "--json"]);
+    let run = YOSEMITECH.run(&["decode", &hex(&ordinary.request), &hex(&from_ff), "--json"]);
     run.fails_with_hint(1);
     let entries = json_lines(&run);
     assert_eq!(entries[0]["status"], "no_reply", "{entries:#?}");
@@ -452,8 +451,8 @@ struct Twin {
 fn twin() -> Twin {
     let spec = spec();
     let command = |p: &Pair| spec.sensor(&p.sensor).and_then(|s| s.command(&p.command)).unwrap().clone();
-    let ordinary = |c: &Command| c.is_read() && c.fixed_slave.is_none() && !c.trigger && c.count <= 16;
-    let all = pairs(&spec);
+    let ordinary = |c: &CommandSpec| c.is_read() && c.fixed_slave.is_none() && !c.trigger && c.count <= 16;
+    let all = pairs(spec);
     let ambiguous =
         all.iter().find(|p| ordinary(&command(p)) && !p.is_exception()).cloned().expect("an example of a read");
     // A printed reply whose byte count is a documented quirk.
@@ -471,7 +470,7 @@ fn twin() -> Twin {
             })
         })
     });
-    let read = |name: &str, c: &Command| {
+    let read = |name: &str, c: &CommandSpec| {
         let fields: Vec<String> = (0..c.count)
             .map(|i| format!("      - {{name: w{i}, type: u16, byte_order: ab, doc: Word {i}.}}"))
             .collect();
@@ -502,7 +501,7 @@ fn an_ambiguous_pair_is_a_usage_error_listing_every_decoding_and_json_under_json
     let pair = &twin.ambiguous;
     let (request, reply) = (hex(&pair.request), hex(&pair.reply));
 
-    let run = yosemitech(&["decode", &request, &reply, "--spec", spec_dir, "--json"]);
+    let run = YOSEMITECH.run(&["decode", &request, &reply, "--spec", spec_dir, "--json"]);
     let err = run.fails_with_hint(2).to_owned();
     assert!(err.contains("get_twin_words of twin_probe") && err.contains(&pair.command), "{err}");
     let doc = document(&run);
@@ -521,21 +520,21 @@ fn an_ambiguous_pair_is_a_usage_error_listing_every_decoding_and_json_under_json
     assert_eq!(error["details"].as_array().map(Vec::len), Some(decodings.len()));
 
     // Text: every decoding on stdout, the error on stderr.
-    let run = yosemitech(&["decode", &request, &reply, "--spec", spec_dir]);
+    let run = YOSEMITECH.run(&["decode", &request, &reply, "--spec", spec_dir]);
     run.fails_with_hint(2);
     assert!(run.stdout.contains("decoding 1") && run.stdout.contains("decoding 2"), "{}", run.stdout);
 
     // --sensor decides.
-    let run = yosemitech(&["decode", &request, &reply, "--spec", spec_dir, "--sensor", "twin_probe", "--json"]);
+    let run = YOSEMITECH.run(&["decode", &request, &reply, "--spec", spec_dir, "--sensor", "twin_probe", "--json"]);
     run.ok();
     let doc = document(&run);
     assert_eq!(doc["command"], "get_twin_words");
-    let run = yosemitech(&["decode", &request, &reply, "--spec", spec_dir, "--sensor", &pair.sensor, "--json"]);
+    let run = YOSEMITECH.run(&["decode", &request, &reply, "--spec", spec_dir, "--sensor", &pair.sensor, "--json"]);
     run.ok();
 
     // In a capture an ambiguity is one entry that failed, not the end.
     let capture = format!("{request}\n{reply}\n");
-    let run = yosemitech_with_input(&["decode", "--capture", "-", "--spec", spec_dir, "--json"], &capture);
+    let run = YOSEMITECH.run_with_input(&["decode", "--capture", "-", "--spec", spec_dir, "--json"], &capture);
     run.fails(1);
     let entries = json_lines(&run);
     assert_eq!(entries[0]["status"], "ambiguous");
@@ -550,7 +549,7 @@ fn a_candidate_whose_decode_fails_is_dropped() {
         return;
     };
     let spec_dir = twin.dir.path().to_str().unwrap();
-    let run = yosemitech(&["decode", &hex(&pair.request), &hex(&pair.reply), "--spec", spec_dir, "--json"]);
+    let run = YOSEMITECH.run(&["decode", &hex(&pair.request), &hex(&pair.reply), "--spec", spec_dir, "--json"]);
     run.ok();
     let doc = document(&run);
     assert_eq!(doc["status"], "decoded", "{doc:#}");
@@ -563,10 +562,10 @@ fn a_candidate_whose_decode_fails_is_dropped() {
 #[test]
 fn requests_without_replies_and_broadcasts() {
     let spec = spec();
-    let pairs = pairs(&spec);
+    let pairs = pairs(spec);
     // Two requests back to back: neither is answered.
     let (a, b) = (&pairs[0], &pairs[pairs.len() - 1]);
-    let run = yosemitech(&["decode", &hex(&a.request), &hex(&b.request), "--json"]);
+    let run = YOSEMITECH.run(&["decode", &hex(&a.request), &hex(&b.request), "--json"]);
     run.fails_with_hint(1);
     let entries = json_lines(&run);
     assert_eq!(entries.len(), 3, "{entries:#?}");
@@ -585,7 +584,7 @@ fn requests_without_replies_and_broadcasts() {
         let mut broadcast = write.request.clone();
         broadcast[0] = 0;
         let broadcast = with_crc(broadcast);
-        let run = yosemitech(&["decode", &hex(&broadcast), &hex(&write.request), &hex(&write.reply), "--json"]);
+        let run = YOSEMITECH.run(&["decode", &hex(&broadcast), &hex(&write.request), &hex(&write.reply), "--json"]);
         let entries = json_lines(&run);
         assert_eq!(entries[0]["status"], "broadcast", "{entries:#?}");
         assert_eq!(entries[0]["ok"], true);
@@ -598,11 +597,11 @@ fn requests_without_replies_and_broadcasts() {
 #[test]
 fn a_damaged_reply_is_paired_and_reported() {
     let spec = spec();
-    let pair = pairs(&spec).into_iter().find(|p| !p.is_exception()).unwrap();
+    let pair = pairs(spec).into_iter().find(|p| !p.is_exception()).unwrap();
     let mut bad = pair.reply.clone();
     let last = bad.len() - 1;
     bad[last] ^= 0xFF;
-    let run = yosemitech(&["decode", &hex(&pair.request), &hex(&bad), "--json"]);
+    let run = YOSEMITECH.run(&["decode", &hex(&pair.request), &hex(&bad), "--json"]);
     run.fails_with_hint(1);
     let doc = document(&run);
     assert_eq!(doc["status"], "undecodable");
@@ -611,7 +610,7 @@ fn a_damaged_reply_is_paired_and_reported() {
     assert!(doc["error"]["message"].as_str().is_some());
 
     let cut = &pair.reply[..pair.reply.len() - 3];
-    let run = yosemitech(&["decode", &hex(&pair.request), &hex(cut), "--json"]);
+    let run = YOSEMITECH.run(&["decode", &hex(&pair.request), &hex(cut), "--json"]);
     run.fails_with_hint(1);
     let doc = document(&run);
     assert!(doc["problems"][0].as_str().unwrap().contains("cut short"), "{doc:#}");
@@ -638,14 +637,14 @@ fn malformed_input_is_a_usage_error_with_a_hint() {
         let mut all = vec!["decode".to_owned()];
         all.extend(args.iter().cloned());
         let argv: Vec<&str> = all.iter().map(String::as_str).collect();
-        let run = yosemitech(&argv);
+        let run = YOSEMITECH.run(&argv);
         let err = run.fails_with_hint(2);
         assert!(err.starts_with("error: ") && err.contains(needle), "{args:?}: `{needle}` not in:\n{err}");
         assert!(run.stdout.is_empty(), "{args:?}: {}", run.stdout);
         // Under --json the error is also a JSON document on stdout.
         let mut json_args = argv.clone();
         json_args.push("--json");
-        let run = yosemitech(&json_args);
+        let run = YOSEMITECH.run(&json_args);
         run.fails_with_hint(2);
         let doc = document(&run);
         assert!(doc["error"]["message"].as_str().unwrap().contains(needle), "{doc:#}");
@@ -653,21 +652,21 @@ fn malformed_input_is_a_usage_error_with_a_hint() {
         assert!(doc["error"]["hint"].is_string());
     }
     // A capture and frames at once, or neither: clap's usage error.
-    yosemitech(&["decode", "--capture", "-", "01 03"]).fails(2);
-    yosemitech(&["decode", "--json"]).fails(2);
+    YOSEMITECH.run(&["decode", "--capture", "-", "01 03"]).fails(2);
+    YOSEMITECH.run(&["decode", "--json"]).fails(2);
 }
 
 #[test]
 fn every_prefix_of_a_stream_decodes_or_fails_cleanly() {
     let spec = spec();
-    let pairs = pairs(&spec);
+    let pairs = pairs(spec);
     // A pair, then the start of the next request: every cut of it.
     let (first, next) = (&pairs[0], &pairs[pairs.len() - 1]);
     let mut stream = [first.request.as_slice(), &first.reply, &next.request].concat();
     stream.truncate(first.request.len() + first.reply.len() + 4);
     for end in 1..=stream.len() {
         let text = hex(&stream[..end]);
-        let run = yosemitech(&["decode", &text, "--json"]);
+        let run = YOSEMITECH.run(&["decode", &text, "--json"]);
         assert!([0, 1, 2].contains(&run.code), "{text}: exit {}\n{}", run.code, run.stderr);
         if run.code != 0 {
             run.fails(run.code);

@@ -3,23 +3,25 @@
 //! process), through the real serial code path. No hardware.
 #![cfg(unix)]
 
-mod common;
-
 use std::io::{BufRead, BufReader};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
 use std::sync::Arc;
 
-use common::{fixture_spec_dir, number_after, sim, spec, yosemitech, yosemitech_with_input};
+use yosemitech_tests::cli::{Binary, fixture_spec_dir, number_after, sim};
+use yosemitech_tests::spec;
+
+/// The binary under test.
+const YOSEMITECH: Binary = Binary(env!("CARGO_BIN_EXE_yosemitech"));
 use serde_json::Value as Json;
 use yosemitech_sim::{Bus, FaultConfig, FaultKind, Simulator, UnknownRequestPolicy};
-use yosemitech_spec::{Command as SpecCommand, Role, Value};
+use yosemitech_spec::{CommandSpec, Role, Value};
 
 /// Short timeouts for requests that are meant to fail.
 const FAST: [&str; 4] = ["--timeout", "150ms", "--retries", "0"];
 
-fn float(sim: &common::Sim<yosemitech_sim::Simulator>, command: &str, field: &str) -> f32 {
+fn float(sim: &yosemitech_tests::cli::Sim<yosemitech_sim::Simulator>, command: &str, field: &str) -> f32 {
     match sim.server.device().get(command, field).unwrap() {
         Value::Float(v) => v,
         other => panic!("{command}.{field} is {other:?}"),
@@ -29,7 +31,7 @@ fn float(sim: &common::Sim<yosemitech_sim::Simulator>, command: &str, field: &st
 #[test]
 fn demo_runs_both_probes_and_prints_the_values() {
     let started = Instant::now();
-    let run = yosemitech(&["demo"]);
+    let run = YOSEMITECH.run(&["demo"]);
     let out = run.ok();
     assert!(started.elapsed() < Duration::from_secs(20), "the demo takes a few seconds");
     for needle in [
@@ -58,11 +60,11 @@ fn demo_runs_both_probes_and_prints_the_values() {
 
 #[test]
 fn demo_identifies_every_sensor_of_the_spec_on_one_bus() {
-    let run = yosemitech(&["demo"]);
+    let run = YOSEMITECH.run(&["demo"]);
     let out = run.ok();
     let section =
         out.split("the whole family on one RS-485 bus").nth(1).unwrap_or_else(|| panic!("no family section:\n{out}"));
-    let sensors = spec().sensors;
+    let sensors = spec().sensors.clone();
     let mut addresses = Vec::new();
     for sensor in &sensors {
         let code = sensor.model_code.as_deref().unwrap_or_else(|| panic!("{} declares no model code", sensor.name));
@@ -98,7 +100,7 @@ fn demo_identifies_every_sensor_of_the_spec_on_one_bus() {
 }
 
 /// The example of `command` in the sensor's own manual, with values.
-fn stated_example(command: &SpecCommand) -> Option<&yosemitech_spec::Example> {
+fn stated_example(command: &CommandSpec) -> Option<&yosemitech_spec::Example> {
     command.examples.iter().find(|e| e.manual.is_none() && e.erratum.is_none() && !e.values.is_empty())
 }
 
@@ -117,7 +119,7 @@ fn shown(value: &Value, unit: Option<&str>) -> String {
 #[test]
 fn read_shows_values_with_units() {
     let (mut checked, mut addressed) = (0, 0);
-    for sensor in spec().sensors {
+    for sensor in spec().sensors.clone() {
         let name = sensor.name.as_str();
         let s = sim(name, 1);
         // Every measurement read with a stated f32 value: each field on a
@@ -139,7 +141,7 @@ fn read_shows_values_with_units() {
             }) {
                 continue; // the simulator does not answer this example
             }
-            let out = yosemitech(&["read", name, &command.name, "--port", &s.path]).ok().to_owned();
+            let out = YOSEMITECH.run(&["read", name, &command.name, "--port", &s.path]).ok().to_owned();
             // Names may be shortened: a unique prefix of the sensor, the command without `get_`.
             if checked == 0
                 && let Some(short) = command.name.strip_prefix("get_")
@@ -149,7 +151,7 @@ fn read_shows_values_with_units() {
                     .map(|n| &name[..n])
                     .find(|p| names.iter().filter(|n| n.starts_with(p)).count() == 1)
                     .unwrap();
-                assert_eq!(yosemitech(&["read", prefix, short, "-p", &s.path]).ok(), out, "{prefix} {short}");
+                assert_eq!(YOSEMITECH.run(&["read", prefix, short, "-p", &s.path]).ok(), out, "{prefix} {short}");
             }
             let width = f32_with_unit.iter().map(|f| f.display_name().len()).max().unwrap();
             for field in &f32_with_unit {
@@ -162,7 +164,7 @@ fn read_shows_values_with_units() {
         }
         // The version, as JSON.
         if let Some(version) = sensor.command_with_role(Role::Version) {
-            let json = yosemitech(&["read", name, &version.name, "-p", &s.path, "--json"]).json();
+            let json = YOSEMITECH.run(&["read", name, &version.name, "-p", &s.path, "--json"]).json();
             for field in version.named_fields() {
                 let want = s.server.device().get(&version.name, field.display_name()).unwrap();
                 assert_eq!(json["values"][field.display_name()], serde_json::to_value(&want).unwrap(), "{json}");
@@ -172,7 +174,7 @@ fn read_shows_values_with_units() {
         // The slave address read goes to the wildcard address 0xFF whatever --address says.
         if let Some(get) = sensor.command_with_role(Role::GetSlaveAddress) {
             let field = get.named_fields().next().unwrap().display_name().to_owned();
-            let out = yosemitech(&["read", name, &get.name, "-p", &s.path, "-a", "9"]).ok().to_owned();
+            let out = YOSEMITECH.run(&["read", name, &get.name, "-p", &s.path, "-a", "9"]).ok().to_owned();
             assert_eq!(out.trim(), format!("{field}  1"));
             addressed += 1;
         }
@@ -186,17 +188,17 @@ fn port_and_baud_come_from_the_environment() {
     for sensor in identifiable() {
         let s = sim(&sensor.name, 1);
         let (sn, _) = sn_field(&sensor);
-        let mut cmd = common::command();
+        let mut cmd = YOSEMITECH.command();
         cmd.args(["read", &sensor.name, &sn.name])
             .env("YOSEMITECH_PORT", &s.path)
             .env("YOSEMITECH_BAUD", sensor.serial.baud.to_string());
-        let run = common::run_command(cmd, None);
+        let run = yosemitech_tests::cli::run_command(cmd, None);
         assert!(run.ok().contains(&own_serial_number(&sensor)), "{}: {}", sensor.name, run.stdout);
     }
 }
 
 /// A measurement read of `sensor`: a read with no role.
-fn measurement_read(sensor: &yosemitech_spec::Sensor) -> &SpecCommand {
+fn measurement_read(sensor: &yosemitech_spec::Sensor) -> &CommandSpec {
     sensor
         .commands
         .iter()
@@ -206,13 +208,13 @@ fn measurement_read(sensor: &yosemitech_spec::Sensor) -> &SpecCommand {
 
 #[test]
 fn a_silent_address_times_out_cleanly() {
-    let sensors = spec().sensors;
+    let sensors = spec().sensors.clone();
     let sensor = &sensors[0];
     let read = measurement_read(sensor);
     let s = sim(&sensor.name, 1);
     let mut args = vec!["read", sensor.name.as_str(), read.name.as_str(), "-p", &s.path, "-a", "9"];
     args.extend(["--timeout", "100ms", "--retries", "1"]);
-    let err = yosemitech(&args).fails_with_hint(1).to_owned();
+    let err = YOSEMITECH.run(&args).fails_with_hint(1).to_owned();
     assert!(
         err.contains(&format!("no reply to {} from address 9", read.name)) && err.contains("within 100ms"),
         "{err}"
@@ -229,14 +231,14 @@ fn a_silent_address_times_out_cleanly() {
         .expect("a read another sensor has at registers the first lacks");
     let mut args = vec!["read", other.name.as_str(), foreign.name.as_str(), "-p", &s.path];
     args.extend(FAST);
-    let err = yosemitech(&args).fails_with_hint(1).to_owned();
+    let err = YOSEMITECH.run(&args).fails_with_hint(1).to_owned();
     assert!(err.contains(&format!("no reply to {}", foreign.name)) && err.contains("lacks"), "{err}");
     // A device that answers exceptions instead: the exception (no register
     // there), explained.
-    let mut device = Simulator::new(common::sensor(&sensor.name));
+    let mut device = Simulator::new(yosemitech_tests::sensor(&sensor.name));
     device.set_unknown_request_policy(UnknownRequestPolicy::Exception);
-    let s = common::serve(device);
-    let run = yosemitech(&["read", &other.name, &foreign.name, "-p", &s.path]);
+    let s = yosemitech_tests::cli::serve(device);
+    let run = YOSEMITECH.run(&["read", &other.name, &foreign.name, "-p", &s.path]);
     let want = format!("refused {} with Modbus exception illegal data address", foreign.name);
     assert!(run.fails_with_hint(1).contains(&want), "{}", run.stderr);
 }
@@ -254,7 +256,7 @@ fn assignments(values: &std::collections::BTreeMap<String, Value>) -> Vec<String
 }
 
 /// True when some read of `sensor` covers the registers `write` writes.
-fn read_covers(sensor: &yosemitech_spec::Sensor, write: &SpecCommand) -> bool {
+fn read_covers(sensor: &yosemitech_spec::Sensor, write: &CommandSpec) -> bool {
     let end = u32::from(write.address) + u32::from(write.count);
     sensor
         .commands
@@ -264,9 +266,10 @@ fn read_covers(sensor: &yosemitech_spec::Sensor, write: &SpecCommand) -> bool {
 
 #[test]
 fn write_backs_up_coefficients_confirms_and_reads_back() {
-    let sensor = common::sensors_with_coefficients().into_iter().next().expect("a sensor with coefficients");
+    let sensor =
+        yosemitech_tests::cli::sensors_with_coefficients().into_iter().next().expect("a sensor with coefficients");
     let name = sensor.name.as_str();
-    let blocks = common::coefficient_blocks(&sensor);
+    let blocks = yosemitech_tests::cli::coefficient_blocks(&sensor);
     let (write, read) = blocks[0];
     let fields: Vec<String> = write.named_fields().map(|f| f.display_name().to_owned()).collect();
     let s = sim(name, 1);
@@ -288,7 +291,7 @@ fn write_backs_up_coefficients_confirms_and_reads_back() {
     let mut args = vec!["write", name, write.name.as_str()];
     args.extend(positional.iter().map(String::as_str));
     args.extend(["-p", &s.path]);
-    let run = yosemitech(&args);
+    let run = YOSEMITECH.run(&args);
     assert!(run.fails_with_hint(2).contains("--yes") || run.stderr.contains("stdin is not a terminal"));
     for (c, f, v) in &old {
         assert_eq!(float(&s, c, f).to_bits(), v.to_bits(), "nothing sent");
@@ -298,7 +301,7 @@ fn write_backs_up_coefficients_confirms_and_reads_back() {
     let mut args = vec!["write", name, write.name.as_str()];
     args.extend(named.iter().map(String::as_str));
     args.extend(["-p", &s.path, "--yes", "--backup-dir", backup_dir]);
-    let run = yosemitech(&args);
+    let run = YOSEMITECH.run(&args);
     let out = run.ok();
     let frame = write.encode_request(1, &new).unwrap();
     let frame: Vec<String> = frame.iter().map(|b| format!("{b:02X}")).collect();
@@ -342,12 +345,12 @@ fn write_backs_up_coefficients_confirms_and_reads_back() {
     let mut args = vec!["write", other.name.as_str(), command.name.as_str()];
     args.extend(values.iter().map(String::as_str));
     args.extend(["-p", &s2.path, "--yes"]);
-    let out = yosemitech(&args).ok().to_owned();
+    let out = YOSEMITECH.run(&args).ok().to_owned();
     assert!(out.contains("nothing to read back") && !out.contains("saved every coefficient"), "{out}");
     // A write with a read of the same registers at another address (get_slave_id at 0xFF).
     let set = sensor.command_with_role(Role::SetSlaveAddress).expect("a set-address command");
     let field = set.named_fields().next().unwrap().display_name().to_owned();
-    let out = yosemitech(&["write", name, &set.name, "12", "-p", &s.path, "--yes"]).ok().to_owned();
+    let out = YOSEMITECH.run(&["write", name, &set.name, "12", "-p", &s.path, "--yes"]).ok().to_owned();
     assert!(out.contains(&format!("{field} = 12 (matches)")), "{out}");
     assert_eq!(s.server.device().address(), 12);
 }
@@ -363,14 +366,14 @@ fn float_of(v: &Value) -> f32 {
 /// every field of every measurement read (a read no write overlaps, with a
 /// unit); a field name two reads share is qualified by the read.
 fn poll_columns(sensor: &yosemitech_spec::Sensor) -> Vec<(String, String, String)> {
-    let overlaps = |r: &SpecCommand| {
+    let overlaps = |r: &CommandSpec| {
         let (start, end) = (u32::from(r.address), u32::from(r.address) + u32::from(r.count));
         sensor
             .commands
             .iter()
             .any(|w| !w.is_read() && u32::from(w.address) < end && start < u32::from(w.address) + u32::from(w.count))
     };
-    let reads: Vec<&SpecCommand> = sensor
+    let reads: Vec<&CommandSpec> = sensor
         .commands
         .iter()
         .filter(|r| r.is_read() && r.fields.iter().any(|f| f.unit.is_some()) && !overlaps(r))
@@ -397,14 +400,14 @@ fn plain(value: &Value) -> Option<String> {
 
 #[test]
 fn poll_csv_gives_one_row_per_poll() {
-    for sensor in spec().sensors {
+    for sensor in spec().sensors.clone() {
         let columns = poll_columns(&sensor);
         if columns.is_empty() {
             continue;
         }
         let name = sensor.name.as_str();
         let s = sim(name, 1);
-        let run = yosemitech(&["poll", name, "-p", &s.path, "--count", "3", "--interval", "0", "--format", "csv"]);
+        let run = YOSEMITECH.run(&["poll", name, "-p", &s.path, "--count", "3", "--interval", "0", "--format", "csv"]);
         let out = run.ok();
         let lines: Vec<&str> = out.lines().collect();
         assert_eq!(lines.len(), 4, "a header and 3 rows:\n{out}");
@@ -429,7 +432,7 @@ fn poll_csv_gives_one_row_per_poll() {
 #[test]
 fn poll_reports_errors_per_row_and_goes_on() {
     let mut polled = 0;
-    for sensor in spec().sensors {
+    for sensor in spec().sensors.clone() {
         let columns = poll_columns(&sensor);
         let Some((first, _, _)) = columns.first().cloned() else { continue };
         let name = sensor.name.as_str();
@@ -438,7 +441,7 @@ fn poll_reports_errors_per_row_and_goes_on() {
         s.server.device().set_faults(FaultConfig::scripted([Some(FaultKind::Drop)]));
         let mut args = vec!["poll", name, "-p", &s.path, "-n", "3", "-i", "0", "-f", "json"];
         args.extend(FAST);
-        let run = yosemitech(&args);
+        let run = YOSEMITECH.run(&args);
         let rows: Vec<Json> = run.ok().lines().map(|l| serde_json::from_str(l).unwrap()).collect();
         assert_eq!(rows.len(), 3);
         assert_eq!(rows[0]["error"], format!("{first}: no reply").as_str(), "{name}");
@@ -457,7 +460,7 @@ fn poll_reports_errors_per_row_and_goes_on() {
         // Every poll failing is exit 1, after every row was printed.
         let mut args = vec!["poll", name, "-p", &s.path, "-a", "7", "-n", "2", "-i", "0", "-f", "table"];
         args.extend(FAST);
-        let run = yosemitech(&args);
+        let run = YOSEMITECH.run(&args);
         run.fails_with_hint(1);
         assert_eq!(run.stdout.lines().count(), 3, "{}", run.stdout);
         assert!(run.stdout.contains("no reply"), "{}", run.stdout);
@@ -468,9 +471,10 @@ fn poll_reports_errors_per_row_and_goes_on() {
 
 #[test]
 fn poll_stops_cleanly_on_ctrl_c() {
-    let sensor = spec().sensors.into_iter().find(|s| !poll_columns(s).is_empty()).expect("a sensor to poll");
+    let sensor = spec().sensors.iter().find(|&s| !poll_columns(s).is_empty()).cloned().expect("a sensor to poll");
     let s = sim(&sensor.name, 1);
-    let mut child = common::command()
+    let mut child = YOSEMITECH
+        .command()
         .args(["poll", &sensor.name, "-p", &s.path, "--interval", "50ms", "--format", "csv"])
         .stdin(Stdio::null())
         .stdout(Stdio::piped())
@@ -486,7 +490,7 @@ fn poll_stops_cleanly_on_ctrl_c() {
     assert!(line.ends_with(",\n"), "a data row: {line}");
     let status = Command::new("kill").args(["-INT", &child.id().to_string()]).status().unwrap();
     assert!(status.success());
-    let code = common::wait(&mut child, Duration::from_secs(10));
+    let code = yosemitech_tests::cli::wait(&mut child, Duration::from_secs(10));
     assert_eq!(code, 0, "Ctrl-C ends polling with success");
 }
 
@@ -496,26 +500,26 @@ fn set_address_changes_and_verifies() {
     let s = sim(&sensor.name, 1);
     let mut args = vec!["set-address", "-p", &s.path, "--from", "1", "--to", "42", "--yes", "--sensor", &sensor.name];
     args.extend(FAST);
-    let out = yosemitech(&args).ok().to_owned();
+    let out = YOSEMITECH.run(&args).ok().to_owned();
     assert!(out.contains("now answers at address 42") && out.contains(&own_serial_number(&sensor)), "{out}");
     assert_eq!(s.server.device().address(), 42);
     // Nothing answers at the old address any more: refused, nothing written.
     let mut args = vec!["set-address", "-p", &s.path, "--from", "1", "--to", "43", "--yes"];
     args.extend(FAST);
-    let err = yosemitech(&args).fails_with_hint(1).to_owned();
+    let err = YOSEMITECH.run(&args).fails_with_hint(1).to_owned();
     assert!(err.contains("no probe answers at address 1"), "{err}");
     assert_eq!(s.server.device().address(), 42);
     // The new address taken by the probe itself.
     let mut args = vec!["set-address", "-p", &s.path, "--from", "7", "--to", "42", "--yes"];
     args.extend(FAST);
-    assert!(yosemitech(&args).fails_with_hint(2).contains("already answers at address 42"));
+    assert!(YOSEMITECH.run(&args).fails_with_hint(2).contains("already answers at address 42"));
 }
 
 #[test]
 fn set_address_refuses_0_and_248() {
     let s = sim(&spec().sensors[0].name, 1);
     for (from, to) in [("0", "5"), ("1", "0"), ("1", "248"), ("248", "1")] {
-        let run = yosemitech(&["set-address", "-p", &s.path, "--from", from, "--to", to, "--yes"]);
+        let run = YOSEMITECH.run(&["set-address", "-p", &s.path, "--from", from, "--to", to, "--yes"]);
         assert!(run.fails_with_hint(2).contains("outside 1..=247"), "{}", run.stderr);
     }
     assert_eq!(s.server.device().stats().requests, 0, "nothing was sent");
@@ -523,7 +527,7 @@ fn set_address_refuses_0_and_248() {
 
 #[test]
 fn coefficients_backup_and_restore_round_trip() {
-    let sensors = common::sensors_with_coefficients();
+    let sensors = yosemitech_tests::cli::sensors_with_coefficients();
     assert!(!sensors.is_empty(), "the spec has coefficient blocks");
     for (i, sensor) in sensors.iter().enumerate() {
         let name = sensor.name.as_str();
@@ -532,10 +536,10 @@ fn coefficients_backup_and_restore_round_trip() {
         let dir = tempfile::tempdir().unwrap();
         let file = dir.path().join(format!("{name} backup.json"));
         let file = file.to_str().unwrap();
-        let blocks = common::coefficient_blocks(sensor);
+        let blocks = yosemitech_tests::cli::coefficient_blocks(sensor);
         // A value only bit-exact float handling keeps, in every block.
         let fields =
-            |read: &SpecCommand| -> Vec<String> { read.named_fields().map(|f| f.display_name().to_owned()).collect() };
+            |read: &CommandSpec| -> Vec<String> { read.named_fields().map(|f| f.display_name().to_owned()).collect() };
         for (_, read) in &blocks {
             let first = &fields(read)[0];
             s.server.device().set(&read.name, first, Value::Float(0.987_654_3)).unwrap();
@@ -549,10 +553,10 @@ fn coefficients_backup_and_restore_round_trip() {
             })
             .collect();
         let args = ["coefficients", "backup", name, "-p", &s.path, "-a", &address, "--file", file];
-        let out = yosemitech(&args).ok().to_owned();
+        let out = YOSEMITECH.run(&args).ok().to_owned();
         assert!(out.contains("restore with:") && out.contains("'"), "the path with a space is quoted:\n{out}");
         // Never overwritten.
-        yosemitech(&args).fails_with_hint(2);
+        YOSEMITECH.run(&args).fails_with_hint(2);
         // The file: one block per write command, named by its fields.
         let json: Json = serde_json::from_str(&std::fs::read_to_string(file).unwrap()).unwrap();
         assert_eq!(json["sensor"], name);
@@ -571,13 +575,13 @@ fn coefficients_backup_and_restore_round_trip() {
         }
         // Restoring needs confirmation.
         let restore = ["coefficients", "restore", name, "-p", &s.path, "-a", &address, "--file", file];
-        yosemitech(&restore).fails_with_hint(2);
+        YOSEMITECH.run(&restore).fails_with_hint(2);
         for (c, f, _) in &before {
             assert_eq!(float(&s, c, f), 42.0, "nothing written without --yes");
         }
         let mut args = restore.to_vec();
         args.push("--yes");
-        let out = yosemitech(&args).ok().to_owned();
+        let out = YOSEMITECH.run(&args).ok().to_owned();
         assert!(out.contains("restored and verified"), "{out}");
         assert!(out.contains("saved the probe's current coefficients to"), "restore keeps what it overwrites:\n{out}");
         for (c, f, v) in &before {
@@ -588,7 +592,7 @@ fn coefficients_backup_and_restore_round_trip() {
         if other != name {
             let mut args = vec!["coefficients", "restore", other.as_str(), "-p", &s.path, "-a", &address];
             args.extend(["--file", file, "--yes"]);
-            let err = yosemitech(&args).fails_with_hint(2).to_owned();
+            let err = YOSEMITECH.run(&args).fails_with_hint(2).to_owned();
             assert!(err.contains(&format!("`{name}` probe")), "{err}");
         }
     }
@@ -599,8 +603,9 @@ fn coefficients_backup_and_restore_round_trip() {
 fn calibrated_sensor() -> String {
     let with: Vec<String> = spec()
         .sensors
-        .into_iter()
-        .filter(|s| s.command_with_role(Role::CalibrationPoint).is_some())
+        .iter()
+        .filter(|&s| s.command_with_role(Role::CalibrationPoint).is_some())
+        .cloned()
         .map(|s| s.name)
         .collect();
     assert_eq!(with.len(), 1, "one sensor has a calibration point: {with:?}");
@@ -613,7 +618,7 @@ fn calibrate_ph_guides_three_points_and_reports_success() {
     let s = sim(&name, 1);
     let dir = tempfile::tempdir().unwrap();
     let backup_dir = dir.path().to_str().unwrap();
-    let run = yosemitech_with_input(
+    let run = YOSEMITECH.run_with_input(
         &["calibrate", "ph", "-p", &s.path, "--yes", "--skip-wait", "--backup-dir", backup_dir],
         "\n\n\n",
     );
@@ -631,7 +636,7 @@ fn calibrate_ph_stops_on_q_and_prints_the_restore_command() {
     let s = sim(&name, 1);
     let dir = tempfile::tempdir().unwrap();
     let backup_dir = dir.path().to_str().unwrap();
-    let run = yosemitech_with_input(
+    let run = YOSEMITECH.run_with_input(
         &["calibrate", "ph", "-p", &s.path, "--yes", "--skip-wait", "--backup-dir", backup_dir],
         "\nq\n",
     );
@@ -640,11 +645,11 @@ fn calibrate_ph_stops_on_q_and_prints_the_restore_command() {
     assert!(err.contains(&format!("yosemitech coefficients restore {name}")), "{err}");
     assert_eq!(s.server.device().calibration_points().len(), 1, "one point written");
     // Without --yes and without a terminal, nothing starts.
-    let run = yosemitech(&["calibrate", "ph", "-p", &s.path, "--skip-wait", "--backup-dir", backup_dir]);
+    let run = YOSEMITECH.run(&["calibrate", "ph", "-p", &s.path, "--skip-wait", "--backup-dir", backup_dir]);
     run.fails_with_hint(2);
     // A backup that cannot be saved stops the calibration before any write.
     let before = s.server.device().stats().writes;
-    let run = yosemitech_with_input(
+    let run = YOSEMITECH.run_with_input(
         &["calibrate", "ph", "-p", &s.path, "--yes", "--skip-wait", "--backup-dir", "/nonexistent/dir"],
         "\n\n\n",
     );
@@ -654,7 +659,7 @@ fn calibrate_ph_stops_on_q_and_prints_the_restore_command() {
 
 /// The sensors of the spec that state a procedure.
 fn sensors_with_a_procedure() -> Vec<yosemitech_spec::Sensor> {
-    let with: Vec<_> = spec().sensors.into_iter().filter(|s| s.procedure.is_some()).collect();
+    let with: Vec<_> = spec().sensors.iter().filter(|&s| s.procedure.is_some()).cloned().collect();
     assert!(!with.is_empty(), "some sensor of the spec states a procedure");
     with
 }
@@ -664,9 +669,9 @@ fn measure_runs_every_procedure_and_prints_each_field() {
     for sensor in sensors_with_a_procedure() {
         let procedure = sensor.procedure.clone().unwrap();
         let s = sim(&sensor.name, 1);
-        let run = yosemitech(&["measure", &sensor.name, "-p", &s.path, "--fast", "--readings", "3"]);
+        let run = YOSEMITECH.run(&["measure", &sensor.name, "-p", &s.path, "--fast", "--readings", "3"]);
         let out = run.ok().to_owned();
-        let reads: Vec<&SpecCommand> = procedure.read.iter().map(|r| sensor.command(r).unwrap()).collect();
+        let reads: Vec<&CommandSpec> = procedure.read.iter().map(|r| sensor.command(r).unwrap()).collect();
         for read in &reads {
             for field in read.named_fields() {
                 let name = field.display_name();
@@ -685,7 +690,8 @@ fn measure_runs_every_procedure_and_prints_each_field() {
         assert!(s.server.device().stats().requests >= sent as u64, "{}", sensor.name);
 
         // JSON: each averaged value is the simulated one (no noise: every reading alike).
-        let json = yosemitech(&["measure", &sensor.name, "-p", &s.path, "--fast", "--readings", "2", "--json"]).json();
+        let json =
+            YOSEMITECH.run(&["measure", &sensor.name, "-p", &s.path, "--fast", "--readings", "2", "--json"]).json();
         assert_eq!(json["readings"], 2, "{json}");
         assert_eq!(json["sensor"], sensor.name.as_str());
         let fields = json["fields"].as_array().unwrap();
@@ -720,7 +726,7 @@ fn measure_averages_the_readings() {
         .expect("a float field");
     let s = sim(&sensor.name, 4);
     s.server.device().set(&read.name, field.display_name(), Value::Float(1.413)).unwrap();
-    let run = yosemitech(&[
+    let run = YOSEMITECH.run(&[
         "measure",
         &sensor.name,
         "-p",
@@ -750,16 +756,17 @@ fn measure_refuses_a_sensor_without_a_procedure() {
     // The fixture DO probe states no procedure.
     let dir = fixture_spec_dir();
     let spec_arg = dir.to_str().unwrap();
-    let run = yosemitech(&["--spec", spec_arg, "measure", "do_probe", "-p", "/dev/null"]);
+    let run = YOSEMITECH.run(&["--spec", spec_arg, "measure", "do_probe", "-p", "/dev/null"]);
     let err = run.fails_with_hint(2);
     assert!(err.contains("`do_probe` states no measuring procedure"), "{err}");
     for sensor in sensors_with_a_procedure() {
         assert!(err.contains(&sensor.name), "`{}` not offered:\n{err}", sensor.name);
     }
-    yosemitech(&["measure", "no_such_sensor", "-p", "/dev/null"]).fails_with_hint(2);
+    YOSEMITECH.run(&["measure", "no_such_sensor", "-p", "/dev/null"]).fails_with_hint(2);
     let first = &sensors_with_a_procedure()[0].name;
     assert!(
-        yosemitech(&["measure", first, "-p", "/dev/null", "--readings", "0"])
+        YOSEMITECH
+            .run(&["measure", first, "-p", "/dev/null", "--readings", "0"])
             .fails_with_hint(2)
             .contains("--readings 0")
     );
@@ -777,7 +784,7 @@ fn own_serial_number(sensor: &yosemitech_spec::Sensor) -> String {
 }
 
 /// The serial-number read of `sensor` and its text field.
-fn sn_field(sensor: &yosemitech_spec::Sensor) -> (&SpecCommand, &yosemitech_spec::Field) {
+fn sn_field(sensor: &yosemitech_spec::Sensor) -> (&CommandSpec, &yosemitech_spec::Field) {
     let command = sensor.command_with_role(Role::SerialNumber).unwrap();
     let field = command.named_fields().find(|f| matches!(f.kind, yosemitech_spec::FieldKind::Ascii { .. })).unwrap();
     (command, field)
@@ -787,8 +794,9 @@ fn sn_field(sensor: &yosemitech_spec::Sensor) -> (&SpecCommand, &yosemitech_spec
 fn identifiable() -> Vec<yosemitech_spec::Sensor> {
     let all: Vec<_> = spec()
         .sensors
-        .into_iter()
-        .filter(|s| s.model_code.is_some() && s.command_with_role(Role::SerialNumber).is_some())
+        .iter()
+        .filter(|&s| s.model_code.is_some() && s.command_with_role(Role::SerialNumber).is_some())
+        .cloned()
         .collect();
     assert!(all.len() >= 2, "the spec has sensors scan can tell apart");
     all
@@ -822,10 +830,10 @@ fn scan_names_each_sensor_of_the_spec_alone() {
     for (i, sensor) in sensors.iter().enumerate() {
         bus.push(Simulator::new(Arc::new(sensor.clone())).with_address(i as u8 + 1));
     }
-    let s = common::serve(bus);
+    let s = yosemitech_tests::cli::serve(bus);
     let last = sensors.len() + 1;
     let addresses = format!("1-{last}");
-    let run = yosemitech(&["scan", "-p", &s.path, "--addresses", &addresses, "--timeout", "1s"]);
+    let run = YOSEMITECH.run(&["scan", "-p", &s.path, "--addresses", &addresses, "--timeout", "1s"]);
     let out = run.ok().to_owned();
     for (i, sensor) in sensors.iter().enumerate() {
         let code = sensor.model_code.as_deref().unwrap();
@@ -845,7 +853,7 @@ fn scan_names_each_sensor_of_the_spec_alone() {
     let requests = s.server.device().devices()[0].stats().requests;
     assert!(requests <= (last * (sn_layouts() + 1)) as u64, "{requests} requests for {last} addresses");
 
-    let json = yosemitech(&["scan", "-p", &s.path, "--addresses", &addresses, "--timeout", "1s", "--json"]).json();
+    let json = YOSEMITECH.run(&["scan", "-p", &s.path, "--addresses", &addresses, "--timeout", "1s", "--json"]).json();
     let devices = json["devices"].as_array().unwrap();
     assert_eq!(devices.len(), sensors.len(), "{json}");
     for (device, sensor) in devices.iter().zip(&sensors) {
@@ -869,7 +877,7 @@ fn scan_names_each_sensor_of_the_spec_alone() {
             None => assert_eq!(device["software"], Json::Null),
         }
     }
-    let run = yosemitech(&["scan", "-p", &s.path, "--addresses", &format!("{}", last + 1)]);
+    let run = YOSEMITECH.run(&["scan", "-p", &s.path, "--addresses", &format!("{}", last + 1)]);
     assert!(run.fails_with_hint(1).contains("no device answered"), "{}", run.stderr);
 }
 
@@ -894,9 +902,9 @@ fn scan_takes_the_model_code_from_the_byte_before_the_serial_number() {
         device.registers_mut().write_bytes(command.address, field.offset - 1, &[byte]);
         bus.push(device);
     }
-    let s = common::serve(bus);
+    let s = yosemitech_tests::cli::serve(bus);
     let addresses = format!("1-{}", sensors.len());
-    let json = yosemitech(&["scan", "-p", &s.path, "--addresses", &addresses, "--timeout", "1s", "--json"]).json();
+    let json = YOSEMITECH.run(&["scan", "-p", &s.path, "--addresses", &addresses, "--timeout", "1s", "--json"]).json();
     let devices = json["devices"].as_array().unwrap();
     assert_eq!(devices.len(), sensors.len());
     for (device, sensor) in devices.iter().zip(&sensors) {
@@ -917,8 +925,8 @@ fn scan_lists_the_candidates_where_it_cannot_decide() {
     if let Some(before) = field.offset.checked_sub(1) {
         device.registers_mut().write_bytes(command.address, before, &[0x99]);
     }
-    let s = common::serve(device);
-    let json = yosemitech(&["scan", "-p", &s.path, "--addresses", "2", "--timeout", "1s", "--json"]).json();
+    let s = yosemitech_tests::cli::serve(device);
+    let json = YOSEMITECH.run(&["scan", "-p", &s.path, "--addresses", "2", "--timeout", "1s", "--json"]).json();
     let found = &json["devices"][0];
     assert_eq!(found["sensor"], Json::Null, "{found}");
     assert_eq!(found["model_code"], "99");
@@ -933,7 +941,7 @@ fn scan_lists_the_candidates_where_it_cannot_decide() {
         .collect();
     assert_eq!(found["sensors"], serde_json::json!(same_read), "{found}");
     assert!(found["reason"].as_str().unwrap().contains("model code 99"), "{found}");
-    let run = yosemitech(&["scan", "-p", &s.path, "--addresses", "2", "--timeout", "1s"]);
+    let run = YOSEMITECH.run(&["scan", "-p", &s.path, "--addresses", "2", "--timeout", "1s"]);
     let out = run.ok();
     assert!(out.contains("not identified") && out.contains(&sensor.name) && out.contains("model code 99"), "{out}");
 
@@ -946,9 +954,9 @@ fn scan_lists_the_candidates_where_it_cannot_decide() {
     std::fs::write(dir.path().join("twin.yaml"), renamed).unwrap();
     let spec_arg = dir.path().to_str().unwrap();
     s.server.device().set(&command.name, field.display_name(), Value::Text(own_serial_number(&sensor))).unwrap();
-    let json =
-        yosemitech(&["--spec", spec_arg, "scan", "-p", &s.path, "--addresses", "2", "--timeout", "1s", "--json"])
-            .json();
+    let json = YOSEMITECH
+        .run(&["--spec", spec_arg, "scan", "-p", &s.path, "--addresses", "2", "--timeout", "1s", "--json"])
+        .json();
     let found = &json["devices"][0];
     assert_eq!(found["sensor"], Json::Null, "{found}");
     assert_eq!(found["sensors"], serde_json::json!([sensor.name, twin]), "{found}");
@@ -958,7 +966,8 @@ fn scan_lists_the_candidates_where_it_cannot_decide() {
 /// `yosemitech simulate` in a child process: the port it prints, and a clean
 /// stop on Ctrl-C.
 fn spawn_simulate(args: &[&str]) -> (std::process::Child, String) {
-    let mut child = common::command()
+    let mut child = YOSEMITECH
+        .command()
         .arg("simulate")
         .args(args)
         .stdin(Stdio::null())
@@ -974,7 +983,7 @@ fn spawn_simulate(args: &[&str]) -> (std::process::Child, String) {
 fn interrupt(mut child: std::process::Child) -> String {
     let status = Command::new("kill").args(["-INT", &child.id().to_string()]).status().unwrap();
     assert!(status.success());
-    assert_eq!(common::wait(&mut child, Duration::from_secs(10)), 0, "simulate stops cleanly on Ctrl-C");
+    assert_eq!(yosemitech_tests::cli::wait(&mut child, Duration::from_secs(10)), 0, "simulate stops cleanly on Ctrl-C");
     let mut err = String::new();
     std::io::Read::read_to_string(&mut child.stderr.take().unwrap(), &mut err).unwrap();
     err
@@ -983,8 +992,8 @@ fn interrupt(mut child: std::process::Child) -> String {
 /// A measurement read whose example (in the sensor's own manual) the
 /// simulator answers: the sensor, the read, the true request and reply,
 /// and the line `read` shows for its one f32 field (`name  value unit`).
-fn stated_read() -> (yosemitech_spec::Sensor, SpecCommand, Vec<u8>, Vec<u8>, String) {
-    for sensor in spec().sensors {
+fn stated_read() -> (yosemitech_spec::Sensor, CommandSpec, Vec<u8>, Vec<u8>, String) {
+    for sensor in spec().sensors.clone() {
         let device = Simulator::new(Arc::new(sensor.clone()));
         for command in sensor.commands.iter().filter(|c| c.is_read() && c.role.is_none() && c.fixed_slave.is_none()) {
             let mut named = command.named_fields();
@@ -1017,7 +1026,7 @@ fn simulate_serves_a_pty_until_interrupted() {
     let (sensor, command, _, _, line) = stated_read();
     let (child, port) = spawn_simulate(&[&sensor.name, "--address", "4"]);
     assert!(port.starts_with("/dev/"), "{port}");
-    let out = yosemitech(&["read", &sensor.name, &command.name, "-p", &port, "-a", "4"]);
+    let out = YOSEMITECH.run(&["read", &sensor.name, &command.name, "-p", &port, "-a", "4"]);
     assert!(out.ok().contains(&line), "{}", out.stdout);
     let err = interrupt(child);
     let title = format!("simulating {} ({})", sensor.title, sensor.name);
@@ -1029,7 +1038,7 @@ fn simulate_serves_rtu_over_tcp() {
     let (sensor, command, _, _, line) = stated_read();
     let (child, port) = spawn_simulate(&[&sensor.name, "--tcp", "127.0.0.1:0"]);
     assert!(port.starts_with("tcp://127.0.0.1:"), "{port}");
-    let out = yosemitech(&["read", &sensor.name, &command.name, "-p", &port]);
+    let out = YOSEMITECH.run(&["read", &sensor.name, &command.name, "-p", &port]);
     assert_eq!(out.ok().trim(), line);
     interrupt(child);
 }
@@ -1055,7 +1064,7 @@ fn simulate_is_silent_for_registers_the_probe_lacks_unless_asked_for_exceptions(
         args.extend_from_slice(flags);
         let (child, port) = spawn_simulate(&args);
         let run =
-            yosemitech(&["read", &owner.name, &foreign.name, "-p", &port, "--timeout", "500ms", "--retries", "0"]);
+            YOSEMITECH.run(&["read", &owner.name, &foreign.name, "-p", &port, "--timeout", "500ms", "--retries", "0"]);
         assert_eq!(run.code, 1, "{flags:?}: {}", run.stderr);
         assert!(run.stderr.contains(expected), "{flags:?}: {}", run.stderr);
         let err = interrupt(child);
@@ -1070,7 +1079,8 @@ fn simulate_injects_faults_the_client_retries() {
     // The sensor with the most measurement reads: the most requests per poll.
     let sensor = spec()
         .sensors
-        .into_iter()
+        .iter()
+        .cloned()
         .max_by_key(|s| {
             let mut reads: Vec<String> = poll_columns(s).into_iter().map(|(r, _, _)| r).collect();
             reads.dedup();
@@ -1078,7 +1088,7 @@ fn simulate_injects_faults_the_client_retries() {
         })
         .unwrap();
     let (child, port) = spawn_simulate(&[&sensor.name, "--faults", "drop=0.3,corrupt_crc=0.2", "--seed", "5"]);
-    let run = yosemitech(&[
+    let run = YOSEMITECH.run(&[
         "poll",
         &sensor.name,
         "-p",
@@ -1111,12 +1121,12 @@ fn spec_sensors_work_through_the_interpreter() {
     let dir = fixture_spec_dir();
     let spec = dir.to_str().unwrap();
     let (child, port) = spawn_simulate(&["--spec", spec, "do_probe"]);
-    let out = yosemitech(&["read", "--spec", spec, "do_probe", "get_dissolved_oxygen", "-p", &port]);
+    let out = YOSEMITECH.run(&["read", "--spec", spec, "do_probe", "get_dissolved_oxygen", "-p", &port]);
     let text = out.ok();
     assert!(text.contains("do_mg_l") && text.contains("8.25 mg/L") && text.contains("-1250"), "{text}");
-    let run = yosemitech(&["--spec", spec, "poll", "do_probe", "-p", &port, "-n", "2", "-i", "0", "-f", "csv"]);
+    let run = YOSEMITECH.run(&["--spec", spec, "poll", "do_probe", "-p", &port, "-n", "2", "-i", "0", "-f", "csv"]);
     assert_eq!(run.ok().lines().count(), 3, "{}", run.stdout);
-    let run = yosemitech(&[
+    let run = YOSEMITECH.run(&[
         "--spec",
         spec,
         "write",
@@ -1130,7 +1140,8 @@ fn spec_sensors_work_through_the_interpreter() {
         "--yes",
     ]);
     assert!(run.ok().contains("verified"), "{}", run.stdout);
-    let run = yosemitech(&["--spec", spec, "write", "do_probe", "set_offsets", "0", "50", "0", "-p", &port, "--yes"]);
+    let run =
+        YOSEMITECH.run(&["--spec", spec, "write", "do_probe", "set_offsets", "0", "50", "0", "-p", &port, "--yes"]);
     assert!(run.fails_with_hint(2).contains("outside the valid range 0..=40"), "{}", run.stderr);
     interrupt(child);
 }
@@ -1139,7 +1150,7 @@ fn spec_sensors_work_through_the_interpreter() {
 fn verbose_shows_frame_dumps() {
     let (sensor, command, request, reply, _) = stated_read();
     let s = sim(&sensor.name, 1);
-    let run = yosemitech(&["read", &sensor.name, &command.name, "-p", &s.path, "-v"]);
+    let run = YOSEMITECH.run(&["read", &sensor.name, &command.name, "-p", &s.path, "-v"]);
     run.ok();
     assert!(run.stderr.contains("tx") && run.stderr.contains(&hex(&request)), "{}", run.stderr);
     assert!(run.stderr.contains("rx") && run.stderr.contains(&hex(&reply)), "{}", run.stderr);
@@ -1153,7 +1164,7 @@ fn a_spec_file_replacing_a_built_in_sensor_goes_through_the_interpreter() {
     // (with the same read-back), and the typed procedures refuse.
     let name = calibrated_sensor();
     let dir = tempfile::tempdir().unwrap();
-    let own = std::fs::read_dir(common::spec_dir())
+    let own = std::fs::read_dir(yosemitech_tests::spec_dir())
         .unwrap()
         .map(|e| e.unwrap().path())
         .find(|p| {
@@ -1166,13 +1177,15 @@ fn a_spec_file_replacing_a_built_in_sensor_goes_through_the_interpreter() {
     let s = sim(&name, 1);
     let file = dir.path().join("backup.json");
     let file = file.to_str().unwrap();
-    let sensor = common::sensor(&name);
-    let blocks = common::coefficient_blocks(&sensor);
+    let sensor = yosemitech_tests::sensor(&name);
+    let blocks = yosemitech_tests::cli::coefficient_blocks(&sensor);
     let (_, first_read) = blocks[0];
     let first_field = first_read.named_fields().next().unwrap().display_name().to_owned();
     let first_value = float(&s, &first_read.name, &first_field);
-    let out =
-        yosemitech(&["--spec", spec_arg, "coefficients", "backup", &name, "-p", &s.path, "-f", file]).ok().to_owned();
+    let out = YOSEMITECH
+        .run(&["--spec", spec_arg, "coefficients", "backup", &name, "-p", &s.path, "-f", file])
+        .ok()
+        .to_owned();
     assert!(
         out.contains(&format!("{first_field}={first_value}")) && out.contains(&format!("--spec {spec_arg}")),
         "{out}"
@@ -1188,14 +1201,13 @@ fn a_spec_file_replacing_a_built_in_sensor_goes_through_the_interpreter() {
     for (i, (c, f, _)) in before.iter().enumerate() {
         s.server.device().set(c, f, Value::Float(1.5 + i as f32)).unwrap();
     }
-    let out = yosemitech(&["--spec", spec_arg, "coefficients", "restore", &name, "-p", &s.path, "-f", file, "--yes"]);
+    let out =
+        YOSEMITECH.run(&["--spec", spec_arg, "coefficients", "restore", &name, "-p", &s.path, "-f", file, "--yes"]);
     assert!(out.ok().contains("restored and verified"));
     for (c, f, v) in &before {
         assert_eq!(float(&s, c, f).to_bits(), v.to_bits(), "{c}.{f}");
     }
-    let run = yosemitech_with_input(
-        &["--spec", spec_arg, "calibrate", "ph", "-p", &s.path, "--yes", "--skip-wait"],
-        "\n\n\n",
-    );
+    let run = YOSEMITECH
+        .run_with_input(&["--spec", spec_arg, "calibrate", "ph", "-p", &s.path, "--yes", "--skip-wait"], "\n\n\n");
     assert!(run.fails_with_hint(2).contains(&format!("built-in {name}")), "{}", run.stderr);
 }

@@ -2,11 +2,13 @@
 //! bad input. Every frame the manuals print goes through `decode --json` and
 //! `encode` and must give the manuals' stated values and bytes.
 
-mod common;
+use yosemitech_tests::cli::Binary;
+use yosemitech_tests::spec;
 
-use common::{spec, yosemitech};
+/// The binary under test.
+const YOSEMITECH: Binary = Binary(env!("CARGO_BIN_EXE_yosemitech"));
 use serde_json::Value as Json;
-use yosemitech_spec::{Command, Example, Sensor, Value};
+use yosemitech_spec::{CommandSpec, Example, Sensor, Value};
 
 const SUBCOMMANDS: [&str; 13] = [
     "demo",
@@ -55,7 +57,7 @@ fn arg(value: &Value) -> String {
 }
 
 /// Every example of every command, with its sensor and command.
-fn examples() -> Vec<(Sensor, Command, Example)> {
+fn examples() -> Vec<(Sensor, CommandSpec, Example)> {
     let spec = spec();
     let mut out = Vec::new();
     for sensor in &spec.sensors {
@@ -71,53 +73,43 @@ fn examples() -> Vec<(Sensor, Command, Example)> {
 
 fn decode_json(frame: &[u8], sensor: &str, command: &str) -> Json {
     let frame = hex(frame);
-    let run = yosemitech(&["decode", &frame, "--sensor", sensor, "--command", command, "--json"]);
+    let run = YOSEMITECH.run(&["decode", &frame, "--sensor", sensor, "--command", command, "--json"]);
     run.json()
 }
 
 #[test]
 fn help_works_for_every_subcommand() {
-    let top = yosemitech(&["--help"]);
+    let top = YOSEMITECH.run(&["--help"]);
     let text = top.ok();
     for sub in SUBCOMMANDS {
         assert!(text.contains(sub), "`{sub}` missing from --help");
-        let run = yosemitech(&[sub, "--help"]);
+        let run = YOSEMITECH.run(&[sub, "--help"]);
         assert!(run.ok().contains("Usage:"), "{sub} --help:\n{}", run.stdout);
     }
     for nested in [["calibrate", "ph"], ["coefficients", "backup"], ["coefficients", "restore"]] {
-        assert!(yosemitech(&[nested[0], nested[1], "--help"]).ok().contains("Usage:"));
+        assert!(YOSEMITECH.run(&[nested[0], nested[1], "--help"]).ok().contains("Usage:"));
     }
     // `measure SENSOR --help` for every sensor (the help of `measure`).
-    for sensor in spec().sensors {
-        assert!(yosemitech(&["measure", &sensor.name, "--help"]).ok().contains("Usage:"), "{}", sensor.name);
+    for sensor in spec().sensors.clone() {
+        assert!(YOSEMITECH.run(&["measure", &sensor.name, "--help"]).ok().contains("Usage:"), "{}", sensor.name);
     }
-    assert!(yosemitech(&["--version"]).ok().starts_with("yosemitech "));
+    assert!(YOSEMITECH.run(&["--version"]).ok().starts_with("yosemitech "));
 }
 
 #[test]
 fn usage_errors_exit_2() {
     // No subcommand: the usage, on stderr.
-    let run = yosemitech(&[]);
+    let run = YOSEMITECH.run(&[]);
     assert_eq!(run.code, 2);
     assert!(run.stderr.contains("Usage:"), "{}", run.stderr);
-    yosemitech(&["frobnicate"]).fails(2);
-    yosemitech(&["decode"]).fails(2);
-    yosemitech(&["poll", &spec().sensors[0].name, "--interval", "fast"]).fails(2);
-}
-
-/// `9600 8N1`, as `list` shows serial settings.
-fn serial_text(serial: &yosemitech_spec::Serial) -> String {
-    let parity = match serial.parity {
-        yosemitech_spec::Parity::None => 'N',
-        yosemitech_spec::Parity::Even => 'E',
-        yosemitech_spec::Parity::Odd => 'O',
-    };
-    format!("{} {}{parity}{}", serial.baud, serial.data_bits, serial.stop_bits)
+    YOSEMITECH.run(&["frobnicate"]).fails(2);
+    YOSEMITECH.run(&["decode"]).fails(2);
+    YOSEMITECH.run(&["poll", &spec().sensors[0].name, "--interval", "fast"]).fails(2);
 }
 
 #[test]
 fn list_json_has_every_command_with_its_layout() {
-    let json = yosemitech(&["list", "--json"]).json();
+    let json = YOSEMITECH.run(&["list", "--json"]).json();
     let sensors = json["sensors"].as_array().expect("sensors");
     let spec = spec();
     let names: Vec<&str> = sensors.iter().filter_map(|s| s["name"].as_str()).collect();
@@ -136,7 +128,7 @@ fn list_json_has_every_command_with_its_layout() {
                 .find(|m| m["title"] == manual.title.as_str() && m["software"].as_str() == manual.software.as_deref());
             let m = m.unwrap_or_else(|| panic!("{}: manual {:?} missing", sensor.name, manual.software));
             let serial = manual.software.as_deref().map_or(sensor.serial, |sw| sensor.serial_for(sw));
-            assert_eq!(m["serial"]["stop_bits"].as_u64(), Some(u64::from(serial.stop_bits)));
+            assert_eq!(m["serial"]["stop_bits"].as_u64(), Some(u64::from(serial.format.stop_bits.bits())));
             assert_eq!(m["serial"]["baud"].as_u64(), Some(u64::from(serial.baud)));
         }
         assert_eq!(s["procedure"].is_null(), sensor.procedure.is_none(), "{}", sensor.name);
@@ -171,7 +163,7 @@ fn list_json_has_every_command_with_its_layout() {
         }
     }
     for sensor in &spec.sensors {
-        let one = yosemitech(&["list", &sensor.name, "--json"]).json();
+        let one = YOSEMITECH.run(&["list", &sensor.name, "--json"]).json();
         assert_eq!(one["sensors"].as_array().unwrap().len(), 1);
         assert_eq!(one["sensors"][0]["name"], sensor.name.as_str());
     }
@@ -179,12 +171,12 @@ fn list_json_has_every_command_with_its_layout() {
 
 #[test]
 fn list_shows_sensors_commands_and_fields() {
-    let all = yosemitech(&["list"]);
+    let all = YOSEMITECH.run(&["list"]);
     let text = all.ok();
     let mut f32_units = 0;
-    for sensor in spec().sensors {
+    for sensor in spec().sensors.clone() {
         assert!(text.contains(&format!("{} — {}", sensor.name, sensor.title)), "{}", sensor.name);
-        let one = yosemitech(&["list", &sensor.name]).ok().to_owned();
+        let one = YOSEMITECH.run(&["list", &sensor.name]).ok().to_owned();
         if let Some(model) = &sensor.model {
             assert!(one.contains(&format!("model {model}")), "{one}");
         }
@@ -200,8 +192,8 @@ fn list_shows_sensors_commands_and_fields() {
                         && manual.software.as_ref().is_none_or(|sw| l.contains(&format!("SW {sw}:")))
                 })
                 .unwrap_or_else(|| panic!("no line for the manual {:?}:\n{one}", manual.software));
-            assert!(line.contains(&serial_text(&serial)), "{line}");
-            if serial.stop_bits == 2 {
+            assert!(line.contains(&serial.to_string()), "{line}");
+            if serial.format.stop_bits == yosemitech_rtu::StopBits::Two {
                 assert!(line.contains("2 stop bits"), "{line}");
             }
         }
@@ -301,10 +293,10 @@ fn encode_reproduces_every_manual_frame() {
         let (request_values, response_values) =
             if command.is_read() { (Vec::new(), values) } else { (values, Vec::new()) };
         let args: Vec<String> = base.iter().cloned().chain(request_values).collect();
-        let run = yosemitech(&args.iter().map(String::as_str).collect::<Vec<_>>());
+        let run = YOSEMITECH.run(&args.iter().map(String::as_str).collect::<Vec<_>>());
         assert_eq!(run.ok().trim(), hex(true_request), "{} request", command.name);
         let args: Vec<String> = base.iter().cloned().chain(["--response".to_owned()]).chain(response_values).collect();
-        let run = yosemitech(&args.iter().map(String::as_str).collect::<Vec<_>>());
+        let run = YOSEMITECH.run(&args.iter().map(String::as_str).collect::<Vec<_>>());
         if command.trigger {
             // The simulator's (the manuals') form; the example may show another accepted one.
             continue;
@@ -333,7 +325,7 @@ fn decode_identifies_unambiguous_frames_on_its_own() {
             .filter(|(_, c)| c.is_read() && !c.trigger && c.decode_response(example.slave(), reply).is_ok())
             .map(|(s, c)| format!("{} {}", s.name, c.name))
             .collect();
-        let run = yosemitech(&["decode", &hex(reply)]);
+        let run = YOSEMITECH.run(&["decode", &hex(reply)]);
         let text = run.stdout.clone();
         if accepting.len() == 1 {
             assert!(text.contains(&format!("{} {}", sensor.name, command.name)), "{text}");
@@ -353,7 +345,7 @@ fn decode_identifies_unambiguous_frames_on_its_own() {
         if !err.printed_decodes || err.corrected_response.is_none() {
             continue;
         }
-        let run = yosemitech(&["decode", &hex(printed), "--json"]);
+        let run = YOSEMITECH.run(&["decode", &hex(printed), "--json"]);
         let json = run.json();
         assert_eq!(json["command"]["name"], command.name.as_str(), "{json}");
         assert!(json["notes"][0].as_str().is_some_and(|n| n.contains("quirk")), "{json}");
@@ -363,9 +355,9 @@ fn decode_identifies_unambiguous_frames_on_its_own() {
 /// A reply the manuals print that several reads of the spec fit: a
 /// measurement read (no role) of one f32 field with a unit, its example's
 /// true reply, and the field. The first in spec order.
-fn ambiguous_reply() -> (Command, Vec<u8>, String, String) {
+fn ambiguous_reply() -> (CommandSpec, Vec<u8>, String, String) {
     let spec = spec();
-    let reads: Vec<&Command> = spec.sensors.iter().flat_map(|s| &s.commands).filter(|c| c.is_read()).collect();
+    let reads: Vec<&CommandSpec> = spec.sensors.iter().flat_map(|s| &s.commands).filter(|c| c.is_read()).collect();
     reads
         .iter()
         .filter(|c| c.role.is_none() && c.fixed_slave.is_none() && c.named_fields().count() == 1)
@@ -391,11 +383,11 @@ fn ambiguous_reply() -> (Command, Vec<u8>, String, String) {
 fn decode_asks_which_command_when_a_reply_is_ambiguous() {
     let (command, reply, field, shown) = ambiguous_reply();
     let frame = hex(&reply);
-    let run = yosemitech(&["decode", &frame]);
+    let run = YOSEMITECH.run(&["decode", &frame]);
     let err = run.fails_with_hint(2);
     // Every read of the same size is a candidate.
     let spec = spec();
-    let same_size: Vec<&Command> = spec
+    let same_size: Vec<&CommandSpec> = spec
         .sensors
         .iter()
         .flat_map(|s| &s.commands)
@@ -408,26 +400,26 @@ fn decode_asks_which_command_when_a_reply_is_ambiguous() {
     assert!(err.contains(&format!("{field} = {shown}")), "{err}");
     assert!(err.contains("--sensor") && err.contains("--command"), "{err}");
     // Narrowing by command alone is enough.
-    let run = yosemitech(&["decode", &frame, "--command", &command.name]);
+    let run = YOSEMITECH.run(&["decode", &frame, "--command", &command.name]);
     assert!(run.ok().contains(&shown));
 }
 
 #[test]
 fn decode_reports_a_wrong_crc_with_the_expected_one() {
     let (command, reply, _, shown) = ambiguous_reply();
-    let sensor = spec().sensors.into_iter().find(|s| s.command(&command.name).is_some()).unwrap();
+    let sensor = spec().sensors.iter().find(|&s| s.command(&command.name).is_some()).cloned().unwrap();
     let n = reply.len();
     let right = hex(&reply[n - 2..]);
     let mut bad = reply.clone();
     bad[n - 1] = bad[n - 1].wrapping_add(1);
     let wrong = hex(&bad[n - 2..]);
     let frame = hex(&bad);
-    let run = yosemitech(&["decode", &frame, "--sensor", &sensor.name, "--command", &command.name]);
+    let run = YOSEMITECH.run(&["decode", &frame, "--sensor", &sensor.name, "--command", &command.name]);
     let err = run.fails_with_hint(1);
     assert!(run.stdout.contains(&format!("{wrong} (wrong: the bytes give {right})")), "{}", run.stdout);
     assert!(run.stdout.contains(&shown), "fields still shown:\n{}", run.stdout);
     assert!(err.contains(&right));
-    let run = yosemitech(&["decode", &frame, "--command", &command.name, "--json"]);
+    let run = YOSEMITECH.run(&["decode", &frame, "--command", &command.name, "--json"]);
     assert_eq!(run.code, 1);
     let json: Json = serde_json::from_str(&run.stdout).unwrap();
     assert_eq!(json["crc"], serde_json::json!({ "ok": false, "received": wrong, "expected": right }));
@@ -435,11 +427,11 @@ fn decode_reports_a_wrong_crc_with_the_expected_one() {
 
 #[test]
 fn decode_explains_exceptions() {
-    let run = yosemitech(&["decode", "01 83 02 C0 F1"]);
+    let run = YOSEMITECH.run(&["decode", "01 83 02 C0 F1"]);
     let text = run.ok();
     assert!(text.contains("exception reply from address 1 to function 0x03"), "{text}");
     assert!(text.contains("illegal data address"), "{text}");
-    let json = yosemitech(&["decode", "01 83 02 C0 F1", "--json"]).json();
+    let json = YOSEMITECH.run(&["decode", "01 83 02 C0 F1", "--json"]).json();
     assert_eq!(json["exception"]["code"], 2);
 }
 
@@ -448,13 +440,13 @@ fn decode_rejects_a_frame_that_does_not_fit_the_command() {
     let (command, reply, _, _) = ambiguous_reply();
     let frame = hex(&reply);
     // The serial-number read of the same sensor: another size.
-    let sensor = spec().sensors.into_iter().find(|s| s.command(&command.name).is_some()).unwrap();
+    let sensor = spec().sensors.iter().find(|&s| s.command(&command.name).is_some()).cloned().unwrap();
     let sn = sensor.command_with_role(yosemitech_spec::Role::SerialNumber).expect("a serial-number read");
     assert_ne!(sn.count, command.count);
-    let err = yosemitech(&["decode", &frame, "--command", &sn.name]).fails_with_hint(2).to_owned();
+    let err = YOSEMITECH.run(&["decode", &frame, "--command", &sn.name]).fails_with_hint(2).to_owned();
     assert!(err.contains(&format!("does not fit `{}`", sn.name)), "{err}");
     let typo = format!("{}{}", command.name, command.name.chars().last().unwrap());
-    let err = yosemitech(&["decode", &frame, "--command", &typo]).fails_with_hint(2).to_owned();
+    let err = YOSEMITECH.run(&["decode", &frame, "--command", &typo]).fails_with_hint(2).to_owned();
     assert!(err.contains(&format!("did you mean `{}`", command.name)), "{err}");
 }
 
@@ -657,7 +649,7 @@ fn bad_input_gets_one_error_and_a_hint() {
         owned.iter().map(|(a, c, n)| (a.iter().map(String::as_str).collect(), *c, n.as_str())).collect();
     let cases = fixed_cases.iter().map(|(a, c, n)| (a.to_vec(), *c, *n)).chain(owned);
     for (args, code, needle) in cases {
-        let run = yosemitech(&args);
+        let run = YOSEMITECH.run(&args);
         let err = run.fails_with_hint(code);
         assert!(err.starts_with("error: "), "{args:?}: stderr starts with the error:\n{err}");
         assert!(err.contains(needle), "{args:?}: `{needle}` not in:\n{err}");
@@ -669,7 +661,7 @@ fn bad_input_gets_one_error_and_a_hint() {
 fn a_spec_error_is_reported_with_its_position() {
     let dir = tempfile::tempdir().unwrap();
     std::fs::write(dir.path().join("broken.yaml"), "sensor:\n  name: Broken Name\n").unwrap();
-    let run = yosemitech(&["list", "--spec", dir.path().to_str().unwrap()]);
+    let run = YOSEMITECH.run(&["list", "--spec", dir.path().to_str().unwrap()]);
     let err = run.fails_with_hint(2);
     assert!(err.contains("broken.yaml:"), "{err}");
 }
@@ -710,16 +702,16 @@ commands:
     )
     .unwrap();
     let spec = dir.path().to_str().unwrap();
-    let json = yosemitech(&["--spec", spec, "list", "--json"]).json();
+    let json = YOSEMITECH.run(&["--spec", spec, "list", "--json"]).json();
     let names: Vec<&str> = json["sensors"].as_array().unwrap().iter().filter_map(|s| s["name"].as_str()).collect();
-    let built_in = common::spec();
+    let built_in = yosemitech_tests::spec();
     let want: Vec<&str> = built_in.sensors.iter().map(|s| s.name.as_str()).chain(["test_probe"]).collect();
     assert_eq!(names, want, "the built-in sensors, then the --spec one");
-    let turbidity = yosemitech(&["list", "test_probe", "--json", "--spec", spec]).json();
+    let turbidity = YOSEMITECH.run(&["list", "test_probe", "--json", "--spec", spec]).json();
     let commands: Vec<&str> =
         turbidity["sensors"][0]["commands"].as_array().unwrap().iter().filter_map(|c| c["name"].as_str()).collect();
     assert!(commands.contains(&"get_sn") && commands.contains(&"get_turbidity"), "{commands:?}");
-    let run = yosemitech(&[
+    let run = YOSEMITECH.run(&[
         "decode",
         "01 03 04 00 00 20 41 23 C3",
         "--spec",
@@ -730,6 +722,6 @@ commands:
         "get_turbidity",
     ]);
     assert!(run.ok().contains("10 NTU"), "{}", run.stdout);
-    let run = yosemitech(&["encode", "test_probe", "get_turbidity", "--spec", spec]);
+    let run = YOSEMITECH.run(&["encode", "test_probe", "get_turbidity", "--spec", spec]);
     assert_eq!(run.ok().trim(), "01 03 26 00 00 02 CF 43");
 }

@@ -5,7 +5,7 @@ use std::collections::BTreeMap;
 
 use heck::{ToShoutySnakeCase, ToUpperCamelCase};
 use yosemitech_spec::names::{PRELUDE_NAMES, check_snake};
-use yosemitech_spec::{Command, EnumRepr, FieldKind, Sensor, Variant};
+use yosemitech_spec::{CommandSpec, EnumRepr, FieldKind, Sensor, Variant};
 
 use crate::Error;
 
@@ -166,7 +166,7 @@ impl Names {
 }
 
 /// `get_ph` -> `ph`; everything else keeps its name.
-fn preferred_method(c: &Command) -> String {
+fn preferred_method(c: &CommandSpec) -> String {
     match c.name.strip_prefix("get_") {
         Some(short) if c.is_read() && check_snake(short).is_none() => short.to_owned(),
         _ => c.name.clone(),
@@ -177,7 +177,7 @@ fn preferred_method(c: &Command) -> String {
 /// the command without its verb when the field is its subject
 /// (`get_calibration_status.status` -> `CalibrationStatus`), the field's
 /// name (`range_status` -> `RangeStatus`), then command + field.
-fn enum_type_candidates(c: &Command, field: &str) -> Vec<String> {
+fn enum_type_candidates(c: &CommandSpec, field: &str) -> Vec<String> {
     let subject = c.name.split_once('_').map_or(c.name.as_str(), |(_, rest)| rest);
     let mut out = Vec::new();
     if subject.ends_with(field) {

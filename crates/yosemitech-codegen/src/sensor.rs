@@ -2,10 +2,11 @@
 
 use std::fmt::Write as _;
 
+use heck::ToUpperCamelCase;
 use proc_macro2::{Ident, Literal, Span, TokenStream};
 use quote::{format_ident, quote};
-use yosemitech_rtu::Function;
-use yosemitech_spec::{Command, Constant, ConstantType, EnumRepr, Field, FieldKind, Order2, Order4, Parity, Sensor};
+use yosemitech_rtu::{ByteOrder2, ByteOrder4, DataBits, Function, LineSettings, Parity, StopBits};
+use yosemitech_spec::{CommandSpec, Constant, ConstantType, EnumRepr, Field, FieldKind, Sensor};
 
 use crate::Error;
 use crate::naming::{EnumDef, Names};
@@ -48,7 +49,7 @@ pub fn module_declaration(s: &Sensor, file: &str) -> TokenStream {
         "Generated from the spec of the manual \"{}\" ({}). Serial: {}; slave addresses {}..={}, factory address {}.",
         one_line(&s.manual.title),
         one_line(&s.manual.revision),
-        text::serial(&s.serial),
+        s.serial,
         s.min_address,
         s.max_address,
         s.default_address
@@ -95,7 +96,7 @@ pub struct SharedModule {
     /// The fragment's (module's) name.
     pub fragment: String,
     /// The commands generated in it.
-    pub commands: Vec<Command>,
+    pub commands: Vec<CommandSpec>,
     /// Their items.
     pub tokens: TokenStream,
 }
@@ -104,7 +105,7 @@ pub struct SharedModule {
 /// fields (names, types, offsets, units, ranges). Titles, docs and examples
 /// may differ by manual; units and enums may not, since they are part of the
 /// generated type.
-fn same_type(a: &Command, b: &Command) -> bool {
+fn same_type(a: &CommandSpec, b: &CommandSpec) -> bool {
     let field =
         |f: &yosemitech_spec::Field| (f.name.clone(), f.kind.clone(), f.offset, f.unit.clone(), f.range, f.absent);
     a.name == b.name
@@ -115,13 +116,13 @@ fn same_type(a: &Command, b: &Command) -> bool {
 
 /// A command can be shared when its type needs nothing module-level: no
 /// enum types (whose names a sensor module plans for itself).
-fn shareable(c: &Command) -> bool {
+fn shareable(c: &CommandSpec) -> bool {
     !c.fields.iter().any(|f| matches!(f.kind, FieldKind::Enum { .. }))
 }
 
 /// The module of a fragment's shareable commands; `None` when it has none.
 pub fn fragment_module(fragment: &yosemitech_spec::Fragment, o: &Options) -> Result<Option<SharedModule>, Error> {
-    let commands: Vec<Command> = fragment.commands.iter().filter(|c| shareable(c)).cloned().collect();
+    let commands: Vec<CommandSpec> = fragment.commands.iter().filter(|c| shareable(c)).cloned().collect();
     if commands.is_empty() {
         return Ok(None);
     }
@@ -133,7 +134,7 @@ pub fn fragment_module(fragment: &yosemitech_spec::Fragment, o: &Options) -> Res
         model_code: None,
         manual: yosemitech_spec::Manual { title: String::new(), revision: String::new(), software: None, file: None },
         revisions: Vec::new(),
-        serial: yosemitech_spec::Serial { baud: 9600, data_bits: 8, parity: Parity::None, stop_bits: 1 },
+        serial: LineSettings::default(),
         min_address: 1,
         max_address: 247,
         default_address: 1,
@@ -156,7 +157,7 @@ pub fn fragment_module(fragment: &yosemitech_spec::Fragment, o: &Options) -> Res
 }
 
 /// `pub mod <fragment> { include!("<file>"); }` with the fragment's documentation.
-pub fn fragment_declaration(fragment: &yosemitech_spec::Fragment, commands: &[Command], file: &str) -> TokenStream {
+pub fn fragment_declaration(fragment: &yosemitech_spec::Fragment, commands: &[CommandSpec], file: &str) -> TokenStream {
     let name = ident(&fragment.name);
     let file = lit(file);
     let list: Vec<String> = commands.iter().map(|c| format!("`{}`", c.name)).collect();
@@ -179,7 +180,7 @@ Commands of the shared fragment `{}`, generated once: every sensor module that u
 
 /// The shared module and type that stand for a sensor's command, if any.
 fn shared_for<'m>(
-    c: &Command,
+    c: &CommandSpec,
     names: &crate::naming::CommandNames,
     shared: &'m [SharedModule],
 ) -> Option<&'m SharedModule> {
@@ -238,20 +239,18 @@ fn sensor_info(s: &Sensor) -> Result<TokenStream, Error> {
     let manual = lit(&one_line(&s.manual.title));
     let revision = lit(&one_line(&s.manual.revision));
     let baud = Literal::u32_unsuffixed(s.serial.baud);
-    let data_bits = match s.serial.data_bits {
-        7 => quote!(Seven),
-        8 => quote!(Eight),
-        n => return Err(unsupported(s, format!("{n} data bits (the runtime knows 7 and 8)"))),
+    let data_bits = match s.serial.format.data_bits {
+        DataBits::Seven => quote!(Seven),
+        DataBits::Eight => quote!(Eight),
     };
-    let parity = match s.serial.parity {
+    let parity = match s.serial.format.parity {
         Parity::None => quote!(None),
         Parity::Even => quote!(Even),
         Parity::Odd => quote!(Odd),
     };
-    let stop_bits = match s.serial.stop_bits {
-        1 => quote!(One),
-        2 => quote!(Two),
-        n => return Err(unsupported(s, format!("{n} stop bits (the runtime knows 1 and 2)"))),
+    let stop_bits = match s.serial.format.stop_bits {
+        StopBits::One => quote!(One),
+        StopBits::Two => quote!(Two),
     };
     let (min, max, default) = (
         Literal::u8_unsuffixed(s.min_address),
@@ -461,7 +460,7 @@ struct FieldGen<'a> {
     ty: TokenStream,
 }
 
-fn field_gens<'a>(names: &Names, ci: usize, c: &'a Command) -> Vec<FieldGen<'a>> {
+fn field_gens<'a>(names: &Names, ci: usize, c: &'a CommandSpec) -> Vec<FieldGen<'a>> {
     c.fields
         .iter()
         .enumerate()
@@ -495,20 +494,16 @@ fn field_gens<'a>(names: &Names, ci: usize, c: &'a Command) -> Vec<FieldGen<'a>>
         .collect()
 }
 
-fn order4(o: Order4) -> TokenStream {
-    match o {
-        Order4::Abcd => quote!(rtu::ByteOrder4::Abcd),
-        Order4::Dcba => quote!(rtu::ByteOrder4::Dcba),
-        Order4::Cdab => quote!(rtu::ByteOrder4::Cdab),
-        Order4::Badc => quote!(rtu::ByteOrder4::Badc),
-    }
+/// `rtu::ByteOrder4::Dcba`: the variant is the order's name in CamelCase.
+fn order4(o: ByteOrder4) -> TokenStream {
+    let variant = format_ident!("{}", o.name().to_upper_camel_case());
+    quote!(rtu::ByteOrder4::#variant)
 }
 
-fn order2(o: Order2) -> TokenStream {
-    match o {
-        Order2::Ab => quote!(rtu::ByteOrder2::Ab),
-        Order2::Ba => quote!(rtu::ByteOrder2::Ba),
-    }
+/// `rtu::ByteOrder2::Ba`: the variant is the order's name in CamelCase.
+fn order2(o: ByteOrder2) -> TokenStream {
+    let variant = format_ident!("{}", o.name().to_upper_camel_case());
+    quote!(rtu::ByteOrder2::#variant)
 }
 
 /// `[data[3], data[4], data[5], data[6]]`.
@@ -728,7 +723,13 @@ fn has_validate(_gens: &[FieldGen<'_>], write_request: bool) -> bool {
     write_request
 }
 
-fn message_impl(ty: &Ident, gens: &[FieldGen<'_>], c: &Command, with_data: bool, write_request: bool) -> TokenStream {
+fn message_impl(
+    ty: &Ident,
+    gens: &[FieldGen<'_>],
+    c: &CommandSpec,
+    with_data: bool,
+    write_request: bool,
+) -> TokenStream {
     let validated = with_data && has_validate(gens, write_request);
     let n = Literal::usize_unsuffixed(gens.len());
     let infos = gens.iter().map(|g| {
@@ -938,7 +939,7 @@ fn struct_def(ty: &Ident, gens: &[FieldGen<'_>], docs: TokenStream) -> TokenStre
     }
 }
 
-fn command_doc(c: &Command) -> String {
+fn command_doc(c: &CommandSpec) -> String {
     let mut d = format!("{}.\n\n", one_line(&c.title).trim_end_matches('.'));
     d.push_str(text::clean(&c.doc).trim_end());
     d.push_str("\n\n");
@@ -1015,7 +1016,7 @@ fn command_doc(c: &Command) -> String {
     d
 }
 
-fn layout_expr(c: &Command) -> TokenStream {
+fn layout_expr(c: &CommandSpec) -> TokenStream {
     let function = match c.function {
         Function::Read => quote!(rtu::Function::Read),
         Function::Write => quote!(rtu::Function::Write),
@@ -1043,7 +1044,7 @@ fn layout_expr(c: &Command) -> TokenStream {
     }
 }
 
-fn command(names: &Names, ci: usize, c: &Command) -> TokenStream {
+fn command(names: &Names, ci: usize, c: &CommandSpec) -> TokenStream {
     let n = &names.commands[ci];
     let ty = ident(&n.ty);
     let gens = field_gens(names, ci, c);
@@ -1526,7 +1527,7 @@ fn device(s: &Sensor, names: &Names, o: &Options) -> TokenStream {
         "One {title} on a bus: a borrowed [`rtu::Client`] and the probe's slave address, with one method per command.\n\n\
          Reads are named after the command without its `get_` prefix and return the reply, or its only field; writes \
          keep the command's name and take the field (one field) or the request (several). Commands with a fixed slave \
-         address (`get_slave_id`: 0xFF) use it instead of the device's."
+         address (a read at the wildcard address 0xFF) use it instead of the device's."
     ));
     quote! {
         #cfg

@@ -9,7 +9,8 @@ use std::fmt::Write as _;
 
 use proc_macro2::{Literal, TokenStream};
 use quote::quote;
-use yosemitech_spec::{Example, Field, FieldKind, Order2, Order4, Source, Value};
+use yosemitech_rtu::{ByteOrder2, ByteOrder4, LineSettings};
+use yosemitech_spec::{Example, Field, FieldKind, Source, Value};
 
 /// `#[doc = " line"]` for each line of `text` (control characters replaced,
 /// since a bare CR is not allowed in a doc comment).
@@ -156,20 +157,10 @@ pub fn printed_frame(frame: &yosemitech_spec::PrintedFrame) -> String {
     s
 }
 
-/// "9600 baud, 8N1".
-pub fn serial(serial: &yosemitech_spec::Serial) -> String {
-    let parity = match serial.parity {
-        yosemitech_spec::Parity::None => 'N',
-        yosemitech_spec::Parity::Even => 'E',
-        yosemitech_spec::Parity::Odd => 'O',
-    };
-    format!("{} baud, {}{parity}{}", serial.baud, serial.data_bits, serial.stop_bits)
-}
-
 /// One line per manual of a sensor, oldest software first when stated:
 /// `SW 1.1: "TITLE" (REVISION), 9600 baud, 8N2`.
 pub fn manuals(sensor: &yosemitech_spec::Sensor) -> Vec<String> {
-    let mut manuals: Vec<(&yosemitech_spec::Manual, yosemitech_spec::Serial, Option<&str>)> =
+    let mut manuals: Vec<(&yosemitech_spec::Manual, LineSettings, Option<&str>)> =
         vec![(&sensor.manual, sensor.serial, None)];
     manuals.extend(sensor.revisions.iter().map(|r| (&r.manual, r.serial, r.doc.as_deref())));
     manuals.sort_by(|a, b| {
@@ -183,12 +174,7 @@ pub fn manuals(sensor: &yosemitech_spec::Sensor) -> Vec<String> {
         .map(|(m, serial_settings, doc)| {
             let software = m.software.as_deref().map(|s| format!("SW {}: ", one_line(s))).unwrap_or_default();
             let note = doc.map(|d| format!(" {}", one_line(d))).unwrap_or_default();
-            format!(
-                "{software}\"{}\" ({}), {}.{note}",
-                one_line(&m.title),
-                one_line(&m.revision),
-                serial(&serial_settings)
-            )
+            format!("{software}\"{}\" ({}), {}.{note}", one_line(&m.title), one_line(&m.revision), serial_settings)
         })
         .collect()
 }
@@ -202,22 +188,14 @@ pub fn figure_ref(figure: Option<yosemitech_spec::Figure>) -> String {
     }
 }
 
-/// Name of a 4-byte order.
-pub fn order4(order: Order4) -> &'static str {
-    match order {
-        Order4::Abcd => "big-endian (`abcd`)",
-        Order4::Dcba => "little-endian image (`dcba`)",
-        Order4::Cdab => "word-swapped (`cdab`)",
-        Order4::Badc => "byte-swapped (`badc`)",
-    }
+/// A 4-byte order in words and by its spec name: "little-endian image (`dcba`)".
+pub fn order4(order: ByteOrder4) -> String {
+    format!("{} (`{}`)", order.meaning(), order.name())
 }
 
-/// Name of a 2-byte order.
-pub fn order2(order: Order2) -> &'static str {
-    match order {
-        Order2::Ab => "big-endian (`ab`)",
-        Order2::Ba => "little-endian (`ba`)",
-    }
+/// A 2-byte order in words and by its spec name: "big-endian (`ab`)".
+pub fn order2(order: ByteOrder2) -> String {
+    format!("{} (`{}`)", order.meaning(), order.name())
 }
 
 /// A stated value as the manual gives it.

@@ -29,6 +29,56 @@ pub enum ByteOrder4 {
     Badc,
 }
 
+impl ByteOrder2 {
+    /// Both orders.
+    pub const ALL: [Self; 2] = [Self::Ab, Self::Ba];
+
+    /// The order's wire letters in lower case, as the spec language writes
+    /// them: `ab` or `ba`. The one name table of two-byte orders.
+    pub const fn name(self) -> &'static str {
+        match self {
+            Self::Ab => "ab",
+            Self::Ba => "ba",
+        }
+    }
+
+    /// What the order is in words: `big-endian` or `little-endian`.
+    pub const fn meaning(self) -> &'static str {
+        match self {
+            Self::Ab => "big-endian",
+            Self::Ba => "little-endian",
+        }
+    }
+}
+
+impl ByteOrder4 {
+    /// The four orders.
+    pub const ALL: [Self; 4] = [Self::Abcd, Self::Dcba, Self::Cdab, Self::Badc];
+
+    /// The order's wire letters in lower case, as the spec language writes
+    /// them: `abcd`, `dcba`, `cdab` or `badc`. The one name table of
+    /// four-byte orders.
+    pub const fn name(self) -> &'static str {
+        match self {
+            Self::Abcd => "abcd",
+            Self::Dcba => "dcba",
+            Self::Cdab => "cdab",
+            Self::Badc => "badc",
+        }
+    }
+
+    /// What the order is in words: `big-endian`, `little-endian image`,
+    /// `word-swapped` or `byte-swapped`.
+    pub const fn meaning(self) -> &'static str {
+        match self {
+            Self::Abcd => "big-endian",
+            Self::Dcba => "little-endian image",
+            Self::Cdab => "word-swapped",
+            Self::Badc => "byte-swapped",
+        }
+    }
+}
+
 /// Decodes a two-byte value from wire bytes.
 #[inline]
 pub const fn u16_from_wire(order: ByteOrder2, b: [u8; 2]) -> u16 {
@@ -86,9 +136,9 @@ pub const fn f32_to_wire(order: ByteOrder4, v: f32) -> [u8; 4] {
 /// A firmware or hardware revision sent as two bytes, major then minor.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Default)]
 pub struct Version {
-    /// The first byte.
+    /// The first wire byte (major revision).
     pub major: u8,
-    /// The second byte.
+    /// The second wire byte (minor revision).
     pub minor: u8,
 }
 
@@ -98,7 +148,7 @@ impl Version {
         Self { major, minor }
     }
 
-    /// The two wire bytes.
+    /// The two wire bytes: major, then minor.
     pub const fn to_wire(self) -> [u8; 2] {
         [self.major, self.minor]
     }
@@ -173,7 +223,7 @@ impl<const N: usize> Ascii<N> {
         Some(Self { bytes, pad })
     }
 
-    /// The raw wire bytes.
+    /// The raw wire bytes, padding included, as received or encoded.
     pub const fn to_wire(&self) -> [u8; N] {
         self.bytes
     }
@@ -189,7 +239,7 @@ impl<const N: usize> Ascii<N> {
         self.bytes.get(..end).unwrap_or(&[])
     }
 
-    /// The padding byte.
+    /// The byte that pads the text to `N` bytes.
     pub const fn pad(&self) -> u8 {
         self.pad
     }
@@ -244,12 +294,12 @@ mod tests {
 
     #[test]
     fn all_orders_round_trip() {
-        for order in [ByteOrder4::Abcd, ByteOrder4::Dcba, ByteOrder4::Cdab, ByteOrder4::Badc] {
+        for order in ByteOrder4::ALL {
             for v in [0u32, 1, 0x0102_0304, u32::MAX, 0x8000_0001] {
                 assert_eq!(u32_from_wire(order, u32_to_wire(order, v)), v);
             }
         }
-        for order in [ByteOrder2::Ab, ByteOrder2::Ba] {
+        for order in ByteOrder2::ALL {
             assert_eq!(u16_from_wire(order, u16_to_wire(order, 0x1234)), 0x1234);
         }
         assert_eq!(u16_to_wire(ByteOrder2::Ab, 0x1234), [0x12, 0x34]);

@@ -9,7 +9,7 @@ use crate::frame::{Frame, Function, Layout};
 /// struct for reads, the written values for writes); [`Command::Response`] the
 /// decoded reply. All methods are allocation-free and never panic.
 pub trait Command: Sized {
-    /// The decoded reply.
+    /// The decoded reply: `()` for triggers and writes without data.
     type Response;
 
     /// The command's name in the spec.
@@ -18,7 +18,7 @@ pub trait Command: Sized {
     /// Function, start address, register count and addressing quirks.
     const LAYOUT: Layout<'static>;
 
-    /// The function code.
+    /// The function code of the layout: 0x03 or 0x10.
     const FUNCTION: Function = Self::LAYOUT.function;
     /// The first register, as sent on the wire.
     const ADDRESS: u16 = Self::LAYOUT.address;

@@ -147,7 +147,7 @@ mod tests {
     }
 
     #[test]
-    fn manual_get_ph_request() {
+    fn manual_float_read_request() {
         // pH manual, Fig 23: 01 03 28 00 00 02 CD AB.
         assert_eq!(crc16(&[0x01, 0x03, 0x28, 0x00, 0x00, 0x02]).to_le_bytes(), [0xCD, 0xAB]);
         assert!(crc_ok(&[0x01, 0x03, 0x28, 0x00, 0x00, 0x02, 0xCD, 0xAB]));

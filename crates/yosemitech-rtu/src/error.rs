@@ -23,7 +23,7 @@ pub enum ExceptionCode {
     GatewayPathUnavailable,
     /// 0x0B: the gateway target did not respond.
     GatewayTargetFailedToRespond,
-    /// Any other code.
+    /// Any other code (0x07, 0x09, vendor codes), kept as received.
     Unknown(u8),
 }
 
@@ -44,7 +44,7 @@ impl ExceptionCode {
         }
     }
 
-    /// The wire byte.
+    /// The code as sent in the exception reply's third byte.
     pub const fn to_u8(self) -> u8 {
         match self {
             Self::IllegalFunction => 0x01,
@@ -82,9 +82,9 @@ impl fmt::Display for ExceptionCode {
 /// Which part of a write reply failed to echo the request.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum EchoField {
-    /// The start address.
+    /// The start address a write reply echoes (bytes 2..4).
     Address,
-    /// The register count.
+    /// The register count a write reply echoes (bytes 4..6).
     Count,
 }
 
@@ -94,16 +94,16 @@ pub enum EchoField {
 pub enum FrameError {
     /// Fewer bytes than the frame needs.
     Truncated {
-        /// Bytes the frame needs.
+        /// Bytes the frame needs: header, data and CRC.
         expected: usize,
-        /// Bytes present.
+        /// Bytes that arrived (fewer than `expected`).
         actual: usize,
     },
     /// More bytes than the frame may have.
     TooLong {
-        /// Bytes the frame needs.
+        /// Bytes the frame may hold at most.
         expected: usize,
-        /// Bytes present.
+        /// Bytes that arrived (more than `expected`).
         actual: usize,
     },
     /// The CRC does not match the bytes.
@@ -136,18 +136,18 @@ pub enum FrameError {
     },
     /// A write reply or request header does not match the command.
     EchoMismatch {
-        /// Which field differs.
+        /// Which echoed field differs from the request.
         field: EchoField,
-        /// The value we expected.
+        /// The value the request sent.
         expected: u16,
-        /// The value in the frame.
+        /// The value the reply echoed.
         actual: u16,
     },
     /// The device answered with a Modbus exception.
     Exception {
         /// The function code of the request (without the 0x80 bit).
         function: u8,
-        /// The exception code.
+        /// The exception code the device sent.
         code: ExceptionCode,
     },
 }

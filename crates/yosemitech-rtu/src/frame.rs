@@ -58,7 +58,7 @@ impl Function {
 /// Where a command sits on the wire: everything framing needs to know.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub struct Layout<'a> {
-    /// Read or write.
+    /// `Read` (0x03) or `Write` (0x10).
     pub function: Function,
     /// The first register, as sent on the wire (no 1-based offset).
     pub address: u16,
@@ -426,7 +426,7 @@ impl Frame {
         Ok(frame)
     }
 
-    /// The frame's bytes.
+    /// The frame's bytes, CRC included (at most `MAX_ADU`).
     pub fn as_bytes(&self) -> &[u8] {
         self.bytes.get(..self.len).unwrap_or(&[])
     }
@@ -450,7 +450,7 @@ mod tests {
     use super::*;
     use crate::ExceptionCode;
 
-    const GET_PH: Layout<'static> = Layout {
+    const READ_FLOAT: Layout<'static> = Layout {
         function: Function::Read,
         address: 0x2800,
         count: 2,
@@ -469,7 +469,7 @@ mod tests {
 
     #[test]
     fn encodes_manual_requests() {
-        let f = Frame::fill(|b| GET_PH.encode_request(1, &[], b)).unwrap();
+        let f = Frame::fill(|b| READ_FLOAT.encode_request(1, &[], b)).unwrap();
         assert_eq!(f.as_bytes(), [0x01, 0x03, 0x28, 0x00, 0x00, 0x02, 0xCD, 0xAB]);
         // Conductivity Fig 23: zero-register write with byte count 0.
         let f = Frame::fill(|b| START.encode_request(1, &[], b)).unwrap();
@@ -513,23 +513,26 @@ mod tests {
         let mut short_bad_crc = short;
         short_bad_crc[4] ^= 1;
         assert!(matches!(START_OPTICAL.decode_response(1, &short_bad_crc), Err(FrameError::Crc { .. })));
-        assert_eq!(GET_PH.short_response_len(), None);
+        assert_eq!(READ_FLOAT.short_response_len(), None);
     }
 
     #[test]
     fn decodes_and_rejects_replies() {
         let ok = [0x01, 0x03, 0x04, 0x33, 0x33, 0xF3, 0x40, 0x40, 0x78];
-        assert_eq!(GET_PH.decode_response(1, &ok), Ok(&ok[3..7]));
-        assert_eq!(GET_PH.decode_response(2, &ok), Err(FrameError::WrongSlave { expected: 2, actual: 1 }));
-        assert!(matches!(GET_PH.decode_response(1, &ok[..8]), Err(FrameError::Truncated { expected: 9, actual: 8 })));
+        assert_eq!(READ_FLOAT.decode_response(1, &ok), Ok(&ok[3..7]));
+        assert_eq!(READ_FLOAT.decode_response(2, &ok), Err(FrameError::WrongSlave { expected: 2, actual: 1 }));
+        assert!(matches!(
+            READ_FLOAT.decode_response(1, &ok[..8]),
+            Err(FrameError::Truncated { expected: 9, actual: 8 })
+        ));
         let mut bad = ok;
         bad[4] ^= 1;
-        assert!(matches!(GET_PH.decode_response(1, &bad), Err(FrameError::Crc { .. })));
+        assert!(matches!(READ_FLOAT.decode_response(1, &bad), Err(FrameError::Crc { .. })));
         let mut exc = [0x01, 0x83, 0x02, 0, 0];
         let crc = crc16(&exc[..3]).to_le_bytes();
         exc[3..].copy_from_slice(&crc);
         assert_eq!(
-            GET_PH.decode_response(1, &exc),
+            READ_FLOAT.decode_response(1, &exc),
             Err(FrameError::Exception { function: 0x03, code: ExceptionCode::IllegalDataAddress })
         );
     }
@@ -539,18 +542,18 @@ mod tests {
         let write = Layout { function: Function::Write, count: 2, ..START };
         let mut out = [0u8; MAX_ADU];
         assert_eq!(write.encode_request(1, &[1, 2], &mut out), Err(EncodeError::DataLength { expected: 4, actual: 2 }));
-        assert_eq!(GET_PH.encode_response(1, &[], &mut out), Err(EncodeError::DataLength { expected: 4, actual: 0 }));
-        assert_eq!(GET_PH.encode_request(1, &[], &mut out[..4]), Err(EncodeError::BufferTooSmall { needed: 8 }));
-        let huge = Layout { count: 200, ..GET_PH };
+        assert_eq!(READ_FLOAT.encode_response(1, &[], &mut out), Err(EncodeError::DataLength { expected: 4, actual: 0 }));
+        assert_eq!(READ_FLOAT.encode_request(1, &[], &mut out[..4]), Err(EncodeError::BufferTooSmall { needed: 8 }));
+        let huge = Layout { count: 200, ..READ_FLOAT };
         assert_eq!(huge.encode_response(1, &[0; 400], &mut out), Err(EncodeError::FrameTooLong { len: 405 }));
     }
 
     #[test]
     fn slave_rules() {
-        assert!(GET_PH.check_slave(0).is_err(), "reads cannot broadcast");
-        assert!(GET_PH.check_slave(248).is_err());
+        assert!(READ_FLOAT.check_slave(0).is_err(), "reads cannot broadcast");
+        assert!(READ_FLOAT.check_slave(248).is_err());
         assert!(START.check_slave(0).is_ok());
-        let fixed = Layout { fixed_slave: Some(0xFF), ..GET_PH };
+        let fixed = Layout { fixed_slave: Some(0xFF), ..READ_FLOAT };
         assert!(fixed.check_slave(1).is_err());
         assert!(fixed.check_slave(0xFF).is_ok());
     }
@@ -558,9 +561,9 @@ mod tests {
     proptest::proptest! {
         #[test]
         fn decoding_noise_never_panics(frame in proptest::collection::vec(proptest::num::u8::ANY, 0..300), slave in 0u8..=255) {
-            let _ = GET_PH.decode_response(slave, &frame);
+            let _ = READ_FLOAT.decode_response(slave, &frame);
             let _ = START.decode_response(slave, &frame);
-            let _ = GET_PH.decode_request(&frame);
+            let _ = READ_FLOAT.decode_request(&frame);
             let _ = START.decode_request(&frame);
         }
     }

@@ -26,7 +26,7 @@ pub use crc::{CRC_INIT, crc_ok, crc16, crc16_update};
 pub use error::{EchoField, EncodeError, ExceptionCode, FrameError};
 pub use frame::{Frame, Function, Layout};
 pub use sensor::{RoundTripError, SensorInfo, SensorModule};
-pub use timing::{CharFormat, DataBits, LineTiming, Parity, StopBits};
+pub use timing::{CharFormat, DataBits, LineSettings, LineTiming, Parity, StopBits};
 pub use value::{FieldInfo, FieldValue};
 
 #[cfg(feature = "std")]

@@ -11,13 +11,13 @@ use crate::value::{FieldInfo, FieldValue};
 pub struct SensorInfo {
     /// The spec's snake_case name (the Rust module name).
     pub name: &'static str,
-    /// Human title.
+    /// Human title of the probe (one line).
     pub title: &'static str,
     /// Title of the vendor manual the spec transcribes.
     pub manual: &'static str,
     /// Hardware and firmware revisions the manual covers.
     pub revision: &'static str,
-    /// Factory baud rate.
+    /// Factory baud rate (300..=1000000, validated by the spec).
     pub baud: u32,
     /// Factory character format (8N1 for every Yosemitech probe).
     pub format: CharFormat,
@@ -25,7 +25,7 @@ pub struct SensorInfo {
     pub min_address: u8,
     /// Highest valid slave address.
     pub max_address: u8,
-    /// Factory slave address.
+    /// Factory slave address, within `min_address..=max_address`.
     pub default_address: u8,
 }
 
@@ -44,7 +44,7 @@ impl SensorInfo {
 /// Why a frame could not be decoded and encoded again.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum RoundTripError {
-    /// The frame was rejected.
+    /// The frame was rejected by the command's decoder.
     Frame(FrameError),
     /// The decoded message could not be encoded.
     Encode(EncodeError),
@@ -81,7 +81,7 @@ pub type ReencodeResponseFn = fn(&str, u8, &[u8], &mut [u8]) -> Option<Result<us
 /// returns `None` for a command name the sensor does not have.
 #[derive(Clone, Copy)]
 pub struct SensorModule {
-    /// The sensor's facts.
+    /// The sensor's facts: name, manual, serial settings, address range.
     pub info: SensorInfo,
     /// Every command's spec name, in spec order.
     pub commands: &'static [&'static str],

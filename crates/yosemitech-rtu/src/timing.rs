@@ -20,11 +20,20 @@ pub enum DataBits {
 }
 
 impl DataBits {
-    /// The number of bits.
+    /// The number of bits: 7 or 8.
     pub const fn bits(self) -> u32 {
         match self {
             Self::Seven => 7,
             Self::Eight => 8,
+        }
+    }
+
+    /// The setting for `bits` data bits; `None` for anything but 7 and 8.
+    pub const fn from_bits(bits: u32) -> Option<Self> {
+        match bits {
+            7 => Some(Self::Seven),
+            8 => Some(Self::Eight),
+            _ => None,
         }
     }
 }
@@ -49,6 +58,24 @@ impl Parity {
             Self::Even | Self::Odd => 1,
         }
     }
+
+    /// The name the spec language and JSON output use: `none`, `even` or `odd`.
+    pub const fn name(self) -> &'static str {
+        match self {
+            Self::None => "none",
+            Self::Even => "even",
+            Self::Odd => "odd",
+        }
+    }
+
+    /// The letter of the `8N1` notation: `N`, `E` or `O`.
+    pub const fn letter(self) -> char {
+        match self {
+            Self::None => 'N',
+            Self::Even => 'E',
+            Self::Odd => 'O',
+        }
+    }
 }
 
 /// Stop bits per character.
@@ -62,11 +89,20 @@ pub enum StopBits {
 }
 
 impl StopBits {
-    /// The number of bits.
+    /// The number of bits: 1 or 2.
     pub const fn bits(self) -> u32 {
         match self {
             Self::One => 1,
             Self::Two => 2,
+        }
+    }
+
+    /// The setting for `bits` stop bits; `None` for anything but 1 and 2.
+    pub const fn from_bits(bits: u32) -> Option<Self> {
+        match bits {
+            1 => Some(Self::One),
+            2 => Some(Self::Two),
+            _ => None,
         }
     }
 }
@@ -75,11 +111,11 @@ impl StopBits {
 /// of every Yosemitech probe (datasheet notes, section 6 item 10).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub struct CharFormat {
-    /// Data bits.
+    /// Data bits after the start bit: 7 or 8.
     pub data_bits: DataBits,
-    /// Parity.
+    /// Whether a parity bit follows the data bits, and which.
     pub parity: Parity,
-    /// Stop bits.
+    /// Stop bits ending the character: 1 or 2.
     pub stop_bits: StopBits,
 }
 
@@ -93,14 +129,52 @@ impl CharFormat {
     }
 }
 
+/// The one `8N1` renderer: data bits, parity letter, stop bits.
 impl fmt::Display for CharFormat {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        let parity = match self.parity {
-            Parity::None => 'N',
-            Parity::Even => 'E',
-            Parity::Odd => 'O',
-        };
-        write!(f, "{}{}{}", self.data_bits.bits(), parity, self.stop_bits.bits())
+        write!(f, "{}{}{}", self.data_bits.bits(), self.parity.letter(), self.stop_bits.bits())
+    }
+}
+
+/// The settings of a serial line: baud rate and character format, as a
+/// sensor's spec states them and a port is opened with. The default is
+/// 9600 baud 8N1, the factory setting of Yosemitech probes.
+///
+/// ```
+/// use yosemitech_rtu::{CharFormat, LineSettings, Parity};
+/// let line = LineSettings { baud: 19_200, format: CharFormat { parity: Parity::Even, ..CharFormat::EIGHT_N_1 } };
+/// assert_eq!(line.to_string(), "19200 baud, 8E1");
+/// assert_eq!(LineSettings::default().to_string(), "9600 baud, 8N1");
+/// ```
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub struct LineSettings {
+    /// Bits per second (the spec validates 300..=1000000).
+    pub baud: u32,
+    /// The format of each character.
+    pub format: CharFormat,
+}
+
+impl LineSettings {
+    /// 9600 baud 8N1.
+    pub const NINE_SIX_HUNDRED_8N1: Self = Self { baud: 9600, format: CharFormat::EIGHT_N_1 };
+
+    /// The timing of a line with these settings.
+    pub const fn timing(&self) -> LineTiming {
+        LineTiming::new(self.baud, self.format)
+    }
+}
+
+impl Default for LineSettings {
+    /// 9600 baud 8N1, the factory setting of Yosemitech probes.
+    fn default() -> Self {
+        Self::NINE_SIX_HUNDRED_8N1
+    }
+}
+
+/// `9600 baud, 8N1`: the one renderer of a line's settings.
+impl fmt::Display for LineSettings {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{} baud, {}", self.baud, self.format)
     }
 }
 

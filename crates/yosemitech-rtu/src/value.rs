@@ -9,13 +9,13 @@ use crate::codec::{Bcd, Version};
 /// `fields()` method.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum FieldValue<'a> {
-    /// An f32 field.
+    /// An f32 field, bit for bit as decoded (NaN payloads kept).
     F32(f32),
-    /// Any integer field.
+    /// Any integer field, sign-extended to i64.
     Int(i64),
     /// A text field without its padding (raw bytes; may be non-ASCII if the device sent that).
     Text(&'a [u8]),
-    /// A version field.
+    /// A version field: major and minor byte.
     Version(Version),
     /// A two-digit BCD field, raw.
     Bcd(Bcd),

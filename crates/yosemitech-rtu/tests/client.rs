@@ -6,7 +6,9 @@ use std::cell::RefCell;
 use std::rc::Rc;
 use std::time::{Duration, Instant};
 
-use common::{GET_PH_REPLY, GET_PH_REQUEST, GetPh, GetSlaveId, StartMeasurement, ph_probe, with_crc};
+use common::{
+    READ_FLOAT_REPLY, READ_FLOAT_REQUEST, ReadAtFixedSlave, ReadFloat, StartMeasurement, float_probe, with_crc,
+};
 use proptest::prelude::*;
 use yosemitech_rtu::{
     CharFormat, Client, ClientConfig, Command, EchoField, EncodeError, Error, ExceptionCode, FrameError, LineTiming,
@@ -47,16 +49,16 @@ fn requests(log: &Log) -> usize {
 }
 
 #[test]
-fn get_ph_sends_and_decodes_the_manual_frames() {
+fn float_read_sends_and_decodes_the_manual_frames() {
     // The simulated probe reproduces pH manual Fig 25 byte for byte.
     let mut reply = Vec::new();
-    ph_probe(1, 7.6, &GET_PH_REQUEST, &mut reply);
-    assert_eq!(reply, GET_PH_REPLY);
+    float_probe(1, 7.6, &READ_FLOAT_REQUEST, &mut reply);
+    assert_eq!(reply, READ_FLOAT_REPLY);
 
-    let (mut client, log) = client_with(config(0), |_, req, out| ph_probe(1, 7.6, req, out));
-    assert_eq!(client.call(1, &GetPh).unwrap(), 7.6);
-    assert_eq!(log.borrow()[0].1, GET_PH_REQUEST);
-    assert_eq!(client.call(1, &GetPh).unwrap(), 7.6, "a second transaction works too");
+    let (mut client, log) = client_with(config(0), |_, req, out| float_probe(1, 7.6, req, out));
+    assert_eq!(client.call(1, &ReadFloat).unwrap(), 7.6);
+    assert_eq!(log.borrow()[0].1, READ_FLOAT_REQUEST);
+    assert_eq!(client.call(1, &ReadFloat).unwrap(), 7.6, "a second transaction works too");
     assert_eq!(requests(&log), 2);
 }
 
@@ -65,7 +67,7 @@ fn exception_reply_is_reported_and_not_retried() {
     let exception = with_crc(&[0x01, 0x83, 0x02]);
     let reply = exception.clone();
     let (mut client, log) = client_with(config(3), move |_, _, out| out.extend_from_slice(&reply));
-    let err = client.call(1, &GetPh).unwrap_err();
+    let err = client.call(1, &ReadFloat).unwrap_err();
     assert!(err.is_exception(), "{err}");
     assert_eq!(err.exception(), Some(ExceptionCode::IllegalDataAddress));
     assert_eq!(
@@ -79,21 +81,21 @@ fn exception_reply_is_reported_and_not_retried() {
 #[test]
 fn crc_corruption_is_retried_then_succeeds() {
     let (mut client, log) = client_with(config(1), |i, req, out| {
-        ph_probe(1, 7.6, req, out);
+        float_probe(1, 7.6, req, out);
         if i == 0 {
             out[4] ^= 0x10;
         }
     });
-    assert_eq!(client.call(1, &GetPh).unwrap(), 7.6);
+    assert_eq!(client.call(1, &ReadFloat).unwrap(), 7.6);
     assert_eq!(requests(&log), 2);
 }
 
 #[test]
 fn crc_corruption_without_retries_reports_the_bytes() {
-    let mut corrupt = GET_PH_REPLY;
+    let mut corrupt = READ_FLOAT_REPLY;
     corrupt[4] ^= 0x10;
     let (mut client, log) = client_with(config(0), move |_, _, out| out.extend_from_slice(&corrupt));
-    let err = client.call(1, &GetPh).unwrap_err();
+    let err = client.call(1, &ReadFloat).unwrap_err();
     assert!(matches!(err.frame_error(), Some(FrameError::Crc { .. })), "{err}");
     assert_eq!(client.last_reply(), &corrupt[..]);
     assert_eq!(requests(&log), 1);
@@ -105,9 +107,9 @@ fn reply_from_another_slave_is_retried_then_reported() {
         let mut as_slave_2 = req.to_vec();
         as_slave_2[0] = 2;
         let as_slave_2 = with_crc(&as_slave_2[..6]);
-        ph_probe(2, 9.9, &as_slave_2, out);
+        float_probe(2, 9.9, &as_slave_2, out);
     });
-    let err = client.call(1, &GetPh).unwrap_err();
+    let err = client.call(1, &ReadFloat).unwrap_err();
     assert_eq!(err.frame_error(), Some(FrameError::WrongSlave { expected: 1, actual: 2 }), "{err}");
     assert_eq!(client.last_reply().first(), Some(&2));
     assert_eq!(requests(&log), 3, "first attempt and two retries");
@@ -117,19 +119,19 @@ fn reply_from_another_slave_is_retried_then_reported() {
         if i == 0 {
             out.extend_from_slice(&with_crc(&[0x02, 0x03, 0x04, 0, 0, 0x80, 0x3F]));
         } else {
-            ph_probe(1, 7.6, req, out);
+            float_probe(1, 7.6, req, out);
         }
     });
-    assert_eq!(client.call(1, &GetPh).unwrap(), 7.6);
+    assert_eq!(client.call(1, &ReadFloat).unwrap(), 7.6);
     assert_eq!(requests(&log), 2);
 }
 
 #[test]
 fn truncated_reply_times_out_with_the_partial_bytes() {
-    let (mut client, log) = client_with(config(0), |_, _, out| out.extend_from_slice(&GET_PH_REPLY[..5]));
-    let err = client.call(1, &GetPh).unwrap_err();
+    let (mut client, log) = client_with(config(0), |_, _, out| out.extend_from_slice(&READ_FLOAT_REPLY[..5]));
+    let err = client.call(1, &ReadFloat).unwrap_err();
     match &err {
-        Error::Timeout { received } => assert_eq!((*received, client.last_reply()), (5, &GET_PH_REPLY[..5])),
+        Error::Timeout { received } => assert_eq!((*received, client.last_reply()), (5, &READ_FLOAT_REPLY[..5])),
         other => panic!("expected a timeout, got {other:?}"),
     }
     assert!(err.to_string().contains("5 bytes received"), "{err}");
@@ -139,12 +141,12 @@ fn truncated_reply_times_out_with_the_partial_bytes() {
 #[test]
 fn truncated_reply_is_retried_on_timeout() {
     let (mut client, log) = client_with(config(1), |i, req, out| {
-        ph_probe(1, 7.6, req, out);
+        float_probe(1, 7.6, req, out);
         if i == 0 {
             out.truncate(7);
         }
     });
-    assert_eq!(client.call(1, &GetPh).unwrap(), 7.6);
+    assert_eq!(client.call(1, &ReadFloat).unwrap(), 7.6);
     assert_eq!(requests(&log), 2);
 }
 
@@ -153,9 +155,9 @@ fn line_noise_before_the_frame_is_skipped() {
     // No retries: the first reply itself must be framed past the noise.
     let (mut client, log) = client_with(config(0), |_, req, out| {
         out.extend_from_slice(&[0x00, 0xFF, 0x01]);
-        ph_probe(1, 7.6, req, out);
+        float_probe(1, 7.6, req, out);
     });
-    assert_eq!(client.call(1, &GetPh).unwrap(), 7.6);
+    assert_eq!(client.call(1, &ReadFloat).unwrap(), 7.6);
     assert_eq!(requests(&log), 1);
 
     // An exception reply after noise is still an exception.
@@ -163,17 +165,17 @@ fn line_noise_before_the_frame_is_skipped() {
         out.push(0x00);
         out.extend_from_slice(&with_crc(&[0x01, 0x83, 0x04]));
     });
-    assert_eq!(client.call(1, &GetPh).unwrap_err().exception(), Some(ExceptionCode::ServerDeviceFailure));
+    assert_eq!(client.call(1, &ReadFloat).unwrap_err().exception(), Some(ExceptionCode::ServerDeviceFailure));
 }
 
 #[test]
 fn reply_arriving_one_byte_per_read_is_reassembled() {
-    let (client, _) = client_with(config(0), |_, req, out| ph_probe(1, 7.6, req, out));
+    let (client, _) = client_with(config(0), |_, req, out| float_probe(1, 7.6, req, out));
     let mut transport = client.into_transport().with_read_chunk(1);
     transport.set_read_chunk(1);
     let mut client = Client::with_config(transport, config(0));
-    assert_eq!(client.call(1, &GetPh).unwrap(), 7.6);
-    assert_eq!(client.call_raw(&GET_PH_REQUEST, &GetPh::LAYOUT).unwrap(), GET_PH_REPLY);
+    assert_eq!(client.call(1, &ReadFloat).unwrap(), 7.6);
+    assert_eq!(client.call_raw(&READ_FLOAT_REQUEST, &ReadFloat::LAYOUT).unwrap(), READ_FLOAT_REPLY);
 }
 
 #[test]
@@ -181,7 +183,7 @@ fn silent_device_times_out_at_the_deadline() {
     let timeout = Duration::from_millis(200);
     let (mut client, log) = client_with(ClientConfig { timeout, ..config(0) }, |_, _, _| {});
     let start = Instant::now();
-    let err = client.call(1, &GetPh).unwrap_err();
+    let err = client.call(1, &ReadFloat).unwrap_err();
     let elapsed = start.elapsed();
     assert!(matches!(&err, Error::Timeout { received: 0 }), "{err:?}");
     assert!(elapsed >= timeout, "returned before the deadline: {elapsed:?}");
@@ -197,7 +199,7 @@ fn retries_each_get_a_full_timeout_and_backoff() {
         ClientConfig { timeout, retry: RetryPolicy { retries: 2, backoff, ..RetryPolicy::default() }, ..config(0) };
     let (mut client, log) = client_with(config, |_, _, _| {});
     let start = Instant::now();
-    assert!(client.call(1, &GetPh).unwrap_err().is_timeout());
+    assert!(client.call(1, &ReadFloat).unwrap_err().is_timeout());
     let elapsed = start.elapsed();
     assert_eq!(requests(&log), 3);
     assert!(elapsed >= 3 * timeout + 2 * backoff, "{elapsed:?}");
@@ -208,7 +210,7 @@ fn retries_each_get_a_full_timeout_and_backoff() {
     // A policy that does not retry timeouts.
     let no_timeouts = RetryPolicy { retries: 5, on_timeout: false, ..RetryPolicy::default() };
     let (mut client, log) = client_with(ClientConfig { retry: no_timeouts, ..config }, |_, _, _| {});
-    assert!(client.call(1, &GetPh).unwrap_err().is_timeout());
+    assert!(client.call(1, &ReadFloat).unwrap_err().is_timeout());
     assert_eq!(requests(&log), 1);
 }
 
@@ -226,7 +228,7 @@ fn write_echo_mismatch_is_reported_and_not_retried() {
     assert_eq!(client.last_reply(), &bad_echo[..]);
     assert_eq!(requests(&log), 1);
 
-    let (mut client, log) = client_with(config(0), |_, req, out| ph_probe(1, 7.6, req, out));
+    let (mut client, log) = client_with(config(0), |_, req, out| float_probe(1, 7.6, req, out));
     client.call(1, &StartMeasurement).unwrap();
     // Conductivity manual Fig 23: the zero-register write.
     assert_eq!(log.borrow()[0].1, [0x01, 0x10, 0x1C, 0x00, 0x00, 0x00, 0x00, 0xD8, 0x92]);
@@ -236,7 +238,7 @@ fn write_echo_mismatch_is_reported_and_not_retried() {
 fn broadcast_sends_without_waiting_and_call_refuses_slave_0() {
     let turnaround = Duration::from_millis(60);
     let config = ClientConfig { broadcast_turnaround: turnaround, timeout: Duration::from_secs(5), ..config(0) };
-    let (mut client, log) = client_with(config, |_, req, out| ph_probe(1, 7.6, req, out));
+    let (mut client, log) = client_with(config, |_, req, out| float_probe(1, 7.6, req, out));
 
     let start = Instant::now();
     client.broadcast(&StartMeasurement).unwrap();
@@ -245,41 +247,45 @@ fn broadcast_sends_without_waiting_and_call_refuses_slave_0() {
 
     let before = requests(&log);
     assert!(matches!(client.call(0, &StartMeasurement), Err(Error::Encode(EncodeError::InvalidSlave { slave: 0 }))));
-    assert!(matches!(client.broadcast(&GetPh), Err(Error::Encode(EncodeError::InvalidSlave { slave: 0 }))));
+    assert!(matches!(client.broadcast(&ReadFloat), Err(Error::Encode(EncodeError::InvalidSlave { slave: 0 }))));
     assert_eq!(requests(&log), before, "refused requests send nothing");
 
     // The next request keeps the turnaround after the broadcast.
-    assert_eq!(client.call(1, &GetPh).unwrap(), 7.6);
+    assert_eq!(client.call(1, &ReadFloat).unwrap(), 7.6);
     let log = log.borrow();
     assert!(log[1].0 - log[0].0 >= turnaround, "{:?}", log[1].0 - log[0].0);
 }
 
 #[test]
-fn get_slave_id_uses_the_fixed_address() {
-    let (mut client, log) = client_with(config(0), |_, req, out| ph_probe(7, 7.6, req, out));
-    assert_eq!(client.call(0xFF, &GetSlaveId).unwrap(), 7);
+fn fixed_slave_read_uses_the_fixed_address() {
+    let (mut client, log) = client_with(config(0), |_, req, out| float_probe(7, 7.6, req, out));
+    assert_eq!(client.call(0xFF, &ReadAtFixedSlave).unwrap(), 7);
     assert_eq!(log.borrow()[0].1[0], 0xFF);
-    assert!(matches!(client.call(7, &GetSlaveId), Err(Error::Encode(EncodeError::InvalidSlave { slave: 7 }))));
+    assert!(matches!(client.call(7, &ReadAtFixedSlave), Err(Error::Encode(EncodeError::InvalidSlave { slave: 7 }))));
     assert_eq!(requests(&log), 1);
 }
 
 #[test]
 fn call_raw_frames_and_checks_like_call() {
     let (mut client, log) = client_with(config(1), |i, req, out| {
-        ph_probe(1, 7.6, req, out);
+        float_probe(1, 7.6, req, out);
         if i == 0 {
             out[3] ^= 1;
         }
     });
-    assert_eq!(client.call_raw(&GET_PH_REQUEST, &GetPh::LAYOUT).unwrap(), GET_PH_REPLY, "retried past a CRC error");
+    assert_eq!(
+        client.call_raw(&READ_FLOAT_REQUEST, &ReadFloat::LAYOUT).unwrap(),
+        READ_FLOAT_REPLY,
+        "retried past a CRC error"
+    );
     assert_eq!(requests(&log), 2);
 
-    let mut bad = GET_PH_REQUEST;
+    let mut bad = READ_FLOAT_REQUEST;
     bad[7] ^= 1;
-    assert!(matches!(client.call_raw(&bad, &GetPh::LAYOUT), Err(Error::Request(FrameError::Crc { .. }))));
+    assert!(matches!(client.call_raw(&bad, &ReadFloat::LAYOUT), Err(Error::Request(FrameError::Crc { .. }))));
     let other_register = with_crc(&[0x01, 0x03, 0x28, 0x01, 0x00, 0x02]);
     assert!(matches!(
-        client.call_raw(&other_register, &GetPh::LAYOUT),
+        client.call_raw(&other_register, &ReadFloat::LAYOUT),
         Err(Error::Request(FrameError::EchoMismatch { .. }))
     ));
     let broadcast = with_crc(&[0x00, 0x10, 0x1C, 0x00, 0x00, 0x00, 0x00]);
@@ -290,31 +296,31 @@ fn call_raw_frames_and_checks_like_call() {
     assert_eq!(requests(&log), 2, "invalid raw requests are not sent");
     client.broadcast_raw(&broadcast, &StartMeasurement::LAYOUT).unwrap();
     assert_eq!(log.borrow()[2].1, broadcast);
-    assert!(client.broadcast_raw(&GET_PH_REQUEST, &GetPh::LAYOUT).is_err());
+    assert!(client.broadcast_raw(&READ_FLOAT_REQUEST, &ReadFloat::LAYOUT).is_err());
 
     // Exceptions come back as errors with the frame.
     let (mut client, _) = client_with(config(0), |_, _, out| out.extend_from_slice(&with_crc(&[0x01, 0x83, 0x02])));
-    assert!(client.call_raw(&GET_PH_REQUEST, &GetPh::LAYOUT).unwrap_err().is_exception());
+    assert!(client.call_raw(&READ_FLOAT_REQUEST, &ReadFloat::LAYOUT).unwrap_err().is_exception());
 }
 
 #[test]
 fn stale_input_is_discarded_before_each_request() {
     // The first reply is followed by a stray frame that would decode as 1.0.
     let (mut client, _) = client_with(config(0), |i, req, out| {
-        ph_probe(1, if i == 0 { 7.6 } else { 8.0 }, req, out);
+        float_probe(1, if i == 0 { 7.6 } else { 8.0 }, req, out);
         if i == 0 {
-            ph_probe(1, 1.0, req, out);
+            float_probe(1, 1.0, req, out);
         }
     });
-    assert_eq!(client.call(1, &GetPh).unwrap(), 7.6);
+    assert_eq!(client.call(1, &ReadFloat).unwrap(), 7.6);
     assert!(!client.transport().pending().is_empty(), "the stray frame is waiting");
-    assert_eq!(client.call(1, &GetPh).unwrap(), 8.0);
+    assert_eq!(client.call(1, &ReadFloat).unwrap(), 8.0);
 }
 
 #[test]
 fn inter_frame_delay_follows_the_line() {
     let line = LineTiming::new(9600, CharFormat::EIGHT_N_1);
-    let (client, _) = client_with(config(0), |_, req, out| ph_probe(1, 7.6, req, out));
+    let (client, _) = client_with(config(0), |_, req, out| float_probe(1, 7.6, req, out));
     assert_eq!(client.inter_frame_delay(), Duration::ZERO, "no line timing: no wait");
     let transport = client.into_transport().with_line_timing(Some(line));
     let mut client = Client::with_config(transport, config(0));
@@ -329,15 +335,15 @@ fn inter_frame_delay_follows_the_line() {
     let seen = Rc::clone(&log);
     let transport = ResponderTransport::from_fn(move |req: &[u8], out: &mut Vec<u8>| {
         seen.borrow_mut().push((Instant::now(), req.to_vec()));
-        ph_probe(1, 7.6, req, out);
+        float_probe(1, 7.6, req, out);
     })
     .with_line_timing(Some(line));
     let mut client = Client::with_config(
         transport,
         ClientConfig { inter_frame_delay: Some(Duration::from_millis(30)), ..config(0) },
     );
-    client.call(1, &GetPh).unwrap();
-    client.call(1, &GetPh).unwrap();
+    client.call(1, &ReadFloat).unwrap();
+    client.call(1, &ReadFloat).unwrap();
     let log = log.borrow();
     assert!(log[1].0 - log[0].0 >= Duration::from_millis(30), "{:?}", log[1].0 - log[0].0);
 }
@@ -345,9 +351,9 @@ fn inter_frame_delay_follows_the_line() {
 #[test]
 fn works_through_a_boxed_trait_object() {
     let transport: Box<dyn Transport> =
-        Box::new(ResponderTransport::from_fn(|req: &[u8], out: &mut Vec<u8>| ph_probe(1, 7.6, req, out)));
+        Box::new(ResponderTransport::from_fn(|req: &[u8], out: &mut Vec<u8>| float_probe(1, 7.6, req, out)));
     let mut client = Client::with_config(transport, config(0));
-    assert_eq!(client.call(1, &GetPh).unwrap(), 7.6);
+    assert_eq!(client.call(1, &ReadFloat).unwrap(), 7.6);
 }
 
 /// Replies a device might send: noise, and the manual's frame mutated.
@@ -362,14 +368,14 @@ fn replies() -> impl Strategy<Value = Vec<u8>> {
             proptest::collection::vec(any::<u8>(), 0..12),
         )
             .prop_map(|(prefix, at, xor, keep, suffix)| {
-                let mut frame = GET_PH_REPLY;
+                let mut frame = READ_FLOAT_REPLY;
                 frame[at] ^= xor;
                 let mut reply = prefix;
                 reply.extend_from_slice(&frame[..keep]);
                 reply.extend_from_slice(&suffix);
                 reply
             }),
-        Just(GET_PH_REPLY.to_vec()),
+        Just(READ_FLOAT_REPLY.to_vec()),
     ]
 }
 
@@ -384,10 +390,10 @@ proptest! {
         let sent = reply.clone();
         let config = ClientConfig { timeout: Duration::from_millis(2), ..config(0) };
         let (mut client, _) = client_with(config, move |_, _, out| out.extend_from_slice(&sent));
-        match client.call(1, &GetPh) {
+        match client.call(1, &ReadFloat) {
             Ok(value) => {
-                let found = reply.windows(GET_PH_REPLY.len()).any(|candidate| {
-                    GetPh::decode_response(1, candidate).is_ok_and(|v| v.to_bits() == value.to_bits())
+                let found = reply.windows(READ_FLOAT_REPLY.len()).any(|candidate| {
+                    ReadFloat::decode_response(1, candidate).is_ok_and(|v| v.to_bits() == value.to_bits())
                 });
                 prop_assert!(found, "value {value} from {reply:02X?} without a valid frame in it");
             }
@@ -403,8 +409,8 @@ proptest! {
             }
             Err(other) => prop_assert!(false, "unexpected error {other}"),
         }
-        if reply == GET_PH_REPLY {
-            prop_assert_eq!(client.call(1, &GetPh).ok(), Some(7.6));
+        if reply == READ_FLOAT_REPLY {
+            prop_assert_eq!(client.call(1, &ReadFloat).ok(), Some(7.6));
         }
     }
 }

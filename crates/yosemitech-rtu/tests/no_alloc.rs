@@ -9,7 +9,7 @@ use std::alloc::{GlobalAlloc, Layout as AllocLayout, System};
 use std::cell::Cell;
 use std::time::Duration;
 
-use common::{GET_PH_REPLY, GET_PH_REQUEST, GetPh, ph_probe, with_crc};
+use common::{READ_FLOAT_REPLY, READ_FLOAT_REQUEST, ReadFloat, float_probe, with_crc};
 use yosemitech_rtu::{Client, ClientConfig, Command, Layout, ResponderTransport, RetryPolicy};
 
 thread_local! {
@@ -43,25 +43,25 @@ fn transactions_do_not_allocate() {
     let config =
         ClientConfig { timeout: Duration::from_millis(100), retry: RetryPolicy::NONE, ..ClientConfig::default() };
     let mut client = Client::with_config(
-        ResponderTransport::from_fn(|req: &[u8], out: &mut Vec<u8>| ph_probe(1, 7.6, req, out)),
+        ResponderTransport::from_fn(|req: &[u8], out: &mut Vec<u8>| float_probe(1, 7.6, req, out)),
         config,
     );
-    assert_eq!(client.call(1, &GetPh).unwrap(), 7.6);
+    assert_eq!(client.call(1, &ReadFloat).unwrap(), 7.6);
 
     let before = allocations();
     for _ in 0..100 {
-        assert_eq!(client.call(1, &GetPh).unwrap(), 7.6);
-        assert_eq!(client.call_raw(&GET_PH_REQUEST, &GetPh::LAYOUT).unwrap(), GET_PH_REPLY);
+        assert_eq!(client.call(1, &ReadFloat).unwrap(), 7.6);
+        assert_eq!(client.call_raw(&READ_FLOAT_REQUEST, &ReadFloat::LAYOUT).unwrap(), READ_FLOAT_REPLY);
     }
     let after = allocations();
     assert_eq!(after - before, 0, "allocations in 200 transactions");
 
     // Nor do errors (the reply bytes are kept inline): a timeout (slave 2 is
     // silent) and an exception (the probe has no register 0x9900).
-    let unknown = Layout { address: 0x9900, ..GetPh::LAYOUT };
+    let unknown = Layout { address: 0x9900, ..ReadFloat::LAYOUT };
     let request = with_crc(&[0x01, 0x03, 0x99, 0x00, 0x00, 0x02]);
     let before = allocations();
-    assert!(client.call(2, &GetPh).unwrap_err().is_timeout());
+    assert!(client.call(2, &ReadFloat).unwrap_err().is_timeout());
     assert!(client.call_raw(&request, &unknown).unwrap_err().is_exception());
     assert_eq!(allocations() - before, 0);
 

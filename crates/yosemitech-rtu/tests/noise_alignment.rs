@@ -13,7 +13,7 @@ mod common;
 
 use std::time::{Duration, Instant};
 
-use common::{GetPh, StartMeasurement, ph_probe, with_crc};
+use common::{ReadFloat, StartMeasurement, float_probe, with_crc};
 use yosemitech_rtu::{Client, ClientConfig, Error, ExceptionCode, FrameError, ResponderTransport, RetryPolicy};
 
 const TIMEOUT: Duration = Duration::from_millis(200);
@@ -23,7 +23,7 @@ const TIMEOUT: Duration = Duration::from_millis(200);
 fn noisy_probe(address: u8, noise: &'static [u8], chunk: usize) -> Client<impl yosemitech_rtu::Transport> {
     let transport = ResponderTransport::from_fn(move |request: &[u8], reply: &mut Vec<u8>| {
         reply.extend_from_slice(noise);
-        ph_probe(address, 7.6, request, reply);
+        float_probe(address, 7.6, request, reply);
     })
     .with_read_chunk(chunk);
     let config = ClientConfig { timeout: TIMEOUT, retry: RetryPolicy::NONE, ..ClientConfig::default() };
@@ -39,7 +39,7 @@ fn read_from_slave_3_after_noise() {
     for noise in NOISE {
         for chunk in [1, 2, 3, usize::MAX] {
             let mut client = noisy_probe(3, noise, chunk);
-            let result = client.call(3, &GetPh);
+            let result = client.call(3, &ReadFloat);
             assert!(matches!(result, Ok(v) if v == 7.6), "noise {noise:02X?}, chunk {chunk}: {result:?}");
         }
     }
@@ -62,7 +62,7 @@ fn slaves_that_look_like_exception_codes() {
     // 0x83 = 131 answering a read, 0x90 = 144 answering a write.
     for noise in NOISE {
         let mut client = noisy_probe(0x83, noise, usize::MAX);
-        let result = client.call(0x83, &GetPh);
+        let result = client.call(0x83, &ReadFloat);
         assert!(matches!(result, Ok(v) if v == 7.6), "0x83, noise {noise:02X?}: {result:?}");
         let mut client = noisy_probe(0x90, noise, 1);
         let result = client.call(0x90, &StartMeasurement);
@@ -76,7 +76,7 @@ fn every_slave_address_after_function_code_noise() {
         for noise in [&[0x03][..], &[0x00, 0x03], &[address], &[0x83]] {
             let noise: &'static [u8] = Box::leak(noise.to_vec().into_boxed_slice());
             let mut client = noisy_probe(address, noise, usize::MAX);
-            let result = client.call(address, &GetPh);
+            let result = client.call(address, &ReadFloat);
             assert!(matches!(result, Ok(v) if v == 7.6), "slave {address}, noise {noise:02X?}: {result:?}");
         }
     }
@@ -90,7 +90,7 @@ fn an_exception_from_slave_3_after_noise_is_still_an_exception() {
     });
     let config = ClientConfig { timeout: TIMEOUT, retry: RetryPolicy::NONE, ..ClientConfig::default() };
     let mut client = Client::with_config(transport, config);
-    let error = client.call(3, &GetPh).unwrap_err();
+    let error = client.call(3, &ReadFloat).unwrap_err();
     assert_eq!(error.exception(), Some(ExceptionCode::ServerDeviceBusy), "{error}");
 }
 
@@ -102,7 +102,7 @@ fn a_corrupt_reply_from_slave_3_is_still_reported_promptly() {
         let transport = ResponderTransport::from_fn(move |request: &[u8], reply: &mut Vec<u8>| {
             reply.extend_from_slice(noise);
             let start = reply.len();
-            ph_probe(3, 7.6, request, reply);
+            float_probe(3, 7.6, request, reply);
             let last = reply.len() - 1;
             reply[last] ^= 0xFF;
             assert!(reply.len() > start);
@@ -110,13 +110,13 @@ fn a_corrupt_reply_from_slave_3_is_still_reported_promptly() {
         let config = ClientConfig { timeout: TIMEOUT, retry: RetryPolicy::NONE, ..ClientConfig::default() };
         let mut client = Client::with_config(transport, config);
         let started = Instant::now();
-        let error = client.call(3, &GetPh).unwrap_err();
+        let error = client.call(3, &ReadFloat).unwrap_err();
         let took = started.elapsed();
         assert!(matches!(error, Error::Frame { error: FrameError::Crc { .. }, .. }), "noise {noise:02X?}: {error}");
         assert!(took < TIMEOUT / 2, "noise {noise:02X?}: took {took:?}");
         // The next call (the device is fixed) recovers.
         let mut client = noisy_probe(3, noise, usize::MAX);
-        assert_eq!(client.call(3, &GetPh).unwrap(), 7.6);
+        assert_eq!(client.call(3, &ReadFloat).unwrap(), 7.6);
     }
 }
 
@@ -126,12 +126,12 @@ fn an_echoed_request_before_the_reply_is_reported_not_skipped() {
     // echoed): that is a misconfigured bus, not noise, and stays an error.
     let transport = ResponderTransport::from_fn(|request: &[u8], reply: &mut Vec<u8>| {
         reply.extend_from_slice(request);
-        ph_probe(1, 7.6, request, reply);
+        float_probe(1, 7.6, request, reply);
     });
     let config = ClientConfig { timeout: TIMEOUT, retry: RetryPolicy::NONE, ..ClientConfig::default() };
     let mut client = Client::with_config(transport, config);
-    let error = client.call(1, &GetPh).unwrap_err();
-    assert!(client.last_reply().starts_with(&common::GET_PH_REQUEST), "{error}");
+    let error = client.call(1, &ReadFloat).unwrap_err();
+    assert!(client.last_reply().starts_with(&common::READ_FLOAT_REQUEST), "{error}");
 }
 
 /// A line that never falls silent: every read returns noise at once.
@@ -162,7 +162,7 @@ fn a_device_that_never_stops_talking_cannot_hold_the_client() {
     let config = ClientConfig { timeout, retry: RetryPolicy::NONE, ..ClientConfig::default() };
     let mut client = Client::with_config(Babbling, config);
     let started = Instant::now();
-    let error = client.call(1, &GetPh).unwrap_err();
+    let error = client.call(1, &ReadFloat).unwrap_err();
     assert!(error.is_timeout(), "{error}");
     assert!(started.elapsed() < timeout + Duration::from_secs(1), "took {:?}", started.elapsed());
 }

@@ -8,7 +8,7 @@ use std::net::{TcpListener, TcpStream};
 use std::thread;
 use std::time::{Duration, Instant};
 
-use common::{GET_PH_REPLY, GET_PH_REQUEST, GetPh, ph_probe};
+use common::{READ_FLOAT_REPLY, READ_FLOAT_REQUEST, ReadFloat, float_probe};
 use yosemitech_rtu::{Client, ClientConfig, Command, Error, MemoryTransport, RetryPolicy, TcpTransport, Transport};
 
 fn config() -> ClientConfig {
@@ -35,7 +35,7 @@ fn serve_tcp(mut stream: TcpStream, requests: usize) -> io::Result<()> {
         let mut request = [0u8; 8];
         stream.read_exact(&mut request)?;
         let mut reply = Vec::new();
-        ph_probe(1, 7.6, &request, &mut reply);
+        float_probe(1, 7.6, &request, &mut reply);
         stream.write_all(&reply[..4])?;
         stream.flush()?;
         thread::sleep(Duration::from_millis(5));
@@ -68,11 +68,11 @@ fn tcp_gateway_round_trips_and_reports_a_closed_connection() {
     let mut client = Client::with_config(transport, config());
     assert_eq!(client.inter_frame_delay(), Duration::ZERO, "the gateway keeps the line timing");
     for _ in 0..3 {
-        assert_eq!(client.call(1, &GetPh).unwrap(), 7.6);
+        assert_eq!(client.call(1, &ReadFloat).unwrap(), 7.6);
     }
     server.join().unwrap().unwrap();
     // The gateway hung up after three requests.
-    match client.call(1, &GetPh) {
+    match client.call(1, &ReadFloat) {
         Err(Error::Io(e)) => assert!(
             matches!(
                 e.kind(),
@@ -99,8 +99,8 @@ fn memory_pair_with_a_device_thread_dribbling_its_reply() {
         for _ in 0..2 {
             let mut request = [0u8; 8];
             read_exact(&mut device_end, &mut request, Duration::from_secs(5))?;
-            assert_eq!(request, GET_PH_REQUEST);
-            for byte in GET_PH_REPLY {
+            assert_eq!(request, READ_FLOAT_REQUEST);
+            for byte in READ_FLOAT_REPLY {
                 device_end.write_all(&[byte])?;
                 thread::sleep(Duration::from_millis(1));
             }
@@ -108,8 +108,8 @@ fn memory_pair_with_a_device_thread_dribbling_its_reply() {
         Ok(())
     });
     let mut client = Client::with_config(client_end, config());
-    assert_eq!(client.call(1, &GetPh).unwrap(), 7.6);
-    assert_eq!(client.call_raw(&GET_PH_REQUEST, &GetPh::LAYOUT).unwrap(), GET_PH_REPLY);
+    assert_eq!(client.call(1, &ReadFloat).unwrap(), 7.6);
+    assert_eq!(client.call_raw(&READ_FLOAT_REQUEST, &ReadFloat::LAYOUT).unwrap(), READ_FLOAT_REPLY);
     device.join().unwrap().unwrap();
 }
 
@@ -127,7 +127,7 @@ fn trickling_noise_does_not_extend_the_deadline() {
     let timeout = Duration::from_millis(150);
     let mut client = Client::with_config(client_end, ClientConfig { timeout, ..config() });
     let start = Instant::now();
-    let err = client.call(1, &GetPh).unwrap_err();
+    let err = client.call(1, &ReadFloat).unwrap_err();
     let elapsed = start.elapsed();
     match &err {
         Error::Timeout { received } => {
@@ -189,7 +189,7 @@ mod serial {
                     port.write_all(&echo)?;
                 }
                 let mut reply = Vec::new();
-                ph_probe(1, 7.6, &request, &mut reply);
+                float_probe(1, 7.6, &request, &mut reply);
                 port.write_all(&reply)?;
             }
             Ok(port)
@@ -203,7 +203,7 @@ mod serial {
         let mut client = Client::with_config(client_end, config());
         assert_eq!(client.inter_frame_delay(), Duration::from_millis(4), "9600 8N1: t3.5 raised to 4 ms");
         for _ in 0..3 {
-            assert_eq!(client.call(1, &GetPh).unwrap(), 7.6);
+            assert_eq!(client.call(1, &ReadFloat).unwrap(), 7.6);
         }
         let device_end = answering.join().unwrap().unwrap();
         drop(client);
@@ -215,8 +215,8 @@ mod serial {
         let Some((client_end, device_end)) = pty_pair(true) else { return };
         let answering = device(device_end, 2, |request| Some(request.to_vec()));
         let mut client = Client::with_config(client_end, config());
-        assert_eq!(client.call(1, &GetPh).unwrap(), 7.6);
-        assert_eq!(client.call(1, &GetPh).unwrap(), 7.6);
+        assert_eq!(client.call(1, &ReadFloat).unwrap(), 7.6);
+        assert_eq!(client.call(1, &ReadFloat).unwrap(), 7.6);
         let _device_end = answering.join().unwrap().unwrap();
     }
 
@@ -226,8 +226,8 @@ mod serial {
         let Some((client_end, device_end)) = pty_pair(false) else { return };
         let answering = device(device_end, 1, |request| Some(request.to_vec()));
         let mut client = Client::with_config(client_end, config());
-        let err = client.call(1, &GetPh).unwrap_err();
-        assert!(client.last_reply().starts_with(&GET_PH_REQUEST), "{err}");
+        let err = client.call(1, &ReadFloat).unwrap_err();
+        assert!(client.last_reply().starts_with(&READ_FLOAT_REQUEST), "{err}");
         let _device_end = answering.join().unwrap().unwrap();
     }
 
@@ -240,7 +240,7 @@ mod serial {
             Some(collided)
         });
         let mut client = Client::with_config(client_end, config());
-        match client.call(1, &GetPh) {
+        match client.call(1, &ReadFloat) {
             Err(Error::Io(e)) => assert_eq!(e.kind(), io::ErrorKind::InvalidData, "{e}"),
             other => panic!("expected an echo error, got {other:?}"),
         }

@@ -76,7 +76,7 @@
 use std::time::Duration;
 
 use yosemitech_spec::interp::{decode_field, encode_field};
-use yosemitech_spec::{Command, Constant, Field, FieldKind, Role, Sensor, Value};
+use yosemitech_spec::{CommandSpec, Constant, Field, FieldKind, Role, Sensor, Value};
 
 use crate::registers::RegisterMap;
 
@@ -205,7 +205,7 @@ pub(crate) fn model_code_byte(code: &str) -> Option<u8> {
 /// `data` (the serial-number command's register data) as a probe with
 /// `model_code` sends it: the code's byte in the reserved byte right before
 /// the text, and the code as the text's characters 3-4.
-fn with_model_code(command: &Command, model_code: Option<&str>, data: &[u8]) -> Vec<u8> {
+fn with_model_code(command: &CommandSpec, model_code: Option<&str>, data: &[u8]) -> Vec<u8> {
     let mut own = data.to_vec();
     let (Some(code), Some(text)) =
         (model_code, command.fields.iter().find(|f| matches!(f.kind, FieldKind::Ascii { .. })))
@@ -386,7 +386,7 @@ impl Behaviour {
     /// checked against the fields' ranges and about to be stored.
     pub(crate) fn on_write(
         &mut self,
-        command: &Command,
+        command: &CommandSpec,
         index: usize,
         data: &[u8],
         registers: &mut RegisterMap,

@@ -4,7 +4,7 @@ use std::time::Duration;
 
 use yosemitech_rtu::Responder;
 
-use crate::Device;
+use crate::FrameHandler;
 use crate::simulator::Simulator;
 
 /// Simulated sensors sharing one bus: every request reaches every device,
@@ -20,7 +20,7 @@ use crate::simulator::Simulator;
 ///
 /// ```
 /// # let spec = yosemitech_spec::load_paths(&[concat!(env!("CARGO_MANIFEST_DIR"), "/../../spec").into()])?;
-/// use yosemitech_sim::{Bus, Device, Simulator};
+/// use yosemitech_sim::{Bus, FrameHandler, Simulator};
 ///
 /// let ph = spec.sensor("ph_orp").unwrap().clone();
 /// let cond = spec.sensor("conductivity").unwrap().clone();
@@ -38,7 +38,7 @@ pub struct Bus {
 }
 
 impl Bus {
-    /// A bus with no devices.
+    /// A bus with no devices: every request goes unanswered.
     pub fn new() -> Self {
         Self::default()
     }
@@ -50,7 +50,7 @@ impl Bus {
         self
     }
 
-    /// Connects a device.
+    /// Connects a device; requests reach devices in the order connected.
     pub fn push(&mut self, device: Simulator) {
         self.devices.push(device);
     }
@@ -81,7 +81,7 @@ impl Bus {
     }
 }
 
-impl Device for Bus {
+impl FrameHandler for Bus {
     fn handle(&mut self, request: &[u8], reply: &mut Vec<u8>) -> Duration {
         let start = reply.len();
         let mut answers = 0;
@@ -110,7 +110,7 @@ impl Device for Bus {
 }
 
 impl Responder for Bus {
-    /// [`Device::handle`]; a delayed reply is withheld, as for [`Simulator`].
+    /// [`FrameHandler::handle`]; a delayed reply is withheld, as for [`Simulator`].
     fn respond(&mut self, request: &[u8], reply: &mut Vec<u8>) {
         if !self.handle(request, reply).is_zero() {
             reply.clear();

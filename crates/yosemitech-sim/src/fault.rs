@@ -44,7 +44,7 @@ impl Rng {
         if n == 0 { 0 } else { self.next_u64() % n }
     }
 
-    /// A random byte.
+    /// A pseudo-random byte, deterministic from the seed.
     pub fn byte(&mut self) -> u8 {
         (self.next_u64() >> 56) as u8
     }
@@ -74,7 +74,7 @@ pub enum FaultKind {
     WrongSlave,
     /// The reply held back by [`FaultConfig::delay_by`] (threaded serving
     /// sleeps; in-process the reply is withheld, since it cannot arrive
-    /// late: see [`crate::Device`]).
+    /// late: see [`crate::FrameHandler`]).
     Delay,
     /// Exception 0x06 (server device busy) instead of processing the request.
     Busy,
@@ -173,7 +173,7 @@ impl FaultConfig {
         }
     }
 
-    /// No faults at all.
+    /// No faults at all: every reply is sent intact.
     pub fn none() -> Self {
         Self::seeded(0)
     }
@@ -221,7 +221,7 @@ impl FaultConfig {
 }
 
 impl Default for FaultConfig {
-    /// No faults.
+    /// No faults: every reply is sent intact.
     fn default() -> Self {
         Self::none()
     }

@@ -62,11 +62,11 @@ pub use registers::RegisterMap;
 #[cfg(all(unix, feature = "pty"))]
 pub use serve::serve_pty;
 pub use serve::{Endpoint, ServeConfig, Server, serve_memory, serve_tcp, serve_transport};
-pub use simulator::{SimError, Simulator, Stats, UnknownRequestPolicy, Variation, line_timing};
+pub use simulator::{SimError, Simulator, Stats, UnknownRequestPolicy, Variation};
 
 /// Something on the bus that answers request frames: a [`Simulator`] or a
-/// [`Bus`] of them. The serving functions take any `Device`.
-pub trait Device {
+/// [`Bus`] of them. The serving functions take any `FrameHandler`.
+pub trait FrameHandler {
     /// Handles one request frame: appends the reply to `reply` (nothing
     /// for no reply: ignored, broadcast, dropped) and returns how long the
     /// reply is held back before it is sent, zero unless a
@@ -75,13 +75,13 @@ pub trait Device {
     fn handle(&mut self, request: &[u8], reply: &mut Vec<u8>) -> Duration;
 }
 
-impl<D: Device + ?Sized> Device for &mut D {
+impl<D: FrameHandler + ?Sized> FrameHandler for &mut D {
     fn handle(&mut self, request: &[u8], reply: &mut Vec<u8>) -> Duration {
         (**self).handle(request, reply)
     }
 }
 
-impl<D: Device + ?Sized> Device for Box<D> {
+impl<D: FrameHandler + ?Sized> FrameHandler for Box<D> {
     fn handle(&mut self, request: &[u8], reply: &mut Vec<u8>) -> Duration {
         (**self).handle(request, reply)
     }

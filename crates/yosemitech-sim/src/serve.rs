@@ -1,4 +1,4 @@
-//! Serving a [`Device`] on a byte stream from a background thread: a
+//! Serving a [`FrameHandler`] on a byte stream from a background thread: a
 //! pseudo-terminal, RTU-over-TCP, or an in-memory pair, with optional
 //! line-timing emulation.
 //!
@@ -42,7 +42,7 @@ use std::time::{Duration, Instant};
 use yosemitech_rtu::frame::MAX_ADU;
 use yosemitech_rtu::{Function, LineTiming, MemoryTransport, TcpTransport, Transport, crc_ok};
 
-use crate::Device;
+use crate::FrameHandler;
 
 /// The longest request: a write of 255 data bytes.
 const MAX_REQUEST: usize = 9 + 255;
@@ -120,7 +120,7 @@ pub struct Server<D> {
 }
 
 impl<D> Server<D> {
-    /// Where to connect.
+    /// Where a client connects: a pty path, a TCP address, or in memory.
     pub fn endpoint(&self) -> &Endpoint {
         &self.endpoint
     }
@@ -146,7 +146,7 @@ impl<D> Server<D> {
         lock(&self.device)
     }
 
-    /// The shared device.
+    /// The served device, shared with the serving thread (lock it briefly).
     pub fn shared(&self) -> Arc<Mutex<D>> {
         Arc::clone(&self.device)
     }
@@ -209,7 +209,7 @@ where
 /// until stopped or the link closes.
 pub fn serve_transport<D, T>(device: D, mut link: T, endpoint: Endpoint, config: ServeConfig) -> io::Result<Server<D>>
 where
-    D: Device + Send + 'static,
+    D: FrameHandler + Send + 'static,
     T: Transport + Send + 'static,
 {
     spawn(device, endpoint, move |device, stop| match serve_link(&mut link, device, stop, &config) {
@@ -221,7 +221,7 @@ where
 /// Serves `device` on one end of an in-memory pair, in a thread; returns
 /// the client's end. Unlike the in-process [`yosemitech_rtu::ResponderTransport`],
 /// delays and line timing happen in real time.
-pub fn serve_memory<D: Device + Send + 'static>(
+pub fn serve_memory<D: FrameHandler + Send + 'static>(
     device: D,
     config: ServeConfig,
 ) -> io::Result<(MemoryTransport, Server<D>)> {
@@ -236,7 +236,7 @@ pub fn serve_memory<D: Device + Send + 'static>(
 /// a closed connection makes way for the next.
 pub fn serve_tcp<D, A>(device: D, addr: A, config: ServeConfig) -> io::Result<Server<D>>
 where
-    D: Device + Send + 'static,
+    D: FrameHandler + Send + 'static,
     A: ToSocketAddrs,
 {
     let listener = TcpListener::bind(addr)?;
@@ -270,7 +270,7 @@ static PTY: Mutex<()> = Mutex::new(());
 /// use [`ServeConfig::line_timing`] to emulate one). The pty's slave end
 /// is kept open by the server, so clients may come and go.
 #[cfg(all(unix, feature = "pty"))]
-pub fn serve_pty<D: Device + Send + 'static>(device: D, config: ServeConfig) -> io::Result<Server<D>> {
+pub fn serve_pty<D: FrameHandler + Send + 'static>(device: D, config: ServeConfig) -> io::Result<Server<D>> {
     use serialport::SerialPort;
     use yosemitech_rtu::{SerialConfig, SerialTransport};
 
@@ -298,7 +298,7 @@ fn is_closed(e: &io::Error) -> bool {
 }
 
 /// Reads requests from `link` and answers them until `stop` is set.
-fn serve_link<T: Transport, D: Device>(
+fn serve_link<T: Transport, D: FrameHandler>(
     link: &mut T,
     device: &Mutex<D>,
     stop: &AtomicBool,

@@ -6,14 +6,11 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use yosemitech_rtu::frame::{BROADCAST, encode_exception};
-use yosemitech_rtu::{
-    CharFormat, DataBits, EncodeError, ExceptionCode, Function, Layout, LineTiming, Parity, Responder, StopBits, codec,
-    crc_ok, crc16,
-};
+use yosemitech_rtu::{EncodeError, ExceptionCode, Function, Layout, LineTiming, Responder, codec, crc_ok, crc16};
 use yosemitech_spec::interp::{EncodeValuesError, decode_field, decode_fields, encode_command_field, encode_field};
-use yosemitech_spec::{Command, EnumRepr, Field, FieldKind, Role, Sensor, Value, Values};
+use yosemitech_spec::{CommandSpec, EnumRepr, Field, FieldKind, Role, Sensor, Value, Values};
 
-use crate::Device;
+use crate::FrameHandler;
 use crate::behaviour::{
     AddressSlot, Behaviour, MeasurementState, SerialNumber, SerialNumberPolicy, WarmUpPolicy, address_slots, role_index,
 };
@@ -28,9 +25,9 @@ pub enum SimError {
     UnknownCommand(String),
     /// The command has no field of that name.
     UnknownField {
-        /// The command.
+        /// The command asked for (not one of the sensor's).
         command: String,
-        /// The field asked for.
+        /// The field asked for (not one of the command's).
         field: String,
     },
     /// No read command has a field of that name ([`Simulator::set_everywhere`]).
@@ -61,7 +58,7 @@ impl From<EncodeValuesError> for SimError {
 /// What the simulator did with the requests it was given.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct Stats {
-    /// Request frames handled.
+    /// Request frames handled, whatever their fate.
     pub requests: u64,
     /// Replies produced (normal or exception; before fault injection, so a
     /// dropped reply counts here and in [`FaultCounts`]).
@@ -81,7 +78,7 @@ pub struct Stats {
     /// [`UnknownRequestPolicy::Exception`]; 06 under [`WarmUpPolicy::Busy`]);
     /// injected busy faults are in [`FaultCounts`].
     pub exceptions: u64,
-    /// Reads served.
+    /// Reads answered with register data.
     pub reads: u64,
     /// Writes applied (broadcasts included).
     pub writes: u64,
@@ -102,7 +99,7 @@ pub struct Stats {
 /// client saw.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Variation {
-    /// Seed of the noise.
+    /// Seed of the noise: the same seed gives the same readings.
     pub seed: u64,
     /// Noise amplitude, in the field's unit.
     pub noise: f32,
@@ -141,7 +138,7 @@ pub enum UnknownRequestPolicy {
 /// How a request reached the device.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Route {
-    /// To its own address.
+    /// To its own address: the device answers.
     Unicast,
     /// To address 0: applied, never answered.
     Broadcast,
@@ -201,7 +198,7 @@ impl Clock {
 ///
 /// ```
 /// # let spec = yosemitech_spec::load_paths(&[concat!(env!("CARGO_MANIFEST_DIR"), "/../../spec").into()])?;
-/// use yosemitech_sim::{Device, Simulator};
+/// use yosemitech_sim::{FrameHandler, Simulator};
 /// use yosemitech_spec::Value;
 ///
 /// let mut sim = Simulator::new(spec.sensor("ph_orp").unwrap().clone());
@@ -323,14 +320,14 @@ impl Simulator {
         }
     }
 
-    /// The sensor simulated.
+    /// The sensor simulated, as given to [`Simulator::new`].
     pub fn sensor(&self) -> &Sensor {
         &self.sensor
     }
 
     /// The line timing of the sensor's serial settings.
     pub fn line_timing(&self) -> LineTiming {
-        line_timing(&self.sensor)
+        self.sensor.serial.timing()
     }
 
     /// The slave address the device answers.
@@ -352,7 +349,7 @@ impl Simulator {
         }
     }
 
-    /// The registers.
+    /// The register contents: what reads return and writes change.
     pub fn registers(&self) -> &RegisterMap {
         &self.registers
     }
@@ -657,7 +654,7 @@ impl Simulator {
     }
 
     /// Applies the variation to a measurement read about to be served.
-    fn vary(&mut self, index: usize, command: &Command) {
+    fn vary(&mut self, index: usize, command: &CommandSpec) {
         if !self.measurement.get(index).copied().unwrap_or(false) {
             return;
         }
@@ -689,7 +686,7 @@ impl Simulator {
     }
 }
 
-impl Device for Simulator {
+impl FrameHandler for Simulator {
     fn handle(&mut self, request: &[u8], reply: &mut Vec<u8>) -> Duration {
         self.stats.requests += 1;
         if request.len() < 4 || !crc_ok(request) {
@@ -756,7 +753,7 @@ impl Device for Simulator {
 }
 
 impl Responder for Simulator {
-    /// [`Device::handle`]; a delayed reply is withheld (it cannot arrive
+    /// [`FrameHandler::handle`]; a delayed reply is withheld (it cannot arrive
     /// late in-process, and a client has given up on it by then).
     fn respond(&mut self, request: &[u8], reply: &mut Vec<u8>) {
         if !self.handle(request, reply).is_zero() {
@@ -777,24 +774,9 @@ impl fmt::Debug for Simulator {
     }
 }
 
-/// The line timing of a sensor's serial settings.
-pub fn line_timing(sensor: &Sensor) -> LineTiming {
-    let serial = &sensor.serial;
-    let format = CharFormat {
-        data_bits: if serial.data_bits == 7 { DataBits::Seven } else { DataBits::Eight },
-        parity: match serial.parity {
-            yosemitech_spec::Parity::None => Parity::None,
-            yosemitech_spec::Parity::Even => Parity::Even,
-            yosemitech_spec::Parity::Odd => Parity::Odd,
-        },
-        stop_bits: if serial.stop_bits == 2 { StopBits::Two } else { StopBits::One },
-    };
-    LineTiming::new(serial.baud, format)
-}
-
 /// A measurement read: no write command covers its registers, and a field has a unit.
-fn is_measurement(sensor: &Sensor, command: &Command) -> bool {
-    let end = |c: &Command| u32::from(c.address) + u32::from(c.count);
+fn is_measurement(sensor: &Sensor, command: &CommandSpec) -> bool {
+    let end = |c: &CommandSpec| u32::from(c.address) + u32::from(c.count);
     command.is_read()
         && command.fields.iter().any(|f| f.unit.is_some())
         && !sensor.commands.iter().any(|w| {
@@ -807,20 +789,20 @@ fn address_bytes(field: &Field, address: u8) -> Option<Vec<u8>> {
     match &field.kind {
         FieldKind::U8 | FieldKind::I8 | FieldKind::Enum { repr: EnumRepr::U8, .. } => Some(vec![address]),
         FieldKind::U16 { order } | FieldKind::I16 { order } => {
-            Some(codec::u16_to_wire(order.rtu(), u16::from(address)).to_vec())
+            Some(codec::u16_to_wire(*order, u16::from(address)).to_vec())
         }
         FieldKind::Enum { repr: EnumRepr::U16(order), .. } => {
-            Some(codec::u16_to_wire(order.rtu(), u16::from(address)).to_vec())
+            Some(codec::u16_to_wire(*order, u16::from(address)).to_vec())
         }
         FieldKind::U32 { order } | FieldKind::I32 { order } => {
-            Some(codec::u32_to_wire(order.rtu(), u32::from(address)).to_vec())
+            Some(codec::u32_to_wire(*order, u32::from(address)).to_vec())
         }
         _ => None,
     }
 }
 
 /// Refuses write data with a value outside its field's `range` (or NaN).
-fn check_ranges(command: &Command, data: &[u8]) -> Result<(), ExceptionCode> {
+fn check_ranges(command: &CommandSpec, data: &[u8]) -> Result<(), ExceptionCode> {
     for field in command.fields.iter().filter(|f| f.range.is_some()) {
         let Some((min, max)) = field.range else { continue };
         let bytes = data.get(field.offset..field.offset + field.size()).ok_or(ExceptionCode::IllegalDataValue)?;
@@ -889,19 +871,7 @@ fn word(frame: &[u8], at: usize) -> u16 {
 mod tests {
     use super::*;
 
-    fn spec() -> yosemitech_spec::Spec {
-        yosemitech_spec::load_paths(&[concat!(env!("CARGO_MANIFEST_DIR"), "/../../spec").into()]).unwrap()
-    }
-
-    fn sensor(name: &str) -> Sensor {
-        spec().sensor(name).unwrap().clone()
-    }
-
-    fn with_crc(bytes: &[u8]) -> Vec<u8> {
-        let mut frame = bytes.to_vec();
-        frame.extend_from_slice(&crc16(bytes).to_le_bytes());
-        frame
-    }
+    use yosemitech_tests::{sensor, spec, with_crc};
 
     fn exchange(sim: &mut Simulator, request: &[u8]) -> Vec<u8> {
         let mut reply = Vec::new();
@@ -924,7 +894,7 @@ mod tests {
 
     #[test]
     fn the_address_lives_in_the_slave_address_role_fields_of_every_sensor() {
-        for sensor in spec().sensors {
+        for sensor in spec().sensors.clone() {
             let sim = Simulator::new(sensor.clone()).with_address(42);
             for role in [Role::SetSlaveAddress, Role::GetSlaveAddress] {
                 let Some(command) = sensor.command_with_role(role) else { continue };
@@ -939,7 +909,7 @@ mod tests {
     fn measurement_reads_are_the_uncovered_ones_with_units() {
         // The reads a sensor's procedure takes its measurements from.
         let mut measured = 0;
-        for sensor in spec().sensors {
+        for sensor in spec().sensors.clone() {
             for name in sensor.procedure.iter().flat_map(|p| &p.read) {
                 assert!(is_measurement(&sensor, sensor.command(name).unwrap()), "{}.{name}", sensor.name);
                 measured += 1;
@@ -982,9 +952,9 @@ mod tests {
             examples: Vec::new(),
         };
         assert_eq!(address_bytes(&field(FieldKind::U8), 7), Some(vec![7]));
-        let be = FieldKind::U16 { order: yosemitech_spec::Order2::Ab };
+        let be = FieldKind::U16 { order: yosemitech_rtu::ByteOrder2::Ab };
         assert_eq!(address_bytes(&field(be), 7), Some(vec![0, 7]));
-        let le = FieldKind::U16 { order: yosemitech_spec::Order2::Ba };
+        let le = FieldKind::U16 { order: yosemitech_rtu::ByteOrder2::Ba };
         assert_eq!(address_bytes(&field(le), 7), Some(vec![7, 0]));
         assert_eq!(address_bytes(&field(FieldKind::Version), 7), None);
     }

@@ -10,6 +10,7 @@ use std::collections::BTreeMap;
 use schemars::JsonSchema;
 use serde::Deserialize;
 use serde_saphyr::Spanned;
+use yosemitech_rtu::{ByteOrder2, ByteOrder4, Parity};
 
 /// One spec file: a sensor (one vendor manual) or a fragment of shared commands.
 #[derive(Debug, Deserialize, JsonSchema)]
@@ -187,6 +188,17 @@ pub enum ParityDoc {
     Even,
     /// Odd parity.
     Odd,
+}
+
+impl ParityDoc {
+    /// The runtime parity this spelling names: the one mapping of the syntax.
+    pub fn parity(self) -> Parity {
+        match self {
+            Self::None => Parity::None,
+            Self::Even => Parity::Even,
+            Self::Odd => Parity::Odd,
+        }
+    }
 }
 
 /// An inclusive range of slave addresses.
@@ -411,6 +423,37 @@ pub enum ByteOrderDoc {
     Cdab,
     /// Four bytes, byte-swapped.
     Badc,
+}
+
+impl ByteOrderDoc {
+    /// The two-byte runtime order this spelling names; `None` for a four-byte one.
+    pub fn two(self) -> Option<ByteOrder2> {
+        match self {
+            Self::Ab => Some(ByteOrder2::Ab),
+            Self::Ba => Some(ByteOrder2::Ba),
+            Self::Abcd | Self::Dcba | Self::Cdab | Self::Badc => None,
+        }
+    }
+
+    /// The four-byte runtime order this spelling names; `None` for a two-byte one.
+    pub fn four(self) -> Option<ByteOrder4> {
+        match self {
+            Self::Abcd => Some(ByteOrder4::Abcd),
+            Self::Dcba => Some(ByteOrder4::Dcba),
+            Self::Cdab => Some(ByteOrder4::Cdab),
+            Self::Badc => Some(ByteOrder4::Badc),
+            Self::Ab | Self::Ba => None,
+        }
+    }
+
+    /// The spelling, as the runtime names the order (`ab`, `dcba`).
+    pub fn name(self) -> &'static str {
+        match (self.two(), self.four()) {
+            (Some(two), _) => two.name(),
+            (None, Some(four)) => four.name(),
+            (None, None) => "",
+        }
+    }
 }
 
 /// Text padding byte.

@@ -15,7 +15,7 @@ use crate::check::{check_erratum_id, check_text, crc_text, parse_hex, resolve_fi
 use crate::diag::{Pos, Reporter};
 use crate::document::{CrcDoc, ExampleDoc};
 use crate::interp::{Value, decode_field};
-use crate::model::{Command, Example, ExampleErratum, PrintedFrame};
+use crate::model::{CommandSpec, Example, ExampleErratum, PrintedFrame};
 
 fn hex(text: &Spanned<String>, key: &str, r: &mut Reporter<'_>) -> Option<Vec<u8>> {
     match parse_hex(&text.value) {
@@ -123,7 +123,7 @@ fn printed_frame(
 
 /// Checks one example; returns it when every check passed.
 pub(crate) fn check_example(
-    cmd: &Command,
+    cmd: &CommandSpec,
     e: &ExampleDoc,
     key: &str,
     ids: &mut BTreeSet<String>,
@@ -516,7 +516,7 @@ fn check_stated_bytes(
     what: &str,
     key: &str,
     at: Pos,
-    cmd: &Command,
+    cmd: &CommandSpec,
     r: &mut Reporter<'_>,
 ) {
     let names = match (what, cmd.function) {
@@ -566,7 +566,7 @@ fn compare_values(
 }
 
 /// What in a request's header differs from the command, in the spec's terms.
-fn header_mismatch(cmd: &Command, frame: &[u8]) -> Option<String> {
+fn header_mismatch(cmd: &CommandSpec, frame: &[u8]) -> Option<String> {
     let function = *frame.get(1)?;
     if function != cmd.function.code() {
         return Some(format!(

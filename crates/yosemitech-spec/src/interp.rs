@@ -12,7 +12,7 @@ use std::fmt;
 use serde::Serialize;
 use yosemitech_rtu::{Bcd, FrameError, Version, codec};
 
-use crate::model::{Command, EnumRepr, Field, FieldKind, Variant};
+use crate::model::{CommandSpec, EnumRepr, Field, FieldKind, Variant};
 
 /// A decoded or stated field value.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -136,7 +136,7 @@ impl std::error::Error for EncodeValuesError {}
 ///
 /// `data` must be the command's full register data; shorter data decodes
 /// the fields that fit and stops (it never panics).
-pub fn decode_fields(command: &Command, data: &[u8]) -> Values {
+pub fn decode_fields(command: &CommandSpec, data: &[u8]) -> Values {
     let mut out = Vec::new();
     for field in &command.fields {
         let Some(name) = &field.name else { continue };
@@ -161,13 +161,13 @@ fn variant_name(variants: &[Variant], raw: u16) -> Option<String> {
 /// Decodes one field from exactly its bytes.
 pub fn decode_field(field: &Field, bytes: &[u8]) -> Value {
     match &field.kind {
-        FieldKind::F32 { order } => Value::Float(codec::f32_from_wire(order.rtu(), arr(bytes))),
+        FieldKind::F32 { order } => Value::Float(codec::f32_from_wire(*order, arr(bytes))),
         FieldKind::U8 => Value::Int(i64::from(arr::<1>(bytes)[0])),
         FieldKind::I8 => Value::Int(i64::from(arr::<1>(bytes)[0] as i8)),
-        FieldKind::U16 { order } => Value::Int(i64::from(codec::u16_from_wire(order.rtu(), arr(bytes)))),
-        FieldKind::I16 { order } => Value::Int(i64::from(codec::u16_from_wire(order.rtu(), arr(bytes)) as i16)),
-        FieldKind::U32 { order } => Value::Int(i64::from(codec::u32_from_wire(order.rtu(), arr(bytes)))),
-        FieldKind::I32 { order } => Value::Int(i64::from(codec::u32_from_wire(order.rtu(), arr(bytes)) as i32)),
+        FieldKind::U16 { order } => Value::Int(i64::from(codec::u16_from_wire(*order, arr(bytes)))),
+        FieldKind::I16 { order } => Value::Int(i64::from(codec::u16_from_wire(*order, arr(bytes)) as i16)),
+        FieldKind::U32 { order } => Value::Int(i64::from(codec::u32_from_wire(*order, arr(bytes)))),
+        FieldKind::I32 { order } => Value::Int(i64::from(codec::u32_from_wire(*order, arr(bytes)) as i32)),
         FieldKind::Ascii { padding, .. } => {
             let end = bytes.iter().rposition(|b| b != padding).map_or(0, |i| i + 1);
             let text: String = bytes.iter().take(end).map(|&b| char::from(b)).collect();
@@ -177,7 +177,7 @@ pub fn decode_field(field: &Field, bytes: &[u8]) -> Value {
         FieldKind::Enum { repr, variants } => {
             let raw = match repr {
                 EnumRepr::U8 => u16::from(arr::<1>(bytes)[0]),
-                EnumRepr::U16(order) => codec::u16_from_wire(order.rtu(), arr(bytes)),
+                EnumRepr::U16(order) => codec::u16_from_wire(*order, arr(bytes)),
             };
             Value::Enum { raw, name: variant_name(variants, raw) }
         }
@@ -185,7 +185,7 @@ pub fn decode_field(field: &Field, bytes: &[u8]) -> Value {
         FieldKind::Bcd => Value::Bcd(Bcd(arr::<1>(bytes)[0])),
         FieldKind::Flags { repr, .. } => Value::Int(i64::from(match repr {
             EnumRepr::U8 => u16::from(arr::<1>(bytes)[0]),
-            EnumRepr::U16(order) => codec::u16_from_wire(order.rtu(), arr(bytes)),
+            EnumRepr::U16(order) => codec::u16_from_wire(*order, arr(bytes)),
         })),
     }
 }
@@ -193,7 +193,7 @@ pub fn decode_field(field: &Field, bytes: &[u8]) -> Value {
 /// Encodes values into register data. Every named field needs a value;
 /// reserved bytes get their fill. Ranges are checked for a write's data; on
 /// a read a range is the measuring range, which a probe may leave.
-pub fn encode_fields(command: &Command, values: &BTreeMap<String, Value>) -> Result<Vec<u8>, EncodeValuesError> {
+pub fn encode_fields(command: &CommandSpec, values: &BTreeMap<String, Value>) -> Result<Vec<u8>, EncodeValuesError> {
     if let Some(unknown) = values.keys().find(|k| command.field(k).is_none()) {
         return Err(EncodeValuesError::Unknown(unknown.clone()));
     }
@@ -255,7 +255,7 @@ fn check_range(ranges: bool, field: &Field, v: f64) -> Result<(), EncodeValuesEr
 /// Encodes one field of `command` by the command's rule: a write's values
 /// must be in their field's `range`; a read's range is the measuring range,
 /// which a probe may leave, so it is not enforced.
-pub fn encode_command_field(command: &Command, field: &Field, value: &Value) -> Result<Vec<u8>, EncodeValuesError> {
+pub fn encode_command_field(command: &CommandSpec, field: &Field, value: &Value) -> Result<Vec<u8>, EncodeValuesError> {
     encode_field_checked(field, value, !command.is_read())
 }
 
@@ -278,7 +278,7 @@ fn encode_field_checked(field: &Field, value: &Value, ranges: bool) -> Result<Ve
             if !v.is_nan() {
                 check_range(ranges, field, f64::from(v))?;
             }
-            codec::f32_to_wire(order.rtu(), v).to_vec()
+            codec::f32_to_wire(*order, v).to_vec()
         }
         FieldKind::U8 => {
             let v = int_in(field, value, 0, 255)?;
@@ -293,22 +293,22 @@ fn encode_field_checked(field: &Field, value: &Value, ranges: bool) -> Result<Ve
         FieldKind::U16 { order } => {
             let v = int_in(field, value, 0, 0xFFFF)?;
             check_range(ranges, field, v as f64)?;
-            codec::u16_to_wire(order.rtu(), v as u16).to_vec()
+            codec::u16_to_wire(*order, v as u16).to_vec()
         }
         FieldKind::I16 { order } => {
             let v = int_in(field, value, -0x8000, 0x7FFF)?;
             check_range(ranges, field, v as f64)?;
-            codec::u16_to_wire(order.rtu(), v as i16 as u16).to_vec()
+            codec::u16_to_wire(*order, v as i16 as u16).to_vec()
         }
         FieldKind::U32 { order } => {
             let v = int_in(field, value, 0, 0xFFFF_FFFF)?;
             check_range(ranges, field, v as f64)?;
-            codec::u32_to_wire(order.rtu(), v as u32).to_vec()
+            codec::u32_to_wire(*order, v as u32).to_vec()
         }
         FieldKind::I32 { order } => {
             let v = int_in(field, value, i64::from(i32::MIN), i64::from(i32::MAX))?;
             check_range(ranges, field, v as f64)?;
-            codec::u32_to_wire(order.rtu(), v as i32 as u32).to_vec()
+            codec::u32_to_wire(*order, v as i32 as u32).to_vec()
         }
         FieldKind::Ascii { len, padding } => {
             let Value::Text(text) = value else { return Err(wrong()) };
@@ -339,7 +339,7 @@ fn encode_field_checked(field: &Field, value: &Value, ranges: bool) -> Result<Ve
             };
             match repr {
                 EnumRepr::U8 => vec![u8::try_from(raw).map_err(|_| out_of_range(field, format!("{raw} > 255")))?],
-                EnumRepr::U16(order) => codec::u16_to_wire(order.rtu(), raw).to_vec(),
+                EnumRepr::U16(order) => codec::u16_to_wire(*order, raw).to_vec(),
             }
         }
         FieldKind::Reserved { .. } => encode_reserved(field),
@@ -367,7 +367,7 @@ fn encode_field_checked(field: &Field, value: &Value, ranges: bool) -> Result<Ve
             let raw = int_in(field, value, 0, max)?;
             match repr {
                 EnumRepr::U8 => vec![raw as u8],
-                EnumRepr::U16(order) => codec::u16_to_wire(order.rtu(), raw as u16).to_vec(),
+                EnumRepr::U16(order) => codec::u16_to_wire(*order, raw as u16).to_vec(),
             }
         }
     })
@@ -379,7 +379,7 @@ pub fn parse_version(text: &str) -> Option<Version> {
     Some(Version::new(major.trim().parse().ok()?, minor.trim().parse().ok()?))
 }
 
-impl Command {
+impl CommandSpec {
     /// Encodes a request to `slave`: `values` are the write's fields (none for a read).
     pub fn encode_request(&self, slave: u8, values: &BTreeMap<String, Value>) -> Result<Vec<u8>, EncodeValuesError> {
         let data = if self.is_read() {

@@ -8,7 +8,7 @@ use std::collections::BTreeMap;
 use std::path::PathBuf;
 
 use serde::Serialize;
-use yosemitech_rtu::{ByteOrder2, ByteOrder4, Function, Layout};
+use yosemitech_rtu::{ByteOrder2, ByteOrder4, Function, Layout, LineSettings};
 
 /// All sensors of a spec directory.
 #[derive(Debug, Clone, Serialize)]
@@ -24,14 +24,14 @@ pub struct Spec {
 /// A file of commands several sensors share.
 #[derive(Debug, Clone, Serialize)]
 pub struct Fragment {
-    /// snake_case name.
+    /// snake_case identifier (the generated module's name), unique among fragments.
     pub name: String,
-    /// What it holds.
+    /// What the commands have in common, one or more sentences (never empty).
     pub doc: String,
-    /// The file.
+    /// The fragment's file, as given to the loader.
     pub file: PathBuf,
     /// Its commands, as defined there.
-    pub commands: Vec<Command>,
+    pub commands: Vec<CommandSpec>,
 }
 
 impl Spec {
@@ -54,9 +54,9 @@ impl Spec {
 pub struct Sensor {
     /// snake_case name (the Rust module).
     pub name: String,
-    /// Human title.
+    /// The probe's name as the manual's title gives it (one line, no control characters).
     pub title: String,
-    /// What it measures.
+    /// What the probe measures, in prose (never empty).
     pub doc: String,
     /// The vendor's model name (`Y520`), when the spec states it.
     pub model: Option<String>,
@@ -67,22 +67,23 @@ pub struct Sensor {
     /// Other manuals of the same probe, in the order written.
     pub revisions: Vec<Revision>,
     /// Serial settings (of the newest firmware).
-    pub serial: Serial,
+    #[serde(serialize_with = "ser_line")]
+    pub serial: LineSettings,
     /// Lowest valid slave address.
     pub min_address: u8,
     /// Highest valid slave address.
     pub max_address: u8,
-    /// Factory slave address.
+    /// Factory slave address, within `min_address..=max_address`.
     pub default_address: u8,
     /// Commands, in spec order (included ones where they are included).
-    pub commands: Vec<Command>,
+    pub commands: Vec<CommandSpec>,
     /// The manual's measuring procedure.
     pub procedure: Option<Procedure>,
     /// Numbers the procedures use.
     pub constants: Vec<Constant>,
-    /// Manual-wide errata.
+    /// Errata that concern the manual as a whole, not one command.
     pub errata: Vec<Erratum>,
-    /// The sensor's file.
+    /// The sensor's own file, as given to the loader.
     pub file: PathBuf,
     /// The sensor's file and every file it includes.
     pub files: Vec<PathBuf>,
@@ -90,7 +91,7 @@ pub struct Sensor {
 
 impl Sensor {
     /// The command called `name`.
-    pub fn command(&self, name: &str) -> Option<&Command> {
+    pub fn command(&self, name: &str) -> Option<&CommandSpec> {
         self.commands.iter().find(|c| c.name == name)
     }
 
@@ -105,7 +106,7 @@ impl Sensor {
     }
 
     /// The command with `role`, if the sensor has one.
-    pub fn command_with_role(&self, role: Role) -> Option<&Command> {
+    pub fn command_with_role(&self, role: Role) -> Option<&CommandSpec> {
         self.commands.iter().find(|c| c.role == Some(role))
     }
 
@@ -115,7 +116,7 @@ impl Sensor {
     }
 
     /// The serial settings of a probe running `software` (the newest when unknown).
-    pub fn serial_for(&self, software: &str) -> Serial {
+    pub fn serial_for(&self, software: &str) -> LineSettings {
         self.revisions.iter().find(|r| r.manual.software.as_deref() == Some(software)).map_or(self.serial, |r| r.serial)
     }
 
@@ -138,7 +139,8 @@ pub struct Revision {
     /// What changed against the sensor's `manual`.
     pub doc: Option<String>,
     /// Serial settings of this firmware (the sensor's when the manual states no others).
-    pub serial: Serial,
+    #[serde(serialize_with = "ser_line")]
+    pub serial: LineSettings,
 }
 
 /// What a command is for, where the simulator or the CLI must know. A sensor
@@ -146,6 +148,19 @@ pub struct Revision {
 pub use crate::document::RoleDoc as Role;
 
 impl Role {
+    /// Every role, in the order the spec language documents them.
+    pub const ALL: [Role; 9] = [
+        Role::SetSlaveAddress,
+        Role::GetSlaveAddress,
+        Role::SerialNumber,
+        Role::Version,
+        Role::StartMeasurement,
+        Role::StopMeasurement,
+        Role::Wipe,
+        Role::CalibrationPoint,
+        Role::CalibrationStatus,
+    ];
+
     /// The spec's name of the role.
     pub fn name(self) -> &'static str {
         match self {
@@ -168,7 +183,7 @@ impl Role {
 pub struct Procedure {
     /// Where the manual describes it.
     pub source: Option<Source>,
-    /// The procedure in words.
+    /// The procedure in the manual's words, when the spec transcribes them.
     pub doc: Option<String>,
     /// Commands sent first, in order.
     pub before: Vec<String>,
@@ -187,7 +202,7 @@ pub struct Procedure {
 /// The manual a sensor's spec transcribes.
 #[derive(Debug, Clone, Serialize)]
 pub struct Manual {
-    /// Title.
+    /// The manual's title, one line, as printed on its cover.
     pub title: String,
     /// Revisions covered, as the manual's scope line states them.
     pub revision: String,
@@ -197,36 +212,27 @@ pub struct Manual {
     pub file: Option<String>,
 }
 
-/// Serial line settings.
-#[derive(Debug, Clone, Copy, Serialize, PartialEq, Eq)]
-pub struct Serial {
-    /// Bits per second.
-    pub baud: u32,
-    /// Data bits.
-    pub data_bits: u8,
-    /// Parity.
-    pub parity: Parity,
-    /// Stop bits.
-    pub stop_bits: u8,
-}
+/// Serializes line settings in the spec's own form,
+/// `{"baud": 9600, "data_bits": 8, "parity": "none", "stop_bits": 1}`, as
+/// the model's `serial` fields are serialized and the CLI's JSON shows them.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct LineSettingsJson(pub LineSettings);
 
-impl Serial {
-    /// Bits on the line per character: start, data, parity, stop.
-    pub fn bits_per_char(&self) -> u32 {
-        1 + u32::from(self.data_bits) + u32::from(self.parity != Parity::None) + u32::from(self.stop_bits)
+impl Serialize for LineSettingsJson {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        use serde::ser::SerializeStruct;
+        let Self(line) = self;
+        let mut out = s.serialize_struct("LineSettings", 4)?;
+        out.serialize_field("baud", &line.baud)?;
+        out.serialize_field("data_bits", &line.format.data_bits.bits())?;
+        out.serialize_field("parity", line.format.parity.name())?;
+        out.serialize_field("stop_bits", &line.format.stop_bits.bits())?;
+        out.end()
     }
 }
 
-/// Parity.
-#[derive(Debug, Clone, Copy, Serialize, PartialEq, Eq)]
-#[serde(rename_all = "snake_case")]
-pub enum Parity {
-    /// None.
-    None,
-    /// Even.
-    Even,
-    /// Odd.
-    Odd,
+fn ser_line<S: serde::Serializer>(line: &LineSettings, s: S) -> Result<S::Ok, S::Error> {
+    LineSettingsJson(*line).serialize(s)
 }
 
 /// Where the manual documents something.
@@ -234,7 +240,7 @@ pub enum Parity {
 pub struct Source {
     /// Section, e.g. "2.2.3".
     pub section: String,
-    /// Figures and tables.
+    /// Figures and tables cited, in the order written; may be empty.
     pub figures: Vec<Figure>,
     /// The manual's software revision when not the sensor's `manual`.
     pub manual: Option<String>,
@@ -245,12 +251,12 @@ pub struct Source {
 pub enum Figure {
     /// Figure `number`; `occurrence` 2 for the second figure a manual gives that number.
     Figure {
-        /// The printed number.
+        /// The number printed under the figure (1 or more).
         number: u32,
         /// 1, or 2 and more for a number the manual repeats.
         occurrence: u8,
     },
-    /// Table `number`.
+    /// Table `number`, as printed (1 or more).
     Table(u32),
 }
 
@@ -305,23 +311,23 @@ impl Serialize for Figure {
     }
 }
 
-/// One command.
+/// One command of a sensor: its wire layout, fields and the manual's frames. Validation guarantees: `count` fits Modbus limits (reads 1..=125, writes 1..=123, zero only for a trigger), fields fill `2 * count` bytes without gap or overlap, and every complete example replays through the interpreter.
 #[derive(Debug, Clone, Serialize)]
-pub struct Command {
-    /// snake_case name.
+pub struct CommandSpec {
+    /// snake_case identifier, unique within the sensor and not a Rust keyword.
     pub name: String,
-    /// Title from the manual.
+    /// The command's title as the manual's table prints it (one line).
     pub title: String,
-    /// What it does.
+    /// What the command does, in prose (never empty).
     pub doc: String,
     /// Where this sensor's manual documents it.
     pub source: Source,
-    /// Read or write.
+    /// `Read` (0x03) or `Write` (0x10): the only functions Yosemitech probes use.
     #[serde(serialize_with = "ser_function")]
     pub function: Function,
     /// First register on the wire.
     pub address: u16,
-    /// Registers.
+    /// Registers read or written: 1..=125 for reads, 1..=123 for writes, 0 only for a trigger write.
     pub count: u16,
     /// A command that carries no value: a write of zero registers, or a
     /// read whose reply is ignored (such a read has no fields).
@@ -338,7 +344,7 @@ pub struct Command {
     pub fields: Vec<Field>,
     /// Frames printed in the manual.
     pub examples: Vec<Example>,
-    /// Table contradictions.
+    /// Where the manual's register table contradicts the spec, each with the value the table prints.
     pub errata: Vec<CommandErratum>,
     /// The fragment this command was included from.
     pub shared_from: Option<String>,
@@ -351,7 +357,7 @@ fn ser_function<S: serde::Serializer>(f: &Function, s: S) -> Result<S::Ok, S::Er
     })
 }
 
-impl Command {
+impl CommandSpec {
     /// The wire layout, for framing.
     pub fn layout(&self) -> Layout<'_> {
         Layout {
@@ -369,7 +375,7 @@ impl Command {
         self.is_read() || self.fields.is_empty()
     }
 
-    /// True for reads.
+    /// True for reads (function 0x03).
     pub fn is_read(&self) -> bool {
         self.function == Function::Read
     }
@@ -432,15 +438,15 @@ impl CommandErratum {
 /// A manual-wide erratum.
 #[derive(Debug, Clone, Serialize)]
 pub struct Erratum {
-    /// Identifier.
+    /// Identifier, unique within the sensor (`E1`, `Y514-4`).
     pub id: String,
-    /// Figures concerned.
+    /// Figures the erratum concerns; may be empty.
     pub figures: Vec<Figure>,
     /// The manual's software revision when not the sensor's `manual`.
     pub manual: Option<String>,
-    /// Sections concerned.
+    /// Manual sections the erratum concerns (`2.2.3`).
     pub sections: Vec<String>,
-    /// Explanation.
+    /// Why the spec departs from the manual, in prose (never empty).
     pub note: String,
 }
 
@@ -449,13 +455,13 @@ pub struct Erratum {
 pub struct Field {
     /// snake_case name; `None` only for reserved bytes.
     pub name: Option<String>,
-    /// Type and encoding.
+    /// The field's type and wire encoding; its size is `kind.size()` bytes.
     pub kind: FieldKind,
     /// Byte offset in the register data.
     pub offset: usize,
-    /// Unit.
+    /// Unit of the value (`mS/cm`, `degC`) as the manual gives it; `None` for unitless values.
     pub unit: Option<String>,
-    /// Meaning.
+    /// What the value means, in prose.
     pub doc: Option<String>,
     /// Values a write may send (inclusive); on a read, the measuring range.
     pub range: Option<(f64, f64)>,
@@ -468,7 +474,7 @@ pub struct Field {
 /// A field's value and its bytes, as a manual prints them outside a frame.
 #[derive(Debug, Clone, Serialize)]
 pub struct FieldExample {
-    /// The bytes.
+    /// The bytes as printed, `field.size()` of them.
     pub bytes: Vec<u8>,
     /// The value they decode to.
     pub value: crate::Value,
@@ -479,16 +485,16 @@ pub struct FieldExample {
 /// A named bit of a flags field.
 #[derive(Debug, Clone, Serialize, PartialEq, Eq)]
 pub struct Flag {
-    /// snake_case name.
+    /// snake_case identifier, unique within the field.
     pub name: String,
     /// The mask: exactly one bit set, within the field's size.
     pub mask: u16,
-    /// Meaning.
+    /// What the bit means when set.
     pub doc: Option<String>,
 }
 
 impl Field {
-    /// Bytes on the wire.
+    /// Bytes on the wire: `kind.size()`.
     pub fn size(&self) -> usize {
         self.kind.size()
     }
@@ -504,70 +510,32 @@ impl Field {
     }
 }
 
-/// Wire order of a 2-byte value.
-#[derive(Debug, Clone, Copy, Serialize, PartialEq, Eq)]
-#[serde(rename_all = "snake_case")]
-pub enum Order2 {
-    /// Big-endian.
-    Ab,
-    /// Little-endian.
-    Ba,
+fn ser_order2<S: serde::Serializer>(o: &ByteOrder2, s: S) -> Result<S::Ok, S::Error> {
+    s.serialize_str(o.name())
 }
 
-impl Order2 {
-    /// The runtime's byte order.
-    pub fn rtu(self) -> ByteOrder2 {
-        match self {
-            Self::Ab => ByteOrder2::Ab,
-            Self::Ba => ByteOrder2::Ba,
-        }
-    }
-}
-
-/// Wire order of a 4-byte value.
-#[derive(Debug, Clone, Copy, Serialize, PartialEq, Eq)]
-#[serde(rename_all = "snake_case")]
-pub enum Order4 {
-    /// Big-endian.
-    Abcd,
-    /// Little-endian memory image.
-    Dcba,
-    /// Word-swapped.
-    Cdab,
-    /// Byte-swapped.
-    Badc,
-}
-
-impl Order4 {
-    /// The runtime's byte order.
-    pub fn rtu(self) -> ByteOrder4 {
-        match self {
-            Self::Abcd => ByteOrder4::Abcd,
-            Self::Dcba => ByteOrder4::Dcba,
-            Self::Cdab => ByteOrder4::Cdab,
-            Self::Badc => ByteOrder4::Badc,
-        }
-    }
+fn ser_order4<S: serde::Serializer>(o: &ByteOrder4, s: S) -> Result<S::Ok, S::Error> {
+    s.serialize_str(o.name())
 }
 
 /// The size of an enum code.
 #[derive(Debug, Clone, Copy, Serialize, PartialEq, Eq)]
 #[serde(rename_all = "snake_case")]
 pub enum EnumRepr {
-    /// One byte.
+    /// One byte, no byte order.
     U8,
     /// Two bytes in the given order.
-    U16(Order2),
+    U16(#[serde(serialize_with = "ser_order2")] ByteOrder2),
 }
 
-/// A named enum code.
+/// A named enum code: a value the field may carry, with its meaning.
 #[derive(Debug, Clone, Serialize, PartialEq, Eq)]
 pub struct Variant {
-    /// snake_case name.
+    /// snake_case identifier, unique within the field, also as a Rust name.
     pub name: String,
-    /// Wire value.
+    /// The code on the wire; fits the enum's size (0..=255 for one byte).
     pub value: u16,
-    /// Meaning.
+    /// What the code means.
     pub doc: Option<String>,
 }
 
@@ -575,71 +543,76 @@ pub struct Variant {
 #[derive(Debug, Clone, Serialize, PartialEq)]
 #[serde(rename_all = "snake_case", tag = "type")]
 pub enum FieldKind {
-    /// IEEE 754 single.
+    /// IEEE 754 single, 4 bytes, decoded bit for bit (NaN payloads kept).
     F32 {
-        /// Byte order.
-        order: Order4,
+        /// The order of its 4 bytes on the wire.
+        #[serde(serialize_with = "ser_order4")]
+        order: ByteOrder4,
     },
     /// Unsigned byte.
     U8,
-    /// Signed byte.
+    /// Signed byte (two's complement).
     I8,
-    /// Unsigned 16-bit.
+    /// Unsigned 16-bit integer, 2 bytes.
     U16 {
-        /// Byte order.
-        order: Order2,
+        /// The order of its 2 bytes on the wire.
+        #[serde(serialize_with = "ser_order2")]
+        order: ByteOrder2,
     },
-    /// Signed 16-bit.
+    /// Signed 16-bit integer, 2 bytes (two's complement).
     I16 {
-        /// Byte order.
-        order: Order2,
+        /// The order of its 2 bytes on the wire.
+        #[serde(serialize_with = "ser_order2")]
+        order: ByteOrder2,
     },
-    /// Unsigned 32-bit.
+    /// Unsigned 32-bit integer, 4 bytes.
     U32 {
-        /// Byte order.
-        order: Order4,
+        /// The order of its 4 bytes on the wire.
+        #[serde(serialize_with = "ser_order4")]
+        order: ByteOrder4,
     },
-    /// Signed 32-bit.
+    /// Signed 32-bit integer, 4 bytes (two's complement).
     I32 {
-        /// Byte order.
-        order: Order4,
+        /// The order of its 4 bytes on the wire.
+        #[serde(serialize_with = "ser_order4")]
+        order: ByteOrder4,
     },
-    /// Fixed-length text.
+    /// Fixed-length text: `len` bytes, printable ASCII, padded at the end.
     Ascii {
-        /// Bytes.
+        /// Bytes on the wire, padding included (1 or more).
         len: usize,
-        /// Padding byte.
+        /// The byte that fills the text to `len` (0x00 or a space).
         padding: u8,
     },
     /// Major, minor.
     Version,
-    /// Named codes.
+    /// Named codes: an enum of one or two bytes; unknown codes decode as raw values.
     Enum {
-        /// Code size.
+        /// The size of the code, and its byte order when two bytes.
         repr: EnumRepr,
-        /// Known codes.
+        /// The codes the manual names, unique by value and by name.
         variants: Vec<Variant>,
     },
-    /// Ignored bytes.
+    /// Bytes the device sends and ignores; written as `fill`.
     Reserved {
-        /// Bytes.
+        /// Bytes on the wire (1 or more).
         len: usize,
-        /// Byte written.
+        /// The byte an encoder writes in each reserved byte.
         fill: u8,
     },
     /// One byte, two decimal digits.
     Bcd,
-    /// Independent named bits.
+    /// Independent named bits of one or two bytes; unnamed bits are kept as read.
     Flags {
         /// Size and order of the bit field.
         repr: EnumRepr,
-        /// Known bits.
+        /// The named bits: each mask has exactly one bit, unique within the field.
         flags: Vec<Flag>,
     },
 }
 
 impl FieldKind {
-    /// Bytes on the wire.
+    /// Bytes on the wire: 1, 2, 4, or a text's or reserved run's length.
     pub fn size(&self) -> usize {
         match self {
             Self::U8 | Self::I8 | Self::Bcd => 1,
@@ -650,6 +623,20 @@ impl FieldKind {
             Self::Ascii { len, .. } | Self::Reserved { len, .. } => *len,
             Self::Enum { repr: EnumRepr::U8, .. } => 1,
             Self::Enum { repr: EnumRepr::U16(_), .. } => 2,
+        }
+    }
+
+    /// The spec's name (`dcba`, `ab`) of the byte order of a multi-byte
+    /// number, enum or flags field; `None` for a field of one byte, text, a
+    /// version or reserved bytes, which have no byte order.
+    pub fn byte_order_name(&self) -> Option<&'static str> {
+        match self {
+            Self::F32 { order } | Self::U32 { order } | Self::I32 { order } => Some(order.name()),
+            Self::U16 { order }
+            | Self::I16 { order }
+            | Self::Enum { repr: EnumRepr::U16(order), .. }
+            | Self::Flags { repr: EnumRepr::U16(order), .. } => Some(order.name()),
+            _ => None,
         }
     }
 
@@ -703,7 +690,7 @@ impl PrintedFrame {
 /// A frame pair (or one side of it) printed in the manual.
 #[derive(Debug, Clone, Serialize)]
 pub struct Example {
-    /// Figures and tables.
+    /// Figures and tables that print the frame.
     pub figures: Vec<Figure>,
     /// The manual's software revision when not the sensor's `manual`.
     pub manual: Option<String>,
@@ -713,7 +700,7 @@ pub struct Example {
     pub response: Option<PrintedFrame>,
     /// Values the manual states, by field name.
     pub values: BTreeMap<String, crate::Value>,
-    /// Remarks.
+    /// Remarks on the example, in prose.
     pub doc: Option<String>,
     /// Where the printed frame is wrong.
     pub erratum: Option<ExampleErratum>,
@@ -772,15 +759,15 @@ impl Example {
 /// A printed frame that is wrong.
 #[derive(Debug, Clone, Serialize)]
 pub struct ExampleErratum {
-    /// Identifier.
+    /// Identifier, unique within the sensor.
     pub id: String,
-    /// The figure.
+    /// The figure that prints the wrong frame.
     pub figure: Figure,
-    /// What is wrong.
+    /// What is wrong with the printed frame, in prose.
     pub printed: String,
-    /// True request.
+    /// The true request with its CRC, when the printed one is wrong.
     pub corrected_request: Option<Vec<u8>>,
-    /// True reply.
+    /// The true reply with its CRC, when the printed one is wrong.
     pub corrected_response: Option<Vec<u8>>,
     /// Whether our decoder accepts the printed frame.
     pub printed_decodes: bool,
@@ -789,19 +776,19 @@ pub struct ExampleErratum {
 /// A number a procedure uses.
 #[derive(Debug, Clone, Serialize)]
 pub struct Constant {
-    /// snake_case name.
+    /// snake_case identifier, unique within the sensor.
     pub name: String,
-    /// Rust type.
+    /// The Rust type the generated constant has.
     pub ty: ConstantType,
     /// The values; one for a scalar.
     pub values: Vec<f64>,
     /// True when declared with `values:` (an array).
     pub is_list: bool,
-    /// Unit.
+    /// Unit of the values, when they have one.
     pub unit: Option<String>,
-    /// Meaning.
+    /// What the constant is for, in prose (never empty).
     pub doc: String,
-    /// Source in the manual.
+    /// Where the manual states the number, when it does.
     pub source: Option<Source>,
 }
 

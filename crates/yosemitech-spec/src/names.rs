@@ -162,7 +162,7 @@ mod tests {
 
     #[test]
     fn rules() {
-        assert_eq!(check_snake("get_ph"), None);
+        assert_eq!(check_snake("get_value"), None);
         assert!(check_snake("type").is_some());
         assert!(check_snake("self").is_some());
         assert!(check_snake("Get").is_some());
@@ -183,6 +183,6 @@ mod tests {
             assert_eq!(check_sensor_name(shadowing), None, "{shadowing}");
         }
         assert_eq!(check_command_name("get_option"), None);
-        assert_eq!(check_sensor_name("ph_orp"), None);
+        assert_eq!(check_sensor_name("probe_x"), None);
     }
 }

@@ -2,18 +2,14 @@
 //! command's values survive encode -> decode.
 
 use std::collections::BTreeMap;
-use std::path::PathBuf;
 use std::sync::OnceLock;
 
 use proptest::prelude::*;
-use yosemitech_spec::{Command, FieldKind, Spec, Value, load_paths};
+use yosemitech_spec::{CommandSpec, FieldKind, Spec, Value};
 
-fn spec() -> Spec {
-    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../spec");
-    load_paths(&[dir]).unwrap_or_else(|d| panic!("spec/ does not load:\n{d}"))
-}
+use yosemitech_tests::spec;
 
-fn commands(spec: &Spec) -> Vec<Command> {
+fn commands(spec: &Spec) -> Vec<CommandSpec> {
     spec.sensors.iter().flat_map(|s| s.commands.iter().cloned()).collect()
 }
 
@@ -22,7 +18,7 @@ fn examples_replay_through_the_interpreter() {
     let spec = spec();
     let mut replayed = 0;
     let mut complete = 0;
-    for cmd in commands(&spec) {
+    for cmd in commands(spec) {
         for ex in &cmd.examples {
             let Some((true_request, true_response)) = ex.true_pair() else { continue };
             complete += 1;
@@ -52,7 +48,7 @@ fn examples_replay_through_the_interpreter() {
 fn printed_frames_behave_as_the_errata_say() {
     let spec = spec();
     let mut checked = 0;
-    for cmd in commands(&spec) {
+    for cmd in commands(spec) {
         for ex in &cmd.examples {
             let Some(err) = &ex.erratum else { continue };
             let printed = if err.corrected_response.is_some() { &ex.response } else { &ex.request };
@@ -72,7 +68,7 @@ fn printed_frames_behave_as_the_errata_say() {
 #[test]
 fn decoding_never_panics_on_garbage() {
     let spec = spec();
-    for cmd in commands(&spec) {
+    for cmd in commands(spec) {
         for len in 0..40 {
             let frame: Vec<u8> = (0..len).map(|i| (i * 37 + 11) as u8).collect();
             let _ = cmd.decode_response(1, &frame);
@@ -116,8 +112,8 @@ fn value_for(kind: &FieldKind, bits: u64) -> Option<Value> {
 proptest! {
     #[test]
     fn values_survive_encode_and_decode(seeds in proptest::collection::vec(any::<u64>(), 12)) {
-        static COMMANDS: OnceLock<Vec<Command>> = OnceLock::new();
-        for cmd in COMMANDS.get_or_init(|| commands(&spec())) {
+        static COMMANDS: OnceLock<Vec<CommandSpec>> = OnceLock::new();
+        for cmd in COMMANDS.get_or_init(|| commands(spec())) {
             let mut values = BTreeMap::new();
             let mut ok = true;
             for (i, field) in cmd.named_fields().enumerate() {

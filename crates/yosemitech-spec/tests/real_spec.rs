@@ -2,15 +2,7 @@
 
 use std::path::PathBuf;
 
-use yosemitech_spec::{Spec, load_paths};
-
-fn spec() -> Spec {
-    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../spec");
-    match load_paths(&[dir]) {
-        Ok(spec) => spec,
-        Err(d) => panic!("spec/ does not load:\n{d}"),
-    }
-}
+use yosemitech_tests::spec;
 
 /// Every sensor of `spec/`, whatever is there: no sensor is named here, so a
 /// new manual's file needs no test edit.

@@ -1976,7 +1976,7 @@ pub const MODULE: rtu::SensorModule = rtu::SensorModule {
 #[cfg(feature = "std")]
 /// One Multi-parameter sonde on a bus: a borrowed [`rtu::Client`] and the probe's slave address, with one method per command.
 ///
-/// Reads are named after the command without its `get_` prefix and return the reply, or its only field; writes keep the command's name and take the field (one field) or the request (several). Commands with a fixed slave address (`get_slave_id`: 0xFF) use it instead of the device's.
+/// Reads are named after the command without its `get_` prefix and return the reply, or its only field; writes keep the command's name and take the field (one field) or the request (several). Commands with a fixed slave address (a read at the wildcard address 0xFF) use it instead of the device's.
 pub struct Device<'c, T> {
     client: &'c mut rtu::Client<T>,
     address: u8,

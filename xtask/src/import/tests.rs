@@ -28,8 +28,8 @@ fn synthetic_manual_is_drafted() {
     assert_eq!((c.fields[0].ty, c.fields[0].order, c.fields[0].offset), ("f32", Some("dcba"), 0));
     assert_eq!(c.examples.len(), 1);
     let e = &c.examples[0];
-    assert!(e.request.as_ref().is_some_and(Frame::crc_verified));
-    assert_eq!(e.response.as_ref().map(Frame::text).as_deref(), Some("01 03 04 00 00 8D 41"));
+    assert!(e.request.as_ref().is_some_and(DraftFrame::crc_verified));
+    assert_eq!(e.response.as_ref().map(DraftFrame::text).as_deref(), Some("01 03 04 00 00 8D 41"));
     assert!(d.yaml.contains("response_crc: missing"), "{}", d.yaml);
     assert!(d.yaml.contains("revision: \"HW Rev2.0 / SW Rev3.4 or later\""), "{}", d.yaml);
     assert!(d.yaml.contains("serial: {baud: 19200, data_bits: 8, parity: none, stop_bits: 1}"), "{}", d.yaml);
@@ -54,7 +54,7 @@ fn placeholder_data_is_left_unknown_and_marked() {
     let text = synthetic("0x00 0x00").replace("17.625", "Value");
     let d = import(&text).expect("imports");
     let e = &d.commands[0].examples[0];
-    assert_eq!(e.response.as_ref().map(Frame::text).as_deref(), Some("01 03 04 ?? ?? ?? ??"));
+    assert_eq!(e.response.as_ref().map(DraftFrame::text).as_deref(), Some("01 03 04 ?? ?? ?? ??"));
     assert!(d.yaml.contains("todo_import:"), "validate must keep failing: {}", d.yaml);
     assert!(d.todo_count() >= 1);
 }
@@ -187,8 +187,8 @@ Definition  Address  Function  Start  Quantity  Count  Value  CRC\n Byte  0  1  
     let d = import(&text).expect("imports");
     let e = &d.commands[0].examples[0];
     let want: Vec<String> = frame.iter().chain(&crc).map(|b| format!("{b:02X}")).collect();
-    assert_eq!(e.request.as_ref().map(Frame::text), Some(want.join(" ")), "{}", d.yaml);
-    assert!(e.request.as_ref().is_some_and(Frame::crc_verified), "{}", d.yaml);
+    assert_eq!(e.request.as_ref().map(DraftFrame::text), Some(want.join(" ")), "{}", d.yaml);
+    assert!(e.request.as_ref().is_some_and(DraftFrame::crc_verified), "{}", d.yaml);
     assert!(!d.yaml.contains("printed as") && !d.yaml.contains("byte count"), "the frame is settled: {}", d.yaml);
 }
 
@@ -202,7 +202,7 @@ Start address   Number of registers   Register 1   MODBUS function code\n  0x0E0
 Definition  Address  Function  Count  Register value  CRC\n Byte  0  1  2  3  4  11  12\n Value  0x01  0x03  0x02  Status  0\nFigure 9: Response\n\n3 Procedure\n";
     let d = import(text).expect("imports");
     let e = &d.commands[0].examples[0];
-    assert_eq!(e.response.as_ref().map(Frame::text).as_deref(), Some("01 03 02 ?? 00"), "{}", d.yaml);
+    assert_eq!(e.response.as_ref().map(DraftFrame::text).as_deref(), Some("01 03 02 ?? 00"), "{}", d.yaml);
     assert!(d.yaml.contains("response_crc: missing"), "{}", d.yaml);
     assert!(d.commands[0].todos.iter().any(|t| t.contains("printed as \"Status\"")), "{}", d.yaml);
 
@@ -213,7 +213,7 @@ A(3~6) B(7~10)\n0x00 0x00 0x80 0x3f 0x00 0x00 0x00 0x40\n\n3 Procedure\n";
     let d = import(short_count).expect("imports");
     let e = &d.commands[0].examples[0];
     assert_eq!(
-        e.response.as_ref().map(Frame::text).as_deref(),
+        e.response.as_ref().map(DraftFrame::text).as_deref(),
         Some("01 03 04 00 00 80 3F 00 00 00 40 12 34"),
         "as printed, never corrected: {}",
         d.yaml

@@ -14,7 +14,7 @@ use std::path::Path;
 use serde_json::{Value as Json, json};
 use yosemitech_rtu::{ExceptionCode, Function, crc_ok, crc16};
 use yosemitech_spec::interp::decode_fields;
-use yosemitech_spec::{Command, Values};
+use yosemitech_spec::{CommandSpec, Values};
 
 use crate::catalog::{Catalog, Entry, closest};
 use crate::cli::{DecodeArgs, DecodeCommandArgs};
@@ -68,7 +68,7 @@ impl Kind {
 /// A command that fits the frame, and the sensors that have it.
 struct Candidate<'c> {
     sensors: Vec<&'c str>,
-    command: &'c Command,
+    command: &'c CommandSpec,
 }
 
 impl Candidate<'_> {
@@ -94,7 +94,7 @@ fn word(bytes: &[u8], at: usize) -> u16 {
 
 /// The lengths a normal (non-exception) reply of `c` may have: the full
 /// reply, and for a trigger read also the short form with byte count 0.
-fn reply_lens(c: &Command) -> [Option<usize>; 2] {
+fn reply_lens(c: &CommandSpec) -> [Option<usize>; 2] {
     let layout = c.layout();
     [Some(layout.response_len()), layout.short_response_len()]
 }
@@ -102,7 +102,7 @@ fn reply_lens(c: &Command) -> [Option<usize>; 2] {
 /// Whether a frame to or from `slave` may be of command `c`: a command with a
 /// fixed slave address only ever uses it; any other uses 0..=247 (0 being a
 /// broadcast, which only writes use).
-fn fits_slave(c: &Command, slave: u8) -> bool {
+fn fits_slave(c: &CommandSpec, slave: u8) -> bool {
     match c.fixed_slave {
         Some(fixed) => slave == fixed,
         None => slave <= 247 && (slave != 0 || !c.is_read()),
@@ -341,7 +341,7 @@ impl<'c> Filter<'c> {
 #[derive(Clone, Copy)]
 struct Cand<'c> {
     sensor: &'c str,
-    command: &'c Command,
+    command: &'c CommandSpec,
 }
 
 /// What a request asks: its header.
@@ -859,7 +859,7 @@ struct Decoding<'c> {
 }
 
 impl<'c> Decoding<'c> {
-    fn command(&self) -> Option<&'c Command> {
+    fn command(&self) -> Option<&'c CommandSpec> {
         self.cands.first().map(|c| c.command)
     }
 
@@ -915,7 +915,7 @@ fn group<'c>(decoded: impl IntoIterator<Item = (Cand<'c>, Values)>) -> Vec<Decod
     let mut groups: Vec<Decoding<'c>> = Vec::new();
     for (cand, values) in decoded {
         let same = groups.iter_mut().find(|g| {
-            let unit = |c: Option<&Command>, n: &str| c.and_then(|c| c.field(n)).and_then(|f| f.unit.clone());
+            let unit = |c: Option<&CommandSpec>, n: &str| c.and_then(|c| c.field(n)).and_then(|f| f.unit.clone());
             g.values.len() == values.len()
                 && g.values.iter().zip(&values).all(|((n1, v1), (n2, v2))| {
                     n1 == n2 && v1.same_as(v2) && unit(g.command(), n1) == unit(Some(cand.command), n2)
@@ -1332,7 +1332,7 @@ fn report_text(r: &Report<'_>) -> String {
     };
     let decoded = |d: &Decoding<'_>| {
         let values = d.values_text();
-        let written = match (d.command().is_some_and(Command::is_read), x.status) {
+        let written = match (d.command().is_some_and(CommandSpec::is_read), x.status) {
             (true, _) => "",
             (false, Status::Broadcast) => " (broadcast, not answered)",
             (false, _) => " (write acknowledged)",
@@ -1441,8 +1441,8 @@ fn decode_one(filter: &Filter<'_>, json_out: bool, frame: &[u8], out: &mut dyn W
     // Without --command, the slave address narrows the candidates too: a
     // command with a fixed slave address is only ever to and from it, and a
     // frame of address 248..=255 (the wildcard 0xFF) fits only such a command.
-    let slave_fits = |c: &Command| wanted.is_some() || fits_slave(c, slave);
-    let fits = |c: &Command| {
+    let slave_fits = |c: &CommandSpec| wanted.is_some() || fits_slave(c, slave);
+    let fits = |c: &CommandSpec| {
         slave_fits(c)
             && match kind {
                 Kind::ReadRequest => c.is_read() && Some(c.address) == address && Some(c.count) == count,

@@ -8,7 +8,7 @@ use std::time::{Duration, Instant};
 use yosemitech::procedures::coefficients::{read_conductivity, read_ph_orp};
 use yosemitech::{conductivity, ph_orp};
 use yosemitech_rtu::{Client, ClientConfig, RetryPolicy, Transport, Version};
-use yosemitech_sim::{Bus, Device, ServeConfig, Server, Simulator, Variation, line_timing};
+use yosemitech_sim::{Bus, FrameHandler, ServeConfig, Server, Simulator, Variation};
 use yosemitech_spec::{FieldKind, Role, Sensor, Value};
 
 use crate::catalog::Catalog;
@@ -48,7 +48,7 @@ fn setup(sensor: &Arc<Sensor>, values: &[(&str, f32)], noise: f32, line: bool) -
             .map_err(|e| CliError::device(format!("cannot set up the simulated {}: {e}", sensor.name)))?;
     }
     sim.set_variation(Some(Variation { seed: 7, noise, drift_per_read: 0.0 }));
-    let config = if line { ServeConfig::emulating(line_timing(sensor)) } else { ServeConfig::default() };
+    let config = if line { ServeConfig::emulating(sensor.serial.timing()) } else { ServeConfig::default() };
     let (server, port, transport) = serve(sim, config, sensor.serial.baud)?;
     let config = ClientConfig { timeout: Duration::from_secs(1), ..ClientConfig::default() };
     let opened = Opened { bus: Client::with_config(transport, config), port, timeout: config.timeout };
@@ -57,7 +57,7 @@ fn setup(sensor: &Arc<Sensor>, values: &[(&str, f32)], noise: f32, line: bool) -
 
 /// Serves `sim` on a pty and opens it as a serial port.
 #[cfg(unix)]
-fn serve<D: Device + Send + 'static>(
+fn serve<D: FrameHandler + Send + 'static>(
     sim: D,
     config: ServeConfig,
     baud: u32,
@@ -74,7 +74,7 @@ fn serve<D: Device + Send + 'static>(
 
 /// Without ptys, serves `sim` as an RTU-over-TCP gateway on localhost.
 #[cfg(not(unix))]
-fn serve<D: Device + Send + 'static>(
+fn serve<D: FrameHandler + Send + 'static>(
     sim: D,
     config: ServeConfig,
     _baud: u32,
@@ -235,11 +235,7 @@ fn family(catalog: &Catalog, args: &DemoArgs, out: &mut dyn Write) -> Result<u64
         return Ok(0);
     };
     let serial = scan::common_serial(catalog);
-    let timing = catalog.entries().iter().find(|e| e.sensor.serial == serial).map(|e| line_timing(&e.sensor));
-    let config = match timing {
-        Some(timing) if args.line_timing => ServeConfig::emulating(timing),
-        _ => ServeConfig::default(),
-    };
+    let config = if args.line_timing { ServeConfig::emulating(serial.timing()) } else { ServeConfig::default() };
     let (server, port, transport) = serve(bus, config, serial.baud)?;
     let config = ClientConfig { timeout: BUS_TIMEOUT, retry: RetryPolicy::NONE, ..ClientConfig::default() };
     let mut opened = Opened { bus: Client::with_config(transport, config), port, timeout: config.timeout };

@@ -3,12 +3,13 @@
 use std::io::Write;
 
 use serde_json::{Value as Json, json};
-use yosemitech_spec::{Command, Field, Manual, Parity, Sensor, Serial};
+use yosemitech_rtu::{LineSettings, StopBits};
+use yosemitech_spec::{CommandSpec, Field, LineSettingsJson, Manual, Sensor};
 
 use crate::catalog::{Catalog, Entry, Origin};
 use crate::cli::ListArgs;
 use crate::error::Result;
-use crate::format::{byte_order, unit};
+use crate::format::unit;
 
 /// Runs `list`.
 pub fn run(catalog: &Catalog, args: &ListArgs, out: &mut dyn Write) -> Result<()> {
@@ -40,15 +41,10 @@ fn origin_text(origin: &Origin) -> String {
     }
 }
 
-/// `9600 8N1` (and `2 stop bits` spelled out when there are two, the easy detail to miss).
-pub fn serial_text(serial: &Serial) -> String {
-    let parity = match serial.parity {
-        Parity::None => 'N',
-        Parity::Even => 'E',
-        Parity::Odd => 'O',
-    };
-    let stops = if serial.stop_bits == 2 { " (2 stop bits)" } else { "" };
-    format!("{} {}{parity}{}{stops}", serial.baud, serial.data_bits, serial.stop_bits)
+/// `9600 baud, 8N1` (and `2 stop bits` spelled out when there are two, the easy detail to miss).
+pub fn serial_text(serial: &LineSettings) -> String {
+    let stops = if serial.format.stop_bits == StopBits::Two { " (2 stop bits)" } else { "" };
+    format!("{serial}{stops}")
 }
 
 /// `model Y520, model code 09 (serial numbers YL09...)`, as far as the spec states them.
@@ -61,8 +57,8 @@ pub fn model_text(s: &Sensor) -> Option<String> {
 
 /// The manuals of a sensor, oldest firmware first (manuals without a
 /// software revision last), each with the serial settings of that firmware.
-pub fn manuals(s: &Sensor) -> Vec<(&Manual, Serial, Option<&str>, bool)> {
-    let mut all: Vec<(&Manual, Serial, Option<&str>, bool)> = std::iter::once((&s.manual, None, true))
+pub fn manuals(s: &Sensor) -> Vec<(&Manual, LineSettings, Option<&str>, bool)> {
+    let mut all: Vec<(&Manual, LineSettings, Option<&str>, bool)> = std::iter::once((&s.manual, None, true))
         .chain(s.revisions.iter().map(|r| (&r.manual, r.doc.as_deref(), false)))
         .map(|(m, doc, main)| (m, m.software.as_deref().map_or(s.serial, |sw| s.serial_for(sw)), doc, main))
         .collect();
@@ -130,7 +126,7 @@ fn show_sensor(entry: &Entry, with_fields: bool, out: &mut dyn Write) -> Result<
 
 fn field_line(f: &Field) -> String {
     let mut text = format!("{}: {}", f.display_name(), f.kind.type_name());
-    if let Some(order) = byte_order(f) {
+    if let Some(order) = f.kind.byte_order_name() {
         text.push_str(&format!(" {order}"));
     }
     if let Some(u) = &f.unit {
@@ -159,13 +155,13 @@ pub fn sensor_json(entry: &Entry) -> Json {
         "manuals": manuals(s).into_iter().map(|(m, serial, doc, main)| {
             let mut j = manual_json(m);
             if let Some(o) = j.as_object_mut() {
-                o.insert("serial".into(), json!(serial));
+                o.insert("serial".into(), json!(LineSettingsJson(serial)));
                 o.insert("doc".into(), json!(doc));
                 o.insert("default".into(), json!(main));
             }
             j
         }).collect::<Vec<_>>(),
-        "serial": s.serial,
+        "serial": LineSettingsJson(s.serial),
         "addresses": { "min": s.min_address, "max": s.max_address, "default": s.default_address },
         "procedure": s.procedure,
         "commands": s.commands.iter().map(command_json).collect::<Vec<_>>(),
@@ -173,7 +169,7 @@ pub fn sensor_json(entry: &Entry) -> Json {
 }
 
 /// One command as JSON.
-pub fn command_json(c: &Command) -> Json {
+pub fn command_json(c: &CommandSpec) -> Json {
     json!({
         "name": c.name,
         "title": c.title,
@@ -194,7 +190,7 @@ pub fn command_json(c: &Command) -> Json {
             "unit": f.unit,
             "offset": f.offset,
             "size": f.size(),
-            "byte_order": byte_order(f),
+            "byte_order": f.kind.byte_order_name(),
             "range": f.range.map(|(min, max)| json!({ "min": min, "max": max })),
         })).collect::<Vec<_>>(),
     })

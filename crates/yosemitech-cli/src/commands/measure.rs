@@ -9,7 +9,7 @@ use std::io::Write;
 use std::time::{Duration, SystemTime};
 
 use serde_json::{Map, Value as Json, json};
-use yosemitech_spec::{Command, Field, FieldKind, Procedure, Sensor, Value};
+use yosemitech_spec::{CommandSpec, Field, FieldKind, Procedure, Sensor, Value};
 
 use crate::catalog::Catalog;
 use crate::cli::{Global, MeasureArgs};
@@ -66,7 +66,7 @@ pub struct FieldResult {
 }
 
 impl FieldResult {
-    fn new(command: &Command, field: &Field, label: String) -> Self {
+    fn new(command: &CommandSpec, field: &Field, label: String) -> Self {
         Self {
             command: command.name.clone(),
             field: field.clone(),
@@ -161,7 +161,7 @@ fn averaged(kind: &FieldKind) -> bool {
 
 /// The result of a procedure.
 #[derive(Debug, Clone)]
-pub struct Measurement {
+pub struct ProcedureResult {
     /// Readings taken.
     pub readings: u32,
     /// Every named field of every read, in the procedure's order.
@@ -169,7 +169,7 @@ pub struct Measurement {
 }
 
 /// The commands a procedure names, in order (a name the spec lacks is an error).
-fn commands<'s>(sensor: &'s Sensor, names: &[String], what: &str) -> Result<Vec<&'s Command>> {
+fn commands<'s>(sensor: &'s Sensor, names: &[String], what: &str) -> Result<Vec<&'s CommandSpec>> {
     names
         .iter()
         .map(|name| {
@@ -190,7 +190,7 @@ pub fn run_procedure(
     slave: u8,
     timing: Timing,
     sleep: &mut dyn FnMut(Duration),
-) -> Result<Measurement> {
+) -> Result<ProcedureResult> {
     let procedure = sensor.procedure.as_ref().ok_or_else(|| no_procedure(sensor, None))?;
     let before = commands(sensor, &procedure.before, "sends first")?;
     let reads = commands(sensor, &procedure.read, "reads")?;
@@ -258,7 +258,7 @@ pub fn run_procedure(
     }
     result?;
     closing?;
-    Ok(Measurement { readings: taken, fields })
+    Ok(ProcedureResult { readings: taken, fields })
 }
 
 /// The error for a sensor without a procedure, naming those that have one.
@@ -389,7 +389,7 @@ pub fn run(catalog: &Catalog, global: &Global, args: &MeasureArgs, out: &mut dyn
 
 /// The result, one field a line with its unit; `digits` rounds the means
 /// to that many decimals, `None` shows every digit.
-pub fn show(m: &Measurement, digits: Option<usize>, out: &mut dyn Write) -> Result<()> {
+pub fn show(m: &ProcedureResult, digits: Option<usize>, out: &mut dyn Write) -> Result<()> {
     let width = m.fields.iter().map(|r| r.label.len()).max().unwrap_or(0);
     for r in &m.fields {
         let text = if r.is_averaged() {
@@ -444,9 +444,7 @@ pub fn show(m: &Measurement, digits: Option<usize>, out: &mut dyn Write) -> Resu
 mod tests {
     use super::*;
 
-    fn spec() -> yosemitech_spec::Spec {
-        yosemitech_spec::load_paths(&[concat!(env!("CARGO_MANIFEST_DIR"), "/../../spec").into()]).unwrap()
-    }
+    use yosemitech_tests::spec;
 
     #[test]
     fn averages_numbers_tallies_enums_and_keeps_absent_values_apart() {

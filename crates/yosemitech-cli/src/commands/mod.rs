@@ -19,7 +19,7 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 
 use crate::catalog::Catalog;
-use crate::cli::{CalibrateCommand, Cli, CoefficientsCommand, Command};
+use crate::cli::{CalibrateSubcommand, Cli, CoefficientsSubcommand, Subcommand};
 use crate::error::Result;
 
 /// A flag set by Ctrl-C (SIGINT, SIGTERM, SIGHUP), for the commands that
@@ -45,24 +45,24 @@ pub fn run(cli: &Cli) -> Result<()> {
     let stdout = io::stdout();
     let mut out = stdout.lock();
     let result = match &cli.command {
-        Command::Demo(args) => demo::run(&catalog, args, &mut out),
-        Command::List(args) => list::run(&catalog, args, &mut out),
-        Command::Read(args) => read::run(&catalog, global, args, &mut out),
-        Command::Write(args) => write::run(&catalog, global, args, &mut out),
-        Command::Poll(args) => poll::run(&catalog, global, args, &ctrl_c_flag(), &mut out),
-        Command::Measure(args) => measure::run(&catalog, global, args, &mut out),
-        Command::Calibrate(CalibrateCommand::Ph(args)) => calibrate::run(&catalog, global, args, &mut out),
-        Command::Coefficients(CoefficientsCommand::Backup(args)) => {
+        Subcommand::Demo(args) => demo::run(&catalog, args, &mut out),
+        Subcommand::List(args) => list::run(&catalog, args, &mut out),
+        Subcommand::Read(args) => read::run(&catalog, global, args, &mut out),
+        Subcommand::Write(args) => write::run(&catalog, global, args, &mut out),
+        Subcommand::Poll(args) => poll::run(&catalog, global, args, &ctrl_c_flag(), &mut out),
+        Subcommand::Measure(args) => measure::run(&catalog, global, args, &mut out),
+        Subcommand::Calibrate(CalibrateSubcommand::Ph(args)) => calibrate::run(&catalog, global, args, &mut out),
+        Subcommand::Coefficients(CoefficientsSubcommand::Backup(args)) => {
             coefficients::backup(&catalog, global, args, &mut out)
         }
-        Command::Coefficients(CoefficientsCommand::Restore(args)) => {
+        Subcommand::Coefficients(CoefficientsSubcommand::Restore(args)) => {
             coefficients::restore(&catalog, global, args, &mut out)
         }
-        Command::Scan(args) => scan::run(&catalog, global, args, &mut out),
-        Command::SetAddress(args) => set_address::run(&catalog, global, args, &mut out),
-        Command::Decode(args) => decode::run(&catalog, args, &mut out),
-        Command::Encode(args) => encode::run(&catalog, args, &mut out),
-        Command::Simulate(args) => simulate::run(&catalog, args, &ctrl_c_flag(), &mut out),
+        Subcommand::Scan(args) => scan::run(&catalog, global, args, &mut out),
+        Subcommand::SetAddress(args) => set_address::run(&catalog, global, args, &mut out),
+        Subcommand::Decode(args) => decode::run(&catalog, args, &mut out),
+        Subcommand::Encode(args) => encode::run(&catalog, args, &mut out),
+        Subcommand::Simulate(args) => simulate::run(&catalog, args, &ctrl_c_flag(), &mut out),
     };
     // Output written before an error stays visible.
     let flushed = out.flush();

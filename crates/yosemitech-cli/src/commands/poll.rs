@@ -7,7 +7,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant, SystemTime};
 
 use serde_json::{Map, Value as Json, json};
-use yosemitech_spec::{Command, Value};
+use yosemitech_spec::{CommandSpec, Value};
 
 use crate::catalog::{Catalog, is_measurement};
 use crate::cli::{Global, PollArgs, PollFormat};
@@ -17,7 +17,7 @@ use crate::{device, port, time};
 
 /// One output column: a field of a measurement read.
 struct Column<'s> {
-    command: &'s Command,
+    command: &'s CommandSpec,
     field: String,
     name: String,
     unit: Option<String>,
@@ -46,7 +46,7 @@ pub fn run(
     out: &mut dyn Write,
 ) -> Result<()> {
     let sensor = catalog.sensor(&args.sensor)?;
-    let reads: Vec<&Command> = sensor.commands.iter().filter(|c| is_measurement(sensor, c)).collect();
+    let reads: Vec<&CommandSpec> = sensor.commands.iter().filter(|c| is_measurement(sensor, c)).collect();
     if reads.is_empty() {
         return Err(CliError::usage(format!("sensor `{}` has no measurement reads", sensor.name))
             .hint("poll reads commands that no write covers and that have a field with a unit; use `yosemitech read` for others"));

@@ -4,7 +4,7 @@ use std::io::Write;
 use std::time::SystemTime;
 
 use serde_json::json;
-use yosemitech_spec::{Command, Values};
+use yosemitech_spec::{CommandSpec, Values};
 
 use crate::catalog::{self, Catalog};
 use crate::cli::{Global, ReadArgs};
@@ -42,7 +42,7 @@ pub fn run(catalog: &Catalog, global: &Global, args: &ReadArgs, out: &mut dyn Wr
 }
 
 /// Values as aligned `name  value unit` lines.
-pub fn show(command: &Command, values: &Values, out: &mut dyn Write) -> Result<()> {
+pub fn show(command: &CommandSpec, values: &Values, out: &mut dyn Write) -> Result<()> {
     let width = values.iter().map(|(n, _)| n.len()).max().unwrap_or(0);
     for (name, value) in values {
         writeln!(out, "{name:width$}  {}", value_with_unit(value, command.field(name)))?;

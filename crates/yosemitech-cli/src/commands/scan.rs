@@ -5,9 +5,9 @@ use std::io::Write;
 use std::time::Duration;
 
 use serde_json::json;
-use yosemitech_rtu::{Error as RtuError, FrameError, Version};
+use yosemitech_rtu::{Error as RtuError, FrameError, LineSettings, Version};
 use yosemitech_spec::interp::{decode_field, decode_fields};
-use yosemitech_spec::{Command, FieldKind, Manual, Role, Sensor, Serial, Value};
+use yosemitech_spec::{CommandSpec, FieldKind, Manual, Role, Sensor, Value};
 
 use crate::catalog::Catalog;
 use crate::cli::{Global, ScanArgs};
@@ -47,13 +47,13 @@ pub fn parse_addresses(text: &str) -> Result<Vec<u8>> {
 /// A serial-number read and the loaded sensors that share its wire layout.
 struct SnRead<'c> {
     /// The first sensor's command (they all encode and decode alike).
-    command: &'c Command,
+    command: &'c CommandSpec,
     /// The sensors whose serial-number read this is, in load order.
     sensors: Vec<&'c Sensor>,
 }
 
 /// True when two commands are the same on the wire: framing and fields.
-fn same_wire(a: &Command, b: &Command) -> bool {
+fn same_wire(a: &CommandSpec, b: &CommandSpec) -> bool {
     a.layout() == b.layout()
         && a.fields.len() == b.fields.len()
         && a.fields.iter().zip(&b.fields).all(|(x, y)| x.offset == y.offset && x.kind == y.kind)
@@ -61,7 +61,7 @@ fn same_wire(a: &Command, b: &Command) -> bool {
 
 /// Groups `(sensor, command)` pairs by wire layout, the group of most
 /// sensors first (ties: load order).
-fn group<'c>(pairs: impl Iterator<Item = (&'c Sensor, &'c Command)>) -> Vec<SnRead<'c>> {
+fn group<'c>(pairs: impl Iterator<Item = (&'c Sensor, &'c CommandSpec)>) -> Vec<SnRead<'c>> {
     let mut groups: Vec<SnRead<'c>> = Vec::new();
     for (sensor, command) in pairs {
         match groups.iter_mut().find(|g| same_wire(g.command, command)) {
@@ -84,7 +84,7 @@ fn sn_reads(catalog: &Catalog) -> Vec<SnRead<'_>> {
 /// The serial number and the model code a serial-number reply carries:
 /// the byte before the text when it is not 0 (real probes send the code
 /// there: 0x09 is "09"), and the text's characters 3-4 (`YL09...`).
-fn read_sn(command: &Command, data: &[u8]) -> (Option<String>, Option<String>, Option<String>) {
+fn read_sn(command: &CommandSpec, data: &[u8]) -> (Option<String>, Option<String>, Option<String>) {
     let Some(field) = command.named_fields().find(|f| matches!(f.kind, FieldKind::Ascii { .. })) else {
         return (None, None, None);
     };
@@ -150,15 +150,15 @@ fn manual_for(sensor: &Sensor, software: Version) -> Option<&Manual> {
 }
 
 /// The serial settings most loaded sensors use (9600 8N1 when none is loaded).
-pub fn common_serial(catalog: &Catalog) -> Serial {
-    let mut counts: Vec<(Serial, usize)> = Vec::new();
+pub fn common_serial(catalog: &Catalog) -> LineSettings {
+    let mut counts: Vec<(LineSettings, usize)> = Vec::new();
     for e in catalog.entries() {
         match counts.iter_mut().find(|(s, _)| *s == e.sensor.serial) {
             Some((_, n)) => *n += 1,
             None => counts.push((e.sensor.serial, 1)),
         }
     }
-    counts.iter().max_by_key(|(_, n)| *n).map_or(port::YOSEMITECH_SERIAL, |(s, _)| *s)
+    counts.iter().max_by_key(|(_, n)| *n).map_or(LineSettings::default(), |(s, _)| *s)
 }
 
 /// What came back to a read.
@@ -172,7 +172,7 @@ enum Answer {
 }
 
 /// Sends a read with no values to `address`.
-fn probe(opened: &mut Opened, command: &Command, address: u8) -> Result<Answer> {
+fn probe(opened: &mut Opened, command: &CommandSpec, address: u8) -> Result<Answer> {
     let request = command
         .encode_request(address, &BTreeMap::new())
         .map_err(|e| CliError::usage(format!("cannot build the {} request: {e}", command.name)))?;
@@ -340,7 +340,7 @@ pub fn run(catalog: &Catalog, global: &Global, args: &ScanArgs, out: &mut dyn Wr
     let reads = sn_reads(catalog);
     if reads.is_empty() {
         return Err(CliError::usage("no loaded sensor has a serial-number read to identify probes with")
-            .hint("scan reads the command with `role: serial_number` (get_sn); check the --spec files"));
+            .hint("scan reads the command with `role: serial_number`; check the --spec files"));
     }
     let serial = common_serial(catalog);
     let mut opened = port::open_with(&args.port, global, &serial, Duration::from_millis(100), 0)?;

@@ -4,6 +4,7 @@ use std::io::Write;
 
 use yosemitech::procedures::address::{AddressChangeError, change_address};
 use yosemitech::{Command as _, conductivity, ph_orp};
+use yosemitech_rtu::LineSettings;
 
 use crate::catalog::{Catalog, Entry};
 use crate::cli::{Global, SetAddressArgs};
@@ -44,7 +45,7 @@ pub fn run(catalog: &Catalog, global: &Global, args: &SetAddressArgs, out: &mut 
         None => None,
     };
     ensure_can_ask(args.yes, "change the address")?;
-    let serial = kind.as_deref().and_then(|k| catalog.sensor(k).ok()).map_or(port::YOSEMITECH_SERIAL, |s| s.serial);
+    let serial = kind.as_deref().and_then(|k| catalog.sensor(k).ok()).map_or(LineSettings::default(), |s| s.serial);
     let mut opened = port::open(&args.port, global, &serial)?;
     writeln!(out, "changing the slave address of the probe at {from} to {to} on {}", opened.port)?;
     out.flush()?;

@@ -7,7 +7,7 @@ use std::time::Duration;
 
 use yosemitech_sim::{
     FaultConfig, FaultKind, SerialNumberPolicy, ServeConfig, Server, Simulator, UnknownRequestPolicy, Variation,
-    line_timing, serve_tcp,
+    serve_tcp,
 };
 
 use crate::catalog::Catalog;
@@ -72,7 +72,7 @@ pub fn run(catalog: &Catalog, args: &SimulateArgs, stop: &Arc<AtomicBool>, out: 
     if args.serial_as_printed {
         sim.set_serial_number_policy(SerialNumberPolicy::AsPrinted);
     }
-    let config = if args.line_timing { ServeConfig::emulating(line_timing(&sensor)) } else { ServeConfig::default() };
+    let config = if args.line_timing { ServeConfig::emulating(sensor.serial.timing()) } else { ServeConfig::default() };
     let (server, endpoint): (Server<Simulator>, String) = match &args.tcp {
         Some(addr) => {
             let server = serve_tcp(sim, addr.as_str(), config).map_err(|e| {

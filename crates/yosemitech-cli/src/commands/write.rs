@@ -3,7 +3,7 @@
 
 use std::io::Write;
 
-use yosemitech_spec::{Command, Value};
+use yosemitech_spec::{CommandSpec, Value};
 
 use crate::backup;
 use crate::catalog::{self, Catalog, coefficient_blocks, read_back_for};
@@ -71,8 +71,8 @@ pub fn run(catalog: &Catalog, global: &Global, args: &WriteArgs, out: &mut dyn W
 
 /// Compares what was written with what a read of the same registers returns.
 fn compare(
-    write: &Command,
-    read: &Command,
+    write: &CommandSpec,
+    read: &CommandSpec,
     frame: &[u8],
     back: &yosemitech_spec::Values,
     out: &mut dyn Write,

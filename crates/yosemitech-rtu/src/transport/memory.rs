@@ -92,7 +92,7 @@ impl<R> ResponderTransport<R> {
         self
     }
 
-    /// The responder.
+    /// The responder that answers the requests.
     pub fn responder(&self) -> &R {
         &self.responder
     }

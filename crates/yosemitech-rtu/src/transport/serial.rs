@@ -23,13 +23,13 @@ const ECHO_SLACK: Duration = Duration::from_millis(100);
 pub struct SerialConfig {
     /// The device: `/dev/ttyUSB0`, `COM3`.
     pub path: String,
-    /// Bits per second.
+    /// Bits per second (9600 for Yosemitech probes).
     pub baud: u32,
     /// Data bits per character.
     pub data_bits: DataBits,
-    /// Parity.
+    /// Whether a parity bit follows the data bits, and which.
     pub parity: Parity,
-    /// Stop bits.
+    /// Stop bits ending each character: 1 or 2.
     pub stop_bits: StopBits,
     /// Read back and drop the bytes of each sent frame: for RS-485 adapters
     /// that receive their own transmission. A read-back that differs from
@@ -51,7 +51,7 @@ impl SerialConfig {
         }
     }
 
-    /// The character format.
+    /// The character format of `data_bits`, `parity` and `stop_bits` (`8N1`).
     pub fn char_format(&self) -> CharFormat {
         CharFormat { data_bits: self.data_bits, parity: self.parity, stop_bits: self.stop_bits }
     }

@@ -50,7 +50,7 @@ impl TcpTransport {
         Ok(Self { stream, read_timeout: None })
     }
 
-    /// The stream.
+    /// The underlying stream (for its addresses and socket options).
     pub fn get_ref(&self) -> &TcpStream {
         &self.stream
     }

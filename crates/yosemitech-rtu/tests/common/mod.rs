@@ -6,16 +6,16 @@ use yosemitech_rtu::frame::encode_exception;
 use yosemitech_rtu::{Command, EncodeError, FrameError, Function, Layout, crc16};
 
 /// The pH manual's get_ph exchange (Figs 23 and 25): 7.6 as a little-endian f32 image.
-pub const GET_PH_REQUEST: [u8; 8] = [0x01, 0x03, 0x28, 0x00, 0x00, 0x02, 0xCD, 0xAB];
-pub const GET_PH_REPLY: [u8; 9] = [0x01, 0x03, 0x04, 0x33, 0x33, 0xF3, 0x40, 0x40, 0x78];
+pub const READ_FLOAT_REQUEST: [u8; 8] = [0x01, 0x03, 0x28, 0x00, 0x00, 0x02, 0xCD, 0xAB];
+pub const READ_FLOAT_REPLY: [u8; 9] = [0x01, 0x03, 0x04, 0x33, 0x33, 0xF3, 0x40, 0x40, 0x78];
 
 /// get_ph: read 2 registers at 0x2800, one f32 (DCBA).
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct GetPh;
+pub struct ReadFloat;
 
-impl Command for GetPh {
+impl Command for ReadFloat {
     type Response = f32;
-    const NAME: &'static str = "get_ph";
+    const NAME: &'static str = "read_float";
     const LAYOUT: Layout<'static> = Layout {
         function: Function::Read,
         address: 0x2800,
@@ -30,7 +30,7 @@ impl Command for GetPh {
     }
 
     fn decode_request(frame: &[u8]) -> Result<(u8, Self), FrameError> {
-        Self::LAYOUT.decode_request(frame).map(|(slave, _)| (slave, GetPh))
+        Self::LAYOUT.decode_request(frame).map(|(slave, _)| (slave, ReadFloat))
     }
 
     fn encode_response(response: &f32, slave: u8, out: &mut [u8]) -> Result<usize, EncodeError> {
@@ -79,11 +79,11 @@ impl Command for StartMeasurement {
 
 /// get_slave_id with the fixed address 0xFF: read 1 register at 0x3000, the address in the first byte.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct GetSlaveId;
+pub struct ReadAtFixedSlave;
 
-impl Command for GetSlaveId {
+impl Command for ReadAtFixedSlave {
     type Response = u8;
-    const NAME: &'static str = "get_slave_id";
+    const NAME: &'static str = "read_at_fixed_slave";
     const LAYOUT: Layout<'static> = Layout {
         function: Function::Read,
         address: 0x3000,
@@ -98,7 +98,7 @@ impl Command for GetSlaveId {
     }
 
     fn decode_request(frame: &[u8]) -> Result<(u8, Self), FrameError> {
-        Self::LAYOUT.decode_request(frame).map(|(slave, _)| (slave, GetSlaveId))
+        Self::LAYOUT.decode_request(frame).map(|(slave, _)| (slave, ReadAtFixedSlave))
     }
 
     fn encode_response(response: &u8, slave: u8, out: &mut [u8]) -> Result<usize, EncodeError> {
@@ -114,15 +114,15 @@ impl Command for GetSlaveId {
 /// A pH probe at `address` reading `ph`: answers get_ph and get_slave_id,
 /// acknowledges start_measurement, answers any other request to it with
 /// exception 0x02 (illegal data address), and ignores other slaves and broadcasts.
-pub fn ph_probe(address: u8, ph: f32, request: &[u8], reply: &mut Vec<u8>) {
+pub fn float_probe(address: u8, ph: f32, request: &[u8], reply: &mut Vec<u8>) {
     let mut out = [0u8; 256];
-    let len = if let Ok((slave, GetPh)) = GetPh::decode_request(request) {
+    let len = if let Ok((slave, ReadFloat)) = ReadFloat::decode_request(request) {
         if slave != address {
             return;
         }
-        GetPh::encode_response(&ph, slave, &mut out)
-    } else if let Ok((slave, GetSlaveId)) = GetSlaveId::decode_request(request) {
-        GetSlaveId::encode_response(&address, slave, &mut out)
+        ReadFloat::encode_response(&ph, slave, &mut out)
+    } else if let Ok((slave, ReadAtFixedSlave)) = ReadAtFixedSlave::decode_request(request) {
+        ReadAtFixedSlave::encode_response(&address, slave, &mut out)
     } else if let Ok((slave, StartMeasurement)) = StartMeasurement::decode_request(request) {
         if slave != address {
             return;

@@ -1,5 +1,5 @@
 //! Commands: a definition's function, address, count and fields turned into
-//! a [`Command`], its role, the `use` entries that refine an included one, and
+//! a [`CommandSpec`], its role, the `use` entries that refine an included one, and
 //! its examples and table errata.
 //!
 //! A command resolves only when all of it is valid: the function, address
@@ -18,7 +18,7 @@ use yosemitech_rtu::Function;
 use crate::check::{check_erratum_id, check_name, check_role, check_text, resolve_figure};
 use crate::diag::{Pos, Reporter};
 use crate::document::{CommandDoc, FunctionDoc};
-use crate::model::{Command, CommandErratum, Field, FieldKind, Role};
+use crate::model::{CommandErratum, CommandSpec, Field, FieldKind, Role};
 use crate::names::check_snake;
 
 use super::field::resolve_fields;
@@ -84,7 +84,7 @@ pub(super) fn resolve_command(
     i: usize,
     fragment: Option<String>,
     r: &mut Reporter<'_>,
-) -> Option<Command> {
+) -> Option<CommandSpec> {
     let key = command_key(i, c);
     let name = c.name.as_ref()?;
     let name_ok = check_name(name, &format!("{key}.name"), r)
@@ -163,7 +163,7 @@ pub(super) fn resolve_command(
     }
     let fields = resolve_fields(c, &key, count, trigger, at, r);
 
-    let mut cmd = Command {
+    let mut cmd = CommandSpec {
         name: name.value.clone(),
         title: title.unwrap_or_else(|| name.value.replace('_', " ")),
         doc: doc.unwrap_or_default(),
@@ -200,7 +200,7 @@ pub(super) fn resolve_command(
 }
 
 /// What a command with `role` must look like for the simulator and the CLI to use it.
-fn check_role_shape(role: Role, cmd: &Command) -> Result<(), String> {
+fn check_role_shape(role: Role, cmd: &CommandSpec) -> Result<(), String> {
     let named: Vec<&Field> = cmd.named_fields().collect();
     let one = |pred: fn(&FieldKind) -> bool, what: &str| -> Result<(), String> {
         match named.as_slice() {
@@ -269,7 +269,7 @@ fn check_count(f: Function, n: &Spanned<u32>, trigger: bool, key: &str, r: &mut 
             Pos::at(n),
             k,
             "register count 0 is only valid for a trigger write".to_string(),
-            Some("declare `trigger: true` on a write that sends no data (like conductivity start measurement)".into()),
+            Some("declare `trigger: true` on a write that sends no data (like a start-measurement trigger)".into()),
         );
         return None;
     }
@@ -287,7 +287,7 @@ fn check_count(f: Function, n: &Spanned<u32>, trigger: bool, key: &str, r: &mut 
 }
 
 /// Examples and table errata; needs the resolved command.
-pub(super) fn resolve_command_extras(c: &CommandDoc, i: usize, cmd: &mut Command, r: &mut Reporter<'_>) {
+pub(super) fn resolve_command_extras(c: &CommandDoc, i: usize, cmd: &mut CommandSpec, r: &mut Reporter<'_>) {
     let key = command_key(i, c);
     let mut ids = BTreeSet::new();
     for (j, e) in c.errata.iter().enumerate() {

@@ -11,12 +11,12 @@
 use std::collections::{BTreeMap, BTreeSet};
 
 use serde_saphyr::Spanned;
-use yosemitech_rtu::Hex;
+use yosemitech_rtu::{ByteOrder2, ByteOrder4, Hex};
 
 use crate::check::{check_name, check_text, parse_hex, resolve_figures, stated_value};
 use crate::diag::{Pos, Reporter};
 use crate::document::{ByteOrderDoc, CommandDoc, FieldDoc, FieldTypeDoc, PaddingDoc};
-use crate::model::{EnumRepr, Field, FieldExample, FieldKind, Flag, Order2, Order4, Variant};
+use crate::model::{EnumRepr, Field, FieldExample, FieldKind, Flag, Variant};
 use crate::names::{camel, check_snake};
 
 /// The key of a field entry: `<command>.fields[0] (ph)`.
@@ -27,19 +27,17 @@ fn field_key(command: &str, j: usize, f: &FieldDoc) -> String {
     }
 }
 
-fn order2(o: Option<&Spanned<ByteOrderDoc>>, key: &str, at: Pos, r: &mut Reporter<'_>) -> Option<Order2> {
+fn order2(o: Option<&Spanned<ByteOrderDoc>>, key: &str, at: Pos, r: &mut Reporter<'_>) -> Option<ByteOrder2> {
     match o.map(|o| (o.value, Pos::at(o))) {
-        Some((ByteOrderDoc::Ab, _)) => Some(Order2::Ab),
-        Some((ByteOrderDoc::Ba, _)) => Some(Order2::Ba),
-        Some((other, pos)) => {
+        Some((order, pos)) => order.two().or_else(|| {
             r.error(
                 pos,
                 key,
-                format!("`{}` is a 4-byte order but the value has 2 bytes", order_name(other)),
+                format!("`{}` is a 4-byte order but the value has 2 bytes", order.name()),
                 Some("use `ab` (big-endian) or `ba`".into()),
             );
             None
-        }
+        }),
         None => {
             r.error(at, key, "missing `byte_order` for a 2-byte value", Some("use `ab` (big-endian) or `ba`".into()));
             None
@@ -47,37 +45,22 @@ fn order2(o: Option<&Spanned<ByteOrderDoc>>, key: &str, at: Pos, r: &mut Reporte
     }
 }
 
-fn order4(o: Option<&Spanned<ByteOrderDoc>>, key: &str, at: Pos, r: &mut Reporter<'_>) -> Option<Order4> {
+fn order4(o: Option<&Spanned<ByteOrderDoc>>, key: &str, at: Pos, r: &mut Reporter<'_>) -> Option<ByteOrder4> {
     let help = "use `abcd` (big-endian), `dcba` (little-endian image), `cdab` or `badc`";
     match o.map(|o| (o.value, Pos::at(o))) {
-        Some((ByteOrderDoc::Abcd, _)) => Some(Order4::Abcd),
-        Some((ByteOrderDoc::Dcba, _)) => Some(Order4::Dcba),
-        Some((ByteOrderDoc::Cdab, _)) => Some(Order4::Cdab),
-        Some((ByteOrderDoc::Badc, _)) => Some(Order4::Badc),
-        Some((other, pos)) => {
+        Some((order, pos)) => order.four().or_else(|| {
             r.error(
                 pos,
                 key,
-                format!("`{}` is a 2-byte order but the value has 4 bytes", order_name(other)),
+                format!("`{}` is a 2-byte order but the value has 4 bytes", order.name()),
                 Some(help.into()),
             );
             None
-        }
+        }),
         None => {
             r.error(at, key, "missing `byte_order` for a 4-byte value", Some(help.into()));
             None
         }
-    }
-}
-
-fn order_name(o: ByteOrderDoc) -> &'static str {
-    match o {
-        ByteOrderDoc::Ab => "ab",
-        ByteOrderDoc::Ba => "ba",
-        ByteOrderDoc::Abcd => "abcd",
-        ByteOrderDoc::Dcba => "dcba",
-        ByteOrderDoc::Cdab => "cdab",
-        ByteOrderDoc::Badc => "badc",
     }
 }
 

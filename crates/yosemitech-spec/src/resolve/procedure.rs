@@ -11,13 +11,13 @@ use serde_saphyr::Spanned;
 use crate::check::check_text;
 use crate::diag::{Pos, Reporter};
 use crate::document::ProcedureDoc;
-use crate::model::{Command, Procedure};
+use crate::model::{CommandSpec, Procedure};
 use crate::names::escape;
 
 use super::sensor::resolve_source;
 
 /// The procedure, with every command it names checked against the sensor's.
-pub(super) fn resolve_procedure(p: &ProcedureDoc, commands: &[Command], r: &mut Reporter<'_>) -> Option<Procedure> {
+pub(super) fn resolve_procedure(p: &ProcedureDoc, commands: &[CommandSpec], r: &mut Reporter<'_>) -> Option<Procedure> {
     let mut ok = true;
     let names: Vec<&str> = commands.iter().map(|c| c.name.as_str()).collect();
     let steps = |list: &[Spanned<String>], what: &str, r: &mut Reporter<'_>, ok: &mut bool| -> Vec<String> {

@@ -14,9 +14,10 @@ use serde_saphyr::Spanned;
 
 use crate::check::{check_name, check_role, check_text, resolve_figures};
 use crate::diag::{Pos, Reporter};
-use crate::document::{ManualDoc, ParityDoc, SensorDoc, SerialDoc, SourceDoc, SpecFile};
-use crate::model::{Manual, Parity, Revision, Serial, Source};
+use crate::document::{ManualDoc, SensorDoc, SerialDoc, SourceDoc, SpecFile};
+use crate::model::{Manual, Revision, Source};
 use crate::names::escape;
+use yosemitech_rtu::{CharFormat, DataBits, LineSettings, StopBits};
 
 use super::command::command_key;
 
@@ -79,7 +80,7 @@ pub(super) struct Head {
     pub(super) model_code: Option<String>,
     pub(super) manual: Manual,
     pub(super) revisions: Vec<Revision>,
-    pub(super) serial: Serial,
+    pub(super) serial: LineSettings,
     pub(super) min_address: u8,
     pub(super) max_address: u8,
     pub(super) default_address: u8,
@@ -213,44 +214,34 @@ fn resolve_manual(m: &ManualDoc, key: &str, r: &mut Reporter<'_>) -> Manual {
     }
 }
 
-fn resolve_serial(serial: &SerialDoc, key: &str, r: &mut Reporter<'_>) -> Option<Serial> {
-    let mut ok = true;
+fn resolve_serial(serial: &SerialDoc, key: &str, r: &mut Reporter<'_>) -> Option<LineSettings> {
     let baud = serial.baud.value;
-    if !(300..=1_000_000).contains(&baud) {
+    let baud_ok = (300..=1_000_000).contains(&baud);
+    if !baud_ok {
         r.error(
             Pos::at(&serial.baud),
             format!("{key}.baud"),
             format!("baud rate {baud} is not plausible"),
             Some("use 300..=1000000 (the manuals say 9600)".into()),
         );
-        ok = false;
     }
-    let data_bits = serial.data_bits.value;
-    if !(7..=8).contains(&data_bits) {
-        r.error(
-            Pos::at(&serial.data_bits),
-            format!("{key}.data_bits"),
-            format!("a serial line has 7 or 8 data bits, not {data_bits}"),
-            Some("use 7 or 8 (the manuals say 8)".into()),
-        );
-        ok = false;
+    let data_bits = DataBits::from_bits(serial.data_bits.value);
+    let stop_bits = StopBits::from_bits(serial.stop_bits.value);
+    for (bits, known, name, usual, spanned) in [
+        (data_bits.map(DataBits::bits), "7 or 8", "data", 8, &serial.data_bits),
+        (stop_bits.map(StopBits::bits), "1 or 2", "stop", 1, &serial.stop_bits),
+    ] {
+        if bits.is_none() {
+            r.error(
+                Pos::at(spanned),
+                format!("{key}.{name}_bits"),
+                format!("a serial line has {known} {name} bits, not {}", spanned.value),
+                Some(format!("use {known} (the manuals say {usual})")),
+            );
+        }
     }
-    let stop_bits = serial.stop_bits.value;
-    if !(1..=2).contains(&stop_bits) {
-        r.error(
-            Pos::at(&serial.stop_bits),
-            format!("{key}.stop_bits"),
-            format!("a serial line has 1 or 2 stop bits, not {stop_bits}"),
-            Some("use 1 or 2 (the manuals say 1)".into()),
-        );
-        ok = false;
-    }
-    let parity = match serial.parity {
-        ParityDoc::None => Parity::None,
-        ParityDoc::Even => Parity::Even,
-        ParityDoc::Odd => Parity::Odd,
-    };
-    ok.then_some(Serial { baud, data_bits: data_bits as u8, parity, stop_bits: stop_bits as u8 })
+    let format = CharFormat { data_bits: data_bits?, parity: serial.parity.parity(), stop_bits: stop_bits? };
+    baud_ok.then_some(LineSettings { baud, format })
 }
 
 pub(super) fn resolve_source(s: &SourceDoc, key: &str, r: &mut Reporter<'_>) -> Source {

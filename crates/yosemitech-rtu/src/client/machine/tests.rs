@@ -10,7 +10,7 @@ use crate::crc::crc16;
 use crate::error::ExceptionCode;
 use crate::timing::CharFormat;
 
-const GET_PH: Layout<'static> = Layout {
+const READ_FLOAT: Layout<'static> = Layout {
     function: Function::Read,
     address: 0x2800,
     count: 2,
@@ -26,8 +26,8 @@ const START: Layout<'static> = Layout {
     extra_byte_counts: &[],
     trigger: true,
 };
-/// The pH manual's get_ph reply (Fig 25), slave 1.
-const GET_PH_REPLY: [u8; 9] = [0x01, 0x03, 0x04, 0x33, 0x33, 0xF3, 0x40, 0x40, 0x78];
+/// A two-register float read reply (7.6), slave 1.
+const READ_FLOAT_REPLY: [u8; 9] = [0x01, 0x03, 0x04, 0x33, 0x33, 0xF3, 0x40, 0x40, 0x78];
 
 fn ms(n: u64) -> Duration {
     Duration::from_millis(n)
@@ -43,7 +43,7 @@ fn with_crc(body: &[u8]) -> Vec<u8> {
     frame
 }
 
-/// The get_ph reply of `slave`.
+/// The float read reply of `slave`.
 fn reply_from(slave: u8) -> Vec<u8> {
     with_crc(&[slave, 0x03, 0x04, 0x33, 0x33, 0xF3, 0x40])
 }
@@ -203,7 +203,7 @@ fn no_retries() -> ClientConfig {
     ClientConfig { timeout: ms(100), retry: RetryPolicy::NONE, ..ClientConfig::default() }
 }
 
-/// The probe at `slave`: the get_ph reply 5 ms after each request.
+/// The probe at `slave`: the float read reply 5 ms after each request.
 fn probe(slave: u8) -> impl FnMut(usize, &[u8]) -> Answer {
     move |_, _| vec![(ms(5), reply_from(slave))]
 }
@@ -213,11 +213,11 @@ use super::super::config::RetryPolicy;
 #[test]
 fn a_transaction_reads_the_clock_twice_and_checks_one_frame() {
     let mut h = Harness::new(no_retries(), probe(1));
-    assert_eq!(h.call(1, &GET_PH), Ok(()));
-    assert_eq!(h.core.last_reply(), GET_PH_REPLY);
+    assert_eq!(h.call(1, &READ_FLOAT), Ok(()));
+    assert_eq!(h.core.last_reply(), READ_FLOAT_REPLY);
     assert_eq!(h.clock_reads, 2, "after the write and after the reply");
-    assert_eq!(h.checks, [GET_PH_REPLY.to_vec()], "one candidate, decoded (and its CRC computed) once");
-    assert_eq!(h.call(1, &GET_PH), Ok(()));
+    assert_eq!(h.checks, [READ_FLOAT_REPLY.to_vec()], "one candidate, decoded (and its CRC computed) once");
+    assert_eq!(h.call(1, &READ_FLOAT), Ok(()));
     assert_eq!(h.clock_reads, 2, "the next one too: no silence to keep without line timing");
 }
 
@@ -226,9 +226,9 @@ fn the_silence_follows_the_line_with_the_4_ms_floor() {
     let mut h = Harness::new(no_retries(), probe(1));
     h.core.set_line_timing(Some(LineTiming::new(9600, CharFormat::EIGHT_N_1)));
     assert_eq!(h.core.inter_frame_delay(), ms(4), "t3.5 = 3.65 ms, raised to 4 ms");
-    assert_eq!(h.call(1, &GET_PH), Ok(()));
+    assert_eq!(h.call(1, &READ_FLOAT), Ok(()));
     let first_reply_end = h.now;
-    assert_eq!(h.call(1, &GET_PH), Ok(()));
+    assert_eq!(h.call(1, &READ_FLOAT), Ok(()));
     assert_eq!(h.sent[1].0, first_reply_end + ms(4), "exactly t3.5 (floored) after the reply's last byte");
     // The request's own time on the line counts: 8 bytes at 9600 baud.
     let line = LineTiming::new(9600, CharFormat::EIGHT_N_1);
@@ -244,10 +244,10 @@ fn the_first_request_on_a_timed_line_keeps_the_silence_too() {
     // The bus was busy until 1 s (a previous core's transaction, say): a new
     // transaction started before the line timing is set still keeps t3.5.
     h.core.bus_busy_until = Some(h.now);
-    let len = GET_PH.encode_request(1, &[], h.core.request_buf()).unwrap();
-    h.core.start_call(len, &GET_PH).unwrap();
+    let len = READ_FLOAT.encode_request(1, &[], h.core.request_buf()).unwrap();
+    h.core.start_call(len, &READ_FLOAT).unwrap();
     h.core.set_line_timing(Some(LineTiming::new(9600, CharFormat::EIGHT_N_1)));
-    assert_eq!(h.run(1, &GET_PH), Ok(()));
+    assert_eq!(h.run(1, &READ_FLOAT), Ok(()));
     assert_eq!(h.sent[0].0, at(1000) + ms(4));
 }
 
@@ -257,7 +257,7 @@ fn a_request_on_a_timed_line_is_busy_for_its_line_time() {
     // A device that never answers: the deadline runs from the request's end on the line.
     let mut h = Harness::new(no_retries(), |_, _| vec![]);
     h.core.set_line_timing(Some(line));
-    assert_eq!(h.call(1, &GET_PH), Err(ClientError::Timeout { received: 0 }));
+    assert_eq!(h.call(1, &READ_FLOAT), Err(ClientError::Timeout { received: 0 }));
     let sent = h.sent[0].0;
     assert_eq!(h.now, sent + line.frame_time(8) + ms(100));
 }
@@ -271,7 +271,7 @@ fn a_broadcast_keeps_the_turnaround() {
     assert_eq!(h.core.last_reply(), &[] as &[u8]);
     let broadcast_at = h.sent[0].0;
     // The device "answered" a broadcast (it should not): that is stale input.
-    assert_eq!(h.call(1, &GET_PH), Ok(()));
+    assert_eq!(h.call(1, &READ_FLOAT), Ok(()));
     assert_eq!(h.sent[1].0, broadcast_at + ms(100), "the default turnaround");
     let len = START.encode_request(0, &[], h.core.request_buf()).unwrap();
     assert_eq!(
@@ -284,14 +284,14 @@ fn a_broadcast_keeps_the_turnaround() {
 #[test]
 fn stale_input_is_drained_and_the_silence_kept_after_it() {
     let mut h = Harness::new(ClientConfig { inter_frame_delay: Some(ms(10)), ..no_retries() }, probe(1));
-    assert_eq!(h.call(1, &GET_PH), Ok(()));
+    assert_eq!(h.call(1, &READ_FLOAT), Ok(()));
     // Stray bytes arrive 20 ms later; the next call starts at 50 ms.
     h.arrive(ms(20), &[0x55, 0x55]);
     let stray_at = h.now + ms(20);
     h.now = h.now + ms(50);
-    assert_eq!(h.call(1, &GET_PH), Ok(()));
+    assert_eq!(h.call(1, &READ_FLOAT), Ok(()));
     assert_eq!(h.sent[1].0, h.sent[1].0.max(stray_at + ms(10)));
-    assert_eq!(h.core.last_reply(), GET_PH_REPLY);
+    assert_eq!(h.core.last_reply(), READ_FLOAT_REPLY);
 }
 
 #[test]
@@ -302,7 +302,7 @@ fn noise_before_a_slave_that_looks_like_a_function_code_is_realigned() {
         bytes.extend(reply_from(3));
         vec![(ms(5), bytes)]
     });
-    assert_eq!(h.call(3, &GET_PH), Ok(()));
+    assert_eq!(h.call(3, &READ_FLOAT), Ok(()));
     assert_eq!(h.core.last_reply(), reply_from(3));
     assert_eq!(h.checks.len(), 2, "the misaligned candidate, then the frame: {:02X?}", h.checks);
     assert_eq!(h.checks[0][..3], [0xAA, 0x03, 0x03]);
@@ -310,11 +310,11 @@ fn noise_before_a_slave_that_looks_like_a_function_code_is_realigned() {
 
 #[test]
 fn a_corrupt_reply_is_reported_after_one_inter_frame_wait_not_the_timeout() {
-    let mut corrupt = GET_PH_REPLY.to_vec();
+    let mut corrupt = READ_FLOAT_REPLY.to_vec();
     corrupt[8] ^= 0xFF;
     let sent = corrupt.clone();
     let mut h = Harness::new(no_retries(), move |_, _| vec![(ms(5), sent.clone())]);
-    let result = h.call(1, &GET_PH);
+    let result = h.call(1, &READ_FLOAT);
     assert!(matches!(result, Err(ClientError::Frame { error: FrameError::Crc { .. } })), "{result:?}");
     assert_eq!(h.core.last_reply(), corrupt);
     let reply_at = h.sent[0].0 + ms(5);
@@ -327,7 +327,7 @@ fn an_exception_is_the_reply_and_is_not_retried() {
     let reply = exception.clone();
     let config = ClientConfig { retry: RetryPolicy { retries: 3, ..RetryPolicy::NONE }, ..no_retries() };
     let mut h = Harness::new(config, move |_, _| vec![(ms(5), reply.clone())]);
-    let result = h.call(1, &GET_PH);
+    let result = h.call(1, &READ_FLOAT);
     assert_eq!(
         result,
         Err(ClientError::Frame {
@@ -349,7 +349,7 @@ fn a_retry_waits_the_backoff_and_succeeds() {
         }
         vec![(ms(5), reply)]
     });
-    assert_eq!(h.call(1, &GET_PH), Ok(()));
+    assert_eq!(h.call(1, &READ_FLOAT), Ok(()));
     assert_eq!(h.sent.len(), 2);
     // The first reply failed its CRC at 5 ms, no better candidate by 9 ms; then 50 ms of backoff.
     assert_eq!(h.sent[1].0, h.sent[0].0 + ms(5) + ms(4) + ms(50));
@@ -360,20 +360,20 @@ fn retries_stop_at_the_policy_and_skip_classes_it_excludes() {
     let config =
         ClientConfig { retry: RetryPolicy { retries: 2, backoff: ms(1), ..RetryPolicy::default() }, ..no_retries() };
     let mut h = Harness::new(config, |_, _| vec![]);
-    assert_eq!(h.call(1, &GET_PH), Err(ClientError::Timeout { received: 0 }));
+    assert_eq!(h.call(1, &READ_FLOAT), Err(ClientError::Timeout { received: 0 }));
     assert_eq!(h.sent.len(), 3, "one attempt and two retries");
     let config =
         ClientConfig { retry: RetryPolicy { retries: 2, on_timeout: false, ..RetryPolicy::default() }, ..no_retries() };
     let mut h = Harness::new(config, |_, _| vec![]);
-    assert_eq!(h.call(1, &GET_PH), Err(ClientError::Timeout { received: 0 }));
+    assert_eq!(h.call(1, &READ_FLOAT), Err(ClientError::Timeout { received: 0 }));
     assert_eq!(h.sent.len(), 1);
 }
 
 #[test]
 fn a_partial_reply_times_out_at_the_deadline_with_its_bytes() {
-    let mut h = Harness::new(no_retries(), |_, _| vec![(ms(5), GET_PH_REPLY[..5].to_vec())]);
-    assert_eq!(h.call(1, &GET_PH), Err(ClientError::Timeout { received: 5 }));
-    assert_eq!(h.core.last_reply(), &GET_PH_REPLY[..5]);
+    let mut h = Harness::new(no_retries(), |_, _| vec![(ms(5), READ_FLOAT_REPLY[..5].to_vec())]);
+    assert_eq!(h.call(1, &READ_FLOAT), Err(ClientError::Timeout { received: 5 }));
+    assert_eq!(h.core.last_reply(), &READ_FLOAT_REPLY[..5]);
     assert_eq!(h.now, h.sent[0].0 + ms(100), "one deadline for the whole reply");
 }
 
@@ -382,10 +382,10 @@ fn the_late_reply_of_an_abandoned_transaction_is_waited_out_and_discarded() {
     // The device answers each request after 30 ms with a distinct value.
     let mut h =
         Harness::new(no_retries(), |i, _| vec![(ms(30), with_crc(&[0x01, 0x03, 0x04, 0x00, 0x00, 0x00, i as u8]))]);
-    h.send_and_abandon(1, &GET_PH);
+    h.send_and_abandon(1, &READ_FLOAT);
     let abandoned_at = h.sent[0].0;
     // The next call starts at once: it must not talk over the late reply.
-    assert_eq!(h.call(1, &GET_PH), Ok(()));
+    assert_eq!(h.call(1, &READ_FLOAT), Ok(()));
     assert!(h.sent[1].0 >= abandoned_at + ms(100), "no request before the abandoned deadline");
     assert_eq!(
         h.core.last_reply(),
@@ -397,5 +397,5 @@ fn the_late_reply_of_an_abandoned_transaction_is_waited_out_and_discarded() {
 #[test]
 fn a_device_that_never_stops_talking_cannot_hold_the_core() {
     let mut h = Harness::new(no_retries(), |_, _| vec![(ms(1), vec![0x55; 4096])]);
-    assert!(matches!(h.call(1, &GET_PH), Err(ClientError::Timeout { .. })));
+    assert!(matches!(h.call(1, &READ_FLOAT), Err(ClientError::Timeout { .. })));
 }

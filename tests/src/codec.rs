@@ -7,7 +7,6 @@
 //! [`sensors`] checks it against the spec directories: a sensor added to the
 //! spec without being listed here fails every test that uses it. Commands
 //! are never listed by hand.
-#![allow(dead_code)]
 
 use std::collections::BTreeMap;
 use std::path::PathBuf;
@@ -30,10 +29,16 @@ pub enum Val {
     /// A BCD byte, raw.
     Bcd(u8),
     /// An enum code.
-    Enum { raw: u16, name: Option<&'static str> },
+    Enum {
+        /// The code on the wire.
+        raw: u16,
+        /// The variant's name, when the code is known.
+        name: Option<&'static str>,
+    },
 }
 
 impl Val {
+    /// The owned form of a value generated code produced.
     pub fn of(v: FieldValue<'_>) -> Self {
         match v {
             FieldValue::F32(f) => Self::F32(f.to_bits()),
@@ -170,21 +175,16 @@ fn api(module: &'static SensorModule) -> Api {
     }
 }
 
-/// The workspace's spec directory.
-pub fn spec_dir() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../spec")
-}
-
 /// The fixture sensor's spec directory.
 pub fn fixture_dir() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("fixtures/do-probe/spec")
 }
 
 /// The spec of every generated module: the workspace's and the fixture's.
-pub fn spec() -> &'static Spec {
+pub fn generated_spec() -> &'static Spec {
     static SPEC: OnceLock<Spec> = OnceLock::new();
     SPEC.get_or_init(|| {
-        let mut spec = yosemitech_spec::load_paths(&[spec_dir()]).unwrap_or_else(|e| panic!("{e}"));
+        let mut spec = yosemitech_spec::load_paths(&[crate::spec_dir()]).unwrap_or_else(|e| panic!("{e}"));
         let fixture = yosemitech_spec::load_paths(&[fixture_dir()]).unwrap_or_else(|e| panic!("{e}"));
         spec.sensors.extend(fixture.sensors);
         spec
@@ -194,8 +194,8 @@ pub fn spec() -> &'static Spec {
 /// Every generated module with its spec sensor, checked to be one-to-one
 /// with the spec, and every module's commands checked against the spec's.
 pub fn sensors() -> Vec<(Api, &'static yosemitech_spec::Sensor)> {
-    let apis: Vec<Api> = yosemitech::SENSORS.iter().chain(&yosemitech_tests::fixture::SENSORS).map(api).collect();
-    let spec = spec();
+    let apis: Vec<Api> = yosemitech::SENSORS.iter().chain(&crate::fixture::SENSORS).map(api).collect();
+    let spec = generated_spec();
     let listed: Vec<&str> = apis.iter().map(|a| a.sensor).collect();
     let in_spec: Vec<&str> = spec.sensors.iter().map(|s| s.name.as_str()).collect();
     let mut a = listed.clone();
@@ -221,7 +221,7 @@ pub fn sensors() -> Vec<(Api, &'static yosemitech_spec::Sensor)> {
 }
 
 /// Register data with every reserved byte set to its fill: what an encoder writes.
-pub fn normalized(command: &yosemitech_spec::Command, data: &[u8]) -> Vec<u8> {
+pub fn normalized(command: &yosemitech_spec::CommandSpec, data: &[u8]) -> Vec<u8> {
     let mut data = data.to_vec();
     for f in &command.fields {
         if let FieldKind::Reserved { len, fill } = f.kind {
@@ -234,7 +234,7 @@ pub fn normalized(command: &yosemitech_spec::Command, data: &[u8]) -> Vec<u8> {
 }
 
 /// A request frame with `data` as register data (writes), built by the runtime's framing.
-pub fn request_frame(command: &yosemitech_spec::Command, slave: u8, data: &[u8]) -> Vec<u8> {
+pub fn request_frame(command: &yosemitech_spec::CommandSpec, slave: u8, data: &[u8]) -> Vec<u8> {
     let layout = command.layout();
     let data = if command.is_read() { &[][..] } else { data };
     let mut out = vec![0u8; layout.request_len()];
@@ -244,7 +244,7 @@ pub fn request_frame(command: &yosemitech_spec::Command, slave: u8, data: &[u8])
 }
 
 /// A reply frame with `data` as register data (reads), built by the runtime's framing.
-pub fn response_frame(command: &yosemitech_spec::Command, slave: u8, data: &[u8]) -> Vec<u8> {
+pub fn response_frame(command: &yosemitech_spec::CommandSpec, slave: u8, data: &[u8]) -> Vec<u8> {
     let layout = command.layout();
     let data = if command.is_read() && !command.trigger { data } else { &[][..] };
     let mut out = vec![0u8; layout.response_len()];
@@ -254,7 +254,7 @@ pub fn response_frame(command: &yosemitech_spec::Command, slave: u8, data: &[u8]
 }
 
 /// A slave address the command may be sent to.
-pub fn usable_slave(command: &yosemitech_spec::Command, wanted: u8) -> u8 {
+pub fn usable_slave(command: &yosemitech_spec::CommandSpec, wanted: u8) -> u8 {
     command.fixed_slave.unwrap_or(wanted.clamp(1, 247))
 }
 
@@ -277,14 +277,18 @@ pub const SPECIAL_F32: [u32; 12] = [
 
 /// Register data of `command` from random bytes, with special f32 patterns
 /// put into some float fields (chosen by `specials`, one entry per float field).
-pub fn data_with_specials(command: &yosemitech_spec::Command, mut data: Vec<u8>, specials: &[Option<u32>]) -> Vec<u8> {
+pub fn data_with_specials(
+    command: &yosemitech_spec::CommandSpec,
+    mut data: Vec<u8>,
+    specials: &[Option<u32>],
+) -> Vec<u8> {
     let floats = command.fields.iter().filter_map(|f| match f.kind {
         FieldKind::F32 { order } => Some((f.offset, order)),
         _ => None,
     });
     for ((offset, order), special) in floats.zip(specials) {
         if let Some(bits) = special {
-            let bytes = yosemitech_rtu::codec::f32_to_wire(order.rtu(), f32::from_bits(*bits));
+            let bytes = yosemitech_rtu::codec::f32_to_wire(order, f32::from_bits(*bits));
             data[offset..offset + 4].copy_from_slice(&bytes);
         }
     }
@@ -293,7 +297,9 @@ pub fn data_with_specials(command: &yosemitech_spec::Command, mut data: Vec<u8>,
 
 /// Random register data for `command`, with special floats (NaN payloads,
 /// infinities, -0.0, …) in some f32 fields.
-pub fn data_strategy(command: &yosemitech_spec::Command) -> impl proptest::strategy::Strategy<Value = Vec<u8>> + use<> {
+pub fn data_strategy(
+    command: &yosemitech_spec::CommandSpec,
+) -> impl proptest::strategy::Strategy<Value = Vec<u8>> + use<> {
     use proptest::prelude::*;
     let floats = command.fields.iter().filter(|f| matches!(f.kind, FieldKind::F32 { .. })).count();
     let command = command.clone();
@@ -305,13 +311,13 @@ pub fn data_strategy(command: &yosemitech_spec::Command) -> impl proptest::strat
 }
 
 /// Register data bytes of a command's reply (reads) or request (writes).
-pub fn data_len(command: &yosemitech_spec::Command) -> usize {
+pub fn data_len(command: &yosemitech_spec::CommandSpec) -> usize {
     2 * usize::from(command.count)
 }
 
 /// `data` with every ASCII field made printable text of `len % (size + 1)`
 /// characters followed by padding, as a real device sends.
-pub fn asciified(command: &yosemitech_spec::Command, data: &[u8], len: usize) -> Vec<u8> {
+pub fn asciified(command: &yosemitech_spec::CommandSpec, data: &[u8], len: usize) -> Vec<u8> {
     let mut data = data.to_vec();
     for f in &command.fields {
         if let FieldKind::Ascii { len: size, padding } = f.kind {

@@ -1,22 +1,14 @@
-//! Helpers shared by the simulator tests (`sim_*.rs`).
-#![allow(dead_code)]
+//! Simulator tests' kit: simulators of spec sensors, exchanges, and
+//! commands chosen from the spec by role, field type and layout.
 
 use std::collections::BTreeMap;
 use std::time::Duration;
 
-use yosemitech_rtu::{Client, ClientConfig, RetryPolicy, Transport, crc16};
-use yosemitech_sim::{Device, Simulator, UnknownRequestPolicy};
-use yosemitech_spec::{Command, Sensor, Spec, Value};
+use yosemitech_rtu::{Client, ClientConfig, RetryPolicy, Transport};
+use yosemitech_sim::{FrameHandler, Simulator, UnknownRequestPolicy};
+use yosemitech_spec::{CommandSpec, Sensor, Spec, Value};
 
-/// The workspace's spec directory, loaded.
-pub fn spec() -> Spec {
-    yosemitech_spec::load_paths(&[concat!(env!("CARGO_MANIFEST_DIR"), "/../spec").into()]).expect("the spec loads")
-}
-
-/// One sensor of the spec.
-pub fn sensor(name: &str) -> Sensor {
-    spec().sensor(name).unwrap_or_else(|| panic!("no sensor {name}")).clone()
-}
+pub use crate::{sensor, spec, with_crc};
 
 /// A simulator of `name` at its factory address.
 pub fn sim(name: &str) -> Simulator {
@@ -32,25 +24,18 @@ pub fn sim_with_exceptions(name: &str) -> Simulator {
 }
 
 /// A command of a sensor.
-pub fn command(sensor: &Sensor, name: &str) -> Command {
+pub fn command(sensor: &Sensor, name: &str) -> CommandSpec {
     sensor.command(name).unwrap_or_else(|| panic!("no command {name}")).clone()
 }
 
 /// The request frame for `command` to `slave` with write `values`.
-pub fn request(command: &Command, slave: u8, values: &[(&str, Value)]) -> Vec<u8> {
+pub fn request(command: &CommandSpec, slave: u8, values: &[(&str, Value)]) -> Vec<u8> {
     let values: BTreeMap<String, Value> = values.iter().map(|(k, v)| (k.to_string(), v.clone())).collect();
     command.encode_request(slave, &values).expect("the request encodes")
 }
 
-/// `bytes` followed by their CRC.
-pub fn with_crc(bytes: &[u8]) -> Vec<u8> {
-    let mut frame = bytes.to_vec();
-    frame.extend_from_slice(&crc16(bytes).to_le_bytes());
-    frame
-}
-
 /// The reply of `device` to `request` (empty for none); panics on a delay.
-pub fn exchange(device: &mut impl Device, request: &[u8]) -> Vec<u8> {
+pub fn exchange(device: &mut impl FrameHandler, request: &[u8]) -> Vec<u8> {
     let mut reply = Vec::new();
     let delay = device.handle(request, &mut reply);
     assert_eq!(delay, Duration::ZERO, "no delay expected");
@@ -82,7 +67,7 @@ pub fn is_f32(field: &yosemitech_spec::Field) -> bool {
 
 /// True for a read a plain request gets at the probe's own address: no
 /// fixed slave, not a trigger, with fields, every one a named f32.
-pub fn is_float_read(command: &Command) -> bool {
+pub fn is_float_read(command: &CommandSpec) -> bool {
     command.is_read()
         && command.fixed_slave.is_none()
         && !command.trigger
@@ -91,7 +76,7 @@ pub fn is_float_read(command: &Command) -> bool {
 }
 
 /// The first sensor of the spec with a read whose only field is an f32, and that read.
-pub fn float_read(spec: &Spec) -> (Sensor, Command) {
+pub fn float_read(spec: &Spec) -> (Sensor, CommandSpec) {
     spec.sensors
         .iter()
         .find_map(|s| {
@@ -101,26 +86,27 @@ pub fn float_read(spec: &Spec) -> (Sensor, Command) {
 }
 
 /// The name of a command's first field.
-pub fn first_field(command: &Command) -> String {
+pub fn first_field(command: &CommandSpec) -> String {
     command.fields[0].name.clone().expect("a named field")
 }
 
 /// `v` as an f32 field puts it on the wire.
 pub fn f32_bytes(field: &yosemitech_spec::Field, v: f32) -> [u8; 4] {
-    use yosemitech_spec::{FieldKind, Order4};
+    use yosemitech_rtu::ByteOrder4;
+    use yosemitech_spec::FieldKind;
     let [a, b, c, d] = v.to_be_bytes();
     match field.kind {
-        FieldKind::F32 { order: Order4::Abcd } => [a, b, c, d],
-        FieldKind::F32 { order: Order4::Dcba } => [d, c, b, a],
-        FieldKind::F32 { order: Order4::Cdab } => [c, d, a, b],
-        FieldKind::F32 { order: Order4::Badc } => [b, a, d, c],
+        FieldKind::F32 { order: ByteOrder4::Abcd } => [a, b, c, d],
+        FieldKind::F32 { order: ByteOrder4::Dcba } => [d, c, b, a],
+        FieldKind::F32 { order: ByteOrder4::Cdab } => [c, d, a, b],
+        FieldKind::F32 { order: ByteOrder4::Badc } => [b, a, d, c],
         ref other => panic!("not an f32: {other:?}"),
     }
 }
 
 /// A write of f32 fields without a range, and the read at the same
 /// registers that reads the same fields back: `(write, read)`.
-pub fn float_write_with_readback(sensor: &Sensor) -> Option<(Command, Command)> {
+pub fn float_write_with_readback(sensor: &Sensor) -> Option<(CommandSpec, CommandSpec)> {
     sensor.commands.iter().filter(|w| !w.is_read() && w.fixed_slave.is_none()).find_map(|w| {
         let fields_ok =
             !w.fields.is_empty() && w.fields.iter().all(|f| f.name.is_some() && is_f32(f) && f.range.is_none());
@@ -144,13 +130,13 @@ pub fn sensor_with_role(spec: &Spec, role: yosemitech_spec::Role) -> Sensor {
 }
 
 /// The command of `role` of `sensor`.
-pub fn with_role(sensor: &Sensor, role: yosemitech_spec::Role) -> Command {
+pub fn with_role(sensor: &Sensor, role: yosemitech_spec::Role) -> CommandSpec {
     sensor.command_with_role(role).unwrap_or_else(|| panic!("{}: no {} command", sensor.name, role.name())).clone()
 }
 
 /// The reply data of the last example of `read` with a reply, decoded:
 /// what a simulator serves before anything is set.
-pub fn example_reading(read: &Command) -> Option<yosemitech_spec::Values> {
+pub fn example_reading(read: &CommandSpec) -> Option<yosemitech_spec::Values> {
     read.examples
         .iter()
         .rev()
@@ -158,6 +144,28 @@ pub fn example_reading(read: &Command) -> Option<yosemitech_spec::Values> {
 }
 
 /// The reply frame of the last example of `read` with a reply.
-pub fn example_reply(read: &Command) -> Option<Vec<u8>> {
+pub fn example_reply(read: &CommandSpec) -> Option<Vec<u8>> {
     read.examples.iter().rev().find_map(|e| e.true_response().map(<[u8]>::to_vec))
+}
+
+/// Whether `sensor`'s command with `role` has `layout` on the wire.
+pub fn plays(sensor: &Sensor, role: yosemitech_spec::Role, layout: yosemitech_rtu::Layout<'static>) -> bool {
+    sensor.command_with_role(role).is_some_and(|c| c.layout() == layout)
+}
+
+/// Every sensor of the spec whose slave-address write has the layout
+/// `set_address` and whose serial-number read has the layout `serial_number`
+/// (the shared generated commands), picked by role: the sensors a generic
+/// address change can move with those two types.
+pub fn sensors_sharing_address_commands(
+    set_address: yosemitech_rtu::Layout<'static>,
+    serial_number: yosemitech_rtu::Layout<'static>,
+) -> Vec<Sensor> {
+    use yosemitech_spec::Role;
+    spec()
+        .sensors
+        .iter()
+        .filter(|s| plays(s, Role::SetSlaveAddress, set_address) && plays(s, Role::SerialNumber, serial_number))
+        .cloned()
+        .collect()
 }

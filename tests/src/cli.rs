@@ -1,38 +1,23 @@
-//! Helpers of the CLI tests: run the built `yosemitech` binary with a
-//! watchdog, and serve simulated probes on pseudo-terminals in-process.
-#![allow(dead_code)]
+//! The CLI tests' kit: run a built binary ([`Binary`]) with a watchdog, and
+//! serve simulated probes on pseudo-terminals in-process.
 
 use std::io::{Read, Write};
 use std::path::PathBuf;
 use std::process::{Child, Command, Stdio};
-use std::sync::Arc;
 use std::thread;
 use std::time::{Duration, Instant};
 
-use yosemitech_sim::{Bus, ServeConfig, Server, Simulator, serve_pty};
-use yosemitech_spec::{Sensor, Spec};
+use yosemitech_sim::{ServeConfig, Server, Simulator, serve_pty};
+use yosemitech_spec::Sensor;
+
+use crate::{sensor, spec};
 
 /// Longest any one run of the binary may take before the test fails.
 pub const WATCHDOG: Duration = Duration::from_secs(60);
 
-/// The workspace's spec directory.
-pub fn spec_dir() -> PathBuf {
-    PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../spec"))
-}
-
 /// The fixture sensor's spec directory (a made-up DO probe, 19200 8E1).
 pub fn fixture_spec_dir() -> PathBuf {
-    PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../tests/fixtures/do-probe/spec"))
-}
-
-/// The workspace's spec, loaded.
-pub fn spec() -> Spec {
-    yosemitech_spec::load_paths(&[spec_dir()]).expect("the spec loads")
-}
-
-/// One sensor of the spec.
-pub fn sensor(name: &str) -> Arc<Sensor> {
-    Arc::new(spec().sensor(name).unwrap_or_else(|| panic!("no sensor {name}")).clone())
+    PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/fixtures/do-probe/spec"))
 }
 
 /// What a run of the binary did.
@@ -88,15 +73,36 @@ impl Run {
     }
 }
 
-/// The binary, with a clean environment for the variables it reads.
-pub fn command() -> Command {
-    let mut cmd = Command::new(env!("CARGO_BIN_EXE_yosemitech"));
-    cmd.env_remove("YOSEMITECH_PORT")
-        .env_remove("YOSEMITECH_BAUD")
-        .env_remove("RUST_LOG")
-        .env_remove("RUST_BACKTRACE")
-        .current_dir(std::env::temp_dir());
-    cmd
+/// A built binary under test: a test names it once with
+/// `Binary(env!("CARGO_BIN_EXE_<name>"))`.
+#[derive(Debug, Clone, Copy)]
+pub struct Binary(pub &'static str);
+
+impl Binary {
+    /// The binary, with a clean environment for the variables it reads.
+    pub fn command(self) -> Command {
+        let mut cmd = Command::new(self.0);
+        cmd.env_remove("YOSEMITECH_PORT")
+            .env_remove("YOSEMITECH_BAUD")
+            .env_remove("RUST_LOG")
+            .env_remove("RUST_BACKTRACE")
+            .current_dir(std::env::temp_dir());
+        cmd
+    }
+
+    /// Runs the binary with `args`, stdin empty.
+    pub fn run(self, args: &[&str]) -> Run {
+        let mut cmd = self.command();
+        cmd.args(args);
+        run_command(cmd, None)
+    }
+
+    /// Runs the binary with `args` and `input` on stdin.
+    pub fn run_with_input(self, args: &[&str], input: &str) -> Run {
+        let mut cmd = self.command();
+        cmd.args(args);
+        run_command(cmd, Some(input))
+    }
 }
 
 /// Runs `cmd` with `input` on stdin (none: stdin is /dev/null) under the watchdog.
@@ -114,20 +120,6 @@ pub fn run_command(mut cmd: Command, input: Option<&str>) -> Run {
     let stderr = drain(child.stderr.take().expect("stderr is piped"));
     let code = wait(&mut child, WATCHDOG);
     Run { code, stdout: stdout.join().expect("stdout reader"), stderr: stderr.join().expect("stderr reader") }
-}
-
-/// Runs the binary with `args`, stdin empty.
-pub fn yosemitech(args: &[&str]) -> Run {
-    let mut cmd = command();
-    cmd.args(args);
-    run_command(cmd, None)
-}
-
-/// Runs the binary with `args` and `input` on stdin.
-pub fn yosemitech_with_input(args: &[&str], input: &str) -> Run {
-    let mut cmd = command();
-    cmd.args(args);
-    run_command(cmd, Some(input))
 }
 
 fn drain(mut pipe: impl Read + Send + 'static) -> thread::JoinHandle<String> {
@@ -163,7 +155,7 @@ pub struct Sim<D> {
 }
 
 /// Serves `device` on a new pty.
-pub fn serve<D: yosemitech_sim::Device + Send + 'static>(device: D) -> Sim<D> {
+pub fn serve<D: yosemitech_sim::FrameHandler + Send + 'static>(device: D) -> Sim<D> {
     let server = serve_pty(device, ServeConfig::default()).expect("a pty can be created");
     let path = server.tty_path().expect("a pty path").to_owned();
     Sim { server, path }
@@ -172,14 +164,6 @@ pub fn serve<D: yosemitech_sim::Device + Send + 'static>(device: D) -> Sim<D> {
 /// A simulated `sensor` at `address` on a pty.
 pub fn sim(sensor_name: &str, address: u8) -> Sim<Simulator> {
     serve(Simulator::new(sensor(sensor_name)).with_address(address))
-}
-
-/// A bus of simulated probes on one pty.
-pub fn bus(devices: &[(&str, u8)]) -> Sim<Bus> {
-    let bus = devices
-        .iter()
-        .fold(Bus::new(), |bus, (name, address)| bus.with(Simulator::new(sensor(name)).with_address(*address)));
-    serve(bus)
 }
 
 /// The number after `label` on the line that starts (after spaces) with it.
@@ -198,7 +182,7 @@ pub fn number_after(text: &str, label: &str) -> f64 {
 /// The spec's coefficient blocks of `sensor`, as the CLI picks them: each
 /// all-f32 write (not a trigger, not the slave address) with a read of the
 /// same address and register count.
-pub fn coefficient_blocks(sensor: &Sensor) -> Vec<(&yosemitech_spec::Command, &yosemitech_spec::Command)> {
+pub fn coefficient_blocks(sensor: &Sensor) -> Vec<(&yosemitech_spec::CommandSpec, &yosemitech_spec::CommandSpec)> {
     sensor
         .commands
         .iter()
@@ -213,5 +197,5 @@ pub fn coefficient_blocks(sensor: &Sensor) -> Vec<(&yosemitech_spec::Command, &y
 
 /// Every sensor of the spec with at least one coefficient block.
 pub fn sensors_with_coefficients() -> Vec<Sensor> {
-    spec().sensors.into_iter().filter(|s| !coefficient_blocks(s).is_empty()).collect()
+    spec().sensors.iter().filter(|s| !coefficient_blocks(s).is_empty()).cloned().collect()
 }
