@@ -7,8 +7,9 @@
 //! `before` commands, a warm-up during which the bus serves the other
 //! probes, the planned reads (repeated and averaged as the procedure says,
 //! with its pauses also given to the others), the `after` commands. The
-//! reading is committed to the store as soon as the sample ends, and only
-//! then handed on (`on_commit`).
+//! reading then goes to the store's writer thread, which commits it (with
+//! whatever else is waiting, in one transaction) and only then hands it on
+//! (`on_commit`); the bus goes on with its next request meanwhile.
 //!
 //! A probe that does not answer costs one timeout per attempt (it loses
 //! its retries while it keeps failing) and backs off exponentially (one
@@ -22,7 +23,7 @@
 //! transactions: the one in flight completes, its sample is dropped if
 //! incomplete (nothing half-read is stored).
 
-use std::sync::Mutex;
+use std::sync::{Mutex, mpsc};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
@@ -60,27 +61,30 @@ pub struct BusReport {
 /// Why a run stopped other than by the stop flag.
 #[derive(Debug, thiserror::Error)]
 pub enum LogError {
-    /// A reading could not be committed: the logger stops rather than lose
+    /// Readings could not be committed: the logger stops rather than lose
     /// readings silently.
-    #[error("cannot commit a reading of bus `{bus}`: {source}")]
-    Store {
-        /// The bus.
-        bus: String,
-        /// The store's error.
-        source: StoreError,
-    },
-    /// A bus thread panicked (a bug).
-    #[error("the thread of bus `{0}` panicked")]
+    #[error("cannot commit readings: {0}")]
+    Store(#[from] StoreError),
+    /// A thread panicked (a bug).
+    #[error("the thread of {0} panicked")]
     Panicked(String),
 }
 
-/// Runs every bus of `config` until `stop` is set, committing each reading
-/// to `store` and then calling `on_commit` with its id and the reading.
-/// Returns what each bus did.
+/// Readings committed in one transaction at most.
+const BATCH: usize = 256;
+/// Readings waiting for the writer before the buses wait for it.
+const QUEUE: usize = 4096;
+
+/// Runs every bus of `config` until `stop` is set. Each bus thread hands
+/// its readings to one writer thread, which commits them to `store` (all
+/// that are waiting in one transaction) and only then calls `on_commit`
+/// with each id and reading, in id order. Returns what each bus did once
+/// every reading taken is committed.
 ///
 /// # Errors
 ///
-/// A reading could not be committed (every bus then stops).
+/// Readings could not be committed (every bus then stops; the readings
+/// not yet committed are lost and were never announced).
 pub fn run(
     config: &StationConfig,
     store: &Mutex<Store>,
@@ -88,39 +92,70 @@ pub fn run(
     on_commit: &(dyn Fn(i64, &Reading) + Sync),
 ) -> Result<Vec<BusReport>, LogError> {
     std::thread::scope(|scope| {
+        let (readings, queue) = mpsc::sync_channel::<Reading>(QUEUE);
+        let writer = std::thread::Builder::new()
+            .name("store writer".into())
+            .spawn_scoped(scope, move || {
+                let result = write(store, &queue, on_commit);
+                if result.is_err() {
+                    stop.store(true, Ordering::SeqCst);
+                }
+                result
+            })
+            .map_err(|_| LogError::Panicked("the store writer".into()));
         let threads: Vec<_> = config
             .buses
             .iter()
             .map(|bus| {
+                let readings = readings.clone();
                 let handle = std::thread::Builder::new()
                     .name(format!("bus {}", bus.name))
-                    .spawn_scoped(scope, move || {
-                        let result = BusRun::new(&config.station, bus).run(store, stop, on_commit);
-                        if result.is_err() {
-                            stop.store(true, Ordering::SeqCst);
-                        }
-                        result
-                    });
+                    .spawn_scoped(scope, move || BusRun::new(&config.station, bus).run(&readings, stop));
                 (bus.name.clone(), handle)
             })
             .collect();
+        drop(readings);
         let mut reports = Vec::new();
         let mut first_error = None;
         for (name, handle) in threads {
-            let outcome = match handle {
-                Ok(h) => h.join().unwrap_or_else(|_| Err(LogError::Panicked(name.clone()))),
-                Err(_) => Err(LogError::Panicked(name)),
-            };
-            match outcome {
-                Ok(report) => reports.push(report),
-                Err(e) => {
+            match handle.ok().and_then(|h| h.join().ok()) {
+                Some(report) => reports.push(report),
+                None => {
                     stop.store(true, Ordering::SeqCst);
-                    first_error.get_or_insert(e);
+                    first_error.get_or_insert(LogError::Panicked(format!("bus `{name}`")));
                 }
             }
         }
-        first_error.map_or(Ok(reports), Err)
+        let written = writer.and_then(|w| w.join().unwrap_or_else(|_| Err(LogError::Panicked("the store writer".into()))));
+        match (written, first_error) {
+            (Err(e), _) | (Ok(()), Some(e)) => Err(e),
+            (Ok(()), None) => Ok(reports),
+        }
     })
+}
+
+/// The writer thread: commits what the buses send, in batches, then announces it.
+fn write(
+    store: &Mutex<Store>,
+    queue: &mpsc::Receiver<Reading>,
+    on_commit: &(dyn Fn(i64, &Reading) + Sync),
+) -> Result<(), LogError> {
+    let mut batch = Vec::with_capacity(BATCH);
+    while let Ok(first) = queue.recv() {
+        batch.push(first);
+        while batch.len() < BATCH {
+            match queue.try_recv() {
+                Ok(reading) => batch.push(reading),
+                Err(_) => break,
+            }
+        }
+        let ids = store.lock().unwrap_or_else(std::sync::PoisonError::into_inner).insert_all(&batch)?;
+        for (id, reading) in ids.into_iter().zip(&batch) {
+            on_commit(id, reading);
+        }
+        batch.clear();
+    }
+    Ok(())
 }
 
 /// The procedure's steps as commands.
@@ -337,12 +372,7 @@ impl<'c> BusRun<'c> {
         }
     }
 
-    fn run(
-        mut self,
-        store: &Mutex<Store>,
-        stop: &AtomicBool,
-        on_commit: &(dyn Fn(i64, &Reading) + Sync),
-    ) -> Result<BusReport, LogError> {
+    fn run(mut self, readings: &mpsc::SyncSender<Reading>, stop: &AtomicBool) -> BusReport {
         while !stop.load(Ordering::SeqCst) {
             let Some(next) = (0..self.probes.len()).min_by_key(|i| self.probes[*i].wake) else { break };
             let wait = self.probes[next].wake.saturating_duration_since(Instant::now());
@@ -352,18 +382,17 @@ impl<'c> BusRun<'c> {
             }
             self.ensure_open();
             if let Some(reading) = self.step(next) {
-                let id = store
-                    .lock()
-                    .unwrap_or_else(std::sync::PoisonError::into_inner)
-                    .insert(&reading)
-                    .map_err(|source| LogError::Store { bus: self.config.name.clone(), source })?;
+                let ok = reading.error.is_none();
                 self.report.readings += 1;
-                self.report.failed_readings += u64::from(reading.error.is_some());
-                on_commit(id, &reading);
-                self.after_sample(next, reading.error.is_none());
+                self.report.failed_readings += u64::from(!ok);
+                if readings.send(reading).is_err() {
+                    // The writer has stopped (it failed): nothing more can be stored.
+                    break;
+                }
+                self.after_sample(next, ok);
             }
         }
-        Ok(self.report)
+        self.report
     }
 
     /// Opens the port if it is closed and its backoff has passed.
