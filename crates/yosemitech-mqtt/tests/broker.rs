@@ -186,9 +186,10 @@ fn survives_a_broker_outage_mid_run(kind: BrokerKind) {
     assert!(
         wait_until(|| memory.published_up_to() == Some(total as i64)
             && ids_and_first_occurrences(&subscriber.received()).1.len() == total),
-        "{kind:?}: published up to {:?}, {} received: {:?}",
+        "{kind:?}: published up to {:?}, {} received, {} subscriptions: {:?}",
         memory.published_up_to(),
         subscriber.count(),
+        subscriber.subscriptions(),
         ids_and_first_occurrences(&subscriber.received()).0
     );
     let status = publisher.status();

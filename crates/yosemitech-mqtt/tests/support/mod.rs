@@ -369,6 +369,11 @@ impl Subscriber {
         );
     }
 
+    /// SUBACKs received so far (one per connection).
+    pub fn subscriptions(&self) -> u64 {
+        self.subscriptions.load(Ordering::SeqCst)
+    }
+
     pub fn received(&self) -> Vec<Received> {
         self.received.lock().unwrap().clone()
     }
