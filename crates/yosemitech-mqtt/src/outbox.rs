@@ -27,7 +27,7 @@ use crate::message::ReadingMessage;
 ///   only after the broker's PUBACK for every one of them.
 pub trait Outbox {
     /// The store's error.
-    type Error: std::error::Error + Send + Sync + 'static;
+    type Error: std::error::Error;
 
     /// Up to `limit` unpublished readings with `reading_id > after`, ascending.
     fn unpublished(&mut self, after: Option<i64>, limit: usize) -> Result<Vec<ReadingMessage>, Self::Error>;

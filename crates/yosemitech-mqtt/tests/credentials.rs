@@ -126,7 +126,8 @@ fn the_mqtt_section_parses_with_defaults_and_refuses_unknown_keys() {
 fn check_refuses_what_cannot_work_before_any_connection() {
     let base: MqttConfig = toml::from_str("host = \"h\"\nclient_id = \"c\"\n").unwrap();
     assert!(base.check().is_ok());
-    let cases: [(&str, fn(&mut MqttConfig)); 5] = [
+    type Breakage = fn(&mut MqttConfig);
+    let cases: [(&str, Breakage); 5] = [
         ("host", |c| c.host.clear()),
         ("client_id", |c| c.client_id = " ".into()),
         ("topic_prefix", |c| c.topic_prefix = "a/#".into()),

@@ -343,10 +343,10 @@ impl Subscriber {
                                     .push(Received { topic: publish.topic.clone(), payload: publish.payload.to_vec() });
                                 received.len()
                             };
-                            if count == at {
-                                if let Some(hook) = hook.take() {
-                                    hook();
-                                }
+                            if count == at
+                                && let Some(hook) = hook.take()
+                            {
+                                hook();
                             }
                         }
                         Ok(_) => {}
@@ -425,7 +425,7 @@ pub fn reading(index: usize) -> ReadingMessage {
             MeasuredValue::new("temperature", 15.0 + (index % 10) as f64, Some("°C".into())),
         ],
         retries: u32::try_from(index % 3).unwrap(),
-        error: (index % 17 == 0).then(|| "probe did not answer".to_owned()),
+        error: index.is_multiple_of(17).then(|| "probe did not answer".to_owned()),
     }
 }
 
