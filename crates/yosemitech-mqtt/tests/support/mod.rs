@@ -111,26 +111,60 @@ pub struct Broker {
     pub port: u16,
     dir: PathBuf,
     auth: Option<(String, String)>,
-    child: Arc<Mutex<Option<Child>>>,
+    process: Arc<Mutex<Process>>,
+}
+
+/// The broker process, or while it is stopped a listener holding its port,
+/// so that no other test's broker can take the port in the meantime (the
+/// restarted broker and the clients would otherwise meet a stranger).
+enum Process {
+    Running(Child),
+    Stopped(Option<TcpListener>),
 }
 
 /// Kills a broker from another thread (a subscriber hook).
 #[derive(Clone)]
-pub struct BrokerKiller(Arc<Mutex<Option<Child>>>);
+pub struct BrokerKiller {
+    port: u16,
+    process: Arc<Mutex<Process>>,
+}
 
 impl BrokerKiller {
-    /// Kills the broker process (SIGKILL) and waits for it to be gone.
+    /// Kills the broker process (SIGKILL), waits for it to be gone, and
+    /// holds its port until [`Broker::restart`].
     pub fn kill(&self) {
-        if let Some(mut child) = self.0.lock().unwrap().take() {
+        let mut process = self.process.lock().unwrap();
+        if let Process::Running(child) = &mut *process {
             let _ = child.kill();
             let _ = child.wait();
+            let started = Instant::now();
+            let reservation = loop {
+                match TcpListener::bind((Ipv4Addr::LOCALHOST, self.port)) {
+                    Ok(listener) => break Some(listener),
+                    Err(_) if started.elapsed() < Duration::from_secs(5) => {
+                        std::thread::sleep(Duration::from_millis(20));
+                    }
+                    Err(_) => break None,
+                }
+            };
+            *process = Process::Stopped(reservation);
         }
     }
 }
 
+/// A loopback port free now and never handed out before in this process
+/// (a stopped broker's port stays reserved for its restart).
 pub fn free_port() -> u16 {
-    let listener = TcpListener::bind((Ipv4Addr::LOCALHOST, 0)).unwrap();
-    listener.local_addr().unwrap().port()
+    static HANDED_OUT: Mutex<Vec<u16>> = Mutex::new(Vec::new());
+    let mut handed_out = HANDED_OUT.lock().unwrap();
+    loop {
+        let listener = TcpListener::bind((Ipv4Addr::LOCALHOST, 0)).unwrap();
+        let port = listener.local_addr().unwrap().port();
+        if !handed_out.contains(&port) {
+            handed_out.push(port);
+            return port;
+        }
+    }
 }
 
 /// A fresh directory for one test's files.
@@ -154,7 +188,7 @@ impl Broker {
             port: free_port(),
             dir: scratch_dir("broker"),
             auth: auth.map(|(user, password)| (user.to_owned(), password.to_owned())),
-            child: Arc::new(Mutex::new(None)),
+            process: Arc::new(Mutex::new(Process::Stopped(None))),
         };
         if kind == BrokerKind::Mosquitto {
             broker.write_mosquitto_config();
@@ -189,7 +223,11 @@ impl Broker {
     /// Starts the broker process again on the same port and waits until it
     /// accepts connections.
     pub fn restart(&mut self) {
-        assert!(self.child.lock().unwrap().is_none(), "broker already running");
+        let mut process = self.process.lock().unwrap();
+        let Process::Stopped(reservation) = &mut *process else {
+            panic!("broker already running");
+        };
+        drop(reservation.take());
         let mut command = match self.kind {
             BrokerKind::Rumqttd => {
                 let mut command = Command::new(std::env::current_exe().unwrap());
@@ -225,7 +263,7 @@ impl Broker {
             assert!(started.elapsed() < DEADLINE, "{:?} never listened on {}", self.kind, self.port);
             std::thread::sleep(Duration::from_millis(50));
         }
-        *self.child.lock().unwrap() = Some(child);
+        *process = Process::Running(child);
     }
 
     /// Kills the broker process (SIGKILL) and waits for it to be gone.
@@ -235,7 +273,7 @@ impl Broker {
 
     /// A handle that kills the broker from another thread.
     pub fn killer(&self) -> BrokerKiller {
-        BrokerKiller(Arc::clone(&self.child))
+        BrokerKiller { port: self.port, process: Arc::clone(&self.process) }
     }
 
     /// A publisher configuration for this broker, with short backoffs.
