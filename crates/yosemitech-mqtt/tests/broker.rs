@@ -296,3 +296,68 @@ fn authenticates_with_a_password_file(kind: BrokerKind) {
     assert!(logs.contains("MQTT broker"), "no publisher log captured: {logs}");
     assert!(!logs.contains(PASSWORD) && !logs.contains(WRONG), "a password was logged");
 }
+
+/// A certificate authority and a server certificate for 127.0.0.1 signed by
+/// it: (CA PEM, server chain PEM, server key PEM).
+fn test_pki(name: &str) -> (String, String, String) {
+    use rcgen::{BasicConstraints, CertificateParams, DnType, IsCa, Issuer, KeyPair};
+    let ca_key = KeyPair::generate().unwrap();
+    let mut ca_params = CertificateParams::new(Vec::<String>::new()).unwrap();
+    ca_params.is_ca = IsCa::Ca(BasicConstraints::Unconstrained);
+    ca_params.distinguished_name.push(DnType::CommonName, format!("{name} test CA"));
+    let ca = ca_params.self_signed(&ca_key).unwrap();
+    let issuer = Issuer::new(ca_params, ca_key);
+    let server_key = KeyPair::generate().unwrap();
+    let server = CertificateParams::new(vec!["127.0.0.1".to_owned(), "localhost".to_owned()])
+        .unwrap()
+        .signed_by(&server_key, &issuer)
+        .unwrap();
+    (ca.pem(), server.pem() + &ca.pem(), server_key.serialize_pem())
+}
+
+/// TLS needs a broker with a TLS listener: mosquitto's, started with a
+/// certificate made here; rumqttd runs without its TLS feature.
+#[test]
+fn publishes_over_tls_and_refuses_a_broker_its_ca_did_not_sign() {
+    if !available(BrokerKind::Mosquitto) {
+        return;
+    }
+    let (ca, chain, key) = test_pki("broker");
+    let (other_ca, _, _) = test_pki("other");
+    let broker = Broker::start_with_tls(BrokerKind::Mosquitto, None, Some((&chain, &key)));
+    let tls_port = broker.tls_port.unwrap();
+    let subscriber = Subscriber::start(&broker, ALL_READINGS);
+    let ca_file = broker.dir().join("ca.pem");
+    std::fs::write(&ca_file, ca).unwrap();
+    let other_ca_file = broker.dir().join("other-ca.pem");
+    std::fs::write(&other_ca_file, other_ca).unwrap();
+
+    // A CA that did not sign the broker's certificate: no connection, nothing marked.
+    let refused_outbox = MemoryOutbox::new();
+    push_readings(&refused_outbox, 0..3);
+    let mut config = broker.config("station-wrong-ca", 4);
+    config.port = Some(tls_port);
+    config.tls = Some(yosemitech_mqtt::TlsConfig { ca_file: Some(other_ca_file) });
+    let refused = Publisher::start(&config, refused_outbox.clone()).unwrap();
+    assert!(wait_until(|| refused.status().last_error.is_some()));
+    assert_eq!(refused.status().connections, 0);
+    let error = refused.status().last_error.unwrap();
+    assert!(error.contains("certificate"), "{error}");
+    drop(refused);
+    assert_eq!(refused_outbox.published_up_to(), None);
+
+    // The broker's own CA: delivered over TLS.
+    let outbox = MemoryOutbox::new();
+    let sent = push_readings(&outbox, 0..50);
+    config.client_id = "station-tls".into();
+    config.tls = Some(yosemitech_mqtt::TlsConfig { ca_file: Some(ca_file) });
+    let publisher = Publisher::start(&config, outbox.clone()).unwrap();
+    assert!(
+        wait_until(|| outbox.published_up_to() == Some(50) && subscriber.count() >= 50),
+        "{:?}",
+        publisher.status()
+    );
+    assert_eq!(publisher.shutdown(DEADLINE).unacknowledged, 0);
+    let received: Vec<ReadingMessage> = subscriber.received().iter().map(Received::message).collect();
+    assert_eq!(received, sent);
+}

@@ -111,6 +111,8 @@ pub struct Broker {
     pub port: u16,
     dir: PathBuf,
     auth: Option<(String, String)>,
+    /// A second, TLS listener (mosquitto only): its port.
+    pub tls_port: Option<u16>,
     process: Arc<Mutex<Process>>,
 }
 
@@ -183,26 +185,45 @@ pub fn scratch_dir(name: &str) -> PathBuf {
 impl Broker {
     /// Starts a broker of `kind`, requiring `auth` (user, password) if given.
     pub fn start(kind: BrokerKind, auth: Option<(&str, &str)>) -> Broker {
+        Self::start_with_tls(kind, auth, None)
+    }
+
+    /// [`Broker::start`], with a second listener on [`Broker::tls_port`]
+    /// serving TLS with `(certificate chain PEM, private key PEM)`
+    /// (mosquitto only).
+    pub fn start_with_tls(kind: BrokerKind, auth: Option<(&str, &str)>, tls: Option<(&str, &str)>) -> Broker {
+        assert!(tls.is_none() || kind == BrokerKind::Mosquitto, "TLS listeners are mosquitto's here");
         let mut broker = Broker {
             kind,
             port: free_port(),
             dir: scratch_dir("broker"),
             auth: auth.map(|(user, password)| (user.to_owned(), password.to_owned())),
+            tls_port: tls.map(|_| free_port()),
             process: Arc::new(Mutex::new(Process::Stopped(None))),
         };
         if kind == BrokerKind::Mosquitto {
-            broker.write_mosquitto_config();
+            broker.write_mosquitto_config(tls);
         }
         broker.restart();
         broker
     }
 
-    fn write_mosquitto_config(&self) {
+    fn write_mosquitto_config(&self, tls: Option<(&str, &str)>) {
         let mut config = format!(
-            "listener {} 127.0.0.1\npersistence false\nlog_dest stderr\nlog_type error\nlog_type warning\n\
-             max_queued_messages 10000\nuser root\n",
+            "per_listener_settings false\npersistence false\nlog_dest stderr\nlog_type error\nlog_type warning\n\
+             max_queued_messages 10000\nuser root\nlistener {} 127.0.0.1\n",
             self.port
         );
+        if let (Some((chain, key)), Some(port)) = (tls, self.tls_port) {
+            let (chain_path, key_path) = (self.dir.join("server.pem"), self.dir.join("server.key"));
+            std::fs::write(&chain_path, chain).unwrap();
+            std::fs::write(&key_path, key).unwrap();
+            config.push_str(&format!(
+                "listener {port} 127.0.0.1\ncertfile {}\nkeyfile {}\n",
+                chain_path.display(),
+                key_path.display()
+            ));
+        }
         match &self.auth {
             None => config.push_str("allow_anonymous true\n"),
             Some((user, password)) => {
