@@ -191,7 +191,7 @@ fn rows_per_second(sensor: &Arc<Sensor>, plan: &Plan<'_>, run_for: Duration) -> 
     let server = serve_pty(Simulator::new(Arc::clone(sensor)).with_address(1), ServeConfig::emulating(line_timing(sensor)))
         .expect("a pty");
     let link = config::Link::Serial { port: server.tty_path().unwrap().to_owned(), serial: sensor.serial };
-    let mut master = link::open(&link, Duration::from_secs(1)).unwrap();
+    let mut master = link::open(&link, Duration::from_secs(1), config::Gap::Default).unwrap();
     let (mut rows, mut errors) = (0u64, 0u64);
     let start = Instant::now();
     while start.elapsed() < run_for {

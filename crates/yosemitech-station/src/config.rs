@@ -16,6 +16,7 @@
 //! # timeout = "1s"                # reply timeout per request
 //! # retries = 2                   # repeats of a failed request
 //! # max_backoff = "10m"           # longest pause of a probe that keeps failing
+//! # gap = "t3.5"                  # silence before each request; default t3.5, at least 4 ms
 //!
 //! [[bus.probe]]
 //! label = "upstream-ph"           # unique in the station
@@ -26,7 +27,7 @@
 //! align = true                    # on the clock: 00:00, 00:15, 00:30 ... UTC
 //! # procedure = true              # follow the spec's procedure (default when it has one)
 //!
-//! # [mqtt] ...                    # passed to the publisher as written
+//! # [mqtt] ...                    # `yosemitech_mqtt::MqttConfig`: host, client_id, tls, credentials ...
 //! ```
 //!
 //! Every error names the file, line and column of the offending value and
@@ -41,6 +42,7 @@ use std::time::Duration;
 
 use serde::Deserialize;
 use toml::Spanned;
+use yosemitech_mqtt::MqttConfig;
 use yosemitech_spec::{Parity, Sensor, Serial};
 
 use crate::plan;
@@ -117,6 +119,19 @@ impl fmt::Display for Link {
     }
 }
 
+/// The silence a master keeps on the line before each request.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Gap {
+    /// The client's default: t3.5 of the line, at least 4 ms at 19200 baud
+    /// and below (the manuals disagree on the bits per character).
+    #[default]
+    Default,
+    /// Exactly t3.5 of the line (`gap = "t3.5"`): the Modbus minimum.
+    T35,
+    /// This long (`gap = "5ms"`).
+    Fixed(Duration),
+}
+
 /// A validated probe.
 #[derive(Debug, Clone)]
 pub struct ProbeConfig {
@@ -149,6 +164,8 @@ pub struct BusConfig {
     pub retries: u32,
     /// Longest pause of a probe that keeps failing.
     pub max_backoff: Duration,
+    /// Silence kept before each request.
+    pub gap: Gap,
     /// Its probes (at least one), in file order.
     pub probes: Vec<ProbeConfig>,
 }
@@ -164,8 +181,9 @@ pub struct StationConfig {
     pub storage: PathBuf,
     /// The buses (at least one), in file order.
     pub buses: Vec<BusConfig>,
-    /// The `[mqtt]` table as written, for the publisher to validate.
-    pub mqtt: Option<toml::Table>,
+    /// Publishing, when the file has an `[mqtt]` section (validated by
+    /// `yosemitech_mqtt`, credentials included when they come from a file).
+    pub mqtt: Option<MqttConfig>,
 }
 
 impl StationConfig {
@@ -182,7 +200,7 @@ struct RawStation {
     storage: RawStorage,
     #[serde(default)]
     bus: Vec<Spanned<RawBus>>,
-    mqtt: Option<toml::Table>,
+    mqtt: Option<Spanned<toml::Table>>,
 }
 
 #[derive(Deserialize)]
@@ -202,6 +220,7 @@ struct RawBus {
     timeout: Option<Spanned<String>>,
     retries: Option<Spanned<u32>>,
     max_backoff: Option<Spanned<String>>,
+    gap: Option<Spanned<String>>,
     #[serde(default)]
     probe: Vec<Spanned<RawProbe>>,
 }
@@ -403,6 +422,17 @@ pub fn parse(path: &Path, text: &str, sensors: &[Arc<Sensor>]) -> Result<Station
                 continue;
             }
         };
+        let gap = match &bus.gap {
+            None => Gap::Default,
+            Some(g) if g.get_ref() == "t3.5" => Gap::T35,
+            Some(g) => match parse_duration(g.get_ref()) {
+                Ok(d) => Gap::Fixed(d),
+                Err(e) => {
+                    loc.error(g.span(), format!("{e}, or t3.5"));
+                    Gap::Default
+                }
+            },
+        };
         let mut duration = |d: &Option<Spanned<String>>, default: Duration| match d {
             None => default,
             Some(d) => match parse_duration(d.get_ref()) {
@@ -425,11 +455,25 @@ pub fn parse(path: &Path, text: &str, sensors: &[Arc<Sensor>]) -> Result<Station
             timeout,
             retries: bus.retries.map_or(DEFAULT_RETRIES, Spanned::into_inner),
             max_backoff,
+            gap,
             probes,
         });
     }
+    let mqtt = raw.mqtt.and_then(|table| {
+        let span = table.span();
+        // The table as written goes to the publisher's own configuration,
+        // which says what is wrong (never a credential's value).
+        let parsed = table.into_inner().try_into::<MqttConfig>().map_err(|e| e.message().trim().to_owned());
+        match parsed.and_then(|c| c.check().map(|()| c).map_err(|e| e.to_string())) {
+            Ok(c) => Some(c),
+            Err(e) => {
+                loc.error(span, format!("[mqtt]: {e}"));
+                None
+            }
+        }
+    });
     if loc.errors.is_empty() {
-        Ok(StationConfig { file: path.to_owned(), station: raw.station.into_inner(), storage, buses, mqtt: raw.mqtt })
+        Ok(StationConfig { file: path.to_owned(), station: raw.station.into_inner(), storage, buses, mqtt })
     } else {
         loc.errors.sort_by_key(|e| (e.line, e.column));
         Err(ConfigErrors(loc.errors))

@@ -8,6 +8,7 @@
 //! * [`plan`]: the fewest reads that cover the measurements chosen for a probe.
 //! * [`logger`]: the scheduler, one thread and one master per bus.
 //! * [`link`]: a bus's master and its requests through the spec interpreter.
+//! * [`outbox`]: the store as the MQTT publisher's outbox.
 //! * [`export`]: stored readings as CSV or JSON lines.
 //! * [`time`]: UTC instants as the store keeps them and people write them.
 //!
@@ -19,6 +20,7 @@ pub mod config;
 pub mod export;
 pub mod link;
 pub mod logger;
+pub mod outbox;
 pub mod plan;
 pub mod store;
 pub mod time;

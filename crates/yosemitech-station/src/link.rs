@@ -10,7 +10,7 @@ use yosemitech_rtu::{
 };
 use yosemitech_spec::{Command, Parity, Serial, Values};
 
-use crate::config::Link;
+use crate::config::{Gap, Link};
 
 /// A client on any transport.
 pub type Master = Client<Box<dyn Transport + Send>>;
@@ -30,18 +30,24 @@ pub fn serial_config(port: &str, serial: &Serial) -> SerialConfig {
     }
 }
 
-/// Opens `link` with `timeout` per attempt. The client never retries on
-/// its own: [`transact`] does, so that it can count.
+/// Opens `link` with `timeout` per attempt and `gap` before each request.
+/// The client never retries on its own: [`transact`] does, so that it can
+/// count.
 ///
 /// # Errors
 ///
 /// The port or the gateway cannot be opened.
-pub fn open(link: &Link, timeout: Duration) -> std::io::Result<Master> {
+pub fn open(link: &Link, timeout: Duration, gap: Gap) -> std::io::Result<Master> {
     let transport: Box<dyn Transport + Send> = match link {
         Link::Serial { port, serial } => Box::new(SerialTransport::open(&serial_config(port, serial))?),
         Link::Tcp { address } => Box::new(TcpTransport::connect(address.as_str(), timeout.max(Duration::from_millis(500)))?),
     };
-    let config = ClientConfig { timeout, retry: RetryPolicy::NONE, ..ClientConfig::default() };
+    let mut config = ClientConfig { timeout, retry: RetryPolicy::NONE, ..ClientConfig::default() };
+    match gap {
+        Gap::Default => {}
+        Gap::T35 => config.min_inter_frame_delay = Duration::ZERO,
+        Gap::Fixed(d) => config.inter_frame_delay = Some(d),
+    }
     Ok(Client::with_config(transport, config))
 }
 

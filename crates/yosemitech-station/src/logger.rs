@@ -400,7 +400,7 @@ impl<'c> BusRun<'c> {
         if self.master.is_some() || Instant::now() < self.reopen_at {
             return;
         }
-        match link::open(&self.config.link, self.config.timeout) {
+        match link::open(&self.config.link, self.config.timeout, self.config.gap) {
             Ok(master) => {
                 self.master = Some(master);
                 self.open_error = None;

@@ -300,6 +300,18 @@ impl Store {
         self.select("WHERE id > (SELECT published_up_to FROM outbox) ORDER BY id LIMIT ?1", [limit])
     }
 
+    /// The oldest `limit` readings not yet published with an id above
+    /// `after`, oldest first (a publisher's resume point past what it has
+    /// in flight).
+    ///
+    /// # Errors
+    ///
+    /// SQLite failed, or a row is malformed.
+    pub fn unpublished_after(&self, after: i64, limit: usize) -> Result<Vec<StoredReading>, StoreError> {
+        let limit = i64::try_from(limit).unwrap_or(i64::MAX);
+        self.select("WHERE id > max(?1, (SELECT published_up_to FROM outbox)) ORDER BY id LIMIT ?2", [after, limit])
+    }
+
     /// Records that every reading with an id up to `up_to_id` is published.
     /// The cursor only moves forward: a smaller id than the current one
     /// changes nothing. Committed when it returns.

@@ -3,9 +3,12 @@
 use std::io::Write;
 use std::sync::atomic::AtomicBool;
 use std::sync::{Arc, Mutex, mpsc};
+use std::time::Duration;
 
 use yosemitech_station::config::{self, ConfigErrors, Link, StationConfig};
 use yosemitech_station::export::to_json;
+use yosemitech_mqtt::Publisher;
+use yosemitech_station::outbox::StoreOutbox;
 use yosemitech_station::{Store, StoredReading, logger, plan};
 
 use crate::catalog::Catalog;
@@ -76,8 +79,16 @@ pub fn check(catalog: &Catalog, args: &LogArgs, out: &mut dyn Write) -> Result<(
             )?;
         }
     }
-    if station.mqtt.is_some() {
-        writeln!(out, "mqtt: configured")?;
+    if let Some(mqtt) = &station.mqtt {
+        writeln!(
+            out,
+            "mqtt: {}:{}{} as `{}`, topics under `{}`",
+            mqtt.host,
+            mqtt.port(),
+            if mqtt.tls.is_some() { " (TLS)" } else { "" },
+            mqtt.client_id,
+            mqtt.topic_prefix
+        )?;
     }
     writeln!(out, "ok")?;
     Ok(())
@@ -91,6 +102,18 @@ pub fn run(catalog: &Catalog, args: &LogArgs, stop: &Arc<AtomicBool>, out: &mut 
             .hint("check `[storage] path`: its directory must exist and be writable")
     })?;
     let store = Mutex::new(store);
+    // The publisher drains the store from a connection of its own, in id
+    // order; it learns of each commit through `wake`.
+    let publisher = match &station.mqtt {
+        Some(mqtt) => {
+            let outbox = Store::open(&station.storage)
+                .map_err(|e| CliError::device(format!("cannot open the store {}: {e}", station.storage.display())))?;
+            Some(Publisher::start(mqtt, StoreOutbox(outbox)).map_err(|e| {
+                CliError::usage(format!("cannot start publishing: {e}")).hint("check the [mqtt] section of the station file")
+            })?)
+        }
+        None => None,
+    };
     // The bus threads hand each committed reading to this thread, which
     // owns stdout.
     let (lines, printed) = mpsc::channel::<String>();
@@ -98,6 +121,9 @@ pub fn run(catalog: &Catalog, args: &LogArgs, stop: &Arc<AtomicBool>, out: &mut 
         let logger = scope.spawn(|| {
             let lines = lines;
             logger::run(&station, &store, stop, &|id, reading| {
+                if let Some(p) = &publisher {
+                    p.wake();
+                }
                 let _ = lines.send(to_json(&StoredReading { id, reading: reading.clone() }).to_string());
             })
         });
@@ -109,6 +135,11 @@ pub fn run(catalog: &Catalog, args: &LogArgs, stop: &Arc<AtomicBool>, out: &mut 
     })
     .map_err(|e| CliError::device(e.to_string()).hint("the readings committed so far are in the store"))?;
     let mut err = std::io::stderr().lock();
+    if let Some(p) = publisher {
+        // What is not acknowledged in time stays in the outbox for the next run.
+        let report = p.shutdown(Duration::from_secs(5));
+        let _ = writeln!(err, "mqtt: published up to reading {:?}", report.published_up_to);
+    }
     for r in reports {
         let _ = writeln!(
             err,
