@@ -56,7 +56,8 @@ fn serve() {
         .map(|b| {
             let probes = bus_probes(&all, b);
             let timing = line_timing(&probes[0].0);
-            let bus = probes.iter().fold(Bus::new(), |bus, (s, a)| bus.with(Simulator::new(Arc::clone(s)).with_address(*a)));
+            let bus =
+                probes.iter().fold(Bus::new(), |bus, (s, a)| bus.with(Simulator::new(Arc::clone(s)).with_address(*a)));
             serve_pty(bus, ServeConfig::emulating(timing)).expect("a pty")
         })
         .collect();
@@ -91,7 +92,7 @@ fn plan_limit(line: LineTiming, plan: &Plan<'_>) -> Duration {
     plan.reads.iter().map(|r| read_limit(line, r.command)).sum()
 }
 
-fn scale(run_for: Duration) {
+fn scale(run_for: Duration, gap: &str) {
     let mut child = Process::new(std::env::current_exe().unwrap())
         .arg("--serve")
         .stdin(Stdio::piped())
@@ -105,7 +106,7 @@ fn scale(run_for: Duration) {
     let dir = tempfile::tempdir().unwrap();
     let mut toml = format!("station = \"bench\"\n[storage]\npath = \"{}\"\n", dir.path().join("s.sqlite").display());
     for (b, pty) in ptys.iter().enumerate() {
-        toml += &format!("[[bus]]\nname = \"bus{b}\"\nport = \"{pty}\"\nretries = 0\n");
+        toml += &format!("[[bus]]\nname = \"bus{b}\"\nport = \"{pty}\"\nretries = 0\n{gap}\n");
         for (i, (s, a)) in bus_probes(&all, b).iter().enumerate() {
             toml += &format!(
                 "[[bus.probe]]\nlabel = \"b{b}p{i}\"\nsensor = \"{}\"\naddress = {a}\ninterval = \"1ms\"\nprocedure = false\n",
@@ -142,7 +143,11 @@ fn scale(run_for: Duration) {
         e.2 |= r.reading.serial_number.is_some();
         e.3 |= r.reading.firmware.is_some();
     }
-    println!("station_scale: {BUSES} buses x {PROBES_PER_BUS} probes, {:.1} s, line emulated at the spec's speed", elapsed.as_secs_f64());
+    println!(
+        "station_scale: {BUSES} buses x {PROBES_PER_BUS} probes, {:.1} s, line emulated at the spec's speed, {}",
+        elapsed.as_secs_f64(),
+        if gap.is_empty() { "the client's default gap (t3.5, at least 4 ms)" } else { gap }
+    );
     println!("| bus | probes (sensor: rows) | transactions | failed | wire time of those | % of wire limit |");
     println!("|---|---|---|---|---|---|");
     let mut shares = Vec::new();
@@ -157,12 +162,18 @@ fn scale(run_for: Duration) {
             let (ok, failed, serial, firmware) =
                 per_probe.get(&(bus.name.clone(), probe.label.clone())).copied().unwrap_or_default();
             wire += plan_limit(line, &planned) * u32::try_from(ok).unwrap();
-            for (read, role) in [(serial, yosemitech_spec::Role::SerialNumber), (firmware, yosemitech_spec::Role::Version)] {
+            for (read, role) in
+                [(serial, yosemitech_spec::Role::SerialNumber), (firmware, yosemitech_spec::Role::Version)]
+            {
                 if let (true, Some(c)) = (read, probe.sensor.command_with_role(role)) {
                     wire += read_limit(line, c);
                 }
             }
-            who.push(format!("{}: {ok}{}", probe.sensor.name, if failed > 0 { format!(" ({failed} failed)") } else { String::new() }));
+            who.push(format!(
+                "{}: {ok}{}",
+                probe.sensor.name,
+                if failed > 0 { format!(" ({failed} failed)") } else { String::new() }
+            ));
         }
         let share = 100.0 * wire.as_secs_f64() / elapsed.as_secs_f64();
         shares.push(share);
@@ -188,8 +199,9 @@ fn scale(run_for: Duration) {
 
 /// Rows per second of one probe on its own emulated line, reading `plan`.
 fn rows_per_second(sensor: &Arc<Sensor>, plan: &Plan<'_>, run_for: Duration) -> (f64, u64) {
-    let server = serve_pty(Simulator::new(Arc::clone(sensor)).with_address(1), ServeConfig::emulating(line_timing(sensor)))
-        .expect("a pty");
+    let server =
+        serve_pty(Simulator::new(Arc::clone(sensor)).with_address(1), ServeConfig::emulating(line_timing(sensor)))
+            .expect("a pty");
     let link = config::Link::Serial { port: server.tty_path().unwrap().to_owned(), serial: sensor.serial };
     let mut master = link::open(&link, Duration::from_secs(1), config::Gap::Default).unwrap();
     let (mut rows, mut errors) = (0u64, 0u64);
@@ -204,7 +216,9 @@ fn rows_per_second(sensor: &Arc<Sensor>, plan: &Plan<'_>, run_for: Duration) -> 
 }
 
 fn planning(run_for: Duration) {
-    println!("| sensor | measurements | reads planned | rows/s planned | limit | reads naive | rows/s naive | limit | errors |");
+    println!(
+        "| sensor | measurements | reads planned | rows/s planned | limit | reads naive | rows/s naive | limit | errors |"
+    );
     println!("|---|---|---|---|---|---|---|---|---|");
     let spec = yosemitech_spec::load_paths(&[spec_dir()]).expect("the spec loads");
     for sensor in spec.sensors.into_iter().map(Arc::new) {
@@ -247,6 +261,7 @@ fn main() {
         .and_then(|v| v.parse::<f64>().ok())
         .unwrap_or(10.0);
     let run_for = if bench { Duration::from_secs_f64(seconds) } else { Duration::from_secs(1) };
-    scale(run_for);
+    scale(run_for, "");
+    scale(run_for, "gap = \"t3.5\"");
     planning(if bench { Duration::from_secs(5) } else { Duration::from_millis(500) });
 }

@@ -6,10 +6,7 @@ use std::path::Path;
 use std::time::Duration;
 
 use clap::Args;
-use yosemitech_rtu::{
-    Client, ClientConfig, DataBits, Parity, RetryPolicy, SerialConfig, SerialTransport, StopBits, TcpTransport,
-    Transport,
-};
+use yosemitech_rtu::{Client, ClientConfig, RetryPolicy, SerialTransport, TcpTransport, Transport};
 use yosemitech_spec::{Parity as SpecParity, Serial};
 
 use crate::cli::Global;
@@ -119,17 +116,7 @@ pub fn open_with(
                 .map_err(|e| open_failed(&port, &e))?,
         ),
         None => {
-            let config = SerialConfig {
-                baud,
-                data_bits: if serial.data_bits == 7 { DataBits::Seven } else { DataBits::Eight },
-                parity: match serial.parity {
-                    SpecParity::None => Parity::None,
-                    SpecParity::Even => Parity::Even,
-                    SpecParity::Odd => Parity::Odd,
-                },
-                stop_bits: if serial.stop_bits == 2 { StopBits::Two } else { StopBits::One },
-                ..SerialConfig::new(port.clone())
-            };
+            let config = yosemitech_station::link::serial_config(&port, &Serial { baud, ..*serial });
             Box::new(SerialTransport::open(&config).map_err(|e| open_failed(&port, &e))?)
         }
     };

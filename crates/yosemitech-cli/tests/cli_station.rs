@@ -45,9 +45,9 @@ fn check_errors_carry_file_line_and_column() {
         "[[bus.probe]]".to_owned(),
         "label = \"q\"".to_owned(),
         format!("sensor = \"{}\"", sensor.name),
-        "address = 0".to_owned(),                      // line 15
+        "address = 0".to_owned(),                        // line 15
         "measurements = [\"no_such_field\"]".to_owned(), // line 16
-        "interval = \"soon\"".to_owned(),              // line 17
+        "interval = \"soon\"".to_owned(),                // line 17
     ];
     let path = dir.path().join("bad.toml");
     std::fs::write(&path, lines.join("\n")).unwrap();
@@ -55,7 +55,10 @@ fn check_errors_carry_file_line_and_column() {
     let err = run.fails_with_hint(2);
     let file = path.display().to_string();
     for (line, what) in [(9, "no_such_sensor"), (15, "address 0"), (16, "no_such_field"), (17, "soon")] {
-        let located = err.lines().find(|l| l.contains(&format!("{file}:{line}:"))).unwrap_or_else(|| panic!("line {line}: {err}"));
+        let located = err
+            .lines()
+            .find(|l| l.contains(&format!("{file}:{line}:")))
+            .unwrap_or_else(|| panic!("line {line}: {err}"));
         assert!(located.contains(what), "{located}");
     }
 

@@ -931,15 +931,15 @@ mod tests {
         let mut measured = 0;
         for sensor in spec().sensors {
             for name in sensor.procedure.iter().flat_map(|p| &p.read) {
-                assert!(is_measurement(&sensor, sensor.command(name).unwrap()), "{}.{name}", sensor.name);
+                assert!(sensor.is_measurement(sensor.command(name).unwrap()), "{}.{name}", sensor.name);
                 measured += 1;
             }
         }
         assert!(measured > 0);
         let ph = sensor("ph_orp");
-        assert!(is_measurement(&ph, ph.command("get_ph").unwrap()));
-        assert!(!is_measurement(&ph, ph.command("get_ph_calibration").unwrap()), "set_ph_calibration writes it");
-        assert!(!is_measurement(&ph, ph.command("get_sn").unwrap()), "no unit");
+        assert!(ph.is_measurement(ph.command("get_ph").unwrap()));
+        assert!(!ph.is_measurement(ph.command("get_ph_calibration").unwrap()), "set_ph_calibration writes it");
+        assert!(!ph.is_measurement(ph.command("get_sn").unwrap()), "no unit");
     }
 
     #[test]

@@ -299,7 +299,12 @@ impl Locator<'_> {
 /// spec does not have: every problem found, located.
 pub fn load(path: &Path, sensors: &[Arc<Sensor>]) -> Result<StationConfig, ConfigErrors> {
     let text = std::fs::read_to_string(path).map_err(|e| {
-        ConfigErrors(vec![ConfigError { file: path.to_owned(), line: 0, column: 0, message: format!("cannot read it: {e}") }])
+        ConfigErrors(vec![ConfigError {
+            file: path.to_owned(),
+            line: 0,
+            column: 0,
+            message: format!("cannot read it: {e}"),
+        }])
     })?;
     parse(path, &text, sensors)
 }
@@ -369,7 +374,11 @@ pub fn parse(path: &Path, text: &str, sensors: &[Arc<Sensor>]) -> Result<Station
         }
         let link = match (bus.port, bus.tcp) {
             (Some(port), None) => {
-                let mut serial = probes.first().map_or(Serial { baud: 9600, data_bits: 8, parity: Parity::None, stop_bits: 1 }, |p| p.sensor.serial);
+                let mut serial = probes
+                    .first()
+                    .map_or(Serial { baud: 9600, data_bits: 8, parity: Parity::None, stop_bits: 1 }, |p| {
+                        p.sensor.serial
+                    });
                 if let Some(other) = probes.iter().find(|p| p.sensor.serial != serial)
                     && bus.baud.is_none()
                     && bus.parity.is_none()
@@ -488,10 +497,15 @@ fn validate_probe(
     sensors: &[Arc<Sensor>],
 ) -> Option<(ProbeConfig, Range<usize>, Range<usize>)> {
     let Some(sensor) = sensors.iter().find(|s| s.name == *raw.sensor.get_ref()) else {
-        let known: Vec<&str> = sensors.iter().filter(|s| s.measurement_reads().next().is_some()).map(|s| s.name.as_str()).collect();
+        let known: Vec<&str> =
+            sensors.iter().filter(|s| s.measurement_reads().next().is_some()).map(|s| s.name.as_str()).collect();
         loc.error(
             raw.sensor.span(),
-            format!("no sensor `{}` in the spec; sensors with measurements: {}", raw.sensor.get_ref(), known.join(", ")),
+            format!(
+                "no sensor `{}` in the spec; sensors with measurements: {}",
+                raw.sensor.get_ref(),
+                known.join(", ")
+            ),
         );
         return None;
     };
@@ -506,7 +520,11 @@ fn validate_probe(
         _ => {
             loc.error(
                 raw.address.span(),
-                format!("address {} is outside {min}..={max}, the addresses of `{}`", raw.address.get_ref(), sensor.name),
+                format!(
+                    "address {} is outside {min}..={max}, the addresses of `{}`",
+                    raw.address.get_ref(),
+                    sensor.name
+                ),
             );
             ok = false;
             0

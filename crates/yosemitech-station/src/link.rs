@@ -40,7 +40,9 @@ pub fn serial_config(port: &str, serial: &Serial) -> SerialConfig {
 pub fn open(link: &Link, timeout: Duration, gap: Gap) -> std::io::Result<Master> {
     let transport: Box<dyn Transport + Send> = match link {
         Link::Serial { port, serial } => Box::new(SerialTransport::open(&serial_config(port, serial))?),
-        Link::Tcp { address } => Box::new(TcpTransport::connect(address.as_str(), timeout.max(Duration::from_millis(500)))?),
+        Link::Tcp { address } => {
+            Box::new(TcpTransport::connect(address.as_str(), timeout.max(Duration::from_millis(500)))?)
+        }
     };
     let mut config = ClientConfig { timeout, retry: RetryPolicy::NONE, ..ClientConfig::default() };
     match gap {

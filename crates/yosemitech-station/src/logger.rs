@@ -23,8 +23,8 @@
 //! transactions: the one in flight completes, its sample is dropped if
 //! incomplete (nothing half-read is stored).
 
-use std::sync::{Mutex, mpsc};
 use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Mutex, mpsc};
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
 use yosemitech_spec::{Command, FieldKind, Role, Sensor, Value};
@@ -126,7 +126,8 @@ pub fn run(
                 }
             }
         }
-        let written = writer.and_then(|w| w.join().unwrap_or_else(|_| Err(LogError::Panicked("the store writer".into()))));
+        let written =
+            writer.and_then(|w| w.join().unwrap_or_else(|_| Err(LogError::Panicked("the store writer".into()))));
         match (written, first_error) {
             (Err(e), _) | (Ok(()), Some(e)) => Err(e),
             (Ok(()), None) => Ok(reports),
@@ -280,8 +281,17 @@ impl<'c> ProbeRun<'c> {
         } else {
             (start, 0)
         };
-        let mut run =
-            Self { config, plan, steps, base, slot, wake: Instant::now(), phase: Phase::Idle, failures: 0, identity: None };
+        let mut run = Self {
+            config,
+            plan,
+            steps,
+            base,
+            slot,
+            wake: Instant::now(),
+            phase: Phase::Idle,
+            failures: 0,
+            identity: None,
+        };
         run.wake = run.instant_of(run.slot);
         run
     }

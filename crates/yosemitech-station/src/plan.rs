@@ -131,8 +131,11 @@ pub fn plan<'s>(sensor: &'s Sensor, chosen: &[&str]) -> Plan<'s> {
         .iter()
         .map(|c| c.named_fields().filter_map(|f| f.name.as_deref()).filter(|n| wanted.contains(n)).collect())
         .collect();
-    let picked: Vec<usize> =
-        if candidates.len() <= EXACT_LIMIT { exact_cover(&sets, &candidates, &wanted) } else { greedy_cover(&sets, &wanted) };
+    let picked: Vec<usize> = if candidates.len() <= EXACT_LIMIT {
+        exact_cover(&sets, &candidates, &wanted)
+    } else {
+        greedy_cover(&sets, &wanted)
+    };
     assign(picked.into_iter().map(|i| candidates[i]).collect(), &wanted)
 }
 
@@ -219,7 +222,7 @@ mod tests {
 
     /// Every non-empty subset of a sensor's measurements when there are
     /// few, else every single one and all of them.
-    fn choices<'s>(sensor: &'s Sensor) -> Vec<Vec<&'s str>> {
+    fn choices(sensor: &Sensor) -> Vec<Vec<&str>> {
         let all = measurements(sensor);
         if all.len() <= 10 {
             (1u32..(1 << all.len()))
@@ -270,7 +273,8 @@ mod tests {
         for sensor in &spec.sensors {
             for combined in sensor.measurement_reads() {
                 let names: Vec<&str> = combined.named_fields().filter_map(|f| f.name.as_deref()).collect();
-                let elsewhere = |n: &str| sensor.measurement_reads().any(|c| c.name != combined.name && c.field(n).is_some());
+                let elsewhere =
+                    |n: &str| sensor.measurement_reads().any(|c| c.name != combined.name && c.field(n).is_some());
                 if names.len() < 2 || !names.iter().all(|n| elsewhere(n)) {
                     continue;
                 }
@@ -312,10 +316,8 @@ mod tests {
             if reads.len() > EXACT_LIMIT {
                 continue;
             }
-            let sets: Vec<BTreeSet<&str>> = reads
-                .iter()
-                .map(|c| c.named_fields().filter_map(|f| f.name.as_deref()).collect())
-                .collect();
+            let sets: Vec<BTreeSet<&str>> =
+                reads.iter().map(|c| c.named_fields().filter_map(|f| f.name.as_deref()).collect()).collect();
             assert!(exact_cover(&sets, &reads, &wanted).len() <= greedy_cover(&sets, &wanted).len());
         }
     }

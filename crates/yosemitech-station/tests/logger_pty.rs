@@ -75,7 +75,9 @@ fn three_probes_and_a_dead_address_on_one_pty_keep_their_schedule() {
     // Addresses 1..=3 answer; the fourth probe's address has no device.
     let probes: Vec<(String, &Sensor, u8)> =
         sensors.iter().enumerate().map(|(i, s)| (format!("probe-{}", i + 1), s.as_ref(), i as u8 + 1)).collect();
-    let bus = probes[..3].iter().fold(Bus::new(), |bus, (_, s, a)| bus.with(Simulator::new(Arc::new((*s).clone())).with_address(*a)));
+    let bus = probes[..3]
+        .iter()
+        .fold(Bus::new(), |bus, (_, s, a)| bus.with(Simulator::new(Arc::new((*s).clone())).with_address(*a)));
     let server = serve_pty(bus, ServeConfig::default()).unwrap();
     let port = server.tty_path().unwrap().to_owned();
     let config = load(dir.path(), &station_toml(dir.path(), &port, &probes, "1s"), &sensors);
@@ -124,7 +126,8 @@ fn three_probes_and_a_dead_address_on_one_pty_keep_their_schedule() {
                     continue;
                 }
                 expected += 1;
-                let stored = row.reading.values.iter().find(|m| m.name == *field).unwrap_or_else(|| panic!("{field}: {row:?}"));
+                let stored =
+                    row.reading.values.iter().find(|m| m.name == *field).unwrap_or_else(|| panic!("{field}: {row:?}"));
                 if let (Value::Float(want), Datum::Number(got)) = (want, &stored.value) {
                     assert_eq!(*got as f32, want, "{field}");
                 }
@@ -132,7 +135,10 @@ fn three_probes_and_a_dead_address_on_one_pty_keep_their_schedule() {
             }
         }
         assert_eq!(row.reading.values.len(), expected, "{row:?}");
-        assert!(row.reading.serial_number.is_some() || sim.sensor().command_with_role(yosemitech_spec::Role::SerialNumber).is_none());
+        assert!(
+            row.reading.serial_number.is_some()
+                || sim.sensor().command_with_role(yosemitech_spec::Role::SerialNumber).is_none()
+        );
     }
 }
 

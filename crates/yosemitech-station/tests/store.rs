@@ -17,8 +17,8 @@ fn reading(probe: &str, secs: u64, n: u32) -> Reading {
         probe: probe.into(),
         sensor: "sensor".into(),
         address: (n % 247 + 1) as u8,
-        serial_number: (n % 2 == 0).then(|| format!("YL{n:010}")),
-        firmware: (n % 3 == 0).then(|| "1.7".into()),
+        serial_number: n.is_multiple_of(2).then(|| format!("YL{n:010}")),
+        firmware: n.is_multiple_of(3).then(|| "1.7".into()),
         values: (0..n % 4)
             .map(|i| Measurement {
                 name: format!("field_{i}"),
@@ -27,7 +27,7 @@ fn reading(probe: &str, secs: u64, n: u32) -> Reading {
             })
             .collect(),
         retries: n % 3,
-        error: (n % 4 == 0).then(|| "no reply within 1s".into()),
+        error: n.is_multiple_of(4).then(|| "no reply within 1s".into()),
     }
 }
 

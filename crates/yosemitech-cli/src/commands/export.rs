@@ -24,9 +24,8 @@ pub fn run(args: &ExportArgs, out: &mut dyn Write) -> Result<()> {
     if to < from {
         return Err(CliError::usage("--to is before --from").hint("--from is inclusive, --to exclusive"));
     }
-    let readings = store
-        .range(from, to)
-        .map_err(|e| CliError::device(format!("cannot read {}: {e}", args.db.display())))?;
+    let readings =
+        store.range(from, to).map_err(|e| CliError::device(format!("cannot read {}: {e}", args.db.display())))?;
     if args.format == ExportFormat::Csv {
         export::write_csv_header(out)?;
     }

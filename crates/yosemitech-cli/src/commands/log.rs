@@ -5,9 +5,9 @@ use std::sync::atomic::AtomicBool;
 use std::sync::{Arc, Mutex, mpsc};
 use std::time::Duration;
 
+use yosemitech_mqtt::Publisher;
 use yosemitech_station::config::{self, ConfigErrors, Link, StationConfig};
 use yosemitech_station::export::to_json;
-use yosemitech_mqtt::Publisher;
 use yosemitech_station::outbox::StoreOutbox;
 use yosemitech_station::{Store, StoredReading, logger, plan};
 
@@ -109,7 +109,8 @@ pub fn run(catalog: &Catalog, args: &LogArgs, stop: &Arc<AtomicBool>, out: &mut 
             let outbox = Store::open(&station.storage)
                 .map_err(|e| CliError::device(format!("cannot open the store {}: {e}", station.storage.display())))?;
             Some(Publisher::start(mqtt, StoreOutbox(outbox)).map_err(|e| {
-                CliError::usage(format!("cannot start publishing: {e}")).hint("check the [mqtt] section of the station file")
+                CliError::usage(format!("cannot start publishing: {e}"))
+                    .hint("check the [mqtt] section of the station file")
             })?)
         }
         None => None,
