@@ -196,3 +196,46 @@ fn a_bus_whose_pty_goes_away_recovers_when_it_comes_back() {
     assert!(failed >= 1, "the outage is recorded");
     assert!(reports[0].opens >= 2, "the port was reopened: {reports:?}");
 }
+
+#[test]
+fn a_probe_warming_up_leaves_the_bus_to_the_others() {
+    // The spec's procedure with opening commands and the longest warm-up
+    // (the probe brushes or starts measuring, then waits), beside a probe
+    // read without procedure every second.
+    let spec = spec();
+    let warming = spec
+        .sensors
+        .iter()
+        .filter(|s| !plan::measurements(s).is_empty())
+        .filter(|s| s.procedure.as_ref().is_some_and(|p| !p.before.is_empty()))
+        .max_by_key(|s| s.procedure.as_ref().map_or(0, |p| p.warm_up_ms))
+        .expect("a procedure with opening commands and a warm-up");
+    let procedure = warming.procedure.clone().unwrap();
+    let other = spec.sensors.iter().find(|s| s.name != warming.name && !plan::measurements(s).is_empty()).unwrap();
+    let sensors = vec![Arc::new(warming.clone()), Arc::new(other.clone())];
+    let bus = Bus::new()
+        .with(Simulator::new(Arc::clone(&sensors[0])).with_address(1))
+        .with(Simulator::new(Arc::clone(&sensors[1])).with_address(2));
+    let server = serve_pty(bus, ServeConfig::default()).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let port = server.tty_path().unwrap().to_owned();
+    let probes = vec![("warming".to_owned(), sensors[0].as_ref(), 1u8), ("plain".to_owned(), sensors[1].as_ref(), 2u8)];
+    let text = station_toml(dir.path(), &port, &probes, "1s").replacen("procedure = false\n", "procedure = true\n", 1);
+    let config = load(dir.path(), &text, &sensors);
+    assert!(config.buses[0].probes[0].procedure && !config.buses[0].probes[1].procedure);
+    let store = Mutex::new(Store::open(&config.storage).unwrap());
+
+    let run_for = Duration::from_millis(u64::from(procedure.warm_up_ms)).min(Duration::from_secs(8));
+    let started = Instant::now();
+    run_until(&config, &store, || started.elapsed() >= run_for);
+    let elapsed = started.elapsed().as_secs_f64();
+    let rows = all_rows(&store);
+    let plain = rows.iter().filter(|r| r.reading.probe == "plain" && r.reading.error.is_none()).count();
+    let warming_rows = rows.iter().filter(|r| r.reading.probe == "warming").count();
+    let device = server.device();
+    let requests = device.device(1).unwrap().stats().requests;
+    eprintln!("    {elapsed:.1} s: {plain} plain readings, warming probe: {requests} requests, {warming_rows} rows");
+    assert!(requests >= procedure.before.len() as u64, "the opening commands went out");
+    assert_eq!(warming_rows, 0, "no reading before the warm-up ends");
+    assert!(plain as f64 >= elapsed * 0.6 - 1.0, "the other probe kept its schedule during the warm-up: {plain}");
+}
