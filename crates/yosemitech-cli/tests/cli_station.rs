@@ -62,6 +62,21 @@ fn check_errors_carry_file_line_and_column() {
         assert!(located.contains(what), "{located}");
     }
 
+    // The publisher's section is validated by the publisher's own rules,
+    // and located; a password never appears.
+    let good_probe =
+        format!("[[bus.probe]]\nlabel = \"q\"\nsensor = \"{}\"\naddress = 1\ninterval = \"1m\"\n", sensor.name);
+    let head = lines[..6].join("\n");
+    std::fs::write(
+        &path,
+        format!("{head}\n{good_probe}[mqtt]\nhost = \"\"\nclient_id = \"x\"\npassword = \"hunter2\"\n"),
+    )
+    .unwrap();
+    let run = yosemitech(&["log", "--config", path.to_str().unwrap(), "--check"]);
+    let err = run.fails_with_hint(2);
+    assert!(err.lines().any(|l| l.contains(&format!("{file}:")) && l.contains("[mqtt]")), "{err}");
+    assert!(!err.contains("hunter2"), "{err}");
+
     // A syntax error, located too.
     std::fs::write(&path, "station = \"s\"\n[storage\n").unwrap();
     let run = yosemitech(&["log", "--config", path.to_str().unwrap(), "--check"]);
