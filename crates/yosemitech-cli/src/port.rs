@@ -114,13 +114,7 @@ pub fn open_with(
                 .map_err(|e| open_failed(&port, &e))?,
         ),
         None => {
-            let config = SerialConfig {
-                baud,
-                data_bits: serial.format.data_bits,
-                parity: serial.format.parity,
-                stop_bits: serial.format.stop_bits,
-                ..SerialConfig::new(port.clone())
-            };
+            let config = SerialConfig::with_settings(port.clone(), LineSettings { baud, ..*serial });
             Box::new(SerialTransport::open(&config).map_err(|e| open_failed(&port, &e))?)
         }
     };

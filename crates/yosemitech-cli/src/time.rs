@@ -27,10 +27,10 @@ fn parts(t: SystemTime) -> (i64, u32, u32, u64, u64, u64, u32) {
     (y, mo, d, rem / 3600, rem % 3600 / 60, rem % 60, since.subsec_millis())
 }
 
-/// RFC 3339 UTC with milliseconds: `2025-11-23T18:04:05.123Z`.
+/// RFC 3339 UTC with milliseconds: `2025-11-23T18:04:05.123Z` (the
+/// station store's format, so that `poll` and `export` agree).
 pub fn rfc3339(t: SystemTime) -> String {
-    let (y, mo, d, h, mi, s, ms) = parts(t);
-    format!("{y:04}-{mo:02}-{d:02}T{h:02}:{mi:02}:{s:02}.{ms:03}Z")
+    yosemitech_station::time::rfc3339(t)
 }
 
 /// Compact UTC for file names: `20251123T180405Z`.

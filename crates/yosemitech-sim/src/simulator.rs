@@ -248,7 +248,7 @@ impl Simulator {
         wildcards.sort_unstable();
         wildcards.dedup();
         let address_slots = address_slots(&sensor);
-        let measurement = sensor.commands.iter().map(|c| is_measurement(&sensor, c)).collect();
+        let measurement = sensor.commands.iter().map(|c| sensor.is_measurement(c)).collect();
         let mut sim = Self {
             address: sensor.default_address,
             registers: RegisterMap::new(),
@@ -774,16 +774,6 @@ impl fmt::Debug for Simulator {
     }
 }
 
-/// A measurement read: no write command covers its registers, and a field has a unit.
-fn is_measurement(sensor: &Sensor, command: &CommandSpec) -> bool {
-    let end = |c: &CommandSpec| u32::from(c.address) + u32::from(c.count);
-    command.is_read()
-        && command.fields.iter().any(|f| f.unit.is_some())
-        && !sensor.commands.iter().any(|w| {
-            !w.is_read() && w.count > 0 && u32::from(w.address) < end(command) && u32::from(command.address) < end(w)
-        })
-}
-
 /// The bytes of an address in a `slave_address` field.
 fn address_bytes(field: &Field, address: u8) -> Option<Vec<u8>> {
     match &field.kind {
@@ -911,15 +901,15 @@ mod tests {
         let mut measured = 0;
         for sensor in spec().sensors.clone() {
             for name in sensor.procedure.iter().flat_map(|p| &p.read) {
-                assert!(is_measurement(&sensor, sensor.command(name).unwrap()), "{}.{name}", sensor.name);
+                assert!(sensor.is_measurement(sensor.command(name).unwrap()), "{}.{name}", sensor.name);
                 measured += 1;
             }
         }
         assert!(measured > 0);
         let ph = sensor("ph_orp");
-        assert!(is_measurement(&ph, ph.command("get_ph").unwrap()));
-        assert!(!is_measurement(&ph, ph.command("get_ph_calibration").unwrap()), "set_ph_calibration writes it");
-        assert!(!is_measurement(&ph, ph.command("get_sn").unwrap()), "no unit");
+        assert!(ph.is_measurement(ph.command("get_ph").unwrap()));
+        assert!(!ph.is_measurement(ph.command("get_ph_calibration").unwrap()), "set_ph_calibration writes it");
+        assert!(!ph.is_measurement(ph.command("get_sn").unwrap()), "no unit");
     }
 
     #[test]

@@ -5,7 +5,9 @@ pub mod coefficients;
 pub mod decode;
 pub mod demo;
 pub mod encode;
+pub mod export;
 pub mod list;
+pub mod log;
 pub mod measure;
 pub mod poll;
 pub mod read;
@@ -63,6 +65,9 @@ pub fn run(cli: &Cli) -> Result<()> {
         Subcommand::Decode(args) => decode::run(&catalog, args, &mut out),
         Subcommand::Encode(args) => encode::run(&catalog, args, &mut out),
         Subcommand::Simulate(args) => simulate::run(&catalog, args, &ctrl_c_flag(), &mut out),
+        Subcommand::Log(args) if args.check => log::check(&catalog, args, &mut out),
+        Subcommand::Log(args) => log::run(&catalog, args, &ctrl_c_flag(), &mut out),
+        Subcommand::Export(args) => export::run(args, &mut out),
     };
     // Output written before an error stays visible.
     let flushed = out.flush();

@@ -8,7 +8,7 @@ use serialport::{ClearBuffer, SerialPort};
 use super::{MAX_WAIT, Transport, is_no_data};
 use crate::Hex;
 use crate::frame::MAX_ADU;
-use crate::timing::{CharFormat, DataBits, LineTiming, Parity, StopBits};
+use crate::timing::{CharFormat, DataBits, LineSettings, LineTiming, Parity, StopBits};
 
 /// Time allowed beyond the frame's own line time for a write to drain.
 const WRITE_SLACK: Duration = Duration::from_secs(1);
@@ -48,6 +48,18 @@ impl SerialConfig {
             parity: format.parity,
             stop_bits: format.stop_bits,
             echo_suppression: false,
+        }
+    }
+
+    /// The port at `path` with a line's baud rate and character format (a
+    /// sensor's spec settings), no echo suppression.
+    pub fn with_settings(path: impl Into<String>, settings: LineSettings) -> Self {
+        Self {
+            baud: settings.baud,
+            data_bits: settings.format.data_bits,
+            parity: settings.format.parity,
+            stop_bits: settings.format.stop_bits,
+            ..Self::new(path)
         }
     }
 

@@ -1,0 +1,149 @@
+//! `yosemitech log` publishing to a real broker (rumqttd always, mosquitto
+//! when installed; mandatory with `YOSEMITECH_REQUIRE_MOSQUITTO=1`): the
+//! broker goes away, the logger keeps logging, is SIGKILLed with a backlog
+//! and started again on the same store once the broker is back. Nothing
+//! committed is lost, no reading is published under two ids, and a
+//! subscriber that keeps the first copy per reading id (MQTT QoS 1 is
+//! at-least-once: a reading in flight at the kill may arrive again,
+//! byte-identical) sees every stored reading exactly once, in order.
+
+mod common;
+#[path = "../../yosemitech-mqtt/tests/support/mod.rs"]
+mod support;
+
+use std::collections::BTreeMap;
+use std::process::{Child, Stdio};
+use std::sync::Arc;
+use std::time::Duration;
+
+use common::{command, spec};
+use support::{Broker, BrokerKind, Subscriber, available, ids_and_first_occurrences, wait_until};
+use yosemitech_sim::{Bus, ServeConfig, Simulator, serve_pty};
+use yosemitech_station::{Store, plan};
+
+#[test]
+#[ignore = "the rumqttd broker process of the other tests; they start it"]
+fn rumqttd_child_process() {
+    support::rumqttd_child_main();
+}
+
+/// Readings allowed in flight: the copies one interruption can cause.
+const MAX_IN_FLIGHT: usize = 4;
+
+fn start_logger(config: &std::path::Path) -> Child {
+    command()
+        .args(["log", "--config", config.to_str().unwrap()])
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap()
+}
+
+fn stored_ids(db: &std::path::Path) -> Vec<i64> {
+    let store = Store::open(db).unwrap();
+    store
+        .range(std::time::UNIX_EPOCH, std::time::SystemTime::now() + Duration::from_secs(60))
+        .unwrap()
+        .iter()
+        .map(|s| s.id)
+        .collect()
+}
+
+fn killed_and_restarted_logger_loses_nothing(kind: BrokerKind) {
+    if !available(kind) {
+        return;
+    }
+    let broker = Broker::start(kind, None);
+    let subscriber = Subscriber::start(&broker, &format!("{}/#", yosemitech_mqtt::topic::DEFAULT_TOPIC_PREFIX));
+
+    let dir = tempfile::tempdir().unwrap();
+    let sensors: Vec<_> = spec().sensors.into_iter().filter(|s| !plan::measurements(s).is_empty()).take(2).collect();
+    let bus = sensors
+        .iter()
+        .enumerate()
+        .fold(Bus::new(), |bus, (i, s)| bus.with(Simulator::new(Arc::new(s.clone())).with_address(i as u8 + 1)));
+    let server = serve_pty(bus, ServeConfig::default()).unwrap();
+    let db = dir.path().join("station.sqlite");
+    let mut toml = format!(
+        "station = \"river\"\n[storage]\npath = \"{}\"\n[[bus]]\nname = \"a\"\nport = \"{}\"\n",
+        db.display(),
+        server.tty_path().unwrap()
+    );
+    for (i, s) in sensors.iter().enumerate() {
+        toml += &format!(
+            "[[bus.probe]]\nlabel = \"p{i}\"\nsensor = \"{}\"\naddress = {}\ninterval = \"100ms\"\nprocedure = false\n",
+            s.name,
+            i + 1
+        );
+    }
+    toml += &format!(
+        "[mqtt]\nhost = \"127.0.0.1\"\nport = {}\nclient_id = \"station-river-{kind:?}\"\nkeep_alive_secs = 5\n\
+         [mqtt.publisher]\nmax_in_flight = {MAX_IN_FLIGHT}\npoll_interval_ms = 50\nreconnect_min_ms = 100\nreconnect_max_ms = 1000\n",
+        broker.port
+    );
+    let config = dir.path().join("station.toml");
+    std::fs::write(&config, &toml).unwrap();
+
+    // First run: readings flow, then the broker goes away and a backlog
+    // builds up in the store; the logger is killed without warning.
+    let mut broker = broker;
+    let mut logger = start_logger(&config);
+    assert!(wait_until(|| subscriber.count() >= 5), "{kind:?}: readings reach the broker");
+    broker.stop();
+    let at_outage = stored_ids(&db).len();
+    assert!(wait_until(|| stored_ids(&db).len() >= at_outage + 10), "{kind:?}: logging goes on without the broker");
+    logger.kill().unwrap();
+    logger.wait().unwrap();
+    let after_kill = stored_ids(&db);
+    let published_at_kill = Store::open(&db).unwrap().published_up_to().unwrap();
+    assert!(published_at_kill < *after_kill.last().unwrap(), "{kind:?}: the kill left readings unpublished");
+
+    // The broker comes back, the subscriber with it.
+    broker.restart();
+    subscriber.wait_for_subscriptions(2);
+
+    // Second run on the same store: resumes publishing, then stops cleanly.
+    let mut logger = start_logger(&config);
+    let target = after_kill.len() + 10;
+    assert!(wait_until(|| stored_ids(&db).len() >= target), "{kind:?}: the second run logs");
+    let status = std::process::Command::new("kill").args(["-TERM", &logger.id().to_string()]).status().unwrap();
+    assert!(status.success());
+    assert_eq!(common::wait(&mut logger, Duration::from_secs(30)), 0, "{kind:?}: SIGTERM stops cleanly");
+
+    let stored = stored_ids(&db);
+    assert!(stored.starts_with(&after_kill), "{kind:?}: nothing committed before the kill is lost");
+    assert!(
+        wait_until(|| ids_and_first_occurrences(&subscriber.received()).1.len() >= stored.len()),
+        "{kind:?}: every stored reading is published"
+    );
+    let received = subscriber.received();
+    let (ids, first) = ids_and_first_occurrences(&received);
+    assert_eq!(first, stored, "{kind:?}: first copies are the stored readings, in order, none missing");
+    // Copies: only from the kill (the clean stop waited for its PUBACKs),
+    // at most what was in flight, each identical to the first.
+    let copies = ids.len() - first.len();
+    assert!(copies <= MAX_IN_FLIGHT, "{kind:?}: {copies} copies");
+    let mut payloads: BTreeMap<i64, &[u8]> = BTreeMap::new();
+    for r in &received {
+        let id = r.message().reading_id;
+        let first = payloads.entry(id).or_insert(&r.payload);
+        assert_eq!(*first, r.payload.as_slice(), "{kind:?}: a copy of {id} is identical");
+    }
+    assert_eq!(Store::open(&db).unwrap().published_up_to().unwrap(), *stored.last().unwrap(), "{kind:?}: all marked");
+    eprintln!(
+        "    {kind:?}: {} readings, {} stored before the kill ({} of them unpublished), {copies} copies",
+        stored.len(),
+        after_kill.len(),
+        after_kill.iter().filter(|id| **id > published_at_kill).count()
+    );
+}
+
+#[test]
+fn killed_and_restarted_logger_loses_nothing_rumqttd() {
+    killed_and_restarted_logger_loses_nothing(BrokerKind::Rumqttd);
+}
+
+#[test]
+fn killed_and_restarted_logger_loses_nothing_mosquitto() {
+    killed_and_restarted_logger_loses_nothing(BrokerKind::Mosquitto);
+}

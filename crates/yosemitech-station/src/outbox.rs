@@ -1,0 +1,55 @@
+//! The store as the MQTT publisher's outbox (`yosemitech_mqtt::Outbox`).
+//!
+//! The publisher gets a connection of its own to the station's SQLite file
+//! (WAL: it reads beside the logger's writer). A reading's message is
+//! rebuilt from its row every time, so a resend is identical; ids are the
+//! store's, increasing in commit order. Text values (enumeration names)
+//! have no place in the payload's numeric values and are left out of it;
+//! they stay in the store and in `export`.
+
+use yosemitech_mqtt::{MeasuredValue, Outbox, ReadingMessage, SCHEMA_VERSION};
+
+use crate::store::{Datum, Store, StoreError, StoredReading};
+use crate::time::unix_ms;
+
+/// A [`Store`] connection serving as the publisher's outbox.
+#[derive(Debug)]
+pub struct StoreOutbox(pub Store);
+
+/// The published message of a stored reading.
+pub fn message(stored: &StoredReading) -> ReadingMessage {
+    let r = &stored.reading;
+    ReadingMessage {
+        schema: SCHEMA_VERSION,
+        reading_id: stored.id,
+        timestamp_ms: unix_ms(r.timestamp),
+        station: r.station.clone(),
+        probe: r.probe.clone(),
+        sensor: r.sensor.clone(),
+        address: r.address,
+        serial_number: r.serial_number.clone(),
+        firmware: r.firmware.clone(),
+        values: r
+            .values
+            .iter()
+            .filter_map(|m| match m.value {
+                Datum::Number(n) => Some(MeasuredValue::new(m.name.clone(), n, m.unit.clone())),
+                Datum::Text(_) => None,
+            })
+            .collect(),
+        retries: r.retries,
+        error: r.error.clone(),
+    }
+}
+
+impl Outbox for StoreOutbox {
+    type Error = StoreError;
+
+    fn unpublished(&mut self, after: Option<i64>, limit: usize) -> Result<Vec<ReadingMessage>, StoreError> {
+        Ok(self.0.unpublished_after(after.unwrap_or(0), limit)?.iter().map(message).collect())
+    }
+
+    fn mark_published(&mut self, up_to_id: i64) -> Result<(), StoreError> {
+        self.0.mark_published(up_to_id)
+    }
+}
