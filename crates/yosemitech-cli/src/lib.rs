@@ -21,15 +21,19 @@
 
 mod backup;
 mod catalog;
+mod chart;
 mod cli;
 mod commands;
 mod confirm;
+mod dashboard;
 mod device;
 mod error;
 mod format;
 mod port;
 mod progress;
+mod readings;
 mod shell;
+mod stored;
 mod time;
 
 use std::io::{IsTerminal as _, Write as _};

@@ -7,11 +7,13 @@ pub mod demo;
 pub mod encode;
 pub mod list;
 pub mod measure;
+pub mod plot;
 pub mod poll;
 pub mod read;
 pub mod scan;
 pub mod set_address;
 pub mod simulate;
+pub mod watch;
 pub mod write;
 
 use std::io::{self, Write};
@@ -51,6 +53,8 @@ pub fn run(cli: &Cli) -> Result<()> {
         Command::Write(args) => write::run(&catalog, global, args, &mut out),
         Command::Poll(args) => poll::run(&catalog, global, args, &ctrl_c_flag(), &mut out),
         Command::Measure(args) => measure::run(&catalog, global, args, &mut out),
+        Command::Watch(args) => watch::run(args, &ctrl_c_flag()),
+        Command::Plot(args) => plot::run(args, &mut out),
         Command::Calibrate(CalibrateCommand::Ph(args)) => calibrate::run(&catalog, global, args, &mut out),
         Command::Coefficients(CoefficientsCommand::Backup(args)) => {
             coefficients::backup(&catalog, global, args, &mut out)
