@@ -210,7 +210,7 @@ mod tests {
         drop(root);
         let decoder = png::Decoder::new(std::io::BufReader::new(std::fs::File::open(&path).unwrap()));
         let mut reader = decoder.read_info().unwrap();
-        let mut pixels = vec![0; reader.output_buffer_size().unwrap()];
+        let mut pixels = vec![0; reader.output_buffer_size()];
         let frame = reader.next_frame(&mut pixels).unwrap();
         assert_eq!((frame.width, frame.height), (640, 480));
         assert_eq!(frame.color_type, png::ColorType::Rgb);
