@@ -1,0 +1,18 @@
+//! A station logger for Yosemitech probes: several probes on several
+//! RS-485 buses (or RTU-over-TCP gateways), each sampled on its own
+//! schedule, every reading committed to a SQLite file before anything else
+//! happens with it.
+//!
+//! * [`store`]: the SQLite store and its outbox (what is not yet published).
+//! * [`export`]: stored readings as CSV or JSON lines.
+//! * [`time`]: UTC instants as the store keeps them and people write them.
+//!
+//! Nothing here names a sensor: probes, commands and fields come from the
+//! loaded spec (`yosemitech_spec`).
+#![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used, clippy::panic))]
+
+pub mod export;
+pub mod store;
+pub mod time;
+
+pub use store::{Datum, Measurement, Reading, Store, StoreError, StoredReading};

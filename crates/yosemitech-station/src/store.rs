@@ -1,0 +1,408 @@
+//! The station's storage: every reading in a SQLite file, and the outbox
+//! cursor that says which of them have been published.
+//!
+//! # Schema (version 1)
+//!
+//! ```sql
+//! -- One row per reading, in the order the logger committed them: `id`
+//! -- (AUTOINCREMENT, never reused) is the publish order and the reading's
+//! -- identity downstream (MQTT payloads carry it).
+//! CREATE TABLE reading (
+//!     id            INTEGER PRIMARY KEY AUTOINCREMENT,
+//!     timestamp_ms  INTEGER NOT NULL,  -- UTC, milliseconds since the Unix epoch
+//!     station       TEXT    NOT NULL,  -- the configuration's station name
+//!     bus           TEXT    NOT NULL,  -- the bus name
+//!     probe         TEXT    NOT NULL,  -- the probe's label
+//!     sensor        TEXT    NOT NULL,  -- the spec's sensor name
+//!     address       INTEGER NOT NULL,  -- Modbus slave address
+//!     serial_number TEXT,              -- as the probe reported it, when it did
+//!     firmware      TEXT,              -- likewise
+//!     retries       INTEGER NOT NULL,  -- requests repeated to get this reading
+//!     error         TEXT               -- why the reading failed (NULL: it did not)
+//! );
+//! CREATE INDEX reading_time ON reading (timestamp_ms);
+//! -- The values of a reading, in the order the probe's plan reads them.
+//! CREATE TABLE reading_value (
+//!     reading_id INTEGER NOT NULL REFERENCES reading (id),
+//!     position   INTEGER NOT NULL,
+//!     name       TEXT    NOT NULL,     -- the spec's field name
+//!     number     REAL,                 -- a numeric value ...
+//!     text       TEXT,                 -- ... or a textual one (enum names): exactly one is set
+//!     unit       TEXT,                 -- the spec's unit
+//!     PRIMARY KEY (reading_id, position)
+//! ) WITHOUT ROWID;
+//! -- The outbox: every reading with id <= published_up_to has been published.
+//! CREATE TABLE outbox (
+//!     singleton       INTEGER PRIMARY KEY CHECK (singleton = 0),
+//!     published_up_to INTEGER NOT NULL
+//! );
+//! ```
+//!
+//! `PRAGMA user_version` holds the schema version; a file of another
+//! version is refused rather than misread.
+//!
+//! # Durability
+//!
+//! The file runs in WAL mode with `synchronous = FULL`: when
+//! [`Store::insert`] or [`Store::mark_published`] returns, the change is
+//! committed and survives a crash of the process or of the machine. Several
+//! processes may open the same file (a logger writing, `export` reading);
+//! a writer waits up to [`BUSY_TIMEOUT`] for another.
+
+use std::path::Path;
+use std::time::{Duration, SystemTime};
+
+use rusqlite::{Connection, OptionalExtension as _, params};
+
+use crate::time::{from_unix_ms, unix_ms};
+
+/// How long a write waits for another connection's write to finish.
+pub const BUSY_TIMEOUT: Duration = Duration::from_secs(10);
+
+/// The schema version this crate writes and reads.
+pub const SCHEMA_VERSION: i64 = 1;
+
+const SCHEMA: &str = "
+CREATE TABLE reading (
+    id            INTEGER PRIMARY KEY AUTOINCREMENT,
+    timestamp_ms  INTEGER NOT NULL,
+    station       TEXT    NOT NULL,
+    bus           TEXT    NOT NULL,
+    probe         TEXT    NOT NULL,
+    sensor        TEXT    NOT NULL,
+    address       INTEGER NOT NULL,
+    serial_number TEXT,
+    firmware      TEXT,
+    retries       INTEGER NOT NULL,
+    error         TEXT
+);
+CREATE INDEX reading_time ON reading (timestamp_ms);
+CREATE TABLE reading_value (
+    reading_id INTEGER NOT NULL REFERENCES reading (id),
+    position   INTEGER NOT NULL,
+    name       TEXT    NOT NULL,
+    number     REAL,
+    text       TEXT,
+    unit       TEXT,
+    PRIMARY KEY (reading_id, position)
+) WITHOUT ROWID;
+CREATE TABLE outbox (
+    singleton       INTEGER PRIMARY KEY CHECK (singleton = 0),
+    published_up_to INTEGER NOT NULL
+);
+INSERT INTO outbox (singleton, published_up_to) VALUES (0, 0);
+";
+
+/// What went wrong with the store.
+#[derive(Debug, thiserror::Error)]
+pub enum StoreError {
+    /// SQLite refused (the file is not a database, the disk is full, ...).
+    #[error("database error: {0}")]
+    Sqlite(#[from] rusqlite::Error),
+    /// The file was written by another version of the schema.
+    #[error("the database has schema version {found}; this logger reads version {SCHEMA_VERSION}")]
+    SchemaVersion {
+        /// The file's `user_version`.
+        found: i64,
+    },
+    /// A row holds something this schema never writes.
+    #[error("reading {id} is malformed: {what}")]
+    Malformed {
+        /// The reading's id.
+        id: i64,
+        /// What is wrong.
+        what: String,
+    },
+}
+
+/// A measured value.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Datum {
+    /// A number (every numeric field type, averaged over a procedure's readings).
+    Number(f64),
+    /// Text: an enum's variant name, an ASCII field.
+    Text(String),
+}
+
+/// One value of a reading: a spec field's name, value and unit.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Measurement {
+    /// The spec's field name (`temperature_c`).
+    pub name: String,
+    /// The value.
+    pub value: Datum,
+    /// The spec's unit, if the field has one.
+    pub unit: Option<String>,
+}
+
+/// One sample of one probe: what the logger commits.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Reading {
+    /// When the sample was taken (UTC; stored to the millisecond).
+    pub timestamp: SystemTime,
+    /// The station's name.
+    pub station: String,
+    /// The bus's name.
+    pub bus: String,
+    /// The probe's label.
+    pub probe: String,
+    /// The spec's sensor name.
+    pub sensor: String,
+    /// The probe's slave address.
+    pub address: u8,
+    /// The probe's serial number, when it answered the serial-number read.
+    pub serial_number: Option<String>,
+    /// The probe's firmware version, when it answered the version read.
+    pub firmware: Option<String>,
+    /// The values read (empty when the reading failed as a whole).
+    pub values: Vec<Measurement>,
+    /// Requests repeated to obtain it.
+    pub retries: u32,
+    /// Why (part of) the reading failed; `None` when every read succeeded.
+    pub error: Option<String>,
+}
+
+/// A reading as stored, with its id: the publish order.
+#[derive(Debug, Clone, PartialEq)]
+pub struct StoredReading {
+    /// Unique, increasing in commit order, never reused.
+    pub id: i64,
+    /// The reading.
+    pub reading: Reading,
+}
+
+/// The SQLite file of a station. One `Store` is one connection: it is
+/// `Send`, not `Sync`; share it behind a mutex, or open one per thread
+/// (WAL lets readers run beside the writer).
+#[derive(Debug)]
+pub struct Store {
+    connection: Connection,
+}
+
+impl Store {
+    /// Opens (creating it, with its schema, if absent) the store at `path`.
+    ///
+    /// # Errors
+    ///
+    /// The file cannot be opened or is not a database, or it has another
+    /// schema version.
+    pub fn open(path: impl AsRef<Path>) -> Result<Self, StoreError> {
+        let connection = Connection::open(path)?;
+        connection.busy_timeout(BUSY_TIMEOUT)?;
+        connection.pragma_update(None, "journal_mode", "WAL")?;
+        connection.pragma_update(None, "synchronous", "FULL")?;
+        connection.pragma_update(None, "foreign_keys", true)?;
+        let mut store = Self { connection };
+        store.migrate()?;
+        Ok(store)
+    }
+
+    /// Creates the schema in an empty file; refuses another version.
+    fn migrate(&mut self) -> Result<(), StoreError> {
+        let tx = self.connection.transaction_with_behavior(rusqlite::TransactionBehavior::Immediate)?;
+        let found: i64 = tx.pragma_query_value(None, "user_version", |row| row.get(0))?;
+        match found {
+            0 => {
+                tx.execute_batch(SCHEMA)?;
+                tx.pragma_update(None, "user_version", SCHEMA_VERSION)?;
+            }
+            SCHEMA_VERSION => {}
+            found => return Err(StoreError::SchemaVersion { found }),
+        }
+        tx.commit()?;
+        Ok(())
+    }
+
+    /// Commits `reading` and returns its id. When this returns, the
+    /// reading is durable.
+    ///
+    /// # Errors
+    ///
+    /// SQLite refused the write (disk full, read-only file, ...); nothing
+    /// of the reading is stored then.
+    pub fn insert(&mut self, reading: &Reading) -> Result<i64, StoreError> {
+        let tx = self.connection.transaction_with_behavior(rusqlite::TransactionBehavior::Immediate)?;
+        tx.execute(
+            "INSERT INTO reading (timestamp_ms, station, bus, probe, sensor, address, serial_number, firmware, retries, error)
+             VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10)",
+            params![
+                unix_ms(reading.timestamp),
+                reading.station,
+                reading.bus,
+                reading.probe,
+                reading.sensor,
+                reading.address,
+                reading.serial_number,
+                reading.firmware,
+                reading.retries,
+                reading.error,
+            ],
+        )?;
+        let id = tx.last_insert_rowid();
+        {
+            let mut value = tx.prepare_cached(
+                "INSERT INTO reading_value (reading_id, position, name, number, text, unit) VALUES (?1, ?2, ?3, ?4, ?5, ?6)",
+            )?;
+            for (position, m) in reading.values.iter().enumerate() {
+                let (number, text) = match &m.value {
+                    Datum::Number(n) => (Some(*n), None),
+                    Datum::Text(t) => (None, Some(t.as_str())),
+                };
+                value.execute(params![id, position as i64, m.name, number, text, m.unit])?;
+            }
+        }
+        tx.commit()?;
+        Ok(id)
+    }
+
+    /// Readings with `from <= timestamp < to`, in id order.
+    ///
+    /// # Errors
+    ///
+    /// SQLite failed, or a row is malformed.
+    pub fn range(&self, from: SystemTime, to: SystemTime) -> Result<Vec<StoredReading>, StoreError> {
+        self.select("WHERE timestamp_ms >= ?1 AND timestamp_ms < ?2 ORDER BY id", [unix_ms(from), unix_ms(to)])
+    }
+
+    /// The newest reading (highest id) of every probe, by (bus, probe
+    /// label), ordered by bus then label.
+    ///
+    /// # Errors
+    ///
+    /// SQLite failed, or a row is malformed.
+    pub fn latest_per_probe(&self) -> Result<Vec<StoredReading>, StoreError> {
+        self.select("WHERE id IN (SELECT max(id) FROM reading GROUP BY bus, probe) ORDER BY bus, probe", [])
+    }
+
+    /// The oldest `limit` readings not yet published, oldest (lowest id) first.
+    ///
+    /// # Errors
+    ///
+    /// SQLite failed, or a row is malformed.
+    pub fn unpublished(&self, limit: usize) -> Result<Vec<StoredReading>, StoreError> {
+        let limit = i64::try_from(limit).unwrap_or(i64::MAX);
+        self.select("WHERE id > (SELECT published_up_to FROM outbox) ORDER BY id LIMIT ?1", [limit])
+    }
+
+    /// Records that every reading with an id up to `up_to_id` is published.
+    /// The cursor only moves forward: a smaller id than the current one
+    /// changes nothing. Committed when it returns.
+    ///
+    /// # Errors
+    ///
+    /// SQLite refused the write.
+    pub fn mark_published(&mut self, up_to_id: i64) -> Result<(), StoreError> {
+        self.connection
+            .execute("UPDATE outbox SET published_up_to = max(published_up_to, ?1) WHERE singleton = 0", [up_to_id])?;
+        Ok(())
+    }
+
+    /// The id up to which readings are published (0: none).
+    ///
+    /// # Errors
+    ///
+    /// SQLite failed.
+    pub fn published_up_to(&self) -> Result<i64, StoreError> {
+        Ok(self.connection.query_row("SELECT published_up_to FROM outbox", [], |row| row.get(0))?)
+    }
+
+    /// The number of readings stored.
+    ///
+    /// # Errors
+    ///
+    /// SQLite failed.
+    pub fn count(&self) -> Result<u64, StoreError> {
+        let n: i64 = self.connection.query_row("SELECT count(*) FROM reading", [], |row| row.get(0))?;
+        Ok(u64::try_from(n).unwrap_or(0))
+    }
+
+    /// The reading with `id`, if stored.
+    ///
+    /// # Errors
+    ///
+    /// SQLite failed, or the row is malformed.
+    pub fn get(&self, id: i64) -> Result<Option<StoredReading>, StoreError> {
+        Ok(self.select("WHERE id = ?1", [id])?.pop())
+    }
+
+    /// Readings matching `filter` (a WHERE clause and ORDER BY over
+    /// `reading`), with their values.
+    fn select<const N: usize>(&self, filter: &str, args: [i64; N]) -> Result<Vec<StoredReading>, StoreError> {
+        let mut readings = self.connection.prepare_cached(&format!(
+            "SELECT id, timestamp_ms, station, bus, probe, sensor, address, serial_number, firmware, retries, error
+             FROM reading {filter}"
+        ))?;
+        let mut values = self.connection.prepare_cached(
+            "SELECT name, number, text, unit FROM reading_value WHERE reading_id = ?1 ORDER BY position",
+        )?;
+        let rows = readings.query_map(rusqlite::params_from_iter(args), |row| {
+            Ok((
+                row.get::<_, i64>(0)?,
+                row.get::<_, i64>(1)?,
+                row.get::<_, String>(2)?,
+                row.get::<_, String>(3)?,
+                row.get::<_, String>(4)?,
+                row.get::<_, String>(5)?,
+                row.get::<_, i64>(6)?,
+                row.get::<_, Option<String>>(7)?,
+                row.get::<_, Option<String>>(8)?,
+                row.get::<_, i64>(9)?,
+                row.get::<_, Option<String>>(10)?,
+            ))
+        })?;
+        let mut out = Vec::new();
+        for row in rows {
+            let (id, ms, station, bus, probe, sensor, address, serial_number, firmware, retries, error) = row?;
+            let malformed = |what: &str| StoreError::Malformed { id, what: what.to_owned() };
+            let address = u8::try_from(address).map_err(|_| malformed("the address is not a byte"))?;
+            let retries = u32::try_from(retries).map_err(|_| malformed("the retry count is negative"))?;
+            let measured = values
+                .query_map([id], |row| {
+                    Ok((
+                        row.get::<_, String>(0)?,
+                        row.get::<_, Option<f64>>(1)?,
+                        row.get::<_, Option<String>>(2)?,
+                        row.get::<_, Option<String>>(3)?,
+                    ))
+                })?
+                .map(|v| {
+                    let (name, number, text, unit) = v?;
+                    let value = match (number, text) {
+                        (Some(n), None) => Datum::Number(n),
+                        (None, Some(t)) => Datum::Text(t),
+                        _ => return Err(malformed(&format!("value `{name}` is neither a number nor text"))),
+                    };
+                    Ok(Measurement { name, value, unit })
+                })
+                .collect::<Result<Vec<_>, StoreError>>()?;
+            out.push(StoredReading {
+                id,
+                reading: Reading {
+                    timestamp: from_unix_ms(ms),
+                    station,
+                    bus,
+                    probe,
+                    sensor,
+                    address,
+                    serial_number,
+                    firmware,
+                    values: measured,
+                    retries,
+                    error,
+                },
+            });
+        }
+        Ok(out)
+    }
+
+    /// The newest id stored (0: none).
+    ///
+    /// # Errors
+    ///
+    /// SQLite failed.
+    pub fn last_id(&self) -> Result<i64, StoreError> {
+        let id: Option<i64> =
+            self.connection.query_row("SELECT max(id) FROM reading", [], |row| row.get(0)).optional()?.flatten();
+        Ok(id.unwrap_or(0))
+    }
+}

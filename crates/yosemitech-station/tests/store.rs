@@ -1,0 +1,141 @@
+//! The store on real SQLite files in a temporary directory: what is
+//! inserted is what comes back, after the store is dropped and reopened,
+//! and the outbox hands out every reading once, oldest first.
+
+use std::time::{Duration, SystemTime, UNIX_EPOCH};
+
+use yosemitech_station::store::SCHEMA_VERSION;
+use yosemitech_station::{Datum, Measurement, Reading, Store, StoreError};
+
+/// A reading of probe `probe` at `secs` after the epoch, with values that
+/// depend on `n` (so that a mix-up shows).
+fn reading(probe: &str, secs: u64, n: u32) -> Reading {
+    Reading {
+        timestamp: UNIX_EPOCH + Duration::from_millis(secs * 1000 + u64::from(n % 1000)),
+        station: "river".into(),
+        bus: "bus, \"one\"".into(),
+        probe: probe.into(),
+        sensor: "sensor".into(),
+        address: (n % 247 + 1) as u8,
+        serial_number: (n % 2 == 0).then(|| format!("YL{n:010}")),
+        firmware: (n % 3 == 0).then(|| "1.7".into()),
+        values: (0..n % 4)
+            .map(|i| Measurement {
+                name: format!("field_{i}"),
+                value: if i == 2 { Datum::Text(format!("state {n}")) } else { Datum::Number(f64::from(n) + 0.25) },
+                unit: (i != 1).then(|| "mg/L".into()),
+            })
+            .collect(),
+        retries: n % 3,
+        error: (n % 4 == 0).then(|| "no reply within 1s".into()),
+    }
+}
+
+#[test]
+fn readings_survive_drop_and_reopen_bit_for_bit() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("station.sqlite");
+    let written: Vec<Reading> =
+        (0..50).map(|n| reading(["a", "b", "c"][n as usize % 3], 1_000 + u64::from(n), n)).collect();
+    let mut ids = Vec::new();
+    {
+        let mut store = Store::open(&path).unwrap();
+        for r in &written {
+            ids.push(store.insert(r).unwrap());
+        }
+    }
+    assert!(ids.windows(2).all(|w| w[0] < w[1]), "ids increase in commit order: {ids:?}");
+    let store = Store::open(&path).unwrap();
+    assert_eq!(store.count().unwrap(), 50);
+    let back = store.range(UNIX_EPOCH, SystemTime::now()).unwrap();
+    assert_eq!(back.iter().map(|s| s.id).collect::<Vec<_>>(), ids);
+    for (stored, original) in back.iter().zip(&written) {
+        assert_eq!(&stored.reading, original, "reading {}", stored.id);
+    }
+}
+
+#[test]
+fn range_is_half_open_on_time() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut store = Store::open(dir.path().join("s.db")).unwrap();
+    for n in 0..10u32 {
+        store.insert(&reading("a", 100 + u64::from(n) * 10, 0)).unwrap();
+    }
+    let at = |secs: u64| UNIX_EPOCH + Duration::from_secs(secs);
+    let got = store.range(at(120), at(150)).unwrap();
+    let times: Vec<_> = got.iter().map(|s| s.reading.timestamp).collect();
+    assert_eq!(times, vec![at(120), at(130), at(140)]);
+    assert!(store.range(at(200), at(300)).unwrap().is_empty());
+}
+
+#[test]
+fn latest_per_probe_is_each_probes_newest_reading() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut store = Store::open(dir.path().join("s.db")).unwrap();
+    let mut newest = std::collections::BTreeMap::new();
+    for n in 0..30u32 {
+        let probe = ["c", "a", "b"][n as usize % 3];
+        let id = store.insert(&reading(probe, 10 + u64::from(n), n)).unwrap();
+        newest.insert(probe.to_owned(), id);
+    }
+    let latest = store.latest_per_probe().unwrap();
+    let got: Vec<(String, i64)> = latest.iter().map(|s| (s.reading.probe.clone(), s.id)).collect();
+    assert_eq!(got, newest.into_iter().collect::<Vec<_>>());
+}
+
+#[test]
+fn outbox_hands_out_each_reading_once_in_order_across_reopen() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("s.db");
+    let mut store = Store::open(&path).unwrap();
+    for n in 0..25u32 {
+        store.insert(&reading("a", u64::from(n), n)).unwrap();
+    }
+    let mut seen = Vec::new();
+    for _ in 0..3 {
+        let batch = store.unpublished(4).unwrap();
+        assert_eq!(batch.len(), 4);
+        seen.extend(batch.iter().map(|s| s.id));
+        store.mark_published(batch.last().unwrap().id).unwrap();
+    }
+    // A cursor never moves back.
+    store.mark_published(1).unwrap();
+    drop(store);
+
+    let mut store = Store::open(&path).unwrap();
+    assert_eq!(store.published_up_to().unwrap(), *seen.last().unwrap());
+    loop {
+        let batch = store.unpublished(7).unwrap();
+        let Some(last) = batch.last() else { break };
+        seen.extend(batch.iter().map(|s| s.id));
+        store.mark_published(last.id).unwrap();
+    }
+    let all: Vec<i64> = store.range(UNIX_EPOCH, SystemTime::now()).unwrap().iter().map(|s| s.id).collect();
+    assert_eq!(seen, all, "every reading once, oldest first");
+    assert!(store.unpublished(10).unwrap().is_empty());
+}
+
+#[test]
+fn a_second_connection_sees_committed_readings_while_the_first_stays_open() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("s.db");
+    let mut writer = Store::open(&path).unwrap();
+    let reader = Store::open(&path).unwrap();
+    let id = writer.insert(&reading("a", 5, 3)).unwrap();
+    assert_eq!(reader.get(id).unwrap().map(|s| s.reading), Some(reading("a", 5, 3)));
+}
+
+#[test]
+fn refuses_files_it_cannot_read() {
+    let dir = tempfile::tempdir().unwrap();
+    let not_a_db = dir.path().join("text.db");
+    std::fs::write(&not_a_db, "this is not a database, just some text that is long enough to have a header").unwrap();
+    assert!(matches!(Store::open(&not_a_db), Err(StoreError::Sqlite(_))));
+
+    let other = dir.path().join("other.db");
+    drop(Store::open(&other).unwrap());
+    let c = rusqlite::Connection::open(&other).unwrap();
+    c.pragma_update(None, "user_version", SCHEMA_VERSION + 1).unwrap();
+    drop(c);
+    assert!(matches!(Store::open(&other), Err(StoreError::SchemaVersion { found }) if found == SCHEMA_VERSION + 1));
+}
