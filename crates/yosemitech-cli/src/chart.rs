@@ -12,6 +12,7 @@ use plotters::coord::Shift;
 use plotters::prelude::*;
 use plotters::style::FontStyle;
 
+use crate::format;
 use crate::readings::Series;
 use crate::time;
 
@@ -90,7 +91,7 @@ pub fn draw<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, title: &str, seri
         let caption = if first.unit.is_empty() {
             first.measurement.clone()
         } else {
-            format!("{} ({})", first.measurement, first.unit)
+            format!("{} ({})", first.measurement, format::unit(&first.unit))
         };
         let mut chart = ChartBuilder::on(area)
             .caption(caption, (FONT, 16))

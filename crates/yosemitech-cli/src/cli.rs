@@ -142,7 +142,7 @@ each measurement the latest value with its unit, its age and a sparkline of the 
     #[command(long_about = "\
 Draw the readings of a station's store between --from and --to as a chart: one panel per
 measurement, one line per probe, a UTC time axis. The file's extension chooses the format
-(.png or .svg). Times are RFC 3339 (2025-11-23, 2025-11-23T06:00Z), a time ago (90m, 6h, 2d)
+(.png or .svg). Times are UTC (2025-11-23, 2025-11-23T06:00:00Z), a time ago (90m, 6h, 2d)
 or now. Values that are not numbers (NaN) break a line. Fails (exit 1) when the range holds
 no reading, and (exit 2) for an unknown probe or measurement.")]
     Plot(PlotArgs),

@@ -14,17 +14,22 @@ use ratatui::style::{Color, Modifier, Style};
 use ratatui::text::{Line, Span};
 use ratatui::widgets::{Block, Sparkline, SparklineBar, Widget};
 
+use crate::format;
 use crate::readings::{MeasurementStatus, ProbeStatus, Snapshot};
 use crate::time;
 
 /// Widest measurement-name column.
 const NAME_WIDTH: usize = 24;
-/// Widest value-and-unit column.
-const VALUE_WIDTH: usize = 22;
+/// Widest value column.
+const VALUE_WIDTH: usize = 12;
+/// Widest unit column.
+const UNIT_WIDTH: usize = 10;
 /// Width of the age column (`59m 59s`).
 const AGE_WIDTH: usize = 8;
-/// Bar heights of a sparkline are scaled to 1..=SPARK_MAX.
-const SPARK_MAX: u64 = 100;
+/// Bar heights of a sparkline are scaled to SPARK_MIN..=SPARK_MAX.
+const SPARK_MAX: u64 = 96;
+/// The lowest bar: one eighth of a cell, so that the minimum still shows.
+const SPARK_MIN: u64 = SPARK_MAX / 8;
 
 /// What the view shows: the snapshot, where it came from, and when.
 #[derive(Debug)]
@@ -92,6 +97,7 @@ fn probe_height(probe: &ProbeStatus) -> u16 {
 struct Columns {
     name: usize,
     value: usize,
+    unit: usize,
 }
 
 impl Columns {
@@ -99,7 +105,8 @@ impl Columns {
         let all = || snapshot.probes.iter().flat_map(|p| &p.measurements);
         let name = all().map(|m| m.name.chars().count()).max().unwrap_or(0).min(NAME_WIDTH);
         let value = all().map(|m| value_text(m).chars().count()).max().unwrap_or(0).min(VALUE_WIDTH);
-        Self { name, value }
+        let unit = all().map(|m| format::unit(&m.unit).chars().count()).max().unwrap_or(0).min(UNIT_WIDTH);
+        Self { name, value, unit }
     }
 }
 
@@ -139,12 +146,14 @@ fn render_measurement(m: &MeasurementStatus, columns: &Columns, now: SystemTime,
     }
     let age = m.latest.map(|(at, _)| age(now, at)).unwrap_or_default();
     let text = format!(
-        "{:<nw$}  {:>vw$}  {:>aw$}  ",
+        "{:<nw$}  {:>vw$} {:<uw$}  {:>aw$}  ",
         clip(&m.name, columns.name),
         clip(&value_text(m), columns.value),
+        clip(format::unit(&m.unit), columns.unit),
         age,
         nw = columns.name,
         vw = columns.value,
+        uw = columns.unit,
         aw = AGE_WIDTH,
     );
     let used = u16::try_from(text.chars().count()).unwrap_or(u16::MAX);
@@ -157,13 +166,9 @@ fn render_measurement(m: &MeasurementStatus, columns: &Columns, now: SystemTime,
     }
 }
 
-/// `7.012 pH`: the latest value with its unit, `—` before the first value.
+/// The latest value, `—` before the first one.
 fn value_text(m: &MeasurementStatus) -> String {
-    match m.latest {
-        Some((_, v)) if m.unit.is_empty() => format_value(v),
-        Some((_, v)) => format!("{} {}", format_value(v), m.unit),
-        None => "—".to_owned(),
-    }
+    m.latest.map_or_else(|| "—".to_owned(), |(_, v)| format_value(v))
 }
 
 /// A value with four significant digits (at most four decimals); NaN and
@@ -190,8 +195,8 @@ fn clip(text: &str, width: usize) -> String {
 }
 
 /// The last `width` values as bars scaled between their finite minimum and
-/// maximum (a flat line at half height when they are equal); NaN and
-/// infinities are absent bars.
+/// maximum, the lowest still visible (a flat line at half height when they
+/// are equal); NaN and infinities are absent bars.
 fn sparkline_bars(history: &[f64], width: usize) -> Vec<SparklineBar> {
     let recent = &history[history.len().saturating_sub(width)..];
     let finite = || recent.iter().copied().filter(|v| v.is_finite());
@@ -204,7 +209,7 @@ fn sparkline_bars(history: &[f64], width: usize) -> Vec<SparklineBar> {
                 return SparklineBar::from(None);
             }
             let fraction = if high > low { (v - low) / (high - low) } else { 0.5 };
-            let height = 1.0 + fraction * (SPARK_MAX - 1) as f64;
+            let height = SPARK_MIN as f64 + fraction * (SPARK_MAX - SPARK_MIN) as f64;
             SparklineBar::from(Some(height.round() as u64))
         })
         .collect()
@@ -278,7 +283,7 @@ mod tests {
         for expected in [
             "river-left · sensor_a · SN ABC123",
             "errors 3 · retries 7",
-            "2.500 mg/L",
+            "2.500 mg/L ",
             "1m 05s",
             "NaN",
             "last visit failed: no reply",
@@ -287,10 +292,11 @@ mod tests {
         ] {
             assert!(screen.contains(expected), "`{expected}` missing from\n{screen}");
         }
-        // The sparkline draws bars of different heights for 1, 2, 3, 2.5.
+        // The sparkline draws 1, 2, 3, 2.5 as four bars of three heights or more, the lowest visible.
         let alpha = screen.lines().find(|l| l.contains("alpha")).unwrap();
-        let bars: std::collections::BTreeSet<char> = alpha.chars().filter(|c| ('▁'..='█').contains(c)).collect();
-        assert!(bars.len() >= 3, "sparkline bars {bars:?} in {alpha}");
+        let bars: Vec<char> = alpha.chars().filter(|c| ('▁'..='█').contains(c)).collect();
+        assert_eq!(bars.len(), 4, "sparkline {bars:?} in {alpha}");
+        assert!(bars.iter().collect::<std::collections::BTreeSet<_>>().len() >= 3, "sparkline {bars:?}");
     }
 
     #[test]
@@ -329,8 +335,11 @@ mod tests {
     #[test]
     fn sparkline_scales_finite_values_and_leaves_gaps() {
         let bars = sparkline_bars(&[0.0, f64::NAN, 10.0, 5.0], 3);
-        assert_eq!(bars, [SparklineBar::from(None), SparklineBar::from(Some(100)), SparklineBar::from(Some(1))]);
-        assert_eq!(sparkline_bars(&[2.0, 2.0], 10), [SparklineBar::from(Some(51)); 2]);
+        assert_eq!(
+            bars,
+            [SparklineBar::from(None), SparklineBar::from(Some(SPARK_MAX)), SparklineBar::from(Some(SPARK_MIN))]
+        );
+        assert_eq!(sparkline_bars(&[2.0, 2.0], 10), [SparklineBar::from(Some((SPARK_MIN + SPARK_MAX) / 2)); 2]);
         assert!(sparkline_bars(&[1.0], 0).is_empty());
     }
 }

@@ -79,7 +79,10 @@ pub fn run(args: &PlotArgs, out: &mut dyn Write) -> Result<()> {
         ))
         .hint("choose one with --measurement, or a taller --size"));
     }
-    let title = format!("{db}  {} – {} UTC", time::rfc3339(from), time::rfc3339(to));
+    let times = || series.iter().flat_map(|s| &s.points).map(|(t, _)| *t);
+    let (first, last) = (times().min().unwrap_or(from), times().max().unwrap_or(to));
+    let name = args.db.file_name().map_or_else(|| db.to_string(), |n| n.to_string_lossy().into_owned());
+    let title = format!("{name}: {} to {} UTC", time::rfc3339(first), time::rfc3339(last));
     let drawn = match format {
         Format::Png => {
             chart::draw(&BitMapBackend::new(&args.out, (width, height)).into_drawing_area(), &title, &series)
