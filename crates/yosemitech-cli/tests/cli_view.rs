@@ -312,15 +312,15 @@ impl Tmux {
         }
     }
 
-    /// Sends `q` and returns the exit code of `watch`.
-    fn quit(&self, status: &Path) -> String {
-        self.tmux(&["send-keys", "-t", "watch", "q"]);
+    /// Sends `key` (in tmux's notation) and returns the exit code of `watch`.
+    fn quit(&self, status: &Path, key: &str) -> String {
+        self.tmux(&["send-keys", "-t", "watch", key]);
         let deadline = Instant::now() + SCREEN_DEADLINE;
         loop {
             if let Ok(code) = std::fs::read_to_string(status) {
                 return code.trim().to_owned();
             }
-            assert!(Instant::now() < deadline, "watch did not exit on q; the screen:\n{}", self.screen());
+            assert!(Instant::now() < deadline, "watch did not exit on {key}; the screen:\n{}", self.screen());
             thread::sleep(Duration::from_millis(100));
         }
     }
@@ -350,13 +350,13 @@ fn watch_in_a_terminal_shows_every_probe_and_quits_on_q() {
     expected.push("last visit failed: no reply".into());
     let screen = tmux.screen_showing(&expected);
     assert!(screen.contains("errors 0"), "the other probes have no errors:\n{screen}");
-    assert_eq!(tmux.quit(&status), "0", "watch's exit code");
+    assert_eq!(tmux.quit(&status, "q"), "0", "watch's exit code");
     let gone = tmux.tmux(&["has-session", "-t", "watch"]);
     assert!(!gone.status.success(), "the session outlived watch");
 }
 
 #[test]
-fn watch_shows_an_empty_store_and_survives_a_tiny_terminal() {
+fn watch_shows_an_empty_store_survives_a_tiny_terminal_and_quits_on_ctrl_c() {
     let Some(tmux) = Tmux::start() else { return };
     let station = Station::empty();
     let status = tmux.watch(station.db(), 100, 20);
@@ -366,7 +366,7 @@ fn watch_shows_an_empty_store_and_survives_a_tiny_terminal() {
         assert!(resized.status.success(), "resize: {}", String::from_utf8_lossy(&resized.stderr));
         thread::sleep(Duration::from_millis(500));
     }
-    // Still running, and drawing at full size again.
+    // Still running, and drawing at full size again; Ctrl-C (a key in raw mode) quits cleanly.
     tmux.screen_showing(&["no readings yet".to_owned()]);
-    assert_eq!(tmux.quit(&status), "0", "watch's exit code");
+    assert_eq!(tmux.quit(&status, "C-c"), "0", "watch's exit code");
 }
