@@ -109,9 +109,11 @@ pub fn draw<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, title: &str, seri
             .light_line_style(RGBColor(235, 235, 235))
             .draw()
             .map_err(failed)?;
+        let columns = usize::try_from(chart.plotting_area().dim_in_pixel().0).unwrap_or(usize::MAX).max(1);
         for s in panel {
             let style = colour(&s.probe).stroke_width(2);
             for (i, run) in finite_runs(&s.points).into_iter().enumerate() {
+                let run = envelope(run, (start, end), columns);
                 let drawn = if run.len() == 1 {
                     chart.draw_series(run.iter().map(|&p| Circle::new(p, 3, style.filled()))).map_err(failed)?
                 } else {
@@ -183,6 +185,39 @@ fn finite_runs(points: &[(SystemTime, f64)]) -> Vec<Vec<(f64, f64)>> {
     runs
 }
 
+/// At most the lowest and the highest point of each of `columns` equal
+/// slices of `span` (in time order): the line a pixel column can show,
+/// however many points fall into it. Runs that fit are kept whole.
+fn envelope(run: Vec<(f64, f64)>, span: (f64, f64), columns: usize) -> Vec<(f64, f64)> {
+    if run.len() <= 2 * columns {
+        return run;
+    }
+    let width = (span.1 - span.0) / columns as f64;
+    let column = |x: f64| if width > 0.0 { ((x - span.0) / width) as usize } else { 0 };
+    let mut kept: Vec<(f64, f64)> = Vec::with_capacity(2 * columns + 2);
+    let mut slice = run.iter().copied().peekable();
+    while let Some(first) = slice.next() {
+        let c = column(first.0);
+        let (mut low, mut high) = (first, first);
+        while let Some(&p) = slice.peek().filter(|p| column(p.0) == c) {
+            slice.next();
+            if p.1 < low.1 {
+                low = p;
+            }
+            if p.1 > high.1 {
+                high = p;
+            }
+        }
+        if low.0 <= high.0 {
+            kept.extend([low, high]);
+        } else {
+            kept.extend([high, low]);
+        }
+        kept.dedup();
+    }
+    kept
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -224,6 +259,24 @@ mod tests {
         let points = [(at(1), 1.0), (at(2), f64::NAN), (at(3), 3.0), (at(4), 4.0), (at(5), f64::INFINITY)];
         assert_eq!(finite_runs(&points), [vec![(1.0, 1.0)], vec![(3.0, 3.0), (4.0, 4.0)]]);
         assert!(finite_runs(&[(at(1), f64::NAN)]).is_empty());
+    }
+
+    #[test]
+    fn long_runs_keep_each_columns_extremes_in_time_order() {
+        let run: Vec<(f64, f64)> = (0..10_000u32).map(|i| (f64::from(i), (f64::from(i) / 7.0).sin())).collect();
+        let kept = envelope(run.clone(), (0.0, 10_000.0), 100);
+        assert!(kept.len() <= 200 && kept.len() >= 100, "{} points kept", kept.len());
+        assert!(kept.windows(2).all(|w| w[0].0 < w[1].0), "time order");
+        for c in 0..100 {
+            let column = |p: &&(f64, f64)| (p.0 / 100.0) as usize == c;
+            let extreme = |f: fn(f64, f64) -> f64, points: &[(f64, f64)]| {
+                points.iter().filter(column).map(|p| p.1).fold(f64::NAN, f)
+            };
+            assert_eq!(extreme(f64::min, &kept), extreme(f64::min, &run), "column {c}");
+            assert_eq!(extreme(f64::max, &kept), extreme(f64::max, &run), "column {c}");
+        }
+        let short = run[..150].to_vec();
+        assert_eq!(envelope(short.clone(), (0.0, 150.0), 100), short);
     }
 
     #[test]
