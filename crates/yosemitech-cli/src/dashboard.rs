@@ -6,7 +6,7 @@
 //! ratatui buffer (the terminal, or a test backend) and any size, down to
 //! none: what does not fit is cut, never a panic.
 
-use std::time::SystemTime;
+use std::time::{Duration, SystemTime};
 
 use ratatui::buffer::Buffer;
 use ratatui::layout::Rect;
@@ -40,6 +40,8 @@ pub struct Dashboard<'a> {
     pub snapshot: &'a Snapshot,
     /// The time the ages count from.
     pub now: SystemTime,
+    /// How far back the sparklines and the error and retry counts reach.
+    pub window: Duration,
     /// A problem refreshing the snapshot (the last good one is shown).
     pub status: Option<&'a str>,
 }
@@ -52,9 +54,16 @@ impl Widget for &Dashboard<'_> {
         }
         let header = Line::from(vec![
             Span::styled("yosemitech watch ", Style::new().add_modifier(Modifier::BOLD)),
-            Span::raw(format!("{}  {} UTC  q quits", self.source, time::clock(self.now))),
+            Span::raw(self.source),
         ]);
         header.render(row(area, 0), buf);
+        // Drawn second, so that on a narrow terminal the clock and the way out win.
+        let status = format!(
+            " {} UTC · history and counts: last {} · q quits",
+            time::clock(self.now),
+            time::age(self.window)
+        );
+        Line::raw(status).right_aligned().render(row(area, 0), buf);
         let mut y = 1;
         if let Some(status) = self.status {
             Line::styled(status.to_owned(), Style::new().fg(Color::Red)).render(row(area, y), buf);
@@ -217,7 +226,7 @@ fn sparkline_bars(history: &[f64], width: usize) -> Vec<SparklineBar> {
 
 #[cfg(test)]
 mod tests {
-    use std::time::{Duration, UNIX_EPOCH};
+    use std::time::UNIX_EPOCH;
 
     use ratatui::Terminal;
     use ratatui::backend::TestBackend;
@@ -263,7 +272,7 @@ mod tests {
 
     fn draw(snapshot: &Snapshot, width: u16, height: u16) -> String {
         let now = UNIX_EPOCH + Duration::from_secs(1_065);
-        let view = Dashboard { source: "station.db", snapshot, now, status: None };
+        let view = Dashboard { source: "station.db", snapshot, now, window: Duration::from_secs(3600), status: None };
         let mut terminal = Terminal::new(TestBackend::new(width, height)).unwrap();
         terminal.draw(|f| f.render_widget(&view, f.area())).unwrap();
         let buffer = terminal.backend().buffer();
@@ -288,6 +297,7 @@ mod tests {
             "NaN",
             "last visit failed: no reply",
             "outfall · sensor_b",
+            "last 1h 00m",
             "no values yet",
         ] {
             assert!(screen.contains(expected), "`{expected}` missing from\n{screen}");

@@ -64,7 +64,8 @@ pub fn run(args: &WatchArgs, stop: &AtomicBool) -> Result<()> {
             }
             next_load = Instant::now() + args.interval;
         }
-        let view = Dashboard { source: &source, snapshot: &snapshot, now, status: status.as_deref() };
+        let view =
+            Dashboard { source: &source, snapshot: &snapshot, now, window: args.window, status: status.as_deref() };
         screen.0.draw(|frame| frame.render_widget(&view, frame.area())).map_err(drawn)?;
         if stop.load(Ordering::SeqCst) {
             return Ok(());
