@@ -58,11 +58,8 @@ impl Widget for &Dashboard<'_> {
         ]);
         header.render(row(area, 0), buf);
         // Drawn second, so that on a narrow terminal the clock and the way out win.
-        let status = format!(
-            " {} UTC · history and counts: last {} · q quits",
-            time::clock(self.now),
-            time::age(self.window)
-        );
+        let status =
+            format!(" {} UTC · history and counts: last {} · q quits", time::clock(self.now), time::age(self.window));
         Line::raw(status).right_aligned().render(row(area, 0), buf);
         let mut y = 1;
         if let Some(status) = self.status {
