@@ -223,19 +223,6 @@ pub fn read_back_for<'s>(sensor: &'s Sensor, write: &Command) -> Option<&'s Comm
         .min_by_key(|r| r.count)
 }
 
-/// True for a read that no write covers and that has a field with a unit:
-/// a measurement (pH, temperature, conductivity, ORP), as the simulator
-/// defines it.
-pub fn is_measurement(sensor: &Sensor, read: &Command) -> bool {
-    let (start, end) = (u32::from(read.address), u32::from(read.address) + u32::from(read.count));
-    read.is_read()
-        && read.fields.iter().any(|f| f.unit.is_some())
-        && !sensor
-            .commands
-            .iter()
-            .any(|w| !w.is_read() && u32::from(w.address) < end && start < u32::from(w.address) + u32::from(w.count))
-}
-
 /// The calibration-coefficient blocks of a sensor: writes (not triggers)
 /// of float fields only, with a read of exactly the same registers, that
 /// do not set the slave address. Keyed by the write's name.
@@ -298,7 +285,7 @@ mod tests {
                 assert!(!w.is_read() && r.is_read() && w.address == r.address && w.count == r.count);
                 assert!(w.named_fields().all(|f| matches!(f.kind, yosemitech_spec::FieldKind::F32 { .. })));
             }
-            for c in s.commands.iter().filter(|c| is_measurement(s, c)) {
+            for c in s.measurement_reads() {
                 assert!(c.is_read() && c.fields.iter().any(|f| f.unit.is_some()), "{} {}", s.name, c.name);
             }
             // The slave-address write reads back through the slave-address read.

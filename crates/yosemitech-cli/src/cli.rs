@@ -112,8 +112,10 @@ and print the command that restores it.")]
 
     /// Log timestamped measurements at an interval (table, CSV or JSON lines).
     #[command(long_about = "\
-Read every measurement of a sensor (its reads that no write covers and that carry a unit) at
-an interval, one row per poll with an RFC 3339 UTC timestamp. Errors are reported in the row's
+Read the measurements of a sensor (fields of its reads that no write covers and that carry a
+unit; every one unless named, by field or by read) at an interval, one row per poll with an
+RFC 3339 UTC timestamp. Each poll sends the fewest reads that cover them: a combined read
+where the spec has one instead of a read per quantity. Errors are reported in the row's
 `error` column and polling goes on; the exit code is 1 only if every poll failed. Ctrl-C ends
 cleanly. --interval 0 polls back to back.")]
     Poll(PollArgs),
@@ -192,6 +194,24 @@ give other tools (the pty path, or tcp://ADDR). Faults can be injected:
 --faults drop=0.05,corrupt_crc=0.02 (kinds: drop, corrupt_crc, truncate, garbage,
 wrong_slave, delay, busy; all=P spreads P over every kind; delay_by=500ms).")]
     Simulate(SimulateArgs),
+
+    /// Run a station: several probes on several buses, on a schedule, into a SQLite file.
+    #[command(long_about = "\
+Run the station a TOML file describes: buses (serial ports or RTU-over-TCP gateways), the
+probes on each (sensor, address, label, measurements, interval, clock alignment, the spec's
+procedure), and the SQLite file every reading is committed to before anything else happens
+with it. One master per bus, probes interleaved; a probe that does not answer backs off
+without delaying the others. Ctrl-C or SIGTERM stops after the request in flight.
+--check validates the file against the spec, prints a summary and exits.")]
+    Log(LogArgs),
+
+    /// Write stored readings as CSV or JSON lines.
+    #[command(long_about = "\
+Write the readings of a station's SQLite file (`yosemitech log`) for a time range: CSV in long
+form (one row per value, the reading's columns repeated) or one JSON object per reading.
+Times are UTC (2025-11-23 or 2025-11-23T18:00:00Z), a time ago (90m, 6h, 2d) or now; --from
+is inclusive, --to exclusive.")]
+    Export(ExportArgs),
 }
 
 /// `demo`.
@@ -267,6 +287,9 @@ pub enum PollFormat {
 pub struct PollArgs {
     /// Sensor.
     pub sensor: String,
+    /// Measurements to read: field names or measurement reads (`yosemitech list SENSOR`) [default: every one].
+    #[arg(value_name = "MEASUREMENT")]
+    pub measurements: Vec<String>,
     #[command(flatten)]
     pub port: PortArgs,
     #[command(flatten)]
@@ -583,4 +606,42 @@ pub struct PlotArgs {
     /// Width and height in pixels, e.g. 1200x800 [default: 1200 wide, 300 high per measurement].
     #[arg(long, value_name = "WxH", value_parser = parse_size)]
     pub size: Option<(u32, u32)>,
+}
+
+/// `log`.
+#[derive(Args, Debug)]
+pub struct LogArgs {
+    /// The station file (TOML).
+    #[arg(long, value_name = "FILE")]
+    pub config: PathBuf,
+    /// Validate the file against the spec, print a summary and exit.
+    #[arg(long)]
+    pub check: bool,
+}
+
+/// Output formats of `export`.
+#[derive(ValueEnum, Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum ExportFormat {
+    /// Comma-separated values, one row per value, with a header row.
+    #[default]
+    Csv,
+    /// One JSON object per reading.
+    Jsonl,
+}
+
+/// `export`.
+#[derive(Args, Debug)]
+pub struct ExportArgs {
+    /// The station's SQLite file.
+    #[arg(long, value_name = "FILE")]
+    pub db: PathBuf,
+    /// First instant, inclusive (UTC) [default: the beginning].
+    #[arg(long, value_name = "TIME", value_parser = parse_instant)]
+    pub from: Option<SystemTime>,
+    /// Last instant, exclusive (UTC) [default: the end].
+    #[arg(long, value_name = "TIME", value_parser = parse_instant)]
+    pub to: Option<SystemTime>,
+    /// Output format.
+    #[arg(short, long, value_enum, default_value_t = ExportFormat::Csv)]
+    pub format: ExportFormat,
 }

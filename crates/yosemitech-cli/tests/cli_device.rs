@@ -359,29 +359,15 @@ fn float_of(v: &Value) -> f32 {
     }
 }
 
-/// The columns `poll` shows for `sensor`: (read, field, column name) of
-/// every field of every measurement read (a read no write overlaps, with a
-/// unit); a field name two reads share is qualified by the read.
+/// The columns `poll` shows for `sensor` by default: (read, field, column
+/// name) of every measurement, taken from the read the station planner
+/// picks for it (the fewest reads that cover every measurement).
 fn poll_columns(sensor: &yosemitech_spec::Sensor) -> Vec<(String, String, String)> {
-    let overlaps = |r: &SpecCommand| {
-        let (start, end) = (u32::from(r.address), u32::from(r.address) + u32::from(r.count));
-        sensor
-            .commands
-            .iter()
-            .any(|w| !w.is_read() && u32::from(w.address) < end && start < u32::from(w.address) + u32::from(w.count))
-    };
-    let reads: Vec<&SpecCommand> = sensor
-        .commands
+    let chosen = yosemitech_station::plan::measurements(sensor);
+    yosemitech_station::plan::plan(sensor, &chosen)
+        .reads
         .iter()
-        .filter(|r| r.is_read() && r.fields.iter().any(|f| f.unit.is_some()) && !overlaps(r))
-        .collect();
-    let fields = || reads.iter().flat_map(|r| r.named_fields().map(move |f| (*r, f.display_name().to_owned())));
-    fields()
-        .map(|(r, f)| {
-            let shared = fields().filter(|(_, g)| *g == f).count() > 1;
-            let name = if shared { format!("{}.{f}", r.name) } else { f.clone() };
-            (r.name.clone(), f, name)
-        })
+        .flat_map(|r| r.fields.iter().map(|f| (r.command.name.clone(), (*f).to_owned(), (*f).to_owned())))
         .collect()
 }
 

@@ -251,7 +251,7 @@ impl Simulator {
         wildcards.sort_unstable();
         wildcards.dedup();
         let address_slots = address_slots(&sensor);
-        let measurement = sensor.commands.iter().map(|c| is_measurement(&sensor, c)).collect();
+        let measurement = sensor.commands.iter().map(|c| sensor.is_measurement(c)).collect();
         let mut sim = Self {
             address: sensor.default_address,
             registers: RegisterMap::new(),
@@ -790,16 +790,6 @@ pub fn line_timing(sensor: &Sensor) -> LineTiming {
         stop_bits: if serial.stop_bits == 2 { StopBits::Two } else { StopBits::One },
     };
     LineTiming::new(serial.baud, format)
-}
-
-/// A measurement read: no write command covers its registers, and a field has a unit.
-fn is_measurement(sensor: &Sensor, command: &Command) -> bool {
-    let end = |c: &Command| u32::from(c.address) + u32::from(c.count);
-    command.is_read()
-        && command.fields.iter().any(|f| f.unit.is_some())
-        && !sensor.commands.iter().any(|w| {
-            !w.is_read() && w.count > 0 && u32::from(w.address) < end(command) && u32::from(command.address) < end(w)
-        })
 }
 
 /// The bytes of an address in a `slave_address` field.

@@ -104,6 +104,25 @@ impl Sensor {
         self.commands.iter().map(|c| c.examples.len()).sum()
     }
 
+    /// True for a measurement read: a read with a field that has a unit,
+    /// whose registers no write command of the sensor covers (a trigger write
+    /// of zero registers covers none) (so neither a
+    /// setting nor a calibration block). The simulator varies these, `poll`
+    /// and the station logger read them.
+    pub fn is_measurement(&self, read: &Command) -> bool {
+        let end = |c: &Command| u32::from(c.address) + u32::from(c.count);
+        read.is_read()
+            && read.fields.iter().any(|f| f.unit.is_some())
+            && !self.commands.iter().any(|w| {
+                !w.is_read() && w.count > 0 && u32::from(w.address) < end(read) && u32::from(read.address) < end(w)
+            })
+    }
+
+    /// The measurement reads ([`Sensor::is_measurement`]), in spec order.
+    pub fn measurement_reads(&self) -> impl Iterator<Item = &Command> {
+        self.commands.iter().filter(|c| self.is_measurement(c))
+    }
+
     /// The command with `role`, if the sensor has one.
     pub fn command_with_role(&self, role: Role) -> Option<&Command> {
         self.commands.iter().find(|c| c.role == Some(role))

@@ -4,6 +4,10 @@
 //! happens with it.
 //!
 //! * [`store`]: the SQLite store and its outbox (what is not yet published).
+//! * [`config`]: the station file (`station.toml`), validated against the spec.
+//! * [`plan`]: the fewest reads that cover the measurements chosen for a probe.
+//! * [`logger`]: the scheduler, one thread and one master per bus.
+//! * [`link`]: a bus's master and its requests through the spec interpreter.
 //! * [`export`]: stored readings as CSV or JSON lines.
 //! * [`time`]: UTC instants as the store keeps them and people write them.
 //!
@@ -11,7 +15,11 @@
 //! loaded spec (`yosemitech_spec`).
 #![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used, clippy::panic))]
 
+pub mod config;
 pub mod export;
+pub mod link;
+pub mod logger;
+pub mod plan;
 pub mod store;
 pub mod time;
 

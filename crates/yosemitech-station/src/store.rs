@@ -221,38 +221,54 @@ impl Store {
     /// SQLite refused the write (disk full, read-only file, ...); nothing
     /// of the reading is stored then.
     pub fn insert(&mut self, reading: &Reading) -> Result<i64, StoreError> {
+        let ids = self.insert_all(std::slice::from_ref(reading))?;
+        Ok(ids.first().copied().unwrap_or_default())
+    }
+
+    /// Commits `readings` in one transaction (one disk sync for all: how a
+    /// busy logger keeps up) and returns their ids, increasing in slice
+    /// order. All or none are stored.
+    ///
+    /// # Errors
+    ///
+    /// SQLite refused the write; nothing of the batch is stored then.
+    pub fn insert_all(&mut self, readings: &[Reading]) -> Result<Vec<i64>, StoreError> {
         let tx = self.connection.transaction_with_behavior(rusqlite::TransactionBehavior::Immediate)?;
-        tx.execute(
-            "INSERT INTO reading (timestamp_ms, station, bus, probe, sensor, address, serial_number, firmware, retries, error)
-             VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10)",
-            params![
-                unix_ms(reading.timestamp),
-                reading.station,
-                reading.bus,
-                reading.probe,
-                reading.sensor,
-                reading.address,
-                reading.serial_number,
-                reading.firmware,
-                reading.retries,
-                reading.error,
-            ],
-        )?;
-        let id = tx.last_insert_rowid();
+        let mut ids = Vec::with_capacity(readings.len());
         {
+            let mut row = tx.prepare_cached(
+                "INSERT INTO reading (timestamp_ms, station, bus, probe, sensor, address, serial_number, firmware, retries, error)
+                 VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10)",
+            )?;
             let mut value = tx.prepare_cached(
                 "INSERT INTO reading_value (reading_id, position, name, number, text, unit) VALUES (?1, ?2, ?3, ?4, ?5, ?6)",
             )?;
-            for (position, m) in reading.values.iter().enumerate() {
-                let (number, text) = match &m.value {
-                    Datum::Number(n) => (Some(*n), None),
-                    Datum::Text(t) => (None, Some(t.as_str())),
-                };
-                value.execute(params![id, position as i64, m.name, number, text, m.unit])?;
+            for reading in readings {
+                row.execute(params![
+                    unix_ms(reading.timestamp),
+                    reading.station,
+                    reading.bus,
+                    reading.probe,
+                    reading.sensor,
+                    reading.address,
+                    reading.serial_number,
+                    reading.firmware,
+                    reading.retries,
+                    reading.error,
+                ])?;
+                let id = tx.last_insert_rowid();
+                for (position, m) in reading.values.iter().enumerate() {
+                    let (number, text) = match &m.value {
+                        Datum::Number(n) => (Some(*n), None),
+                        Datum::Text(t) => (None, Some(t.as_str())),
+                    };
+                    value.execute(params![id, position as i64, m.name, number, text, m.unit])?;
+                }
+                ids.push(id);
             }
         }
         tx.commit()?;
-        Ok(id)
+        Ok(ids)
     }
 
     /// Readings with `from <= timestamp < to`, in id order.

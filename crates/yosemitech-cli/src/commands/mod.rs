@@ -5,7 +5,9 @@ pub mod coefficients;
 pub mod decode;
 pub mod demo;
 pub mod encode;
+pub mod export;
 pub mod list;
+pub mod log;
 pub mod measure;
 pub mod plot;
 pub mod poll;
@@ -67,6 +69,9 @@ pub fn run(cli: &Cli) -> Result<()> {
         Command::Decode(args) => decode::run(&catalog, args, &mut out),
         Command::Encode(args) => encode::run(&catalog, args, &mut out),
         Command::Simulate(args) => simulate::run(&catalog, args, &ctrl_c_flag(), &mut out),
+        Command::Log(args) if args.check => log::check(&catalog, args, &mut out),
+        Command::Log(args) => log::run(&catalog, args, &ctrl_c_flag(), &mut out),
+        Command::Export(args) => export::run(args, &mut out),
     };
     // Output written before an error stays visible.
     let flushed = out.flush();

@@ -1,4 +1,5 @@
-//! `yosemitech poll`: timestamped measurements for loggers.
+//! `yosemitech poll`: timestamped measurements for loggers, read with the
+//! fewest transactions that cover them (`yosemitech_station::plan`).
 
 use std::collections::BTreeMap;
 use std::io::Write;
@@ -9,17 +10,18 @@ use std::time::{Duration, Instant, SystemTime};
 use serde_json::{Map, Value as Json, json};
 use yosemitech_spec::{Command, Value};
 
-use crate::catalog::{Catalog, is_measurement};
+use yosemitech_station::plan;
+
+use crate::catalog::Catalog;
 use crate::cli::{Global, PollArgs, PollFormat};
 use crate::error::{CliError, Result, short};
 use crate::format::{unit, value_json, value_text};
 use crate::{device, port, time};
 
-/// One output column: a field of a measurement read.
+/// One output column: a chosen measurement and the planned read it comes from.
 struct Column<'s> {
     command: &'s Command,
-    field: String,
-    name: String,
+    field: &'s str,
     unit: Option<String>,
 }
 
@@ -46,53 +48,44 @@ pub fn run(
     out: &mut dyn Write,
 ) -> Result<()> {
     let sensor = catalog.sensor(&args.sensor)?;
-    let reads: Vec<&Command> = sensor.commands.iter().filter(|c| is_measurement(sensor, c)).collect();
-    if reads.is_empty() {
-        return Err(CliError::usage(format!("sensor `{}` has no measurement reads", sensor.name))
-            .hint("poll reads commands that no write covers and that have a field with a unit; use `yosemitech read` for others"));
-    }
+    let chosen = plan::choose(sensor, &args.measurements).map_err(|e| {
+        CliError::usage(e.to_string())
+            .hint("poll reads the measurements named (fields or reads), every one by default; `yosemitech list SENSOR` shows them")
+    })?;
+    // The fewest reads that cover the chosen measurements.
+    let planned = plan::plan(sensor, &chosen);
+    let reads: Vec<&Command> = planned.reads.iter().map(|r| r.command).collect();
     let address = args.address.get(sensor.default_address)?;
     let mut opened = port::open(&args.port, global, &sensor.serial)?;
 
-    let mut seen: BTreeMap<&str, usize> = BTreeMap::new();
-    for c in &reads {
-        for f in c.named_fields() {
-            *seen.entry(f.display_name()).or_default() += 1;
-        }
-    }
-    let columns: Vec<Column<'_>> = reads
+    let columns: Vec<Column<'_>> = planned
+        .reads
         .iter()
-        .flat_map(|c| {
-            let seen = &seen;
-            c.named_fields().map(move |f| Column {
-                command: c,
-                field: f.display_name().to_owned(),
-                name: if seen.get(f.display_name()).copied().unwrap_or(0) > 1 {
-                    format!("{}.{}", c.name, f.display_name())
-                } else {
-                    f.display_name().to_owned()
-                },
-                unit: f.unit.as_deref().map(|u| unit(u).to_owned()),
+        .flat_map(|r| {
+            r.fields.iter().map(|f| Column {
+                command: r.command,
+                field: f,
+                unit: r.command.field(f).and_then(|f| f.unit.as_deref()).map(|u| unit(u).to_owned()),
             })
         })
         .collect();
     let widths: Vec<usize> =
-        columns.iter().map(|c| (c.name.len() + c.unit.as_ref().map_or(0, |u| u.chars().count() + 3)).max(9)).collect();
+        columns.iter().map(|c| (c.field.len() + c.unit.as_ref().map_or(0, |u| u.chars().count() + 3)).max(9)).collect();
 
     match args.format {
         PollFormat::Table => {
             write!(out, "{:24}", "timestamp")?;
             for (c, w) in columns.iter().zip(&widths) {
                 let head = match &c.unit {
-                    Some(u) => format!("{} [{u}]", c.name),
-                    None => c.name.clone(),
+                    Some(u) => format!("{} [{u}]", c.field),
+                    None => c.field.to_owned(),
                 };
                 write!(out, "  {head:>w$}")?;
             }
             writeln!(out, "  error")?;
         }
         PollFormat::Csv => {
-            let names: Vec<String> = columns.iter().map(|c| csv(&c.name)).collect();
+            let names: Vec<String> = columns.iter().map(|c| csv(c.field)).collect();
             writeln!(out, "timestamp,{},error", names.join(","))?;
         }
         PollFormat::Json => {}
@@ -125,7 +118,7 @@ pub fn run(
         if values.is_empty() {
             failed += 1;
         }
-        let cell = |c: &Column<'_>| values.get(c.command.name.as_str()).and_then(|v| v.get(&c.field));
+        let cell = |c: &Column<'_>| values.get(c.command.name.as_str()).and_then(|v| v.get(c.field));
         let error = errors.join("; ");
         match args.format {
             PollFormat::Table => {
@@ -145,7 +138,7 @@ pub fn run(
             }
             PollFormat::Json => {
                 let map: Map<String, Json> =
-                    columns.iter().map(|c| (c.name.clone(), cell(c).map_or(Json::Null, value_json))).collect();
+                    columns.iter().map(|c| (c.field.to_owned(), cell(c).map_or(Json::Null, value_json))).collect();
                 let row = json!({
                     "timestamp": timestamp,
                     "values": map,

@@ -1,0 +1,40 @@
+//! `yosemitech export`: a station's stored readings as CSV or JSON lines.
+
+use std::io::Write;
+use std::time::{Duration, UNIX_EPOCH};
+
+use yosemitech_station::{Store, export};
+
+use crate::cli::{ExportArgs, ExportFormat};
+use crate::error::{CliError, Result};
+
+/// Runs `export`.
+pub fn run(args: &ExportArgs, out: &mut dyn Write) -> Result<()> {
+    if !args.db.is_file() {
+        return Err(CliError::usage(format!("no database at {}", args.db.display()))
+            .hint("pass the `[storage] path` of the station file that `yosemitech log` writes"));
+    }
+    let store = Store::open(&args.db).map_err(|e| {
+        CliError::device(format!("cannot open {}: {e}", args.db.display()))
+            .hint("is it the SQLite file `yosemitech log` writes?")
+    })?;
+    let from = args.from.unwrap_or(UNIX_EPOCH);
+    // The far future: every reading.
+    let to = args.to.unwrap_or(UNIX_EPOCH + Duration::from_secs(i64::MAX as u64 / 1000 / 2));
+    if to < from {
+        return Err(CliError::usage("--to is before --from").hint("--from is inclusive, --to exclusive"));
+    }
+    let readings = store
+        .range(from, to)
+        .map_err(|e| CliError::device(format!("cannot read {}: {e}", args.db.display())))?;
+    if args.format == ExportFormat::Csv {
+        export::write_csv_header(out)?;
+    }
+    for stored in &readings {
+        match args.format {
+            ExportFormat::Csv => export::write_csv(stored, out)?,
+            ExportFormat::Jsonl => export::write_jsonl(stored, out)?,
+        }
+    }
+    Ok(())
+}

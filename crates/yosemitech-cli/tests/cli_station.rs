@@ -1,0 +1,137 @@
+//! `yosemitech log` and `export` as a field person runs them: the sample
+//! station file validates, a broken one is reported line by line, and a
+//! logger on a simulated bus stops cleanly on SIGTERM with every reading it
+//! announced committed to its SQLite file.
+
+mod common;
+
+use std::io::{BufRead, BufReader};
+use std::process::Stdio;
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use common::{WATCHDOG, command, spec, yosemitech};
+use serde_json::Value as Json;
+use yosemitech_sim::{Bus, ServeConfig, Simulator, serve_pty};
+use yosemitech_station::{Store, plan};
+
+/// The README's sample station file, committed beside the station crate.
+const SAMPLE: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../yosemitech-station/station.toml");
+
+#[test]
+fn the_sample_station_file_checks() {
+    let run = yosemitech(&["log", "--config", SAMPLE, "--check"]);
+    let out = run.ok();
+    assert!(out.lines().last() == Some("ok"), "{out}");
+    assert!(out.contains("bus `") && out.contains("probe `"), "{out}");
+}
+
+#[test]
+fn check_errors_carry_file_line_and_column() {
+    let dir = tempfile::tempdir().unwrap();
+    let sensor = spec().sensors.into_iter().find(|s| !plan::measurements(s).is_empty()).unwrap();
+    let lines = [
+        "station = \"s\"".to_owned(),
+        "[storage]".to_owned(),
+        "path = \"s.sqlite\"".to_owned(),
+        "[[bus]]".to_owned(),
+        "name = \"a\"".to_owned(),
+        "port = \"/dev/null\"".to_owned(),
+        "[[bus.probe]]".to_owned(),
+        "label = \"p\"".to_owned(),
+        "sensor = \"no_such_sensor\"".to_owned(), // line 9
+        "address = 1".to_owned(),
+        "interval = \"1m\"".to_owned(),
+        "[[bus.probe]]".to_owned(),
+        "label = \"q\"".to_owned(),
+        format!("sensor = \"{}\"", sensor.name),
+        "address = 0".to_owned(),                      // line 15
+        "measurements = [\"no_such_field\"]".to_owned(), // line 16
+        "interval = \"soon\"".to_owned(),              // line 17
+    ];
+    let path = dir.path().join("bad.toml");
+    std::fs::write(&path, lines.join("\n")).unwrap();
+    let run = yosemitech(&["log", "--config", path.to_str().unwrap(), "--check"]);
+    let err = run.fails_with_hint(2);
+    let file = path.display().to_string();
+    for (line, what) in [(9, "no_such_sensor"), (15, "address 0"), (16, "no_such_field"), (17, "soon")] {
+        let located = err.lines().find(|l| l.contains(&format!("{file}:{line}:"))).unwrap_or_else(|| panic!("line {line}: {err}"));
+        assert!(located.contains(what), "{located}");
+    }
+
+    // A syntax error, located too.
+    std::fs::write(&path, "station = \"s\"\n[storage\n").unwrap();
+    let run = yosemitech(&["log", "--config", path.to_str().unwrap(), "--check"]);
+    assert!(run.fails(2).contains(&format!("{file}:2:")), "{}", run.stderr);
+}
+
+#[test]
+fn log_stops_cleanly_on_sigterm_and_the_file_has_every_reading() {
+    let dir = tempfile::tempdir().unwrap();
+    let sensors: Vec<_> = spec().sensors.into_iter().filter(|s| !plan::measurements(s).is_empty()).take(2).collect();
+    let bus = sensors
+        .iter()
+        .enumerate()
+        .fold(Bus::new(), |bus, (i, s)| bus.with(Simulator::new(Arc::new(s.clone())).with_address(i as u8 + 1)));
+    let server = serve_pty(bus, ServeConfig::default()).unwrap();
+    let db = dir.path().join("station.sqlite");
+    let mut toml = format!(
+        "station = \"s\"\n[storage]\npath = \"{}\"\n[[bus]]\nname = \"a\"\nport = \"{}\"\n",
+        db.display(),
+        server.tty_path().unwrap()
+    );
+    for (i, s) in sensors.iter().enumerate() {
+        toml += &format!(
+            "[[bus.probe]]\nlabel = \"p{i}\"\nsensor = \"{}\"\naddress = {}\ninterval = \"200ms\"\nprocedure = false\n",
+            s.name,
+            i + 1
+        );
+    }
+    let config = dir.path().join("station.toml");
+    std::fs::write(&config, toml).unwrap();
+
+    let mut child = command()
+        .args(["log", "--config", config.to_str().unwrap()])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut stdout = BufReader::new(child.stdout.take().unwrap());
+    let mut announced: Vec<Json> = Vec::new();
+    let deadline = Instant::now() + WATCHDOG;
+    while announced.len() < 6 && Instant::now() < deadline {
+        let mut line = String::new();
+        if stdout.read_line(&mut line).unwrap() == 0 {
+            break;
+        }
+        announced.push(serde_json::from_str(&line).unwrap());
+    }
+    assert!(announced.len() >= 6, "the logger announced readings: {announced:?}");
+    let status = std::process::Command::new("kill").args(["-TERM", &child.id().to_string()]).status().unwrap();
+    assert!(status.success());
+    let code = common::wait(&mut child, Duration::from_secs(20));
+    // What it announced after the first six, up to its exit.
+    for line in stdout.lines() {
+        announced.push(serde_json::from_str(&line.unwrap()).unwrap());
+    }
+    let mut stderr = String::new();
+    std::io::Read::read_to_string(&mut child.stderr.take().unwrap(), &mut stderr).unwrap();
+    assert_eq!(code, 0, "SIGTERM stops the logger cleanly: {stderr}");
+    assert!(stderr.contains("readings"), "a summary per bus: {stderr}");
+
+    let store = Store::open(&db).unwrap();
+    let stored = store.range(std::time::UNIX_EPOCH, std::time::SystemTime::now()).unwrap();
+    let ids: Vec<i64> = announced.iter().map(|r| r["id"].as_i64().unwrap()).collect();
+    assert_eq!(stored.iter().map(|s| s.id).collect::<Vec<_>>(), ids, "every announced reading is stored, nothing else");
+    assert!(stored.iter().all(|s| s.reading.error.is_none()), "{stored:?}");
+
+    // export gives the same readings.
+    let run = yosemitech(&["export", "--db", db.to_str().unwrap(), "--format", "jsonl"]);
+    let exported: Vec<Json> = run.ok().lines().map(|l| serde_json::from_str(l).unwrap()).collect();
+    assert_eq!(exported, announced);
+    let run = yosemitech(&["export", "--db", db.to_str().unwrap(), "--from", "2000-01-01", "--to", "2000-01-02"]);
+    assert_eq!(run.ok().lines().count(), 1, "only the CSV header: {}", run.stdout);
+    let run = yosemitech(&["export", "--db", db.to_str().unwrap()]);
+    let values: usize = stored.iter().map(|s| s.reading.values.len().max(1)).sum();
+    assert_eq!(run.ok().lines().count(), 1 + values, "one CSV row per value");
+}

@@ -1,0 +1,363 @@
+//! The publisher against real brokers started by the tests: rumqttd always,
+//! mosquitto when installed (mandatory with `YOSEMITECH_REQUIRE_MOSQUITTO=1`).
+//!
+//! MQTT QoS 1 is at-least-once: readings in flight when a connection drops
+//! may reach a subscriber twice, with the same `reading_id` and payload.
+//! The tests check exactly what the crate promises: every reading arrives,
+//! the first copies are in id order with none missing (what a consumer
+//! deduplicating by `reading_id` sees, exactly once), copies are identical,
+//! no more than `max_in_flight` per interruption, and never of a reading
+//! already marked published; without an interruption, no copy at all.
+
+mod support;
+
+use std::convert::Infallible;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::Duration;
+
+use support::{
+    Broker, BrokerKind, DEADLINE, Received, Subscriber, available, ids_and_first_occurrences, reading, wait_until,
+};
+use yosemitech_mqtt::topic::DEFAULT_TOPIC_PREFIX;
+use yosemitech_mqtt::{MemoryOutbox, Outbox, Publisher, ReadingMessage, ShutdownReport};
+
+const ALL_READINGS: &str = "yosemitech/v1/+/+/reading";
+
+/// The broker process for the rumqttd runs: this binary, re-run by
+/// `support::Broker` with this test selected.
+#[test]
+#[ignore = "the rumqttd broker process of the other tests; they start it"]
+fn rumqttd_child_process() {
+    support::rumqttd_child_main();
+}
+
+/// One test per broker kind for a scenario.
+macro_rules! on_every_broker {
+    ($($scenario:ident),* $(,)?) => {$(
+        mod $scenario {
+            use super::*;
+
+            #[test]
+            fn rumqttd() {
+                super::$scenario(BrokerKind::Rumqttd);
+            }
+
+            #[test]
+            fn mosquitto() {
+                if available(BrokerKind::Mosquitto) {
+                    super::$scenario(BrokerKind::Mosquitto);
+                }
+            }
+        }
+    )*};
+}
+
+on_every_broker!(
+    delivers_every_reading_once_in_order_with_the_documented_topic_and_payload,
+    survives_a_broker_outage_mid_run,
+    a_publisher_dropped_mid_run_is_resumed_by_a_new_one,
+    a_publisher_shut_down_cleanly_hands_over_without_copies,
+    authenticates_with_a_password_file,
+);
+
+/// Pushes `count` readings, returning them with their ids.
+fn push_readings(outbox: &MemoryOutbox, range: std::ops::Range<usize>) -> Vec<ReadingMessage> {
+    range
+        .map(|index| {
+            let mut message = reading(index);
+            message.reading_id = outbox.push(message.clone());
+            message
+        })
+        .collect()
+}
+
+fn delivers_every_reading_once_in_order_with_the_documented_topic_and_payload(kind: BrokerKind) {
+    const COUNT: usize = 200;
+    let broker = Broker::start(kind, None);
+    let subscriber = Subscriber::start(&broker, ALL_READINGS);
+    let outbox = MemoryOutbox::new();
+    let sent = push_readings(&outbox, 0..COUNT);
+    let publisher = Publisher::start(&broker.config("station-order", 16), outbox.clone()).unwrap();
+    assert!(
+        wait_until(|| subscriber.count() >= COUNT && outbox.published_up_to() == Some(COUNT as i64)),
+        "{kind:?}: {} of {COUNT} received, published up to {:?}",
+        subscriber.count(),
+        outbox.published_up_to()
+    );
+    let report = publisher.shutdown(DEADLINE);
+    assert_eq!(report, ShutdownReport { published_up_to: Some(COUNT as i64), unacknowledged: 0 });
+    let received = subscriber.received();
+    assert_eq!(received.len(), COUNT, "{kind:?}: a reading arrived twice");
+    for (got, want) in received.iter().zip(&sent) {
+        assert_eq!(got.topic, want.topic(DEFAULT_TOPIC_PREFIX));
+        assert_eq!(got.message(), *want);
+    }
+    // The layout as docs/mqtt.md states it, escaping included.
+    assert_eq!(received[0].topic, "yosemitech/v1/river%2001/left%20bank/reading");
+    assert_eq!(received[1].topic, "yosemitech/v1/river%2001/pH%2FORP%20%232/reading");
+    let json: serde_json::Value = serde_json::from_slice(&received[0].payload).unwrap();
+    assert_eq!(json["schema"], 1);
+    assert_eq!(json["reading_id"], 1);
+    assert_eq!(json["probe"], "left bank");
+    assert_eq!(json["values"][1]["unit"], "°C");
+}
+
+/// An outbox that offers nothing while closed: the test holds the publisher
+/// back until its subscriber is subscribed again after a broker restart
+/// (a broker without persistence forwards nothing to an absent subscriber).
+#[derive(Clone)]
+struct GatedOutbox {
+    inner: MemoryOutbox,
+    open: Arc<AtomicBool>,
+}
+
+impl Outbox for GatedOutbox {
+    type Error = Infallible;
+
+    fn unpublished(&mut self, after: Option<i64>, limit: usize) -> Result<Vec<ReadingMessage>, Infallible> {
+        if self.open.load(Ordering::SeqCst) { self.inner.unpublished(after, limit) } else { Ok(Vec::new()) }
+    }
+
+    fn mark_published(&mut self, up_to_id: i64) -> Result<(), Infallible> {
+        self.inner.mark_published(up_to_id)
+    }
+}
+
+/// Checks what the crate promises after interruptions: every reading
+/// `1..=total`, first copies in order, copies identical, at most
+/// `max_copies` of them and none of a reading at or below `marked_before`.
+fn assert_complete_in_order(received: &[Received], total: usize, max_copies: usize, marked_before: i64) {
+    let (ids, first) = ids_and_first_occurrences(received);
+    let expected: Vec<i64> = (1..=total as i64).collect();
+    assert_eq!(first, expected, "first copies are not every reading in order");
+    let copies = ids.len() - first.len();
+    eprintln!("{total} readings, {copies} resent copies after an interruption");
+    assert!(copies <= max_copies, "{copies} copies, more than {max_copies} in flight");
+    let mut first_copies = std::collections::HashMap::new();
+    for (id, message) in ids.iter().zip(received) {
+        if let Some(first_payload) = first_copies.insert(*id, &message.payload) {
+            assert_eq!(first_payload, &message.payload, "reading {id} sent with two payloads");
+            assert!(*id > marked_before, "reading {id} was resent after being marked published");
+        }
+    }
+}
+
+fn survives_a_broker_outage_mid_run(kind: BrokerKind) {
+    const BEFORE: usize = 300;
+    const DURING: usize = 100;
+    const MAX_IN_FLIGHT: u16 = 8;
+    let mut broker = Broker::start(kind, None);
+    let open = Arc::new(AtomicBool::new(true));
+    let killed = Arc::new(AtomicBool::new(false));
+    // The broker dies while the publisher is streaming: right after the
+    // subscriber's 100th message, with readings in flight behind it.
+    let subscriber = {
+        let (killer, open, killed) = (broker.killer(), open.clone(), killed.clone());
+        Subscriber::start_with_hook(&broker, ALL_READINGS, 100, move || {
+            killer.kill();
+            open.store(false, Ordering::SeqCst);
+            killed.store(true, Ordering::SeqCst);
+        })
+    };
+    let memory = MemoryOutbox::new();
+    push_readings(&memory, 0..BEFORE);
+    let outbox = GatedOutbox { inner: memory.clone(), open: open.clone() };
+    let publisher = Publisher::start(&broker.config("station-outage", MAX_IN_FLIGHT), outbox).unwrap();
+    assert!(wait_until(|| killed.load(Ordering::SeqCst)), "the subscriber never got 100 readings");
+    let marked_at_kill = memory.published_up_to().unwrap_or(0);
+    assert!(marked_at_kill < BEFORE as i64, "the broker was killed after the run, not during it");
+    broker.stop();
+
+    // Readings keep being committed while the broker is away.
+    push_readings(&memory, BEFORE..BEFORE + DURING);
+    assert!(
+        wait_until(|| !publisher.status().connected && publisher.status().last_error.is_some()),
+        "the publisher did not notice the outage"
+    );
+    std::thread::sleep(Duration::from_secs(2));
+    assert!(!publisher.status().connected);
+
+    broker.restart();
+    subscriber.wait_for_subscriptions(2);
+    open.store(true, Ordering::SeqCst);
+    publisher.wake();
+    let total = BEFORE + DURING;
+    assert!(
+        wait_until(|| memory.published_up_to() == Some(total as i64)
+            && ids_and_first_occurrences(&subscriber.received()).1.len() == total),
+        "{kind:?}: published up to {:?}, {} received, {} subscriptions: {:?}",
+        memory.published_up_to(),
+        subscriber.count(),
+        subscriber.subscriptions(),
+        ids_and_first_occurrences(&subscriber.received()).0
+    );
+    let status = publisher.status();
+    assert!(status.connections >= 2, "{status:?}");
+    assert_eq!(publisher.shutdown(DEADLINE).unacknowledged, 0);
+    assert_complete_in_order(&subscriber.received(), total, usize::from(MAX_IN_FLIGHT), marked_at_kill);
+}
+
+fn a_publisher_dropped_mid_run_is_resumed_by_a_new_one(kind: BrokerKind) {
+    const COUNT: usize = 600;
+    const MAX_IN_FLIGHT: u16 = 16;
+    let broker = Broker::start(kind, None);
+    let (reached, at_reached) = std::sync::mpsc::channel();
+    let subscriber = Subscriber::start_with_hook(&broker, ALL_READINGS, 150, move || {
+        let _ = reached.send(());
+    });
+    let outbox = MemoryOutbox::new();
+    push_readings(&outbox, 0..COUNT);
+    let config = broker.config("station-restart", MAX_IN_FLIGHT);
+    let first = Publisher::start(&config, outbox.clone()).unwrap();
+    at_reached.recv_timeout(DEADLINE).expect("the subscriber never got 150 readings");
+    // As a crash would: no waiting for the acknowledgements in flight.
+    drop(first);
+    let marked_at_drop = outbox.published_up_to().unwrap_or(0);
+    assert!(marked_at_drop < COUNT as i64, "the publisher finished before it was dropped");
+
+    let second = Publisher::start(&config, outbox.clone()).unwrap();
+    assert!(
+        wait_until(|| outbox.published_up_to() == Some(COUNT as i64)
+            && ids_and_first_occurrences(&subscriber.received()).1.len() == COUNT),
+        "{kind:?}: published up to {:?}, {} received",
+        outbox.published_up_to(),
+        subscriber.count()
+    );
+    assert_eq!(second.shutdown(DEADLINE).unacknowledged, 0);
+    assert_complete_in_order(&subscriber.received(), COUNT, usize::from(MAX_IN_FLIGHT), marked_at_drop);
+}
+
+fn a_publisher_shut_down_cleanly_hands_over_without_copies(kind: BrokerKind) {
+    const COUNT: usize = 400;
+    let broker = Broker::start(kind, None);
+    let (reached, at_reached) = std::sync::mpsc::channel();
+    let subscriber = Subscriber::start_with_hook(&broker, ALL_READINGS, 100, move || {
+        let _ = reached.send(());
+    });
+    let outbox = MemoryOutbox::new();
+    push_readings(&outbox, 0..COUNT);
+    let config = broker.config("station-handover", 16);
+    let first = Publisher::start(&config, outbox.clone()).unwrap();
+    at_reached.recv_timeout(DEADLINE).expect("the subscriber never got 100 readings");
+    let report = first.shutdown(DEADLINE);
+    assert_eq!(report.unacknowledged, 0, "{report:?}");
+    assert_eq!(report.published_up_to, outbox.published_up_to());
+
+    let second = Publisher::start(&config, outbox.clone()).unwrap();
+    assert!(
+        wait_until(|| outbox.published_up_to() == Some(COUNT as i64) && subscriber.count() >= COUNT),
+        "{kind:?}: published up to {:?}, {} received",
+        outbox.published_up_to(),
+        subscriber.count()
+    );
+    assert_eq!(second.shutdown(DEADLINE).unacknowledged, 0);
+    let (ids, _) = ids_and_first_occurrences(&subscriber.received());
+    assert_eq!(ids, (1..=COUNT as i64).collect::<Vec<_>>(), "{kind:?}: a copy or a gap");
+}
+
+fn authenticates_with_a_password_file(kind: BrokerKind) {
+    const USER: &str = "station-river";
+    const PASSWORD: &str = "s3cret-Pa55word";
+    const WRONG: &str = "wr0ng-Pa55word";
+    let logs = support::capture_logs();
+    let broker = Broker::start(kind, Some((USER, PASSWORD)));
+    let subscriber = Subscriber::start(&broker, ALL_READINGS);
+
+    // A wrong password: refused, retried, nothing marked, the password in no status or log.
+    let wrong_outbox = MemoryOutbox::new();
+    push_readings(&wrong_outbox, 0..5);
+    let mut config = broker.config("station-wrong", 4);
+    config.credentials = support::credentials_file(broker.dir(), "wrong", USER, WRONG);
+    let refused = Publisher::start(&config, wrong_outbox.clone()).unwrap();
+    assert!(wait_until(|| refused.status().last_error.is_some()), "{kind:?}: a wrong password was not refused");
+    let status = refused.status();
+    assert_eq!(status.connections, 0, "{status:?}");
+    assert!(!format!("{status:?}").contains(WRONG));
+    drop(refused);
+    assert_eq!(wrong_outbox.published_up_to(), None);
+
+    // The right password: delivered.
+    let outbox = MemoryOutbox::new();
+    let sent = push_readings(&outbox, 0..20);
+    let mut config = broker.config("station-right", 4);
+    config.credentials = support::credentials_file(broker.dir(), "right", USER, PASSWORD);
+    let publisher = Publisher::start(&config, outbox.clone()).unwrap();
+    assert!(
+        wait_until(|| outbox.published_up_to() == Some(20) && subscriber.count() >= 20),
+        "{kind:?}: {:?}",
+        publisher.status()
+    );
+    publisher.shutdown(DEADLINE);
+    let received: Vec<ReadingMessage> = subscriber.received().iter().map(Received::message).collect();
+    assert_eq!(received, sent);
+
+    let logs = logs.contents();
+    assert!(logs.contains("MQTT broker"), "no publisher log captured: {logs}");
+    assert!(!logs.contains(PASSWORD) && !logs.contains(WRONG), "a password was logged");
+}
+
+/// A certificate authority and a server certificate for 127.0.0.1 signed by
+/// it: (CA PEM, server chain PEM, server key PEM).
+fn test_pki(name: &str) -> (String, String, String) {
+    use rcgen::{BasicConstraints, CertificateParams, DnType, IsCa, Issuer, KeyPair};
+    let ca_key = KeyPair::generate().unwrap();
+    let mut ca_params = CertificateParams::new(Vec::<String>::new()).unwrap();
+    ca_params.is_ca = IsCa::Ca(BasicConstraints::Unconstrained);
+    ca_params.distinguished_name.push(DnType::CommonName, format!("{name} test CA"));
+    let ca = ca_params.self_signed(&ca_key).unwrap();
+    let issuer = Issuer::new(ca_params, ca_key);
+    let server_key = KeyPair::generate().unwrap();
+    let server = CertificateParams::new(vec!["127.0.0.1".to_owned(), "localhost".to_owned()])
+        .unwrap()
+        .signed_by(&server_key, &issuer)
+        .unwrap();
+    (ca.pem(), server.pem() + &ca.pem(), server_key.serialize_pem())
+}
+
+/// TLS needs a broker with a TLS listener: mosquitto's, started with a
+/// certificate made here; rumqttd runs without its TLS feature.
+#[test]
+fn publishes_over_tls_and_refuses_a_broker_its_ca_did_not_sign() {
+    if !available(BrokerKind::Mosquitto) {
+        return;
+    }
+    let (ca, chain, key) = test_pki("broker");
+    let (other_ca, _, _) = test_pki("other");
+    let broker = Broker::start_with_tls(BrokerKind::Mosquitto, None, Some((&chain, &key)));
+    let tls_port = broker.tls_port.unwrap();
+    let subscriber = Subscriber::start(&broker, ALL_READINGS);
+    let ca_file = broker.dir().join("ca.pem");
+    std::fs::write(&ca_file, ca).unwrap();
+    let other_ca_file = broker.dir().join("other-ca.pem");
+    std::fs::write(&other_ca_file, other_ca).unwrap();
+
+    // A CA that did not sign the broker's certificate: no connection, nothing marked.
+    let refused_outbox = MemoryOutbox::new();
+    push_readings(&refused_outbox, 0..3);
+    let mut config = broker.config("station-wrong-ca", 4);
+    config.port = Some(tls_port);
+    config.tls = Some(yosemitech_mqtt::TlsConfig { ca_file: Some(other_ca_file) });
+    let refused = Publisher::start(&config, refused_outbox.clone()).unwrap();
+    assert!(wait_until(|| refused.status().last_error.is_some()));
+    assert_eq!(refused.status().connections, 0);
+    let error = refused.status().last_error.unwrap();
+    assert!(error.contains("certificate"), "{error}");
+    drop(refused);
+    assert_eq!(refused_outbox.published_up_to(), None);
+
+    // The broker's own CA: delivered over TLS.
+    let outbox = MemoryOutbox::new();
+    let sent = push_readings(&outbox, 0..50);
+    config.client_id = "station-tls".into();
+    config.tls = Some(yosemitech_mqtt::TlsConfig { ca_file: Some(ca_file) });
+    let publisher = Publisher::start(&config, outbox.clone()).unwrap();
+    assert!(
+        wait_until(|| outbox.published_up_to() == Some(50) && subscriber.count() >= 50),
+        "{:?}",
+        publisher.status()
+    );
+    assert_eq!(publisher.shutdown(DEADLINE).unacknowledged, 0);
+    let received: Vec<ReadingMessage> = subscriber.received().iter().map(Received::message).collect();
+    assert_eq!(received, sent);
+}

@@ -1,0 +1,542 @@
+//! The station file (`station.toml`): buses, the probes on each, storage
+//! and publishing, validated against the loaded spec.
+//!
+//! ```toml
+//! station = "river-01"            # names the station in every reading
+//!
+//! [storage]
+//! path = "station.sqlite"         # relative to this file's directory
+//!
+//! [[bus]]
+//! name = "rs485"
+//! port = "/dev/ttyUSB0"           # a serial port ...
+//! # tcp = "192.168.1.50:4196"     # ... or an RTU-over-TCP gateway
+//! # baud = 9600                   # default: the probes' spec serial settings
+//! # parity = "none"               # none | even | odd; default: the spec's
+//! # timeout = "1s"                # reply timeout per request
+//! # retries = 2                   # repeats of a failed request
+//! # max_backoff = "10m"           # longest pause of a probe that keeps failing
+//!
+//! [[bus.probe]]
+//! label = "upstream-ph"           # unique in the station
+//! sensor = "..."                  # a sensor of the spec (`yosemitech list`)
+//! address = 1
+//! measurements = ["..."]          # field or read names; default: every measurement
+//! interval = "15m"                # 500ms, 30s, 15m, 1h, 1h30m ...
+//! align = true                    # on the clock: 00:00, 00:15, 00:30 ... UTC
+//! # procedure = true              # follow the spec's procedure (default when it has one)
+//!
+//! # [mqtt] ...                    # passed to the publisher as written
+//! ```
+//!
+//! Every error names the file, line and column of the offending value and
+//! what is wrong with it; [`load`] reports all of them, not only the first.
+
+use std::collections::{BTreeMap, BTreeSet};
+use std::fmt;
+use std::ops::Range;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::time::Duration;
+
+use serde::Deserialize;
+use toml::Spanned;
+use yosemitech_spec::{Parity, Sensor, Serial};
+
+use crate::plan;
+
+/// Default reply timeout per request.
+pub const DEFAULT_TIMEOUT: Duration = Duration::from_secs(1);
+/// Default repeats of a failed request.
+pub const DEFAULT_RETRIES: u32 = 2;
+/// Default longest pause of a probe that keeps failing.
+pub const DEFAULT_MAX_BACKOFF: Duration = Duration::from_secs(600);
+
+/// One problem of a station file, located.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct ConfigError {
+    /// The file.
+    pub file: PathBuf,
+    /// 1-based line (0: the file as a whole, e.g. it cannot be read).
+    pub line: usize,
+    /// 1-based column, in characters.
+    pub column: usize,
+    /// What is wrong, and what would be right.
+    pub message: String,
+}
+
+impl fmt::Display for ConfigError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        if self.line == 0 {
+            write!(f, "{}: {}", self.file.display(), self.message)
+        } else {
+            write!(f, "{}:{}:{}: {}", self.file.display(), self.line, self.column, self.message)
+        }
+    }
+}
+
+/// Every problem of a station file, in file order.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub struct ConfigErrors(pub Vec<ConfigError>);
+
+impl fmt::Display for ConfigErrors {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        for (i, e) in self.0.iter().enumerate() {
+            if i > 0 {
+                writeln!(f)?;
+            }
+            write!(f, "{e}")?;
+        }
+        Ok(())
+    }
+}
+
+/// How a bus is reached.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Link {
+    /// A serial port with these settings.
+    Serial {
+        /// The device path (`/dev/ttyUSB0`, `COM3`).
+        port: String,
+        /// Character format and speed.
+        serial: Serial,
+    },
+    /// An RTU-over-TCP gateway (raw RTU frames on a TCP stream).
+    Tcp {
+        /// `host:port`.
+        address: String,
+    },
+}
+
+impl fmt::Display for Link {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Link::Serial { port, .. } => f.write_str(port),
+            Link::Tcp { address } => write!(f, "tcp://{address}"),
+        }
+    }
+}
+
+/// A validated probe.
+#[derive(Debug, Clone)]
+pub struct ProbeConfig {
+    /// Unique label in the station.
+    pub label: String,
+    /// The spec's sensor.
+    pub sensor: Arc<Sensor>,
+    /// Slave address, within the sensor's range.
+    pub address: u8,
+    /// The chosen measurement names (field names of the sensor), in spec order.
+    pub measurements: Vec<String>,
+    /// Time between samples (at least 1 ms).
+    pub interval: Duration,
+    /// Samples fall on multiples of `interval` since 00:00 UTC 1970-01-01.
+    pub align: bool,
+    /// Follow the spec's procedure (before, warm-up, averaged readings, after).
+    pub procedure: bool,
+}
+
+/// A validated bus.
+#[derive(Debug, Clone)]
+pub struct BusConfig {
+    /// Unique name in the station.
+    pub name: String,
+    /// How it is reached.
+    pub link: Link,
+    /// Reply timeout per request.
+    pub timeout: Duration,
+    /// Repeats of a failed request.
+    pub retries: u32,
+    /// Longest pause of a probe that keeps failing.
+    pub max_backoff: Duration,
+    /// Its probes (at least one), in file order.
+    pub probes: Vec<ProbeConfig>,
+}
+
+/// A validated station file.
+#[derive(Debug, Clone)]
+pub struct StationConfig {
+    /// The file it was read from.
+    pub file: PathBuf,
+    /// The station's name.
+    pub station: String,
+    /// The SQLite file (relative paths resolved against the file's directory).
+    pub storage: PathBuf,
+    /// The buses (at least one), in file order.
+    pub buses: Vec<BusConfig>,
+    /// The `[mqtt]` table as written, for the publisher to validate.
+    pub mqtt: Option<toml::Table>,
+}
+
+impl StationConfig {
+    /// Every probe with its bus.
+    pub fn probes(&self) -> impl Iterator<Item = (&BusConfig, &ProbeConfig)> {
+        self.buses.iter().flat_map(|b| b.probes.iter().map(move |p| (b, p)))
+    }
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawStation {
+    station: Spanned<String>,
+    storage: RawStorage,
+    #[serde(default)]
+    bus: Vec<Spanned<RawBus>>,
+    mqtt: Option<toml::Table>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawStorage {
+    path: Spanned<String>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawBus {
+    name: Spanned<String>,
+    port: Option<Spanned<String>>,
+    tcp: Option<Spanned<String>>,
+    baud: Option<Spanned<u32>>,
+    parity: Option<Spanned<String>>,
+    timeout: Option<Spanned<String>>,
+    retries: Option<Spanned<u32>>,
+    max_backoff: Option<Spanned<String>>,
+    #[serde(default)]
+    probe: Vec<Spanned<RawProbe>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawProbe {
+    label: Spanned<String>,
+    sensor: Spanned<String>,
+    address: Spanned<i64>,
+    #[serde(default)]
+    measurements: Vec<Spanned<String>>,
+    interval: Spanned<String>,
+    #[serde(default)]
+    align: bool,
+    procedure: Option<Spanned<bool>>,
+}
+
+/// Parses a duration: one or more `<number><unit>` with units `ms`, `s`,
+/// `m`, `h`, `d` (`500ms`, `30s`, `15m`, `1h30m`).
+pub fn parse_duration(text: &str) -> Result<Duration, String> {
+    let bad = || format!("`{text}` is not a duration: write e.g. 500ms, 30s, 15m, 1h or 1h30m");
+    let mut rest = text.trim();
+    if rest.is_empty() {
+        return Err(bad());
+    }
+    let mut total = Duration::ZERO;
+    while !rest.is_empty() {
+        let digits = rest.bytes().take_while(u8::is_ascii_digit).count();
+        let number: u64 = rest[..digits].parse().map_err(|_| bad())?;
+        rest = &rest[digits..];
+        let letters = rest.bytes().take_while(u8::is_ascii_alphabetic).count();
+        let unit = match &rest[..letters] {
+            "ms" => Duration::from_millis(1),
+            "s" => Duration::from_secs(1),
+            "m" | "min" => Duration::from_secs(60),
+            "h" => Duration::from_secs(3600),
+            "d" => Duration::from_secs(86_400),
+            _ => return Err(bad()),
+        };
+        rest = &rest[letters..];
+        let part = u32::try_from(number).ok().and_then(|n| unit.checked_mul(n)).ok_or_else(bad)?;
+        total = total.checked_add(part).ok_or_else(bad)?;
+    }
+    Ok(total)
+}
+
+/// Locates byte offsets of one file's text.
+struct Locator<'a> {
+    file: &'a Path,
+    text: &'a str,
+    errors: Vec<ConfigError>,
+}
+
+impl Locator<'_> {
+    fn at(&self, span: Range<usize>, message: impl Into<String>) -> ConfigError {
+        let start = span.start.min(self.text.len());
+        let before = self.text.get(..start).unwrap_or_default();
+        let line = before.matches('\n').count() + 1;
+        let column = before.rsplit('\n').next().unwrap_or_default().chars().count() + 1;
+        ConfigError { file: self.file.to_owned(), line, column, message: message.into() }
+    }
+
+    fn error(&mut self, span: Range<usize>, message: impl Into<String>) {
+        let e = self.at(span, message);
+        self.errors.push(e);
+    }
+}
+
+/// Reads and validates the station file at `path` against `sensors` (the
+/// loaded spec).
+///
+/// # Errors
+///
+/// The file cannot be read, is not TOML of this shape, or names what the
+/// spec does not have: every problem found, located.
+pub fn load(path: &Path, sensors: &[Arc<Sensor>]) -> Result<StationConfig, ConfigErrors> {
+    let text = std::fs::read_to_string(path).map_err(|e| {
+        ConfigErrors(vec![ConfigError { file: path.to_owned(), line: 0, column: 0, message: format!("cannot read it: {e}") }])
+    })?;
+    parse(path, &text, sensors)
+}
+
+/// Validates `text`, the contents of the station file `path` (relative
+/// storage paths resolve against `path`'s directory).
+///
+/// # Errors
+///
+/// As [`load`].
+pub fn parse(path: &Path, text: &str, sensors: &[Arc<Sensor>]) -> Result<StationConfig, ConfigErrors> {
+    let mut loc = Locator { file: path, text, errors: Vec::new() };
+    let raw: RawStation = match toml::from_str(text) {
+        Ok(raw) => raw,
+        Err(e) => {
+            let message = e.message().trim().to_owned();
+            let error = match e.span() {
+                Some(span) => loc.at(span, message),
+                None => ConfigError { file: path.to_owned(), line: 0, column: 0, message },
+            };
+            return Err(ConfigErrors(vec![error]));
+        }
+    };
+    if raw.station.get_ref().trim().is_empty() {
+        loc.error(raw.station.span(), "the station name is empty");
+    }
+    let base = path.parent().unwrap_or_else(|| Path::new("."));
+    let storage = base.join(raw.storage.path.get_ref());
+    if raw.storage.path.get_ref().trim().is_empty() {
+        loc.error(raw.storage.path.span(), "the storage path is empty");
+    }
+    if raw.bus.is_empty() {
+        loc.error(0..0, "no [[bus]]: a station needs at least one bus with a [[bus.probe]]");
+    }
+    let mut labels: BTreeMap<String, Range<usize>> = BTreeMap::new();
+    let mut bus_names = BTreeSet::new();
+    let mut buses = Vec::new();
+    for bus in raw.bus {
+        let bus_span = bus.span();
+        let bus = bus.into_inner();
+        if !bus_names.insert(bus.name.get_ref().clone()) {
+            loc.error(bus.name.span(), format!("a second bus is named `{}`: bus names are unique", bus.name.get_ref()));
+        }
+        if bus.probe.is_empty() {
+            loc.error(bus_span.clone(), format!("bus `{}` has no [[bus.probe]]", bus.name.get_ref()));
+        }
+        let mut probes = Vec::new();
+        let mut addresses: BTreeSet<u8> = BTreeSet::new();
+        for probe in bus.probe {
+            let Some(probe) = validate_probe(&mut loc, probe.into_inner(), sensors) else { continue };
+            if let Some(first) = labels.get(&probe.0.label) {
+                let first = loc.at(first.clone(), "");
+                loc.error(
+                    probe.1.clone(),
+                    format!("a second probe is labelled `{}` (the first is at line {})", probe.0.label, first.line),
+                );
+            } else {
+                labels.insert(probe.0.label.clone(), probe.1.clone());
+            }
+            if !addresses.insert(probe.0.address) {
+                loc.error(
+                    probe.2.clone(),
+                    format!("a second probe on bus `{}` has address {}", bus.name.get_ref(), probe.0.address),
+                );
+            }
+            probes.push(probe.0);
+        }
+        let link = match (bus.port, bus.tcp) {
+            (Some(port), None) => {
+                let mut serial = probes.first().map_or(Serial { baud: 9600, data_bits: 8, parity: Parity::None, stop_bits: 1 }, |p| p.sensor.serial);
+                if let Some(other) = probes.iter().find(|p| p.sensor.serial != serial)
+                    && bus.baud.is_none()
+                    && bus.parity.is_none()
+                {
+                    loc.error(
+                        port.span(),
+                        format!(
+                            "the probes on bus `{}` have different serial settings in the spec (`{}` and `{}`): set baud and parity",
+                            bus.name.get_ref(),
+                            probes.first().map_or("", |p| p.label.as_str()),
+                            other.label
+                        ),
+                    );
+                }
+                if let Some(baud) = &bus.baud {
+                    if *baud.get_ref() == 0 {
+                        loc.error(baud.span(), "baud 0 is not a speed");
+                    }
+                    serial.baud = *baud.get_ref();
+                }
+                if let Some(parity) = &bus.parity {
+                    serial.parity = match parity.get_ref().as_str() {
+                        "none" => Parity::None,
+                        "even" => Parity::Even,
+                        "odd" => Parity::Odd,
+                        other => {
+                            loc.error(parity.span(), format!("parity `{other}`: write none, even or odd"));
+                            serial.parity
+                        }
+                    };
+                }
+                Link::Serial { port: port.into_inner(), serial }
+            }
+            (None, Some(tcp)) => {
+                if bus.baud.is_some() || bus.parity.is_some() {
+                    loc.error(tcp.span(), "baud and parity are the gateway's business: a tcp bus takes neither");
+                }
+                let address = tcp.get_ref().trim_start_matches("tcp://").to_owned();
+                if address.rsplit_once(':').is_none_or(|(_, port)| port.parse::<u16>().is_err()) {
+                    loc.error(tcp.span(), format!("`{}` is not HOST:PORT", tcp.get_ref()));
+                }
+                Link::Tcp { address }
+            }
+            (Some(port), Some(_)) => {
+                loc.error(port.span(), "a bus has a serial `port` or a `tcp` gateway, not both");
+                continue;
+            }
+            (None, None) => {
+                loc.error(bus_span, format!("bus `{}` needs a serial `port` or a `tcp` gateway", bus.name.get_ref()));
+                continue;
+            }
+        };
+        let mut duration = |d: &Option<Spanned<String>>, default: Duration| match d {
+            None => default,
+            Some(d) => match parse_duration(d.get_ref()) {
+                Ok(v) if !v.is_zero() => v,
+                Ok(_) => {
+                    loc.error(d.span(), "a zero duration");
+                    default
+                }
+                Err(e) => {
+                    loc.error(d.span(), e);
+                    default
+                }
+            },
+        };
+        let timeout = duration(&bus.timeout, DEFAULT_TIMEOUT);
+        let max_backoff = duration(&bus.max_backoff, DEFAULT_MAX_BACKOFF);
+        buses.push(BusConfig {
+            name: bus.name.into_inner(),
+            link,
+            timeout,
+            retries: bus.retries.map_or(DEFAULT_RETRIES, Spanned::into_inner),
+            max_backoff,
+            probes,
+        });
+    }
+    if loc.errors.is_empty() {
+        Ok(StationConfig { file: path.to_owned(), station: raw.station.into_inner(), storage, buses, mqtt: raw.mqtt })
+    } else {
+        loc.errors.sort_by_key(|e| (e.line, e.column));
+        Err(ConfigErrors(loc.errors))
+    }
+}
+
+/// A probe, or `None` after recording why not; with the spans of its
+/// label and address.
+fn validate_probe(
+    loc: &mut Locator<'_>,
+    raw: RawProbe,
+    sensors: &[Arc<Sensor>],
+) -> Option<(ProbeConfig, Range<usize>, Range<usize>)> {
+    let Some(sensor) = sensors.iter().find(|s| s.name == *raw.sensor.get_ref()) else {
+        let known: Vec<&str> = sensors.iter().filter(|s| s.measurement_reads().next().is_some()).map(|s| s.name.as_str()).collect();
+        loc.error(
+            raw.sensor.span(),
+            format!("no sensor `{}` in the spec; sensors with measurements: {}", raw.sensor.get_ref(), known.join(", ")),
+        );
+        return None;
+    };
+    let mut ok = true;
+    if raw.label.get_ref().trim().is_empty() {
+        loc.error(raw.label.span(), "the probe label is empty");
+        ok = false;
+    }
+    let (min, max) = (sensor.min_address.max(1), sensor.max_address.min(247));
+    let address = match u8::try_from(*raw.address.get_ref()) {
+        Ok(a) if (min..=max).contains(&a) => a,
+        _ => {
+            loc.error(
+                raw.address.span(),
+                format!("address {} is outside {min}..={max}, the addresses of `{}`", raw.address.get_ref(), sensor.name),
+            );
+            ok = false;
+            0
+        }
+    };
+    let mut names = Vec::new();
+    for m in &raw.measurements {
+        match plan::choose(sensor, &[m.get_ref()]) {
+            Ok(_) => names.push(m.get_ref().clone()),
+            Err(e) => {
+                loc.error(m.span(), e.to_string());
+                ok = false;
+            }
+        }
+    }
+    let measurements = match plan::choose(sensor, &names) {
+        Ok(chosen) => chosen.into_iter().map(str::to_owned).collect(),
+        Err(e) => {
+            loc.error(raw.sensor.span(), e.to_string());
+            ok = false;
+            Vec::new()
+        }
+    };
+    let interval = match parse_duration(raw.interval.get_ref()) {
+        Ok(d) if !d.is_zero() => d,
+        Ok(_) => {
+            loc.error(raw.interval.span(), "the interval is zero");
+            ok = false;
+            Duration::ZERO
+        }
+        Err(e) => {
+            loc.error(raw.interval.span(), e);
+            ok = false;
+            Duration::ZERO
+        }
+    };
+    let procedure = match &raw.procedure {
+        Some(p) if *p.get_ref() && sensor.procedure.is_none() => {
+            loc.error(p.span(), format!("sensor `{}` has no procedure in the spec", sensor.name));
+            ok = false;
+            false
+        }
+        Some(p) => *p.get_ref(),
+        None => sensor.procedure.is_some(),
+    };
+    let spans = (raw.label.span(), raw.address.span());
+    ok.then(|| {
+        (
+            ProbeConfig {
+                label: raw.label.into_inner(),
+                sensor: Arc::clone(sensor),
+                address,
+                measurements,
+                interval,
+                align: raw.align,
+                procedure,
+            },
+            spans.0,
+            spans.1,
+        )
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn durations() {
+        assert_eq!(parse_duration("15m"), Ok(Duration::from_secs(900)));
+        assert_eq!(parse_duration("1h30m"), Ok(Duration::from_secs(5400)));
+        assert_eq!(parse_duration("250ms"), Ok(Duration::from_millis(250)));
+        for bad in ["", "15", "m", "1x", "-1s", "1.5s", "99999999999999999999s"] {
+            assert!(parse_duration(bad).is_err(), "{bad}");
+        }
+    }
+}

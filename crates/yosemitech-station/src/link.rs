@@ -1,0 +1,97 @@
+//! One bus's master: the transport opened from the station file, and
+//! requests through the spec interpreter with counted retries.
+
+use std::collections::BTreeMap;
+use std::time::Duration;
+
+use yosemitech_rtu::{
+    Client, ClientConfig, DataBits, Parity as RtuParity, RetryPolicy, SerialConfig, SerialTransport, StopBits,
+    TcpTransport, Transport,
+};
+use yosemitech_spec::{Command, Parity, Serial, Values};
+
+use crate::config::Link;
+
+/// A client on any transport.
+pub type Master = Client<Box<dyn Transport + Send>>;
+
+/// The runtime's serial settings for `port` with the spec's `serial`.
+pub fn serial_config(port: &str, serial: &Serial) -> SerialConfig {
+    SerialConfig {
+        baud: serial.baud,
+        data_bits: if serial.data_bits == 7 { DataBits::Seven } else { DataBits::Eight },
+        parity: match serial.parity {
+            Parity::None => RtuParity::None,
+            Parity::Even => RtuParity::Even,
+            Parity::Odd => RtuParity::Odd,
+        },
+        stop_bits: if serial.stop_bits == 2 { StopBits::Two } else { StopBits::One },
+        ..SerialConfig::new(port)
+    }
+}
+
+/// Opens `link` with `timeout` per attempt. The client never retries on
+/// its own: [`transact`] does, so that it can count.
+///
+/// # Errors
+///
+/// The port or the gateway cannot be opened.
+pub fn open(link: &Link, timeout: Duration) -> std::io::Result<Master> {
+    let transport: Box<dyn Transport + Send> = match link {
+        Link::Serial { port, serial } => Box::new(SerialTransport::open(&serial_config(port, serial))?),
+        Link::Tcp { address } => Box::new(TcpTransport::connect(address.as_str(), timeout.max(Duration::from_millis(500)))?),
+    };
+    let config = ClientConfig { timeout, retry: RetryPolicy::NONE, ..ClientConfig::default() };
+    Ok(Client::with_config(transport, config))
+}
+
+/// What one request came to.
+#[derive(Debug)]
+pub struct Outcome {
+    /// The decoded values, or why there are none.
+    pub result: Result<Values, Failure>,
+    /// Attempts after the first.
+    pub retries: u32,
+}
+
+/// Why a request failed.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Failure {
+    /// The command.
+    pub command: String,
+    /// The error, as text.
+    pub message: String,
+    /// No reply came in time.
+    pub timeout: bool,
+}
+
+/// Sends `command` (no values) to `slave`, repeating retryable failures
+/// (timeouts, corrupt and foreign frames) up to `retries` times, and
+/// decodes the reply through the spec interpreter.
+pub fn transact(master: &mut Master, command: &Command, slave: u8, retries: u32) -> Outcome {
+    let slave = command.fixed_slave.unwrap_or(slave);
+    let fail = |message: String, timeout: bool| Failure { command: command.name.clone(), message, timeout };
+    let request = match command.encode_request(slave, &BTreeMap::new()) {
+        Ok(r) => r,
+        Err(e) => return Outcome { result: Err(fail(format!("cannot build the request: {e}"), false)), retries: 0 },
+    };
+    let policy = RetryPolicy::default();
+    let mut attempt = 0;
+    loop {
+        match master.call_raw(&request, &command.layout()) {
+            Ok(reply) => {
+                let result = command
+                    .decode_response(slave, reply)
+                    .map_err(|e| fail(format!("cannot decode the reply: {e}"), false));
+                return Outcome { result, retries: attempt };
+            }
+            Err(e) if attempt < retries && policy.should_retry(&e) => {
+                attempt += 1;
+                std::thread::sleep(policy.backoff);
+            }
+            Err(e) => {
+                return Outcome { result: Err(fail(e.to_string(), e.is_timeout())), retries: attempt };
+            }
+        }
+    }
+}
