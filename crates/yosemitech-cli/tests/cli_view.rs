@@ -4,7 +4,8 @@
 //! every probe's label and latest values, and quits on `q`.
 //!
 //! The probes' sensors and measurements come from the spec: the first
-//! sensors with a read of numbers with units.
+//! sensors with a measurement read (`Sensor::measurement_reads`) of numbers
+//! with units.
 
 mod common;
 
@@ -52,15 +53,14 @@ fn latest(p: usize, m: usize) -> f64 {
     10.25 + 20.0 * p as f64 + m as f64
 }
 
-/// The probes: the spec's first sensors with a read of f32 fields that all carry units.
+/// The probes: the spec's first sensors with a measurement read of f32 fields that all carry units.
 fn probes() -> Vec<Probe> {
     let probes: Vec<Probe> = spec()
         .sensors
         .iter()
         .filter_map(|sensor| {
-            let read = sensor.commands.iter().find(|c| {
-                c.is_read()
-                    && c.named_fields().count() > 0
+            let read = sensor.measurement_reads().find(|c| {
+                c.named_fields().count() > 0
                     && c.named_fields().all(|f| matches!(f.kind, FieldKind::F32 { .. }) && f.unit.is_some())
             })?;
             let measurements = read
