@@ -5,8 +5,9 @@ use std::time::{Duration, SystemTime};
 
 use clap::{ArgAction, Args, Parser, ValueEnum};
 
-use crate::format::parse_duration;
+use crate::format::{parse_duration, parse_size};
 use crate::port::{AddressArg, PortArgs};
+use crate::time::parse_instant_now as parse_instant;
 
 const LONG_ABOUT: &str = "\
 Field tool for Yosemitech water-quality probes (pH/ORP, conductivity, turbidity, chlorophyll,
@@ -32,6 +33,8 @@ Examples:
   yosemitech measure turbidity -p /dev/ttyUSB0
   yosemitech decode 01 03 04 33 33 F3 40 40 78
   yosemitech scan --port /dev/ttyUSB0
+  yosemitech watch --db station.db                 a station's latest values, live
+  yosemitech plot --db station.db --from 1d --out day.png
 
 The port and baud rate may also come from YOSEMITECH_PORT and YOSEMITECH_BAUD.";
 
@@ -129,6 +132,23 @@ including --spec files; `yosemitech list SENSOR` shows it. Progress bars show th
 the readings when stderr is a terminal.")]
     Measure(MeasureArgs),
 
+    /// Watch a station's store: every probe's latest values, sparklines and error counts.
+    #[command(long_about = "\
+A terminal view of a station's store (the SQLite file `yosemitech log` writes), refreshed at
+an interval: one box per probe with its sensor, serial number, error and retry counts, and for
+each measurement the latest value with its unit, its age and a sparkline of the values over
+--window. The store is only read; a logger may be writing it. q, Esc or Ctrl-C quits.")]
+    Watch(WatchArgs),
+
+    /// Draw a chart (PNG or SVG) of a time range of a station's store.
+    #[command(long_about = "\
+Draw the readings of a station's store between --from and --to as a chart: one panel per
+measurement, one line per probe, a UTC time axis. The file's extension chooses the format
+(.png or .svg). Times are UTC (2025-11-23, 2025-11-23T06:00:00Z), a time ago (90m, 6h, 2d)
+or now. Values that are not numbers (NaN) break a line. Fails (exit 1) when the range holds
+no reading, and (exit 2) for an unknown probe or measurement.")]
+    Plot(PlotArgs),
+
     /// Run a guided calibration.
     #[command(subcommand)]
     Calibrate(CalibrateSubcommand),
@@ -189,7 +209,8 @@ without delaying the others. Ctrl-C or SIGTERM stops after the request in flight
     #[command(long_about = "\
 Write the readings of a station's SQLite file (`yosemitech log`) for a time range: CSV in long
 form (one row per value, the reading's columns repeated) or one JSON object per reading.
-Times are UTC: 2025-11-23 or 2025-11-23T18:00:00Z; --from is inclusive, --to exclusive.")]
+Times are UTC (2025-11-23 or 2025-11-23T18:00:00Z), a time ago (90m, 6h, 2d) or now; --from
+is inclusive, --to exclusive.")]
     Export(ExportArgs),
 }
 
@@ -547,6 +568,46 @@ pub struct SimulateArgs {
     pub serial_as_printed: bool,
 }
 
+/// `watch`.
+#[derive(Args, Debug)]
+pub struct WatchArgs {
+    /// The station's store (the SQLite file `yosemitech log` writes).
+    #[arg(long, value_name = "FILE")]
+    pub db: PathBuf,
+    /// Time between two reads of the store.
+    #[arg(short, long, value_name = "DURATION", default_value = "2s", value_parser = parse_duration)]
+    pub interval: Duration,
+    /// How far back the sparklines and the error and retry counts reach.
+    #[arg(long, value_name = "DURATION", default_value = "6h", value_parser = parse_duration)]
+    pub window: Duration,
+}
+
+/// `plot`.
+#[derive(Args, Debug)]
+pub struct PlotArgs {
+    /// The station's store (the SQLite file `yosemitech log` writes).
+    #[arg(long, value_name = "FILE")]
+    pub db: PathBuf,
+    /// Start of the range [default: the first reading].
+    #[arg(long, value_name = "TIME", value_parser = parse_instant)]
+    pub from: Option<SystemTime>,
+    /// End of the range [default: now].
+    #[arg(long, value_name = "TIME", value_parser = parse_instant)]
+    pub to: Option<SystemTime>,
+    /// Only this probe (its label in the station's configuration).
+    #[arg(long, value_name = "LABEL")]
+    pub probe: Option<String>,
+    /// Only this measurement (the spec's field name).
+    #[arg(long, value_name = "NAME")]
+    pub measurement: Option<String>,
+    /// The chart file: .png or .svg.
+    #[arg(short, long, value_name = "FILE")]
+    pub out: PathBuf,
+    /// Width and height in pixels, e.g. 1200x800 [default: 1200 wide, 300 high per measurement].
+    #[arg(long, value_name = "WxH", value_parser = parse_size)]
+    pub size: Option<(u32, u32)>,
+}
+
 /// `log`.
 #[derive(Args, Debug)]
 pub struct LogArgs {
@@ -575,17 +636,12 @@ pub struct ExportArgs {
     #[arg(long, value_name = "FILE")]
     pub db: PathBuf,
     /// First instant, inclusive (UTC) [default: the beginning].
-    #[arg(long, value_name = "TIME", value_parser = parse_time)]
+    #[arg(long, value_name = "TIME", value_parser = parse_instant)]
     pub from: Option<SystemTime>,
     /// Last instant, exclusive (UTC) [default: the end].
-    #[arg(long, value_name = "TIME", value_parser = parse_time)]
+    #[arg(long, value_name = "TIME", value_parser = parse_instant)]
     pub to: Option<SystemTime>,
     /// Output format.
     #[arg(short, long, value_enum, default_value_t = ExportFormat::Csv)]
     pub format: ExportFormat,
-}
-
-/// A UTC time on the command line.
-fn parse_time(text: &str) -> std::result::Result<SystemTime, String> {
-    yosemitech_station::time::parse_rfc3339(text)
 }

@@ -157,6 +157,26 @@ pub fn parse_duration(text: &str) -> std::result::Result<Duration, String> {
     Duration::try_from_secs_f64(value * scale).map_err(|_| format!("`{text}` is out of range"))
 }
 
+/// Largest chart side, in pixels.
+pub const MAX_SIDE: u32 = 10_000;
+/// Smallest chart side, in pixels.
+pub const MIN_SIDE: u32 = 100;
+
+/// Parses a picture size, `WIDTHxHEIGHT` in pixels, each side within
+/// [`MIN_SIDE`]..=[`MAX_SIDE`].
+pub fn parse_size(text: &str) -> std::result::Result<(u32, u32), String> {
+    let bad = || format!("`{text}` is not a size; write it as WIDTHxHEIGHT in pixels, e.g. 1200x800");
+    let (w, h) = text.trim().split_once(['x', 'X']).ok_or_else(bad)?;
+    let side = |s: &str| s.trim().parse::<u32>().map_err(|_| bad());
+    let (w, h) = (side(w)?, side(h)?);
+    for (name, n) in [("width", w), ("height", h)] {
+        if !(MIN_SIDE..=MAX_SIDE).contains(&n) {
+            return Err(format!("the {name} {n} is outside {MIN_SIDE}..={MAX_SIDE} pixels"));
+        }
+    }
+    Ok((w, h))
+}
+
 /// Parses the values of a write (or of a read's reply, for `encode
 /// --response`): `field=value` pairs, or values in field order.
 pub fn parse_values(command: &CommandSpec, args: &[String]) -> Result<BTreeMap<String, Value>> {
@@ -324,6 +344,15 @@ pub fn parse_int(text: &str) -> Option<i64> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn sizes_parse_within_bounds() {
+        assert_eq!(parse_size("1200x800"), Ok((1200, 800)));
+        assert_eq!(parse_size(" 100X10000 "), Ok((100, 10_000)));
+        for bad in ["", "1200", "x800", "1200x", "99x800", "1200x10001", "-1x5", "axb", "1200x800x3"] {
+            assert!(parse_size(bad).is_err(), "{bad:?} was accepted");
+        }
+    }
 
     #[test]
     fn f32_json_round_trips_bit_exactly() {

@@ -10,6 +10,10 @@
 //! coefficients, set-address, demo), which go through the typed `yosemitech`
 //! crate.
 //!
+//! `watch` and `plot` read a station's store (the `stored` module) into plain
+//! data (`readings`), which `dashboard` draws on a terminal and `chart` into
+//! a PNG or SVG file.
+//!
 //! The binary is a thin `main` over [`main`]; [`decode_text`] exposes the
 //! `decode` subcommand's path to the fuzzer.
 //!
@@ -20,15 +24,19 @@
 
 mod backup;
 mod catalog;
+mod chart;
 mod cli;
 mod commands;
 mod confirm;
+mod dashboard;
 mod device;
 mod error;
 mod format;
 mod port;
 mod progress;
+mod readings;
 mod shell;
+mod stored;
 mod time;
 
 use std::io::{IsTerminal as _, Write as _};

@@ -9,11 +9,13 @@ pub mod export;
 pub mod list;
 pub mod log;
 pub mod measure;
+pub mod plot;
 pub mod poll;
 pub mod read;
 pub mod scan;
 pub mod set_address;
 pub mod simulate;
+pub mod watch;
 pub mod write;
 
 use std::io::{self, Write};
@@ -53,6 +55,8 @@ pub fn run(cli: &Cli) -> Result<()> {
         Subcommand::Write(args) => write::run(&catalog, global, args, &mut out),
         Subcommand::Poll(args) => poll::run(&catalog, global, args, &ctrl_c_flag(), &mut out),
         Subcommand::Measure(args) => measure::run(&catalog, global, args, &mut out),
+        Subcommand::Watch(args) => watch::run(args, &ctrl_c_flag()),
+        Subcommand::Plot(args) => plot::run(args, &mut out),
         Subcommand::Calibrate(CalibrateSubcommand::Ph(args)) => calibrate::run(&catalog, global, args, &mut out),
         Subcommand::Coefficients(CoefficientsSubcommand::Backup(args)) => {
             coefficients::backup(&catalog, global, args, &mut out)
