@@ -2,7 +2,8 @@
 //!
 //! Everything generated code relies on lives here once: the CRC, frame
 //! encoding and checking ([`frame::Layout`]), register value codecs
-//! ([`codec`]), the [`Command`] trait and typed errors. The core is `no_std`
+//! ([`codec`]), the [`Command`] trait, typed errors, and Modbus TCP framing
+//! ([`mbap`]: the MBAP header and conversion to and from RTU frames). The core is `no_std`
 //! and allocation-free; the `std` feature adds [`transport`]s (serial with
 //! the `serial` feature, RTU-over-TCP, in-memory) and the [`Client`].
 #![cfg_attr(not(feature = "std"), no_std)]
@@ -15,6 +16,7 @@ mod command;
 mod crc;
 mod error;
 pub mod frame;
+pub mod mbap;
 mod raw;
 mod sensor;
 pub mod timing;
@@ -27,6 +29,7 @@ pub use command::Command;
 pub use crc::{CRC_INIT, crc_ok, crc16, crc16_update};
 pub use error::{EchoField, EncodeError, ExceptionCode, FrameError};
 pub use frame::{Frame, Function, Layout};
+pub use mbap::MbapError;
 pub use raw::RawBytes;
 pub use sensor::{RoundTripError, SensorInfo, SensorModule};
 pub use timing::{CharFormat, DataBits, LineTiming, Parity, StopBits};
