@@ -5,7 +5,9 @@
 //! ([`codec`]), the [`Command`] trait, typed errors, and Modbus TCP framing
 //! ([`mbap`]: the MBAP header and conversion to and from RTU frames). The core is `no_std`
 //! and allocation-free; the `std` feature adds [`transport`]s (serial with
-//! the `serial` feature, RTU-over-TCP, in-memory) and the [`Client`].
+//! the `serial` feature, RTU-over-TCP, in-memory) and the [`Client`]. The
+//! `tokio-modbus` feature runs generated commands over an existing
+//! tokio-modbus connection (`tokio_modbus` module).
 #![cfg_attr(not(feature = "std"), no_std)]
 #![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used, clippy::panic, clippy::indexing_slicing))]
 
@@ -20,6 +22,8 @@ pub mod mbap;
 mod raw;
 mod sensor;
 pub mod timing;
+#[cfg(feature = "tokio-modbus")]
+pub mod tokio_modbus;
 #[cfg(feature = "std")]
 pub mod transport;
 mod value;
