@@ -18,16 +18,20 @@ use crate::mbap::{self, HEADER_LEN, Header, MAX_MBAP_ADU};
 use crate::timing::LineTiming;
 
 /// A byte link to one or more Modbus devices, for the [`AsyncClient`](crate::AsyncClient).
-pub trait AsyncLink: Send {
+///
+/// The futures carry no `Send` bound here; those of the links in this
+/// module are `Send` when their stream is, so a client on them can be moved
+/// into a spawned task.
+pub trait AsyncLink {
     /// Sends one whole RTU frame. A write interrupted by dropping its future
     /// is finished before the next one (links that can tell), so the far end
     /// never sees half a frame followed by another.
-    fn write_frame(&mut self, frame: &[u8]) -> impl Future<Output = io::Result<()>> + Send;
+    fn write_frame(&mut self, frame: &[u8]) -> impl Future<Output = io::Result<()>>;
 
     /// Reads what has arrived into `buf` (not empty), waiting for at least
     /// one byte; the client bounds the wait. A closed link is an error, not
     /// 0. Cancel-safe.
-    fn read(&mut self, buf: &mut [u8]) -> impl Future<Output = io::Result<usize>> + Send;
+    fn read(&mut self, buf: &mut [u8]) -> impl Future<Output = io::Result<usize>>;
 
     /// Drops input held below the link's reads (an OS or adapter buffer)
     /// where the platform allows. The client first reads pending bytes (to
@@ -81,7 +85,7 @@ impl<S> RtuStream<S> {
     }
 }
 
-impl<S: AsyncRead + AsyncWrite + Unpin + Send> AsyncLink for RtuStream<S> {
+impl<S: AsyncRead + AsyncWrite + Unpin> AsyncLink for RtuStream<S> {
     async fn write_frame(&mut self, frame: &[u8]) -> io::Result<()> {
         self.stream.write_all(frame).await?;
         self.stream.flush().await
@@ -227,7 +231,7 @@ impl<S> MbapLink<S> {
     }
 }
 
-impl<S: AsyncRead + AsyncWrite + Unpin + Send> MbapLink<S> {
+impl<S: AsyncRead + AsyncWrite + Unpin> MbapLink<S> {
     /// Writes what is left of the current ADU.
     async fn finish_write(&mut self) -> io::Result<()> {
         while self.written < self.out_len {
@@ -273,7 +277,7 @@ impl<S: AsyncRead + AsyncWrite + Unpin + Send> MbapLink<S> {
     }
 }
 
-impl<S: AsyncRead + AsyncWrite + Unpin + Send> AsyncLink for MbapLink<S> {
+impl<S: AsyncRead + AsyncWrite + Unpin> AsyncLink for MbapLink<S> {
     async fn write_frame(&mut self, frame: &[u8]) -> io::Result<()> {
         self.finish_write().await?;
         let transaction = self.transaction.wrapping_add(1);
@@ -302,5 +306,34 @@ impl<S: AsyncRead + AsyncWrite + Unpin + Send> AsyncLink for MbapLink<S> {
         }
         self.rtu_read += n;
         Ok(n)
+    }
+}
+
+/// An in-process responder as an async link: each frame written is answered
+/// at once, in the caller's task; a read with nothing queued waits forever
+/// (nothing can arrive before the next write), so the client's reply
+/// timeout ends it. The in-memory link of tests and benchmarks, on the same
+/// [`ResponderTransport`](super::ResponderTransport) the blocking client uses.
+impl<R: super::Responder> AsyncLink for super::ResponderTransport<R> {
+    async fn write_frame(&mut self, frame: &[u8]) -> io::Result<()> {
+        super::Transport::write_all(self, frame)
+    }
+
+    async fn read(&mut self, buf: &mut [u8]) -> io::Result<usize> {
+        if buf.is_empty() {
+            return Ok(0);
+        }
+        match super::Transport::read(self, buf, std::time::Duration::ZERO)? {
+            0 => std::future::pending().await,
+            n => Ok(n),
+        }
+    }
+
+    fn discard_input(&mut self) -> io::Result<()> {
+        super::Transport::discard_input(self)
+    }
+
+    fn line_timing(&self) -> Option<LineTiming> {
+        super::Transport::line_timing(self)
     }
 }
