@@ -11,9 +11,7 @@ use std::time::{Duration, Instant};
 
 use sim_common::{first_field, float_read, is_float_read, request, spec};
 use yosemitech_rtu::frame::{Function, MAX_ADU};
-use yosemitech_rtu::{
-    AsyncClient, ClientConfig, ExceptionCode, MbapLink, RetryPolicy, RtuStream, SensorModule,
-};
+use yosemitech_rtu::{AsyncClient, ClientConfig, ExceptionCode, MbapLink, RetryPolicy, RtuStream, SensorModule};
 use yosemitech_sim::{Device, FaultConfig, FaultKind, ServeConfig, Simulator, serve_mbap, serve_tcp};
 use yosemitech_spec::Value;
 
@@ -121,7 +119,8 @@ async fn read_every_command<L: yosemitech_rtu::AsyncLink>(
         let slave = layout.fixed_slave.unwrap_or(module.info.default_address);
         let mut req = [0u8; MAX_ADU];
         let len = layout.encode_request(slave, &[], &mut req).unwrap();
-        let reply = client.call_raw(&req[..len], &layout).await.unwrap_or_else(|e| panic!("{}.{name}: {e}", module.info.name));
+        let reply =
+            client.call_raw(&req[..len], &layout).await.unwrap_or_else(|e| panic!("{}.{name}: {e}", module.info.name));
         assert_eq!(
             (module.visit_response)(name, slave, reply, &mut |_, _| {}),
             Some(Ok(())),
@@ -157,7 +156,11 @@ fn the_async_client_reads_every_sensor_over_modbus_tcp() {
             let (name, layout) = module
                 .commands
                 .iter()
-                .find_map(|n| (module.layout)(n).filter(|l| l.function == Function::Read && l.fixed_slave.is_none()).map(|l| (n, l)))
+                .find_map(|n| {
+                    (module.layout)(n)
+                        .filter(|l| l.function == Function::Read && l.fixed_slave.is_none())
+                        .map(|l| (n, l))
+                })
                 .unwrap();
             let mut req = [0u8; MAX_ADU];
             let len = layout.encode_request(module.info.default_address.wrapping_add(1).max(1), &[], &mut req).unwrap();

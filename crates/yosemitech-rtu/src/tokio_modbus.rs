@@ -31,7 +31,7 @@
 //!
 //! Commands with a fixed slave address (get slave id: 0xFF) work: call them
 //! with that address, as with every client. Each call sets the context's
-//! slave ([`tokio_modbus::client::Context::set_slave`]) to its own.
+//! slave (`SlaveContext::set_slave`) to its own.
 //!
 //! ```no_run
 //! # async fn example<C: yosemitech_rtu::Command>(command: C) -> Result<(), Box<dyn std::error::Error>>
