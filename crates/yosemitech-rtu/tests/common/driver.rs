@@ -100,17 +100,17 @@ impl<T: Transport + AsyncLink> AnyClient<T> {
     }
 }
 
-/// Each `fn name(driver) { body }` becomes `blocking::name` and
-/// `tokio::name`, with `driver` set to that driver.
+/// Each `fn name(driver) { body }` becomes `blocking_driver::name` and
+/// `tokio_driver::name`, with `driver` set to that driver.
 #[macro_export]
 macro_rules! behaviour {
     ($($(#[$meta:meta])* fn $name:ident($driver:ident) $body:block)*) => {
-        mod blocking {
+        mod blocking_driver {
             #[allow(unused_imports)]
             use super::*;
             $($(#[$meta])* #[test] fn $name() { let $driver = $crate::common::driver::Driver::Blocking; $body })*
         }
-        mod tokio {
+        mod tokio_driver {
             #[allow(unused_imports)]
             use super::*;
             $($(#[$meta])* #[test] fn $name() { let $driver = $crate::common::driver::Driver::Tokio; $body })*
