@@ -196,13 +196,14 @@ impl<L: AsyncLink> AsyncClient<L> {
                     self.core.handle_write_done(now);
                     written?;
                 }
-                Action::Receive { timeout } => {
-                    let read = tokio::time::timeout(timeout, self.link.read(self.core.recv_buf())).await;
-                    let n = match read {
-                        Ok(n) => n?,
-                        Err(_elapsed) => 0,
+                Action::Receive { timeout, needs_time } => {
+                    let read = self.link.read(self.core.recv_buf());
+                    let n = if timeout.is_zero() {
+                        poll_once(read).transpose()?.unwrap_or(0)
+                    } else {
+                        tokio::time::timeout(timeout, read).await.unwrap_or(Ok(0))?
                     };
-                    let now = self.now();
+                    let now = if needs_time || n == 0 { self.now() } else { self.core.now() };
                     self.core.handle_received(n, now);
                 }
                 Action::Check(frame) => {
