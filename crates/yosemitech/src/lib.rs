@@ -107,7 +107,7 @@
 //!   `Device::call` sends any command. Commands with a fixed slave address
 //!   (`get_slave_id`, 0xFF) use it instead of the device's.
 //! - **Async device handles** (`tokio`): `AsyncDevice::new(&mut client,
-//!   address)` over an [`AsyncClient`](rtu::AsyncClient), with the same
+//!   address)` over an `rtu::AsyncClient`, with the same
 //!   methods as `async fn`s (`probe.ph().await`), generated from the same
 //!   parts as `Device`.
 //! - **Shared commands**: a command several probes take from the same
@@ -160,10 +160,10 @@
 //!   `std::error::Error` for the errors. Without it the crate is `no_std`
 //!   and offers the codecs only.
 //! - `serial` (default): the serial-port transport (no libudev needed).
-//! - `tokio`: [`AsyncClient`](rtu::AsyncClient), the async device handles
+//! - `tokio`: `rtu::AsyncClient`, the async device handles
 //!   (`AsyncDevice`) and their links: RTU frames on any tokio stream
-//!   ([`RtuStream`](rtu::RtuStream): TCP to a transparent gateway) and Modbus
-//!   TCP to an Ethernet gateway ([`MbapLink`](rtu::MbapLink)). Same protocol
+//!   (`RtuStream`: TCP to a transparent gateway) and Modbus
+//!   TCP to an Ethernet gateway (`MbapLink`). Same protocol
 //!   core, timing, checks and retries as the blocking [`Client`]; a call
 //!   dropped half-way leaves the bus usable; no allocation per transaction.
 //! - `tokio-serial`: the tokio serial-port link (`rtu::AsyncSerial`).
