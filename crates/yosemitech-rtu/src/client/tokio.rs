@@ -197,11 +197,14 @@ impl<L: AsyncLink> AsyncClient<L> {
                     written?;
                 }
                 Action::Receive { timeout, needs_time } => {
-                    let read = self.link.read(self.core.recv_buf());
-                    let n = if timeout.is_zero() {
-                        poll_once(read).transpose()?.unwrap_or(0)
-                    } else {
-                        tokio::time::timeout(timeout, read).await.unwrap_or(Ok(0))?
+                    // Bytes already there need no timer (and no clock read to arm one).
+                    let n = match poll_once(self.link.read(self.core.recv_buf())) {
+                        Some(read) => read?,
+                        None if timeout.is_zero() => 0,
+                        None => {
+                            let read = self.link.read(self.core.recv_buf());
+                            tokio::time::timeout(timeout, read).await.unwrap_or(Ok(0))?
+                        }
                     };
                     let now = if needs_time || n == 0 { self.now() } else { self.core.now() };
                     self.core.handle_received(n, now);
