@@ -1,7 +1,6 @@
-//! Fault injection seen from the rtu client: each kind as the right error,
-//! counters that match, retries that recover, and a soak that accepts no
-//! wrong value.
-#![allow(clippy::result_large_err)]
+//! Fault injection seen from the rtu client: each kind as the right error
+//! and retries that recover, through both drivers (blocking and tokio),
+//! counters that match, and a soak that accepts no wrong value.
 
 mod sim_common;
 
@@ -11,36 +10,72 @@ use std::time::{Duration, Instant};
 
 use sim_common::{client, command, request, same, sensor, spec};
 use yosemitech_rtu::{
-    Client, ClientConfig, Error, ExceptionCode, FrameError, ResponderTransport, RetryPolicy, Transport,
+    AsyncClient, Client, ClientConfig, Error, ExceptionCode, FrameError, ResponderTransport, RetryPolicy, Transport,
 };
 use yosemitech_sim::{Bus, FaultConfig, FaultKind, Rng, ServeConfig, Simulator, serve_memory};
 use yosemitech_spec::{Command, Field, FieldKind, Role, Sensor, Value};
 
 const TIMEOUT: Duration = Duration::from_millis(20);
 
+/// The two drivers of the client core: each fault kind must look the same
+/// through both.
+#[derive(Debug, Clone, Copy)]
+enum Driver {
+    Blocking,
+    Tokio,
+}
+
+const DRIVERS: [Driver; 2] = [Driver::Blocking, Driver::Tokio];
+
+/// `request` through a client of `driver` on `transport`: the result, the
+/// bytes the client received and the transport.
+fn call_raw_on(
+    driver: Driver,
+    transport: ResponderTransport<Simulator>,
+    config: ClientConfig,
+    request: &[u8],
+    layout: &yosemitech_rtu::Layout<'_>,
+) -> (Result<Vec<u8>, Error>, Vec<u8>, ResponderTransport<Simulator>) {
+    match driver {
+        Driver::Blocking => {
+            let mut client = Client::with_config(transport, config);
+            let result = client.call_raw(request, layout).map(<[u8]>::to_vec);
+            (result, client.last_reply().to_vec(), client.into_transport())
+        }
+        Driver::Tokio => {
+            let runtime = tokio::runtime::Builder::new_current_thread().enable_time().build().unwrap();
+            let mut client = AsyncClient::with_config(transport, config);
+            let result = runtime.block_on(client.call_raw(request, layout)).map(<[u8]>::to_vec);
+            (result, client.last_reply().to_vec(), client.into_link())
+        }
+    }
+}
+
 /// get_ph on a pH simulator that injects `fault` into its first reply.
-fn one_fault(fault: FaultKind) -> (Result<Vec<u8>, Error>, Simulator) {
+/// Returns the result, the bytes the client received and the simulator.
+fn one_fault(fault: FaultKind, driver: Driver) -> (Result<Vec<u8>, Error>, Vec<u8>, Simulator) {
     let ph = sensor("ph_orp");
     let get_ph = command(&ph, "get_ph");
     let sim = Simulator::new(ph).with_faults(FaultConfig::scripted([Some(fault)]));
-    let mut client = client(ResponderTransport::new(sim), TIMEOUT);
-    let result = client.call_raw(&request(&get_ph, 1, &[]), &get_ph.layout()).map(<[u8]>::to_vec);
-    (result, client.into_transport().into_responder())
+    let config = ClientConfig { timeout: TIMEOUT, retry: RetryPolicy::NONE, ..ClientConfig::default() };
+    let (result, received, transport) =
+        call_raw_on(driver, ResponderTransport::new(sim), config, &request(&get_ph, 1, &[]), &get_ph.layout());
+    (result, received, transport.into_responder())
 }
 
 const GET_PH_REPLY: [u8; 9] = [0x01, 0x03, 0x04, 0x33, 0x33, 0xF3, 0x40, 0x40, 0x78];
 
 #[test]
 fn each_fault_kind_is_seen_by_the_client_as_the_right_error() {
-    for kind in FaultKind::ALL {
-        let (result, sim) = one_fault(kind);
+    for (kind, driver) in FaultKind::ALL.into_iter().flat_map(|kind| DRIVERS.map(|driver| (kind, driver))) {
+        let (result, bytes, sim) = one_fault(kind, driver);
         match (kind, &result) {
             (FaultKind::Drop | FaultKind::Delay, Err(Error::Timeout { received })) => {
-                assert!(received.is_empty(), "{kind}: silence, got {received}");
+                assert_eq!(*received, 0, "{kind}: silence, got {bytes:02X?}");
             }
             (FaultKind::CorruptCrc, Err(Error::Frame { error: FrameError::Crc { .. }, .. })) => {}
             (FaultKind::Truncate, Err(Error::Timeout { received })) => {
-                assert!(!received.is_empty() && GET_PH_REPLY.starts_with(received.as_bytes()), "{kind}: {received}");
+                assert!(*received > 0 && GET_PH_REPLY.starts_with(&bytes), "{kind}: {bytes:02X?}");
             }
             // The rtu client skips noise before a frame: the reply is accepted.
             (FaultKind::Garbage, Ok(reply)) => assert_eq!(reply, &GET_PH_REPLY),
@@ -49,12 +84,12 @@ fn each_fault_kind_is_seen_by_the_client_as_the_right_error() {
                 Err(Error::Frame { error: FrameError::WrongSlave { expected: 1, actual: 2 }, .. }),
             ) => {}
             (FaultKind::Busy, Err(e)) if e.exception() == Some(ExceptionCode::ServerDeviceBusy) => {}
-            _ => panic!("{kind}: unexpected {result:?}"),
+            _ => panic!("{kind} ({driver:?}): unexpected {result:?}"),
         }
         assert_eq!(sim.faults().get(kind), 1, "{kind}");
         assert_eq!(sim.faults().total(), 1, "{kind}");
         assert_eq!(sim.faults().replies(), 1, "{kind}");
-        println!("{kind:>11}: {}", result.map_or_else(|e| e.to_string(), |_| "ok (noise skipped)".into()));
+        println!("{kind:>11} ({driver:?}): {}", result.map_or_else(|e| e.to_string(), |_| "ok (noise skipped)".into()));
     }
 }
 
@@ -62,25 +97,30 @@ fn each_fault_kind_is_seen_by_the_client_as_the_right_error() {
 fn retries_recover_from_a_scripted_sequence() {
     let ph = sensor("ph_orp");
     let get_ph = command(&ph, "get_ph");
-    let script = [Some(FaultKind::Drop), Some(FaultKind::CorruptCrc), Some(FaultKind::WrongSlave), None];
-    let sim = Simulator::new(ph).with_faults(FaultConfig::scripted(script));
     let config = ClientConfig {
         timeout: TIMEOUT,
         retry: RetryPolicy { retries: 3, backoff: Duration::ZERO, ..RetryPolicy::default() },
         ..ClientConfig::default()
     };
-    let mut client = Client::with_config(ResponderTransport::new(sim), config);
-    let reply = client.call_raw(&request(&get_ph, 1, &[]), &get_ph.layout()).unwrap().to_vec();
-    assert_eq!(reply, GET_PH_REPLY);
-    let sim = client.transport().responder();
-    assert_eq!(sim.faults().total(), 3);
-    assert_eq!(sim.faults().replies(), 4);
-    assert_eq!(sim.stats().reads, 4, "the device served every attempt");
-    // A busy exception is not retried.
-    client.transport_mut().responder_mut().set_faults(FaultConfig::scripted([Some(FaultKind::Busy)]));
-    let err = client.call_raw(&request(&get_ph, 1, &[]), &get_ph.layout()).unwrap_err();
-    assert_eq!(err.exception(), Some(ExceptionCode::ServerDeviceBusy));
-    assert_eq!(client.transport().responder().faults().get(FaultKind::Busy), 1, "counts go on across configurations");
+    for driver in DRIVERS {
+        let script = [Some(FaultKind::Drop), Some(FaultKind::CorruptCrc), Some(FaultKind::WrongSlave), None];
+        let sim = Simulator::new(ph.clone()).with_faults(FaultConfig::scripted(script));
+        let req = request(&get_ph, 1, &[]);
+        let (reply, _, mut transport) =
+            call_raw_on(driver, ResponderTransport::new(sim), config, &req, &get_ph.layout());
+        assert_eq!(reply.unwrap(), GET_PH_REPLY, "{driver:?}");
+        let sim = transport.responder();
+        assert_eq!(sim.faults().total(), 3, "{driver:?}");
+        assert_eq!(sim.faults().replies(), 4, "{driver:?}");
+        assert_eq!(sim.stats().reads, 4, "{driver:?}: the device served every attempt");
+        // A busy exception is not retried.
+        transport.responder_mut().set_faults(FaultConfig::scripted([Some(FaultKind::Busy)]));
+        let (err, _, transport) = call_raw_on(driver, transport, config, &req, &get_ph.layout());
+        assert_eq!(err.unwrap_err().exception(), Some(ExceptionCode::ServerDeviceBusy), "{driver:?}");
+        let busy = transport.responder().faults().get(FaultKind::Busy);
+        assert_eq!(busy, 1, "{driver:?}: counts go on across configurations");
+        assert_eq!(transport.responder().stats().requests, 5, "{driver:?}: busy is not retried");
+    }
 }
 
 #[test]
@@ -93,7 +133,7 @@ fn a_delayed_reply_arrives_after_the_deadline_when_served_in_a_thread() {
     let mut client = client(transport, Duration::from_millis(50));
     let start = Instant::now();
     match client.call_raw(&request(&get_ph, 1, &[]), &get_ph.layout()) {
-        Err(Error::Timeout { received }) => assert!(received.is_empty()),
+        Err(Error::Timeout { received }) => assert_eq!(received, 0),
         other => panic!("expected a timeout, got {other:?}"),
     }
     assert!(start.elapsed() < delay, "the client gave up before the reply came");
@@ -150,7 +190,7 @@ struct Tally {
 
 fn failure_kind(e: &Error) -> String {
     match e {
-        Error::Timeout { received } if received.is_empty() => "timeout (silent)".into(),
+        Error::Timeout { received: 0 } => "timeout (silent)".into(),
         Error::Timeout { .. } => "timeout (partial)".into(),
         Error::Frame { error: FrameError::Exception { code, .. }, .. } => format!("exception {code}"),
         Error::Frame { error: FrameError::Crc { .. }, .. } => "crc".into(),

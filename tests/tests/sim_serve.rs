@@ -1,6 +1,5 @@
 //! The simulator served from a thread: on a pty (rtu SerialTransport), over
 //! TCP (rtu TcpTransport), in memory, with line-timing emulation.
-#![allow(clippy::result_large_err)]
 
 mod sim_common;
 

@@ -9,7 +9,6 @@
 //!   not told: with a fault at any step, the result (success, or the
 //!   failure's whereabouts) names the address the probe really answers at;
 //! - an address another device answers at, even with an exception, is in use.
-#![allow(clippy::result_large_err)]
 
 mod sim_common;
 

@@ -17,7 +17,6 @@
 //! `--warm-up-time S` set the time per configuration (default 3 s and
 //! 0.5 s). Results go to stdout and to `bus_efficiency/results.json` in
 //! criterion's directory, for `bench-report`.
-#![allow(clippy::result_large_err)]
 
 use std::io;
 use std::time::{Duration, Instant};

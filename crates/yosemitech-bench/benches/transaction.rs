@@ -6,7 +6,7 @@
 //! encoding included); `fixed_reply` with a closure that copies the manual's
 //! reply, which leaves the client's own cost.
 // `criterion_group!` generates an undocumented `pub fn`.
-#![allow(missing_docs, clippy::result_large_err)]
+#![allow(missing_docs)]
 
 use std::hint::black_box;
 use std::time::Duration;

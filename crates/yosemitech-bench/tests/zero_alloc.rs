@@ -2,7 +2,7 @@
 //! #6, design: "no allocation per transaction"), counted by a global
 //! allocator on the test's own thread.
 // A counting global allocator needs `unsafe impl GlobalAlloc`; it only forwards to `System`.
-#![allow(unsafe_code, clippy::result_large_err)]
+#![allow(unsafe_code)]
 
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;

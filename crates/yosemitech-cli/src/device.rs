@@ -22,7 +22,10 @@ pub fn call(opened: &mut Opened, command: &Command, slave: u8, values: &BTreeMap
         .encode_request(slave, values)
         .map_err(|e| CliError::usage(format!("cannot build the {} request: {e}", command.name)))?;
     let ctx = opened.context(slave, &command.name);
-    let reply = opened.bus.call_raw(&request, &command.layout()).map_err(|e| request_failed(&e, &ctx))?;
+    let reply = match opened.bus.call_raw(&request, &command.layout()) {
+        Ok(reply) => reply,
+        Err(e) => return Err(request_failed(&e, opened.bus.last_reply(), &ctx)),
+    };
     command.decode_response(slave, reply).map_err(|e| {
         CliError::device(format!("cannot decode the reply to {}: {e}", command.name))
             .hint("the device may not be the sensor type you named; -v shows the frames")
@@ -58,9 +61,10 @@ pub fn is_typed(entry: &Entry, name: &str) -> bool {
 }
 
 /// A procedure's error as the user sees it.
-pub fn procedure_failed(e: &ProcedureError, ctx: &Context) -> CliError {
+/// `reply` is what the client received last (`Client::last_reply`).
+pub fn procedure_failed(e: &ProcedureError, reply: &[u8], ctx: &Context) -> CliError {
     match e {
-        ProcedureError::Device(e) => request_failed(e, ctx),
+        ProcedureError::Device(e) => request_failed(e, reply, ctx),
         ProcedureError::Aborted => CliError::device("stopped before completion"),
         ProcedureError::NotEnoughReadings { .. } => CliError::device(format!("measurement failed: {e}"))
             .hint("the probe kept flagging range-switch errors: check it is immersed and clean"),

@@ -6,7 +6,7 @@ use std::io;
 use std::process::ExitCode;
 use std::time::Duration;
 
-use yosemitech_rtu::{Error as RtuError, FrameError};
+use yosemitech_rtu::{Error as RtuError, FrameError, Hex};
 
 /// What kind of failure, which decides the exit code.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -128,24 +128,27 @@ pub fn show_duration(d: Duration) -> String {
     }
 }
 
-/// A failed request in a few words, for a log's error column.
-pub fn short(e: &RtuError) -> String {
+/// A failed request in a few words, for a log's error column; `reply` is
+/// what the client received (`Client::last_reply`).
+pub fn short(e: &RtuError, reply: &[u8]) -> String {
     match e {
-        RtuError::Timeout { received } if received.is_empty() => "no reply".into(),
-        RtuError::Timeout { received } => format!("incomplete reply ({} bytes: {received})", received.len()),
-        RtuError::Frame { error: FrameError::Exception { code, .. }, .. } => format!("exception {code}"),
-        RtuError::Frame { error, raw } => format!("{error} (reply {raw})"),
+        RtuError::Timeout { received: 0 } => "no reply".into(),
+        RtuError::Timeout { received } => format!("incomplete reply ({received} bytes: {})", Hex(reply)),
+        RtuError::Frame { error: FrameError::Exception { code, .. } } => format!("exception {code}"),
+        RtuError::Frame { error } => format!("{error} (reply {})", Hex(reply)),
         RtuError::Io(error) => format!("port error: {error}"),
         other => other.to_string(),
     }
 }
 
-/// A failed request, with what it was, where it went and what to try.
-pub fn request_failed(e: &RtuError, ctx: &Context) -> CliError {
+/// A failed request, with what it was, where it went and what to try;
+/// `reply` is what the client received (`Client::last_reply`).
+pub fn request_failed(e: &RtuError, reply: &[u8], ctx: &Context) -> CliError {
     let Context { port, slave, what, timeout } = ctx;
     let scan = format!("`yosemitech scan --port {}` identifies the probes on the bus", crate::shell::quote(port));
+    let raw = Hex(reply);
     match e {
-        RtuError::Timeout { received } if received.is_empty() => CliError::device(format!(
+        RtuError::Timeout { received: 0 } => CliError::device(format!(
             "no reply to {what} from address {slave} on {port} within {}",
             show_duration(*timeout)
         ))
@@ -153,12 +156,11 @@ pub fn request_failed(e: &RtuError, ctx: &Context) -> CliError {
             "check power, wiring (A/B), the baud rate (--baud), the address (--address) and the sensor type (a probe does not answer a command it lacks); {scan}"
         )),
         RtuError::Timeout { received } => CliError::device(format!(
-            "incomplete reply to {what} from address {slave} on {port}: {} bytes in {} ({received})",
-            received.len(),
+            "incomplete reply to {what} from address {slave} on {port}: {received} bytes in {} ({raw})",
             show_duration(*timeout)
         ))
         .hint("a wrong baud rate or line noise; -v shows the frames, --timeout allows more time"),
-        RtuError::Frame { error: FrameError::Exception { code, .. }, raw } => CliError::device(format!(
+        RtuError::Frame { error: FrameError::Exception { code, .. } } => CliError::device(format!(
             "address {slave} refused {what} with Modbus exception {code} (reply {raw})"
         ))
         .hint(match code.to_u8() {
@@ -166,15 +168,15 @@ pub fn request_failed(e: &RtuError, ctx: &Context) -> CliError {
             6 => "the probe is busy: try again in a moment",
             _ => "the probe could not carry out the request",
         }),
-        RtuError::Frame { error: error @ FrameError::Crc { .. }, raw } => {
+        RtuError::Frame { error: error @ FrameError::Crc { .. } } => {
             CliError::device(format!("corrupt reply to {what} from address {slave}: {error} (reply {raw})"))
                 .hint("line noise, a missing RS-485 termination or a wrong baud rate; -v shows the frames")
         }
-        RtuError::Frame { error: error @ FrameError::WrongSlave { .. }, raw } => {
+        RtuError::Frame { error: error @ FrameError::WrongSlave { .. } } => {
             CliError::device(format!("unexpected reply to {what}: {error} (reply {raw})"))
                 .hint(format!("two devices may share an address; {scan}"))
         }
-        RtuError::Frame { error, raw } => {
+        RtuError::Frame { error } => {
             CliError::device(format!("bad reply to {what} from address {slave}: {error} (reply {raw})"))
                 .hint("the device may not be the sensor type you named; -v shows the frames")
         }

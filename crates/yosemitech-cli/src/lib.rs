@@ -17,7 +17,6 @@
 //! with exit code 1 for device and protocol errors and 2 for usage errors;
 //! nothing the user, a device or a file supplies can make it panic.
 #![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used, clippy::panic))]
-#![allow(clippy::result_large_err)]
 
 mod backup;
 mod catalog;

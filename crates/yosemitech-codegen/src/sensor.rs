@@ -1583,8 +1583,6 @@ fn device(s: &Sensor, names: &Names, o: &Options) -> TokenStream {
         }
 
         #cfg
-        // `rtu::Error` carries the received bytes inline (see its docs).
-        #[allow(clippy::result_large_err)]
         impl<'c, T: rtu::Transport> Device<'c, T> {
             /// The probe at `address` on `client`'s bus.
             pub fn new(client: &'c mut rtu::Client<T>, address: u8) -> Self {

@@ -204,6 +204,21 @@ pub enum EncodeError {
         /// Bytes the frame needs.
         needed: usize,
     },
+    /// The register data given is not the length the layout requires
+    /// (`2 * count` bytes for a write request or a read reply, none otherwise).
+    DataLength {
+        /// Bytes the layout requires.
+        expected: usize,
+        /// Bytes given.
+        actual: usize,
+    },
+    /// The frame would exceed the largest RTU frame (256 bytes,
+    /// [`MAX_ADU`](crate::frame::MAX_ADU)): a register count beyond what
+    /// Modbus allows.
+    FrameTooLong {
+        /// Bytes the frame would take.
+        len: usize,
+    },
     /// The slave address cannot be used with this command.
     InvalidSlave {
         /// The address given.
@@ -225,6 +240,10 @@ impl fmt::Display for EncodeError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match *self {
             Self::BufferTooSmall { needed } => write!(f, "output buffer too small: {needed} bytes needed"),
+            Self::DataLength { expected, actual } => {
+                write!(f, "register data of {actual} bytes, the layout requires {expected}")
+            }
+            Self::FrameTooLong { len } => write!(f, "a frame of {len} bytes exceeds the RTU maximum of 256"),
             Self::InvalidSlave { slave } => write!(f, "slave address {slave} is not valid for this command"),
             Self::OutOfRange { field } => write!(f, "value of `{field}` is out of range"),
             Self::InvalidText { field } => write!(f, "text of `{field}` is too long or not ASCII"),

@@ -159,9 +159,7 @@ impl Layout<'_> {
     pub fn encode_request(&self, slave: u8, data: &[u8], out: &mut [u8]) -> Result<usize, EncodeError> {
         self.check_slave(slave)?;
         let len = self.request_len();
-        if data.len() != self.request_data_len() || len > MAX_ADU {
-            return Err(EncodeError::BufferTooSmall { needed: len });
-        }
+        check_data_len(data, self.request_data_len(), len)?;
         let out = out.get_mut(..len).ok_or(EncodeError::BufferTooSmall { needed: len })?;
         let mut w = Writer::new(out);
         w.byte(slave);
@@ -182,9 +180,7 @@ impl Layout<'_> {
     #[inline]
     pub fn encode_response(&self, slave: u8, data: &[u8], out: &mut [u8]) -> Result<usize, EncodeError> {
         let len = self.response_len();
-        if data.len() != self.response_data_len() || len > MAX_ADU {
-            return Err(EncodeError::BufferTooSmall { needed: len });
-        }
+        check_data_len(data, self.response_data_len(), len)?;
         let out = out.get_mut(..len).ok_or(EncodeError::BufferTooSmall { needed: len })?;
         let mut w = Writer::new(out);
         w.byte(self.reply_slave(slave));
@@ -296,6 +292,18 @@ pub fn reply_len(head: &[u8], function: u8, normal_len: usize) -> Option<usize> 
         Some(&f) if f == function | EXCEPTION_BIT => Some(EXCEPTION_LEN),
         Some(_) => Some(normal_len),
         None => None,
+    }
+}
+
+/// Checks the register data an encoder was given and the frame length it makes.
+#[inline(always)]
+fn check_data_len(data: &[u8], expected: usize, frame_len: usize) -> Result<(), EncodeError> {
+    if data.len() != expected {
+        Err(EncodeError::DataLength { expected, actual: data.len() })
+    } else if frame_len > MAX_ADU {
+        Err(EncodeError::FrameTooLong { len: frame_len })
+    } else {
+        Ok(())
     }
 }
 
@@ -524,6 +532,17 @@ mod tests {
             GET_PH.decode_response(1, &exc),
             Err(FrameError::Exception { function: 0x03, code: ExceptionCode::IllegalDataAddress })
         );
+    }
+
+    #[test]
+    fn each_encoding_failure_has_its_own_error() {
+        let write = Layout { function: Function::Write, count: 2, ..START };
+        let mut out = [0u8; MAX_ADU];
+        assert_eq!(write.encode_request(1, &[1, 2], &mut out), Err(EncodeError::DataLength { expected: 4, actual: 2 }));
+        assert_eq!(GET_PH.encode_response(1, &[], &mut out), Err(EncodeError::DataLength { expected: 4, actual: 0 }));
+        assert_eq!(GET_PH.encode_request(1, &[], &mut out[..4]), Err(EncodeError::BufferTooSmall { needed: 8 }));
+        let huge = Layout { count: 200, ..GET_PH };
+        assert_eq!(huge.encode_response(1, &[0; 400], &mut out), Err(EncodeError::FrameTooLong { len: 405 }));
     }
 
     #[test]

@@ -5,13 +5,13 @@
 //! ([`codec`]), the [`Command`] trait, typed errors, and Modbus TCP framing
 //! ([`mbap`]: the MBAP header and conversion to and from RTU frames). The core is `no_std`
 //! and allocation-free; the `std` feature adds [`transport`]s (serial with
-//! the `serial` feature, RTU-over-TCP, in-memory) and the [`Client`]. The
+//! the `serial` feature, RTU-over-TCP, in-memory) and the blocking [`Client`] over the sans-IO [`ClientCore`].
+//! The `tokio` feature adds the async client on the same core; the
 //! `tokio-modbus` feature runs generated commands over an existing
 //! tokio-modbus connection (`tokio_modbus` module).
 #![cfg_attr(not(feature = "std"), no_std)]
 #![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used, clippy::panic, clippy::indexing_slicing))]
 
-#[cfg(feature = "std")]
 pub mod client;
 pub mod codec;
 mod command;
@@ -19,7 +19,6 @@ mod crc;
 mod error;
 pub mod frame;
 pub mod mbap;
-mod raw;
 mod sensor;
 pub mod timing;
 #[cfg(feature = "tokio-modbus")]
@@ -34,17 +33,23 @@ pub use crc::{CRC_INIT, crc_ok, crc16, crc16_update};
 pub use error::{EchoField, EncodeError, ExceptionCode, FrameError};
 pub use frame::{Frame, Function, Layout};
 pub use mbap::MbapError;
-pub use raw::RawBytes;
 pub use sensor::{RoundTripError, SensorInfo, SensorModule};
 pub use timing::{CharFormat, DataBits, LineTiming, Parity, StopBits};
 pub use value::{FieldInfo, FieldValue};
 
 #[cfg(feature = "std")]
-pub use client::{Client, ClientConfig, Error, RetryPolicy};
+pub use client::{Client, Error};
+pub use client::{ClientConfig, ClientCore, ClientError, RetryPolicy};
 #[cfg(feature = "std")]
 pub use transport::{MemoryTransport, Responder, ResponderTransport, TcpTransport, Transport};
 #[cfg(feature = "serial")]
 pub use transport::{SerialConfig, SerialTransport};
+#[cfg(feature = "tokio")]
+pub use client::AsyncClient;
+#[cfg(feature = "tokio-serial")]
+pub use transport::AsyncSerial;
+#[cfg(feature = "tokio")]
+pub use transport::{AsyncLink, MbapLink, RtuStream};
 
 /// Shows bytes as space-separated upper-case hex (`01 03 28 00`).
 #[derive(Clone, Copy)]

@@ -1,7 +1,7 @@
 //! A successful transaction allocates nothing (design: "no allocation per
 //! transaction"). Counted with a global allocator, on the test's own thread.
 // A counting global allocator needs `unsafe impl GlobalAlloc`; it only forwards to `System`.
-#![allow(unsafe_code, clippy::result_large_err)]
+#![allow(unsafe_code)]
 
 mod common;
 

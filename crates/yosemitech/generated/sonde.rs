@@ -1983,7 +1983,6 @@ pub struct Device<'c, T> {
 }
 
 #[cfg(feature = "std")]
-#[allow(clippy::result_large_err)]
 impl<'c, T: rtu::Transport> Device<'c, T> {
     /// The probe at `address` on `client`'s bus.
     pub fn new(client: &'c mut rtu::Client<T>, address: u8) -> Self {

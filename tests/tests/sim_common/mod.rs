@@ -1,5 +1,5 @@
 //! Helpers shared by the simulator tests (`sim_*.rs`).
-#![allow(dead_code, clippy::result_large_err)]
+#![allow(dead_code)]
 
 use std::collections::BTreeMap;
 use std::time::Duration;

@@ -181,7 +181,7 @@ pub fn run(catalog: &Catalog, global: &Global, args: &CalibratePhArgs, out: &mut
             let e = guide.stopped.take().unwrap_or_else(|| CliError::device("calibration stopped"));
             return Err(with_restore(e));
         }
-        Err(e) => return Err(with_restore(procedure_failed(&e, &ctx))),
+        Err(e) => return Err(with_restore(procedure_failed(&e, probe.client().last_reply(), &ctx))),
     };
     let out = guide.out;
     if report.succeeded() {

@@ -89,11 +89,6 @@ fn serve<D: Device + Send + 'static>(
     Ok((server, port, Box::new(transport)))
 }
 
-/// Maps a failed request to the user's error.
-fn fail(c: &Context) -> impl Fn(yosemitech_rtu::Error) -> CliError + '_ {
-    move |e| request_failed(&e, c)
-}
-
 fn row(out: &mut dyn Write, label: &str, value: impl std::fmt::Display) -> Result<()> {
     writeln!(out, "  {label:15} {value}")?;
     Ok(())
@@ -139,19 +134,35 @@ pub fn run(catalog: &Catalog, args: &DemoArgs, out: &mut dyn Write) -> Result<()
     writeln!(out, "\n{} on {}, address {address}", ph_orp::SENSOR.title, ph.opened.port)?;
     {
         let mut probe = ph_orp::Device::new(&mut ph.opened.bus, address);
-        let sn = probe.sn().map_err(fail(&ph_ctx))?;
-        let version = probe.version().map_err(fail(&ph_ctx))?;
+        let sn = probe.sn().map_err(|e| request_failed(&e, probe.client().last_reply(), &ph_ctx))?;
+        let version = probe.version().map_err(|e| request_failed(&e, probe.client().last_reply(), &ph_ctx))?;
         row(out, "serial number", sn)?;
         row(out, "hardware", version.hardware)?;
         row(out, "software", version.software)?;
-        row(out, "pH", format!("{:.2} pH", probe.ph().map_err(fail(&ph_ctx))?))?;
-        row(out, "ORP", format!("{:.1} mV", probe.orp().map_err(fail(&ph_ctx))?))?;
-        let both = probe.orp_and_ph().map_err(fail(&ph_ctx))?;
+        row(
+            out,
+            "pH",
+            format!("{:.2} pH", probe.ph().map_err(|e| request_failed(&e, probe.client().last_reply(), &ph_ctx))?),
+        )?;
+        row(
+            out,
+            "ORP",
+            format!("{:.1} mV", probe.orp().map_err(|e| request_failed(&e, probe.client().last_reply(), &ph_ctx))?),
+        )?;
+        let both = probe.orp_and_ph().map_err(|e| request_failed(&e, probe.client().last_reply(), &ph_ctx))?;
         row(out, "ORP and pH", format!("{:.1} mV, {:.2} pH (one read)", both.orp_mv, both.ph))?;
-        row(out, "temperature", format!("{:.2} °C", probe.temperature().map_err(fail(&ph_ctx))?))?;
-        let status = probe.calibration_status().map_err(fail(&ph_ctx))?;
+        row(
+            out,
+            "temperature",
+            format!(
+                "{:.2} °C",
+                probe.temperature().map_err(|e| request_failed(&e, probe.client().last_reply(), &ph_ctx))?
+            ),
+        )?;
+        let status =
+            probe.calibration_status().map_err(|e| request_failed(&e, probe.client().last_reply(), &ph_ctx))?;
         row(out, "calibration", format!("status {}: {}", status.raw(), status.name().unwrap_or("unknown")))?;
-        let c = read_ph_orp(&mut probe).map_err(|e| procedure_failed(&e, &ph_ctx))?;
+        let c = read_ph_orp(&mut probe).map_err(|e| procedure_failed(&e, probe.client().last_reply(), &ph_ctx))?;
         row(out, "electrode K1-K6", join(&c.electrode))?;
         row(out, "pH K, B", join(&c.ph_calibration))?;
         row(out, "ORP K, B", join(&c.orp_calibration))?;
@@ -162,16 +173,19 @@ pub fn run(catalog: &Catalog, args: &DemoArgs, out: &mut dyn Write) -> Result<()
     writeln!(out, "\n{} on {}, address {address}", conductivity::SENSOR.title, cond.opened.port)?;
     {
         let mut probe = conductivity::Device::new(&mut cond.opened.bus, address);
-        let sn = probe.sn().map_err(fail(&cond_ctx))?;
-        let version = probe.version().map_err(fail(&cond_ctx))?;
+        let sn = probe.sn().map_err(|e| request_failed(&e, probe.client().last_reply(), &cond_ctx))?;
+        let version = probe.version().map_err(|e| request_failed(&e, probe.client().last_reply(), &cond_ctx))?;
         row(out, "serial number", sn)?;
         row(out, "hardware", version.hardware)?;
         row(out, "software", version.software)?;
-        let reading = probe.temperature_and_conductivity().map_err(fail(&cond_ctx))?;
+        let reading = probe
+            .temperature_and_conductivity()
+            .map_err(|e| request_failed(&e, probe.client().last_reply(), &cond_ctx))?;
         row(out, "temperature", format!("{:.2} °C", reading.temperature_c))?;
         row(out, "conductivity", format!("{:.4} mS/cm", reading.conductivity_ms_cm))?;
         row(out, "range status", reading.range_status.name().unwrap_or("unknown code"))?;
-        let c = read_conductivity(&mut probe).map_err(|e| procedure_failed(&e, &cond_ctx))?;
+        let c =
+            read_conductivity(&mut probe).map_err(|e| procedure_failed(&e, probe.client().last_reply(), &cond_ctx))?;
         row(out, "user K, B", join(&c.user_calibration))?;
     }
 

@@ -112,7 +112,7 @@ pub fn run(
                     values.insert(&command.name, v.into_iter().collect());
                 }
                 Err(e) => {
-                    let why = short(&e);
+                    let why = short(&e, opened.bus.last_reply());
                     match failures.iter_mut().find(|(w, _)| *w == why) {
                         Some((_, names)) => names.push(&command.name),
                         None => failures.push((why, vec![&command.name])),

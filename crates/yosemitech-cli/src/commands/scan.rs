@@ -182,12 +182,14 @@ fn probe(opened: &mut Opened, command: &Command, address: u8) -> Result<Answer> 
             Ok(data) => Answer::Data(data.to_vec()),
             Err(e) => Answer::Other(format!("answers {}, but not as specified: {e}", command.name)),
         }),
-        Err(e @ RtuError::Io(_)) => Err(request_failed(&e, &opened.context(address, &command.name))),
-        Err(RtuError::Timeout { received }) if received.is_empty() => Ok(Answer::Silent),
-        Err(e @ RtuError::Frame { error: FrameError::Exception { .. }, .. }) => {
-            Ok(Answer::Other(format!("refuses {} ({})", command.name, short(&e))))
+        Err(e @ RtuError::Io(_)) => {
+            Err(request_failed(&e, opened.bus.last_reply(), &opened.context(address, &command.name)))
         }
-        Err(e) => Ok(Answer::Other(format!("answers {} with {}", command.name, short(&e)))),
+        Err(RtuError::Timeout { received: 0 }) => Ok(Answer::Silent),
+        Err(e @ RtuError::Frame { error: FrameError::Exception { .. }, .. }) => {
+            Ok(Answer::Other(format!("refuses {} ({})", command.name, short(&e, opened.bus.last_reply()))))
+        }
+        Err(e) => Ok(Answer::Other(format!("answers {} with {}", command.name, short(&e, opened.bus.last_reply())))),
     }
 }
 

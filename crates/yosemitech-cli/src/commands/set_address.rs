@@ -67,11 +67,20 @@ pub fn run(catalog: &Catalog, global: &Global, args: &SetAddressArgs, out: &mut 
             writeln!(out, "done: the probe (SN {sn}) now answers at address {to}")?;
             Ok(())
         }
-        Err(e) => Err(explain(&e, &opened.port, from, to, &opened.context(from, "set_slave_id"))),
+        Err(e) => {
+            Err(explain(&e, opened.bus.last_reply(), &opened.port, from, to, &opened.context(from, "set_slave_id")))
+        }
     }
 }
 
-fn explain(e: &AddressChangeError, port: &str, from: u8, to: u8, ctx: &crate::error::Context) -> CliError {
+fn explain(
+    e: &AddressChangeError,
+    reply: &[u8],
+    port: &str,
+    from: u8,
+    to: u8,
+    ctx: &crate::error::Context,
+) -> CliError {
     let scan = shell::command_line(&["yosemitech", "scan", "--port", port]);
     match e {
         AddressChangeError::AddressInUse(a) => {
@@ -81,7 +90,7 @@ fn explain(e: &AddressChangeError, port: &str, from: u8, to: u8, ctx: &crate::er
         AddressChangeError::SameAddress(a) => CliError::usage(format!("the probe is already at address {a}")),
         AddressChangeError::InvalidAddress(a) => CliError::usage(format!("address {a} is outside 1..=247")),
         AddressChangeError::NotFound { address, error } => {
-            let base = request_failed(error, ctx);
+            let base = request_failed(error, reply, ctx);
             CliError::device(format!("no probe answers at address {address}; nothing was written ({})", base.message))
                 .hint(format!("check --from; `{scan}` finds the probe"))
         }

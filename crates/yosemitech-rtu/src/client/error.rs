@@ -1,48 +1,47 @@
-//! The client's error type.
+//! The client's error type, [`ClientError`], generic over the link's I/O error.
 
-use std::fmt;
-use std::io;
+use core::convert::Infallible;
+use core::fmt;
 
 use crate::error::{EncodeError, ExceptionCode, FrameError};
-use crate::raw::RawBytes;
 
-/// Why a request failed.
+/// Why a request failed. `E` is the link's I/O error: `std::io::Error` for
+/// the blocking [`Client`](crate::Client) (whose [`Error`](crate::Error) is
+/// this type), the `embedded-io` error of the firmware driver, and
+/// [`Infallible`] for the sans-IO [`ClientCore`](super::ClientCore), which
+/// does no I/O.
 ///
-/// Reply errors carry the bytes received ([`Error::raw`]), inline, so a
-/// report shows what the device sent. `Display` includes the cause and the
-/// bytes; [`std::error::Error::source`] is `None` (nothing is hidden there).
-///
-/// Holding the bytes inline makes the type about 300 bytes, above the
-/// threshold of `clippy::result_large_err`: crates whose functions return it
-/// allow that lint (as this one does) or box the error.
-#[derive(Debug)]
+/// Small (a few words): the bytes received are not carried here but kept by
+/// the client until the next request (`last_reply()` of every driver and of
+/// the core), so a report can show what the device sent. `Display` gives the
+/// cause and the number of bytes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[non_exhaustive]
-pub enum Error {
-    /// No complete reply before the deadline. `received` holds the bytes that
-    /// did arrive (empty when the device was silent), garbage included.
+pub enum ClientError<E> {
+    /// No complete reply before the deadline. `received` counts the bytes
+    /// that did arrive (0 when the device was silent), garbage included;
+    /// `last_reply()` holds them.
     Timeout {
-        /// The bytes received before the deadline.
-        received: RawBytes,
+        /// How many bytes arrived before the deadline.
+        received: usize,
     },
     /// A reply of the expected length failed a check: CRC, slave address,
     /// function, byte count, write echo, or a Modbus exception.
+    /// `last_reply()` holds the frame.
     Frame {
         /// What is wrong with it.
         error: FrameError,
-        /// The reply frame.
-        raw: RawBytes,
     },
     /// The request could not be encoded (invalid slave address, value out of range).
     Encode(EncodeError),
-    /// A raw request frame given to [`Client::call_raw`](crate::Client::call_raw)
-    /// or [`Client::broadcast_raw`](crate::Client::broadcast_raw) does not match its layout.
+    /// A raw request frame given to `call_raw` or `broadcast_raw` does not match its layout.
     Request(FrameError),
-    /// The transport failed (port gone, connection closed, RS-485 echo mismatch).
-    Io(io::Error),
+    /// The link failed (port gone, connection closed, RS-485 echo mismatch).
+    Io(E),
 }
 
-impl Error {
-    /// True for [`Error::Timeout`].
+impl<E> ClientError<E> {
+    /// True for [`ClientError::Timeout`].
     pub fn is_timeout(&self) -> bool {
         matches!(self, Self::Timeout { .. })
     }
@@ -55,37 +54,44 @@ impl Error {
     /// The Modbus exception code, if the device answered with one.
     pub fn exception(&self) -> Option<ExceptionCode> {
         match self {
-            Self::Frame { error: FrameError::Exception { code, .. }, .. } => Some(*code),
+            Self::Frame { error: FrameError::Exception { code, .. } } => Some(*code),
             _ => None,
         }
     }
 
-    /// The frame check that failed, for [`Error::Frame`].
+    /// The frame check that failed, for [`ClientError::Frame`].
     pub fn frame_error(&self) -> Option<FrameError> {
         match self {
-            Self::Frame { error, .. } => Some(*error),
+            Self::Frame { error } => Some(*error),
             _ => None,
         }
     }
 
-    /// The bytes received, for [`Error::Timeout`] and [`Error::Frame`].
-    pub fn raw(&self) -> Option<&[u8]> {
+    /// The same error with its I/O error mapped by `f`.
+    pub fn map_io<F>(self, f: impl FnOnce(E) -> F) -> ClientError<F> {
         match self {
-            Self::Timeout { received } => Some(received.as_bytes()),
-            Self::Frame { raw, .. } => Some(raw.as_bytes()),
-            _ => None,
+            Self::Timeout { received } => ClientError::Timeout { received },
+            Self::Frame { error } => ClientError::Frame { error },
+            Self::Encode(error) => ClientError::Encode(error),
+            Self::Request(error) => ClientError::Request(error),
+            Self::Io(error) => ClientError::Io(f(error)),
         }
     }
 }
 
-impl fmt::Display for Error {
+impl ClientError<Infallible> {
+    /// The core's error (which never holds an I/O error) as a driver's.
+    pub fn with_io<F>(self) -> ClientError<F> {
+        self.map_io(|never| match never {})
+    }
+}
+
+impl<E: fmt::Display> fmt::Display for ClientError<E> {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
-            Self::Timeout { received } if received.is_empty() => f.write_str("no reply before the timeout"),
-            Self::Timeout { received } => {
-                write!(f, "incomplete reply before the timeout: {} bytes received: {received}", received.len())
-            }
-            Self::Frame { error, raw } => write!(f, "bad reply: {error}; reply: {raw}"),
+            Self::Timeout { received: 0 } => f.write_str("no reply before the timeout"),
+            Self::Timeout { received } => write!(f, "incomplete reply before the timeout: {received} bytes received"),
+            Self::Frame { error } => write!(f, "bad reply: {error}"),
             Self::Encode(error) => write!(f, "cannot encode the request: {error}"),
             Self::Request(error) => write!(f, "invalid request frame: {error}"),
             Self::Io(error) => write!(f, "transport error: {error}"),
@@ -93,15 +99,17 @@ impl fmt::Display for Error {
     }
 }
 
-impl std::error::Error for Error {}
+#[cfg(feature = "std")]
+impl<E: fmt::Debug + fmt::Display> std::error::Error for ClientError<E> {}
 
-impl From<io::Error> for Error {
-    fn from(error: io::Error) -> Self {
+#[cfg(feature = "std")]
+impl From<std::io::Error> for ClientError<std::io::Error> {
+    fn from(error: std::io::Error) -> Self {
         Self::Io(error)
     }
 }
 
-impl From<EncodeError> for Error {
+impl<E> From<EncodeError> for ClientError<E> {
     fn from(error: EncodeError) -> Self {
         Self::Encode(error)
     }
@@ -112,19 +120,17 @@ mod tests {
     use super::*;
 
     #[test]
-    fn displays_cause_and_bytes() {
-        let e = Error::Timeout { received: RawBytes::new(&[0x01, 0x03]) };
-        assert_eq!(e.to_string(), "incomplete reply before the timeout: 2 bytes received: 01 03");
-        assert_eq!(Error::Timeout { received: RawBytes::EMPTY }.to_string(), "no reply before the timeout");
-        let exc = Error::Frame {
+    fn displays_the_cause_and_stays_small() {
+        let e = ClientError::<Infallible>::Timeout { received: 2 };
+        assert_eq!(e.to_string(), "incomplete reply before the timeout: 2 bytes received");
+        assert_eq!(ClientError::<Infallible>::Timeout { received: 0 }.to_string(), "no reply before the timeout");
+        let exc = ClientError::<Infallible>::Frame {
             error: FrameError::Exception { function: 3, code: ExceptionCode::IllegalDataAddress },
-            raw: RawBytes::new(&[0x01, 0x83, 0x02, 0xC0, 0xF1]),
         };
         assert!(exc.is_exception());
         assert_eq!(exc.exception(), Some(ExceptionCode::IllegalDataAddress));
-        assert_eq!(exc.raw(), Some(&[0x01, 0x83, 0x02, 0xC0, 0xF1][..]));
-        assert!(exc.to_string().ends_with("reply: 01 83 02 C0 F1"), "{exc}");
-        let io = Error::from(io::Error::new(io::ErrorKind::BrokenPipe, "gone"));
-        assert!(!io.is_exception() && !io.is_timeout() && io.raw().is_none());
+        assert!(exc.to_string().contains("illegal data address"), "{exc}");
+        // Well under clippy's threshold for large error types (128 bytes).
+        assert!(core::mem::size_of::<ClientError<std::io::Error>>() <= 32);
     }
 }

@@ -134,8 +134,8 @@ impl<R: Responder> Transport for ResponderTransport<R> {
             return Ok(0);
         }
         let n = available.len().min(buf.len()).min(self.read_chunk);
-        for (slot, byte) in buf.iter_mut().zip(available.iter().take(n)) {
-            *slot = *byte;
+        if let (Some(slots), Some(bytes)) = (buf.get_mut(..n), available.get(..n)) {
+            slots.copy_from_slice(bytes);
         }
         self.pos += n;
         if self.pos >= self.pending.len() {

@@ -12,10 +12,6 @@
 //! time) comes from the spec's constants. Waits go through [`Sleep`], so
 //! tests and demos run them instantly.
 
-// `crate::Error` keeps the reply bytes inline (no allocation on the error
-// path), which makes it larger than clippy's default threshold.
-#![allow(clippy::result_large_err, clippy::large_enum_variant)]
-
 use std::fmt;
 use std::time::Duration;
 
