@@ -37,19 +37,19 @@ pub use sensor::{RoundTripError, SensorInfo, SensorModule};
 pub use timing::{CharFormat, DataBits, LineTiming, Parity, StopBits};
 pub use value::{FieldInfo, FieldValue};
 
+#[cfg(feature = "tokio")]
+pub use client::AsyncClient;
 #[cfg(feature = "std")]
 pub use client::{Client, Error};
 pub use client::{ClientConfig, ClientCore, ClientError, RetryPolicy};
-#[cfg(feature = "std")]
-pub use transport::{MemoryTransport, Responder, ResponderTransport, TcpTransport, Transport};
-#[cfg(feature = "serial")]
-pub use transport::{SerialConfig, SerialTransport};
-#[cfg(feature = "tokio")]
-pub use client::AsyncClient;
 #[cfg(feature = "tokio-serial")]
 pub use transport::AsyncSerial;
 #[cfg(feature = "tokio")]
 pub use transport::{AsyncLink, MbapLink, RtuStream};
+#[cfg(feature = "std")]
+pub use transport::{MemoryTransport, Responder, ResponderTransport, TcpTransport, Transport};
+#[cfg(feature = "serial")]
+pub use transport::{SerialConfig, SerialTransport};
 
 /// Shows bytes as space-separated upper-case hex (`01 03 28 00`).
 #[derive(Clone, Copy)]

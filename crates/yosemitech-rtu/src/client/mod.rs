@@ -36,18 +36,18 @@
 
 #[cfg(feature = "std")]
 mod blocking;
-#[cfg(feature = "tokio")]
-mod tokio;
 mod config;
 mod error;
 mod machine;
 mod time;
+#[cfg(feature = "tokio")]
+mod tokio;
 
 #[cfg(feature = "std")]
 pub use self::blocking::{Client, Error};
-#[cfg(feature = "tokio")]
-pub use self::tokio::AsyncClient;
 pub use self::config::{ClientConfig, RetryPolicy};
 pub use self::error::ClientError;
 pub use self::machine::{Action, ClientCore};
 pub use self::time::Instant;
+#[cfg(feature = "tokio")]
+pub use self::tokio::AsyncClient;
