@@ -1,25 +1,4 @@
-//! Serving a [`Device`] over Modbus TCP (MBAP), as an Ethernet gateway in
-//! front of an RS-485 line does: unit id = slave address.
-//!
-//! Each connection has its own thread, so several clients are served at
-//! once; their requests reach the device one at a time (it sits behind one
-//! mutex, as the probes behind a gateway share one serial line). A request
-//! becomes the RTU frame carrying the same PDU
-//! ([`yosemitech_rtu::mbap::adu_to_rtu`]); the device's reply goes back with
-//! the request's transaction id. Like a gateway, the server answers:
-//!
-//! * the device's reply, when it is one whole RTU frame with a valid CRC
-//!   (a reply from the wrong slave is passed on with that slave's unit id,
-//!   and a Modbus exception is passed on as it is);
-//! * exception 0x0B (gateway target device failed to respond) when the
-//!   device stayed silent or its reply is not one valid frame (dropped,
-//!   corrupt, truncated, or noise around it), except for broadcasts (unit
-//!   0), which get nothing.
-//!
-//! A malformed header (protocol id not 0, a length outside 2..=254) closes
-//! the connection, as Modbus TCP servers do: the stream cannot be
-//! resynchronised. [`ServeConfig::line_timing`] does not apply (the gateway
-//! owns the line); an injected delay does.
+//! Serving a [`Device`] over Modbus TCP (MBAP): see [`serve_mbap`].
 
 use std::io::{self, Read, Write};
 use std::net::{TcpListener, TcpStream, ToSocketAddrs};
@@ -36,8 +15,28 @@ use super::{Endpoint, ServeConfig, Server, is_closed, lock, sleep_until, spawn};
 use crate::Device;
 
 /// Serves `device` over Modbus TCP on `addr` (use `127.0.0.1:0` for a free
-/// port; see [`Server::local_addr`]), several connections at once. See the
-/// [module docs](self) for what a client gets back.
+/// port; see [`Server::local_addr`]), several connections at once, as an
+/// Ethernet gateway in front of an RS-485 line does: unit id = slave address.
+///
+/// Each connection has its own thread, so several clients are served at
+/// once; their requests reach the device one at a time (it sits behind one
+/// mutex, as the probes behind a gateway share one serial line). A request
+/// becomes the RTU frame carrying the same PDU
+/// ([`yosemitech_rtu::mbap::adu_to_rtu`]); the device's reply goes back with
+/// the request's transaction id. Like a gateway, the server answers:
+///
+/// * the device's reply, when it is one whole RTU frame with a valid CRC
+///   (a reply from the wrong slave is passed on with that slave's unit id,
+///   and a Modbus exception is passed on as it is);
+/// * exception 0x0B (gateway target device failed to respond) when the
+///   device stayed silent or its reply is not one valid frame (dropped,
+///   corrupt, truncated, or noise around it), except for broadcasts (unit
+///   0), which get nothing.
+///
+/// A malformed header (protocol id not 0, a length outside 2..=254) closes
+/// the connection, as Modbus TCP servers do: the stream cannot be
+/// resynchronised. [`ServeConfig::line_timing`] does not apply (the gateway
+/// owns the line); an injected delay does.
 pub fn serve_mbap<D, A>(device: D, addr: A, config: ServeConfig) -> io::Result<Server<D>>
 where
     D: Device + Send + 'static,
