@@ -128,7 +128,12 @@ fn generated_code_snapshots() {
 fn generated_code_is_what_the_crate_builds() {
     // crates/yosemitech/generated is `cargo xtask codegen`'s readable copy;
     // it must match what build.rs generates (the CI runs `--check` too).
-    let generated = yosemitech_codegen::Config::new().generate(&[spec_dir()]).unwrap();
+    // The same configuration as crates/yosemitech/build.rs.
+    let generated = yosemitech_codegen::Config::new()
+        .std_feature(Some("std"))
+        .async_device_handles(Some("tokio"))
+        .generate(&[spec_dir()])
+        .unwrap();
     let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../crates/yosemitech/generated");
     for (name, source) in generated.files() {
         let copy = std::fs::read_to_string(dir.join(&name)).unwrap_or_default();

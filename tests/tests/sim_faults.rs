@@ -1,6 +1,6 @@
-//! Fault injection seen from the rtu client: each kind as the right error,
-//! counters that match, retries that recover, and a soak that accepts no
-//! wrong value.
+//! Fault injection seen from the rtu client: each kind as the right error
+//! and retries that recover, through both drivers (blocking and tokio),
+//! counters that match, and a soak that accepts no wrong value.
 
 use yosemitech_tests::sim as sim_common;
 
@@ -10,12 +10,46 @@ use std::time::{Duration, Instant};
 
 use sim_common::{client, exchange, float_read, request, same, spec};
 use yosemitech_rtu::{
-    Client, ClientConfig, Error, ExceptionCode, FrameError, ResponderTransport, RetryPolicy, Transport,
+    AsyncClient, Client, ClientConfig, Error, ExceptionCode, FrameError, ResponderTransport, RetryPolicy, Transport,
 };
 use yosemitech_sim::{Bus, FaultConfig, FaultKind, Rng, ServeConfig, Simulator, serve_memory};
 use yosemitech_spec::{CommandSpec, Field, FieldKind, Role, Sensor, Value};
 
 const TIMEOUT: Duration = Duration::from_millis(20);
+
+/// The two drivers of the client core: each fault kind must look the same
+/// through both.
+#[derive(Debug, Clone, Copy)]
+enum Driver {
+    Blocking,
+    Tokio,
+}
+
+const DRIVERS: [Driver; 2] = [Driver::Blocking, Driver::Tokio];
+
+/// `request` through a client of `driver` on `transport`: the result, the
+/// bytes the client received and the transport.
+fn call_raw_on(
+    driver: Driver,
+    transport: ResponderTransport<Simulator>,
+    config: ClientConfig,
+    request: &[u8],
+    layout: &yosemitech_rtu::Layout<'_>,
+) -> (Result<Vec<u8>, Error>, Vec<u8>, ResponderTransport<Simulator>) {
+    match driver {
+        Driver::Blocking => {
+            let mut client = Client::with_config(transport, config);
+            let result = client.call_raw(request, layout).map(<[u8]>::to_vec);
+            (result, client.last_reply().to_vec(), client.into_transport())
+        }
+        Driver::Tokio => {
+            let runtime = tokio::runtime::Builder::new_current_thread().enable_time().build().unwrap();
+            let mut client = AsyncClient::with_config(transport, config);
+            let result = runtime.block_on(client.call_raw(request, layout)).map(<[u8]>::to_vec);
+            (result, client.last_reply().to_vec(), client.into_link())
+        }
+    }
+}
 
 /// The spec's first single-float read, its sensor, and the reply a
 /// fault-free simulator gives it at the sensor's factory address.
@@ -26,24 +60,23 @@ fn float_read_with_reply() -> (Sensor, CommandSpec, Vec<u8>) {
     (probe, read, reply)
 }
 
-/// A float read on a simulator that injects `fault` into its first reply,
-/// and the fault-free reply.
-/// Returns the result, the bytes the client received, the simulator and the
-/// fault-free reply.
-fn one_fault(fault: FaultKind) -> (Result<Vec<u8>, Error>, Vec<u8>, Simulator, Vec<u8>) {
+/// A float read through `driver` on a simulator that injects `fault` into
+/// its first reply. Returns the result, the bytes the client received, the
+/// simulator and the fault-free reply.
+fn one_fault(fault: FaultKind, driver: Driver) -> (Result<Vec<u8>, Error>, Vec<u8>, Simulator, Vec<u8>) {
     let (probe, read, reply) = float_read_with_reply();
     let slave = probe.default_address;
     let sim = Simulator::new(probe).with_faults(FaultConfig::scripted([Some(fault)]));
-    let mut client = client(ResponderTransport::new(sim), TIMEOUT);
-    let result = client.call_raw(&request(&read, slave, &[]), &read.layout()).map(<[u8]>::to_vec);
-    let received = client.last_reply().to_vec();
-    (result, received, client.into_transport().into_responder(), reply)
+    let config = ClientConfig { timeout: TIMEOUT, retry: RetryPolicy::NONE, ..ClientConfig::default() };
+    let (result, received, transport) =
+        call_raw_on(driver, ResponderTransport::new(sim), config, &request(&read, slave, &[]), &read.layout());
+    (result, received, transport.into_responder(), reply)
 }
 
 #[test]
 fn each_fault_kind_is_seen_by_the_client_as_the_right_error() {
-    for kind in FaultKind::ALL {
-        let (result, bytes, sim, clean_reply) = one_fault(kind);
+    for (kind, driver) in FaultKind::ALL.into_iter().flat_map(|kind| DRIVERS.map(|driver| (kind, driver))) {
+        let (result, bytes, sim, clean_reply) = one_fault(kind, driver);
         match (kind, &result) {
             (FaultKind::Drop | FaultKind::Delay, Err(Error::Timeout { received })) => {
                 assert_eq!(*received, 0, "{kind}: silence, got {bytes:02X?}");
@@ -57,12 +90,12 @@ fn each_fault_kind_is_seen_by_the_client_as_the_right_error() {
             (FaultKind::WrongSlave, Err(Error::Frame { error: FrameError::WrongSlave { expected, actual }, .. }))
                 if *expected == clean_reply[0] && actual != expected => {}
             (FaultKind::Busy, Err(e)) if e.exception() == Some(ExceptionCode::ServerDeviceBusy) => {}
-            _ => panic!("{kind}: unexpected {result:?}"),
+            _ => panic!("{kind} ({driver:?}): unexpected {result:?}"),
         }
         assert_eq!(sim.faults().get(kind), 1, "{kind}");
         assert_eq!(sim.faults().total(), 1, "{kind}");
         assert_eq!(sim.faults().replies(), 1, "{kind}");
-        println!("{kind:>11}: {}", result.map_or_else(|e| e.to_string(), |_| "ok (noise skipped)".into()));
+        println!("{kind:>11} ({driver:?}): {}", result.map_or_else(|e| e.to_string(), |_| "ok (noise skipped)".into()));
     }
 }
 
@@ -70,25 +103,29 @@ fn each_fault_kind_is_seen_by_the_client_as_the_right_error() {
 fn retries_recover_from_a_scripted_sequence() {
     let (probe, read, clean_reply) = float_read_with_reply();
     let slave = probe.default_address;
-    let script = [Some(FaultKind::Drop), Some(FaultKind::CorruptCrc), Some(FaultKind::WrongSlave), None];
-    let sim = Simulator::new(probe).with_faults(FaultConfig::scripted(script));
     let config = ClientConfig {
         timeout: TIMEOUT,
         retry: RetryPolicy { retries: 3, backoff: Duration::ZERO, ..RetryPolicy::default() },
         ..ClientConfig::default()
     };
-    let mut client = Client::with_config(ResponderTransport::new(sim), config);
-    let reply = client.call_raw(&request(&read, slave, &[]), &read.layout()).unwrap().to_vec();
-    assert_eq!(reply, clean_reply);
-    let sim = client.transport().responder();
-    assert_eq!(sim.faults().total(), 3);
-    assert_eq!(sim.faults().replies(), 4);
-    assert_eq!(sim.stats().reads, 4, "the device served every attempt");
-    // A busy exception is not retried.
-    client.transport_mut().responder_mut().set_faults(FaultConfig::scripted([Some(FaultKind::Busy)]));
-    let err = client.call_raw(&request(&read, slave, &[]), &read.layout()).unwrap_err();
-    assert_eq!(err.exception(), Some(ExceptionCode::ServerDeviceBusy));
-    assert_eq!(client.transport().responder().faults().get(FaultKind::Busy), 1, "counts go on across configurations");
+    for driver in DRIVERS {
+        let script = [Some(FaultKind::Drop), Some(FaultKind::CorruptCrc), Some(FaultKind::WrongSlave), None];
+        let sim = Simulator::new(probe.clone()).with_faults(FaultConfig::scripted(script));
+        let req = request(&read, slave, &[]);
+        let (reply, _, mut transport) = call_raw_on(driver, ResponderTransport::new(sim), config, &req, &read.layout());
+        assert_eq!(reply.unwrap(), clean_reply, "{driver:?}");
+        let sim = transport.responder();
+        assert_eq!(sim.faults().total(), 3, "{driver:?}");
+        assert_eq!(sim.faults().replies(), 4, "{driver:?}");
+        assert_eq!(sim.stats().reads, 4, "{driver:?}: the device served every attempt");
+        // A busy exception is not retried.
+        transport.responder_mut().set_faults(FaultConfig::scripted([Some(FaultKind::Busy)]));
+        let (err, _, transport) = call_raw_on(driver, transport, config, &req, &read.layout());
+        assert_eq!(err.unwrap_err().exception(), Some(ExceptionCode::ServerDeviceBusy), "{driver:?}");
+        let busy = transport.responder().faults().get(FaultKind::Busy);
+        assert_eq!(busy, 1, "{driver:?}: counts go on across configurations");
+        assert_eq!(transport.responder().stats().requests, 5, "{driver:?}: busy is not retried");
+    }
 }
 
 #[test]

@@ -281,3 +281,87 @@ mod pty {
         assert_eq!(server.device().stats().reads, 2);
     }
 }
+
+mod mbap {
+    use std::io::{Read, Write};
+    use std::net::TcpStream;
+
+    use yosemitech_rtu::ExceptionCode;
+    use yosemitech_rtu::mbap::{MAX_MBAP_ADU, adu_to_rtu, rtu_to_adu};
+    use yosemitech_sim::serve_mbap;
+
+    use super::*;
+
+    fn connect(addr: std::net::SocketAddr) -> TcpStream {
+        let stream = TcpStream::connect(addr).unwrap();
+        stream.set_read_timeout(Some(Duration::from_secs(5))).unwrap();
+        stream
+    }
+
+    /// Sends the RTU `request` as an MBAP ADU with `transaction`.
+    fn send(stream: &mut TcpStream, request: &[u8], transaction: u16) {
+        let mut adu = [0u8; MAX_MBAP_ADU];
+        let n = rtu_to_adu(request, transaction, &mut adu).unwrap();
+        stream.write_all(&adu[..n]).unwrap();
+    }
+
+    /// Reads one MBAP ADU and returns its transaction id and the RTU frame carrying it.
+    fn receive(stream: &mut TcpStream) -> (u16, Vec<u8>) {
+        let mut adu = vec![0u8; 7];
+        stream.read_exact(&mut adu).unwrap();
+        let header = yosemitech_rtu::mbap::Header::parse(&adu).unwrap();
+        adu.resize(header.adu_len(), 0);
+        stream.read_exact(&mut adu[7..]).unwrap();
+        let mut rtu = [0u8; 256];
+        let (header, n) = adu_to_rtu(&adu, &mut rtu).unwrap();
+        (header.transaction, rtu[..n].to_vec())
+    }
+
+    #[test]
+    fn mbap_serves_a_bus_to_several_connections_at_once() {
+        let spec = spec();
+        let (first, get_one) = float_read(&spec);
+        let (second, get_two) = spec
+            .sensors
+            .iter()
+            .filter(|s| s.name != first.name)
+            .find_map(|s| Some((s.clone(), s.commands.iter().find(|c| is_float_read(c))?.clone())))
+            .expect("another sensor with a float read");
+        let bus =
+            Bus::new().with(Simulator::new(first.clone()).with_address(1)).with(Simulator::new(second).with_address(2));
+        let server = serve_mbap(bus, "127.0.0.1:0", ServeConfig::default()).unwrap();
+        let addr = server.local_addr().unwrap();
+        assert_eq!(server.endpoint(), &Endpoint::Mbap(addr));
+        let field = first_field(&get_one);
+        server.device().device_mut(1).unwrap().set(&get_one.name, &field, Value::Float(7.25)).unwrap();
+        // Two connections open at once, requests interleaved: each is
+        // answered on its own connection with its own transaction id.
+        let (mut a, mut b) = (connect(addr), connect(addr));
+        for round in 0..3u16 {
+            send(&mut a, &request(&get_one, 1, &[]), 100 + round);
+            send(&mut b, &request(&get_two, 2, &[]), 200 + round);
+            let (tid_b, reply_b) = receive(&mut b);
+            let (tid_a, reply_a) = receive(&mut a);
+            assert_eq!((tid_a, tid_b), (100 + round, 200 + round));
+            assert_eq!(get_one.decode_response(1, &reply_a).unwrap()[0].1, Value::Float(7.25));
+            get_two.decode_response(2, &reply_b).unwrap();
+        }
+        // A unit nobody answers for: the gateway's exception 0x0B.
+        send(&mut a, &request(&get_one, 9, &[]), 42);
+        let (tid, reply) = receive(&mut a);
+        assert_eq!(tid, 42);
+        let error = get_one.decode_response(9, &reply).unwrap_err().to_string();
+        assert!(error.contains(&ExceptionCode::GatewayTargetFailedToRespond.to_string()), "{error}");
+        // A malformed header (protocol id 1) closes that connection only.
+        b.write_all(&[0, 1, 0, 1, 0, 6, 1, 3, 0, 0, 0, 1]).unwrap();
+        let mut rest = [0u8; 16];
+        assert_eq!(b.read(&mut rest).unwrap_or(0), 0, "closed");
+        send(&mut a, &request(&get_one, 1, &[]), 43);
+        assert_eq!(receive(&mut a).0, 43);
+        assert_eq!(server.device().device(1).unwrap().stats().reads, 4);
+        drop((a, b));
+        let start = Instant::now();
+        server.stop().unwrap();
+        assert!(start.elapsed() < Duration::from_secs(2), "stop joins the connection threads");
+    }
+}

@@ -17,6 +17,7 @@ pub fn run(args: &[String]) -> anyhow::Result<ExitCode> {
     // The same configuration as crates/yosemitech/build.rs.
     let generated = yosemitech_codegen::Config::new()
         .std_feature(Some("std"))
+        .async_device_handles(Some("tokio"))
         .generate(&[root.join("spec")])
         .map_err(|e| anyhow::anyhow!("{e}"))?;
     let files = generated.files().into_iter().map(|(name, contents)| (name, contents.to_owned())).collect();

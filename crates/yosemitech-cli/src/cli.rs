@@ -189,8 +189,10 @@ or with --response the reply a probe would send (for a read, VALUES are the repl
     /// Serve a simulated probe on a pseudo-terminal or TCP for other tools.
     #[command(long_about = "\
 Serve a sensor simulated from its spec until Ctrl-C: on a new pseudo-terminal (--pty, the
-default) or as an RTU-over-TCP gateway (--tcp ADDR). The first line on stdout is the port to
-give other tools (the pty path, or tcp://ADDR). Faults can be injected:
+default) or over TCP (--tcp ADDR): as an RTU-over-TCP gateway, or with --protocol mbap as a
+Modbus TCP gateway (unit id = the probe's address; a probe that stays silent or answers
+garbage gets exception 0x0B, as from a gateway). The first line on stdout is the port to
+give other tools (the pty path, tcp://ADDR or mbap://ADDR). Faults can be injected:
 --faults drop=0.05,corrupt_crc=0.02 (kinds: drop, corrupt_crc, truncate, garbage,
 wrong_slave, delay, busy; all=P spreads P over every kind; delay_by=500ms).")]
     Simulate(SimulateArgs),
@@ -268,6 +270,16 @@ pub struct WriteArgs {
     /// Where to save the coefficient backup [default: the current directory].
     #[arg(long, value_name = "DIR")]
     pub backup_dir: Option<PathBuf>,
+}
+
+/// What `simulate --tcp` speaks.
+#[derive(ValueEnum, Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum TcpProtocol {
+    /// RTU frames (with CRC) over TCP, as a transparent serial gateway.
+    #[default]
+    Rtu,
+    /// Modbus TCP: MBAP header, no CRC; several connections at once.
+    Mbap,
 }
 
 /// Output formats of `poll`.
@@ -543,9 +555,13 @@ pub struct SimulateArgs {
     /// Serve on a new pseudo-terminal (the default).
     #[arg(long, conflicts_with = "tcp")]
     pub pty: bool,
-    /// Serve RTU over TCP on ADDR (127.0.0.1:5020; port 0 picks a free one).
+    /// Serve over TCP on ADDR (127.0.0.1:5020; port 0 picks a free one).
     #[arg(long, value_name = "ADDR")]
     pub tcp: Option<String>,
+    /// What --tcp speaks: raw RTU frames, as a transparent serial gateway
+    /// (rtu), or Modbus TCP with MBAP headers, unit id = address (mbap).
+    #[arg(long, value_enum, default_value_t = TcpProtocol::Rtu, requires = "tcp")]
+    pub protocol: TcpProtocol,
     /// Faults to inject: kind=probability,... (see the long help).
     #[arg(long, value_name = "SPEC")]
     pub faults: Option<String>,

@@ -1030,6 +1030,31 @@ fn simulate_serves_rtu_over_tcp() {
 }
 
 #[test]
+fn simulate_serves_modbus_tcp() {
+    use std::io::{Read, Write};
+    use yosemitech_rtu::mbap::{MAX_MBAP_ADU, adu_to_rtu, rtu_to_adu};
+
+    let (sensor, command, request, reply, _) = stated_read();
+    let (child, port) = spawn_simulate(&[&sensor.name, "--tcp", "127.0.0.1:0", "--protocol", "mbap"]);
+    let addr = port.strip_prefix("mbap://").unwrap_or_else(|| panic!("{port}"));
+    let mut stream = std::net::TcpStream::connect(addr).unwrap();
+    stream.set_read_timeout(Some(Duration::from_secs(5))).unwrap();
+    let mut adu = [0u8; MAX_MBAP_ADU];
+    let n = rtu_to_adu(&request, 0xBEEF, &mut adu).unwrap();
+    stream.write_all(&adu[..n]).unwrap();
+    let expected = rtu_to_adu(&reply, 0xBEEF, &mut adu).unwrap();
+    let mut answer = vec![0u8; expected];
+    stream.read_exact(&mut answer).unwrap();
+    let mut rtu = [0u8; 256];
+    let (header, n) = adu_to_rtu(&answer, &mut rtu).unwrap();
+    assert_eq!(header.transaction, 0xBEEF);
+    assert_eq!(rtu[..n], reply, "{}: the manual's reply, carried by Modbus TCP", command.name);
+    drop(stream);
+    let err = interrupt(child);
+    assert!(err.contains("stopped: 1 requests"), "{err}");
+}
+
+#[test]
 fn simulate_is_silent_for_registers_the_probe_lacks_unless_asked_for_exceptions() {
     // A read the first sensor of the spec lacks, from another sensor's command.
     let spec = spec();

@@ -76,6 +76,7 @@ pub struct Config {
     runtime: String,
     device_handles: bool,
     std_feature: Option<String>,
+    async_feature: Option<String>,
 }
 
 impl Default for Config {
@@ -88,7 +89,12 @@ impl Config {
     /// The defaults: runtime `::yosemitech_rtu`, device handles on, gated on
     /// the feature `std`.
     pub fn new() -> Self {
-        Self { runtime: "::yosemitech_rtu".into(), device_handles: true, std_feature: Some("std".into()) }
+        Self {
+            runtime: "::yosemitech_rtu".into(),
+            device_handles: true,
+            std_feature: Some("std".into()),
+            async_feature: None,
+        }
     }
 
     /// The path of the runtime crate in generated code (default
@@ -114,6 +120,16 @@ impl Config {
         self
     }
 
+    /// The cargo feature that gates async device handles (`AsyncDevice`,
+    /// the blocking `Device`'s methods as `async fn`s over the runtime's
+    /// tokio `AsyncClient`, which needs the runtime's `tokio` feature) with
+    /// `#[cfg(feature = "...")]`; `None` (the default) generates none. Only
+    /// with [`Config::device_handles`] on.
+    pub fn async_device_handles(&mut self, feature: Option<&str>) -> &mut Self {
+        self.async_feature = feature.map(str::to_owned);
+        self
+    }
+
     /// Loads and validates the spec files in `spec_dirs` (directories or
     /// files) and generates one module per sensor.
     pub fn generate<P: AsRef<Path>>(&self, spec_dirs: &[P]) -> Result<Generated, Error> {
@@ -130,6 +146,7 @@ impl Config {
             runtime: quote::quote!(#runtime),
             device_handles: self.device_handles,
             std_feature: self.std_feature.clone(),
+            async_feature: self.async_feature.clone(),
         };
         let mut sensors = Vec::new();
         let mut modules = TokenStream::new();

@@ -20,6 +20,8 @@ pub struct Options {
     pub device_handles: bool,
     /// The feature gating std-only items.
     pub std_feature: Option<String>,
+    /// The feature gating `AsyncDevice`; `None`: no async handles.
+    pub async_feature: Option<String>,
 }
 
 fn ident(name: &str) -> Ident {
@@ -1443,7 +1445,10 @@ fn device(s: &Sensor, names: &Names, o: &Options) -> TokenStream {
         Some(feature) => quote!(#[cfg(feature = #feature)]),
         None => TokenStream::new(),
     };
+    // One method per command, emitted twice from the same parts: blocking
+    // (`Device`) and, when asked for, async (`AsyncDevice`).
     let mut methods = Vec::new();
+    let mut async_methods = Vec::new();
     for (ci, c) in s.commands.iter().enumerate() {
         let n = &names.commands[ci];
         let ty = ident(&n.ty);
@@ -1451,7 +1456,8 @@ fn device(s: &Sensor, names: &Names, o: &Options) -> TokenStream {
         let gens = field_gens(names, ci, c);
         let title = one_line(&c.title);
         let title = title.trim_end_matches('.');
-        match c.function {
+        // (doc, parameters, return type, request expression, reply mapping)
+        let (d, params, ret, request, map) = match c.function {
             Function::Read => {
                 let resp = ident(&n.response);
                 if let [only] = gens.as_slice() {
@@ -1463,31 +1469,16 @@ fn device(s: &Sensor, names: &Names, o: &Options) -> TokenStream {
                         n.ty,
                         only.field.display_name()
                     ));
-                    methods.push(quote! {
-                        #d
-                        pub fn #method(&mut self) -> Result<#fty, rtu::Error> {
-                            self.call(&#ty).map(|reply| reply.#field)
-                        }
-                    });
+                    (d, quote!(), quote!(#fty), quote!(&#ty), quote!(.map(|reply| reply.#field)))
                 } else {
                     let d = doc(&format!("{title}: sends [`{}`] and returns the reply.", n.ty));
-                    methods.push(quote! {
-                        #d
-                        pub fn #method(&mut self) -> Result<#resp, rtu::Error> {
-                            self.call(&#ty)
-                        }
-                    });
+                    (d, quote!(), quote!(#resp), quote!(&#ty), quote!())
                 }
             }
             Function::Write => match gens.as_slice() {
                 [] => {
                     let d = doc(&format!("{title}: sends [`{}`].", n.ty));
-                    methods.push(quote! {
-                        #d
-                        pub fn #method(&mut self) -> Result<(), rtu::Error> {
-                            self.call(&#ty)
-                        }
-                    });
+                    (d, quote!(), quote!(()), quote!(&#ty), quote!())
                 }
                 [only] => {
                     let field = &only.name;
@@ -1498,12 +1489,7 @@ fn device(s: &Sensor, names: &Names, o: &Options) -> TokenStream {
                         only.field.display_name(),
                         if only.field.range.is_some() { RANGE_NOTE } else { "" }
                     ));
-                    methods.push(quote! {
-                        #d
-                        pub fn #method(&mut self, #field: #fty) -> Result<(), rtu::Error> {
-                            self.call(&#ty { #field })
-                        }
-                    });
+                    (d, quote!(, #field: #fty), quote!(()), quote!(&#ty { #field }), quote!())
                 }
                 _ => {
                     let ranged = gens.iter().any(|g| g.field.range.is_some());
@@ -1512,17 +1498,77 @@ fn device(s: &Sensor, names: &Names, o: &Options) -> TokenStream {
                         n.ty,
                         if ranged { RANGE_NOTE } else { "" }
                     ));
-                    methods.push(quote! {
-                        #d
-                        pub fn #method(&mut self, request: #ty) -> Result<(), rtu::Error> {
-                            self.call(&request)
-                        }
-                    });
+                    (d, quote!(, request: #ty), quote!(()), quote!(&request), quote!())
                 }
             },
-        }
+        };
+        methods.push(quote! {
+            #d
+            pub fn #method(&mut self #params) -> Result<#ret, rtu::Error> {
+                self.call(#request) #map
+            }
+        });
+        async_methods.push(quote! {
+            #d
+            pub async fn #method(&mut self #params) -> Result<#ret, rtu::Error> {
+                self.call(#request).await #map
+            }
+        });
     }
     let title = one_line(&s.title);
+    let async_device = match &o.async_feature {
+        Some(feature) => {
+            let d = doc(&format!(
+                "One {title} on a bus, from async code: [`Device`]'s methods as `async fn`s over a borrowed \
+                 [`rtu::AsyncClient`] (tokio), with the same requests, checks and replies."
+            ));
+            quote! {
+                #[cfg(feature = #feature)]
+                #d
+                pub struct AsyncDevice<'c, L> {
+                    client: &'c mut rtu::AsyncClient<L>,
+                    address: u8,
+                }
+
+                #[cfg(feature = #feature)]
+                impl<'c, L: rtu::transport::AsyncLink> AsyncDevice<'c, L> {
+                    /// The probe at `address` on `client`'s bus.
+                    pub fn new(client: &'c mut rtu::AsyncClient<L>, address: u8) -> Self {
+                        Self { client, address }
+                    }
+
+                    /// The probe's slave address.
+                    pub fn address(&self) -> u8 {
+                        self.address
+                    }
+
+                    /// Points the handle at another address, after the probe's
+                    /// address was changed and verified.
+                    pub fn set_address(&mut self, address: u8) {
+                        self.address = address;
+                    }
+
+                    /// The client, for requests to other devices on the bus.
+                    pub fn client(&mut self) -> &mut rtu::AsyncClient<L> {
+                        self.client
+                    }
+
+                    /// Sends any command to this probe (or to the command's fixed
+                    /// slave address) and returns the decoded reply.
+                    pub async fn call<C: rtu::Command>(&mut self, command: &C) -> Result<C::Response, rtu::Error> {
+                        let slave = match C::LAYOUT.fixed_slave {
+                            Some(fixed) => fixed,
+                            None => self.address,
+                        };
+                        self.client.call(slave, command).await
+                    }
+
+                    #(#async_methods)*
+                }
+            }
+        }
+        None => TokenStream::new(),
+    };
     let d = doc(&format!(
         "One {title} on a bus: a borrowed [`rtu::Client`] and the probe's slave address, with one method per command.\n\n\
          Reads are named after the command without its `get_` prefix and return the reply, or its only field; writes \
@@ -1572,5 +1618,7 @@ fn device(s: &Sensor, names: &Names, o: &Options) -> TokenStream {
 
             #(#methods)*
         }
+
+        #async_device
     }
 }

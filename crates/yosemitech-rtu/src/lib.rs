@@ -2,9 +2,13 @@
 //!
 //! Everything generated code relies on lives here once: the CRC, frame
 //! encoding and checking ([`frame::Layout`]), register value codecs
-//! ([`codec`]), the [`Command`] trait and typed errors. The core is `no_std`
+//! ([`codec`]), the [`Command`] trait, typed errors, and Modbus TCP framing
+//! ([`mbap`]: the MBAP header and conversion to and from RTU frames). The core is `no_std`
 //! and allocation-free; the `std` feature adds [`transport`]s (serial with
 //! the `serial` feature, RTU-over-TCP, in-memory) and the blocking [`Client`] over the sans-IO [`ClientCore`].
+//! The `tokio` feature adds the async client on the same core; the
+//! `tokio-modbus` feature runs generated commands over an existing
+//! tokio-modbus connection (`tokio_modbus` module).
 #![cfg_attr(not(feature = "std"), no_std)]
 #![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used, clippy::panic, clippy::indexing_slicing))]
 
@@ -14,8 +18,11 @@ mod command;
 mod crc;
 mod error;
 pub mod frame;
+pub mod mbap;
 mod sensor;
 pub mod timing;
+#[cfg(feature = "tokio-modbus")]
+pub mod tokio_modbus;
 #[cfg(feature = "std")]
 pub mod transport;
 mod value;
@@ -25,13 +32,20 @@ pub use command::Command;
 pub use crc::{CRC_INIT, crc_ok, crc16, crc16_update};
 pub use error::{EchoField, EncodeError, ExceptionCode, FrameError};
 pub use frame::{Frame, Function, Layout};
+pub use mbap::MbapError;
 pub use sensor::{RoundTripError, SensorInfo, SensorModule};
 pub use timing::{CharFormat, DataBits, LineSettings, LineTiming, Parity, StopBits};
 pub use value::{FieldInfo, FieldValue};
 
+#[cfg(feature = "tokio")]
+pub use client::AsyncClient;
 #[cfg(feature = "std")]
 pub use client::{Client, Error};
 pub use client::{ClientConfig, ClientCore, ClientError, RetryPolicy};
+#[cfg(feature = "tokio-serial")]
+pub use transport::AsyncSerial;
+#[cfg(feature = "tokio")]
+pub use transport::{AsyncLink, MbapLink, RtuStream};
 #[cfg(feature = "std")]
 pub use transport::{MemoryTransport, Responder, ResponderTransport, TcpTransport, Transport};
 #[cfg(feature = "serial")]

@@ -15,7 +15,9 @@
 //! * on a byte stream from a background thread ([`serve`]): a
 //!   pseudo-terminal (`serve_pty`, Unix, `pty` feature), RTU over TCP
 //!   ([`serve_tcp`]), an in-memory pair ([`serve_memory`]), optionally
-//!   emulating the serial line's timing ([`ServeConfig::line_timing`]).
+//!   emulating the serial line's timing ([`ServeConfig::line_timing`]);
+//! * over Modbus TCP as an Ethernet gateway, one probe or a [`Bus`] of them
+//!   (unit id = slave address), several connections at once ([`serve_mbap`]).
 //!
 //! By default the simulator behaves like the real probe: a request that
 //! matches no command of the sensor gets no reply
@@ -61,7 +63,7 @@ pub use fault::{FaultConfig, FaultCounts, FaultKind, Rng};
 pub use registers::RegisterMap;
 #[cfg(all(unix, feature = "pty"))]
 pub use serve::serve_pty;
-pub use serve::{Endpoint, ServeConfig, Server, serve_memory, serve_tcp, serve_transport};
+pub use serve::{Endpoint, ServeConfig, Server, serve_mbap, serve_memory, serve_tcp, serve_transport};
 pub use simulator::{SimError, Simulator, Stats, UnknownRequestPolicy, Variation};
 
 /// Something on the bus that answers request frames: a [`Simulator`] or a

@@ -1606,3 +1606,109 @@ impl<'c, T: rtu::Transport> Device<'c, T> {
         self.call(&GetTurbidity).map(|reply| reply.turbidity_ntu)
     }
 }
+
+#[cfg(feature = "tokio")]
+/// One UV254 / COD probe on a bus, from async code: [`Device`]'s methods as `async fn`s over a borrowed [`rtu::AsyncClient`] (tokio), with the same requests, checks and replies.
+pub struct AsyncDevice<'c, L> {
+    client: &'c mut rtu::AsyncClient<L>,
+    address: u8,
+}
+
+#[cfg(feature = "tokio")]
+impl<'c, L: rtu::transport::AsyncLink> AsyncDevice<'c, L> {
+    /// The probe at `address` on `client`'s bus.
+    pub fn new(client: &'c mut rtu::AsyncClient<L>, address: u8) -> Self {
+        Self { client, address }
+    }
+    /// The probe's slave address.
+    pub fn address(&self) -> u8 {
+        self.address
+    }
+    /// Points the handle at another address, after the probe's
+    /// address was changed and verified.
+    pub fn set_address(&mut self, address: u8) {
+        self.address = address;
+    }
+    /// The client, for requests to other devices on the bus.
+    pub fn client(&mut self) -> &mut rtu::AsyncClient<L> {
+        self.client
+    }
+    /// Sends any command to this probe (or to the command's fixed
+    /// slave address) and returns the decoded reply.
+    pub async fn call<C: rtu::Command>(
+        &mut self,
+        command: &C,
+    ) -> Result<C::Response, rtu::Error> {
+        let slave = match C::LAYOUT.fixed_slave {
+            Some(fixed) => fixed,
+            None => self.address,
+        };
+        self.client.call(slave, command).await
+    }
+    /// Set Slave Device ID: sends [`SetSlaveId`] with `slave_address`. Values outside the spec's range are refused before sending.
+    pub async fn set_slave_id(&mut self, slave_address: u8) -> Result<(), rtu::Error> {
+        self.call(&SetSlaveId { slave_address }).await
+    }
+    /// Get SN: sends [`GetSn`] and returns its `serial_number`.
+    pub async fn sn(&mut self) -> Result<rtu::Ascii<12>, rtu::Error> {
+        self.call(&GetSn).await.map(|reply| reply.serial_number)
+    }
+    /// Start Measurement: sends [`StartMeasurement`] and returns the reply.
+    pub async fn start_measurement(
+        &mut self,
+    ) -> Result<StartMeasurementResponse, rtu::Error> {
+        self.call(&StartMeasurement).await
+    }
+    /// Get Temperature and COD values: sends [`GetTemperatureAndCod`] and returns the reply.
+    pub async fn temperature_and_cod(
+        &mut self,
+    ) -> Result<GetTemperatureAndCodResponse, rtu::Error> {
+        self.call(&GetTemperatureAndCod).await
+    }
+    /// Get Software and Hardware Rev: sends [`GetVersion`] and returns the reply.
+    pub async fn version(&mut self) -> Result<GetVersionResponse, rtu::Error> {
+        self.call(&GetVersion).await
+    }
+    /// Stop Measurement: sends [`StopMeasurement`] and returns the reply.
+    pub async fn stop_measurement(
+        &mut self,
+    ) -> Result<StopMeasurementResponse, rtu::Error> {
+        self.call(&StopMeasurement).await
+    }
+    /// Get User Calibration Coefficients: sends [`GetUserCalibration`] and returns the reply.
+    pub async fn user_calibration(
+        &mut self,
+    ) -> Result<GetUserCalibrationResponse, rtu::Error> {
+        self.call(&GetUserCalibration).await
+    }
+    /// Set Customer Calibration Coefficients: sends `request` ([`SetUserCalibration`]).
+    pub async fn set_user_calibration(
+        &mut self,
+        request: SetUserCalibration,
+    ) -> Result<(), rtu::Error> {
+        self.call(&request).await
+    }
+    /// Active Brush: sends [`ActiveBrush`].
+    pub async fn active_brush(&mut self) -> Result<(), rtu::Error> {
+        self.call(&ActiveBrush).await
+    }
+    /// Set Brush Interval of time: sends [`SetBrushInterval`] with `interval_min`.
+    pub async fn set_brush_interval(
+        &mut self,
+        interval_min: u16,
+    ) -> Result<(), rtu::Error> {
+        self.call(&SetBrushInterval { interval_min }).await
+    }
+    /// Get Brush Interval of time: sends [`GetBrushInterval`] and returns its `interval_min` (min).
+    pub async fn brush_interval(&mut self) -> Result<u16, rtu::Error> {
+        self.call(&GetBrushInterval).await.map(|reply| reply.interval_min)
+    }
+    /// Get Slave Device ID: sends [`GetSlaveId`] and returns its `slave_address`.
+    pub async fn slave_id(&mut self) -> Result<u8, rtu::Error> {
+        self.call(&GetSlaveId).await.map(|reply| reply.slave_address)
+    }
+    /// Get Turbidity values: sends [`GetTurbidity`] and returns its `turbidity_ntu` (NTU).
+    pub async fn turbidity(&mut self) -> Result<f32, rtu::Error> {
+        self.call(&GetTurbidity).await.map(|reply| reply.turbidity_ntu)
+    }
+}

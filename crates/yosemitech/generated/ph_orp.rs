@@ -2859,3 +2859,125 @@ impl<'c, T: rtu::Transport> Device<'c, T> {
         self.call(&GetSlaveId).map(|reply| reply.slave_address)
     }
 }
+
+#[cfg(feature = "tokio")]
+/// One Optical pH / ORP probe on a bus, from async code: [`Device`]'s methods as `async fn`s over a borrowed [`rtu::AsyncClient`] (tokio), with the same requests, checks and replies.
+pub struct AsyncDevice<'c, L> {
+    client: &'c mut rtu::AsyncClient<L>,
+    address: u8,
+}
+
+#[cfg(feature = "tokio")]
+impl<'c, L: rtu::transport::AsyncLink> AsyncDevice<'c, L> {
+    /// The probe at `address` on `client`'s bus.
+    pub fn new(client: &'c mut rtu::AsyncClient<L>, address: u8) -> Self {
+        Self { client, address }
+    }
+    /// The probe's slave address.
+    pub fn address(&self) -> u8 {
+        self.address
+    }
+    /// Points the handle at another address, after the probe's
+    /// address was changed and verified.
+    pub fn set_address(&mut self, address: u8) {
+        self.address = address;
+    }
+    /// The client, for requests to other devices on the bus.
+    pub fn client(&mut self) -> &mut rtu::AsyncClient<L> {
+        self.client
+    }
+    /// Sends any command to this probe (or to the command's fixed
+    /// slave address) and returns the decoded reply.
+    pub async fn call<C: rtu::Command>(
+        &mut self,
+        command: &C,
+    ) -> Result<C::Response, rtu::Error> {
+        let slave = match C::LAYOUT.fixed_slave {
+            Some(fixed) => fixed,
+            None => self.address,
+        };
+        self.client.call(slave, command).await
+    }
+    /// Set Slave Device ID: sends [`SetSlaveId`] with `slave_address`. Values outside the spec's range are refused before sending.
+    pub async fn set_slave_id(&mut self, slave_address: u8) -> Result<(), rtu::Error> {
+        self.call(&SetSlaveId { slave_address }).await
+    }
+    /// Get SN: sends [`GetSn`] and returns its `serial_number`.
+    pub async fn sn(&mut self) -> Result<rtu::Ascii<12>, rtu::Error> {
+        self.call(&GetSn).await.map(|reply| reply.serial_number)
+    }
+    /// Get pH value: sends [`GetPh`] and returns its `ph` (pH).
+    pub async fn ph(&mut self) -> Result<f32, rtu::Error> {
+        self.call(&GetPh).await.map(|reply| reply.ph)
+    }
+    /// Get pH and potential value (ORP): sends [`GetOrpAndPh`] and returns the reply.
+    pub async fn orp_and_ph(&mut self) -> Result<GetOrpAndPhResponse, rtu::Error> {
+        self.call(&GetOrpAndPh).await
+    }
+    /// Get potential value (ORP): sends [`GetOrp`] and returns its `orp_mv` (mV).
+    pub async fn orp(&mut self) -> Result<f32, rtu::Error> {
+        self.call(&GetOrp).await.map(|reply| reply.orp_mv)
+    }
+    /// Get Software and Hardware Rev: sends [`GetVersion`] and returns the reply.
+    pub async fn version(&mut self) -> Result<GetVersionResponse, rtu::Error> {
+        self.call(&GetVersion).await
+    }
+    /// Start pH calibration: sends [`StartPhCalibration`] with `standard_ph`. Values outside the spec's range are refused before sending.
+    pub async fn start_ph_calibration(
+        &mut self,
+        standard_ph: f32,
+    ) -> Result<(), rtu::Error> {
+        self.call(&StartPhCalibration { standard_ph }).await
+    }
+    /// Get Calibration Status: sends [`GetCalibrationStatus`] and returns its `status`.
+    pub async fn calibration_status(&mut self) -> Result<CalibrationStatus, rtu::Error> {
+        self.call(&GetCalibrationStatus).await.map(|reply| reply.status)
+    }
+    /// Get Temperature Value: sends [`GetTemperature`] and returns its `temperature_c` (degC).
+    pub async fn temperature(&mut self) -> Result<f32, rtu::Error> {
+        self.call(&GetTemperature).await.map(|reply| reply.temperature_c)
+    }
+    /// Set pH Electrode Coefficients: sends `request` ([`SetPhElectrodeCoefficients`]).
+    pub async fn set_ph_electrode_coefficients(
+        &mut self,
+        request: SetPhElectrodeCoefficients,
+    ) -> Result<(), rtu::Error> {
+        self.call(&request).await
+    }
+    /// Get pH Electrode Coefficients: sends [`GetPhElectrodeCoefficients`] and returns the reply.
+    pub async fn ph_electrode_coefficients(
+        &mut self,
+    ) -> Result<GetPhElectrodeCoefficientsResponse, rtu::Error> {
+        self.call(&GetPhElectrodeCoefficients).await
+    }
+    /// Set ORP Calibration Coefficients: sends `request` ([`SetOrpCalibration`]).
+    pub async fn set_orp_calibration(
+        &mut self,
+        request: SetOrpCalibration,
+    ) -> Result<(), rtu::Error> {
+        self.call(&request).await
+    }
+    /// Get ORP Calibration Coefficients: sends [`GetOrpCalibration`] and returns the reply.
+    pub async fn orp_calibration(
+        &mut self,
+    ) -> Result<GetOrpCalibrationResponse, rtu::Error> {
+        self.call(&GetOrpCalibration).await
+    }
+    /// Set pH Customer Calibration Coefficients: sends `request` ([`SetPhCalibration`]).
+    pub async fn set_ph_calibration(
+        &mut self,
+        request: SetPhCalibration,
+    ) -> Result<(), rtu::Error> {
+        self.call(&request).await
+    }
+    /// Get pH Customer Calibration Coefficients: sends [`GetPhCalibration`] and returns the reply.
+    pub async fn ph_calibration(
+        &mut self,
+    ) -> Result<GetPhCalibrationResponse, rtu::Error> {
+        self.call(&GetPhCalibration).await
+    }
+    /// Get Slave Device ID: sends [`GetSlaveId`] and returns its `slave_address`.
+    pub async fn slave_id(&mut self) -> Result<u8, rtu::Error> {
+        self.call(&GetSlaveId).await.map(|reply| reply.slave_address)
+    }
+}

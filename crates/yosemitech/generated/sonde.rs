@@ -2056,3 +2056,88 @@ impl<'c, T: rtu::Transport> Device<'c, T> {
         self.call(&ActiveBrush)
     }
 }
+
+#[cfg(feature = "tokio")]
+/// One Multi-parameter sonde on a bus, from async code: [`Device`]'s methods as `async fn`s over a borrowed [`rtu::AsyncClient`] (tokio), with the same requests, checks and replies.
+pub struct AsyncDevice<'c, L> {
+    client: &'c mut rtu::AsyncClient<L>,
+    address: u8,
+}
+
+#[cfg(feature = "tokio")]
+impl<'c, L: rtu::transport::AsyncLink> AsyncDevice<'c, L> {
+    /// The probe at `address` on `client`'s bus.
+    pub fn new(client: &'c mut rtu::AsyncClient<L>, address: u8) -> Self {
+        Self { client, address }
+    }
+    /// The probe's slave address.
+    pub fn address(&self) -> u8 {
+        self.address
+    }
+    /// Points the handle at another address, after the probe's
+    /// address was changed and verified.
+    pub fn set_address(&mut self, address: u8) {
+        self.address = address;
+    }
+    /// The client, for requests to other devices on the bus.
+    pub fn client(&mut self) -> &mut rtu::AsyncClient<L> {
+        self.client
+    }
+    /// Sends any command to this probe (or to the command's fixed
+    /// slave address) and returns the decoded reply.
+    pub async fn call<C: rtu::Command>(
+        &mut self,
+        command: &C,
+    ) -> Result<C::Response, rtu::Error> {
+        let slave = match C::LAYOUT.fixed_slave {
+            Some(fixed) => fixed,
+            None => self.address,
+        };
+        self.client.call(slave, command).await
+    }
+    /// Get measurement data: sends [`GetMeasurementData`] and returns the reply.
+    pub async fn measurement_data(
+        &mut self,
+    ) -> Result<GetMeasurementDataResponse, rtu::Error> {
+        self.call(&GetMeasurementData).await
+    }
+    /// Get SN: sends [`GetSn`] and returns its `serial_number`.
+    pub async fn sn(&mut self) -> Result<rtu::Ascii<12>, rtu::Error> {
+        self.call(&GetSn).await.map(|reply| reply.serial_number)
+    }
+    /// Error Flag: sends [`GetErrorFlag`] and returns its `error_flags`.
+    pub async fn error_flag(&mut self) -> Result<u8, rtu::Error> {
+        self.call(&GetErrorFlag).await.map(|reply| reply.error_flags)
+    }
+    /// Get Brush Interval of time: sends [`GetBrushInterval`] and returns its `interval_min` (min).
+    pub async fn brush_interval(&mut self) -> Result<u16, rtu::Error> {
+        self.call(&GetBrushInterval).await.map(|reply| reply.interval_min)
+    }
+    /// Set Brush Interval of time: sends [`SetBrushInterval`] with `interval_min`.
+    pub async fn set_brush_interval(
+        &mut self,
+        interval_min: u16,
+    ) -> Result<(), rtu::Error> {
+        self.call(&SetBrushInterval { interval_min }).await
+    }
+    /// Set the time: sends `request` ([`SetTime`]). Values outside the spec's range are refused before sending.
+    pub async fn set_time(&mut self, request: SetTime) -> Result<(), rtu::Error> {
+        self.call(&request).await
+    }
+    /// Get the time: sends [`GetTime`] and returns the reply.
+    pub async fn time(&mut self) -> Result<GetTimeResponse, rtu::Error> {
+        self.call(&GetTime).await
+    }
+    /// Set Slave Device ID: sends [`SetSlaveId`] with `slave_address`. Values outside the spec's range are refused before sending.
+    pub async fn set_slave_id(&mut self, slave_address: u8) -> Result<(), rtu::Error> {
+        self.call(&SetSlaveId { slave_address }).await
+    }
+    /// Get the supply voltage: sends [`GetSupplyVoltage`] and returns its `supply_voltage_v` (V).
+    pub async fn supply_voltage(&mut self) -> Result<f32, rtu::Error> {
+        self.call(&GetSupplyVoltage).await.map(|reply| reply.supply_voltage_v)
+    }
+    /// Active Brush: sends [`ActiveBrush`].
+    pub async fn active_brush(&mut self) -> Result<(), rtu::Error> {
+        self.call(&ActiveBrush).await
+    }
+}

@@ -106,6 +106,10 @@
 //!   (`set_orp_calibration(SetOrpCalibration { k_slope: 1.0, b_offset: 0.0 })`).
 //!   `Device::call` sends any command. Commands with a fixed slave address
 //!   (`get_slave_id`, 0xFF) use it instead of the device's.
+//! - **Async device handles** (`tokio`): `AsyncDevice::new(&mut client,
+//!   address)` over an `rtu::AsyncClient`, with the same
+//!   methods as `async fn`s (`probe.ph().await`), generated from the same
+//!   parts as `Device`.
 //! - **Shared commands**: a command several probes take from the same
 //!   fragment of the spec (the serial number, the slave address, the
 //!   optical start/stop triggers, ...) is generated once, in a module named
@@ -156,6 +160,16 @@
 //!   `std::error::Error` for the errors. Without it the crate is `no_std`
 //!   and offers the codecs only.
 //! - `serial` (default): the serial-port transport (no libudev needed).
+//! - `tokio`: `rtu::AsyncClient`, the async device handles
+//!   (`AsyncDevice`) and their links: RTU frames on any tokio stream
+//!   (`RtuStream`: TCP to a transparent gateway) and Modbus
+//!   TCP to an Ethernet gateway (`MbapLink`). Same protocol
+//!   core, timing, checks and retries as the blocking [`Client`]; a call
+//!   dropped half-way leaves the bus usable; no allocation per transaction.
+//! - `tokio-serial`: the tokio serial-port link (`rtu::AsyncSerial`).
+//! - `tokio-modbus`: `rtu::tokio_modbus::call` runs any command over an
+//!   existing `tokio_modbus::client::Context` (RTU or TCP) and decodes its
+//!   reply with the same generated decoder.
 #![cfg_attr(not(feature = "std"), no_std)]
 #![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used, clippy::panic, clippy::indexing_slicing))]
 
@@ -176,6 +190,9 @@ pub use yosemitech_rtu::{
 
 #[cfg(feature = "serial")]
 pub use yosemitech_rtu::{SerialConfig, SerialTransport};
+
+#[cfg(feature = "tokio")]
+pub use yosemitech_rtu::{AsyncClient, AsyncLink, MbapLink, RtuStream};
 
 #[cfg(feature = "std")]
 pub mod procedures;

@@ -7,11 +7,11 @@ use std::time::Duration;
 
 use yosemitech_sim::{
     FaultConfig, FaultKind, SerialNumberPolicy, ServeConfig, Server, Simulator, UnknownRequestPolicy, Variation,
-    serve_tcp,
+    serve_mbap, serve_tcp,
 };
 
 use crate::catalog::Catalog;
-use crate::cli::SimulateArgs;
+use crate::cli::{SimulateArgs, TcpProtocol};
 use crate::error::{CliError, Result};
 use crate::format::parse_duration;
 
@@ -75,12 +75,16 @@ pub fn run(catalog: &Catalog, args: &SimulateArgs, stop: &Arc<AtomicBool>, out: 
     let config = if args.line_timing { ServeConfig::emulating(sensor.serial.timing()) } else { ServeConfig::default() };
     let (server, endpoint): (Server<Simulator>, String) = match &args.tcp {
         Some(addr) => {
-            let server = serve_tcp(sim, addr.as_str(), config).map_err(|e| {
+            let served = match args.protocol {
+                TcpProtocol::Rtu => serve_tcp(sim, addr.as_str(), config),
+                TcpProtocol::Mbap => serve_mbap(sim, addr.as_str(), config),
+            };
+            let server = served.map_err(|e| {
                 CliError::device(format!("cannot listen on {addr}: {e}"))
                     .hint("give a free local address, e.g. --tcp 127.0.0.1:5020 (port 0 picks one)")
             })?;
-            let local = server.local_addr().map_or_else(|| addr.clone(), |a| a.to_string());
-            (server, format!("tcp://{local}"))
+            let endpoint = server.endpoint().to_string();
+            (server, endpoint)
         }
         None => serve_pty_or_explain(sim, config)?,
     };

@@ -5,7 +5,8 @@
 //! The protocol lives once, in the sans-IO [`ClientCore`] (`no_std`, no
 //! allocation, no clock, no I/O); drivers run it over a link: the blocking
 //! [`Client`] over a [`Transport`](crate::Transport) (feature `std`), the
-//! async firmware driver over `embedded-io-async` (feature `embedded`).
+//! tokio `AsyncClient` over an `AsyncLink` (feature `tokio`), the async
+//! firmware driver over `embedded-io-async` (feature `embedded`).
 //!
 //! # One transaction
 //!
@@ -39,6 +40,8 @@ mod config;
 mod error;
 mod machine;
 mod time;
+#[cfg(feature = "tokio")]
+mod tokio;
 
 #[cfg(feature = "std")]
 pub use self::blocking::{Client, Error};
@@ -46,3 +49,5 @@ pub use self::config::{ClientConfig, RetryPolicy};
 pub use self::error::ClientError;
 pub use self::machine::{Action, ClientCore};
 pub use self::time::Instant;
+#[cfg(feature = "tokio")]
+pub use self::tokio::AsyncClient;

@@ -9,11 +9,17 @@ use std::time::Duration;
 
 use crate::timing::LineTiming;
 
+#[cfg(feature = "tokio")]
+mod asynchronous;
 mod memory;
 #[cfg(feature = "serial")]
 mod serial;
 mod tcp;
 
+#[cfg(feature = "tokio-serial")]
+pub use asynchronous::AsyncSerial;
+#[cfg(feature = "tokio")]
+pub use asynchronous::{AsyncLink, MbapLink, RtuStream};
 pub use memory::{MemoryTransport, Responder, ResponderTransport};
 #[cfg(feature = "serial")]
 pub use serial::{SerialConfig, SerialTransport};

@@ -143,3 +143,4 @@ pub fn with_crc(body: &[u8]) -> Vec<u8> {
     frame.extend_from_slice(&crc16(body).to_le_bytes());
     frame
 }
+pub mod driver;

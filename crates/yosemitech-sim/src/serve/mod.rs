@@ -1,6 +1,7 @@
 //! Serving a [`FrameHandler`] on a byte stream from a background thread: a
 //! pseudo-terminal, RTU-over-TCP, or an in-memory pair, with optional
-//! line-timing emulation.
+//! line-timing emulation; or over Modbus TCP ([`serve_mbap`], as an Ethernet
+//! gateway).
 //!
 //! # Framing
 //!
@@ -43,6 +44,10 @@ use yosemitech_rtu::frame::MAX_ADU;
 use yosemitech_rtu::{Function, LineTiming, MemoryTransport, TcpTransport, Transport, crc_ok};
 
 use crate::FrameHandler;
+
+mod mbap;
+
+pub use mbap::serve_mbap;
 
 /// The longest request: a write of 255 data bytes.
 const MAX_REQUEST: usize = 9 + 255;
@@ -91,6 +96,8 @@ pub enum Endpoint {
     Pty(String),
     /// A TCP listener speaking RTU over TCP (raw frames, no MBAP header).
     Tcp(SocketAddr),
+    /// A TCP listener speaking Modbus TCP (MBAP header, no CRC), from [`serve_mbap`].
+    Mbap(SocketAddr),
     /// The other end of an in-memory pair, returned by [`serve_memory`].
     Memory,
 }
@@ -100,6 +107,7 @@ impl fmt::Display for Endpoint {
         match self {
             Endpoint::Pty(path) => f.write_str(path),
             Endpoint::Tcp(addr) => write!(f, "tcp://{addr}"),
+            Endpoint::Mbap(addr) => write!(f, "mbap://{addr}"),
             Endpoint::Memory => f.write_str("memory"),
         }
     }
@@ -133,10 +141,10 @@ impl<D> Server<D> {
         }
     }
 
-    /// The listening address, for [`serve_tcp`].
+    /// The listening address, for [`serve_tcp`] and [`serve_mbap`].
     pub fn local_addr(&self) -> Option<SocketAddr> {
         match self.endpoint {
-            Endpoint::Tcp(addr) => Some(addr),
+            Endpoint::Tcp(addr) | Endpoint::Mbap(addr) => Some(addr),
             _ => None,
         }
     }
