@@ -5,7 +5,8 @@
 //! The protocol lives once, in the sans-IO [`ClientCore`] (`no_std`, no
 //! allocation, no clock, no I/O); drivers run it over a link: the blocking
 //! [`Client`] over a [`Transport`](crate::Transport) (feature `std`), the
-//! async firmware driver over `embedded-io-async` (feature `embedded`).
+//! async firmware driver [`embedded::AsyncClient`] over `embedded-io-async`
+//! (feature `embedded`).
 //!
 //! # One transaction
 //!
@@ -36,6 +37,8 @@
 #[cfg(feature = "std")]
 mod blocking;
 mod config;
+#[cfg(feature = "embedded")]
+pub mod embedded;
 mod error;
 mod machine;
 mod time;
