@@ -8,8 +8,8 @@ use tracing::debug_span;
 
 use super::{Action, ClientConfig, ClientCore, ClientError, Instant};
 use crate::command::Command;
-use crate::error::{EncodeError, FrameError};
-use crate::frame::{BROADCAST, Function, Layout};
+use crate::error::FrameError;
+use crate::frame::{BROADCAST, Layout};
 use crate::transport::{MAX_WAIT, Transport};
 
 /// Why a request of the blocking [`Client`] failed: a [`ClientError`] whose
@@ -95,16 +95,13 @@ impl<T: Transport> Client<T> {
 
     /// Sends `command` to `slave` and returns the decoded reply.
     ///
-    /// Slave 0 (broadcast) is refused with [`EncodeError::InvalidSlave`]: use
+    /// Slave 0 (broadcast) is refused with
+    /// [`EncodeError::InvalidSlave`](crate::EncodeError::InvalidSlave): use
     /// [`Client::broadcast`]. Commands with a fixed slave address (get slave
     /// id: 0xFF) must be called with that address, and their reply carries it.
     pub fn call<C: Command>(&mut self, slave: u8, command: &C) -> Result<C::Response, Error> {
         let _span = debug_span!("modbus", command = C::NAME, slave).entered();
-        if slave == BROADCAST {
-            return Err(EncodeError::InvalidSlave { slave }.into());
-        }
-        let len = command.encode_request(slave, self.core.request_buf())?;
-        self.core.start_call(len, &C::LAYOUT).map_err(ClientError::with_io)?;
+        self.core.start_command(slave, command).map_err(ClientError::with_io)?;
         let mut response = None;
         self.run(&mut |frame| C::decode_response(slave, frame).map(|decoded| response = Some(decoded)))?;
         // `run` succeeds only after the decoder accepted a frame.
@@ -116,11 +113,7 @@ impl<T: Transport> Client<T> {
     /// [`ClientConfig::broadcast_turnaround`]. Never retried.
     pub fn broadcast<C: Command>(&mut self, command: &C) -> Result<(), Error> {
         let _span = debug_span!("modbus", command = C::NAME, slave = BROADCAST).entered();
-        if C::LAYOUT.function != Function::Write {
-            return Err(EncodeError::InvalidSlave { slave: BROADCAST }.into());
-        }
-        let len = command.encode_request(BROADCAST, self.core.request_buf())?;
-        self.core.start_broadcast(len, &C::LAYOUT).map_err(ClientError::with_io)?;
+        self.core.start_command_broadcast(command).map_err(ClientError::with_io)?;
         self.run(&mut |_| Ok(()))
     }
 
@@ -133,9 +126,8 @@ impl<T: Transport> Client<T> {
     /// [`Error::Request`]; broadcast requests are refused (use
     /// [`Client::broadcast_raw`]).
     pub fn call_raw(&mut self, request: &[u8], layout: &Layout<'_>) -> Result<&[u8], Error> {
-        let (len, slave) = self.core.load_request(request, layout).map_err(ClientError::with_io)?;
-        let _span = debug_span!("modbus", function = layout.function.code(), address = layout.address, slave).entered();
-        self.core.start_call(len, layout).map_err(ClientError::with_io)?;
+        let _span = debug_span!("modbus", function = layout.function.code(), address = layout.address).entered();
+        let slave = self.core.start_raw(request, layout).map_err(ClientError::with_io)?;
         self.run(&mut |frame| layout.decode_response(slave, frame).map(drop))?;
         Ok(self.core.last_reply())
     }
@@ -144,9 +136,8 @@ impl<T: Transport> Client<T> {
     /// [`Client::broadcast`] and [`Client::call_raw`]. The request must be a
     /// write addressed to slave 0.
     pub fn broadcast_raw(&mut self, request: &[u8], layout: &Layout<'_>) -> Result<(), Error> {
-        let (len, slave) = self.core.load_request(request, layout).map_err(ClientError::with_io)?;
-        let _span = debug_span!("modbus", function = layout.function.code(), address = layout.address, slave).entered();
-        self.core.start_broadcast(len, layout).map_err(ClientError::with_io)?;
+        let _span = debug_span!("modbus", function = layout.function.code(), address = layout.address).entered();
+        self.core.start_raw_broadcast(request, layout).map_err(ClientError::with_io)?;
         self.run(&mut |_| Ok(()))
     }
 

@@ -8,6 +8,7 @@ use core::time::Duration;
 use super::config::ClientConfig;
 use super::error::ClientError;
 use super::time::Instant;
+use crate::command::Command;
 use crate::crc::{CRC_INIT, crc_ok, crc16_update};
 use crate::error::{EncodeError, FrameError};
 use crate::frame::{self, BROADCAST, EXCEPTION_BIT, EXCEPTION_LEN, Function, Layout, MAX_ADU};
@@ -301,6 +302,43 @@ impl ClientCore {
     /// The buffer to encode the next request into ([`MAX_ADU`] bytes).
     pub fn request_buf(&mut self) -> &mut [u8] {
         &mut self.tx
+    }
+
+    /// Encodes `command` for `slave` and starts its transaction
+    /// ([`ClientCore::start_call`]). Slave 0 is refused with
+    /// [`EncodeError::InvalidSlave`]: broadcasts go through
+    /// [`ClientCore::start_command_broadcast`].
+    pub fn start_command<C: Command>(&mut self, slave: u8, command: &C) -> Result<(), ClientError<Infallible>> {
+        if slave == BROADCAST {
+            return Err(EncodeError::InvalidSlave { slave }.into());
+        }
+        let len = command.encode_request(slave, &mut self.tx)?;
+        self.start_call(len, &C::LAYOUT)
+    }
+
+    /// Encodes a write `command` for every slave (address 0) and starts its
+    /// broadcast ([`ClientCore::start_broadcast`]).
+    pub fn start_command_broadcast<C: Command>(&mut self, command: &C) -> Result<(), ClientError<Infallible>> {
+        if C::LAYOUT.function != Function::Write {
+            return Err(EncodeError::InvalidSlave { slave: BROADCAST }.into());
+        }
+        let len = command.encode_request(BROADCAST, &mut self.tx)?;
+        self.start_broadcast(len, &C::LAYOUT)
+    }
+
+    /// Starts the transaction of a raw request frame built elsewhere (the
+    /// spec interpreter), checked against `layout` ([`ClientCore::load_request`]);
+    /// returns its slave address, which the reply's decoder needs.
+    pub fn start_raw(&mut self, request: &[u8], layout: &Layout<'_>) -> Result<u8, ClientError<Infallible>> {
+        let (len, slave) = self.load_request(request, layout)?;
+        self.start_call(len, layout)?;
+        Ok(slave)
+    }
+
+    /// Starts the broadcast of a raw request frame addressed to slave 0.
+    pub fn start_raw_broadcast(&mut self, request: &[u8], layout: &Layout<'_>) -> Result<(), ClientError<Infallible>> {
+        let (len, _) = self.load_request(request, layout)?;
+        self.start_broadcast(len, layout)
     }
 
     /// Checks a raw request frame built elsewhere (the spec interpreter)

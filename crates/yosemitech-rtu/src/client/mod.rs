@@ -6,7 +6,8 @@
 //! allocation, no clock, no I/O); drivers run it over a link: the blocking
 //! [`Client`] over a [`Transport`](crate::Transport) (feature `std`), the
 //! tokio `AsyncClient` over an `AsyncLink` (feature `tokio`), the async
-//! firmware driver over `embedded-io-async` (feature `embedded`).
+//! firmware driver `embedded::AsyncClient` over `embedded-io-async` (feature
+//! `embedded`).
 //!
 //! # One transaction
 //!
@@ -37,6 +38,8 @@
 #[cfg(feature = "std")]
 mod blocking;
 mod config;
+#[cfg(feature = "embedded")]
+pub mod embedded;
 mod error;
 mod machine;
 mod time;
