@@ -5,7 +5,7 @@
 //! ([`codec`]), the [`Command`] trait and typed errors. The core is `no_std`
 //! and allocation-free; the `std` feature adds [`transport`]s (serial with
 //! the `serial` feature, RTU-over-TCP, in-memory) and the blocking [`Client`] over the sans-IO [`ClientCore`].
-#![cfg_attr(not(feature = "std"), no_std)]
+#![cfg_attr(not(any(feature = "std", test)), no_std)]
 #![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used, clippy::panic, clippy::indexing_slicing))]
 
 pub mod client;

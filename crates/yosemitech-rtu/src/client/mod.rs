@@ -4,8 +4,8 @@
 //!
 //! The protocol lives once, in the sans-IO [`ClientCore`] (`no_std`, no
 //! allocation, no clock, no I/O); drivers run it over a link: the blocking
-//! [`Client`] over a [`Transport`](crate::Transport) (feature `std`), the
-//! async firmware driver [`embedded::AsyncClient`] over `embedded-io-async`
+//! `Client` over a `Transport` (feature `std`), the
+//! async firmware driver `embedded::AsyncClient` over `embedded-io-async`
 //! (feature `embedded`).
 //!
 //! # One transaction
