@@ -12,7 +12,7 @@ use std::time::{Duration, Instant};
 use sim_common::{first_field, float_read, is_float_read, request, spec};
 use yosemitech_rtu::frame::{Function, MAX_ADU};
 use yosemitech_rtu::{AsyncClient, ClientConfig, ExceptionCode, MbapLink, RetryPolicy, RtuStream, SensorModule};
-use yosemitech_sim::{Device, FaultConfig, FaultKind, ServeConfig, Simulator, serve_mbap, serve_tcp};
+use yosemitech_sim::{FaultConfig, FrameHandler, FaultKind, ServeConfig, Simulator, serve_mbap, serve_tcp};
 use yosemitech_spec::Value;
 
 fn block_on<F: Future>(future: F) -> F::Output {
@@ -181,7 +181,7 @@ mod tokio_modbus_server {
     use tokio_modbus::prelude::{ExceptionCode, Request, Response, SlaveRequest};
     use tokio_modbus::server::Service;
     use yosemitech_rtu::crc16;
-    use yosemitech_sim::{Device, Simulator};
+    use yosemitech_sim::{FrameHandler, Simulator};
 
     #[derive(Clone)]
     pub struct SimService(pub Arc<Mutex<Simulator>>);
@@ -276,7 +276,7 @@ struct Rendezvous {
     parties: usize,
 }
 
-impl Device for Rendezvous {
+impl FrameHandler for Rendezvous {
     fn handle(&mut self, request: &[u8], reply: &mut Vec<u8>) -> Duration {
         if !self.met {
             self.met = true;

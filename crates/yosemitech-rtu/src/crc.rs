@@ -1,7 +1,12 @@
 //! CRC-16/MODBUS (poly 0x8005 reflected as 0xA001, init 0xFFFF), sent low byte first.
 
-/// Bytes per step of the main loop of [`crc16_update`].
+/// Bytes per step of the main loop of [`crc16_update`]: 16 with the
+/// `fast-crc` feature (16 tables, 8 KiB), else 1 (one table, 512 bytes: for
+/// firmware, where flash counts more than nanoseconds).
+#[cfg(feature = "fast-crc")]
 const LANES: usize = 16;
+#[cfg(not(feature = "fast-crc"))]
+const LANES: usize = 1;
 
 /// `TABLES[k][b]`: the CRC register after byte `b` followed by `k` zero
 /// bytes, from a zero register (16 × 256 entries, computed at compile time).
@@ -49,6 +54,7 @@ fn lookup(lane: usize, byte: u8) -> u16 {
 /// `N` bytes. The register is folded into the block's first two bytes and
 /// every byte is looked up in its own table, so a block costs one dependent
 /// lookup instead of `N` (slicing-by-N).
+#[cfg(feature = "fast-crc")]
 macro_rules! block_fn {
     ($name:ident, $n:literal, [$($byte:ident: $lane:literal),*]) => {
         #[inline(always)]
@@ -63,12 +69,16 @@ macro_rules! block_fn {
     };
 }
 
+#[cfg(feature = "fast-crc")]
 block_fn!(block16, 16, [
     b2: 13, b3: 12, b4: 11, b5: 10, b6: 9, b7: 8, b8: 7, b9: 6,
     b10: 5, b11: 4, b12: 3, b13: 2, b14: 1, b15: 0
 ]);
+#[cfg(feature = "fast-crc")]
 block_fn!(block8, 8, [b2: 5, b3: 4, b4: 3, b5: 2, b6: 1, b7: 0]);
+#[cfg(feature = "fast-crc")]
 block_fn!(block4, 4, [b2: 1, b3: 0]);
+#[cfg(feature = "fast-crc")]
 block_fn!(block2, 2, []);
 
 /// Continues a CRC-16/MODBUS computation over `data`, starting from `crc`.
@@ -80,6 +90,7 @@ block_fn!(block2, 2, []);
 /// bytes and a last single byte: a 7-byte reply body takes 3 dependent
 /// steps, 256 bytes 16.
 #[inline]
+#[cfg(feature = "fast-crc")]
 pub fn crc16_update(mut crc: u16, data: &[u8]) -> u16 {
     let (blocks, mut rest) = data.as_chunks::<LANES>();
     for block in blocks {
@@ -98,6 +109,17 @@ pub fn crc16_update(mut crc: u16, data: &[u8]) -> u16 {
         rest = after;
     }
     if let Some(&byte) = rest.first() {
+        crc = (crc >> 8) ^ lookup(0, (crc as u8) ^ byte);
+    }
+    crc
+}
+
+/// Continues a CRC-16/MODBUS computation over `data`, starting from `crc`
+/// (byte at a time: the build without `fast-crc`).
+#[inline]
+#[cfg(not(feature = "fast-crc"))]
+pub fn crc16_update(mut crc: u16, data: &[u8]) -> u16 {
+    for &byte in data {
         crc = (crc >> 8) ^ lookup(0, (crc as u8) ^ byte);
     }
     crc

@@ -9,7 +9,7 @@
 //! The `tokio` feature adds the async client on the same core; the
 //! `tokio-modbus` feature runs generated commands over an existing
 //! tokio-modbus connection (`tokio_modbus` module).
-#![cfg_attr(not(feature = "std"), no_std)]
+#![cfg_attr(not(any(feature = "std", test)), no_std)]
 #![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used, clippy::panic, clippy::indexing_slicing))]
 
 pub mod client;

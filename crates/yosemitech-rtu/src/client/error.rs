@@ -6,7 +6,7 @@ use core::fmt;
 use crate::error::{EncodeError, ExceptionCode, FrameError};
 
 /// Why a request failed. `E` is the link's I/O error: `std::io::Error` for
-/// the blocking [`Client`](crate::Client) (whose [`Error`](crate::Error) is
+/// the blocking `Client` (whose `Error` is
 /// this type), the `embedded-io` error of the firmware driver, and
 /// [`Infallible`] for the sans-IO [`ClientCore`](super::ClientCore), which
 /// does no I/O.

@@ -272,9 +272,12 @@ impl ClientCore {
     /// which t3.5 and the request's time on the line follow; `None` for links
     /// without line timing (TCP, in-memory). Drivers call it before each
     /// transaction (it is cheap) or when the line changes.
+    #[inline]
     pub fn set_line_timing(&mut self, line: Option<LineTiming>) {
-        self.line = line;
-        self.gap = self.inter_frame_delay();
+        if self.line != line {
+            self.line = line;
+            self.gap = self.inter_frame_delay();
+        }
     }
 
     /// The silence kept before each request (see
@@ -308,6 +311,7 @@ impl ClientCore {
     /// ([`ClientCore::start_call`]). Slave 0 is refused with
     /// [`EncodeError::InvalidSlave`]: broadcasts go through
     /// [`ClientCore::start_command_broadcast`].
+    #[inline]
     pub fn start_command<C: Command>(&mut self, slave: u8, command: &C) -> Result<(), ClientError<Infallible>> {
         if slave == BROADCAST {
             return Err(EncodeError::InvalidSlave { slave }.into());
@@ -318,6 +322,7 @@ impl ClientCore {
 
     /// Encodes a write `command` for every slave (address 0) and starts its
     /// broadcast ([`ClientCore::start_broadcast`]).
+    #[inline]
     pub fn start_command_broadcast<C: Command>(&mut self, command: &C) -> Result<(), ClientError<Infallible>> {
         if C::LAYOUT.function != Function::Write {
             return Err(EncodeError::InvalidSlave { slave: BROADCAST }.into());
@@ -329,6 +334,7 @@ impl ClientCore {
     /// Starts the transaction of a raw request frame built elsewhere (the
     /// spec interpreter), checked against `layout` ([`ClientCore::load_request`]);
     /// returns its slave address, which the reply's decoder needs.
+    #[inline]
     pub fn start_raw(&mut self, request: &[u8], layout: &Layout<'_>) -> Result<u8, ClientError<Infallible>> {
         let (len, slave) = self.load_request(request, layout)?;
         self.start_call(len, layout)?;
@@ -344,6 +350,7 @@ impl ClientCore {
     /// Checks a raw request frame built elsewhere (the spec interpreter)
     /// against `layout`, copies it to the request buffer and returns its
     /// length and slave address.
+    #[inline]
     pub fn load_request(
         &mut self,
         request: &[u8],

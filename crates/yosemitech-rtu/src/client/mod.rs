@@ -4,10 +4,9 @@
 //!
 //! The protocol lives once, in the sans-IO [`ClientCore`] (`no_std`, no
 //! allocation, no clock, no I/O); drivers run it over a link: the blocking
-//! [`Client`] over a [`Transport`](crate::Transport) (feature `std`), the
-//! tokio `AsyncClient` over an `AsyncLink` (feature `tokio`), the async
-//! firmware driver `embedded::AsyncClient` over `embedded-io-async` (feature
-//! `embedded`).
+//! `Client` over a `Transport` (feature `std`), the tokio `AsyncClient` over
+//! an `AsyncLink` (feature `tokio`), the async firmware driver
+//! `embedded::AsyncClient` over `embedded-io-async` (feature `embedded`).
 //!
 //! # One transaction
 //!

@@ -12,7 +12,7 @@ use yosemitech_rtu::mbap::{HEADER_LEN, Header, MAX_MBAP_ADU, adu_to_rtu, rtu_to_
 use yosemitech_rtu::{ExceptionCode, MbapError};
 
 use super::{Endpoint, ServeConfig, Server, is_closed, lock, sleep_until, spawn};
-use crate::Device;
+use crate::FrameHandler;
 
 /// Serves `device` over Modbus TCP on `addr` (use `127.0.0.1:0` for a free
 /// port; see [`Server::local_addr`]), several connections at once, as an
@@ -39,7 +39,7 @@ use crate::Device;
 /// owns the line); an injected delay does.
 pub fn serve_mbap<D, A>(device: D, addr: A, config: ServeConfig) -> io::Result<Server<D>>
 where
-    D: Device + Send + 'static,
+    D: FrameHandler + Send + 'static,
     A: ToSocketAddrs,
 {
     let listener = TcpListener::bind(addr)?;
@@ -80,7 +80,7 @@ where
 }
 
 /// Answers the requests of one connection until it closes or `stop` is set.
-fn serve_connection<D: Device>(
+fn serve_connection<D: FrameHandler>(
     mut stream: TcpStream,
     device: &Mutex<D>,
     stop: &AtomicBool,

@@ -399,3 +399,11 @@ fn a_device_that_never_stops_talking_cannot_hold_the_core() {
     let mut h = Harness::new(no_retries(), |_, _| vec![(ms(1), vec![0x55; 4096])]);
     assert!(matches!(h.call(1, &READ_FLOAT), Err(ClientError::Timeout { .. })));
 }
+
+#[test]
+fn the_core_holds_its_buffers_and_little_else() {
+    // Three 256-byte buffers and the bus state: what a firmware's stack or static holds.
+    let size = core::mem::size_of::<ClientCore>();
+    std::println!("ClientCore: {size} bytes");
+    assert!(size <= 3 * MAX_ADU + 400, "{size}");
+}
