@@ -3,17 +3,18 @@
 //! tokio-modbus's server), and eight probes on eight ptys read concurrently
 //! from one runtime. Probes and commands come from the spec.
 
-mod sim_common;
+use yosemitech_tests::sim as sim_common;
 
 use std::future::Future;
 use std::sync::{Arc, Condvar, Mutex};
 use std::time::{Duration, Instant};
 
-use sim_common::{first_field, float_read, is_float_read, request, spec};
+use sim_common::{first_field, float_read, is_float_read, request};
 use yosemitech_rtu::frame::{Function, MAX_ADU};
 use yosemitech_rtu::{AsyncClient, ClientConfig, ExceptionCode, MbapLink, RetryPolicy, RtuStream, SensorModule};
-use yosemitech_sim::{FaultConfig, FrameHandler, FaultKind, ServeConfig, Simulator, serve_mbap, serve_tcp};
+use yosemitech_sim::{FaultConfig, FaultKind, FrameHandler, ServeConfig, Simulator, serve_mbap, serve_tcp};
 use yosemitech_spec::Value;
+use yosemitech_tests::spec;
 
 fn block_on<F: Future>(future: F) -> F::Output {
     let runtime = tokio::runtime::Builder::new_current_thread().enable_all().build().unwrap();
@@ -46,7 +47,7 @@ async fn requests_seen(server: &yosemitech_sim::Server<Simulator>, n: u64) {
 async fn drop_a_call_then_call_again<L: yosemitech_rtu::AsyncLink>(
     client: &mut AsyncClient<L>,
     server: &yosemitech_sim::Server<Simulator>,
-    read: &yosemitech_spec::Command,
+    read: &yosemitech_spec::CommandSpec,
 ) {
     let slave = server.device().address();
     let (field, layout) = (first_field(read), read.layout());
@@ -74,7 +75,7 @@ fn delayed_once(delay: Duration) -> FaultConfig {
 
 #[test]
 fn a_call_dropped_half_way_leaves_an_rtu_bus_usable() {
-    let (probe, read) = float_read(&spec());
+    let (probe, read) = float_read(spec());
     // The reply comes 0.5 s late, well inside the abandoned attempt's 3 s
     // deadline, which the next call waits out before draining it.
     let sim = Simulator::new(probe).with_faults(delayed_once(Duration::from_millis(500)));
@@ -90,7 +91,7 @@ fn a_call_dropped_half_way_leaves_an_rtu_bus_usable() {
 
 #[test]
 fn a_call_dropped_half_way_leaves_a_modbus_tcp_link_usable() {
-    let (probe, read) = float_read(&spec());
+    let (probe, read) = float_read(spec());
     let sim = Simulator::new(probe).with_faults(delayed_once(Duration::from_millis(500)));
     let server = serve_mbap(sim, "127.0.0.1:0", ServeConfig::default()).unwrap();
     let addr = server.local_addr().unwrap();

@@ -320,7 +320,7 @@ mod mbap {
     #[test]
     fn mbap_serves_a_bus_to_several_connections_at_once() {
         let spec = spec();
-        let (first, get_one) = float_read(&spec);
+        let (first, get_one) = float_read(spec);
         let (second, get_two) = spec
             .sensors
             .iter()

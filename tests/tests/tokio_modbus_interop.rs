@@ -3,20 +3,21 @@
 //! RTU on a pty (tokio-serial), and `yosemitech_rtu::tokio_modbus` turns
 //! what it returns into the frames the generated decoders take.
 
-mod sim_common;
+use yosemitech_tests::sim as sim_common;
 
 use std::future::Future;
 use std::time::Duration;
 
-use sim_common::{spec, with_role};
+use sim_common::with_role;
 use tokio_modbus::client::Context;
 use tokio_modbus::prelude::{Slave, rtu, tcp};
 use yosemitech_rtu::frame::{Function, MAX_ADU};
 use yosemitech_rtu::tokio_modbus::{Error, Unsupported, call, call_raw};
 use yosemitech_rtu::{ExceptionCode, FrameError, SensorModule};
-use yosemitech_sim::{Device, ServeConfig, Simulator, UnknownRequestPolicy, serve_mbap, serve_tcp};
+use yosemitech_sim::{FrameHandler, ServeConfig, Simulator, UnknownRequestPolicy, serve_mbap, serve_tcp};
 use yosemitech_spec::Role;
 use yosemitech_tests::do_probe::{self, GetDissolvedOxygen, GetOffsets, SetOffsets};
+use yosemitech_tests::spec;
 
 /// Bounds every tokio-modbus call: its RTU client has no timeout of its own.
 const DEADLINE: Duration = Duration::from_secs(5);

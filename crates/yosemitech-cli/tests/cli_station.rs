@@ -3,14 +3,26 @@
 //! logger on a simulated bus stops cleanly on SIGTERM with every reading it
 //! announced committed to its SQLite file.
 
-mod common;
-
 use std::io::{BufRead, BufReader};
 use std::process::Stdio;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use common::{WATCHDOG, command, spec, yosemitech};
+use yosemitech_tests::cli::{Binary, Run, WATCHDOG, wait};
+use yosemitech_tests::spec;
+
+/// The binary under test.
+const YOSEMITECH: Binary = Binary(env!("CARGO_BIN_EXE_yosemitech"));
+
+/// The binary, with a clean environment.
+fn command() -> std::process::Command {
+    YOSEMITECH.command()
+}
+
+/// Runs the binary with `args`.
+fn yosemitech(args: &[&str]) -> Run {
+    YOSEMITECH.run(args)
+}
 use serde_json::Value as Json;
 use yosemitech_sim::{Bus, ServeConfig, Simulator, serve_pty};
 use yosemitech_station::{Store, plan};
@@ -29,7 +41,7 @@ fn the_sample_station_file_checks() {
 #[test]
 fn check_errors_carry_file_line_and_column() {
     let dir = tempfile::tempdir().unwrap();
-    let sensor = spec().sensors.into_iter().find(|s| !plan::measurements(s).is_empty()).unwrap();
+    let sensor = spec().sensors.iter().find(|&s| !plan::measurements(s).is_empty()).cloned().unwrap();
     let lines = [
         "station = \"s\"".to_owned(),
         "[storage]".to_owned(),
@@ -86,7 +98,8 @@ fn check_errors_carry_file_line_and_column() {
 #[test]
 fn log_stops_cleanly_on_sigterm_and_the_file_has_every_reading() {
     let dir = tempfile::tempdir().unwrap();
-    let sensors: Vec<_> = spec().sensors.into_iter().filter(|s| !plan::measurements(s).is_empty()).take(2).collect();
+    let sensors: Vec<_> =
+        spec().sensors.iter().filter(|&s| !plan::measurements(s).is_empty()).take(2).cloned().collect();
     let bus = sensors
         .iter()
         .enumerate()
@@ -127,7 +140,7 @@ fn log_stops_cleanly_on_sigterm_and_the_file_has_every_reading() {
     assert!(announced.len() >= 6, "the logger announced readings: {announced:?}");
     let status = std::process::Command::new("kill").args(["-TERM", &child.id().to_string()]).status().unwrap();
     assert!(status.success());
-    let code = common::wait(&mut child, Duration::from_secs(20));
+    let code = wait(&mut child, Duration::from_secs(20));
     // What it announced after the first six, up to its exit.
     for line in stdout.lines() {
         announced.push(serde_json::from_str(&line.unwrap()).unwrap());

@@ -7,8 +7,6 @@
 //! sensors with a measurement read (`Sensor::measurement_reads`) of numbers
 //! with units.
 
-mod common;
-
 use std::collections::BTreeSet;
 use std::io::{self, Write as _};
 use std::path::{Path, PathBuf};
@@ -16,7 +14,16 @@ use std::process::Command;
 use std::thread;
 use std::time::{Duration, Instant, SystemTime};
 
-use common::{spec, yosemitech};
+use yosemitech_tests::cli::{Binary, Run};
+use yosemitech_tests::spec;
+
+/// The binary under test.
+const YOSEMITECH: Binary = Binary(env!("CARGO_BIN_EXE_yosemitech"));
+
+/// Runs the binary with `args`.
+fn yosemitech(args: &[&str]) -> Run {
+    YOSEMITECH.run(args)
+}
 use yosemitech_spec::FieldKind;
 use yosemitech_station::{Datum, Measurement, Reading, Store};
 

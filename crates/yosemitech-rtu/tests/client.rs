@@ -8,7 +8,9 @@ use std::cell::RefCell;
 use std::rc::Rc;
 use std::time::{Duration, Instant};
 
-use common::{READ_FLOAT_REPLY, READ_FLOAT_REQUEST, ReadFloat, GetSlaveId, StartMeasurement, float_probe, with_crc};
+use common::{
+    READ_FLOAT_REPLY, READ_FLOAT_REQUEST, ReadAtFixedSlave, ReadFloat, StartMeasurement, float_probe, with_crc,
+};
 use proptest::prelude::*;
 use yosemitech_rtu::{
     CharFormat, Client, ClientConfig, Command, EchoField, EncodeError, Error, ExceptionCode, FrameError, LineTiming,
@@ -247,9 +249,9 @@ behaviour! {
 
     fn get_slave_id_uses_the_fixed_address(driver) {
         let (mut client, log) = client_with(driver, config(0), |_, req, out| float_probe(7, 7.6, req, out));
-        assert_eq!(client.call(0xFF, &GetSlaveId).unwrap(), 7);
+        assert_eq!(client.call(0xFF, &ReadAtFixedSlave).unwrap(), 7);
         assert_eq!(log.borrow()[0].1[0], 0xFF);
-        assert!(matches!(client.call(7, &GetSlaveId), Err(Error::Encode(EncodeError::InvalidSlave { slave: 7 }))));
+        assert!(matches!(client.call(7, &ReadAtFixedSlave), Err(Error::Encode(EncodeError::InvalidSlave { slave: 7 }))));
         assert_eq!(requests(&log), 1);
     }
 

@@ -17,7 +17,7 @@ use std::rc::Rc;
 use std::task::{Context, Poll};
 use std::time::Duration;
 
-use common::{GET_PH_REPLY, GET_PH_REQUEST, GetPh, StartMeasurement, ph_probe, with_crc};
+use common::{READ_FLOAT_REPLY, READ_FLOAT_REQUEST, ReadFloat, StartMeasurement, float_probe, with_crc};
 use embassy_futures::block_on;
 use yosemitech_rtu::client::Instant;
 use yosemitech_rtu::client::embedded::AsyncClient;
@@ -82,7 +82,7 @@ fn world(device: impl FnMut(usize, &[u8], &mut Answer) + 'static) -> Shared {
 fn probe(address: u8, delay: Duration) -> impl FnMut(usize, &[u8], &mut Answer) {
     move |_, request, out| {
         let mut reply = Vec::new();
-        ph_probe(address, 7.6, request, &mut reply);
+        float_probe(address, 7.6, request, &mut reply);
         out.push((delay, reply));
     }
 }
@@ -216,10 +216,10 @@ fn now(world: &Shared) -> Duration {
 fn get_ph_sends_and_decodes_the_manual_frames() {
     let w = world(probe(1, Duration::from_millis(5)));
     let mut client = client_on(&w, config(0), None);
-    assert_eq!(block_on(client.call(1, &GetPh)).unwrap(), 7.6);
-    assert_eq!(w.borrow().requests[0].1, GET_PH_REQUEST);
-    assert_eq!(client.last_reply(), GET_PH_REPLY);
-    assert_eq!(block_on(client.call_raw(&GET_PH_REQUEST, &GetPh::LAYOUT)).unwrap(), GET_PH_REPLY);
+    assert_eq!(block_on(client.call(1, &ReadFloat)).unwrap(), 7.6);
+    assert_eq!(w.borrow().requests[0].1, READ_FLOAT_REQUEST);
+    assert_eq!(client.last_reply(), READ_FLOAT_REPLY);
+    assert_eq!(block_on(client.call_raw(&READ_FLOAT_REQUEST, &ReadFloat::LAYOUT)).unwrap(), READ_FLOAT_REPLY);
     assert_eq!(requests(&w), 2);
 }
 
@@ -229,7 +229,7 @@ fn exception_reply_is_reported_and_not_retried() {
     let reply = exception.clone();
     let w = world(move |_, _, out| out.push((Duration::from_millis(2), reply.clone())));
     let mut client = client_on(&w, config(3), None);
-    let err = block_on(client.call(1, &GetPh)).unwrap_err();
+    let err = block_on(client.call(1, &ReadFloat)).unwrap_err();
     assert_eq!(err.exception(), Some(ExceptionCode::IllegalDataAddress));
     assert_eq!(client.last_reply(), exception);
     assert_eq!(requests(&w), 1);
@@ -239,14 +239,14 @@ fn exception_reply_is_reported_and_not_retried() {
 fn crc_corruption_is_retried_then_succeeds() {
     let w = world(|i, request, out| {
         let mut reply = Vec::new();
-        ph_probe(1, 7.6, request, &mut reply);
+        float_probe(1, 7.6, request, &mut reply);
         if i == 0 {
             reply[4] ^= 0x10;
         }
         out.push((Duration::from_millis(2), reply));
     });
     let mut client = client_on(&w, config(1), None);
-    assert_eq!(block_on(client.call(1, &GetPh)).unwrap(), 7.6);
+    assert_eq!(block_on(client.call(1, &ReadFloat)).unwrap(), 7.6);
     assert_eq!(requests(&w), 2);
 }
 
@@ -257,12 +257,12 @@ fn noise_before_slave_3_is_realigned_whatever_the_chunking() {
             let noise = noise.to_vec();
             let w = world(move |_, request, out| {
                 let mut reply = noise.clone();
-                ph_probe(3, 7.6, request, &mut reply);
+                float_probe(3, 7.6, request, &mut reply);
                 out.push((Duration::from_millis(2), reply));
             });
             w.borrow_mut().chunk = chunk;
             let mut client = client_on(&w, ClientConfig { retry: RetryPolicy::NONE, ..config(0) }, None);
-            let result = block_on(client.call(3, &GetPh));
+            let result = block_on(client.call(3, &ReadFloat));
             assert!(matches!(result, Ok(v) if v == 7.6), "chunk {chunk}: {result:?}");
         }
     }
@@ -272,18 +272,18 @@ fn noise_before_slave_3_is_realigned_whatever_the_chunking() {
 fn silent_device_times_out_at_the_deadline() {
     let w = world(|_, _, _| {});
     let mut client = client_on(&w, config(0), None);
-    let err = block_on(client.call(1, &GetPh)).unwrap_err();
+    let err = block_on(client.call(1, &ReadFloat)).unwrap_err();
     assert!(matches!(err, ClientError::Timeout { received: 0 }), "{err:?}");
     assert_eq!(now(&w) - request_time(&w, 0), Duration::from_millis(50), "exactly the timeout, on the virtual clock");
 }
 
 #[test]
 fn truncated_reply_times_out_with_the_partial_bytes() {
-    let w = world(|_, _, out| out.push((Duration::from_millis(2), GET_PH_REPLY[..5].to_vec())));
+    let w = world(|_, _, out| out.push((Duration::from_millis(2), READ_FLOAT_REPLY[..5].to_vec())));
     let mut client = client_on(&w, config(0), None);
-    let err = block_on(client.call(1, &GetPh)).unwrap_err();
+    let err = block_on(client.call(1, &ReadFloat)).unwrap_err();
     assert!(matches!(err, ClientError::Timeout { received: 5 }), "{err:?}");
-    assert_eq!(client.last_reply(), &GET_PH_REPLY[..5]);
+    assert_eq!(client.last_reply(), &READ_FLOAT_REPLY[..5]);
 }
 
 #[test]
@@ -292,7 +292,7 @@ fn retries_each_get_a_full_timeout_and_backoff() {
     let backoff = Duration::from_millis(30);
     let retry = RetryPolicy { retries: 2, backoff, ..RetryPolicy::default() };
     let mut client = client_on(&w, ClientConfig { retry, ..config(0) }, None);
-    assert!(block_on(client.call(1, &GetPh)).unwrap_err().is_timeout());
+    assert!(block_on(client.call(1, &ReadFloat)).unwrap_err().is_timeout());
     assert_eq!(requests(&w), 3);
     assert_eq!(request_time(&w, 1) - request_time(&w, 0), Duration::from_millis(50) + backoff);
 }
@@ -303,15 +303,15 @@ fn the_silence_follows_the_line_and_a_broadcast_keeps_its_turnaround() {
     let w = world(probe(1, Duration::from_millis(5)));
     let mut client = client_on(&w, config(0), Some(line));
     assert_eq!(client.core().inter_frame_delay(), Duration::from_millis(4), "t3.5 raised to the 4 ms floor");
-    assert_eq!(block_on(client.call(1, &GetPh)).unwrap(), 7.6);
+    assert_eq!(block_on(client.call(1, &ReadFloat)).unwrap(), 7.6);
     let reply_end = now(&w);
-    assert_eq!(block_on(client.call(1, &GetPh)).unwrap(), 7.6);
+    assert_eq!(block_on(client.call(1, &ReadFloat)).unwrap(), 7.6);
     let gap = request_time(&w, 1) - reply_end;
     assert!(gap >= Duration::from_millis(4) && gap < Duration::from_micros(4010), "{gap:?}");
 
     block_on(client.broadcast(&StartMeasurement)).unwrap();
     let broadcast_at = request_time(&w, 2);
-    assert_eq!(block_on(client.call(1, &GetPh)).unwrap(), 7.6);
+    assert_eq!(block_on(client.call(1, &ReadFloat)).unwrap(), 7.6);
     // The turnaround runs from the broadcast's end on the line.
     assert!(request_time(&w, 3) - broadcast_at >= Duration::from_millis(100));
 }
@@ -325,12 +325,12 @@ fn a_dropped_call_leaves_its_late_reply_to_be_discarded() {
     let mut client = client_on(&w, ClientConfig { timeout: Duration::from_millis(100), ..config(0) }, None);
     let mut other = Delay(Rc::clone(&w));
     let raced = block_on(embassy_futures::select::select(
-        client.call_raw(&GET_PH_REQUEST, &GetPh::LAYOUT),
+        client.call_raw(&READ_FLOAT_REQUEST, &ReadFloat::LAYOUT),
         embedded_hal_async::delay::DelayNs::delay_ms(&mut other, 10),
     ));
     assert!(matches!(raced, embassy_futures::select::Either::Second(())), "the call was dropped half-way");
     assert_eq!(requests(&w), 1);
-    let reply = block_on(client.call_raw(&GET_PH_REQUEST, &GetPh::LAYOUT)).unwrap().to_vec();
+    let reply = block_on(client.call_raw(&READ_FLOAT_REQUEST, &ReadFloat::LAYOUT)).unwrap().to_vec();
     assert_eq!(reply, with_crc(&[0x01, 0x03, 0x04, 0x00, 0x00, 0x00, 1]), "the second request's reply");
     assert!(request_time(&w, 1) - request_time(&w, 0) >= Duration::from_millis(100), "no request over the late reply");
 }
@@ -339,10 +339,10 @@ fn a_dropped_call_leaves_its_late_reply_to_be_discarded() {
 fn transactions_do_not_allocate() {
     let w = world(probe(1, Duration::from_millis(1)));
     let mut client = client_on(&w, config(0), None);
-    assert_eq!(block_on(client.call(1, &GetPh)).unwrap(), 7.6);
+    assert_eq!(block_on(client.call(1, &ReadFloat)).unwrap(), 7.6);
     let before = ALLOCATIONS.with(Cell::get);
     for _ in 0..100 {
-        let value = block_on(client.call(1, &GetPh));
+        let value = block_on(client.call(1, &ReadFloat));
         assert!(matches!(value, Ok(v) if v == 7.6));
     }
     let after = ALLOCATIONS.with(Cell::get);
@@ -350,7 +350,7 @@ fn transactions_do_not_allocate() {
     let device_allocations = 2 * 100;
     assert_eq!(after - before - device_allocations, 0, "allocations by the driver in 100 transactions");
     // Errors do not allocate either (the device answers with a Modbus exception).
-    let unknown = yosemitech_rtu::Layout { address: 0x9900, ..GetPh::LAYOUT };
+    let unknown = yosemitech_rtu::Layout { address: 0x9900, ..ReadFloat::LAYOUT };
     let request = with_crc(&[0x01, 0x03, 0x99, 0x00, 0x00, 0x02]);
     let before = ALLOCATIONS.with(Cell::get);
     let err = block_on(client.call_raw(&request, &unknown)).unwrap_err();
