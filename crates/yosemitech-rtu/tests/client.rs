@@ -247,7 +247,7 @@ behaviour! {
         assert!(log[1].0 - log[0].0 >= turnaround, "{:?}", log[1].0 - log[0].0);
     }
 
-    fn get_slave_id_uses_the_fixed_address(driver) {
+    fn a_fixed_slave_read_uses_its_fixed_address(driver) {
         let (mut client, log) = client_with(driver, config(0), |_, req, out| float_probe(7, 7.6, req, out));
         assert_eq!(client.call(0xFF, &ReadAtFixedSlave).unwrap(), 7);
         assert_eq!(log.borrow()[0].1[0], 0xFF);

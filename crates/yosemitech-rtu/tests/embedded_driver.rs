@@ -213,7 +213,7 @@ fn now(world: &Shared) -> Duration {
 }
 
 #[test]
-fn get_ph_sends_and_decodes_the_manual_frames() {
+fn float_read_sends_and_decodes_the_manual_frames() {
     let w = world(probe(1, Duration::from_millis(5)));
     let mut client = client_on(&w, config(0), None);
     assert_eq!(block_on(client.call(1, &ReadFloat)).unwrap(), 7.6);

@@ -105,6 +105,19 @@ pub enum StoreError {
         /// The file's `user_version`.
         found: i64,
     },
+    /// A value to store is NaN or infinite: SQLite would keep it as NULL,
+    /// which reads back as no value at all. The logger leaves such values
+    /// out of a reading; a direct caller gets this instead of a row it
+    /// could not read back.
+    #[error("value `{name}` of probe `{probe}` is {value}, not a finite number: not stored")]
+    NotFinite {
+        /// The probe's label.
+        probe: String,
+        /// The measurement's name.
+        name: String,
+        /// The value.
+        value: f64,
+    },
     /// A row holds something this schema never writes.
     #[error("reading {id} is malformed: {what}")]
     Malformed {
@@ -218,8 +231,8 @@ impl Store {
     ///
     /// # Errors
     ///
-    /// SQLite refused the write (disk full, read-only file, ...); nothing
-    /// of the reading is stored then.
+    /// A value is NaN or infinite, or SQLite refused the write (disk full,
+    /// read-only file, ...); nothing of the reading is stored then.
     pub fn insert(&mut self, reading: &Reading) -> Result<i64, StoreError> {
         let ids = self.insert_all(std::slice::from_ref(reading))?;
         Ok(ids.first().copied().unwrap_or_default())
@@ -231,8 +244,18 @@ impl Store {
     ///
     /// # Errors
     ///
-    /// SQLite refused the write; nothing of the batch is stored then.
+    /// A value is NaN or infinite ([`StoreError::NotFinite`]), or SQLite
+    /// refused the write; nothing of the batch is stored then.
     pub fn insert_all(&mut self, readings: &[Reading]) -> Result<Vec<i64>, StoreError> {
+        for reading in readings {
+            for m in &reading.values {
+                if let Datum::Number(n) = m.value
+                    && !n.is_finite()
+                {
+                    return Err(StoreError::NotFinite { probe: reading.probe.clone(), name: m.name.clone(), value: n });
+                }
+            }
+        }
         let tx = self.connection.transaction_with_behavior(rusqlite::TransactionBehavior::Immediate)?;
         let mut ids = Vec::with_capacity(readings.len());
         {

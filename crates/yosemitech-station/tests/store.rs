@@ -139,3 +139,22 @@ fn refuses_files_it_cannot_read() {
     drop(c);
     assert!(matches!(Store::open(&other), Err(StoreError::SchemaVersion { found }) if found == SCHEMA_VERSION + 1));
 }
+
+#[test]
+fn a_value_that_is_not_a_finite_number_is_refused_and_nothing_of_the_batch_is_stored() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut store = Store::open(dir.path().join("s.db")).unwrap();
+    for bad in [f64::NAN, f64::INFINITY, f64::NEG_INFINITY] {
+        let good = reading("a", 1_000, 5);
+        let mut broken = reading("b", 1_001, 5);
+        broken.values[0].value = Datum::Number(bad);
+        match store.insert_all(&[good, broken]) {
+            Err(StoreError::NotFinite { probe, name, .. }) => assert_eq!((probe.as_str(), name.as_str()), ("b", "field_0")),
+            other => panic!("{bad}: expected NotFinite, got {other:?}"),
+        }
+        assert_eq!(store.count().unwrap(), 0, "{bad}: all or none");
+    }
+    // What is stored still reads back.
+    store.insert(&reading("a", 1_002, 5)).unwrap();
+    assert_eq!(store.range(UNIX_EPOCH, SystemTime::now()).unwrap().len(), 1);
+}
