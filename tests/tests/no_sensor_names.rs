@@ -39,7 +39,8 @@ const EXEMPT: &[(&str, &str)] = &[
     ("crates/yosemitech/src/procedures/mod.rs", "declares the one-manual procedure modules above"),
     ("crates/yosemitech/examples/", "examples show the typed API of named sensors"),
     (
-            "benchmarks time one fixed transaction, the pH manual's get_ph frames, against rmodbus and across \
+        "crates/yosemitech-bench/",
+        "benchmarks time one fixed transaction, the pH manual's get_ph frames, against rmodbus and across \
          harnesses: BENCHMARKS.md's figures compare only because every harness uses the same frame",
     ),
     ("tests/tests/procedures.rs", "tests of the one-manual procedures above, each naming the manual it covers"),

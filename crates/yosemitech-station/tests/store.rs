@@ -149,7 +149,9 @@ fn a_value_that_is_not_a_finite_number_is_refused_and_nothing_of_the_batch_is_st
         let mut broken = reading("b", 1_001, 5);
         broken.values[0].value = Datum::Number(bad);
         match store.insert_all(&[good, broken]) {
-            Err(StoreError::NotFinite { probe, name, .. }) => assert_eq!((probe.as_str(), name.as_str()), ("b", "field_0")),
+            Err(StoreError::NotFinite { probe, name, .. }) => {
+                assert_eq!((probe.as_str(), name.as_str()), ("b", "field_0"))
+            }
             other => panic!("{bad}: expected NotFinite, got {other:?}"),
         }
         assert_eq!(store.count().unwrap(), 0, "{bad}: all or none");
