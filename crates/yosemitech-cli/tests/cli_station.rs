@@ -3,14 +3,16 @@
 //! logger on a simulated bus stops cleanly on SIGTERM with every reading it
 //! announced committed to its SQLite file.
 
-mod common;
-
 use std::io::{BufRead, BufReader};
 use std::process::Stdio;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use common::{WATCHDOG, command, spec, yosemitech};
+use yosemitech_tests::cli::{Binary, WATCHDOG, wait};
+use yosemitech_tests::spec;
+
+/// The binary under test.
+const YOSEMITECH: Binary = Binary(env!("CARGO_BIN_EXE_yosemitech"));
 use serde_json::Value as Json;
 use yosemitech_sim::{Bus, ServeConfig, Simulator, serve_pty};
 use yosemitech_station::{Store, plan};
@@ -20,7 +22,7 @@ const SAMPLE: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../yosemitech-station
 
 #[test]
 fn the_sample_station_file_checks() {
-    let run = yosemitech(&["log", "--config", SAMPLE, "--check"]);
+    let run = YOSEMITECH.run(&["log", "--config", SAMPLE, "--check"]);
     let out = run.ok();
     assert!(out.lines().last() == Some("ok"), "{out}");
     assert!(out.contains("bus `") && out.contains("probe `"), "{out}");
@@ -29,7 +31,7 @@ fn the_sample_station_file_checks() {
 #[test]
 fn check_errors_carry_file_line_and_column() {
     let dir = tempfile::tempdir().unwrap();
-    let sensor = spec().sensors.into_iter().find(|s| !plan::measurements(s).is_empty()).unwrap();
+    let sensor = spec().sensors.iter().cloned().find(|s| !plan::measurements(s).is_empty()).unwrap();
     let lines = [
         "station = \"s\"".to_owned(),
         "[storage]".to_owned(),
@@ -51,7 +53,7 @@ fn check_errors_carry_file_line_and_column() {
     ];
     let path = dir.path().join("bad.toml");
     std::fs::write(&path, lines.join("\n")).unwrap();
-    let run = yosemitech(&["log", "--config", path.to_str().unwrap(), "--check"]);
+    let run = YOSEMITECH.run(&["log", "--config", path.to_str().unwrap(), "--check"]);
     let err = run.fails_with_hint(2);
     let file = path.display().to_string();
     for (line, what) in [(9, "no_such_sensor"), (15, "address 0"), (16, "no_such_field"), (17, "soon")] {
@@ -72,21 +74,21 @@ fn check_errors_carry_file_line_and_column() {
         format!("{head}\n{good_probe}[mqtt]\nhost = \"\"\nclient_id = \"x\"\npassword = \"hunter2\"\n"),
     )
     .unwrap();
-    let run = yosemitech(&["log", "--config", path.to_str().unwrap(), "--check"]);
+    let run = YOSEMITECH.run(&["log", "--config", path.to_str().unwrap(), "--check"]);
     let err = run.fails_with_hint(2);
     assert!(err.lines().any(|l| l.contains(&format!("{file}:")) && l.contains("[mqtt]")), "{err}");
     assert!(!err.contains("hunter2"), "{err}");
 
     // A syntax error, located too.
     std::fs::write(&path, "station = \"s\"\n[storage\n").unwrap();
-    let run = yosemitech(&["log", "--config", path.to_str().unwrap(), "--check"]);
+    let run = YOSEMITECH.run(&["log", "--config", path.to_str().unwrap(), "--check"]);
     assert!(run.fails(2).contains(&format!("{file}:2:")), "{}", run.stderr);
 }
 
 #[test]
 fn log_stops_cleanly_on_sigterm_and_the_file_has_every_reading() {
     let dir = tempfile::tempdir().unwrap();
-    let sensors: Vec<_> = spec().sensors.into_iter().filter(|s| !plan::measurements(s).is_empty()).take(2).collect();
+    let sensors: Vec<_> = spec().sensors.iter().cloned().filter(|s| !plan::measurements(s).is_empty()).take(2).collect();
     let bus = sensors
         .iter()
         .enumerate()
@@ -108,7 +110,7 @@ fn log_stops_cleanly_on_sigterm_and_the_file_has_every_reading() {
     let config = dir.path().join("station.toml");
     std::fs::write(&config, toml).unwrap();
 
-    let mut child = command()
+    let mut child = YOSEMITECH.command()
         .args(["log", "--config", config.to_str().unwrap()])
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
@@ -127,7 +129,7 @@ fn log_stops_cleanly_on_sigterm_and_the_file_has_every_reading() {
     assert!(announced.len() >= 6, "the logger announced readings: {announced:?}");
     let status = std::process::Command::new("kill").args(["-TERM", &child.id().to_string()]).status().unwrap();
     assert!(status.success());
-    let code = common::wait(&mut child, Duration::from_secs(20));
+    let code = wait(&mut child, Duration::from_secs(20));
     // What it announced after the first six, up to its exit.
     for line in stdout.lines() {
         announced.push(serde_json::from_str(&line.unwrap()).unwrap());
@@ -144,12 +146,12 @@ fn log_stops_cleanly_on_sigterm_and_the_file_has_every_reading() {
     assert!(stored.iter().all(|s| s.reading.error.is_none()), "{stored:?}");
 
     // export gives the same readings.
-    let run = yosemitech(&["export", "--db", db.to_str().unwrap(), "--format", "jsonl"]);
+    let run = YOSEMITECH.run(&["export", "--db", db.to_str().unwrap(), "--format", "jsonl"]);
     let exported: Vec<Json> = run.ok().lines().map(|l| serde_json::from_str(l).unwrap()).collect();
     assert_eq!(exported, announced);
-    let run = yosemitech(&["export", "--db", db.to_str().unwrap(), "--from", "2000-01-01", "--to", "2000-01-02"]);
+    let run = YOSEMITECH.run(&["export", "--db", db.to_str().unwrap(), "--from", "2000-01-01", "--to", "2000-01-02"]);
     assert_eq!(run.ok().lines().count(), 1, "only the CSV header: {}", run.stdout);
-    let run = yosemitech(&["export", "--db", db.to_str().unwrap()]);
+    let run = YOSEMITECH.run(&["export", "--db", db.to_str().unwrap()]);
     let values: usize = stored.iter().map(|s| s.reading.values.len().max(1)).sum();
     assert_eq!(run.ok().lines().count(), 1 + values, "one CSV row per value");
 }

@@ -7,7 +7,6 @@
 //! at-least-once: a reading in flight at the kill may arrive again,
 //! byte-identical) sees every stored reading exactly once, in order.
 
-mod common;
 #[path = "../../yosemitech-mqtt/tests/support/mod.rs"]
 mod support;
 
@@ -16,7 +15,11 @@ use std::process::{Child, Stdio};
 use std::sync::Arc;
 use std::time::Duration;
 
-use common::{command, spec};
+use yosemitech_tests::cli::{Binary, wait};
+use yosemitech_tests::spec;
+
+/// The binary under test.
+const YOSEMITECH: Binary = Binary(env!("CARGO_BIN_EXE_yosemitech"));
 use support::{Broker, BrokerKind, Subscriber, available, ids_and_first_occurrences, wait_until};
 use yosemitech_sim::{Bus, ServeConfig, Simulator, serve_pty};
 use yosemitech_station::{Store, plan};
@@ -31,7 +34,7 @@ fn rumqttd_child_process() {
 const MAX_IN_FLIGHT: usize = 4;
 
 fn start_logger(config: &std::path::Path) -> Child {
-    command()
+    YOSEMITECH.command()
         .args(["log", "--config", config.to_str().unwrap()])
         .stdout(Stdio::null())
         .stderr(Stdio::null())
@@ -57,7 +60,7 @@ fn killed_and_restarted_logger_loses_nothing(kind: BrokerKind) {
     let subscriber = Subscriber::start(&broker, &format!("{}/#", yosemitech_mqtt::topic::DEFAULT_TOPIC_PREFIX));
 
     let dir = tempfile::tempdir().unwrap();
-    let sensors: Vec<_> = spec().sensors.into_iter().filter(|s| !plan::measurements(s).is_empty()).take(2).collect();
+    let sensors: Vec<_> = spec().sensors.iter().cloned().filter(|s| !plan::measurements(s).is_empty()).take(2).collect();
     let bus = sensors
         .iter()
         .enumerate()
@@ -108,7 +111,7 @@ fn killed_and_restarted_logger_loses_nothing(kind: BrokerKind) {
     assert!(wait_until(|| stored_ids(&db).len() >= target), "{kind:?}: the second run logs");
     let status = std::process::Command::new("kill").args(["-TERM", &logger.id().to_string()]).status().unwrap();
     assert!(status.success());
-    assert_eq!(common::wait(&mut logger, Duration::from_secs(30)), 0, "{kind:?}: SIGTERM stops cleanly");
+    assert_eq!(wait(&mut logger, Duration::from_secs(30)), 0, "{kind:?}: SIGTERM stops cleanly");
 
     let stored = stored_ids(&db);
     assert!(stored.starts_with(&after_kill), "{kind:?}: nothing committed before the kill is lost");

@@ -7,8 +7,6 @@
 //! sensors with a measurement read (`Sensor::measurement_reads`) of numbers
 //! with units.
 
-mod common;
-
 use std::collections::BTreeSet;
 use std::io::{self, Write as _};
 use std::path::{Path, PathBuf};
@@ -16,7 +14,11 @@ use std::process::Command;
 use std::thread;
 use std::time::{Duration, Instant, SystemTime};
 
-use common::{spec, yosemitech};
+use yosemitech_tests::cli::Binary;
+use yosemitech_tests::spec;
+
+/// The binary under test.
+const YOSEMITECH: Binary = Binary(env!("CARGO_BIN_EXE_yosemitech"));
 use yosemitech_spec::FieldKind;
 use yosemitech_station::{Datum, Measurement, Reading, Store};
 
@@ -149,7 +151,7 @@ fn decode_png(path: &Path) -> (u32, u32, usize, Vec<u8>) {
 fn plot_png_has_the_stated_size_and_is_not_blank() {
     let station = Station::new();
     let out = station.out("chart.png");
-    let run = yosemitech(&["plot", "--db", station.db(), "--out", out.to_str().unwrap(), "--size", "900x700"]);
+    let run = YOSEMITECH.run(&["plot", "--db", station.db(), "--out", out.to_str().unwrap(), "--size", "900x700"]);
     let measurements: BTreeSet<&str> =
         station.probes.iter().flat_map(|p| &p.measurements).map(|(m, _)| m.as_str()).collect();
     let expected = format!("(900x700): {} measurement(s), {PROBES} probe(s)", measurements.len());
@@ -169,7 +171,7 @@ fn plot_png_has_the_stated_size_and_is_not_blank() {
 fn plot_svg_parses_with_the_stated_size_and_names_every_probe() {
     let station = Station::new();
     let out = station.out("chart.svg");
-    yosemitech(&["plot", "--db", station.db(), "--out", out.to_str().unwrap(), "--size", "1000x1500"]).ok();
+    YOSEMITECH.run(&["plot", "--db", station.db(), "--out", out.to_str().unwrap(), "--size", "1000x1500"]).ok();
     let text = std::fs::read_to_string(&out).unwrap();
     let doc = roxmltree::Document::parse(&text).expect("the SVG is XML");
     let root = doc.root_element();
@@ -191,7 +193,7 @@ fn plot_chooses_a_probe_and_a_measurement() {
     let probe = &station.probes[1];
     let (measurement, _) = &probe.measurements[0];
     let out = station.out("one.svg");
-    let run = yosemitech(&[
+    let run = YOSEMITECH.run(&[
         "plot",
         "--db",
         station.db(),
@@ -232,21 +234,21 @@ fn plot_refuses_with_a_reason_and_an_exit_code() {
     for (args, code, message) in cases {
         let mut all = vec!["plot", "--db", db, "--out", png];
         all.extend_from_slice(args);
-        let run = yosemitech(&all);
+        let run = YOSEMITECH.run(&all);
         let stderr = run.fails(code);
         assert!(stderr.contains(message), "{args:?}: `{message}` not in\n{stderr}");
         assert!(!Path::new(png).exists(), "{args:?} wrote a chart");
     }
-    let unknown = yosemitech(&["plot", "--db", db, "--probe", "no-such-probe", "--out", png]);
+    let unknown = YOSEMITECH.run(&["plot", "--db", db, "--probe", "no-such-probe", "--out", png]);
     for probe in &station.probes {
         assert!(unknown.stderr.contains(&probe.label), "the known probes are listed:\n{}", unknown.stderr);
     }
-    yosemitech(&["plot", "--db", db, "--out", station.out("x.jpg").to_str().unwrap()]).fails(2);
+    YOSEMITECH.run(&["plot", "--db", db, "--out", station.out("x.jpg").to_str().unwrap()]).fails(2);
     let missing = station.out("missing.sqlite");
-    yosemitech(&["plot", "--db", missing.to_str().unwrap(), "--out", png]).fails_with_hint(2);
+    YOSEMITECH.run(&["plot", "--db", missing.to_str().unwrap(), "--out", png]).fails_with_hint(2);
     assert!(!missing.exists(), "plot created a store");
     let empty = Station::empty();
-    let stderr = yosemitech(&["plot", "--db", empty.db(), "--out", png]).fails_with_hint(1).to_owned();
+    let stderr = YOSEMITECH.run(&["plot", "--db", empty.db(), "--out", png]).fails_with_hint(1).to_owned();
     assert!(stderr.contains("holds no readings yet"), "{stderr}");
 }
 
