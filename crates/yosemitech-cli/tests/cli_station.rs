@@ -88,7 +88,8 @@ fn check_errors_carry_file_line_and_column() {
 #[test]
 fn log_stops_cleanly_on_sigterm_and_the_file_has_every_reading() {
     let dir = tempfile::tempdir().unwrap();
-    let sensors: Vec<_> = spec().sensors.iter().cloned().filter(|s| !plan::measurements(s).is_empty()).take(2).collect();
+    let sensors: Vec<_> =
+        spec().sensors.iter().cloned().filter(|s| !plan::measurements(s).is_empty()).take(2).collect();
     let bus = sensors
         .iter()
         .enumerate()
@@ -110,7 +111,8 @@ fn log_stops_cleanly_on_sigterm_and_the_file_has_every_reading() {
     let config = dir.path().join("station.toml");
     std::fs::write(&config, toml).unwrap();
 
-    let mut child = YOSEMITECH.command()
+    let mut child = YOSEMITECH
+        .command()
         .args(["log", "--config", config.to_str().unwrap()])
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())

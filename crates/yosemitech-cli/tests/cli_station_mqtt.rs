@@ -34,7 +34,8 @@ fn rumqttd_child_process() {
 const MAX_IN_FLIGHT: usize = 4;
 
 fn start_logger(config: &std::path::Path) -> Child {
-    YOSEMITECH.command()
+    YOSEMITECH
+        .command()
         .args(["log", "--config", config.to_str().unwrap()])
         .stdout(Stdio::null())
         .stderr(Stdio::null())
@@ -60,7 +61,8 @@ fn killed_and_restarted_logger_loses_nothing(kind: BrokerKind) {
     let subscriber = Subscriber::start(&broker, &format!("{}/#", yosemitech_mqtt::topic::DEFAULT_TOPIC_PREFIX));
 
     let dir = tempfile::tempdir().unwrap();
-    let sensors: Vec<_> = spec().sensors.iter().cloned().filter(|s| !plan::measurements(s).is_empty()).take(2).collect();
+    let sensors: Vec<_> =
+        spec().sensors.iter().cloned().filter(|s| !plan::measurements(s).is_empty()).take(2).collect();
     let bus = sensors
         .iter()
         .enumerate()

@@ -542,7 +542,10 @@ mod tests {
         let write = Layout { function: Function::Write, count: 2, ..START };
         let mut out = [0u8; MAX_ADU];
         assert_eq!(write.encode_request(1, &[1, 2], &mut out), Err(EncodeError::DataLength { expected: 4, actual: 2 }));
-        assert_eq!(READ_FLOAT.encode_response(1, &[], &mut out), Err(EncodeError::DataLength { expected: 4, actual: 0 }));
+        assert_eq!(
+            READ_FLOAT.encode_response(1, &[], &mut out),
+            Err(EncodeError::DataLength { expected: 4, actual: 0 })
+        );
         assert_eq!(READ_FLOAT.encode_request(1, &[], &mut out[..4]), Err(EncodeError::BufferTooSmall { needed: 8 }));
         let huge = Layout { count: 200, ..READ_FLOAT };
         assert_eq!(huge.encode_response(1, &[0; 400], &mut out), Err(EncodeError::FrameTooLong { len: 405 }));

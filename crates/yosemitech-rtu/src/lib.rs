@@ -8,6 +8,8 @@
 #![cfg_attr(not(feature = "std"), no_std)]
 #![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used, clippy::panic, clippy::indexing_slicing))]
 
+#[cfg(feature = "std")]
+pub mod address;
 pub mod client;
 pub mod codec;
 mod command;

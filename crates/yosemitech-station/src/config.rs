@@ -375,9 +375,7 @@ pub fn parse(path: &Path, text: &str, sensors: &[Arc<Sensor>]) -> Result<Station
         }
         let link = match (bus.port, bus.tcp) {
             (Some(port), None) => {
-                let mut serial = probes
-                    .first()
-                    .map_or(LineSettings::default(), |p| p.sensor.serial);
+                let mut serial = probes.first().map_or(LineSettings::default(), |p| p.sensor.serial);
                 if let Some(other) = probes.iter().find(|p| p.sensor.serial != serial)
                     && bus.baud.is_none()
                     && bus.parity.is_none()

@@ -21,7 +21,9 @@ pub type Master = Client<Box<dyn Transport + Send>>;
 /// The port or the gateway cannot be opened.
 pub fn open(link: &Link, timeout: Duration, gap: Gap) -> std::io::Result<Master> {
     let transport: Box<dyn Transport + Send> = match link {
-        Link::Serial { port, serial } => Box::new(SerialTransport::open(&SerialConfig::with_settings(port.as_str(), *serial))?),
+        Link::Serial { port, serial } => {
+            Box::new(SerialTransport::open(&SerialConfig::with_settings(port.as_str(), *serial))?)
+        }
         Link::Tcp { address } => {
             Box::new(TcpTransport::connect(address.as_str(), timeout.max(Duration::from_millis(500)))?)
         }

@@ -86,9 +86,10 @@ fn valid(a: u8) -> Result<(), AddressChangeError> {
 
 /// Changes the probe at `from` to `to`.
 ///
-/// `write` is the sensor's set-slave-id request carrying `to` (e.g.
-/// `ph_orp::SetSlaveId { slave_address: to }`); `probe` is any read the
-/// probe answers (e.g. `GetSn`), used to check addresses before and after.
+/// `write` is the sensor's request of role `set_slave_address` carrying
+/// `to`; `probe` is any read the probe answers (its `serial_number` read),
+/// used to check addresses before and after. Generated `Device` handles
+/// call this from their `set_slave_address`.
 /// Returns the probe's reply to `probe` at its new address.
 pub fn change_address<T: Transport, W: Command, P: Command>(
     client: &mut Client<T>,
