@@ -55,9 +55,9 @@ fn write_device_dispatch(spec_dir: &std::path::Path, out: &std::path::Path) {
          ) -> Option<Result<u8, ::yosemitech::procedures::address::AddressChangeError>> {{\n    \
          match sensor {{\n{arms}        _ => None,\n    }}\n}}\n"
     );
-    if std::fs::read_to_string(out).ok().as_deref() != Some(source.as_str()) {
-        if let Err(e) = std::fs::write(out, source) {
-            println!("cargo:warning=cannot write {}: {e}", out.display());
-        }
+    if std::fs::read_to_string(out).ok().as_deref() != Some(source.as_str())
+        && let Err(e) = std::fs::write(out, source)
+    {
+        println!("cargo:warning=cannot write {}: {e}", out.display());
     }
 }

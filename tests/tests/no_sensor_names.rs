@@ -64,7 +64,6 @@ const NOT_YET_FIXED: &[&str] = &[
     "crates/yosemitech-sim/src/simulator.rs",
     "crates/yosemitech-spec/tests/validation.rs",
     "tests/tests/golden.rs",
-    "xtask/src/import/tests.rs",
 ];
 
 fn workspace() -> PathBuf {

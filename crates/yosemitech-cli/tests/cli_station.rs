@@ -31,7 +31,7 @@ fn the_sample_station_file_checks() {
 #[test]
 fn check_errors_carry_file_line_and_column() {
     let dir = tempfile::tempdir().unwrap();
-    let sensor = spec().sensors.iter().cloned().find(|s| !plan::measurements(s).is_empty()).unwrap();
+    let sensor = spec().sensors.iter().find(|&s| !plan::measurements(s).is_empty()).cloned().unwrap();
     let lines = [
         "station = \"s\"".to_owned(),
         "[storage]".to_owned(),
@@ -89,7 +89,7 @@ fn check_errors_carry_file_line_and_column() {
 fn log_stops_cleanly_on_sigterm_and_the_file_has_every_reading() {
     let dir = tempfile::tempdir().unwrap();
     let sensors: Vec<_> =
-        spec().sensors.iter().cloned().filter(|s| !plan::measurements(s).is_empty()).take(2).collect();
+        spec().sensors.iter().filter(|&s| !plan::measurements(s).is_empty()).take(2).cloned().collect();
     let bus = sensors
         .iter()
         .enumerate()

@@ -62,7 +62,7 @@ fn killed_and_restarted_logger_loses_nothing(kind: BrokerKind) {
 
     let dir = tempfile::tempdir().unwrap();
     let sensors: Vec<_> =
-        spec().sensors.iter().cloned().filter(|s| !plan::measurements(s).is_empty()).take(2).collect();
+        spec().sensors.iter().filter(|&s| !plan::measurements(s).is_empty()).take(2).cloned().collect();
     let bus = sensors
         .iter()
         .enumerate()
