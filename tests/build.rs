@@ -2,6 +2,11 @@
 //! probe that is in neither manual) through the public `yosemitech-codegen`
 //! API, exactly as a downstream crate would; `src/lib.rs` includes it as
 //! `yosemitech_tests::do_probe`. No Rust is written for that sensor.
+//!
+//! Also writes `devices.rs`: a dispatch from a sensor's name to its
+//! generated `yosemitech::<sensor>::Device`, for the sensors of `spec/` whose
+//! handle has `set_slave_address`, so that tests reach every sensor's typed
+//! handle without a hand-written list.
 
 use std::path::PathBuf;
 
@@ -18,5 +23,41 @@ fn main() -> Result<(), yosemitech_codegen::Error> {
     yosemitech_codegen::Config::new()
         .std_feature(None)
         .compile(manifest_dir.join("fixtures/hostile-valid/spec"), out_dir.with_file_name("hostile"))?;
+    write_device_dispatch(&manifest_dir.join("../spec"), &out_dir.with_file_name("devices.rs"));
     Ok(())
+}
+
+/// `change_address_through_device`: for each sensor with a write of role
+/// `set_slave_address` and a read of role `serial_number` sent to its own
+/// address (the rule `yosemitech-codegen` emits `Device::set_slave_address`
+/// by), an arm that moves the probe through the generated handle.
+fn write_device_dispatch(spec_dir: &std::path::Path, out: &std::path::Path) {
+    use yosemitech_spec::Role;
+    println!("cargo:rerun-if-changed={}", spec_dir.display());
+    // A spec that does not load fails the yosemitech crate's own build; here it only empties the dispatch.
+    let sensors = yosemitech_spec::load_paths(&[spec_dir.to_path_buf()]).map(|s| s.sensors).unwrap_or_default();
+    let own =
+        |s: &yosemitech_spec::Sensor, role| s.commands.iter().any(|c| c.role == Some(role) && c.fixed_slave.is_none());
+    let mut arms = String::new();
+    for s in sensors.iter().filter(|s| own(s, Role::SetSlaveAddress) && own(s, Role::SerialNumber)) {
+        arms += &format!(
+            "        {:?} => {{\n            let mut device = ::yosemitech::{}::Device::new(client, from);\n            \
+             Some(device.set_slave_address(to).map(|()| device.address()))\n        }}\n",
+            s.name, s.name
+        );
+    }
+    let source = format!(
+        "/// Moves the probe at `from` to `to` through sensor `sensor`'s generated\n\
+         /// `Device::set_slave_address`; returns the handle's address afterwards,\n\
+         /// or `None` for a sensor whose handle has no such method.\n\
+         pub fn change_address_through_device<T: ::yosemitech::Transport>(\n    sensor: &str,\n    \
+         client: &mut ::yosemitech::Client<T>,\n    from: u8,\n    to: u8,\n\
+         ) -> Option<Result<u8, ::yosemitech::procedures::address::AddressChangeError>> {{\n    \
+         match sensor {{\n{arms}        _ => None,\n    }}\n}}\n"
+    );
+    if std::fs::read_to_string(out).ok().as_deref() != Some(source.as_str())
+        && let Err(e) = std::fs::write(out, source)
+    {
+        println!("cargo:warning=cannot write {}: {e}", out.display());
+    }
 }

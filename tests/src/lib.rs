@@ -59,6 +59,12 @@ pub mod fixture {
 }
 pub use fixture::do_probe;
 
+/// Every generated `Device` of the workspace's sensors reached by the
+/// sensor's name (written by `build.rs` from `spec/`).
+pub mod devices {
+    include!(concat!(env!("OUT_DIR"), "/devices.rs"));
+}
+
 /// The hostile-but-valid fixture sensor `hostile` (tests/fixtures/hostile-valid).
 pub mod hostile_fixture {
     include!(concat!(env!("OUT_DIR"), "/hostile/mod.rs"));

@@ -105,8 +105,8 @@ fn loader_cases() -> Vec<Case> {
     // Names that would inject code or are not identifiers.
     for (label, name) in [
         ("inject-brackets", r#"'x"]; fn evil() {'"#),
-        ("inject-braces", "'get_ph() {} fn x'"),
-        ("inject-comment", "'get_ph/*'"),
+        ("inject-braces", "'read_level() {} fn x'"),
+        ("inject-comment", "'read_level/*'"),
         ("inject-newline", "\"get_ph\\nfn evil() {}\""),
         ("inject-raw-identifier", "'r#type'"),
         ("inject-attribute", "'#[cfg(any())]'"),

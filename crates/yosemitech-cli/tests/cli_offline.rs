@@ -670,12 +670,20 @@ fn a_spec_error_is_reported_with_its_position() {
 fn spec_files_load_at_run_time_with_the_shared_commands_built_in() {
     // A new sensor in a directory of its own: its include of
     // yosemitech-common.yaml falls back to the built-in copy.
+    // The shared fragment's serial-number read, picked by role.
+    let built_in = yosemitech_tests::spec();
+    let serial = built_in
+        .fragments
+        .iter()
+        .flat_map(|f| &f.commands)
+        .find(|c| c.role == Some(yosemitech_spec::Role::SerialNumber))
+        .expect("a shared serial-number read");
     let dir = tempfile::tempdir().unwrap();
     std::fs::write(
         dir.path().join("test-probe.yaml"),
         r#"sensor:
   name: test_probe
-  title: Turbidity probe (test)
+  title: Level probe (test)
   doc: A made-up probe for the CLI's --spec test.
   manual: {title: Test manual, revision: "1.0"}
   serial: {baud: 9600, data_bits: 8, parity: none, stop_bits: 1}
@@ -684,33 +692,33 @@ fn spec_files_load_at_run_time_with_the_shared_commands_built_in() {
 include:
   - yosemitech-common.yaml
 commands:
-  - use: get_sn
-  - name: get_turbidity
-    title: Get Turbidity
-    doc: Turbidity.
+  - use: SERIAL
+  - name: read_level
+    title: Read Level
+    doc: Level.
     function: read
     address: 0x2600
     count: 2
     fields:
-      - {name: turbidity_ntu, type: f32, byte_order: dcba, unit: NTU, doc: Turbidity.}
+      - {name: level_ntu, type: f32, byte_order: dcba, unit: NTU, doc: Level.}
     examples:
       - figures: []
         request: "01 03 26 00 00 02 CF 43"
         response: "01 03 04 00 00 20 41 23 C3"
-        values: {turbidity_ntu: 10.0}
-"#,
+        values: {level_ntu: 10.0}
+"#
+        .replace("SERIAL", &serial.name),
     )
     .unwrap();
     let spec = dir.path().to_str().unwrap();
     let json = YOSEMITECH.run(&["--spec", spec, "list", "--json"]).json();
     let names: Vec<&str> = json["sensors"].as_array().unwrap().iter().filter_map(|s| s["name"].as_str()).collect();
-    let built_in = yosemitech_tests::spec();
     let want: Vec<&str> = built_in.sensors.iter().map(|s| s.name.as_str()).chain(["test_probe"]).collect();
     assert_eq!(names, want, "the built-in sensors, then the --spec one");
-    let turbidity = YOSEMITECH.run(&["list", "test_probe", "--json", "--spec", spec]).json();
+    let listed = YOSEMITECH.run(&["list", "test_probe", "--json", "--spec", spec]).json();
     let commands: Vec<&str> =
-        turbidity["sensors"][0]["commands"].as_array().unwrap().iter().filter_map(|c| c["name"].as_str()).collect();
-    assert!(commands.contains(&"get_sn") && commands.contains(&"get_turbidity"), "{commands:?}");
+        listed["sensors"][0]["commands"].as_array().unwrap().iter().filter_map(|c| c["name"].as_str()).collect();
+    assert!(commands.contains(&serial.name.as_str()) && commands.contains(&"read_level"), "{commands:?}");
     let run = YOSEMITECH.run(&[
         "decode",
         "01 03 04 00 00 20 41 23 C3",
@@ -719,9 +727,9 @@ commands:
         "--sensor",
         "test_probe",
         "--command",
-        "get_turbidity",
+        "read_level",
     ]);
     assert!(run.ok().contains("10 NTU"), "{}", run.stdout);
-    let run = YOSEMITECH.run(&["encode", "test_probe", "get_turbidity", "--spec", spec]);
+    let run = YOSEMITECH.run(&["encode", "test_probe", "read_level", "--spec", spec]);
     assert_eq!(run.ok().trim(), "01 03 26 00 00 02 CF 43");
 }

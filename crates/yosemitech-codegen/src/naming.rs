@@ -13,8 +13,9 @@ use crate::Error;
 const FIXED_TYPES: &[&str] = &["CommandId", "Request", "Response", "Device"];
 /// Constants every sensor module declares itself.
 const FIXED_CONSTS: &[&str] = &["SENSOR"];
-/// Methods of `Device` that are not commands.
-const DEVICE_METHODS: &[&str] = &["new", "address", "client", "call"];
+/// Methods of `Device` that are not commands (`set_slave_address` only for
+/// sensors with the roles it needs, reserved for all).
+const DEVICE_METHODS: &[&str] = &["new", "address", "set_address", "client", "call", "set_slave_address"];
 
 /// Names of one command's items.
 #[derive(Debug, Clone)]

@@ -6,7 +6,7 @@ use heck::ToUpperCamelCase;
 use proc_macro2::{Ident, Literal, Span, TokenStream};
 use quote::{format_ident, quote};
 use yosemitech_rtu::{ByteOrder2, ByteOrder4, DataBits, Function, LineSettings, Parity, StopBits};
-use yosemitech_spec::{CommandSpec, Constant, ConstantType, EnumRepr, Field, FieldKind, Sensor};
+use yosemitech_spec::{CommandSpec, Constant, ConstantType, EnumRepr, Field, FieldKind, Role, Sensor};
 
 use crate::Error;
 use crate::naming::{EnumDef, Names};
@@ -1440,6 +1440,35 @@ fn dispatch(s: &Sensor, names: &Names) -> TokenStream {
 
 const RANGE_NOTE: &str = " Values outside the spec's range are refused before sending.";
 
+/// `Device::set_slave_address` for a sensor with a write of role
+/// `set_slave_address` and a read of role `serial_number`, both sent to the
+/// device's own address: the verified change of `rtu::address`.
+fn set_slave_address(s: &Sensor, names: &Names) -> Option<TokenStream> {
+    let own = |role| {
+        s.commands.iter().position(|c| c.role == Some(role) && c.fixed_slave.is_none()).map(|i| (i, &s.commands[i]))
+    };
+    let ((wi, write), (pi, _)) = (own(Role::SetSlaveAddress)?, own(Role::SerialNumber)?);
+    // Validation gives the write exactly one named field, a `u8`.
+    let [field] = field_gens(names, wi, write).try_into().ok()?;
+    let field = field.name;
+    let write_ty = ident(&names.commands[wi].ty);
+    let probe_ty = ident(&names.commands[pi].ty);
+    let d = doc(&format!(
+        "Changes the probe's slave address to `new` (1..=247, not in use on the bus) with [`{}`], confirmed by the \
+         probe's reply and verified by reading [`{}`] at `new`; the handle then talks to `new`. On failure the error \
+         says where the probe answers (see `rtu::address::change_address`).",
+        names.commands[wi].ty, names.commands[pi].ty
+    ));
+    Some(quote! {
+        #d
+        pub fn set_slave_address(&mut self, new: u8) -> Result<(), rtu::address::AddressChangeError> {
+            rtu::address::change_address(self.client, self.address, new, &#write_ty { #field: new }, &#probe_ty)?;
+            self.address = new;
+            Ok(())
+        }
+    })
+}
+
 fn device(s: &Sensor, names: &Names, o: &Options) -> TokenStream {
     let cfg = match &o.std_feature {
         Some(feature) => quote!(#[cfg(feature = #feature)]),
@@ -1515,6 +1544,7 @@ fn device(s: &Sensor, names: &Names, o: &Options) -> TokenStream {
             }
         });
     }
+    methods.extend(set_slave_address(s, names));
     let title = one_line(&s.title);
     let async_device = match &o.async_feature {
         Some(feature) => {
@@ -1596,7 +1626,7 @@ fn device(s: &Sensor, names: &Names, o: &Options) -> TokenStream {
             }
 
             /// Points the handle at another address, after the probe's
-            /// address was changed and verified (see `yosemitech::procedures::address`).
+            /// address was changed and verified (see `rtu::address`).
             pub fn set_address(&mut self, address: u8) {
                 self.address = address;
             }

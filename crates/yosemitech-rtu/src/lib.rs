@@ -12,6 +12,8 @@
 #![cfg_attr(not(any(feature = "std", test)), no_std)]
 #![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used, clippy::panic, clippy::indexing_slicing))]
 
+#[cfg(feature = "std")]
+pub mod address;
 pub mod client;
 pub mod codec;
 mod command;

@@ -1993,7 +1993,7 @@ impl<'c, T: rtu::Transport> Device<'c, T> {
         self.address
     }
     /// Points the handle at another address, after the probe's
-    /// address was changed and verified (see `yosemitech::procedures::address`).
+    /// address was changed and verified (see `rtu::address`).
     pub fn set_address(&mut self, address: u8) {
         self.address = address;
     }
@@ -2054,6 +2054,21 @@ impl<'c, T: rtu::Transport> Device<'c, T> {
     /// Active Brush: sends [`ActiveBrush`].
     pub fn active_brush(&mut self) -> Result<(), rtu::Error> {
         self.call(&ActiveBrush)
+    }
+    /// Changes the probe's slave address to `new` (1..=247, not in use on the bus) with [`SetSlaveId`], confirmed by the probe's reply and verified by reading [`GetSn`] at `new`; the handle then talks to `new`. On failure the error says where the probe answers (see `rtu::address::change_address`).
+    pub fn set_slave_address(
+        &mut self,
+        new: u8,
+    ) -> Result<(), rtu::address::AddressChangeError> {
+        rtu::address::change_address(
+            self.client,
+            self.address,
+            new,
+            &SetSlaveId { slave_address: new },
+            &GetSn,
+        )?;
+        self.address = new;
+        Ok(())
     }
 }
 

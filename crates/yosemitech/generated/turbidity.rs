@@ -1130,7 +1130,7 @@ impl<'c, T: rtu::Transport> Device<'c, T> {
         self.address
     }
     /// Points the handle at another address, after the probe's
-    /// address was changed and verified (see `yosemitech::procedures::address`).
+    /// address was changed and verified (see `rtu::address`).
     pub fn set_address(&mut self, address: u8) {
         self.address = address;
     }
@@ -1192,6 +1192,21 @@ impl<'c, T: rtu::Transport> Device<'c, T> {
     /// Get Slave Device ID: sends [`GetSlaveId`] and returns its `slave_address`.
     pub fn slave_id(&mut self) -> Result<u8, rtu::Error> {
         self.call(&GetSlaveId).map(|reply| reply.slave_address)
+    }
+    /// Changes the probe's slave address to `new` (1..=247, not in use on the bus) with [`SetSlaveId`], confirmed by the probe's reply and verified by reading [`GetSn`] at `new`; the handle then talks to `new`. On failure the error says where the probe answers (see `rtu::address::change_address`).
+    pub fn set_slave_address(
+        &mut self,
+        new: u8,
+    ) -> Result<(), rtu::address::AddressChangeError> {
+        rtu::address::change_address(
+            self.client,
+            self.address,
+            new,
+            &SetSlaveId { slave_address: new },
+            &GetSn,
+        )?;
+        self.address = new;
+        Ok(())
     }
 }
 

@@ -1,32 +1,61 @@
 //! `yosemitech set-address`: change a probe's slave address, verified at the new one.
 
+use std::collections::BTreeMap;
 use std::io::Write;
 
-use yosemitech::procedures::address::{AddressChangeError, change_address};
-use yosemitech::{Command as _, conductivity, ph_orp};
+use yosemitech::procedures::address::{AddressChangeError, change_address_with};
 use yosemitech_rtu::LineSettings;
+use yosemitech_spec::{CommandSpec, Role, Sensor, Value};
 
-use crate::catalog::{Catalog, Entry};
+use crate::catalog::Catalog;
 use crate::cli::{Global, SetAddressArgs};
 use crate::confirm::{confirm, ensure_can_ask};
 use crate::error::{CliError, Result, request_failed};
 use crate::port::{self, check_address};
 use crate::shell;
 
-/// Checks that a `--spec` sensor addresses the way the typed commands do.
-fn same_as_common(entry: &Entry) -> Result<()> {
-    let sensor = &entry.sensor;
-    let fits = sensor.command(ph_orp::SetSlaveId::NAME).is_some_and(|c| c.layout() == ph_orp::SetSlaveId::LAYOUT)
-        && sensor.command(ph_orp::GetSn::NAME).is_some_and(|c| c.layout() == ph_orp::GetSn::LAYOUT);
-    if fits {
-        Ok(())
-    } else {
-        Err(CliError::usage(format!(
-            "sensor `{}` does not set its address the way Yosemitech probes do (set_slave_id at 0x3000, get_sn at 0x0900)",
-            sensor.name
-        ))
-        .hint("write its address command with `yosemitech write` instead"))
+/// A sensor's address write (role `set_slave_address`) and the read that
+/// finds the probe (role `serial_number`), both sent to the probe's own address.
+fn address_commands(sensor: &Sensor) -> Option<(&CommandSpec, &CommandSpec)> {
+    let own = |role| sensor.command_with_role(role).filter(|c| c.fixed_slave.is_none());
+    Some((own(Role::SetSlaveAddress)?, own(Role::SerialNumber)?))
+}
+
+/// The commands of `--sensor`, or without it the ones most sensors of the
+/// catalog share (same frames, same field): the probe's type is unknown,
+/// and most Yosemitech probes change their address alike.
+fn pick_commands<'c>(
+    catalog: &'c Catalog,
+    sensor: Option<&str>,
+) -> Result<(&'c Sensor, &'c CommandSpec, &'c CommandSpec)> {
+    if let Some(name) = sensor {
+        let sensor = &catalog.entry(name)?.sensor;
+        let Some((write, probe)) = address_commands(sensor) else {
+            return Err(CliError::usage(format!(
+                "sensor `{}` has no slave-address write and serial-number read sent to its own address",
+                sensor.name
+            ))
+            .hint("write its address command with `yosemitech write` instead"));
+        };
+        return Ok((sensor, write, probe));
     }
+    let all: Vec<(&Sensor, &CommandSpec, &CommandSpec)> =
+        catalog.entries().iter().filter_map(|e| address_commands(&e.sensor).map(|(w, p)| (&*e.sensor, w, p))).collect();
+    let field = |c: &CommandSpec| c.named_fields().next().map(|f| f.name.clone());
+    let alike = |(_, w, p): &(&Sensor, &CommandSpec, &CommandSpec),
+                 (_, w2, p2): &(&Sensor, &CommandSpec, &CommandSpec)| {
+        w.layout() == w2.layout() && field(w) == field(w2) && p.layout() == p2.layout()
+    };
+    let sharing = |one| all.iter().filter(|other| alike(one, other)).count();
+    // The first of the largest group, so the choice does not depend on ties' order.
+    let best = all.iter().map(|one| (sharing(one), one)).fold(None, |best: Option<(usize, _)>, (n, one)| match best {
+        Some((m, _)) if m >= n => best,
+        _ => Some((n, one)),
+    });
+    best.map(|(_, one)| *one).ok_or_else(|| {
+        CliError::usage("no sensor of the catalog changes its slave address")
+            .hint("write the address command with `yosemitech write`")
+    })
 }
 
 /// Runs `set-address`.
@@ -36,41 +65,41 @@ pub fn run(catalog: &Catalog, global: &Global, args: &SetAddressArgs, out: &mut 
     if from == to {
         return Err(CliError::usage(format!("--from and --to are both {from}")).hint("give the new address with --to"));
     }
-    let kind = match &args.sensor {
-        Some(name) => {
-            let entry = catalog.entry(name)?;
-            same_as_common(entry)?;
-            Some(entry.sensor.name.clone())
-        }
-        None => None,
+    let (sensor, write, probe) = pick_commands(catalog, args.sensor.as_deref())?;
+    // The three frames the change can send, built before anything is sent.
+    let address_field = write.named_fields().next().and_then(|f| f.name.clone()).unwrap_or_default();
+    let values = BTreeMap::from([(address_field, Value::Int(i64::from(to)))]);
+    let build = |c: &CommandSpec, slave: u8, values: &BTreeMap<String, Value>| {
+        c.encode_request(slave, values)
+            .map_err(|e| CliError::usage(format!("cannot build the {} request: {e}", c.name)))
     };
+    let write_frame = build(write, from, &values)?;
+    let probe_from = build(probe, from, &BTreeMap::new())?;
+    let probe_to = build(probe, to, &BTreeMap::new())?;
+    let serial = if args.sensor.is_some() { sensor.serial } else { LineSettings::default() };
     ensure_can_ask(args.yes, "change the address")?;
-    let serial = kind.as_deref().and_then(|k| catalog.sensor(k).ok()).map_or(LineSettings::default(), |s| s.serial);
     let mut opened = port::open(&args.port, global, &serial)?;
     writeln!(out, "changing the slave address of the probe at {from} to {to} on {}", opened.port)?;
     out.flush()?;
     confirm(args.yes, &format!("Change address {from} to {to}?"))?;
-    // Every Yosemitech probe shares set_slave_id and get_sn (yosemitech-common.yaml).
-    let result = match kind.as_deref() {
-        Some("conductivity") => change_address(
-            &mut opened.bus,
-            from,
-            to,
-            &conductivity::SetSlaveId { slave_address: to },
-            &conductivity::GetSn,
-        )
-        .map(|r| r.serial_number.to_string()),
-        _ => change_address(&mut opened.bus, from, to, &ph_orp::SetSlaveId { slave_address: to }, &ph_orp::GetSn)
-            .map(|r| r.serial_number.to_string()),
-    };
+    let result = change_address_with(
+        &mut opened.bus,
+        from,
+        to,
+        |bus| bus.call_raw(&write_frame, &write.layout()).map(|_| ()),
+        |bus, slave| {
+            let frame = if slave == to { &probe_to } else { &probe_from };
+            bus.call_raw(frame, &probe.layout()).map(<[u8]>::to_vec)
+        },
+    );
     match result {
-        Ok(sn) => {
-            writeln!(out, "done: the probe (SN {sn}) now answers at address {to}")?;
+        Ok(reply) => {
+            let sn =
+                probe.decode_response(to, &reply).ok().and_then(|v| v.into_iter().next()).map(|(_, v)| v.to_string());
+            writeln!(out, "done: the probe (SN {}) now answers at address {to}", sn.as_deref().unwrap_or("?"))?;
             Ok(())
         }
-        Err(e) => {
-            Err(explain(&e, opened.bus.last_reply(), &opened.port, from, to, &opened.context(from, "set_slave_id")))
-        }
+        Err(e) => Err(explain(&e, opened.bus.last_reply(), &opened.port, from, to, &opened.context(from, &write.name))),
     }
 }
 

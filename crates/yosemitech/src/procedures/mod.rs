@@ -15,11 +15,13 @@
 use std::fmt;
 use std::time::Duration;
 
-pub mod address;
 pub mod coefficients;
 pub mod conductivity;
-mod device;
 pub mod ph;
+
+/// Changing a probe's slave address, verified at the new one (it lives in
+/// the runtime so that every generated `Device` can call it).
+pub use yosemitech_rtu::address;
 
 /// Waits between the steps of a procedure.
 pub trait Sleep {

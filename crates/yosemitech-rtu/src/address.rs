@@ -86,9 +86,10 @@ fn valid(a: u8) -> Result<(), AddressChangeError> {
 
 /// Changes the probe at `from` to `to`.
 ///
-/// `write` is the sensor's set-slave-id request carrying `to` (e.g.
-/// `ph_orp::SetSlaveId { slave_address: to }`); `probe` is any read the
-/// probe answers (e.g. `GetSn`), used to check addresses before and after.
+/// `write` is the sensor's request of role `set_slave_address` carrying
+/// `to`; `probe` is any read the probe answers (its `serial_number` read),
+/// used to check addresses before and after. Generated `Device` handles
+/// call this from their `set_slave_address`.
 /// Returns the probe's reply to `probe` at its new address.
 pub fn change_address<T: Transport, W: Command, P: Command>(
     client: &mut Client<T>,
@@ -97,6 +98,25 @@ pub fn change_address<T: Transport, W: Command, P: Command>(
     write: &W,
     probe: &P,
 ) -> Result<P::Response, AddressChangeError> {
+    change_address_with(
+        client,
+        from,
+        to,
+        |client| client.call(from, write).map(|_| ()),
+        |client, slave| client.call(slave, probe),
+    )
+}
+
+/// [`change_address`] for requests built at run time (from a spec): `write`
+/// sends the address write to `from`, `probe(client, slave)` sends the probe
+/// read to `slave`. The same checks, in the same order, decide the outcome.
+pub fn change_address_with<T: Transport, R>(
+    client: &mut Client<T>,
+    from: u8,
+    to: u8,
+    mut write: impl FnMut(&mut Client<T>) -> Result<(), Error>,
+    mut probe: impl FnMut(&mut Client<T>, u8) -> Result<R, Error>,
+) -> Result<R, AddressChangeError> {
     valid(from)?;
     valid(to)?;
     if from == to {
@@ -104,30 +124,37 @@ pub fn change_address<T: Transport, W: Command, P: Command>(
     }
     // Any reply at the new address, even an exception or a bad frame, is a
     // device there: moving the probe onto it would put two at one address.
-    if let Ok(_) | Err(Error::Frame { .. }) = client.call(to, probe) {
+    if let Ok(_) | Err(Error::Frame { .. }) = probe(client, to) {
         return Err(AddressChangeError::AddressInUse(to));
     }
-    if let Err(error) = client.call(from, probe) {
+    if let Err(error) = probe(client, from) {
         return Err(AddressChangeError::NotFound { address: from, error });
     }
-    let locate = |client: &mut Client<T>| {
-        if client.call(to, probe).is_ok() {
-            Whereabouts::New(to)
-        } else if client.call(from, probe).is_ok() {
-            Whereabouts::Old(from)
-        } else {
-            Whereabouts::Unknown { old: from, new: to }
-        }
-    };
-    if let Err(error) = client.call(from, write) {
-        let whereabouts = locate(client);
+    if let Err(error) = write(client) {
+        let whereabouts = locate(client, &mut probe, from, to);
         return Err(AddressChangeError::Failed { error, whereabouts });
     }
-    match client.call(to, probe) {
+    match probe(client, to) {
         Ok(reply) => Ok(reply),
         Err(error) => {
-            let whereabouts = locate(client);
+            let whereabouts = locate(client, &mut probe, from, to);
             Err(AddressChangeError::Failed { error, whereabouts })
         }
+    }
+}
+
+/// Where the probe answers after a failed change: the new address first.
+fn locate<T: Transport, R>(
+    client: &mut Client<T>,
+    probe: &mut impl FnMut(&mut Client<T>, u8) -> Result<R, Error>,
+    from: u8,
+    to: u8,
+) -> Whereabouts {
+    if probe(client, to).is_ok() {
+        Whereabouts::New(to)
+    } else if probe(client, from).is_ok() {
+        Whereabouts::Old(from)
+    } else {
+        Whereabouts::Unknown { old: from, new: to }
     }
 }
