@@ -74,6 +74,29 @@ pub fn fixed_get_ph_responder() -> impl FnMut(&[u8], &mut Vec<u8>) {
     }
 }
 
+/// The typed command of the one-float-read measurements (callgrind
+/// harness): the pH manual's get_ph, chosen here, once, because
+/// [`GET_PH_REQUEST`] and [`GET_PH_REPLY`] are its manual's frames.
+pub type FloatRead = yosemitech::ph_orp::GetPh;
+
+/// The request of [`FloatRead`] to slave 1 ([`GET_PH_REQUEST`]).
+pub const FLOAT_READ_REQUEST: [u8; 8] = GET_PH_REQUEST;
+
+/// The value the reply of [`fixed_float_read_responder`] carries.
+pub const FLOAT_READ_VALUE: f32 = GET_PH_VALUE;
+
+/// The float a decoded [`FloatRead`] reply carries.
+#[inline]
+pub fn float_read_value(response: &<FloatRead as yosemitech::Command>::Response) -> f32 {
+    response.ph
+}
+
+/// [`fixed_get_ph_responder`]: answers [`FLOAT_READ_REQUEST`] with the
+/// manual's reply carrying [`FLOAT_READ_VALUE`].
+pub fn fixed_float_read_responder() -> impl FnMut(&[u8], &mut Vec<u8>) {
+    fixed_get_ph_responder()
+}
+
 /// The CRC-16/MODBUS implementations of the `crc` crate.
 pub mod crc_ref {
     /// The `crc` crate's default implementation: one 256-entry table, a byte at a time.
@@ -117,6 +140,16 @@ pub mod rmodbus_ref {
     /// allocates only if `frame` has no capacity).
     pub fn encode_get_ph(request: &mut ModbusRequest, frame: &mut Vec<u8>) -> Result<(), ErrorKind> {
         request.generate_get_holdings(0x2800, 2, frame)
+    }
+
+    /// [`encode_get_ph`]: the [`FloatRead`](super::FloatRead) request.
+    pub fn encode_float_read(request: &mut ModbusRequest, frame: &mut Vec<u8>) -> Result<(), ErrorKind> {
+        encode_get_ph(request, frame)
+    }
+
+    /// [`decode_get_ph`]: the [`FloatRead`](super::FloatRead) reply's float.
+    pub fn decode_float_read(request: &ModbusRequest, frame: &[u8]) -> Result<f32, ErrorKind> {
+        decode_get_ph(request, frame)
     }
 
     /// The register data of a checked reply, exactly `2 * count` bytes.

@@ -1,4 +1,5 @@
-//! One get_ph round trip, repeated, for counting instructions with callgrind
+//! One read of a one-float command (`FloatRead`, chosen in
+//! `yosemitech_bench`) round trip, repeated, for counting instructions with callgrind
 //! (no timer involved, so the count does not depend on the machine's load):
 //!
 //! ```sh
@@ -17,9 +18,8 @@
 use std::hint::black_box;
 use std::time::Duration;
 
-use yosemitech::ph_orp::GetPh;
 use yosemitech::{Client, ClientConfig, Command, ResponderTransport, RetryPolicy, Transport};
-use yosemitech_bench::{GET_PH_VALUE, fixed_get_ph_responder, rmodbus_ref};
+use yosemitech_bench::{FLOAT_READ_VALUE, FloatRead, fixed_float_read_responder, float_read_value, rmodbus_ref};
 
 /// Repetitions when none is given.
 const DEFAULT_REPETITIONS: u32 = 1000;
@@ -31,7 +31,7 @@ fn main() -> Result<(), String> {
         Some(n) => n.parse::<u32>().map_err(|e| format!("repetitions: {e}"))?,
         None => DEFAULT_REPETITIONS,
     };
-    let mut device = fixed_get_ph_responder();
+    let mut device = fixed_float_read_responder();
     let mut reply = Vec::with_capacity(256);
     match mode.as_str() {
         "client" => {
@@ -67,12 +67,12 @@ fn main() -> Result<(), String> {
 }
 
 fn check(value: Option<f32>) -> Result<(), String> {
-    if value == Some(GET_PH_VALUE) { Ok(()) } else { Err(format!("get_ph gave {value:?}")) }
+    if value == Some(FLOAT_READ_VALUE) { Ok(()) } else { Err(format!("the float read gave {value:?}")) }
 }
 
 #[inline(never)]
 fn measured_client<T: Transport>(client: &mut Client<T>) -> Option<f32> {
-    client.call(black_box(1), black_box(&GetPh)).ok().map(|r| r.ph)
+    client.call(black_box(1), black_box(&FloatRead::default())).ok().map(|r| float_read_value(&r))
 }
 
 #[inline(never)]
@@ -81,10 +81,10 @@ fn measured_codec(
     device: &mut impl FnMut(&[u8], &mut Vec<u8>),
     reply: &mut Vec<u8>,
 ) -> Option<f32> {
-    let len = black_box(&GetPh).encode_request(black_box(1), request).ok()?;
+    let len = black_box(&FloatRead::default()).encode_request(black_box(1), request).ok()?;
     reply.clear();
     device(request.get(..len)?, reply);
-    GetPh::decode_response(1, reply).ok().map(|r| r.ph)
+    FloatRead::decode_response(1, reply).ok().map(|r| float_read_value(&r))
 }
 
 #[inline(never)]
@@ -94,8 +94,8 @@ fn measured_rmodbus(
     device: &mut impl FnMut(&[u8], &mut Vec<u8>),
     reply: &mut Vec<u8>,
 ) -> Option<f32> {
-    rmodbus_ref::encode_get_ph(generator, request).ok()?;
+    rmodbus_ref::encode_float_read(generator, request).ok()?;
     reply.clear();
     device(request, reply);
-    rmodbus_ref::decode_get_ph(generator, reply).ok()
+    rmodbus_ref::decode_float_read(generator, reply).ok()
 }
