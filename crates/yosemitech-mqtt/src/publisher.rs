@@ -287,7 +287,7 @@ impl<O: Outbox> Worker<O> {
         poll.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
         let shared = Arc::clone(&self.shared);
         let mut stop = self.stop.clone();
-        let end = loop {
+        let end = 'session: loop {
             let current_stop = *stop.borrow_and_update();
             match current_stop {
                 Stop::Abort => break SessionEnd::Stopped(self.report(in_flight.len())),
@@ -305,45 +305,27 @@ impl<O: Outbox> Worker<O> {
             };
             let may_send = connected && current_stop == Stop::Run;
             tokio::select! {
-                event = events.recv() => match event {
-                    Some(Ok(Event::Incoming(Packet::ConnAck(_)))) => {
-                        connected = true;
-                        tracing::info!(
-                            host = %self.settings.host,
-                            port = self.settings.port,
-                            "connected to the MQTT broker"
-                        );
-                        shared.update(|status| {
-                            status.connected = true;
-                            status.connections += 1;
-                            status.last_error = None;
-                        });
-                        if current_stop == Stop::Run {
-                            self.fill(&client, &mut in_flight);
+                event = events.recv() => {
+                    // Everything that has arrived is handled before the outbox
+                    // is touched: one mark (one store commit) per burst of
+                    // PUBACKs rather than one per reading.
+                    let mut next = event;
+                    loop {
+                        match next {
+                            Some(Ok(event)) => self.on_event(event, &mut connected, &mut in_flight),
+                            Some(Err(error)) => break 'session self.lost(connected, &error),
+                            None => break 'session SessionEnd::Lost { was_connected: connected },
+                        }
+                        match events.try_recv() {
+                            Ok(event) => next = Some(event),
+                            Err(_) => break,
                         }
                     }
-                    Some(Ok(Event::Outgoing(Outgoing::Publish(packet_id)))) => {
-                        if let Some(entry) = in_flight.iter_mut().find(|entry| entry.packet_id.is_none()) {
-                            entry.packet_id = Some(packet_id);
-                        }
+                    self.mark_acknowledged(&mut in_flight);
+                    if connected && current_stop == Stop::Run {
+                        self.fill(&client, &mut in_flight);
                     }
-                    Some(Ok(Event::Incoming(Packet::PubAck(ack)))) => {
-                        match in_flight
-                            .iter_mut()
-                            .find(|entry| !entry.acknowledged && entry.packet_id == Some(ack.pkid))
-                        {
-                            Some(entry) => entry.acknowledged = true,
-                            None => tracing::warn!(packet_id = ack.pkid, "PUBACK for no reading in flight"),
-                        }
-                        self.mark_acknowledged(&mut in_flight);
-                        if may_send {
-                            self.fill(&client, &mut in_flight);
-                        }
-                    }
-                    Some(Ok(_)) => {}
-                    Some(Err(error)) => break self.lost(connected, &error),
-                    None => break SessionEnd::Lost { was_connected: connected },
-                },
+                }
                 () = shared.wake.notified(), if may_send => self.fill(&client, &mut in_flight),
                 _ = poll.tick() => {
                     // Retries a mark that failed, and finds readings nobody woke us for.
@@ -363,6 +345,38 @@ impl<O: Outbox> Worker<O> {
             status.in_flight = 0;
         });
         end
+    }
+
+    /// Follows the connection and the packet ids of the readings in flight.
+    fn on_event(&self, event: Event, connected: &mut bool, in_flight: &mut VecDeque<InFlight>) {
+        match event {
+            Event::Incoming(Packet::ConnAck(_)) => {
+                *connected = true;
+                tracing::info!(
+                    host = %self.settings.host,
+                    port = self.settings.port,
+                    "connected to the MQTT broker"
+                );
+                self.shared.update(|status| {
+                    status.connected = true;
+                    status.connections += 1;
+                    status.last_error = None;
+                });
+            }
+            // The client sends PUBLISHes in the order they were queued.
+            Event::Outgoing(Outgoing::Publish(packet_id)) => {
+                if let Some(entry) = in_flight.iter_mut().find(|entry| entry.packet_id.is_none()) {
+                    entry.packet_id = Some(packet_id);
+                }
+            }
+            Event::Incoming(Packet::PubAck(ack)) => {
+                match in_flight.iter_mut().find(|entry| !entry.acknowledged && entry.packet_id == Some(ack.pkid)) {
+                    Some(entry) => entry.acknowledged = true,
+                    None => tracing::warn!(packet_id = ack.pkid, "PUBACK for no reading in flight"),
+                }
+            }
+            _ => {}
+        }
     }
 
     fn lost(&self, connected: bool, error: &ConnectionError) -> SessionEnd {
