@@ -397,7 +397,8 @@ impl<O: Outbox> Worker<O> {
         let max_in_flight = usize::from(self.settings.tuning.max_in_flight);
         while in_flight.len() < max_in_flight {
             let after = in_flight.back().map(|entry: &InFlight| entry.reading_id).or(self.acked_up_to);
-            let batch = match self.outbox.unpublished(after, max_in_flight - in_flight.len()) {
+            let limit = max_in_flight - in_flight.len();
+            let batch = match self.outbox.unpublished(after, limit) {
                 Ok(batch) => batch,
                 Err(error) => {
                     self.outbox_error("read", &error);
@@ -407,7 +408,7 @@ impl<O: Outbox> Worker<O> {
             if batch.is_empty() {
                 return;
             }
-            for message in batch {
+            for message in batch.into_iter().take(limit) {
                 if after.is_some_and(|after| message.reading_id <= after)
                     || in_flight.back().is_some_and(|last| message.reading_id <= last.reading_id)
                 {
