@@ -290,7 +290,10 @@ impl<O: Outbox> Worker<O> {
         let end = 'session: loop {
             let current_stop = *stop.borrow_and_update();
             match current_stop {
-                Stop::Abort => break SessionEnd::Stopped(self.report(in_flight.len())),
+                Stop::Abort => {
+                    self.mark_acknowledged(&mut in_flight);
+                    break SessionEnd::Stopped(self.report(in_flight.len()));
+                }
                 Stop::Drain(deadline) if in_flight.is_empty() || Instant::now() >= deadline => {
                     if connected {
                         disconnect(&client, &mut events, deadline).await;
@@ -313,8 +316,15 @@ impl<O: Outbox> Worker<O> {
                     loop {
                         match next {
                             Some(Ok(event)) => self.on_event(event, &mut connected, &mut in_flight),
-                            Some(Err(error)) => break 'session self.lost(connected, &error),
-                            None => break 'session SessionEnd::Lost { was_connected: connected },
+                            // PUBACKs that came before the loss still count.
+                            Some(Err(error)) => {
+                                self.mark_acknowledged(&mut in_flight);
+                                break 'session self.lost(connected, &error);
+                            }
+                            None => {
+                                self.mark_acknowledged(&mut in_flight);
+                                break 'session SessionEnd::Lost { was_connected: connected };
+                            }
                         }
                         match events.try_recv() {
                             Ok(event) => next = Some(event),
