@@ -23,8 +23,8 @@
 //!     reading_id: 0, // MemoryOutbox assigns ids
 //!     timestamp_ms: 1_795_900_500_000,
 //!     station: "river-01".into(),
-//!     probe: "ph left".into(),
-//!     sensor: "ph_orp".into(),
+//!     probe: "left bank".into(),
+//!     sensor: "<spec sensor name>".into(),
 //!     address: 1,
 //!     serial_number: None,
 //!     firmware: None,

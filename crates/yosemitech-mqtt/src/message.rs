@@ -6,13 +6,13 @@
 //!   "reading_id": 1042,
 //!   "timestamp_ms": 1795900500000,
 //!   "station": "river-01",
-//!   "probe": "ph left",
-//!   "sensor": "ph_orp",
+//!   "probe": "left bank",
+//!   "sensor": "<spec sensor name>",
 //!   "address": 1,
 //!   "serial_number": "0A1B2C3D4E5F6071",
 //!   "firmware": "1.2",
 //!   "values": [
-//!     { "name": "ph", "value": 7.02, "unit": "pH" },
+//!     { "name": "<measurement>", "value": 7.02, "unit": "<unit>" },
 //!     { "name": "temperature", "value": 18.4, "unit": "°C" }
 //!   ],
 //!   "retries": 0,

@@ -287,10 +287,13 @@ impl<O: Outbox> Worker<O> {
         poll.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
         let shared = Arc::clone(&self.shared);
         let mut stop = self.stop.clone();
-        let end = loop {
+        let end = 'session: loop {
             let current_stop = *stop.borrow_and_update();
             match current_stop {
-                Stop::Abort => break SessionEnd::Stopped(self.report(in_flight.len())),
+                Stop::Abort => {
+                    self.mark_acknowledged(&mut in_flight);
+                    break SessionEnd::Stopped(self.report(in_flight.len()));
+                }
                 Stop::Drain(deadline) if in_flight.is_empty() || Instant::now() >= deadline => {
                     if connected {
                         disconnect(&client, &mut events, deadline).await;
@@ -305,45 +308,34 @@ impl<O: Outbox> Worker<O> {
             };
             let may_send = connected && current_stop == Stop::Run;
             tokio::select! {
-                event = events.recv() => match event {
-                    Some(Ok(Event::Incoming(Packet::ConnAck(_)))) => {
-                        connected = true;
-                        tracing::info!(
-                            host = %self.settings.host,
-                            port = self.settings.port,
-                            "connected to the MQTT broker"
-                        );
-                        shared.update(|status| {
-                            status.connected = true;
-                            status.connections += 1;
-                            status.last_error = None;
-                        });
-                        if current_stop == Stop::Run {
-                            self.fill(&client, &mut in_flight);
+                event = events.recv() => {
+                    // Everything that has arrived is handled before the outbox
+                    // is touched: one mark (one store commit) per burst of
+                    // PUBACKs rather than one per reading.
+                    let mut next = event;
+                    loop {
+                        match next {
+                            Some(Ok(event)) => self.on_event(event, &mut connected, &mut in_flight),
+                            // PUBACKs that came before the loss still count.
+                            Some(Err(error)) => {
+                                self.mark_acknowledged(&mut in_flight);
+                                break 'session self.lost(connected, &error);
+                            }
+                            None => {
+                                self.mark_acknowledged(&mut in_flight);
+                                break 'session SessionEnd::Lost { was_connected: connected };
+                            }
+                        }
+                        match events.try_recv() {
+                            Ok(event) => next = Some(event),
+                            Err(_) => break,
                         }
                     }
-                    Some(Ok(Event::Outgoing(Outgoing::Publish(packet_id)))) => {
-                        if let Some(entry) = in_flight.iter_mut().find(|entry| entry.packet_id.is_none()) {
-                            entry.packet_id = Some(packet_id);
-                        }
+                    self.mark_acknowledged(&mut in_flight);
+                    if connected && current_stop == Stop::Run {
+                        self.fill(&client, &mut in_flight);
                     }
-                    Some(Ok(Event::Incoming(Packet::PubAck(ack)))) => {
-                        match in_flight
-                            .iter_mut()
-                            .find(|entry| !entry.acknowledged && entry.packet_id == Some(ack.pkid))
-                        {
-                            Some(entry) => entry.acknowledged = true,
-                            None => tracing::warn!(packet_id = ack.pkid, "PUBACK for no reading in flight"),
-                        }
-                        self.mark_acknowledged(&mut in_flight);
-                        if may_send {
-                            self.fill(&client, &mut in_flight);
-                        }
-                    }
-                    Some(Ok(_)) => {}
-                    Some(Err(error)) => break self.lost(connected, &error),
-                    None => break SessionEnd::Lost { was_connected: connected },
-                },
+                }
                 () = shared.wake.notified(), if may_send => self.fill(&client, &mut in_flight),
                 _ = poll.tick() => {
                     // Retries a mark that failed, and finds readings nobody woke us for.
@@ -365,6 +357,38 @@ impl<O: Outbox> Worker<O> {
         end
     }
 
+    /// Follows the connection and the packet ids of the readings in flight.
+    fn on_event(&self, event: Event, connected: &mut bool, in_flight: &mut VecDeque<InFlight>) {
+        match event {
+            Event::Incoming(Packet::ConnAck(_)) => {
+                *connected = true;
+                tracing::info!(
+                    host = %self.settings.host,
+                    port = self.settings.port,
+                    "connected to the MQTT broker"
+                );
+                self.shared.update(|status| {
+                    status.connected = true;
+                    status.connections += 1;
+                    status.last_error = None;
+                });
+            }
+            // The client sends PUBLISHes in the order they were queued.
+            Event::Outgoing(Outgoing::Publish(packet_id)) => {
+                if let Some(entry) = in_flight.iter_mut().find(|entry| entry.packet_id.is_none()) {
+                    entry.packet_id = Some(packet_id);
+                }
+            }
+            Event::Incoming(Packet::PubAck(ack)) => {
+                match in_flight.iter_mut().find(|entry| !entry.acknowledged && entry.packet_id == Some(ack.pkid)) {
+                    Some(entry) => entry.acknowledged = true,
+                    None => tracing::warn!(packet_id = ack.pkid, "PUBACK for no reading in flight"),
+                }
+            }
+            _ => {}
+        }
+    }
+
     fn lost(&self, connected: bool, error: &ConnectionError) -> SessionEnd {
         // ConnectionError's text names the host, the refusal code or the I/O
         // error: never the credentials.
@@ -383,7 +407,8 @@ impl<O: Outbox> Worker<O> {
         let max_in_flight = usize::from(self.settings.tuning.max_in_flight);
         while in_flight.len() < max_in_flight {
             let after = in_flight.back().map(|entry: &InFlight| entry.reading_id).or(self.acked_up_to);
-            let batch = match self.outbox.unpublished(after, max_in_flight - in_flight.len()) {
+            let limit = max_in_flight - in_flight.len();
+            let batch = match self.outbox.unpublished(after, limit) {
                 Ok(batch) => batch,
                 Err(error) => {
                     self.outbox_error("read", &error);
@@ -393,7 +418,7 @@ impl<O: Outbox> Worker<O> {
             if batch.is_empty() {
                 return;
             }
-            for message in batch {
+            for message in batch.into_iter().take(limit) {
                 if after.is_some_and(|after| message.reading_id <= after)
                     || in_flight.back().is_some_and(|last| message.reading_id <= last.reading_id)
                 {

@@ -3,7 +3,7 @@
 //! Every reading is published to
 //!
 //! ```text
-//! <prefix>/<station>/<probe>/reading        e.g. yosemitech/v1/river-01/ph%20left/reading
+//! <prefix>/<station>/<probe>/reading        e.g. yosemitech/v1/river-01/left%20bank/reading
 //! ```
 //!
 //! * `<prefix>` is `mqtt.topic_prefix`, by default `yosemitech/v1`; the `v1`
@@ -95,12 +95,12 @@ mod tests {
 
     #[test]
     fn levels_round_trip_and_never_contain_reserved_characters() {
-        for name in ["river-01", "pH left", "a/b", "+", "#", "$SYS", "", "%41", "Ünïcode ✓", "a.b~c_d"] {
+        for name in ["river-01", "left bank", "a/b", "+", "#", "$SYS", "", "%41", "Ünïcode ✓", "a.b~c_d"] {
             let level = escape_level(name);
             assert!(!level.contains(['/', '+', '#', '$', '\0', ' ']), "{name:?} -> {level:?}");
             assert_eq!(unescape_level(&level).as_deref(), Some(name), "{level:?}");
         }
-        assert_eq!(escape_level("pH left/2"), "pH%20left%2F2");
+        assert_eq!(escape_level("left bank/2"), "left%20bank%2F2");
         assert_ne!(escape_level("%41"), escape_level("A"));
     }
 
@@ -114,8 +114,8 @@ mod tests {
     #[test]
     fn reading_topic_has_the_documented_levels() {
         assert_eq!(
-            reading_topic(DEFAULT_TOPIC_PREFIX, "river 01", "ph/orp"),
-            "yosemitech/v1/river%2001/ph%2Forp/reading"
+            reading_topic(DEFAULT_TOPIC_PREFIX, "river 01", "in/out"),
+            "yosemitech/v1/river%2001/in%2Fout/reading"
         );
     }
 

@@ -124,21 +124,40 @@ enum Process {
     Stopped(Option<TcpListener>),
 }
 
-/// Kills a broker from another thread (a subscriber hook).
+/// Stops a broker from another thread (a subscriber hook).
 #[derive(Clone)]
 pub struct BrokerKiller {
+    kind: BrokerKind,
     port: u16,
     process: Arc<Mutex<Process>>,
 }
 
 impl BrokerKiller {
-    /// Kills the broker process (SIGKILL), waits for it to be gone, and
-    /// holds its port until [`Broker::restart`].
+    /// Stops the broker process as [`Broker::stop`] does, waits for it to
+    /// be gone, and holds its port until [`Broker::restart`].
     pub fn kill(&self) {
         let mut process = self.process.lock().unwrap();
         if let Process::Running(child) = &mut *process {
-            let _ = child.kill();
-            let _ = child.wait();
+            match self.kind {
+                // mosquitto saves its persistence file on SIGTERM: queued
+                // messages and persistent sessions survive the restart.
+                BrokerKind::Mosquitto => {
+                    let pid = nix::unistd::Pid::from_raw(i32::try_from(child.id()).unwrap());
+                    let _ = nix::sys::signal::kill(pid, nix::sys::signal::Signal::SIGTERM);
+                    let started = Instant::now();
+                    while child.try_wait().unwrap().is_none() {
+                        if started.elapsed() > DEADLINE {
+                            let _ = child.kill();
+                        }
+                        std::thread::sleep(Duration::from_millis(10));
+                    }
+                }
+                // rumqttd keeps nothing across a restart; SIGKILL it is.
+                BrokerKind::Rumqttd => {
+                    let _ = child.kill();
+                    let _ = child.wait();
+                }
+            }
             let started = Instant::now();
             let reservation = loop {
                 match TcpListener::bind((Ipv4Addr::LOCALHOST, self.port)) {
@@ -210,8 +229,10 @@ impl Broker {
 
     fn write_mosquitto_config(&self, tls: Option<(&str, &str)>) {
         let mut config = format!(
-            "per_listener_settings false\npersistence false\nlog_dest stderr\nlog_type error\nlog_type warning\n\
+            "per_listener_settings false\npersistence true\npersistence_location {}/\nautosave_interval 0\n\
+             max_inflight_messages 20\nlog_dest stderr\nlog_type error\nlog_type warning\n\
              max_queued_messages 10000\nuser root\nlistener {} 127.0.0.1\n",
+            self.dir.display(),
             self.port
         );
         if let (Some((chain, key)), Some(port)) = (tls, self.tls_port) {
@@ -287,14 +308,15 @@ impl Broker {
         *process = Process::Running(child);
     }
 
-    /// Kills the broker process (SIGKILL) and waits for it to be gone.
+    /// Stops the broker process and waits for it to be gone: mosquitto with
+    /// SIGTERM (it saves its persistence file), rumqttd with SIGKILL.
     pub fn stop(&mut self) {
         self.killer().kill();
     }
 
     /// A handle that kills the broker from another thread.
     pub fn killer(&self) -> BrokerKiller {
-        BrokerKiller { port: self.port, process: Arc::clone(&self.process) }
+        BrokerKiller { kind: self.kind, port: self.port, process: Arc::clone(&self.process) }
     }
 
     /// A publisher configuration for this broker, with short backoffs.
@@ -333,6 +355,10 @@ impl Drop for Broker {
 pub struct Received {
     pub topic: String,
     pub payload: Vec<u8>,
+    /// The broker's DUP flag: a redelivery of the broker's own (after a
+    /// restart with the subscriber's persistent session), not a publisher's
+    /// resend.
+    pub redelivered: bool,
 }
 
 impl Received {
@@ -341,8 +367,10 @@ impl Received {
     }
 }
 
-/// A QoS 1 subscriber on its own thread that reconnects and resubscribes
-/// after a broker restart and records every PUBLISH it receives.
+/// A QoS 1 subscriber with a persistent session on its own thread that
+/// reconnects and resubscribes after a broker restart and records every
+/// PUBLISH it receives. (A broker that persists sessions, mosquitto here,
+/// keeps what arrives for it while it reconnects.)
 pub struct Subscriber {
     received: Arc<Mutex<Vec<Received>>>,
     subscriptions: Arc<AtomicU64>,
@@ -369,7 +397,10 @@ impl Subscriber {
         static COUNTER: AtomicU64 = AtomicU64::new(0);
         let id = format!("test-subscriber-{}-{}", std::process::id(), COUNTER.fetch_add(1, Ordering::Relaxed));
         let mut options = MqttOptions::new(id, "127.0.0.1", broker.port);
-        options.set_keep_alive(Duration::from_secs(5)).set_max_packet_size(256 * 1024, 256 * 1024);
+        options
+            .set_keep_alive(Duration::from_secs(5))
+            .set_clean_session(false)
+            .set_max_packet_size(256 * 1024, 256 * 1024);
         if let Some((user, password)) = &broker.auth {
             options.set_credentials(user, password);
         }
@@ -398,8 +429,11 @@ impl Subscriber {
                         Ok(Event::Incoming(Packet::Publish(publish))) => {
                             let count = {
                                 let mut received = received.lock().unwrap();
-                                received
-                                    .push(Received { topic: publish.topic.clone(), payload: publish.payload.to_vec() });
+                                received.push(Received {
+                                    topic: publish.topic.clone(),
+                                    payload: publish.payload.to_vec(),
+                                    redelivered: publish.dup,
+                                });
                                 received.len()
                             };
                             if count == at
@@ -467,7 +501,7 @@ pub fn wait_until(mut condition: impl FnMut() -> bool) -> bool {
 /// Reading number `index` of a station with a few probes, some of whose
 /// labels need escaping in a topic.
 pub fn reading(index: usize) -> ReadingMessage {
-    const PROBES: [&str; 3] = ["left bank", "pH/ORP #2", "outlet"];
+    const PROBES: [&str; 3] = ["left bank", "inlet/deep #2", "outlet"];
     let probe = PROBES[index % PROBES.len()];
     ReadingMessage {
         schema: SCHEMA_VERSION,
