@@ -179,23 +179,7 @@ pub fn number_after(text: &str, label: &str) -> f64 {
         .unwrap_or_else(|| panic!("no number after `{label}` in `{line}`"))
 }
 
-/// The spec's coefficient blocks of `sensor`, as the CLI picks them: each
-/// all-f32 write (not a trigger, not the slave address) with a read of the
-/// same address and register count.
-pub fn coefficient_blocks(sensor: &Sensor) -> Vec<(&yosemitech_spec::CommandSpec, &yosemitech_spec::CommandSpec)> {
-    sensor
-        .commands
-        .iter()
-        .filter(|w| !w.is_read() && !w.trigger && w.count > 0)
-        .filter(|w| w.named_fields().all(|f| matches!(f.kind, yosemitech_spec::FieldKind::F32 { .. })))
-        .filter(|w| w.field("slave_address").is_none())
-        .filter_map(|w| {
-            sensor.commands.iter().find(|r| r.is_read() && r.address == w.address && r.count == w.count).map(|r| (w, r))
-        })
-        .collect()
-}
-
 /// Every sensor of the spec with at least one coefficient block.
 pub fn sensors_with_coefficients() -> Vec<Sensor> {
-    spec().sensors.iter().filter(|s| !coefficient_blocks(s).is_empty()).cloned().collect()
+    spec().sensors.iter().filter(|s| !s.coefficient_blocks().is_empty()).cloned().collect()
 }

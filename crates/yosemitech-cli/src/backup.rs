@@ -36,7 +36,7 @@ use yosemitech::procedures::coefficients::PhOrpCoefficients;
 use yosemitech::{Command as _, FieldInfo, ph_orp};
 use yosemitech_spec::{CommandSpec, Value, Values};
 
-use crate::catalog::{Catalog, Entry, coefficient_blocks};
+use crate::catalog::{Catalog, Entry};
 use crate::device;
 use crate::error::{CliError, Result};
 use crate::format::{f32_json, json_f32};
@@ -170,7 +170,7 @@ fn named_as_write(write: &CommandSpec, values: Values) -> Result<BTreeMap<String
 /// block of the spec (see [`coefficient_blocks`]).
 pub fn read_blocks(opened: &mut Opened, entry: &Entry, slave: u8) -> Result<Blocks> {
     let mut blocks = Blocks::new();
-    for (write, read) in coefficient_blocks(&entry.sensor) {
+    for (write, read) in entry.sensor.coefficient_blocks() {
         let values = device::read(opened, read, slave)?;
         blocks.insert(write.name.clone(), named_as_write(write, values)?);
     }
@@ -181,7 +181,7 @@ pub fn read_blocks(opened: &mut Opened, entry: &Entry, slave: u8) -> Result<Bloc
 /// back, comparing bit for bit. The whole file is checked before anything
 /// is written.
 pub fn write_blocks(opened: &mut Opened, entry: &Entry, slave: u8, blocks: &Blocks) -> Result<()> {
-    let pairs = coefficient_blocks(&entry.sensor);
+    let pairs = entry.sensor.coefficient_blocks();
     let mut planned = Vec::new();
     for (write, read) in &pairs {
         let values = blocks.get(&write.name).ok_or_else(|| {

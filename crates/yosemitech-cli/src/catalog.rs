@@ -223,22 +223,6 @@ pub fn read_back_for<'s>(sensor: &'s Sensor, write: &CommandSpec) -> Option<&'s 
         .min_by_key(|r| r.count)
 }
 
-/// The calibration-coefficient blocks of a sensor: writes (not triggers)
-/// of float fields only, with a read of exactly the same registers, that
-/// do not set the slave address. Keyed by the write's name.
-pub fn coefficient_blocks(sensor: &Sensor) -> Vec<(&CommandSpec, &CommandSpec)> {
-    sensor
-        .commands
-        .iter()
-        .filter(|w| !w.is_read() && !w.trigger && w.count > 0)
-        .filter(|w| w.named_fields().all(|f| matches!(f.kind, yosemitech_spec::FieldKind::F32 { .. })))
-        .filter(|w| w.field("slave_address").is_none())
-        .filter_map(|w| {
-            sensor.commands.iter().find(|r| r.is_read() && r.address == w.address && r.count == w.count).map(|r| (w, r))
-        })
-        .collect()
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -279,7 +263,7 @@ mod tests {
         let catalog = Catalog::load(&[]).unwrap();
         for entry in catalog.entries() {
             let s = &entry.sensor;
-            for (w, r) in coefficient_blocks(s) {
+            for (w, r) in s.coefficient_blocks() {
                 assert!(!w.is_read() && r.is_read() && w.address == r.address && w.count == r.count);
                 assert!(w.named_fields().all(|f| matches!(f.kind, yosemitech_spec::FieldKind::F32 { .. })));
             }

@@ -269,7 +269,7 @@ fn write_backs_up_coefficients_confirms_and_reads_back() {
     let sensor =
         yosemitech_tests::cli::sensors_with_coefficients().into_iter().next().expect("a sensor with coefficients");
     let name = sensor.name.as_str();
-    let blocks = yosemitech_tests::cli::coefficient_blocks(&sensor);
+    let blocks = sensor.coefficient_blocks();
     let (write, read) = blocks[0];
     let fields: Vec<String> = write.named_fields().map(|f| f.display_name().to_owned()).collect();
     let s = sim(name, 1);
@@ -522,7 +522,7 @@ fn coefficients_backup_and_restore_round_trip() {
         let dir = tempfile::tempdir().unwrap();
         let file = dir.path().join(format!("{name} backup.json"));
         let file = file.to_str().unwrap();
-        let blocks = yosemitech_tests::cli::coefficient_blocks(sensor);
+        let blocks = sensor.coefficient_blocks();
         // A value only bit-exact float handling keeps, in every block.
         let fields =
             |read: &CommandSpec| -> Vec<String> { read.named_fields().map(|f| f.display_name().to_owned()).collect() };
@@ -1189,7 +1189,7 @@ fn a_spec_file_replacing_a_built_in_sensor_goes_through_the_interpreter() {
     let file = dir.path().join("backup.json");
     let file = file.to_str().unwrap();
     let sensor = yosemitech_tests::sensor(&name);
-    let blocks = yosemitech_tests::cli::coefficient_blocks(&sensor);
+    let blocks = sensor.coefficient_blocks();
     let (_, first_read) = blocks[0];
     let first_field = first_read.named_fields().next().unwrap().display_name().to_owned();
     let first_value = float(&s, &first_read.name, &first_field);

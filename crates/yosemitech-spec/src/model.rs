@@ -124,6 +124,25 @@ impl Sensor {
         self.commands.iter().filter(|c| self.is_measurement(c))
     }
 
+    /// The calibration-coefficient blocks, in spec order: each write of
+    /// float fields only (not a trigger, not the slave address) paired with
+    /// the read of exactly the same registers. What a coefficient backup
+    /// saves and a restore writes back and reads back.
+    pub fn coefficient_blocks(&self) -> Vec<(&CommandSpec, &CommandSpec)> {
+        self.commands
+            .iter()
+            .filter(|w| !w.is_read() && !w.trigger && w.count > 0)
+            .filter(|w| w.named_fields().all(|f| matches!(f.kind, FieldKind::F32 { .. })))
+            .filter(|w| w.field("slave_address").is_none())
+            .filter_map(|w| {
+                self.commands
+                    .iter()
+                    .find(|r| r.is_read() && r.address == w.address && r.count == w.count)
+                    .map(|r| (w, r))
+            })
+            .collect()
+    }
+
     /// The command with `role`, if the sensor has one.
     pub fn command_with_role(&self, role: Role) -> Option<&CommandSpec> {
         self.commands.iter().find(|c| c.role == Some(role))

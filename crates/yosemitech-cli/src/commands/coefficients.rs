@@ -4,7 +4,7 @@
 use std::io::Write;
 
 use crate::backup::{self, Backup};
-use crate::catalog::{Catalog, coefficient_blocks};
+use crate::catalog::Catalog;
 use crate::cli::{CoefficientsBackupArgs, CoefficientsRestoreArgs, Global};
 use crate::confirm::{confirm, ensure_can_ask};
 use crate::error::{CliError, Result};
@@ -13,7 +13,7 @@ use crate::port;
 /// Runs `coefficients backup`.
 pub fn backup(catalog: &Catalog, global: &Global, args: &CoefficientsBackupArgs, out: &mut dyn Write) -> Result<()> {
     let entry = catalog.entry(&args.sensor)?;
-    if coefficient_blocks(&entry.sensor).is_empty() {
+    if entry.sensor.coefficient_blocks().is_empty() {
         return Err(CliError::usage(format!("sensor `{}` has no calibration coefficients", entry.sensor.name)));
     }
     let slave = args.address.get(entry.sensor.default_address)?;

@@ -6,7 +6,7 @@ use std::io::Write;
 use yosemitech_spec::{CommandSpec, Value};
 
 use crate::backup;
-use crate::catalog::{self, Catalog, coefficient_blocks, read_back_for};
+use crate::catalog::{self, Catalog, read_back_for};
 use crate::cli::{Global, WriteArgs};
 use crate::confirm::{confirm, ensure_can_ask};
 use crate::device;
@@ -32,7 +32,7 @@ pub fn run(catalog: &Catalog, global: &Global, args: &WriteArgs, out: &mut dyn W
     ensure_can_ask(args.yes, &format!("send {}", command.name))?;
 
     let mut opened = port::open(&args.port, global, &sensor.serial)?;
-    let is_coefficient = coefficient_blocks(sensor).iter().any(|(w, _)| w.name == command.name);
+    let is_coefficient = sensor.coefficient_blocks().iter().any(|(w, _)| w.name == command.name);
     if is_coefficient {
         let taken = backup::take_backup(&mut opened, entry, address)?;
         let path = backup::save_in(args.backup_dir.as_deref(), &taken)?;
