@@ -6,6 +6,7 @@ use std::time::Duration;
 
 use tracing::debug_span;
 
+use super::clock::MonotonicClock;
 use super::{Action, ClientConfig, ClientCore, ClientError, Instant};
 use crate::command::Command;
 use crate::error::FrameError;
@@ -33,8 +34,8 @@ pub type Error = ClientError<std::io::Error>;
 pub struct Client<T> {
     transport: T,
     core: ClientCore,
-    /// The origin of the core's [`Instant`]s.
-    epoch: std::time::Instant,
+    /// The core's clock.
+    clock: MonotonicClock,
 }
 
 impl<T: Transport> Client<T> {
@@ -45,7 +46,7 @@ impl<T: Transport> Client<T> {
 
     /// A client with `config`.
     pub fn with_config(transport: T, config: ClientConfig) -> Self {
-        Self { transport, core: ClientCore::new(config), epoch: std::time::Instant::now() }
+        Self { transport, core: ClientCore::new(config), clock: MonotonicClock::start() }
     }
 
     /// The configuration.
@@ -142,8 +143,9 @@ impl<T: Transport> Client<T> {
     }
 
     /// The core's clock: microseconds since the client was made.
+    #[inline]
     fn now(&self) -> Instant {
-        Instant::from_elapsed(self.epoch.elapsed())
+        self.clock.now()
     }
 
     /// Drives the started transaction to its end; `check` decodes each candidate reply.

@@ -7,7 +7,7 @@ use core::time::Duration;
 
 use super::config::ClientConfig;
 use super::error::ClientError;
-use super::time::Instant;
+use super::time::{Instant, micros_ceil};
 use crate::command::Command;
 use crate::crc::{CRC_INIT, crc_ok, crc16_update};
 use crate::error::{EncodeError, FrameError};
@@ -34,6 +34,7 @@ macro_rules! log {
 /// Each action names the event the driver reports when it is done. Between
 /// `start_*` and [`Action::Done`] the driver loops `poll`, act, report.
 #[derive(Debug, PartialEq, Eq)]
+#[repr(u8)]
 pub enum Action<'a> {
     /// Keep the bus silent: sleep until `until` on the driver's clock, then
     /// report [`ClientCore::handle_timeout`] with the time (any time at or
@@ -94,6 +95,7 @@ struct Expected {
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[repr(u8)]
 enum State {
     /// No transaction (none started, or abandoned on a link error).
     Idle,
@@ -115,6 +117,7 @@ enum State {
 
 /// Why a frame was offered for decoding: it decides what a verdict means.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[repr(u8)]
 enum Candidate {
     /// A frame of the length its head announces, at `rx[start..]`.
     Normal,
@@ -210,6 +213,8 @@ pub struct ClientCore {
     deadline: Instant,
     /// The inter-frame delay of this transaction (from the config and the line).
     gap: Duration,
+    /// `gap` in microseconds, rounded up (added to a time at every poll before a request).
+    gap_micros: u64,
     /// The latest time a driver reported, and whether it was reported in this transaction.
     now: Instant,
     now_is_fresh: bool,
@@ -247,6 +252,7 @@ impl ClientCore {
             attempt: 0,
             deadline: Instant::ZERO,
             gap: Duration::ZERO,
+            gap_micros: 0,
             now: Instant::ZERO,
             now_is_fresh: false,
             time_stale: false,
@@ -276,8 +282,14 @@ impl ClientCore {
     pub fn set_line_timing(&mut self, line: Option<LineTiming>) {
         if self.line != line {
             self.line = line;
-            self.gap = self.inter_frame_delay();
+            self.set_gap();
         }
+    }
+
+    #[inline]
+    fn set_gap(&mut self) {
+        self.gap = self.inter_frame_delay();
+        self.gap_micros = micros_ceil(self.gap);
     }
 
     /// The silence kept before each request (see
@@ -404,7 +416,7 @@ impl ClientCore {
             self.quiet_until = self.quiet_until.max(Some(self.deadline));
         }
         self.tx_len = request_len;
-        self.gap = self.inter_frame_delay();
+        self.set_gap();
         self.expected = expected;
         self.attempt = 0;
         self.now_is_fresh = false;
@@ -417,36 +429,46 @@ impl ClientCore {
     /// event returns the same action.
     #[inline]
     pub fn poll(&mut self) -> Action<'_> {
-        loop {
-            match self.state {
-                State::Idle => return Action::Idle,
-                State::Done => return Action::Done(self.outcome),
-                State::Silence { again } => {
-                    if let Some(until) = self.silence_until() {
-                        return Action::Wait { until };
-                    }
-                    self.state = if again { State::Transmit } else { State::Drain { round: 0, any: false } };
-                }
-                State::Drain { round, any } => {
-                    if round < DRAIN_ROUNDS {
-                        return Action::ReadPending;
-                    }
-                    self.state = if any { State::Silence { again: true } } else { State::Transmit };
-                }
-                State::Transmit => return Action::Transmit(self.tx.get(..self.tx_len).unwrap_or(&[])),
-                State::Receive => {
-                    return Action::Receive { timeout: self.receive_timeout(), needs_time: self.read_needs_time() };
-                }
-                State::Check(candidate) => {
-                    let frame = match candidate {
-                        Candidate::Normal | Candidate::Short => self.candidate_range(candidate),
-                        Candidate::LaterException { at } => at..at + EXCEPTION_LEN,
-                    };
-                    return Action::Check(self.rx.get(frame).unwrap_or(&[]));
-                }
-                State::Backoff { until } => return Action::Wait { until },
+        match self.state {
+            State::Idle => Action::Idle,
+            State::Done => Action::Done(self.outcome),
+            State::Silence { again } => self.poll_silence(again),
+            // `handle_*` end the drain after its last round.
+            State::Drain { .. } => Action::ReadPending,
+            State::Transmit => Action::Transmit(self.tx.get(..self.tx_len).unwrap_or(&[])),
+            State::Receive => Action::Receive { timeout: self.receive_timeout(), needs_time: self.read_needs_time() },
+            State::Check(candidate) => {
+                let frame = match candidate {
+                    Candidate::Normal | Candidate::Short => self.candidate_range(candidate),
+                    Candidate::LaterException { at } => at..at + EXCEPTION_LEN,
+                };
+                Action::Check(self.rx.get(frame).unwrap_or(&[]))
             }
+            State::Backoff { until } => Action::Wait { until },
         }
+    }
+
+    /// [`ClientCore::poll`] in a silence before the request. Out of line, so
+    /// the silence's arithmetic is not hoisted into every other poll.
+    #[inline(never)]
+    fn poll_silence(&mut self, again: bool) -> Action<'_> {
+        if let Some(until) = self.silence_until() {
+            return Action::Wait { until };
+        }
+        if again {
+            self.state = State::Transmit;
+            Action::Transmit(self.tx.get(..self.tx_len).unwrap_or(&[]))
+        } else {
+            self.state = State::Drain { round: 0, any: false };
+            Action::ReadPending
+        }
+    }
+
+    /// Ends a drain of stale input: the request goes out at once, or after
+    /// another silence when there was any.
+    #[inline]
+    fn end_drain(&mut self, any: bool) {
+        self.state = if any { State::Silence { again: true } } else { State::Transmit };
     }
 
     /// The end of the silence still to keep before a request, `None` when
@@ -454,8 +476,8 @@ impl ClientCore {
     /// the request's time on the line is counted from it).
     #[inline]
     fn silence_until(&self) -> Option<Instant> {
-        let gap = self.gap;
-        let after_activity = self.bus_busy_until.map(|busy| busy + gap);
+        let gap = self.gap_micros;
+        let after_activity = self.bus_busy_until.map(|busy| busy.add_micros(gap));
         match after_activity.max(self.quiet_until) {
             // The latest time reported may be stale: the driver checks its clock.
             Some(until) if until > self.now => Some(until),
@@ -512,7 +534,7 @@ impl ClientCore {
     #[inline]
     pub fn handle_nothing_pending(&mut self) {
         if let State::Drain { any, .. } = self.state {
-            self.state = State::Drain { round: DRAIN_ROUNDS, any };
+            self.end_drain(any);
         }
     }
 
@@ -569,7 +591,11 @@ impl ClientCore {
             State::Drain { round, .. } => {
                 self.bus_busy_until = Some(now);
                 log!(debug, stale = %crate::Hex(self.rx.get(..n.min(MAX_ADU)).unwrap_or(&[])), "discarding stale input");
-                self.state = State::Drain { round: round + 1, any: true };
+                if round + 1 < DRAIN_ROUNDS {
+                    self.state = State::Drain { round: round + 1, any: true };
+                } else {
+                    self.end_drain(true);
+                }
             }
             State::Receive => {
                 let room = (self.start + self.target()).saturating_sub(self.end);
@@ -636,6 +662,7 @@ impl ClientCore {
                         self.rejected_error = Some(error);
                     }
                     self.start += 1;
+                    self.target = HEAD_LEN;
                 }
             }
             self.state = State::Receive;
@@ -744,6 +771,23 @@ impl ClientCore {
     /// candidate is the reply (and its CRC error is reported).
     #[inline]
     fn frame_input(&mut self) {
+        // The common case: the rest of a frame whose head was aligned and
+        // measured by the previous call (`target` is reset to the head's
+        // length whenever the alignment moves). `frame_input_from_head`
+        // would find the same alignment and length again.
+        if self.target > HEAD_LEN
+            && self.expected.is_some_and(|expected| expected.short_len.is_none())
+            && self.end.saturating_sub(self.start) >= self.target
+        {
+            self.state = State::Check(Candidate::Normal);
+        } else {
+            self.frame_input_from_head();
+        }
+    }
+
+    /// [`ClientCore::frame_input`] from the alignment up.
+    #[inline(never)]
+    fn frame_input_from_head(&mut self) {
         let Some(expected) = self.expected else { return };
         let exception = expected.function | EXCEPTION_BIT;
         while self.end.saturating_sub(self.start) >= 2 {

@@ -36,6 +36,8 @@
 
 #[cfg(feature = "std")]
 mod blocking;
+#[cfg(feature = "std")]
+mod clock;
 mod config;
 #[cfg(feature = "embedded")]
 pub mod embedded;

@@ -36,9 +36,11 @@ impl Instant {
 
     /// `self + duration`, rounded up to the microsecond, saturating at the end of time.
     pub const fn saturating_add(self, duration: Duration) -> Self {
-        // Whole seconds and rounded-up microseconds, without 128-bit arithmetic.
-        let sub_micros = duration.subsec_nanos().div_ceil(1000) as u64;
-        let micros = duration.as_secs().saturating_mul(1_000_000).saturating_add(sub_micros);
+        self.add_micros(micros_ceil(duration))
+    }
+
+    /// `self` plus `micros` microseconds, saturating at the end of time.
+    pub(crate) const fn add_micros(self, micros: u64) -> Self {
         Self { micros: self.micros.saturating_add(micros) }
     }
 
@@ -46,6 +48,13 @@ impl Instant {
     pub const fn saturating_duration_since(self, earlier: Self) -> Duration {
         Duration::from_micros(self.micros.saturating_sub(earlier.micros))
     }
+}
+
+/// `duration` in whole microseconds, rounded up and saturating, without
+/// 128-bit arithmetic: what a silence or a deadline adds to an [`Instant`].
+pub(crate) const fn micros_ceil(duration: Duration) -> u64 {
+    let sub_micros = duration.subsec_nanos().div_ceil(1000) as u64;
+    duration.as_secs().saturating_mul(1_000_000).saturating_add(sub_micros)
 }
 
 impl core::ops::Add<Duration> for Instant {

@@ -115,13 +115,19 @@ impl<R> ResponderTransport<R> {
 
 impl<R: Responder> Transport for ResponderTransport<R> {
     fn write_all(&mut self, frame: &[u8]) -> io::Result<()> {
-        self.scratch.clear();
-        self.responder.respond(frame, &mut self.scratch);
         if self.pos > 0 {
             self.pending.drain(..self.pos.min(self.pending.len()));
             self.pos = 0;
         }
-        self.pending.extend_from_slice(&self.scratch);
+        if self.pending.is_empty() {
+            // The usual case (a client drops unread input before writing):
+            // the reply goes straight into the queue, copied once.
+            self.responder.respond(frame, &mut self.pending);
+        } else {
+            self.scratch.clear();
+            self.responder.respond(frame, &mut self.scratch);
+            self.pending.extend_from_slice(&self.scratch);
+        }
         Ok(())
     }
 
