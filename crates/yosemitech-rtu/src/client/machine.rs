@@ -581,28 +581,17 @@ impl ClientCore {
             return self.handle_timeout(now);
         }
         let before = self.now;
-        if matches!(self.state, State::Receive) && !self.read_needs_time() {
-            self.time_stale = true;
-        } else {
-            self.time_stale = false;
-            self.set_now(now);
-        }
         match self.state {
-            State::Drain { round, .. } => {
-                self.bus_busy_until = Some(now);
-                log!(debug, stale = %crate::Hex(self.rx.get(..n.min(MAX_ADU)).unwrap_or(&[])), "discarding stale input");
-                if round + 1 < DRAIN_ROUNDS {
-                    self.state = State::Drain { round: round + 1, any: true };
-                } else {
-                    self.end_drain(true);
-                }
-            }
             State::Receive => {
-                let room = (self.start + self.target()).saturating_sub(self.end);
-                self.end += n.min(room);
-                if !self.time_stale {
+                if self.read_needs_time() {
+                    self.time_stale = false;
+                    self.set_now(now);
                     self.bus_busy_until = Some(now);
+                } else {
+                    self.time_stale = true;
                 }
+                let room = (self.start + self.target).saturating_sub(self.end);
+                self.end += n.min(room);
                 if before >= self.deadline {
                     self.late_bytes += n;
                     if self.late_bytes > MAX_ADU {
@@ -611,7 +600,21 @@ impl ClientCore {
                 }
                 self.frame_input();
             }
-            _ => {}
+            State::Drain { round, .. } => {
+                self.time_stale = false;
+                self.set_now(now);
+                self.bus_busy_until = Some(now);
+                log!(debug, stale = %crate::Hex(self.rx.get(..n.min(MAX_ADU)).unwrap_or(&[])), "discarding stale input");
+                if round + 1 < DRAIN_ROUNDS {
+                    self.state = State::Drain { round: round + 1, any: true };
+                } else {
+                    self.end_drain(true);
+                }
+            }
+            _ => {
+                self.time_stale = false;
+                self.set_now(now);
+            }
         }
     }
 
@@ -727,9 +730,9 @@ impl ClientCore {
 
     #[inline]
     fn candidate_range(&self, candidate: Candidate) -> Range<usize> {
-        let len = match (candidate, self.expected) {
-            (Candidate::Short, Some(Expected { short_len: Some(short), .. })) => short,
-            _ => self.target(),
+        let len = match candidate {
+            Candidate::Short => self.expected.and_then(|expected| expected.short_len).unwrap_or(self.target),
+            _ => self.target,
         };
         self.start..self.start + len
     }
