@@ -34,6 +34,8 @@ macro_rules! log {
 /// Each action names the event the driver reports when it is done. Between
 /// `start_*` and [`Action::Done`] the driver loops `poll`, act, report.
 #[derive(Debug, PartialEq, Eq)]
+// An explicit tag: a driver matches an action with one byte compare, not
+// by decoding a niche inside the nested `Result` (see BENCHMARKS.md).
 #[repr(u8)]
 pub enum Action<'a> {
     /// Keep the bus silent: sleep until `until` on the driver's clock, then
@@ -95,6 +97,7 @@ struct Expected {
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+// Explicit tags, as for `Action`: `poll` and every `handle_*` match on it.
 #[repr(u8)]
 enum State {
     /// No transaction (none started, or abandoned on a link error).
