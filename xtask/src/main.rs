@@ -6,12 +6,14 @@
 //! cargo xtask codegen [--check]    write the generated code where people can read it
 //! cargo xtask docs [--check]       write docs/sensors/<sensor>.md
 //! cargo xtask fuzz --seconds N     run every fuzz target for N seconds
+//! cargo xtask callgrind [--check]  the client's instructions a transaction, against rmodbus
 //! cargo xtask import MANUAL [--name NAME] [--out FILE] | --accuracy [--write]
 //! ```
 
 use std::path::PathBuf;
 use std::process::ExitCode;
 
+mod callgrind;
 mod codegen;
 mod docs;
 mod fuzz;
@@ -43,7 +45,7 @@ pub fn check_flag(args: &[String], usage: &str) -> anyhow::Result<Option<bool>> 
     Ok(Some(check))
 }
 
-const USAGE: &str = "usage: cargo xtask <validate [PATH...] | schema [--check] | codegen [--check] | docs [--check] | fuzz --seconds N | import MANUAL [--name NAME] [--out FILE] | import --accuracy [--write]>";
+const USAGE: &str = "usage: cargo xtask <validate [PATH...] | schema [--check] | codegen [--check] | docs [--check] | fuzz --seconds N | callgrind [--check] | import MANUAL [--name NAME] [--out FILE] | import --accuracy [--write]>";
 
 fn main() -> ExitCode {
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -57,6 +59,7 @@ fn main() -> ExitCode {
         "codegen" => codegen::run(rest),
         "docs" => docs::run(rest),
         "fuzz" => fuzz::run(rest),
+        "callgrind" => callgrind::run(rest),
         "import" => import::run(rest),
         "-h" | "--help" | "help" => {
             println!("{USAGE}");
