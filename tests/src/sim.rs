@@ -169,3 +169,46 @@ pub fn sensors_sharing_address_commands(
         .cloned()
         .collect()
 }
+
+/// Each generated sensor module (`yosemitech::SENSORS`) with a simulator of
+/// its spec sensor at its factory address.
+pub fn simulated_modules() -> Vec<(&'static yosemitech_rtu::SensorModule, Simulator)> {
+    yosemitech::SENSORS
+        .iter()
+        .map(|module| {
+            let sensor = spec().sensor(module.info.name).expect("every generated sensor is in the spec").clone();
+            (module, Simulator::new(sensor))
+        })
+        .collect()
+}
+
+/// A read request of a generated module, encoded by its generated layout.
+#[derive(Debug)]
+pub struct ReadRequest {
+    /// The command's spec name.
+    pub name: &'static str,
+    /// The command's wire layout.
+    pub layout: yosemitech_rtu::Layout<'static>,
+    /// Where it goes: the command's fixed slave, else the module's factory address.
+    pub slave: u8,
+    /// The request frame, CRC included.
+    pub frame: Vec<u8>,
+}
+
+/// The request of every read command of `module` (reads with no write
+/// data), in spec order.
+pub fn read_requests(module: &yosemitech_rtu::SensorModule) -> Vec<ReadRequest> {
+    use yosemitech_rtu::frame::{Function, MAX_ADU};
+    module
+        .commands
+        .iter()
+        .filter_map(|&name| (module.layout)(name).map(|layout| (name, layout)))
+        .filter(|(_, layout)| layout.function == Function::Read)
+        .map(|(name, layout)| {
+            let slave = layout.fixed_slave.unwrap_or(module.info.default_address);
+            let mut frame = [0u8; MAX_ADU];
+            let len = layout.encode_request(slave, &[], &mut frame).unwrap_or_else(|e| panic!("{name}: {e:?}"));
+            ReadRequest { name, layout, slave, frame: frame[..len].to_vec() }
+        })
+        .collect()
+}

@@ -9,7 +9,7 @@ use std::future::Future;
 use std::sync::{Arc, Condvar, Mutex};
 use std::time::{Duration, Instant};
 
-use sim_common::{first_field, float_read, is_float_read, request};
+use sim_common::{ReadRequest, first_field, float_read, is_float_read, read_requests, request, simulated_modules};
 use yosemitech_rtu::frame::{Function, MAX_ADU};
 use yosemitech_rtu::{AsyncClient, ClientConfig, ExceptionCode, MbapLink, RetryPolicy, RtuStream, SensorModule};
 use yosemitech_sim::{FaultConfig, FaultKind, FrameHandler, ServeConfig, Simulator, serve_mbap, serve_tcp};
@@ -23,15 +23,6 @@ fn block_on<F: Future>(future: F) -> F::Output {
 
 fn config(timeout: Duration) -> ClientConfig {
     ClientConfig { timeout, retry: RetryPolicy::NONE, ..ClientConfig::default() }
-}
-
-/// The simulator of each generated sensor module, at its factory address.
-fn simulated_modules() -> Vec<(&'static SensorModule, Simulator)> {
-    let spec = spec();
-    yosemitech::SENSORS
-        .iter()
-        .map(|module| (module, Simulator::new(spec.sensor(module.info.name).unwrap().clone())))
-        .collect()
 }
 
 /// Polls until the served device has seen `n` requests (the test's own
@@ -112,16 +103,8 @@ async fn read_every_command<L: yosemitech_rtu::AsyncLink>(
     reference: &mut Simulator,
 ) -> usize {
     let mut done = 0;
-    for name in module.commands {
-        let layout = (module.layout)(name).unwrap();
-        if layout.function != Function::Read {
-            continue;
-        }
-        let slave = layout.fixed_slave.unwrap_or(module.info.default_address);
-        let mut req = [0u8; MAX_ADU];
-        let len = layout.encode_request(slave, &[], &mut req).unwrap();
-        let reply =
-            client.call_raw(&req[..len], &layout).await.unwrap_or_else(|e| panic!("{}.{name}: {e}", module.info.name));
+    for ReadRequest { name, layout, slave, frame: req } in read_requests(module) {
+        let reply = client.call_raw(&req, &layout).await.unwrap_or_else(|e| panic!("{}.{name}: {e}", module.info.name));
         assert_eq!(
             (module.visit_response)(name, slave, reply, &mut |_, _| {}),
             Some(Ok(())),
@@ -129,7 +112,7 @@ async fn read_every_command<L: yosemitech_rtu::AsyncLink>(
             module.info.name
         );
         let mut truth = Vec::new();
-        reference.handle(&req[..len], &mut truth);
+        reference.handle(&req, &mut truth);
         if layout.trigger {
             // Modbus TCP carries the PDU: a trigger read's meaningless data
             // may come back shortened (tokio-modbus's server) or whole (ours).

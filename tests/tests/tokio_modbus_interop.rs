@@ -8,7 +8,7 @@ use yosemitech_tests::sim as sim_common;
 use std::future::Future;
 use std::time::Duration;
 
-use sim_common::with_role;
+use sim_common::{ReadRequest, read_requests, simulated_modules, with_role};
 use tokio_modbus::client::Context;
 use tokio_modbus::prelude::{Slave, rtu, tcp};
 use yosemitech_rtu::frame::{Function, MAX_ADU};
@@ -27,18 +27,6 @@ fn block_on<F: Future>(future: F) -> F::Output {
     runtime.block_on(async { tokio::time::timeout(DEADLINE * 20, future).await.expect("the test finishes") })
 }
 
-/// A simulator of each generated sensor module, at its factory address.
-fn simulated_modules() -> Vec<(&'static SensorModule, Simulator)> {
-    let spec = spec();
-    yosemitech::SENSORS
-        .iter()
-        .map(|module| {
-            let sensor = spec.sensor(module.info.name).expect("every generated sensor is in the spec").clone();
-            (module, Simulator::new(sensor))
-        })
-        .collect()
-}
-
 /// Reads every read command of `module` through `ctx`: the reply rebuilt
 /// from the registers tokio-modbus returns is the simulator's own reply
 /// (`reference` answers the same request), byte for byte, and the module's
@@ -46,15 +34,8 @@ fn simulated_modules() -> Vec<(&'static SensorModule, Simulator)> {
 /// is sent. Returns the reads checked.
 async fn read_every_command(ctx: &mut Context, module: &SensorModule, reference: &mut Simulator) -> usize {
     let mut checked = 0;
-    for name in module.commands {
-        let layout = (module.layout)(name).unwrap();
-        if layout.function != Function::Read {
-            continue;
-        }
-        let slave = layout.fixed_slave.unwrap_or(module.info.default_address);
-        let mut request = [0u8; MAX_ADU];
-        let len = layout.encode_request(slave, &[], &mut request).unwrap();
-        let request = &request[..len];
+    for ReadRequest { name, layout, slave, frame } in read_requests(module) {
+        let request = &frame[..];
         let result = tokio::time::timeout(DEADLINE, call_raw(ctx, request, &layout)).await.expect("a reply in time");
         if layout.trigger {
             assert!(matches!(result, Err(Error::Unsupported(Unsupported::TriggerRead))), "{name}: {result:?}");
@@ -109,12 +90,7 @@ fn tokio_modbus_reads_every_sensor_over_rtu_on_tcp() {
 
 /// Reads of `module` the adapter sends (all but trigger reads).
 fn reads_sent(module: &SensorModule) -> usize {
-    module
-        .commands
-        .iter()
-        .filter_map(|name| (module.layout)(name))
-        .filter(|layout| layout.function == Function::Read && !layout.trigger)
-        .count()
+    read_requests(module).iter().filter(|read| !read.layout.trigger).count()
 }
 
 #[cfg(unix)]

@@ -397,6 +397,13 @@ pub struct DField {
     pub codes: Vec<(u16, String)>,
 }
 
+impl DField {
+    /// A field without enum variants or flags.
+    fn plain(name: Option<String>, ty: &'static str, order: Option<&'static str>, offset: usize, size: usize) -> Self {
+        DField { name, ty, order, offset, size, codes: Vec::new() }
+    }
+}
+
 /// A drafted example.
 #[derive(Debug, Clone)]
 pub struct DExample {
@@ -501,6 +508,20 @@ struct Header {
     stop_bits: Option<u8>,
 }
 
+/// The revision number printed within a dozen characters after `key` in
+/// `text` ("hardware Rev1.0": "1.0"), if any.
+fn revision_after(text: &str, key: &str) -> Option<String> {
+    let i = text.find(key)?;
+    let rest = &text[i + key.len()..];
+    let j = rest.find("rev")?;
+    if j > 12 {
+        return None;
+    }
+    let v: String = rest[j + 3..].trim_start().chars().take_while(|c| c.is_ascii_digit() || *c == '.').collect();
+    let v = v.trim_end_matches('.').to_string();
+    (!v.is_empty()).then_some(v)
+}
+
 fn parse_header(lines: &[String]) -> Header {
     // Cover: the non-empty lines before the table of contents, minus the company lines.
     let mut cover = Vec::new();
@@ -527,40 +548,10 @@ fn parse_header(lines: &[String]) -> Header {
     let text: String = lines.join("\n");
     let lower = text.to_ascii_lowercase();
     // Scope line: "... hardware Rev1.0 and software Rev1.7 or later".
-    let rev_after = |key: &str| -> Option<String> {
-        let i = lower.find(key)?;
-        let rest = &lower[i + key.len()..];
-        let j = rest.find("rev")?;
-        if j > 12 {
-            return None;
-        }
-        let v: String = rest[j + 3..].trim_start().chars().take_while(|c| c.is_ascii_digit() || *c == '.').collect();
-        let v = v.trim_end_matches('.').to_string();
-        (!v.is_empty()).then_some(v)
-    };
     let scope = lower.find("scope").map(|i| &lower[i..]).unwrap_or("");
     let scope_end = scope.find("later").map_or(scope.len().min(600), |e| e + 5);
     let scope = &scope[..scope_end];
-    let (hw, sw) = if scope.is_empty() {
-        (None, None)
-    } else {
-        let off = lower.len() - lower[lower.find("scope").unwrap_or(0)..].len();
-        let sub = &lower[off..off + scope.len()];
-        let f = |key: &str| -> Option<String> {
-            let i = sub.find(key)?;
-            let rest = &sub[i + key.len()..];
-            let j = rest.find("rev")?;
-            if j > 12 {
-                return None;
-            }
-            let v: String =
-                rest[j + 3..].trim_start().chars().take_while(|c| c.is_ascii_digit() || *c == '.').collect();
-            let v = v.trim_end_matches('.').to_string();
-            (!v.is_empty()).then_some(v)
-        };
-        (f("hardware"), f("software"))
-    };
-    let _ = rev_after;
+    let (hw, sw) = (revision_after(scope, "hardware"), revision_after(scope, "software"));
     let later = scope.contains("or later");
     let revision = match (&hw, &sw) {
         (Some(h), Some(s)) => Some(format!("HW Rev{h} / SW Rev{s}{}", if later { " or later" } else { "" })),
@@ -1481,38 +1472,22 @@ fn infer_fields(
     todos: &mut Vec<String>,
 ) -> Vec<DField> {
     let mut fields = Vec::new();
-    let name_at = |off: usize, fallback: &str| -> String {
-        // Register columns are labelled in order; a 4-byte value spans two.
-        let _ = off;
-        let n = snake(fallback);
+    // Register columns are labelled in order, one label a field; `fallback`
+    // names a field past the last label.
+    let mut labels = labels.iter();
+    let mut next_name = |fallback: String| -> String {
+        let n = snake(&labels.next().cloned().unwrap_or(fallback));
         if n.is_empty() { "value".into() } else { n }
     };
-    let mut label_iter = labels.iter();
     let mut k = 0;
     while k < data.len() {
         let (off, it) = &data[k];
         match it {
             Item::Float(..) => {
-                let l = label_iter.next().cloned().unwrap_or_else(|| format!("value_{off}"));
-                fields.push(DField {
-                    name: Some(name_at(*off, &l)),
-                    ty: "f32",
-                    order: Some("dcba"),
-                    offset: *off,
-                    size: 4,
-                    codes: Vec::new(),
-                });
+                fields.push(DField::plain(Some(next_name(format!("value_{off}"))), "f32", Some("dcba"), *off, 4));
             }
             Item::Text(t) => {
-                let l = label_iter.next().cloned().unwrap_or_else(|| "text".into());
-                fields.push(DField {
-                    name: Some(name_at(*off, &l)),
-                    ty: "ascii",
-                    order: None,
-                    offset: *off,
-                    size: t.len(),
-                    codes: Vec::new(),
-                });
+                fields.push(DField::plain(Some(next_name("text".into())), "ascii", None, *off, t.len()));
             }
             Item::Word(_) => {
                 return Vec::new();
@@ -1528,32 +1503,18 @@ fn infer_fields(
                 let next_is_text = matches!(data.get(j).map(|d| &d.1), Some(Item::Text(_)));
                 let prev_is_text = k > 0 && matches!(data[k - 1].1, Item::Text(_));
                 if next_is_text || prev_is_text {
-                    fields.push(DField {
-                        name: None,
-                        ty: "reserved",
-                        order: None,
-                        offset: *off,
-                        size: run,
-                        codes: Vec::new(),
-                    });
+                    fields.push(DField::plain(None, "reserved", None, *off, run));
                 } else if run == 2 && off % 2 == 0 {
                     let codes = code_table(sec, 0);
-                    let l = label_iter.next().cloned().unwrap_or_else(|| format!("value_{off}"));
+                    let name = next_name(format!("value_{off}"));
                     if codes.len() >= 2 {
-                        fields.extend(code_fields(*off, name_at(*off, &l), codes, None));
+                        fields.extend(code_fields(*off, name, codes, None));
                         todos.push(format!(
                             "bytes {off}..{}: the code sits in the register's first byte; check the code names",
                             off + 1
                         ));
                     } else {
-                        fields.push(DField {
-                            name: Some(name_at(*off, &l)),
-                            ty: "u16",
-                            order: Some("ba"),
-                            offset: *off,
-                            size: 2,
-                            codes: Vec::new(),
-                        });
+                        fields.push(DField::plain(Some(name), "u16", Some("ba"), *off, 2));
                         todos.push(format!(
                             "bytes {off}..{}: field type guessed as a little-endian u16; check it",
                             off + 1
@@ -1570,15 +1531,7 @@ fn infer_fields(
                     printed.len() == 4 && layout::reads_as_printed_decimal(sec, &printed)
                 } {
                     // The section prints the decimal these bytes read as.
-                    let l = label_iter.next().cloned().unwrap_or_else(|| format!("value_{off}"));
-                    fields.push(DField {
-                        name: Some(name_at(*off, &l)),
-                        ty: "f32",
-                        order: Some("dcba"),
-                        offset: *off,
-                        size: 4,
-                        codes: Vec::new(),
-                    });
+                    fields.push(DField::plain(Some(next_name(format!("value_{off}"))), "f32", Some("dcba"), *off, 4));
                 } else {
                     todos.push(format!("bytes {off}..{}: field type unknown", run_end - 1));
                     return Vec::new();
@@ -1617,7 +1570,7 @@ fn code_fields(off: usize, name: String, codes: Vec<(u16, String)>, flag_word: O
             size: 1,
             codes,
         },
-        DField { name: None, ty: "reserved", order: None, offset: off + 1, size: 1, codes: Vec::new() },
+        DField::plain(None, "reserved", None, off + 1, 1),
     ]
 }
 

@@ -12,17 +12,12 @@ use std::time::{Duration, Instant};
 use criterion::{Criterion, criterion_group, criterion_main};
 use yosemitech::ph_orp::GetPh;
 use yosemitech::rtu::AsyncClient;
-use yosemitech::{Client, ClientConfig, ResponderTransport, RetryPolicy};
-use yosemitech_bench::{GET_PH_VALUE, fixed_get_ph_responder};
+use yosemitech::{Client, ClientConfig, ResponderTransport};
+use yosemitech_bench::{GET_PH_VALUE, fixed_get_ph_responder, unpaced_config};
 
-/// No inter-frame wait, a short timeout, no retries: as `transaction.rs`.
+/// The client configuration of every transaction measured (as `transaction.rs`).
 fn config() -> ClientConfig {
-    ClientConfig {
-        timeout: Duration::from_millis(10),
-        retry: RetryPolicy::NONE,
-        inter_frame_delay: Some(Duration::ZERO),
-        ..ClientConfig::default()
-    }
+    unpaced_config(Duration::from_millis(10))
 }
 
 fn drivers(c: &mut Criterion) {

@@ -13,17 +13,12 @@ use std::time::Duration;
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use yosemitech::ph_orp::GetPh;
-use yosemitech::{Client, ClientConfig, ResponderTransport, RetryPolicy, Transport};
-use yosemitech_bench::{GET_PH_VALUE, fixed_get_ph_responder, ph_simulator};
+use yosemitech::{Client, ClientConfig, ResponderTransport, Transport};
+use yosemitech_bench::{GET_PH_VALUE, fixed_get_ph_responder, ph_simulator, unpaced_config};
 
-/// No inter-frame wait, a short timeout, no retries.
+/// The client configuration of every transaction measured (as `drivers.rs`).
 fn config() -> ClientConfig {
-    ClientConfig {
-        timeout: Duration::from_millis(10),
-        retry: RetryPolicy::NONE,
-        inter_frame_delay: Some(Duration::ZERO),
-        ..ClientConfig::default()
-    }
+    unpaced_config(Duration::from_millis(10))
 }
 
 fn bench_call<T: Transport>(

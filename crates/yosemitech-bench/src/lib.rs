@@ -3,7 +3,8 @@
 //! arithmetic of the bus-efficiency run.
 //!
 //! The benchmarks themselves are in `benches/` (`cargo bench -p
-//! yosemitech-bench`), the zero-allocation test in `tests/zero_alloc.rs`, and
+//! yosemitech-bench`), the zero-allocation tests in `tests/zero_alloc*.rs`
+//! (allocations counted by [`counting`]), and
 //! the results with the command that produced them in `BENCHMARKS.md` at the
 //! workspace root. This crate is not published: it holds criterion and the
 //! comparison crates so the product crates stay lean.
@@ -14,6 +15,8 @@ use std::time::Duration;
 use yosemitech_rtu::LineTiming;
 use yosemitech_sim::Simulator;
 use yosemitech_spec::Sensor;
+
+pub mod counting;
 
 /// The pH manual's get_ph request (Fig 23): slave 1, read 2 registers at 0x2800.
 pub const GET_PH_REQUEST: [u8; 8] = [0x01, 0x03, 0x28, 0x00, 0x00, 0x02, 0xCD, 0xAB];
@@ -71,6 +74,18 @@ pub fn fixed_get_ph_responder() -> impl FnMut(&[u8], &mut Vec<u8>) {
         if request == GET_PH_REQUEST {
             reply.extend_from_slice(&GET_PH_REPLY);
         }
+    }
+}
+
+/// The client configuration of the measurements, where no serial line
+/// timing applies (a device in memory or behind a socket): no inter-frame
+/// wait, no retries, `timeout` for a reply.
+pub fn unpaced_config(timeout: Duration) -> yosemitech_rtu::ClientConfig {
+    yosemitech_rtu::ClientConfig {
+        timeout,
+        retry: yosemitech_rtu::RetryPolicy::NONE,
+        inter_frame_delay: Some(Duration::ZERO),
+        ..yosemitech_rtu::ClientConfig::default()
     }
 }
 

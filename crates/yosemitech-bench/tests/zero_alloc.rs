@@ -1,53 +1,22 @@
 //! Zero heap allocations per encode, per decode and per transaction (issue
 //! #6, design: "no allocation per transaction"), counted by a global
-//! allocator on the test's own thread.
-// A counting global allocator needs `unsafe impl GlobalAlloc`; it only forwards to `System`.
-#![allow(unsafe_code)]
+//! allocator on the test's own thread ([`yosemitech_bench::counting`]).
 
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::cell::Cell;
 use std::hint::black_box;
 use std::time::Duration;
 
 use yosemitech::conductivity::GetTemperatureAndConductivity;
 use yosemitech::ph_orp::GetPh;
 use yosemitech::rtu::Responder;
-use yosemitech::{Client, ClientConfig, Command, ResponderTransport, RetryPolicy, ph_orp};
+use yosemitech::{Client, ClientConfig, Command, ResponderTransport, ph_orp};
+use yosemitech_bench::counting::{CountingAllocator, allocations_in};
 use yosemitech_bench::{
     CONDUCTIVITY_REPLY, CONDUCTIVITY_VALUES, GET_PH_REPLY, GET_PH_REQUEST, GET_PH_VALUE, fixed_get_ph_responder,
-    ph_simulator, sensor,
+    ph_simulator, sensor, unpaced_config,
 };
 
-thread_local! {
-    static ALLOCATIONS: Cell<usize> = const { Cell::new(0) };
-}
-
-/// Counts allocations (and reallocations, which the default `realloc`
-/// routes through `alloc`) per thread, so parallel tests do not interfere.
-struct Counting;
-
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        ALLOCATIONS.with(|n| n.set(n.get() + 1));
-        // SAFETY: forwarded unchanged to the system allocator.
-        unsafe { System.alloc(layout) }
-    }
-
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        // SAFETY: `ptr` came from `System.alloc` with this layout.
-        unsafe { System.dealloc(ptr, layout) }
-    }
-}
-
 #[global_allocator]
-static GLOBAL: Counting = Counting;
-
-/// Runs `f` and returns how many allocations it made on this thread.
-fn allocations_in(f: impl FnOnce()) -> usize {
-    let before = ALLOCATIONS.with(Cell::get);
-    f();
-    ALLOCATIONS.with(Cell::get) - before
-}
+static GLOBAL: CountingAllocator = CountingAllocator;
 
 const ROUNDS: usize = 100;
 
@@ -142,12 +111,7 @@ fn every_command_through_the_dispatch_does_not_allocate() {
 }
 
 fn client_config() -> ClientConfig {
-    ClientConfig {
-        timeout: Duration::from_millis(100),
-        retry: RetryPolicy::NONE,
-        inter_frame_delay: Some(Duration::ZERO),
-        ..ClientConfig::default()
-    }
+    unpaced_config(Duration::from_millis(100))
 }
 
 #[test]

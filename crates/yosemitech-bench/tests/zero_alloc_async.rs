@@ -5,57 +5,25 @@
 //! (the in-process responder), and over real sockets: RTU on TCP and Modbus
 //! TCP to served simulators (which allocate on their own threads, not
 //! counted).
-// A counting global allocator needs `unsafe impl GlobalAlloc`; it only forwards to `System`.
-#![allow(unsafe_code)]
 
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::cell::Cell;
 use std::hint::black_box;
 use std::time::Duration;
 
 use yosemitech::ph_orp::{self, GetPh};
 use yosemitech::rtu::transport::AsyncLink;
 use yosemitech::rtu::{AsyncClient, MbapLink, RtuStream};
-use yosemitech::{ClientConfig, ResponderTransport, RetryPolicy};
-use yosemitech_bench::{GET_PH_VALUE, fixed_get_ph_responder, ph_simulator};
+use yosemitech::{ClientConfig, ResponderTransport};
+use yosemitech_bench::counting::{CountingAllocator, allocations, allocations_in};
+use yosemitech_bench::{GET_PH_VALUE, fixed_get_ph_responder, ph_simulator, unpaced_config};
 use yosemitech_sim::{ServeConfig, serve_mbap, serve_tcp};
 
-thread_local! {
-    static ALLOCATIONS: Cell<usize> = const { Cell::new(0) };
-}
-
-/// Counts allocations per thread, so parallel tests do not interfere.
-struct Counting;
-
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        ALLOCATIONS.with(|n| n.set(n.get() + 1));
-        // SAFETY: forwarded unchanged to the system allocator.
-        unsafe { System.alloc(layout) }
-    }
-
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        // SAFETY: `ptr` came from `System.alloc` with this layout.
-        unsafe { System.dealloc(ptr, layout) }
-    }
-}
-
 #[global_allocator]
-static GLOBAL: Counting = Counting;
-
-fn allocations() -> usize {
-    ALLOCATIONS.with(Cell::get)
-}
+static GLOBAL: CountingAllocator = CountingAllocator;
 
 const ROUNDS: usize = 100;
 
 fn config() -> ClientConfig {
-    ClientConfig {
-        timeout: Duration::from_secs(5),
-        retry: RetryPolicy::NONE,
-        inter_frame_delay: Some(Duration::ZERO),
-        ..ClientConfig::default()
-    }
+    unpaced_config(Duration::from_secs(5))
 }
 
 fn runtime() -> tokio::runtime::Runtime {
@@ -84,9 +52,7 @@ async fn allocations_per_rounds<L: AsyncLink>(client: &mut AsyncClient<L>) -> us
 
 #[test]
 fn the_counter_counts() {
-    let before = allocations();
-    drop(black_box(vec![1u8]));
-    assert_eq!(allocations() - before, 1);
+    assert_eq!(allocations_in(|| drop(black_box(vec![1u8]))), 1);
 }
 
 #[test]

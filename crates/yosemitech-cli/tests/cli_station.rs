@@ -3,29 +3,22 @@
 //! logger on a simulated bus stops cleanly on SIGTERM with every reading it
 //! announced committed to its SQLite file.
 
+mod station;
+
 use std::io::{BufRead, BufReader};
 use std::process::Stdio;
-use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use yosemitech_tests::cli::{Binary, Run, WATCHDOG, wait};
+use serde_json::Value as Json;
+use station::{Station, YOSEMITECH, command, terminate};
+use yosemitech_station::{Store, plan};
+use yosemitech_tests::cli::{Run, WATCHDOG};
 use yosemitech_tests::spec;
-
-/// The binary under test.
-const YOSEMITECH: Binary = Binary(env!("CARGO_BIN_EXE_yosemitech"));
-
-/// The binary, with a clean environment.
-fn command() -> std::process::Command {
-    YOSEMITECH.command()
-}
 
 /// Runs the binary with `args`.
 fn yosemitech(args: &[&str]) -> Run {
     YOSEMITECH.run(args)
 }
-use serde_json::Value as Json;
-use yosemitech_sim::{Bus, ServeConfig, Simulator, serve_pty};
-use yosemitech_station::{Store, plan};
 
 /// The README's sample station file, committed beside the station crate.
 const SAMPLE: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../yosemitech-station/station.toml");
@@ -97,29 +90,9 @@ fn check_errors_carry_file_line_and_column() {
 
 #[test]
 fn log_stops_cleanly_on_sigterm_and_the_file_has_every_reading() {
-    let dir = tempfile::tempdir().unwrap();
-    let sensors: Vec<_> =
-        spec().sensors.iter().filter(|&s| !plan::measurements(s).is_empty()).take(2).cloned().collect();
-    let bus = sensors
-        .iter()
-        .enumerate()
-        .fold(Bus::new(), |bus, (i, s)| bus.with(Simulator::new(Arc::new(s.clone())).with_address(i as u8 + 1)));
-    let server = serve_pty(bus, ServeConfig::default()).unwrap();
-    let db = dir.path().join("station.sqlite");
-    let mut toml = format!(
-        "station = \"s\"\n[storage]\npath = \"{}\"\n[[bus]]\nname = \"a\"\nport = \"{}\"\n",
-        db.display(),
-        server.tty_path().unwrap()
-    );
-    for (i, s) in sensors.iter().enumerate() {
-        toml += &format!(
-            "[[bus.probe]]\nlabel = \"p{i}\"\nsensor = \"{}\"\naddress = {}\ninterval = \"200ms\"\nprocedure = false\n",
-            s.name,
-            i + 1
-        );
-    }
-    let config = dir.path().join("station.toml");
-    std::fs::write(&config, toml).unwrap();
+    let station = Station::simulated("s", "200ms");
+    let config = station.write_config();
+    let db = &station.db;
 
     let mut child = command()
         .args(["log", "--config", config.to_str().unwrap()])
@@ -138,9 +111,7 @@ fn log_stops_cleanly_on_sigterm_and_the_file_has_every_reading() {
         announced.push(serde_json::from_str(&line).unwrap());
     }
     assert!(announced.len() >= 6, "the logger announced readings: {announced:?}");
-    let status = std::process::Command::new("kill").args(["-TERM", &child.id().to_string()]).status().unwrap();
-    assert!(status.success());
-    let code = wait(&mut child, Duration::from_secs(20));
+    let code = terminate(&mut child, Duration::from_secs(20));
     // What it announced after the first six, up to its exit.
     for line in stdout.lines() {
         announced.push(serde_json::from_str(&line.unwrap()).unwrap());
@@ -150,7 +121,7 @@ fn log_stops_cleanly_on_sigterm_and_the_file_has_every_reading() {
     assert_eq!(code, 0, "SIGTERM stops the logger cleanly: {stderr}");
     assert!(stderr.contains("readings"), "a summary per bus: {stderr}");
 
-    let store = Store::open(&db).unwrap();
+    let store = Store::open(db).unwrap();
     let stored = store.range(std::time::UNIX_EPOCH, std::time::SystemTime::now()).unwrap();
     let ids: Vec<i64> = announced.iter().map(|r| r["id"].as_i64().unwrap()).collect();
     assert_eq!(stored.iter().map(|s| s.id).collect::<Vec<_>>(), ids, "every announced reading is stored, nothing else");

@@ -10,24 +10,15 @@
 #[path = "../../yosemitech-mqtt/tests/support/mod.rs"]
 mod support;
 
+mod station;
+
 use std::collections::BTreeMap;
 use std::process::{Child, Stdio};
-use std::sync::Arc;
 use std::time::Duration;
 
-use yosemitech_tests::cli::{Binary, wait};
-use yosemitech_tests::spec;
-
-/// The binary under test.
-const YOSEMITECH: Binary = Binary(env!("CARGO_BIN_EXE_yosemitech"));
-
-/// The binary, with a clean environment.
-fn command() -> std::process::Command {
-    YOSEMITECH.command()
-}
+use station::{Station, command, terminate};
 use support::{Broker, BrokerKind, Subscriber, available, ids_and_first_occurrences, wait_until};
-use yosemitech_sim::{Bus, ServeConfig, Simulator, serve_pty};
-use yosemitech_station::{Store, plan};
+use yosemitech_station::Store;
 
 #[test]
 #[ignore = "the rumqttd broker process of the other tests; they start it"]
@@ -64,34 +55,14 @@ fn killed_and_restarted_logger_loses_nothing(kind: BrokerKind) {
     let broker = Broker::start(kind, None);
     let subscriber = Subscriber::start(&broker, &format!("{}/#", yosemitech_mqtt::topic::DEFAULT_TOPIC_PREFIX));
 
-    let dir = tempfile::tempdir().unwrap();
-    let sensors: Vec<_> =
-        spec().sensors.iter().filter(|&s| !plan::measurements(s).is_empty()).take(2).cloned().collect();
-    let bus = sensors
-        .iter()
-        .enumerate()
-        .fold(Bus::new(), |bus, (i, s)| bus.with(Simulator::new(Arc::new(s.clone())).with_address(i as u8 + 1)));
-    let server = serve_pty(bus, ServeConfig::default()).unwrap();
-    let db = dir.path().join("station.sqlite");
-    let mut toml = format!(
-        "station = \"river\"\n[storage]\npath = \"{}\"\n[[bus]]\nname = \"a\"\nport = \"{}\"\n",
-        db.display(),
-        server.tty_path().unwrap()
-    );
-    for (i, s) in sensors.iter().enumerate() {
-        toml += &format!(
-            "[[bus.probe]]\nlabel = \"p{i}\"\nsensor = \"{}\"\naddress = {}\ninterval = \"100ms\"\nprocedure = false\n",
-            s.name,
-            i + 1
-        );
-    }
-    toml += &format!(
+    let mut station = Station::simulated("river", "100ms");
+    let db = station.db.clone();
+    station.toml += &format!(
         "[mqtt]\nhost = \"127.0.0.1\"\nport = {}\nclient_id = \"station-river-{kind:?}\"\nkeep_alive_secs = 5\n\
          [mqtt.publisher]\nmax_in_flight = {MAX_IN_FLIGHT}\npoll_interval_ms = 50\nreconnect_min_ms = 100\nreconnect_max_ms = 1000\n",
         broker.port
     );
-    let config = dir.path().join("station.toml");
-    std::fs::write(&config, &toml).unwrap();
+    let config = station.write_config();
 
     // First run: readings flow, then the broker goes away and a backlog
     // builds up in the store; the logger is killed without warning.
@@ -115,9 +86,7 @@ fn killed_and_restarted_logger_loses_nothing(kind: BrokerKind) {
     let mut logger = start_logger(&config);
     let target = after_kill.len() + 10;
     assert!(wait_until(|| stored_ids(&db).len() >= target), "{kind:?}: the second run logs");
-    let status = std::process::Command::new("kill").args(["-TERM", &logger.id().to_string()]).status().unwrap();
-    assert!(status.success());
-    assert_eq!(wait(&mut logger, Duration::from_secs(30)), 0, "{kind:?}: SIGTERM stops cleanly");
+    assert_eq!(terminate(&mut logger, Duration::from_secs(30)), 0, "{kind:?}: SIGTERM stops cleanly");
 
     let stored = stored_ids(&db);
     assert!(stored.starts_with(&after_kill), "{kind:?}: nothing committed before the kill is lost");

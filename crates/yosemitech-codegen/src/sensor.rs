@@ -1586,11 +1586,7 @@ fn device(s: &Sensor, names: &Names, o: &Options) -> TokenStream {
                     /// Sends any command to this probe (or to the command's fixed
                     /// slave address) and returns the decoded reply.
                     pub async fn call<C: rtu::Command>(&mut self, command: &C) -> Result<C::Response, rtu::Error> {
-                        let slave = match C::LAYOUT.fixed_slave {
-                            Some(fixed) => fixed,
-                            None => self.address,
-                        };
-                        self.client.call(slave, command).await
+                        self.client.call(C::LAYOUT.request_slave(self.address), command).await
                     }
 
                     #(#async_methods)*
@@ -1639,11 +1635,7 @@ fn device(s: &Sensor, names: &Names, o: &Options) -> TokenStream {
             /// Sends any command to this probe (or to the command's fixed
             /// slave address) and returns the decoded reply.
             pub fn call<C: rtu::Command>(&mut self, command: &C) -> Result<C::Response, rtu::Error> {
-                let slave = match C::LAYOUT.fixed_slave {
-                    Some(fixed) => fixed,
-                    None => self.address,
-                };
-                self.client.call(slave, command)
+                self.client.call(C::LAYOUT.request_slave(self.address), command)
             }
 
             #(#methods)*

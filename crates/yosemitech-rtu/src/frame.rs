@@ -135,12 +135,20 @@ impl Layout<'_> {
         }
     }
 
-    /// The slave address a reply to a request sent to `slave` must carry.
-    pub const fn reply_slave(&self, slave: u8) -> u8 {
+    /// The slave address a request for this command to the device at
+    /// `address` goes to: the command's fixed slave address when it has
+    /// one (a read at the wildcard address 0xFF), else `address`.
+    pub const fn request_slave(&self, address: u8) -> u8 {
         match self.fixed_slave {
             Some(fixed) => fixed,
-            None => slave,
+            None => address,
         }
+    }
+
+    /// The slave address a reply to a request sent to `slave` must carry:
+    /// the one the request went to ([`Layout::request_slave`]).
+    pub const fn reply_slave(&self, slave: u8) -> u8 {
+        self.request_slave(slave)
     }
 
     /// Checks that `slave` may be used in a request for this command.

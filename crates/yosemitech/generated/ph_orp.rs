@@ -2777,11 +2777,7 @@ impl<'c, T: rtu::Transport> Device<'c, T> {
         &mut self,
         command: &C,
     ) -> Result<C::Response, rtu::Error> {
-        let slave = match C::LAYOUT.fixed_slave {
-            Some(fixed) => fixed,
-            None => self.address,
-        };
-        self.client.call(slave, command)
+        self.client.call(C::LAYOUT.request_slave(self.address), command)
     }
     /// Set Slave Device ID: sends [`SetSlaveId`] with `slave_address`. Values outside the spec's range are refused before sending.
     pub fn set_slave_id(&mut self, slave_address: u8) -> Result<(), rtu::Error> {
@@ -2907,11 +2903,7 @@ impl<'c, L: rtu::transport::AsyncLink> AsyncDevice<'c, L> {
         &mut self,
         command: &C,
     ) -> Result<C::Response, rtu::Error> {
-        let slave = match C::LAYOUT.fixed_slave {
-            Some(fixed) => fixed,
-            None => self.address,
-        };
-        self.client.call(slave, command).await
+        self.client.call(C::LAYOUT.request_slave(self.address), command).await
     }
     /// Set Slave Device ID: sends [`SetSlaveId`] with `slave_address`. Values outside the spec's range are refused before sending.
     pub async fn set_slave_id(&mut self, slave_address: u8) -> Result<(), rtu::Error> {

@@ -2007,11 +2007,7 @@ impl<'c, T: rtu::Transport> Device<'c, T> {
         &mut self,
         command: &C,
     ) -> Result<C::Response, rtu::Error> {
-        let slave = match C::LAYOUT.fixed_slave {
-            Some(fixed) => fixed,
-            None => self.address,
-        };
-        self.client.call(slave, command)
+        self.client.call(C::LAYOUT.request_slave(self.address), command)
     }
     /// Get measurement data: sends [`GetMeasurementData`] and returns the reply.
     pub fn measurement_data(
@@ -2104,11 +2100,7 @@ impl<'c, L: rtu::transport::AsyncLink> AsyncDevice<'c, L> {
         &mut self,
         command: &C,
     ) -> Result<C::Response, rtu::Error> {
-        let slave = match C::LAYOUT.fixed_slave {
-            Some(fixed) => fixed,
-            None => self.address,
-        };
-        self.client.call(slave, command).await
+        self.client.call(C::LAYOUT.request_slave(self.address), command).await
     }
     /// Get measurement data: sends [`GetMeasurementData`] and returns the reply.
     pub async fn measurement_data(

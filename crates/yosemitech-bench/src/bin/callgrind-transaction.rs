@@ -18,8 +18,10 @@
 use std::hint::black_box;
 use std::time::Duration;
 
-use yosemitech::{Client, ClientConfig, Command, ResponderTransport, RetryPolicy, Transport};
-use yosemitech_bench::{FLOAT_READ_VALUE, FloatRead, fixed_float_read_responder, float_read_value, rmodbus_ref};
+use yosemitech::{Client, Command, ResponderTransport, Transport};
+use yosemitech_bench::{
+    FLOAT_READ_VALUE, FloatRead, fixed_float_read_responder, float_read_value, rmodbus_ref, unpaced_config,
+};
 
 /// Repetitions when none is given.
 const DEFAULT_REPETITIONS: u32 = 1000;
@@ -35,12 +37,7 @@ fn main() -> Result<(), String> {
     let mut reply = Vec::with_capacity(256);
     match mode.as_str() {
         "client" => {
-            let config = ClientConfig {
-                timeout: Duration::from_millis(10),
-                retry: RetryPolicy::NONE,
-                inter_frame_delay: Some(Duration::ZERO),
-                ..ClientConfig::default()
-            };
+            let config = unpaced_config(Duration::from_millis(10));
             let mut client = Client::with_config(ResponderTransport::from_fn(device), config);
             check(measured_client(&mut client))?;
             for _ in 0..repetitions {

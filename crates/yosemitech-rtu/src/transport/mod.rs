@@ -54,41 +54,31 @@ pub trait Transport {
     fn line_timing(&self) -> Option<LineTiming>;
 }
 
-impl<T: Transport + ?Sized> Transport for &mut T {
-    fn write_all(&mut self, frame: &[u8]) -> io::Result<()> {
-        (**self).write_all(frame)
-    }
+/// A transport behind a pointer (`&mut T`, `Box<T>`) is a transport: every
+/// method goes to the pointee.
+macro_rules! forward_transport {
+    ($($pointer:ty),+) => {$(
+        impl<T: Transport + ?Sized> Transport for $pointer {
+            fn write_all(&mut self, frame: &[u8]) -> io::Result<()> {
+                (**self).write_all(frame)
+            }
 
-    fn read(&mut self, buf: &mut [u8], timeout: Duration) -> io::Result<usize> {
-        (**self).read(buf, timeout)
-    }
+            fn read(&mut self, buf: &mut [u8], timeout: Duration) -> io::Result<usize> {
+                (**self).read(buf, timeout)
+            }
 
-    fn discard_input(&mut self) -> io::Result<()> {
-        (**self).discard_input()
-    }
+            fn discard_input(&mut self) -> io::Result<()> {
+                (**self).discard_input()
+            }
 
-    fn line_timing(&self) -> Option<LineTiming> {
-        (**self).line_timing()
-    }
+            fn line_timing(&self) -> Option<LineTiming> {
+                (**self).line_timing()
+            }
+        }
+    )+};
 }
 
-impl<T: Transport + ?Sized> Transport for Box<T> {
-    fn write_all(&mut self, frame: &[u8]) -> io::Result<()> {
-        (**self).write_all(frame)
-    }
-
-    fn read(&mut self, buf: &mut [u8], timeout: Duration) -> io::Result<usize> {
-        (**self).read(buf, timeout)
-    }
-
-    fn discard_input(&mut self) -> io::Result<()> {
-        (**self).discard_input()
-    }
-
-    fn line_timing(&self) -> Option<LineTiming> {
-        (**self).line_timing()
-    }
-}
+forward_transport!(&mut T, Box<T>);
 
 /// True for read errors that mean "nothing arrived yet" rather than a broken link.
 fn is_no_data(error: &io::Error) -> bool {

@@ -1,7 +1,7 @@
 //! Serving a [`Device`] over Modbus TCP (MBAP): see [`serve_mbap`].
 
 use std::io::{self, Read, Write};
-use std::net::{TcpListener, TcpStream, ToSocketAddrs};
+use std::net::{TcpStream, ToSocketAddrs};
 use std::sync::Mutex;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::thread::{self, ScopedJoinHandle};
@@ -11,7 +11,7 @@ use yosemitech_rtu::frame::{BROADCAST, MAX_ADU, encode_exception};
 use yosemitech_rtu::mbap::{HEADER_LEN, Header, MAX_MBAP_ADU, adu_to_rtu, rtu_to_adu};
 use yosemitech_rtu::{ExceptionCode, MbapError};
 
-use super::{Endpoint, ServeConfig, Server, is_closed, lock, sleep_until, spawn};
+use super::{Endpoint, ServeConfig, Server, accept, is_closed, listen, lock, sleep_until, spawn};
 use crate::FrameHandler;
 
 /// Serves `device` over Modbus TCP on `addr` (use `127.0.0.1:0` for a free
@@ -42,33 +42,26 @@ where
     D: FrameHandler + Send + 'static,
     A: ToSocketAddrs,
 {
-    let listener = TcpListener::bind(addr)?;
-    let local = listener.local_addr()?;
-    listener.set_nonblocking(true)?;
+    let (listener, local) = listen(addr)?;
     spawn(device, Endpoint::Mbap(local), move |device, stop| {
         thread::scope(|scope| {
             let mut connections: Vec<ScopedJoinHandle<'_, ()>> = Vec::new();
             let result = loop {
-                if stop.load(Ordering::Acquire) {
-                    break Ok(());
-                }
+                let stream = match accept(&listener, stop, config.poll_interval) {
+                    Ok(Some(stream)) => stream,
+                    Ok(None) => break Ok(()),
+                    Err(e) => break Err(e),
+                };
                 connections.retain(|c| !c.is_finished());
-                match listener.accept() {
-                    Ok((stream, _)) => {
-                        let connection = thread::Builder::new()
-                            .name(format!("yosemitech-sim mbap://{local}"))
-                            .spawn_scoped(scope, move || {
-                                // Any error ends this connection only.
-                                let _ = serve_connection(stream, device, stop, &config);
-                            });
-                        match connection {
-                            Ok(handle) => connections.push(handle),
-                            Err(e) => break Err(e),
-                        }
-                    }
-                    Err(e) if e.kind() == io::ErrorKind::WouldBlock || e.kind() == io::ErrorKind::Interrupted => {
-                        thread::sleep(config.poll_interval);
-                    }
+                let connection = thread::Builder::new().name(format!("yosemitech-sim mbap://{local}")).spawn_scoped(
+                    scope,
+                    move || {
+                        // Any error ends this connection only.
+                        let _ = serve_connection(stream, device, stop, &config);
+                    },
+                );
+                match connection {
+                    Ok(handle) => connections.push(handle),
                     Err(e) => break Err(e),
                 }
             };

@@ -34,7 +34,7 @@
 
 use std::fmt;
 use std::io;
-use std::net::{SocketAddr, TcpListener, ToSocketAddrs};
+use std::net::{SocketAddr, TcpListener, TcpStream, ToSocketAddrs};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
 use std::thread::{self, JoinHandle};
@@ -247,26 +247,39 @@ where
     D: FrameHandler + Send + 'static,
     A: ToSocketAddrs,
 {
-    let listener = TcpListener::bind(addr)?;
-    let local = listener.local_addr()?;
-    listener.set_nonblocking(true)?;
+    let (listener, local) = listen(addr)?;
     spawn(device, Endpoint::Tcp(local), move |device, stop| {
-        while !stop.load(Ordering::Acquire) {
-            match listener.accept() {
-                Ok((stream, _)) => {
-                    stream.set_nonblocking(false)?;
-                    let mut link = TcpTransport::from_stream(stream)?;
-                    // Any error ends this connection only.
-                    let _ = serve_link(&mut link, device, stop, &config);
-                }
-                Err(e) if e.kind() == io::ErrorKind::WouldBlock || e.kind() == io::ErrorKind::Interrupted => {
-                    thread::sleep(config.poll_interval);
-                }
-                Err(e) => return Err(e),
-            }
+        while let Some(stream) = accept(&listener, stop, config.poll_interval)? {
+            stream.set_nonblocking(false)?;
+            let mut link = TcpTransport::from_stream(stream)?;
+            // Any error ends this connection only.
+            let _ = serve_link(&mut link, device, stop, &config);
         }
         Ok(())
     })
+}
+
+/// A non-blocking listener bound to `addr`, for [`accept`], and its address.
+fn listen<A: ToSocketAddrs>(addr: A) -> io::Result<(TcpListener, SocketAddr)> {
+    let listener = TcpListener::bind(addr)?;
+    let local = listener.local_addr()?;
+    listener.set_nonblocking(true)?;
+    Ok((listener, local))
+}
+
+/// The next connection to `listener` (from [`listen`]), looking at `stop`
+/// every `poll` while none comes; `None` once `stop` is set.
+fn accept(listener: &TcpListener, stop: &AtomicBool, poll: Duration) -> io::Result<Option<TcpStream>> {
+    while !stop.load(Ordering::Acquire) {
+        match listener.accept() {
+            Ok((stream, _)) => return Ok(Some(stream)),
+            Err(e) if e.kind() == io::ErrorKind::WouldBlock || e.kind() == io::ErrorKind::Interrupted => {
+                thread::sleep(poll);
+            }
+            Err(e) => return Err(e),
+        }
+    }
+    Ok(None)
 }
 
 /// Serializes `TTYPort::pair()`, which `serialport` notes is not thread-safe everywhere.
