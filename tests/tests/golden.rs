@@ -201,55 +201,140 @@ fn every_printed_frame_replays() {
     assert!(manual_frames > 0 && fixture_frames > 0);
 }
 
-/// The two frame errata of the pH manual, spelled out with the typed API.
+/// `frame` with its CRC recomputed over the rest.
+fn recrc(frame: &[u8]) -> Vec<u8> {
+    yosemitech_tests::with_crc(&frame[..frame.len() - 2])
+}
+
+/// Every reply erratum, both ways, through the generated codecs: a printed
+/// reply the spec says decodes (a byte count the command also accepts)
+/// decodes to the values of its correction and encodes to the correction,
+/// with the Modbus-correct count; a printed reply the spec says must not
+/// decode, read with the corrected bytes where it prints none, is refused
+/// as truncated when it lacks bytes of the correction (its CRC).
 #[test]
-fn ph_errata_both_ways() {
-    use yosemitech::Command;
-    use yosemitech::ph_orp::{CalibrationStatus, GetCalibrationStatus, GetPhElectrodeCoefficients};
-
-    // E4 (Fig 54): printed byte count 0x0C over 24 data bytes, CRC computed over 0x0C.
-    let printed: [u8; 29] = [
-        0x01, 0x03, 0x0C, 0x1F, 0x85, 0xDB, 0x40, 0x3D, 0x0A, 0xD7, 0xC0, 0x0A, 0xD7, 0x23, 0x3D, 0x1F, 0x85, 0xDB,
-        0x40, 0x85, 0xEB, 0xD1, 0xC0, 0xB8, 0x1E, 0x85, 0xBF, 0xAB, 0xF5,
-    ];
-    let mut corrected = printed;
-    corrected[2] = 0x18;
-    corrected[27..].copy_from_slice(&[0xAA, 0x45]);
-    let a = GetPhElectrodeCoefficients::decode_response(1, &printed).expect("E4: 0x0C is accepted");
-    let b = GetPhElectrodeCoefficients::decode_response(1, &corrected).expect("the corrected 0x18 frame decodes");
-    assert_eq!(a, b);
-    assert_eq!([a.k1, a.k2, a.k3, a.k4, a.k5, a.k6], yosemitech::ph_orp::DEFAULT_ELECTRODE_COEFFICIENTS);
-    // Any other byte count is refused, even with a matching CRC.
-    let mut other = corrected;
-    other[2] = 0x17;
-    let crc = yosemitech_rtu::crc16(&other[..27]).to_le_bytes();
-    other[27..].copy_from_slice(&crc);
-    assert_eq!(
-        GetPhElectrodeCoefficients::decode_response(1, &other),
-        Err(FrameError::ByteCount { expected: 0x18, actual: 0x17 })
-    );
-    // Encoding always writes the Modbus-correct count.
-    let mut out = [0u8; 64];
-    let n = GetPhElectrodeCoefficients::encode_response(&a, 1, &mut out).unwrap();
-    assert_eq!(out[..n], corrected);
-
-    // E5 (Fig 42): printed without CRC; the status byte is "0".
-    let printed = [0x01, 0x03, 0x02, 0x00, 0x00];
-    assert_eq!(
-        GetCalibrationStatus::decode_response(1, &printed),
-        Err(FrameError::Truncated { expected: 7, actual: 5 })
-    );
-    let corrected = [0x01, 0x03, 0x02, 0x00, 0x00, 0xB8, 0x44];
-    let status = GetCalibrationStatus::decode_response(1, &corrected).unwrap().status;
-    assert_eq!(status, CalibrationStatus::Success);
-    // The other codes of Fig 43 (frames from the datasheet notes, section 5).
-    for (frame, want) in [
-        ([0x01, 0x03, 0x02, 0x01, 0x00, 0xB9, 0xD4], CalibrationStatus::NotACalibrationStandard),
-        ([0x01, 0x03, 0x02, 0x02, 0x00, 0xB9, 0x24], CalibrationStatus::FewerThanThreePoints),
-        ([0x01, 0x03, 0x02, 0x04, 0x00, 0xBA, 0x84], CalibrationStatus::CoefficientsOutOfRange),
-    ] {
-        assert_eq!(GetCalibrationStatus::decode_response(1, &frame).unwrap().status, want);
+fn reply_errata_both_ways() {
+    let (mut accepted, mut refused) = (0, 0);
+    for (api, sensor) in &sensors() {
+        for spec_cmd in &sensor.commands {
+            let cmd = api.commands.iter().find(|c| c.name == spec_cmd.name).expect("checked by sensors()");
+            for ex in &spec_cmd.examples {
+                let (Some(printed), Some(err)) = (&ex.response, &ex.erratum) else { continue };
+                let Some(corrected) = err.corrected_response.as_deref() else { continue };
+                let what = format!("{}.{} erratum {}", sensor.name, spec_cmd.name, err.id);
+                let slave = ex.slave();
+                let truth = (cmd.decode_response)(slave, corrected).unwrap_or_else(|e| panic!("{what}: {e}"));
+                if err.printed_decodes {
+                    let reply = printed.complete.as_deref().expect("a printed reply that decodes is complete");
+                    let decoded = (cmd.decode_response)(slave, reply).unwrap_or_else(|e| panic!("{what}: {e}"));
+                    assert_eq!(decoded.values, truth.values, "{what}: the printed and the corrected values");
+                    let encoded = decoded.encoded.as_deref().unwrap_or_else(|e| panic!("{what}: {e}"));
+                    assert_eq!(hex(encoded), hex(corrected), "{what}: encoding writes the corrected frame");
+                    accepted += 1;
+                } else {
+                    let reply: Vec<u8> =
+                        (0..printed.bytes.len()).map(|i| printed.byte(i).unwrap_or(corrected[i])).collect();
+                    let result = (cmd.decode_response)(slave, &reply);
+                    assert!(result.is_err(), "{what}: {} decodes", hex(&reply));
+                    if reply.len() < corrected.len() {
+                        let truncated = FrameError::Truncated { expected: corrected.len(), actual: reply.len() };
+                        assert_eq!(result.err(), Some(truncated), "{what}: {}", hex(&reply));
+                    }
+                    refused += 1;
+                }
+            }
+        }
     }
-    assert_eq!(CalibrationStatus::from_raw(6), CalibrationStatus::Unknown(6), "combined flags are kept");
-    assert_eq!(CalibrationStatus::from_raw(6).to_string(), "unknown (6)");
+    assert!(
+        accepted > 0 && refused > 0,
+        "the spec has reply errata of both kinds ({accepted} accepted, {refused} refused)"
+    );
+}
+
+/// The true reply of one example of a read that carries data.
+struct Reply<'a> {
+    what: String,
+    cmd: &'a codec_common::Cmd,
+    spec_cmd: &'a yosemitech_spec::CommandSpec,
+    slave: u8,
+    frame: &'a [u8],
+}
+
+/// The true reply of every example of every read of `sensors` that carries data.
+fn true_replies<'a>(sensors: &'a [(codec_common::Api, &'a yosemitech_spec::Sensor)]) -> Vec<Reply<'a>> {
+    let mut replies = Vec::new();
+    for (api, sensor) in sensors {
+        for spec_cmd in sensor.commands.iter().filter(|c| c.is_read() && !c.trigger) {
+            let cmd = api.commands.iter().find(|c| c.name == spec_cmd.name).expect("checked by sensors()");
+            for ex in &spec_cmd.examples {
+                if let Some(frame) = ex.true_response() {
+                    let what = format!("{}.{}", sensor.name, spec_cmd.name);
+                    replies.push(Reply { what, cmd, spec_cmd, slave: ex.slave(), frame });
+                }
+            }
+        }
+    }
+    replies
+}
+
+/// A read's reply with a byte count the command does not accept is
+/// refused, even under a matching CRC; without its CRC it is truncated.
+#[test]
+fn other_byte_counts_and_missing_crcs_are_refused() {
+    let sensors = sensors();
+    let replies = true_replies(&sensors);
+    let mut refused = 0;
+    for Reply { what, cmd, spec_cmd, slave, frame: reply } in &replies {
+        let expected = u8::try_from(2 * spec_cmd.count).unwrap();
+        for count in (0..=u8::MAX).filter(|&c| !cmd.layout.accepts_byte_count(c)) {
+            let mut other = reply.to_vec();
+            other[2] = count;
+            let result = (cmd.decode_response)(*slave, &recrc(&other));
+            assert_eq!(result.err(), Some(FrameError::ByteCount { expected, actual: count }), "{what}: 0x{count:02X}");
+            refused += 1;
+        }
+        let without_crc = &reply[..reply.len() - 2];
+        let truncated = FrameError::Truncated { expected: reply.len(), actual: without_crc.len() };
+        assert_eq!((cmd.decode_response)(*slave, without_crc).err(), Some(truncated), "{what}: no CRC");
+    }
+    yosemitech_tests::report!("{} replies, {refused} with another byte count refused", replies.len());
+    assert!(refused > 0);
+}
+
+/// Every code an enum field names decodes to its name and encodes back;
+/// a code it does not name decodes as unknown, kept as read.
+#[test]
+fn enum_codes_decode_by_name_and_unknown_codes_are_kept() {
+    use yosemitech_spec::{EnumRepr, FieldKind};
+    let sensors = sensors();
+    let mut codes = 0;
+    for Reply { what, cmd, spec_cmd, slave, frame: reply } in &true_replies(&sensors) {
+        for field in &spec_cmd.fields {
+            let FieldKind::Enum { repr, variants } = &field.kind else { continue };
+            let name = field.name.as_deref().unwrap();
+            let unnamed = (0..=u16::from(u8::MAX)).find(|v| variants.iter().all(|x| x.value != *v)).unwrap();
+            let named = variants.iter().map(|v| (v.value, Some(v.name.as_str())));
+            for (raw, variant) in named.chain([(unnamed, None)]) {
+                let mut frame = reply.to_vec();
+                let at = 3 + field.offset;
+                match repr {
+                    EnumRepr::U8 => frame[at] = u8::try_from(raw).unwrap(),
+                    EnumRepr::U16(order) => {
+                        frame[at..at + 2].copy_from_slice(&yosemitech_rtu::codec::u16_to_wire(*order, raw))
+                    }
+                }
+                let frame = recrc(&frame);
+                let decoded = (cmd.decode_response)(*slave, &frame).unwrap_or_else(|e| panic!("{what}: {raw}: {e}"));
+                let (_, value) = decoded.values.iter().find(|(n, _)| *n == name).unwrap();
+                let codec_common::Val::Enum { raw: got, name: got_name } = value else { panic!("{what}: {value:?}") };
+                assert_eq!((*got, *got_name), (raw, variant), "{what}.{name}");
+                assert_eq!(decoded.encoded.as_deref().ok(), Some(&frame[..]), "{what}.{name} = {raw}: re-encodes");
+                if variant.is_none() {
+                    assert_eq!(value.as_field().to_string(), format!("unknown ({raw})"));
+                }
+                codes += 1;
+            }
+        }
+    }
+    assert!(codes > 0, "the spec has enum fields in replies");
 }

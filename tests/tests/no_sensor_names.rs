@@ -58,9 +58,6 @@ const NOT_YET_FIXED: &[&str] = &[
     "crates/yosemitech-cli/src/commands/calibrate.rs",
     "crates/yosemitech-cli/src/commands/demo.rs",
     "crates/yosemitech-cli/tests/cli_device.rs",
-    "crates/yosemitech-sim/src/simulator.rs",
-    "crates/yosemitech-spec/tests/validation.rs",
-    "tests/tests/golden.rs",
 ];
 
 fn workspace() -> PathBuf {

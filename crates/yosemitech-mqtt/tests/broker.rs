@@ -9,27 +9,26 @@
 //! no more than `max_in_flight` per interruption, and never of a reading
 //! already marked published; without an interruption, no copy at all.
 
-mod support;
-
 use std::convert::Infallible;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Duration;
 
-use support::{
-    Broker, BrokerKind, DEADLINE, Received, Subscriber, available, ids_and_first_occurrences, reading, wait_until,
-};
 use yosemitech_mqtt::topic::DEFAULT_TOPIC_PREFIX;
 use yosemitech_mqtt::{MemoryOutbox, Outbox, Publisher, ReadingMessage, ShutdownReport};
+use yosemitech_tests::broker::{
+    Broker, BrokerKind, DEADLINE, Received, Subscriber, available, capture_logs, credentials_file,
+    ids_and_first_occurrences, reading, rumqttd_child_main, wait_until,
+};
 
 const ALL_READINGS: &str = "yosemitech/v1/+/+/reading";
 
 /// The broker process for the rumqttd runs: this binary, re-run by
-/// `support::Broker` with this test selected.
+/// [`Broker::start`] with this test selected.
 #[test]
 #[ignore = "the rumqttd broker process of the other tests; they start it"]
 fn rumqttd_child_process() {
-    support::rumqttd_child_main();
+    rumqttd_child_main();
 }
 
 /// One test per broker kind for a scenario.
@@ -307,7 +306,7 @@ fn authenticates_with_a_password_file(kind: BrokerKind) {
     const USER: &str = "station-river";
     const PASSWORD: &str = "s3cret-Pa55word";
     const WRONG: &str = "wr0ng-Pa55word";
-    let logs = support::capture_logs();
+    let logs = capture_logs();
     let broker = Broker::start(kind, Some((USER, PASSWORD)));
     let subscriber = Subscriber::start(&broker, ALL_READINGS);
 
@@ -315,7 +314,7 @@ fn authenticates_with_a_password_file(kind: BrokerKind) {
     let wrong_outbox = MemoryOutbox::new();
     push_readings(&wrong_outbox, 0..5);
     let mut config = broker.config("station-wrong", 4);
-    config.credentials = support::credentials_file(broker.dir(), "wrong", USER, WRONG);
+    config.credentials = credentials_file(broker.dir(), "wrong", USER, WRONG);
     let refused = Publisher::start(&config, wrong_outbox.clone()).unwrap();
     assert!(wait_until(|| refused.status().last_error.is_some()), "{kind:?}: a wrong password was not refused");
     let status = refused.status();
@@ -328,7 +327,7 @@ fn authenticates_with_a_password_file(kind: BrokerKind) {
     let outbox = MemoryOutbox::new();
     let sent = push_readings(&outbox, 0..20);
     let mut config = broker.config("station-right", 4);
-    config.credentials = support::credentials_file(broker.dir(), "right", USER, PASSWORD);
+    config.credentials = credentials_file(broker.dir(), "right", USER, PASSWORD);
     let publisher = Publisher::start(&config, outbox.clone()).unwrap();
     assert!(
         wait_until(|| outbox.published_up_to() == Some(20) && subscriber.count() >= 20),

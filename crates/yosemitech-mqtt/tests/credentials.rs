@@ -1,8 +1,6 @@
 //! Credentials: where they come from, which files are refused, and that the
 //! password shows in no `Debug`, `Display` or error text.
 
-mod support;
-
 use std::os::unix::fs::PermissionsExt;
 use std::path::PathBuf;
 
@@ -14,7 +12,7 @@ use yosemitech_mqtt::{
 const PASSWORD: &str = "Very-s3cret-passw0rd";
 
 fn file_with_mode(name: &str, content: &str, mode: u32) -> PathBuf {
-    let path = support::scratch_dir("credentials").join(name);
+    let path = yosemitech_tests::scratch_dir("mqtt-credentials").join(name);
     std::fs::write(&path, content).unwrap();
     std::fs::set_permissions(&path, std::fs::Permissions::from_mode(mode)).unwrap();
     path

@@ -1,21 +1,20 @@
 //! The client against an in-process responder: framing, checks, retries and deadlines.
 
-mod common;
-
-use common::driver::{AnyClient, Driver};
-
 use std::cell::RefCell;
 use std::rc::Rc;
 use std::time::{Duration, Instant};
 
-use common::{
-    READ_FLOAT_REPLY, READ_FLOAT_REQUEST, ReadAtFixedSlave, ReadFloat, StartMeasurement, float_probe, with_crc,
-};
 use proptest::prelude::*;
 use yosemitech_rtu::{
     CharFormat, Client, ClientConfig, Command, EchoField, EncodeError, Error, ExceptionCode, FrameError, LineTiming,
     ResponderTransport, RetryPolicy, Transport,
 };
+use yosemitech_tests::behaviour;
+use yosemitech_tests::driver::{AnyClient, Driver};
+use yosemitech_tests::rtu::{
+    READ_FLOAT_REPLY, READ_FLOAT_REQUEST, ReadAtFixedSlave, ReadFloat, StartMeasurement, float_probe,
+};
+use yosemitech_tests::with_crc;
 
 /// Requests seen by a responder, with their arrival times.
 type Log = Rc<RefCell<Vec<(Instant, Vec<u8>)>>>;

@@ -3,13 +3,8 @@
 //! delay jumps the clock instead of sleeping), a device answering each
 //! request with bytes at chosen times. The same behavioural cases as the
 //! blocking client's tests, and no allocation per transaction.
-// A counting global allocator needs `unsafe impl GlobalAlloc`; it only forwards to `System`.
-#![allow(unsafe_code)]
 
-mod common;
-
-use std::alloc::{GlobalAlloc, Layout as AllocLayout, System};
-use std::cell::{Cell, RefCell};
+use std::cell::RefCell;
 use std::collections::VecDeque;
 use std::future::Future;
 use std::pin::Pin;
@@ -17,35 +12,18 @@ use std::rc::Rc;
 use std::task::{Context, Poll};
 use std::time::Duration;
 
-use common::{READ_FLOAT_REPLY, READ_FLOAT_REQUEST, ReadFloat, StartMeasurement, float_probe, with_crc};
 use embassy_futures::block_on;
 use yosemitech_rtu::client::Instant;
 use yosemitech_rtu::client::embedded::AsyncClient;
 use yosemitech_rtu::{
     CharFormat, ClientConfig, ClientError, Command, ExceptionCode, FrameError, LineTiming, RetryPolicy,
 };
-
-thread_local! {
-    static ALLOCATIONS: Cell<usize> = const { Cell::new(0) };
-}
-
-struct Counting;
-
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: AllocLayout) -> *mut u8 {
-        ALLOCATIONS.with(|n| n.set(n.get() + 1));
-        // SAFETY: forwarded unchanged to the system allocator.
-        unsafe { System.alloc(layout) }
-    }
-
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: AllocLayout) {
-        // SAFETY: `ptr` came from `System.alloc` with this layout.
-        unsafe { System.dealloc(ptr, layout) }
-    }
-}
+use yosemitech_tests::counting_alloc::{CountingAllocator, allocations};
+use yosemitech_tests::rtu::{READ_FLOAT_REPLY, READ_FLOAT_REQUEST, ReadFloat, StartMeasurement, float_probe};
+use yosemitech_tests::with_crc;
 
 #[global_allocator]
-static GLOBAL: Counting = Counting;
+static GLOBAL: CountingAllocator = CountingAllocator;
 
 /// What the device sends for one request: `(delay after the request, bytes)`.
 type Answer = Vec<(Duration, Vec<u8>)>;
@@ -340,20 +318,20 @@ fn transactions_do_not_allocate() {
     let w = world(probe(1, Duration::from_millis(1)));
     let mut client = client_on(&w, config(0), None);
     assert_eq!(block_on(client.call(1, &ReadFloat)).unwrap(), 7.6);
-    let before = ALLOCATIONS.with(Cell::get);
+    let before = allocations();
     for _ in 0..100 {
         let value = block_on(client.call(1, &ReadFloat));
         assert!(matches!(value, Ok(v) if v == 7.6));
     }
-    let after = ALLOCATIONS.with(Cell::get);
+    let after = allocations();
     // The test's device allocates: one reply Vec and one logged request per transaction.
     let device_allocations = 2 * 100;
     assert_eq!(after - before - device_allocations, 0, "allocations by the driver in 100 transactions");
     // Errors do not allocate either (the device answers with a Modbus exception).
     let unknown = yosemitech_rtu::Layout { address: 0x9900, ..ReadFloat::LAYOUT };
     let request = with_crc(&[0x01, 0x03, 0x99, 0x00, 0x00, 0x02]);
-    let before = ALLOCATIONS.with(Cell::get);
+    let before = allocations();
     let err = block_on(client.call_raw(&request, &unknown)).unwrap_err();
     assert!(matches!(err, ClientError::Frame { error: FrameError::Exception { .. } }));
-    assert_eq!(ALLOCATIONS.with(Cell::get) - before, 2, "only the device's two");
+    assert_eq!(allocations() - before, 2, "only the device's two");
 }

@@ -1,42 +1,15 @@
 //! A successful transaction allocates nothing (design: "no allocation per
 //! transaction"). Counted with a global allocator, on the test's own thread.
-// A counting global allocator needs `unsafe impl GlobalAlloc`; it only forwards to `System`.
-#![allow(unsafe_code)]
 
-mod common;
-
-use std::alloc::{GlobalAlloc, Layout as AllocLayout, System};
-use std::cell::Cell;
 use std::time::Duration;
 
-use common::{READ_FLOAT_REPLY, READ_FLOAT_REQUEST, ReadFloat, float_probe, with_crc};
 use yosemitech_rtu::{Client, ClientConfig, Command, Layout, ResponderTransport, RetryPolicy};
-
-thread_local! {
-    static ALLOCATIONS: Cell<usize> = const { Cell::new(0) };
-}
-
-struct Counting;
-
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: AllocLayout) -> *mut u8 {
-        ALLOCATIONS.with(|n| n.set(n.get() + 1));
-        // SAFETY: forwarded unchanged to the system allocator.
-        unsafe { System.alloc(layout) }
-    }
-
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: AllocLayout) {
-        // SAFETY: `ptr` came from `System.alloc` with this layout.
-        unsafe { System.dealloc(ptr, layout) }
-    }
-}
+use yosemitech_tests::counting_alloc::{CountingAllocator, allocations};
+use yosemitech_tests::rtu::{READ_FLOAT_REPLY, READ_FLOAT_REQUEST, ReadFloat, float_probe};
+use yosemitech_tests::with_crc;
 
 #[global_allocator]
-static GLOBAL: Counting = Counting;
-
-fn allocations() -> usize {
-    ALLOCATIONS.with(Cell::get)
-}
+static GLOBAL: CountingAllocator = CountingAllocator;
 
 #[test]
 fn transactions_do_not_allocate() {

@@ -9,14 +9,14 @@
 //! codes of those functions. The client must still find the real frame, and
 //! a reply that is really corrupt must still be reported as such, promptly.
 
-mod common;
-
 use std::time::{Duration, Instant};
 
-use common::driver::{AnyClient, Driver};
-use common::{ReadFloat, StartMeasurement, float_probe, with_crc};
 use yosemitech_rtu::transport::AsyncLink;
 use yosemitech_rtu::{ClientConfig, Error, ExceptionCode, FrameError, ResponderTransport, RetryPolicy};
+use yosemitech_tests::behaviour;
+use yosemitech_tests::driver::{AnyClient, Driver};
+use yosemitech_tests::rtu::{READ_FLOAT_REQUEST, ReadFloat, StartMeasurement, float_probe};
+use yosemitech_tests::with_crc;
 
 const TIMEOUT: Duration = Duration::from_millis(200);
 
@@ -132,7 +132,7 @@ behaviour! {
         let config = ClientConfig { timeout: TIMEOUT, retry: RetryPolicy::NONE, ..ClientConfig::default() };
         let mut client = AnyClient::with_config(driver, transport, config);
         let error = client.call(1, &ReadFloat).unwrap_err();
-        assert!(client.last_reply().starts_with(&common::READ_FLOAT_REQUEST), "{error}");
+        assert!(client.last_reply().starts_with(&READ_FLOAT_REQUEST), "{error}");
     }
 
     fn a_device_that_never_stops_talking_cannot_hold_the_client(driver) {

@@ -1,15 +1,13 @@
 //! The client over real transports: TCP on 127.0.0.1, a serial pty pair, and
 //! the in-memory pair with a device thread.
 
-mod common;
-
 use std::io::{self, Read, Write};
 use std::net::{TcpListener, TcpStream};
 use std::thread;
 use std::time::{Duration, Instant};
 
-use common::{READ_FLOAT_REPLY, READ_FLOAT_REQUEST, ReadFloat, float_probe};
 use yosemitech_rtu::{Client, ClientConfig, Command, Error, MemoryTransport, RetryPolicy, TcpTransport, Transport};
+use yosemitech_tests::rtu::{READ_FLOAT_REPLY, READ_FLOAT_REQUEST, ReadFloat, float_probe};
 
 fn config() -> ClientConfig {
     ClientConfig { timeout: Duration::from_secs(2), retry: RetryPolicy::NONE, ..ClientConfig::default() }

@@ -15,13 +15,13 @@ const HEAD: &str = "sensor:
   default_address: 1
 ";
 
-const GET_PH: &str = "
-  - name: get_ph
+const READ_VALUE: &str = "
+  - name: read_value
     function: read
     address: 0x2800
     count: 2
     fields:
-      - {name: ph, type: f32, byte_order: dcba}
+      - {name: level, type: f32, byte_order: dcba}
 ";
 
 fn load(files: &[(&str, &str)]) -> Result<Spec, Diagnostics> {
@@ -50,8 +50,8 @@ fn assert_error(d: &Diagnostics, line: u32, key: &str, message: &str) {
 
 #[test]
 fn a_minimal_sensor_loads() {
-    let spec = load(&[("spec/probe.yaml", &format!("{HEAD}commands:{GET_PH}"))]).expect("loads");
-    assert_eq!(spec.sensors[0].commands[0].name, "get_ph");
+    let spec = load(&[("spec/probe.yaml", &format!("{HEAD}commands:{READ_VALUE}"))]).expect("loads");
+    assert_eq!(spec.sensors[0].commands[0].name, "read_value");
 }
 
 #[test]
@@ -91,33 +91,33 @@ fn partial_frames_state_what_they_can() {
     let d = errors(&trigger.replace("        response_crc: missing\n", ""));
     assert_error(&d, 18, "commands[0] (stop).examples[0].response", "placeholders cannot carry a known CRC");
     // A frame printed without its CRC is completed and replayed in full.
-    let no_crc = GET_PH_EXAMPLE_NO_CRC;
-    load(&[("spec/probe.yaml", &format!("{HEAD}commands:{GET_PH}{no_crc}"))]).expect("a computed CRC replays");
-    let d = errors(&format!("commands:{GET_PH}{}", no_crc.replace("F3 40\"", "F3 41\"")));
-    assert_error(&d, 21, "commands[0] (get_ph).examples[0].values.ph", "the frame gives ph =");
+    let no_crc = READ_VALUE_EXAMPLE_NO_CRC;
+    load(&[("spec/probe.yaml", &format!("{HEAD}commands:{READ_VALUE}{no_crc}"))]).expect("a computed CRC replays");
+    let d = errors(&format!("commands:{READ_VALUE}{}", no_crc.replace("F3 40\"", "F3 41\"")));
+    assert_error(&d, 21, "commands[0] (read_value).examples[0].values.level", "the frame gives level =");
 }
 
-const GET_PH_EXAMPLE_NO_CRC: &str = "    examples:\n      - figures: [1]\n        request: \"01 03 28 00 00 02 CD AB\"\n        response: \"01 03 04 33 33 F3 40\"\n        response_crc: missing\n        values: {ph: 7.6}\n";
+const READ_VALUE_EXAMPLE_NO_CRC: &str = "    examples:\n      - figures: [1]\n        request: \"01 03 28 00 00 02 CD AB\"\n        response: \"01 03 04 33 33 F3 40\"\n        response_crc: missing\n        values: {level: 7.6}\n";
 
 #[test]
 fn fields_fill_the_registers_exactly() {
-    let d = errors(&format!("commands:{}", GET_PH.replace("count: 2", "count: 3")));
-    assert_error(&d, 13, "commands[0] (get_ph).fields", "cover 4 bytes but 3 registers hold 6");
-    let d = errors(&format!("commands:{}", GET_PH.replace("count: 2", "count: 1")));
-    assert_error(&d, 13, "commands[0] (get_ph).fields", "need 4 bytes but 1 registers hold only 2");
+    let d = errors(&format!("commands:{}", READ_VALUE.replace("count: 2", "count: 3")));
+    assert_error(&d, 13, "commands[0] (read_value).fields", "cover 4 bytes but 3 registers hold 6");
+    let d = errors(&format!("commands:{}", READ_VALUE.replace("count: 2", "count: 1")));
+    assert_error(&d, 13, "commands[0] (read_value).fields", "need 4 bytes but 1 registers hold only 2");
     let overlap =
-        GET_PH.replace("count: 2", "count: 3") + "      - {name: flags, type: u16, byte_order: ab, offset: 2}\n";
+        READ_VALUE.replace("count: 2", "count: 3") + "      - {name: flags, type: u16, byte_order: ab, offset: 2}\n";
     let d = errors(&format!("commands:{overlap}"));
-    assert_error(&d, 16, "commands[0] (get_ph).fields[1] (flags).offset", "overlap");
+    assert_error(&d, 16, "commands[0] (read_value).fields[1] (flags).offset", "overlap");
 }
 
 #[test]
 fn names_are_unique_and_rust_safe() {
-    let d = errors(&format!("commands:{GET_PH}{}", GET_PH.replace("0x2800", "0x1200")));
-    assert_error(&d, 17, "commands[1] (get_ph).name", "two commands are called `get_ph`");
-    let d = errors(&format!("commands:{}", GET_PH.replace("name: ph,", "name: type,")));
-    assert_error(&d, 15, "commands[0] (get_ph).fields[0].name", "`type` is a Rust keyword");
-    let d = errors(&format!("commands:{}", GET_PH.replace("name: get_ph", "name: 'x\"]; fn evil() {'")));
+    let d = errors(&format!("commands:{READ_VALUE}{}", READ_VALUE.replace("0x2800", "0x1200")));
+    assert_error(&d, 17, "commands[1] (read_value).name", "two commands are called `read_value`");
+    let d = errors(&format!("commands:{}", READ_VALUE.replace("name: level,", "name: type,")));
+    assert_error(&d, 15, "commands[0] (read_value).fields[0].name", "`type` is a Rust keyword");
+    let d = errors(&format!("commands:{}", READ_VALUE.replace("name: read_value", "name: 'x\"]; fn evil() {'")));
     assert_error(&d, 10, "commands[0].name", "is not a snake_case identifier");
 }
 
@@ -125,11 +125,11 @@ fn names_are_unique_and_rust_safe() {
 fn example_crcs_verify_unless_an_erratum_says_otherwise() {
     let example = |response: &str, erratum: &str| {
         format!(
-            "commands:{GET_PH}    examples:\n      - figures: [1]\n        request: \"01 03 28 00 00 02 CD AB\"\n        response: \"{response}\"\n        values: {{ph: 7.6}}\n{erratum}"
+            "commands:{READ_VALUE}    examples:\n      - figures: [1]\n        request: \"01 03 28 00 00 02 CD AB\"\n        response: \"{response}\"\n        values: {{level: 7.6}}\n{erratum}"
         )
     };
     let d = errors(&example("01 03 04 33 33 F3 40 40 79", ""));
-    assert_error(&d, 19, "commands[0] (get_ph).examples[0].response", "the printed CRC of the response is wrong");
+    assert_error(&d, 19, "commands[0] (read_value).examples[0].response", "the printed CRC of the response is wrong");
     // With an erratum giving the true frame, the printed one may be wrong.
     let erratum = "        erratum:\n          id: E9\n          figure: 1\n          printed: Wrong CRC.\n          corrected_response: \"01 03 04 33 33 F3 40 40 78\"\n          printed_decodes: false\n";
     let text = format!("{HEAD}{}", example("01 03 04 33 33 F3 40 40 79", erratum));
@@ -143,7 +143,7 @@ fn an_erratum_may_complete_a_partial_frame_but_not_change_a_printed_byte() {
     // The manual prints a placeholder and no CRC; the erratum gives the true frame.
     let example = |corrected: &str| {
         format!(
-            "commands:{GET_PH}    examples:\n      - figures: [1]\n        request: \"01 03 28 00 00 02 CD AB\"\n        response: \"01 03 04 ?? 33 F3 40\"\n        response_crc: missing\n        values: {{ph: 7.6}}\n        erratum:\n          id: E9\n          figure: 1\n          printed: A word where byte 3 should be.\n          corrected_response: \"{corrected}\"\n          printed_decodes: false\n"
+            "commands:{READ_VALUE}    examples:\n      - figures: [1]\n        request: \"01 03 28 00 00 02 CD AB\"\n        response: \"01 03 04 ?? 33 F3 40\"\n        response_crc: missing\n        values: {{level: 7.6}}\n        erratum:\n          id: E9\n          figure: 1\n          printed: A word where byte 3 should be.\n          corrected_response: \"{corrected}\"\n          printed_decodes: false\n"
         )
     };
     let text = format!("{HEAD}{}", example("01 03 04 33 33 F3 40 40 78"));
@@ -152,13 +152,13 @@ fn an_erratum_may_complete_a_partial_frame_but_not_change_a_printed_byte() {
 
     // A correction that changes a printed byte stands for another frame.
     let d = errors(&example("01 03 04 33 34 F3 40 F1 B9"));
-    assert_error(&d, 26, "commands[0] (get_ph).examples[0].erratum.corrected_response", "byte 4 is printed as 33");
+    assert_error(&d, 26, "commands[0] (read_value).examples[0].erratum.corrected_response", "byte 4 is printed as 33");
     // Nor may it be longer than the printed frame plus its missing CRC.
     let d = errors(&example("01 03 04 33 33 F3 40 00 79 F0"));
     assert_error(
         &d,
         26,
-        "commands[0] (get_ph).examples[0].erratum.corrected_response",
+        "commands[0] (read_value).examples[0].erratum.corrected_response",
         "10 bytes where the printed frame has 9",
     );
 }
@@ -166,10 +166,10 @@ fn an_erratum_may_complete_a_partial_frame_but_not_change_a_printed_byte() {
 #[test]
 fn stated_values_must_match_the_frame() {
     let text = format!(
-        "commands:{GET_PH}    examples:\n      - figures: [1]\n        request: \"01 03 28 00 00 02 CD AB\"\n        response: \"01 03 04 33 33 F3 40 40 78\"\n        values: {{ph: 7.5}}\n"
+        "commands:{READ_VALUE}    examples:\n      - figures: [1]\n        request: \"01 03 28 00 00 02 CD AB\"\n        response: \"01 03 04 33 33 F3 40 40 78\"\n        values: {{level: 7.5}}\n"
     );
     let d = errors(&text);
-    assert_error(&d, 20, "commands[0] (get_ph).examples[0].values.ph", "the frame gives ph = 7.6");
+    assert_error(&d, 20, "commands[0] (read_value).examples[0].values.level", "the frame gives level = 7.6");
 }
 
 #[test]
@@ -194,8 +194,8 @@ fn includes_must_exist_be_fragments_and_not_cycle() {
 fn every_error_of_a_file_is_reported_at_once() {
     let text = format!(
         "commands:{}{}",
-        GET_PH.replace("count: 2", "count: 200"),
-        GET_PH.replace("name: get_ph", "name: self").replace("0x2800", "0x1200")
+        READ_VALUE.replace("count: 2", "count: 200"),
+        READ_VALUE.replace("name: read_value", "name: self").replace("0x2800", "0x1200")
     );
     let d = errors(&text);
     assert_eq!(d.len(), 2, "{d}");
@@ -204,23 +204,24 @@ fn every_error_of_a_file_is_reported_at_once() {
 
 #[test]
 fn yaml_errors_carry_positions_and_keys() {
-    let d = errors(&format!("commands:{}", GET_PH.replace("address", "adress")));
-    assert_error(&d, 12, "commands[0] (get_ph).adress", "unknown key `adress`");
+    let d = errors(&format!("commands:{}", READ_VALUE.replace("address", "adress")));
+    assert_error(&d, 12, "commands[0] (read_value).adress", "unknown key `adress`");
     assert!(d.0[0].help.as_deref().is_some_and(|h| h.contains("did you mean `address`?")));
-    let d = errors(&format!("commands:{}", GET_PH.replace("count: 2", "count: 2\n    count: 3")));
-    assert_error(&d, 14, "commands[0] (get_ph).count", "duplicate key `count`");
+    let d = errors(&format!("commands:{}", READ_VALUE.replace("count: 2", "count: 2\n    count: 3")));
+    assert_error(&d, 14, "commands[0] (read_value).count", "duplicate key `count`");
 }
 
 #[test]
 fn limits_refuse_hostile_input_quickly() {
     // Billion laughs in a stated value (an untagged value serde buffers whole).
-    let mut values = String::from("        values:\n          ph:\n            - &a0 [x, x, x, x, x, x, x, x, x, x]\n");
+    let mut values =
+        String::from("        values:\n          level:\n            - &a0 [x, x, x, x, x, x, x, x, x, x]\n");
     for i in 1..10 {
         let refs = vec![format!("*a{}", i - 1); 10].join(", ");
         values.push_str(&format!("            - &a{i} [{refs}]\n"));
     }
     let text = format!(
-        "commands:{GET_PH}    examples:\n      - figures: [1]\n        request: \"01 03 28 00 00 02 CD AB\"\n        response: \"01 03 04 33 33 F3 40 40 78\"\n{values}"
+        "commands:{READ_VALUE}    examples:\n      - figures: [1]\n        request: \"01 03 28 00 00 02 CD AB\"\n        response: \"01 03 04 33 33 F3 40 40 78\"\n{values}"
     );
     let start = std::time::Instant::now();
     let d = errors(&text);

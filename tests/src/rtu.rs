@@ -1,12 +1,14 @@
-//! Hand-written `Command`s and a simulated pH probe shared by the integration tests.
-#![allow(dead_code)]
+//! Hand-written [`Command`]s and a simulated probe for the runtime's own
+//! tests (`yosemitech-rtu`): commands and frames of the manuals, written
+//! without the generator, so the runtime is tested on its own.
 
 use yosemitech_rtu::codec::{ByteOrder4, f32_from_wire, f32_to_wire};
 use yosemitech_rtu::frame::encode_exception;
-use yosemitech_rtu::{Command, EncodeError, FrameError, Function, Layout, crc16};
+use yosemitech_rtu::{Command, EncodeError, FrameError, Function, Layout};
 
-/// The pH manual's get_ph exchange (Figs 23 and 25): 7.6 as a little-endian f32 image.
+/// The pH manual's get_ph request (Fig 23): [`ReadFloat`] to slave 1.
 pub const READ_FLOAT_REQUEST: [u8; 8] = [0x01, 0x03, 0x28, 0x00, 0x00, 0x02, 0xCD, 0xAB];
+/// Its reply (Fig 25): 7.6 as a little-endian f32 image.
 pub const READ_FLOAT_REPLY: [u8; 9] = [0x01, 0x03, 0x04, 0x33, 0x33, 0xF3, 0x40, 0x40, 0x78];
 
 /// get_ph: read 2 registers at 0x2800, one f32 (DCBA).
@@ -136,11 +138,3 @@ pub fn float_probe(address: u8, ph: f32, request: &[u8], reply: &mut Vec<u8>) {
     };
     reply.extend_from_slice(&out[..len.unwrap()]);
 }
-
-/// Appends the CRC to `body`.
-pub fn with_crc(body: &[u8]) -> Vec<u8> {
-    let mut frame = body.to_vec();
-    frame.extend_from_slice(&crc16(body).to_le_bytes());
-    frame
-}
-pub mod driver;

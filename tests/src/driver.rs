@@ -1,7 +1,7 @@
 //! One behavioural test, every driver: [`AnyClient`] has the blocking
 //! `Client`'s surface and runs either the blocking `Client` or the tokio
 //! `AsyncClient` (on a current-thread runtime of its own), over a link both
-//! accept; [`behaviour!`](crate::behaviour) turns each test into one test per driver.
+//! accept; [`behaviour!`](crate::behaviour!) turns each test into one test per driver.
 
 use std::time::Duration;
 
@@ -19,11 +19,14 @@ pub enum Driver {
 
 /// A client of either driver.
 pub enum AnyClient<T> {
+    /// The blocking client.
     Blocking(Client<T>),
+    /// The tokio client, with the current-thread runtime that runs it.
     Tokio(AsyncClient<T>, tokio::runtime::Runtime),
 }
 
 impl<T: Transport + AsyncLink> AnyClient<T> {
+    /// A client of `driver` on `transport` (a runtime of its own for tokio).
     pub fn with_config(driver: Driver, transport: T, config: ClientConfig) -> Self {
         match driver {
             Driver::Blocking => Self::Blocking(Client::with_config(transport, config)),
@@ -36,6 +39,7 @@ impl<T: Transport + AsyncLink> AnyClient<T> {
         }
     }
 
+    /// `call` of the driver, run to completion.
     pub fn call<C: Command>(&mut self, slave: u8, command: &C) -> Result<C::Response, Error> {
         match self {
             Self::Blocking(client) => client.call(slave, command),
@@ -43,6 +47,7 @@ impl<T: Transport + AsyncLink> AnyClient<T> {
         }
     }
 
+    /// `broadcast` of the driver, run to completion.
     pub fn broadcast<C: Command>(&mut self, command: &C) -> Result<(), Error> {
         match self {
             Self::Blocking(client) => client.broadcast(command),
@@ -50,6 +55,7 @@ impl<T: Transport + AsyncLink> AnyClient<T> {
         }
     }
 
+    /// `call_raw` of the driver, run to completion.
     pub fn call_raw(&mut self, request: &[u8], layout: &Layout<'_>) -> Result<&[u8], Error> {
         match self {
             Self::Blocking(client) => client.call_raw(request, layout),
@@ -57,6 +63,7 @@ impl<T: Transport + AsyncLink> AnyClient<T> {
         }
     }
 
+    /// `broadcast_raw` of the driver, run to completion.
     pub fn broadcast_raw(&mut self, request: &[u8], layout: &Layout<'_>) -> Result<(), Error> {
         match self {
             Self::Blocking(client) => client.broadcast_raw(request, layout),
@@ -64,6 +71,7 @@ impl<T: Transport + AsyncLink> AnyClient<T> {
         }
     }
 
+    /// The bytes of the last reply (`last_reply`).
     pub fn last_reply(&self) -> &[u8] {
         match self {
             Self::Blocking(client) => client.last_reply(),
@@ -71,6 +79,7 @@ impl<T: Transport + AsyncLink> AnyClient<T> {
         }
     }
 
+    /// The configuration, to change between calls.
     pub fn config_mut(&mut self) -> &mut ClientConfig {
         match self {
             Self::Blocking(client) => client.config_mut(),
@@ -78,6 +87,7 @@ impl<T: Transport + AsyncLink> AnyClient<T> {
         }
     }
 
+    /// The silence kept between frames on this link.
     pub fn inter_frame_delay(&self) -> Duration {
         match self {
             Self::Blocking(client) => client.inter_frame_delay(),
@@ -85,6 +95,7 @@ impl<T: Transport + AsyncLink> AnyClient<T> {
         }
     }
 
+    /// The transport (the tokio client's link).
     pub fn transport(&self) -> &T {
         match self {
             Self::Blocking(client) => client.transport(),
@@ -92,6 +103,7 @@ impl<T: Transport + AsyncLink> AnyClient<T> {
         }
     }
 
+    /// The transport back, dropping the client.
     pub fn into_transport(self) -> T {
         match self {
             Self::Blocking(client) => client.into_transport(),
@@ -108,12 +120,12 @@ macro_rules! behaviour {
         mod blocking_driver {
             #[allow(unused_imports)]
             use super::*;
-            $($(#[$meta])* #[test] fn $name() { let $driver = $crate::common::driver::Driver::Blocking; $body })*
+            $($(#[$meta])* #[test] fn $name() { let $driver = $crate::driver::Driver::Blocking; $body })*
         }
         mod tokio_driver {
             #[allow(unused_imports)]
             use super::*;
-            $($(#[$meta])* #[test] fn $name() { let $driver = $crate::common::driver::Driver::Tokio; $body })*
+            $($(#[$meta])* #[test] fn $name() { let $driver = $crate::driver::Driver::Tokio; $body })*
         }
     };
 }
