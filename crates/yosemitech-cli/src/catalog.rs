@@ -40,6 +40,20 @@ pub struct Entry {
     pub origin: Origin,
 }
 
+/// A measurement read and one exchange of it its manual prints
+/// ([`Catalog::example_read`]).
+#[derive(Debug, Clone, Copy)]
+pub struct ExampleRead<'c> {
+    /// The sensor.
+    pub sensor: &'c Sensor,
+    /// The read.
+    pub read: &'c CommandSpec,
+    /// The request, with its CRC.
+    pub request: &'c [u8],
+    /// The reply, with its CRC.
+    pub reply: &'c [u8],
+}
+
 /// Every sensor the tool knows, in load order.
 #[derive(Debug, Clone)]
 pub struct Catalog {
@@ -154,6 +168,19 @@ impl Catalog {
         self.entry(name).map(|e| &e.sensor)
     }
 
+    /// The read that help texts and the demo show as an example, with its
+    /// sensor and the frames its manual prints: the first measurement read
+    /// (in load order) with a complete request and reply. Chosen from the
+    /// spec, so no text names a sensor by hand.
+    pub fn example_read(&self) -> Option<ExampleRead<'_>> {
+        self.entries.iter().find_map(|entry| {
+            entry.sensor.measurement_reads().find_map(|read| {
+                let (request, reply) = read.examples.iter().find_map(|e| e.true_pair())?;
+                Some(ExampleRead { sensor: &entry.sensor, read, request, reply })
+            })
+        })
+    }
+
     /// `--spec` arguments to repeat in a printed command, for a sensor of this origin.
     pub fn spec_args(&self, origin: &Origin) -> Vec<String> {
         match origin {
@@ -255,6 +282,21 @@ mod tests {
             let typo = format!("{}{}", &name[..1], name);
             let e = catalog.sensor(&typo).unwrap_err();
             assert!(e.hint.unwrap().contains(&format!("did you mean `{name}`")), "{typo}");
+        }
+    }
+
+    #[test]
+    fn the_example_read_is_a_measurement_whose_frames_decode() {
+        let catalog = Catalog::load(&[]).unwrap();
+        let example = catalog.example_read().expect("some measurement read has a printed exchange");
+        assert!(example.sensor.is_measurement(example.read));
+        let slave = example.request[0];
+        let values = example.read.decode_response(slave, example.reply).unwrap();
+        assert!(!values.is_empty());
+        // The first sensor that has such a read: none before it does.
+        let position = catalog.entries().iter().position(|e| e.sensor.name == example.sensor.name).unwrap();
+        for entry in &catalog.entries()[..position] {
+            assert!(entry.sensor.measurement_reads().all(|r| r.examples.iter().all(|e| e.true_pair().is_none())));
         }
     }
 
