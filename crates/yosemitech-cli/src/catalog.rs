@@ -170,11 +170,20 @@ impl Catalog {
 
     /// The read that help texts and the demo show as an example, with its
     /// sensor and the frames its manual prints: the first measurement read
-    /// (in load order) with a complete request and reply. Chosen from the
-    /// spec, so no text names a sensor by hand.
+    /// (in load order) whose request no other command shares (so `decode`
+    /// names it from the request alone) and that has a complete printed
+    /// request and reply. Chosen from the spec, so no text names a sensor
+    /// by hand.
     pub fn example_read(&self) -> Option<ExampleRead<'_>> {
+        let same_request = |a: &CommandSpec, b: &CommandSpec| {
+            (a.function, a.address, a.count, a.fixed_slave) == (b.function, b.address, b.count, b.fixed_slave)
+        };
+        let every_command = || self.entries.iter().flat_map(|e| &e.sensor.commands);
         self.entries.iter().find_map(|entry| {
             entry.sensor.measurement_reads().find_map(|read| {
+                if every_command().filter(|c| same_request(c, read)).count() != 1 {
+                    return None;
+                }
                 let (request, reply) = read.examples.iter().find_map(|e| e.true_pair())?;
                 Some(ExampleRead { sensor: &entry.sensor, read, request, reply })
             })
@@ -293,11 +302,15 @@ mod tests {
         let slave = example.request[0];
         let values = example.read.decode_response(slave, example.reply).unwrap();
         assert!(!values.is_empty());
-        // The first sensor that has such a read: none before it does.
-        let position = catalog.entries().iter().position(|e| e.sensor.name == example.sensor.name).unwrap();
-        for entry in &catalog.entries()[..position] {
-            assert!(entry.sensor.measurement_reads().all(|r| r.examples.iter().all(|e| e.true_pair().is_none())));
-        }
+        // Its request is its own: no other command of any sensor sends it.
+        let senders: Vec<&str> = catalog
+            .entries()
+            .iter()
+            .flat_map(|e| &e.sensor.commands)
+            .filter(|c| c.encode_request(slave, &Default::default()).is_ok_and(|r| r == example.request))
+            .map(|c| c.name.as_str())
+            .collect();
+        assert_eq!(senders, [example.read.name.as_str()]);
     }
 
     #[test]

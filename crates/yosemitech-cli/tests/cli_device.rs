@@ -90,7 +90,12 @@ fn demo_reads_every_sensor_and_runs_every_procedure() {
                     continue;
                 }
                 let mean = shown_number(part, &read.name, field.display_name());
-                assert!((mean - f64::from(start)).abs() < 0.01, "{}: {} {mean} != {start}", sensor.name, field.display_name());
+                assert!(
+                    (mean - f64::from(start)).abs() < 0.01,
+                    "{}: {} {mean} != {start}",
+                    sensor.name,
+                    field.display_name()
+                );
                 compared += 1;
             }
         }

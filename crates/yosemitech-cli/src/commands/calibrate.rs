@@ -18,10 +18,10 @@ use yosemitech::procedures::{ProcedureError, RealSleep, Sleep};
 use crate::backup::{self, Backup};
 use crate::catalog::{Catalog, Entry};
 use crate::cli::{CalibratePhArgs, Global};
-use crate::port::Opened;
 use crate::confirm::{confirm, ensure_can_ask};
 use crate::device::{is_typed, procedure_failed};
 use crate::error::{CliError, Result, show_duration};
+use crate::port::Opened;
 use crate::{port, progress, time};
 
 /// Saves every coefficient of the probe (the spec's coefficient blocks) to
@@ -36,8 +36,10 @@ fn save_backup(
     args: &CalibratePhArgs,
     out: &mut dyn Write,
 ) -> Result<String> {
-    let not_started =
-        |e: CliError| CliError { message: format!("{}; the calibration did not start, nothing was written", e.message), ..e };
+    let not_started = |e: CliError| CliError {
+        message: format!("{}; the calibration did not start, nothing was written", e.message),
+        ..e
+    };
     let blocks = backup::read_blocks(opened, entry, slave).map_err(not_started)?;
     let backup = Backup {
         sensor: entry.sensor.name.clone(),
@@ -169,8 +171,13 @@ pub fn run(catalog: &Catalog, global: &Global, args: &CalibratePhArgs, out: &mut
     let with_restore =
         |e: CliError| e.detail(format!("to restore the coefficients saved before the calibration: {restore}"));
     let ctx = opened.context(slave, "the calibration");
-    let mut guide =
-        Guide { out, input: stdin_lines(), interactive: io::stdin().is_terminal(), skip_wait: args.skip_wait, stopped: None };
+    let mut guide = Guide {
+        out,
+        input: stdin_lines(),
+        interactive: io::stdin().is_terminal(),
+        skip_wait: args.skip_wait,
+        stopped: None,
+    };
     let mut probe = ph_orp::Device::new(&mut opened.bus, slave);
     let report = match calibrate(&mut probe, &config, &mut guide, &mut RealSleep) {
         Ok(report) => report,
