@@ -593,18 +593,26 @@ pub struct WatchArgs {
     pub window: Duration,
 }
 
-/// `plot`.
+/// A station's store and a time range of it, as `plot` and `export` read them.
 #[derive(Args, Debug)]
-pub struct PlotArgs {
+pub struct StoredRange {
     /// The station's store (the SQLite file `yosemitech log` writes).
     #[arg(long, value_name = "FILE")]
     pub db: PathBuf,
-    /// Start of the range [default: the first reading].
+    /// First instant, inclusive (UTC) [default: the first reading].
     #[arg(long, value_name = "TIME", value_parser = parse_instant)]
     pub from: Option<SystemTime>,
-    /// End of the range [default: now].
+    /// Last instant, exclusive (UTC) [default: plot: now; export: the last reading].
     #[arg(long, value_name = "TIME", value_parser = parse_instant)]
     pub to: Option<SystemTime>,
+}
+
+/// `plot`.
+#[derive(Args, Debug)]
+pub struct PlotArgs {
+    /// The store and the time range.
+    #[command(flatten)]
+    pub range: StoredRange,
     /// Only this probe (its label in the station's configuration).
     #[arg(long, value_name = "LABEL")]
     pub probe: Option<String>,
@@ -643,15 +651,9 @@ pub enum ExportFormat {
 /// `export`.
 #[derive(Args, Debug)]
 pub struct ExportArgs {
-    /// The station's SQLite file.
-    #[arg(long, value_name = "FILE")]
-    pub db: PathBuf,
-    /// First instant, inclusive (UTC) [default: the beginning].
-    #[arg(long, value_name = "TIME", value_parser = parse_instant)]
-    pub from: Option<SystemTime>,
-    /// Last instant, exclusive (UTC) [default: the end].
-    #[arg(long, value_name = "TIME", value_parser = parse_instant)]
-    pub to: Option<SystemTime>,
+    /// The store and the time range.
+    #[command(flatten)]
+    pub range: StoredRange,
     /// Output format.
     #[arg(short, long, value_enum, default_value_t = ExportFormat::Csv)]
     pub format: ExportFormat,

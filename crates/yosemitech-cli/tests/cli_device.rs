@@ -629,6 +629,27 @@ fn coefficients_backup_and_restore_round_trip() {
     }
 }
 
+/// Every coefficient the simulated probe holds, as (read, field, value)
+/// over its sensor's coefficient blocks.
+fn coefficients(s: &Sim<Simulator>, sensor: &yosemitech_spec::Sensor) -> Vec<(String, String, f32)> {
+    sensor
+        .coefficient_blocks()
+        .iter()
+        .flat_map(|(_, r)| r.named_fields().map(|f| (r.name.clone(), f.display_name().to_owned())).collect::<Vec<_>>())
+        .map(|(c, f)| {
+            let v = float(s, &c, &f);
+            (c, f, v)
+        })
+        .collect()
+}
+
+/// Sets each of `coefficients` on the probe to a value of its own (`base`, `base + 1`, ...).
+fn overwrite(s: &Sim<Simulator>, coefficients: &[(String, String, f32)], base: f32) {
+    for (i, (c, f, _)) in coefficients.iter().enumerate() {
+        s.server.device().set(c, f, Value::Float(base + i as f32)).unwrap();
+    }
+}
+
 /// The sensor `calibrate ph` drives: the one whose spec has a
 /// `calibration_point` command (the pH manual's own procedure).
 fn calibrated_sensor() -> String {
@@ -680,19 +701,8 @@ fn calibrate_ph_stops_on_q_and_prints_the_restore_command() {
     assert_eq!(s.server.device().calibration_points().len(), 1, "one point written");
     // The calibration's backup restores like any other: every coefficient, bit for bit.
     let file = std::fs::read_dir(dir.path()).unwrap().next().expect("the backup file").unwrap().path();
-    let sensor = yosemitech_tests::sensor(&name);
-    let before: Vec<(String, String, f32)> = sensor
-        .coefficient_blocks()
-        .iter()
-        .flat_map(|(_, r)| r.named_fields().map(|f| (r.name.clone(), f.display_name().to_owned())).collect::<Vec<_>>())
-        .map(|(c, f)| {
-            let v = float(&s, &c, &f);
-            (c, f, v)
-        })
-        .collect();
-    for (i, (c, f, _)) in before.iter().enumerate() {
-        s.server.device().set(c, f, Value::Float(2.5 + i as f32)).unwrap();
-    }
+    let before = coefficients(&s, &yosemitech_tests::sensor(&name));
+    overwrite(&s, &before, 2.5);
     let file = file.to_str().unwrap();
     let restore = ["coefficients", "restore", name.as_str(), "-p", &s.path, "--file", file, "--yes"];
     assert!(YOSEMITECH.run(&restore).ok().contains("restored and verified"));
@@ -1271,17 +1281,8 @@ fn a_spec_file_replacing_a_built_in_sensor_goes_through_the_interpreter() {
         out.contains(&format!("{first_field}={first_value}")) && out.contains(&format!("--spec {spec_arg}")),
         "{out}"
     );
-    let before: Vec<(String, String, f32)> = blocks
-        .iter()
-        .flat_map(|(_, r)| r.named_fields().map(|f| (r.name.clone(), f.display_name().to_owned())).collect::<Vec<_>>())
-        .map(|(c, f)| {
-            let v = float(&s, &c, &f);
-            (c, f, v)
-        })
-        .collect();
-    for (i, (c, f, _)) in before.iter().enumerate() {
-        s.server.device().set(c, f, Value::Float(1.5 + i as f32)).unwrap();
-    }
+    let before = coefficients(&s, &sensor);
+    overwrite(&s, &before, 1.5);
     let out =
         YOSEMITECH.run(&["--spec", spec_arg, "coefficients", "restore", &name, "-p", &s.path, "-f", file, "--yes"]);
     assert!(out.ok().contains("restored and verified"));
