@@ -169,18 +169,19 @@ impl Catalog {
     }
 
     /// The read that help texts and the demo show as an example, with its
-    /// sensor and the frames its manual prints: the first measurement read
-    /// (in load order) whose request no other command shares (so `decode`
-    /// names it from the request alone) and that has a complete printed
-    /// request and reply. Chosen from the spec, so no text names a sensor
-    /// by hand.
+    /// sensor and the frames its manual prints: the first read of a
+    /// measuring procedure (in load order; so `measure` runs on its sensor)
+    /// whose request no other command shares (so `decode` names it from the
+    /// request alone) and that has a complete printed request and reply.
+    /// Chosen from the spec, so no text names a sensor by hand.
     pub fn example_read(&self) -> Option<ExampleRead<'_>> {
         let same_request = |a: &CommandSpec, b: &CommandSpec| {
             (a.function, a.address, a.count, a.fixed_slave) == (b.function, b.address, b.count, b.fixed_slave)
         };
         let every_command = || self.entries.iter().flat_map(|e| &e.sensor.commands);
         self.entries.iter().find_map(|entry| {
-            entry.sensor.measurement_reads().find_map(|read| {
+            let procedure = entry.sensor.procedure.as_ref()?;
+            procedure.read.iter().filter_map(|name| entry.sensor.command(name)).find_map(|read| {
                 if every_command().filter(|c| same_request(c, read)).count() != 1 {
                     return None;
                 }
@@ -295,10 +296,11 @@ mod tests {
     }
 
     #[test]
-    fn the_example_read_is_a_measurement_whose_frames_decode() {
+    fn the_example_read_is_a_procedure_read_with_a_request_of_its_own() {
         let catalog = Catalog::load(&[]).unwrap();
         let example = catalog.example_read().expect("some measurement read has a printed exchange");
-        assert!(example.sensor.is_measurement(example.read));
+        let procedure = example.sensor.procedure.as_ref().expect("the example's sensor states a procedure");
+        assert!(procedure.read.contains(&example.read.name));
         let slave = example.request[0];
         let values = example.read.decode_response(slave, example.reply).unwrap();
         assert!(!values.is_empty());
