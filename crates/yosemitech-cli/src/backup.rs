@@ -32,9 +32,7 @@ use std::path::{Path, PathBuf};
 use std::time::SystemTime;
 
 use serde_json::{Map, Value as Json, json};
-use yosemitech::procedures::coefficients::PhOrpCoefficients;
-use yosemitech::{Command as _, FieldInfo, ph_orp};
-use yosemitech_spec::{CommandSpec, Value, Values};
+use yosemitech_spec::{CommandSpec, Role, Value, Values};
 
 use crate::catalog::{Catalog, Entry};
 use crate::device;
@@ -126,23 +124,6 @@ impl Backup {
     }
 }
 
-/// A pH/ORP probe's coefficients as backup blocks: the result of the typed
-/// crate's pH `calibrate` procedure, named like the blocks [`read_blocks`]
-/// reads.
-pub fn ph_orp_blocks(c: &PhOrpCoefficients) -> Blocks {
-    fn block(fields: &[FieldInfo], values: &[f32]) -> BTreeMap<String, f32> {
-        fields.iter().zip(values).map(|(f, v)| (f.name.to_owned(), *v)).collect()
-    }
-    Blocks::from([
-        (
-            ph_orp::SetPhElectrodeCoefficients::NAME.to_owned(),
-            block(&ph_orp::SetPhElectrodeCoefficients::FIELDS, &c.electrode),
-        ),
-        (ph_orp::SetPhCalibration::NAME.to_owned(), block(&ph_orp::SetPhCalibration::FIELDS, &c.ph_calibration)),
-        (ph_orp::SetOrpCalibration::NAME.to_owned(), block(&ph_orp::SetOrpCalibration::FIELDS, &c.orp_calibration)),
-    ])
-}
-
 /// The values a coefficient read returned, under the names of the write
 /// command that restores them (the two share address and register count,
 /// so their fields pair up in order).
@@ -211,9 +192,10 @@ pub fn write_blocks(opened: &mut Opened, entry: &Entry, slave: u8, blocks: &Bloc
     Ok(())
 }
 
-/// The probe's serial number, if it answers `get_sn`.
+/// The probe's serial number, if its spec has a serial-number read and the
+/// probe answers it.
 pub fn serial_number(opened: &mut Opened, entry: &Entry, slave: u8) -> Option<String> {
-    let command = entry.sensor.command("get_sn")?;
+    let command = entry.sensor.command_with_role(Role::SerialNumber)?;
     let values = device::read(opened, command, slave).ok()?;
     values.into_iter().find_map(|(_, v)| match v {
         Value::Text(t) => Some(t),

@@ -40,6 +40,20 @@ pub struct Entry {
     pub origin: Origin,
 }
 
+/// A measurement read and one exchange of it its manual prints
+/// ([`Catalog::example_read`]).
+#[derive(Debug, Clone, Copy)]
+pub struct ExampleRead<'c> {
+    /// The sensor.
+    pub sensor: &'c Sensor,
+    /// The read.
+    pub read: &'c CommandSpec,
+    /// The request, with its CRC.
+    pub request: &'c [u8],
+    /// The reply, with its CRC.
+    pub reply: &'c [u8],
+}
+
 /// Every sensor the tool knows, in load order.
 #[derive(Debug, Clone)]
 pub struct Catalog {
@@ -154,6 +168,29 @@ impl Catalog {
         self.entry(name).map(|e| &e.sensor)
     }
 
+    /// The read that help texts and the demo show as an example, with its
+    /// sensor and the frames its manual prints: the first read of a
+    /// measuring procedure (in load order; so `measure` runs on its sensor)
+    /// whose request no other command shares (so `decode` names it from the
+    /// request alone) and that has a complete printed request and reply.
+    /// Chosen from the spec, so no text names a sensor by hand.
+    pub fn example_read(&self) -> Option<ExampleRead<'_>> {
+        let same_request = |a: &CommandSpec, b: &CommandSpec| {
+            (a.function, a.address, a.count, a.fixed_slave) == (b.function, b.address, b.count, b.fixed_slave)
+        };
+        let every_command = || self.entries.iter().flat_map(|e| &e.sensor.commands);
+        self.entries.iter().find_map(|entry| {
+            let procedure = entry.sensor.procedure.as_ref()?;
+            procedure.read.iter().filter_map(|name| entry.sensor.command(name)).find_map(|read| {
+                if every_command().filter(|c| same_request(c, read)).count() != 1 {
+                    return None;
+                }
+                let (request, reply) = read.examples.iter().find_map(|e| e.true_pair())?;
+                Some(ExampleRead { sensor: &entry.sensor, read, request, reply })
+            })
+        })
+    }
+
     /// `--spec` arguments to repeat in a printed command, for a sensor of this origin.
     pub fn spec_args(&self, origin: &Origin) -> Vec<String> {
         match origin {
@@ -256,6 +293,26 @@ mod tests {
             let e = catalog.sensor(&typo).unwrap_err();
             assert!(e.hint.unwrap().contains(&format!("did you mean `{name}`")), "{typo}");
         }
+    }
+
+    #[test]
+    fn the_example_read_is_a_procedure_read_with_a_request_of_its_own() {
+        let catalog = Catalog::load(&[]).unwrap();
+        let example = catalog.example_read().expect("some measurement read has a printed exchange");
+        let procedure = example.sensor.procedure.as_ref().expect("the example's sensor states a procedure");
+        assert!(procedure.read.contains(&example.read.name));
+        let slave = example.request[0];
+        let values = example.read.decode_response(slave, example.reply).unwrap();
+        assert!(!values.is_empty());
+        // Its request is its own: no other command of any sensor sends it.
+        let senders: Vec<&str> = catalog
+            .entries()
+            .iter()
+            .flat_map(|e| &e.sensor.commands)
+            .filter(|c| c.encode_request(slave, &Default::default()).is_ok_and(|r| r == example.request))
+            .map(|c| c.name.as_str())
+            .collect();
+        assert_eq!(senders, [example.read.name.as_str()]);
     }
 
     #[test]

@@ -10,8 +10,8 @@ use crate::port::{AddressArg, PortArgs};
 use crate::time::parse_instant_now as parse_instant;
 
 const LONG_ABOUT: &str = "\
-Field tool for Yosemitech water-quality probes (pH/ORP, conductivity, turbidity, chlorophyll,
-COD, multi-parameter sondes: every sensor of the spec) on Modbus RTU.
+Field tool for Yosemitech water-quality probes on Modbus RTU. Every sensor of the spec is built in:
+{sensors}.
 
 Everything the tool knows about a probe comes from the YAML transcriptions of the vendor
 manuals compiled into it (see `yosemitech list`). `--spec DIR` adds spec files at run time:
@@ -19,22 +19,15 @@ a new sensor works with the generic commands (list, read, write, poll, measure, 
 encode, scan) before the tool is rebuilt.
 
 Generic commands work on any command of any sensor through the spec's reference
-interpreter (`measure` runs the procedure a spec states); calibrate, coefficients,
-set-address and demo follow the manuals' procedures through the typed `yosemitech` crate.
+interpreter (`measure` runs the procedure a spec states, `coefficients` saves and restores
+the coefficient blocks a spec pairs, `demo` runs every sensor simulated); `calibrate` and
+`set-address` follow the manuals' procedures through the typed `yosemitech` crate.
 
 Exit codes: 0 success, 1 device or protocol error, 2 usage error.";
 
 const AFTER_HELP: &str = "\
 Examples:
-  yosemitech demo                                  simulated probes, no hardware needed
-  yosemitech list ph_orp                           commands, registers and fields
-  yosemitech read ph_orp get_ph --port /dev/ttyUSB0
-  yosemitech poll conductivity -p /dev/ttyUSB0 --interval 10s --format csv >> log.csv
-  yosemitech measure turbidity -p /dev/ttyUSB0
-  yosemitech decode 01 03 04 33 33 F3 40 40 78
-  yosemitech scan --port /dev/ttyUSB0
-  yosemitech watch --db station.db                 a station's latest values, live
-  yosemitech plot --db station.db --from 1d --out day.png
+{examples}
 
 The port and baud rate may also come from YOSEMITECH_PORT and YOSEMITECH_BAUD.";
 
@@ -79,12 +72,13 @@ pub struct Global {
 /// The subcommands.
 #[derive(clap::Subcommand, Debug)]
 pub enum Subcommand {
-    /// Run simulated pH/ORP and conductivity probes on pseudo-terminals and talk to them.
+    /// Simulate every sensor of the spec on pseudo-terminals and talk to them.
     #[command(long_about = "\
-Start simulated pH/ORP and conductivity probes on pseudo-terminals (no hardware, no root) and
-run a short session through the real serial code path: identify each probe (serial number,
-hardware and software revisions), read every measurement, and run the conductivity manual's
-measurement procedure with its waits shortened. Takes a few seconds.")]
+Start every sensor of the spec simulated on a pseudo-terminal of its own (no hardware, no
+root) and run a short session through the real serial code path: read each probe's identity
+(serial number, hardware and software revisions), every measurement, its calibration status
+and coefficients; run each manual's measuring procedure with the waits shortened; then put
+the whole family on one bus and identify it as `scan` does. Takes a second or two.")]
     Demo(DemoArgs),
 
     /// List the sensors and commands of the spec.
@@ -97,7 +91,7 @@ start register, register count, and each field's type, unit, byte offset, size a
     /// Send any read command and show the values with their units.
     #[command(long_about = "\
 Send any read command of a sensor's spec and show the reply's values with their units.
-COMMAND is the spec's name (`get_ph`); `ph` stands for `get_ph`.")]
+COMMAND is the spec's name (`{read}`); a read's leading `get_` may be left out.")]
     Read(ReadArgs),
 
     /// Send any write command, after confirmation, and read it back.
@@ -161,7 +155,7 @@ no reading, and (exit 2) for an unknown probe or measurement.")]
     #[command(long_about = "\
 Find the probes on a bus and identify each one. At every address the serial number is read
 (the loaded sensors' serial-number reads, the most common layout first; a probe that lacks a
-register does not answer, so most addresses cost one read and a sonde two). The model code in
+register does not answer, so most addresses cost one read, a probe of a rarer layout two). The model code in
 the byte before the serial number (real probes send it there) or in its characters 3-4
 (`YL09...`) names the sensor whose spec declares that `model_code`; where no single loaded
 sensor matches, the candidates are listed with the reason. One more read gives the hardware
@@ -239,7 +233,7 @@ pub struct ListArgs {
 pub struct ReadArgs {
     /// Sensor (`yosemitech list` shows them).
     pub sensor: String,
-    /// Read command, e.g. get_ph.
+    /// Read command (`yosemitech list SENSOR` shows them).
     pub command: String,
     #[command(flatten)]
     pub port: PortArgs,
@@ -255,7 +249,7 @@ pub struct ReadArgs {
 pub struct WriteArgs {
     /// Sensor.
     pub sensor: String,
-    /// Write command, e.g. set_ph_calibration.
+    /// Write command (`yosemitech list SENSOR` shows them).
     pub command: String,
     /// Values: field=value pairs, or values in field order.
     #[arg(value_name = "VALUES", allow_negative_numbers = true)]
@@ -465,10 +459,11 @@ address, register count, CRC, and the fixed slave address where the command has 
 reply by its CRC and the length the pending request's command expects (5 bytes for an
 exception). Each reply is paired with the request before it (same slave, or the command's
 fixed slave) and decoded as the command(s) that request names. When several sensors share
-the request (get_sn is in every probe), the reply is decoded as each: decodings that fail
-are dropped, equal ones are reported together (`get_sn of conductivity, ph_orp`), and
-different ones are all listed: an ambiguity that --sensor / --command resolve (they only
-narrow the decoding: a transaction of a command they leave out is reported as unknown).
+the request (the serial-number read is in every probe), the reply is decoded as each:
+decodings that fail are dropped, equal ones are reported together (`COMMAND of SENSOR,
+SENSOR`), and different ones are all listed: an ambiguity that --sensor / --command resolve
+(they only narrow the decoding: a transaction of a command they leave out is reported as
+unknown).
 
 --capture FILE (`-` for stdin) reads a capture: one frame per line, or one hex stream
 (possibly wrapped over lines; whichever reading explains more bytes as frames wins). A label
@@ -494,9 +489,9 @@ unreadable capture file, an ambiguous single frame or pair (choose with --sensor
 
 const DECODE_EXAMPLES: &str = "\
 Examples:
-  yosemitech decode 01 03 04 33 33 F3 40 40 78 --command get_ph
-  yosemitech decode \"01 03 28 00 00 02 CD AB\" \"01 03 04 33 33 F3 40 40 78\"
-  yosemitech decode 010328000002CDAB01030433 33F3404078 --json
+  yosemitech decode {reply} --sensor {sensor} --command {read}
+  yosemitech decode \"{request}\" \"{reply}\"
+  yosemitech decode {frames} --json
   yosemitech decode --capture bus.log --json | jq 'select(.status != \"decoded\")'
   some-sniffer | yosemitech decode --capture -";
 
@@ -571,7 +566,7 @@ pub struct SimulateArgs {
     /// Noise amplitude added to every measurement, in its unit.
     #[arg(long, value_name = "X")]
     pub noise: Option<f32>,
-    /// Emulate the serial line's timing (9600 baud: about 25 ms per get_ph).
+    /// Emulate the serial line's timing at the sensor's baud rate (at 9600 baud, about 1 ms a byte).
     #[arg(long)]
     pub line_timing: bool,
     /// Answer requests for registers the probe lacks with Modbus exceptions
@@ -598,18 +593,26 @@ pub struct WatchArgs {
     pub window: Duration,
 }
 
-/// `plot`.
+/// A station's store and a time range of it, as `plot` and `export` read them.
 #[derive(Args, Debug)]
-pub struct PlotArgs {
+pub struct StoredRange {
     /// The station's store (the SQLite file `yosemitech log` writes).
     #[arg(long, value_name = "FILE")]
     pub db: PathBuf,
-    /// Start of the range [default: the first reading].
+    /// First instant, inclusive (UTC) [default: the first reading].
     #[arg(long, value_name = "TIME", value_parser = parse_instant)]
     pub from: Option<SystemTime>,
-    /// End of the range [default: now].
+    /// Last instant, exclusive (UTC) [default: plot: now; export: the last reading].
     #[arg(long, value_name = "TIME", value_parser = parse_instant)]
     pub to: Option<SystemTime>,
+}
+
+/// `plot`.
+#[derive(Args, Debug)]
+pub struct PlotArgs {
+    /// The store and the time range.
+    #[command(flatten)]
+    pub range: StoredRange,
     /// Only this probe (its label in the station's configuration).
     #[arg(long, value_name = "LABEL")]
     pub probe: Option<String>,
@@ -648,15 +651,9 @@ pub enum ExportFormat {
 /// `export`.
 #[derive(Args, Debug)]
 pub struct ExportArgs {
-    /// The station's SQLite file.
-    #[arg(long, value_name = "FILE")]
-    pub db: PathBuf,
-    /// First instant, inclusive (UTC) [default: the beginning].
-    #[arg(long, value_name = "TIME", value_parser = parse_instant)]
-    pub from: Option<SystemTime>,
-    /// Last instant, exclusive (UTC) [default: the end].
-    #[arg(long, value_name = "TIME", value_parser = parse_instant)]
-    pub to: Option<SystemTime>,
+    /// The store and the time range.
+    #[command(flatten)]
+    pub range: StoredRange,
     /// Output format.
     #[arg(short, long, value_enum, default_value_t = ExportFormat::Csv)]
     pub format: ExportFormat,

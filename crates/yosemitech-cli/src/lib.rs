@@ -32,6 +32,7 @@ mod dashboard;
 mod device;
 mod error;
 mod format;
+mod help;
 mod port;
 mod progress;
 mod readings;
@@ -84,7 +85,7 @@ fn install_panic_hook() {
 /// Runs the tool on the process's arguments: the binary's `main`.
 pub fn main() -> ExitCode {
     install_panic_hook();
-    let cli = cli::Cli::parse();
+    let cli = cli::Cli::try_parse().unwrap_or_else(|e| help::exit(e));
     init_logging(cli.global.verbose);
     match commands::run(&cli) {
         Ok(()) => ExitCode::SUCCESS,

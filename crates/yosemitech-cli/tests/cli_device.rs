@@ -9,7 +9,7 @@ use std::time::{Duration, Instant};
 
 use std::sync::Arc;
 
-use yosemitech_tests::cli::{Binary, fixture_spec_dir, number_after, sim};
+use yosemitech_tests::cli::{Binary, Run, Sim, fixture_spec_dir, number_after, sim};
 use yosemitech_tests::spec;
 
 /// The binary under test.
@@ -28,34 +28,79 @@ fn float(sim: &yosemitech_tests::cli::Sim<yosemitech_sim::Simulator>, command: &
     }
 }
 
+/// The number `demo` or `measure` shows for `field` of `read` in `text`:
+/// on the line labelled with the field's name, or `read.field` where two
+/// reads share the name.
+fn shown_number(text: &str, read: &str, field: &str) -> f64 {
+    let qualified = format!("{read}.{field}");
+    let label = if text.lines().any(|l| l.trim_start().starts_with(&format!("{qualified} "))) {
+        qualified
+    } else {
+        format!("{field} ")
+    };
+    number_after(text, &label)
+}
+
 #[test]
-fn demo_runs_both_probes_and_prints_the_values() {
+fn demo_reads_every_sensor_and_runs_every_procedure() {
     let started = Instant::now();
     let run = YOSEMITECH.run(&["demo"]);
     let out = run.ok();
     assert!(started.elapsed() < Duration::from_secs(20), "the demo takes a few seconds");
-    for needle in [
-        "/dev/pts/",
-        "YL4314010022",
-        "YL0914010022",
-        "hardware        1.1",
-        "software        1.0",
-        " pH",
-        " mV",
-        "°C",
-        "mS/cm",
-        "range status    ok",
-        "electrode K1-K6 6.86 -6.72 0.04 6.86 -6.56 -1.04",
-        "mean of 10 readings",
-        "ok (all 10 readings)",
-    ] {
-        assert!(out.contains(needle), "`{needle}` missing from the demo:\n{out}");
+    let (probes, rest) = out.split_once("waits shortened").unwrap_or_else(|| panic!("no procedures:\n{out}"));
+    let procedures = rest.split("the whole family on one RS-485 bus").next().unwrap();
+    for sensor in &spec().sensors {
+        // Its own probe: identity, measurements and coefficients, each read's line with every field.
+        let header = format!("{} ({}) on ", sensor.title, sensor.name);
+        let section = probes.split(&header).nth(1).unwrap_or_else(|| panic!("`{header}` missing:\n{out}"));
+        let section = section.split("\n\n").next().unwrap();
+        let line = |read: &CommandSpec| {
+            let line = section
+                .lines()
+                .find(|l| l.trim_start().starts_with(&format!("{} ", read.name)))
+                .unwrap_or_else(|| panic!("{}: no `{}` line:\n{section}", sensor.name, read.name));
+            for field in read.named_fields() {
+                assert!(line.contains(&format!("{} ", field.display_name())), "{}: {line}", sensor.name);
+            }
+            line
+        };
+        if let Some(sn) = sensor.command_with_role(Role::SerialNumber) {
+            assert!(line(sn).contains(&own_serial_number(sensor)), "{section}");
+        }
+        for read in sensor.measurement_reads().chain(sensor.coefficient_blocks().into_iter().map(|(_, r)| r)) {
+            line(read);
+        }
+        // Its manual's procedure: the mean of what the simulator serves.
+        let Some(procedure) = &sensor.procedure else { continue };
+        let part = procedures
+            .split(&format!("\n{}: ", sensor.name))
+            .nth(1)
+            .unwrap_or_else(|| panic!("{}: no procedure:\n{procedures}", sensor.name));
+        let part = part.split("\n\n").next().unwrap();
+        if procedure.readings > 1 {
+            assert!(part.contains(&format!("mean of {} readings", procedure.readings)), "{part}");
+        }
+        let simulated = Simulator::new(Arc::new(sensor.clone()));
+        let mut compared = 0;
+        for read in procedure.read.iter().map(|r| sensor.command(r).unwrap()) {
+            for field in read.named_fields().filter(|f| f.unit.is_some()) {
+                let Ok(Value::Float(start)) = simulated.get(&read.name, field.display_name()) else { continue };
+                if !start.is_finite() || part.lines().any(|l| l.contains(field.display_name()) && l.contains("absent"))
+                {
+                    continue;
+                }
+                let mean = shown_number(part, &read.name, field.display_name());
+                assert!(
+                    (mean - f64::from(start)).abs() < 0.01,
+                    "{}: {} {mean} != {start}",
+                    sensor.name,
+                    field.display_name()
+                );
+                compared += 1;
+            }
+        }
+        assert!(compared > 0, "{}: a measured float to compare:\n{part}", sensor.name);
     }
-    // The spec's procedure, waits shortened: the mean of the simulated 1.413 mS/cm.
-    let measurement = out.split("waits shortened").nth(1).expect("the measurement section");
-    let conductivity = number_after(measurement, "conductivity_ms_cm");
-    assert!((conductivity - 1.413).abs() < 0.01, "{measurement}");
-    assert!((number_after(out, "pH  ") - 7.02).abs() < 0.05, "{out}");
 }
 
 #[test]
@@ -584,6 +629,27 @@ fn coefficients_backup_and_restore_round_trip() {
     }
 }
 
+/// Every coefficient the simulated probe holds, as (read, field, value)
+/// over its sensor's coefficient blocks.
+fn coefficients(s: &Sim<Simulator>, sensor: &yosemitech_spec::Sensor) -> Vec<(String, String, f32)> {
+    sensor
+        .coefficient_blocks()
+        .iter()
+        .flat_map(|(_, r)| r.named_fields().map(|f| (r.name.clone(), f.display_name().to_owned())).collect::<Vec<_>>())
+        .map(|(c, f)| {
+            let v = float(s, &c, &f);
+            (c, f, v)
+        })
+        .collect()
+}
+
+/// Sets each of `coefficients` on the probe to a value of its own (`base`, `base + 1`, ...).
+fn overwrite(s: &Sim<Simulator>, coefficients: &[(String, String, f32)], base: f32) {
+    for (i, (c, f, _)) in coefficients.iter().enumerate() {
+        s.server.device().set(c, f, Value::Float(base + i as f32)).unwrap();
+    }
+}
+
 /// The sensor `calibrate ph` drives: the one whose spec has a
 /// `calibration_point` command (the pH manual's own procedure).
 fn calibrated_sensor() -> String {
@@ -598,39 +664,53 @@ fn calibrated_sensor() -> String {
     with[0].clone()
 }
 
-#[test]
-fn calibrate_ph_guides_three_points_and_reports_success() {
-    let name = calibrated_sensor();
-    let s = sim(&name, 1);
+/// `calibrate ph` on a new simulated probe, with `input` on stdin and its
+/// backup in a new directory (returned with the probe and the run).
+fn calibrate_with(input: &str) -> (Sim<Simulator>, tempfile::TempDir, Run) {
+    let s = sim(&calibrated_sensor(), 1);
     let dir = tempfile::tempdir().unwrap();
     let backup_dir = dir.path().to_str().unwrap();
-    let run = YOSEMITECH.run_with_input(
-        &["calibrate", "ph", "-p", &s.path, "--yes", "--skip-wait", "--backup-dir", backup_dir],
-        "\n\n\n",
-    );
+    let run = YOSEMITECH
+        .run_with_input(&["calibrate", "ph", "-p", &s.path, "--yes", "--skip-wait", "--backup-dir", backup_dir], input);
+    (s, dir, run)
+}
+
+#[test]
+fn calibrate_ph_guides_three_points_and_reports_success() {
+    let (_s, dir, run) = calibrate_with("\n\n\n");
     let out = run.ok();
     for needle in ["pH 4.00 buffer", "pH 6.86 buffer", "pH 9.18 buffer", "calibration succeeded", "restore with:"] {
         assert!(out.contains(needle), "`{needle}` missing:\n{out}");
     }
     assert!(out.find("saved every coefficient").unwrap() < out.find("pH 4.00 buffer").unwrap(), "backup first");
     assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1, "one backup file");
+    // The coefficients after it: every block, read from the probe.
+    let after = out.split("coefficients now:").nth(1).expect("the coefficients after the calibration");
+    for (write, _) in yosemitech_tests::sensor(&calibrated_sensor()).coefficient_blocks() {
+        assert!(after.contains(&format!("{}: ", write.name)), "{after}");
+    }
 }
 
 #[test]
 fn calibrate_ph_stops_on_q_and_prints_the_restore_command() {
     let name = calibrated_sensor();
-    let s = sim(&name, 1);
-    let dir = tempfile::tempdir().unwrap();
-    let backup_dir = dir.path().to_str().unwrap();
-    let run = YOSEMITECH.run_with_input(
-        &["calibrate", "ph", "-p", &s.path, "--yes", "--skip-wait", "--backup-dir", backup_dir],
-        "\nq\n",
-    );
+    let (s, dir, run) = calibrate_with("\nq\n");
     let err = run.fails(1);
     assert!(err.contains("stopped by the user at point 2"), "{err}");
     assert!(err.contains(&format!("yosemitech coefficients restore {name}")), "{err}");
     assert_eq!(s.server.device().calibration_points().len(), 1, "one point written");
+    // The calibration's backup restores like any other: every coefficient, bit for bit.
+    let file = std::fs::read_dir(dir.path()).unwrap().next().expect("the backup file").unwrap().path();
+    let before = coefficients(&s, &yosemitech_tests::sensor(&name));
+    overwrite(&s, &before, 2.5);
+    let file = file.to_str().unwrap();
+    let restore = ["coefficients", "restore", name.as_str(), "-p", &s.path, "--file", file, "--yes"];
+    assert!(YOSEMITECH.run(&restore).ok().contains("restored and verified"));
+    for (c, f, v) in &before {
+        assert_eq!(float(&s, c, f).to_bits(), v.to_bits(), "{c}.{f}");
+    }
     // Without --yes and without a terminal, nothing starts.
+    let backup_dir = dir.path().to_str().unwrap();
     let run = YOSEMITECH.run(&["calibrate", "ph", "-p", &s.path, "--skip-wait", "--backup-dir", backup_dir]);
     run.fails_with_hint(2);
     // A backup that cannot be saved stops the calibration before any write.
@@ -1201,17 +1281,8 @@ fn a_spec_file_replacing_a_built_in_sensor_goes_through_the_interpreter() {
         out.contains(&format!("{first_field}={first_value}")) && out.contains(&format!("--spec {spec_arg}")),
         "{out}"
     );
-    let before: Vec<(String, String, f32)> = blocks
-        .iter()
-        .flat_map(|(_, r)| r.named_fields().map(|f| (r.name.clone(), f.display_name().to_owned())).collect::<Vec<_>>())
-        .map(|(c, f)| {
-            let v = float(&s, &c, &f);
-            (c, f, v)
-        })
-        .collect();
-    for (i, (c, f, _)) in before.iter().enumerate() {
-        s.server.device().set(c, f, Value::Float(1.5 + i as f32)).unwrap();
-    }
+    let before = coefficients(&s, &sensor);
+    overwrite(&s, &before, 1.5);
     let out =
         YOSEMITECH.run(&["--spec", spec_arg, "coefficients", "restore", &name, "-p", &s.path, "-f", file, "--yes"]);
     assert!(out.ok().contains("restored and verified"));

@@ -96,6 +96,45 @@ fn help_works_for_every_subcommand() {
     assert!(YOSEMITECH.run(&["--version"]).ok().starts_with("yosemitech "));
 }
 
+/// The words of a shell command line of plain words and double-quoted ones.
+fn words(line: &str) -> Vec<String> {
+    line.split('"')
+        .enumerate()
+        .flat_map(
+            |(i, part)| {
+                if i % 2 == 1 { vec![part.to_owned()] } else { part.split_whitespace().map(str::to_owned).collect() }
+            },
+        )
+        .collect()
+}
+
+#[test]
+fn the_help_examples_come_from_the_spec_and_work() {
+    // No placeholder is left, in any help.
+    for args in [&["--help"][..], &["read", "--help"], &["decode", "--help"], &["help", "decode"]] {
+        let run = YOSEMITECH.run(args);
+        assert!(!run.ok().contains('{'), "{args:?}:\n{}", run.stdout);
+    }
+    let top = YOSEMITECH.run(&["--help"]).ok().to_owned();
+    assert!(spec().sensors.iter().all(|s| top.contains(&s.title)), "every sensor's title:\n{top}");
+    // Every decode example that needs no file decodes, and names a read of the spec.
+    let decode = YOSEMITECH.run(&["decode", "--help"]).ok().to_owned();
+    let mut tried = 0;
+    for line in decode.lines().chain(top.lines()).map(str::trim) {
+        let Some(args) = line.strip_prefix("yosemitech decode ") else { continue };
+        if args.contains("--capture") {
+            continue;
+        }
+        let args = words(args.split("  ").next().unwrap());
+        let args: Vec<&str> = ["decode"].into_iter().chain(args.iter().map(String::as_str)).collect();
+        let out = YOSEMITECH.run(&args).ok().to_owned();
+        let named = spec().sensors.iter().any(|s| s.measurement_reads().any(|r| out.contains(&r.name)));
+        assert!(named, "{line}:\n{out}");
+        tried += 1;
+    }
+    assert!(tried >= 3, "the examples hold decode lines:\n{decode}\n{top}");
+}
+
 #[test]
 fn usage_errors_exit_2() {
     // No subcommand: the usage, on stderr.

@@ -7,9 +7,6 @@
 //! at-least-once: a reading in flight at the kill may arrive again,
 //! byte-identical) sees every stored reading exactly once, in order.
 
-#[path = "../../yosemitech-mqtt/tests/support/mod.rs"]
-mod support;
-
 mod station;
 
 use std::collections::BTreeMap;
@@ -17,13 +14,15 @@ use std::process::{Child, Stdio};
 use std::time::Duration;
 
 use station::{Station, command, terminate};
-use support::{Broker, BrokerKind, Subscriber, available, ids_and_first_occurrences, wait_until};
+use yosemitech_tests::broker::{
+    Broker, BrokerKind, Subscriber, available, ids_and_first_occurrences, rumqttd_child_main, wait_until,
+};
 use yosemitech_station::Store;
 
 #[test]
 #[ignore = "the rumqttd broker process of the other tests; they start it"]
 fn rumqttd_child_process() {
-    support::rumqttd_child_main();
+    rumqttd_child_main();
 }
 
 /// Readings allowed in flight: the copies one interruption can cause.

@@ -1,7 +1,12 @@
 //! `yosemitech calibrate ph`: the guided three-point pH calibration.
+//!
+//! The CLI face of the pH manual's own procedure
+//! ([`yosemitech::procedures::ph`]), which drives that manual's typed
+//! device. The coefficients are saved before the procedure starts, through
+//! the spec's coefficient blocks like every other backup, so the file
+//! restores with `coefficients restore` like any other.
 
 use std::io::{self, BufRead, IsTerminal, Write};
-use std::path::PathBuf;
 use std::sync::mpsc::{self, Receiver, TryRecvError};
 use std::time::{Duration, SystemTime};
 
@@ -10,13 +15,47 @@ use yosemitech::procedures::coefficients::PhOrpCoefficients;
 use yosemitech::procedures::ph::{CalibrationConfig, CalibrationGuide, calibrate, explain};
 use yosemitech::procedures::{ProcedureError, RealSleep, Sleep};
 
-use crate::backup::{self, Backup, ph_orp_blocks};
+use crate::backup::{self, Backup};
 use crate::catalog::{Catalog, Entry};
 use crate::cli::{CalibratePhArgs, Global};
 use crate::confirm::{confirm, ensure_can_ask};
 use crate::device::{is_typed, procedure_failed};
 use crate::error::{CliError, Result, show_duration};
+use crate::port::Opened;
 use crate::{port, progress, time};
+
+/// Saves every coefficient of the probe (the spec's coefficient blocks) to
+/// a new file and returns the command that restores it. Nothing has been
+/// written yet; on an error the calibration does not start.
+fn save_backup(
+    opened: &mut Opened,
+    catalog: &Catalog,
+    entry: &Entry,
+    slave: u8,
+    serial_number: Option<String>,
+    args: &CalibratePhArgs,
+    out: &mut dyn Write,
+) -> Result<String> {
+    let not_started = |e: CliError| CliError {
+        message: format!("{}; the calibration did not start, nothing was written", e.message),
+        ..e
+    };
+    let blocks = backup::read_blocks(opened, entry, slave).map_err(not_started)?;
+    let backup = Backup {
+        sensor: entry.sensor.name.clone(),
+        address: slave,
+        port: opened.port.clone(),
+        serial_number,
+        saved_at: time::rfc3339(SystemTime::now()),
+        blocks,
+    };
+    let path = backup::save_in(args.backup_dir.as_deref(), &backup).map_err(not_started)?;
+    let restore = backup::restore_command(catalog, entry, &backup.port, backup.address, &path);
+    writeln!(out, "saved every coefficient to {}", path.display())?;
+    writeln!(out, "restore with: {restore}")?;
+    out.flush()?;
+    Ok(restore)
+}
 
 /// Lines typed on stdin, read by a thread so a wait can be cut short.
 fn stdin_lines() -> Receiver<String> {
@@ -38,15 +77,8 @@ struct Guide<'a> {
     input: Receiver<String>,
     interactive: bool,
     skip_wait: bool,
-    backup_dir: Option<PathBuf>,
-    /// Built before the calibration starts (the guide has no bus).
-    template: Backup,
-    /// The restore command, once the backup is saved.
-    restore: Option<String>,
     /// Why the guide stopped the calibration.
     stopped: Option<CliError>,
-    catalog: &'a Catalog,
-    entry: &'a Entry,
 }
 
 impl Guide<'_> {
@@ -57,24 +89,11 @@ impl Guide<'_> {
 }
 
 impl CalibrationGuide for Guide<'_> {
-    fn backed_up(&mut self, coefficients: &PhOrpCoefficients) -> bool {
-        let backup = Backup { blocks: ph_orp_blocks(coefficients), ..self.template.clone() };
-        match backup::save_in(self.backup_dir.as_deref(), &backup) {
-            Ok(path) => {
-                let restore = backup::restore_command(self.catalog, self.entry, &backup.port, backup.address, &path);
-                self.say(&format!("saved every coefficient to {}", path.display()));
-                self.say(&format!("restore with: {restore}"));
-                self.restore = Some(restore);
-                true
-            }
-            Err(e) => {
-                self.stopped = Some(CliError {
-                    message: format!("{}; the calibration did not start, nothing was written", e.message),
-                    ..e
-                });
-                false
-            }
-        }
+    /// The coefficients were saved before the procedure started ([`save_backup`]):
+    /// the same registers, read through the spec's coefficient blocks, with
+    /// nothing written in between.
+    fn backed_up(&mut self, _coefficients: &PhOrpCoefficients) -> bool {
+        true
     }
 
     fn immerse(&mut self, index: usize, standard_ph: f32) -> bool {
@@ -123,9 +142,10 @@ impl CalibrationGuide for Guide<'_> {
 
 /// Runs `calibrate ph`.
 pub fn run(catalog: &Catalog, global: &Global, args: &CalibratePhArgs, out: &mut dyn Write) -> Result<()> {
-    let entry = catalog.entry("ph_orp")?;
-    if !is_typed(entry, "ph_orp") {
-        return Err(CliError::usage("`calibrate ph` needs the built-in ph_orp sensor")
+    let name = ph_orp::SENSOR.name;
+    let entry = catalog.entry(name)?;
+    if !is_typed(entry, name) {
+        return Err(CliError::usage(format!("`calibrate ph` needs the built-in {name} sensor"))
             .hint("a --spec file replaced it; run without --spec"));
     }
     let slave = args.address.get(entry.sensor.default_address)?;
@@ -147,35 +167,19 @@ pub fn run(catalog: &Catalog, global: &Global, args: &CalibratePhArgs, out: &mut
     out.flush()?;
     confirm(args.yes, "Start the calibration?")?;
 
-    let template = Backup {
-        sensor: entry.sensor.name.clone(),
-        address: slave,
-        port: opened.port.clone(),
-        serial_number,
-        saved_at: time::rfc3339(SystemTime::now()),
-        blocks: Default::default(),
-    };
+    let restore = save_backup(&mut opened, catalog, entry, slave, serial_number, args, out)?;
+    let with_restore =
+        |e: CliError| e.detail(format!("to restore the coefficients saved before the calibration: {restore}"));
     let ctx = opened.context(slave, "the calibration");
     let mut guide = Guide {
         out,
         input: stdin_lines(),
         interactive: io::stdin().is_terminal(),
         skip_wait: args.skip_wait,
-        backup_dir: args.backup_dir.clone(),
-        template,
-        restore: None,
         stopped: None,
-        catalog,
-        entry,
     };
     let mut probe = ph_orp::Device::new(&mut opened.bus, slave);
-    let result = calibrate(&mut probe, &config, &mut guide, &mut RealSleep);
-    let restore = guide.restore.clone();
-    let with_restore = |e: CliError| match &restore {
-        Some(cmd) => e.detail(format!("to restore the coefficients saved before the calibration: {cmd}")),
-        None => e,
-    };
-    let report = match result {
+    let report = match calibrate(&mut probe, &config, &mut guide, &mut RealSleep) {
         Ok(report) => report,
         Err(ProcedureError::Aborted) => {
             let e = guide.stopped.take().unwrap_or_else(|| CliError::device("calibration stopped"));
@@ -187,7 +191,7 @@ pub fn run(catalog: &Catalog, global: &Global, args: &CalibratePhArgs, out: &mut
     if report.succeeded() {
         writeln!(out, "\ncalibration succeeded (probe status {})", report.status.raw())?;
         writeln!(out, "coefficients now:")?;
-        for line in backup::show(&ph_orp_blocks(&report.after)) {
+        for line in backup::show(&backup::read_blocks(&mut opened, entry, slave).map_err(with_restore)?) {
             writeln!(out, "  {line}")?;
         }
         Ok(())

@@ -1,32 +1,35 @@
-//! `yosemitech demo`: simulated probes on pseudo-terminals, driven through
-//! the real serial code path (no hardware, no root).
+//! `yosemitech demo`: every sensor of the spec simulated on a
+//! pseudo-terminal of its own and driven through the real serial code path
+//! (no hardware, no root): identity, measurements, calibration and
+//! coefficients read through the spec's interpreter, each manual's measuring
+//! procedure with its waits shortened, then the whole family on one bus,
+//! identified as `scan` does.
 
 use std::io::Write;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use yosemitech::procedures::coefficients::{read_conductivity, read_ph_orp};
-use yosemitech::{conductivity, ph_orp};
 use yosemitech_rtu::{Client, ClientConfig, RetryPolicy, Transport, Version};
 use yosemitech_sim::{Bus, FrameHandler, ServeConfig, Server, Simulator, Variation};
-use yosemitech_spec::{FieldKind, Role, Sensor, Value};
+use yosemitech_spec::{CommandSpec, FieldKind, Role, Sensor, Value};
 
 use crate::catalog::Catalog;
 use crate::cli::DemoArgs;
 use crate::commands::list::software_key;
 use crate::commands::{measure, scan};
-use crate::device::{is_typed, procedure_failed};
-use crate::error::{CliError, Context, Result, request_failed};
+use crate::device;
+use crate::error::{CliError, Result};
+use crate::format::{field_value_text, unit};
 use crate::port::Opened;
 
-/// How much shorter the demo's measurement waits are than the manual's.
-const TIME_SCALE: f64 = 0.02;
+/// How long the waits of every measuring procedure may take together:
+/// each wait is shortened by the same factor so that their sum fits.
+const WAIT_BUDGET: Duration = Duration::from_millis(500);
 
-/// The readings the simulated probes start from.
-const PH: f32 = 7.02;
-const ORP_MV: f32 = 215.4;
-const WATER_C: f32 = 21.3;
-const CONDUCTIVITY_MS_CM: f32 = 1.413;
+/// Noise the simulators add to every measurement, in the field's unit:
+/// small enough to leave the manuals' example values recognisable, large
+/// enough that an average has something to average.
+const NOISE: f32 = 0.002;
 
 /// The reply timeout on the family bus, far below scan's usual second: the
 /// simulators answer at once (in ~30 ms with `--line-timing`), and only
@@ -37,22 +40,20 @@ const BUS_TIMEOUT: Duration = Duration::from_millis(300);
 
 /// A simulated probe served for the demo, and the client talking to it.
 struct Probe {
+    sensor: Arc<Sensor>,
     server: Server<Simulator>,
     opened: Opened,
 }
 
-fn setup(sensor: &Arc<Sensor>, values: &[(&str, f32)], noise: f32, line: bool) -> Result<Probe> {
+fn setup(sensor: &Arc<Sensor>, line: bool) -> Result<Probe> {
     let mut sim = Simulator::new(Arc::clone(sensor));
-    for (field, value) in values {
-        sim.set_everywhere(field, Value::Float(*value))
-            .map_err(|e| CliError::device(format!("cannot set up the simulated {}: {e}", sensor.name)))?;
-    }
-    sim.set_variation(Some(Variation { seed: 7, noise, drift_per_read: 0.0 }));
+    run_newest_firmware(&mut sim, sensor)?;
+    sim.set_variation(Some(Variation { seed: 7, noise: NOISE, drift_per_read: 0.0 }));
     let config = if line { ServeConfig::emulating(sensor.serial.timing()) } else { ServeConfig::default() };
     let (server, port, transport) = serve(sim, config, sensor.serial.baud)?;
     let config = ClientConfig { timeout: Duration::from_secs(1), ..ClientConfig::default() };
     let opened = Opened { bus: Client::with_config(transport, config), port, timeout: config.timeout };
-    Ok(Probe { server, opened })
+    Ok(Probe { sensor: Arc::clone(sensor), server, opened })
 }
 
 /// Serves `sim` on a pty and opens it as a serial port.
@@ -89,131 +90,111 @@ fn serve<D: FrameHandler + Send + 'static>(
     Ok((server, port, Box::new(transport)))
 }
 
-fn row(out: &mut dyn Write, label: &str, value: impl std::fmt::Display) -> Result<()> {
-    writeln!(out, "  {label:15} {value}")?;
+/// The reads the demo sends to a probe: its identity (by role), every
+/// measurement read, its calibration status and its coefficient blocks,
+/// each once, in that order.
+fn shown_reads(sensor: &Sensor) -> Vec<&CommandSpec> {
+    let identity = [Role::SerialNumber, Role::Version].into_iter().filter_map(|r| sensor.command_with_role(r));
+    let status = sensor.command_with_role(Role::CalibrationStatus);
+    let blocks = sensor.coefficient_blocks().into_iter().map(|(_, read)| read);
+    let mut reads: Vec<&CommandSpec> = Vec::new();
+    for read in identity.chain(sensor.measurement_reads()).chain(status).chain(blocks) {
+        if read.is_read() && read.named_fields().next().is_some() && !reads.iter().any(|r| r.name == read.name) {
+            reads.push(read);
+        }
+    }
+    reads
+}
+
+/// Sends each of [`shown_reads`] and prints a line per read: its name and
+/// every field's value with its unit.
+fn show_probe(probe: &mut Probe, out: &mut dyn Write) -> Result<()> {
+    let sensor = Arc::clone(&probe.sensor);
+    let reads = shown_reads(&sensor);
+    let width = reads.iter().map(|r| r.name.len()).max().unwrap_or(0);
+    for read in reads {
+        let values = device::read(&mut probe.opened, read, sensor.default_address)?;
+        let shown: Vec<String> = values
+            .iter()
+            .map(|(name, value)| {
+                let field = read.field(name);
+                let text = field.map_or_else(|| value.to_string(), |f| field_value_text(f, value));
+                let unit = field.and_then(|f| f.unit.as_deref()).map(|u| format!(" {}", unit(u))).unwrap_or_default();
+                format!("{name} {text}{unit}")
+            })
+            .collect();
+        writeln!(out, "  {:width$}  {}", read.name, shown.join(", "))?;
+    }
     Ok(())
 }
 
-fn join(values: &[f32]) -> String {
-    values.iter().map(f32::to_string).collect::<Vec<_>>().join(" ")
+/// Runs every probe's measuring procedure (its spec's `procedure`), the
+/// waits shortened by one factor so that together they fit [`WAIT_BUDGET`].
+fn run_procedures(probes: &mut [Probe], out: &mut dyn Write) -> Result<()> {
+    let timings: Vec<Option<measure::Timing>> =
+        probes.iter().map(|p| p.sensor.procedure.as_ref().map(measure::Timing::of)).collect();
+    let waited = |t: &measure::Timing| t.warm_up + t.interval * t.readings.saturating_sub(1);
+    let total: Duration = timings.iter().flatten().map(waited).sum();
+    let scale = if total > WAIT_BUDGET { WAIT_BUDGET.as_secs_f64() / total.as_secs_f64() } else { 1.0 };
+    writeln!(
+        out,
+        "\nthe manuals' measuring procedures as the spec states them, waits shortened {}x:",
+        (1.0 / scale).round()
+    )?;
+    for (probe, timing) in probes.iter_mut().zip(timings) {
+        let (Some(procedure), Some(timing)) = (probe.sensor.procedure.as_ref(), timing) else { continue };
+        writeln!(out, "\n{}: {}", probe.sensor.name, measure::describe(procedure, timing))?;
+        out.flush()?;
+        let mut sleep = |d: Duration| std::thread::sleep(d.mul_f64(scale));
+        let sensor = Arc::clone(&probe.sensor);
+        let m = measure::run_procedure(&mut probe.opened, &sensor, sensor.default_address, timing, &mut sleep)?;
+        measure::show(&m, Some(4), out)?;
+    }
+    Ok(())
 }
 
 /// Runs `demo`.
 pub fn run(catalog: &Catalog, args: &DemoArgs, out: &mut dyn Write) -> Result<()> {
     let started = Instant::now();
-    let (ph_entry, cond_entry) = (catalog.entry("ph_orp")?, catalog.entry("conductivity")?);
-    if !is_typed(ph_entry, "ph_orp") || !is_typed(cond_entry, "conductivity") {
-        return Err(CliError::usage("the demo runs the built-in pH/ORP and conductivity sensors")
-            .hint("run it without a --spec that replaces them"));
-    }
-    let mut ph =
-        setup(&ph_entry.sensor, &[("ph", PH), ("orp_mv", ORP_MV), ("temperature_c", WATER_C)], 0.01, args.line_timing)?;
-    let mut cond = setup(
-        &cond_entry.sensor,
-        &[("temperature_c", WATER_C), ("conductivity_ms_cm", CONDUCTIVITY_MS_CM)],
-        0.002,
-        args.line_timing,
+    let mut probes =
+        catalog.entries().iter().map(|e| setup(&e.sensor, args.line_timing)).collect::<Result<Vec<Probe>>>()?;
+    writeln!(
+        out,
+        "yosemitech demo: {} simulated probes on pseudo-terminals, driven through the serial port code",
+        probes.len()
     )?;
-    let address = ph_orp::SENSOR.default_address;
-    writeln!(out, "yosemitech demo: simulated probes on pseudo-terminals, driven through the serial port code")?;
     writeln!(out, "(no hardware; the same code talks to a real RS-485 adapter)")?;
-    for (name, probe, baud) in
-        [("pH/ORP probe", &ph, ph_orp::SENSOR.baud), ("conductivity probe", &cond, conductivity::SENSOR.baud)]
-    {
-        writeln!(out, "  {name:19} {} ({baud} baud 8N1, address {address})", probe.opened.port)?;
-    }
-
-    // The pH/ORP probe.
-    let ctx = |probe: &Probe, what: &str| Context {
-        port: probe.opened.port.clone(),
-        slave: address,
-        what: what.to_owned(),
-        timeout: probe.opened.timeout,
-    };
-    let ph_ctx = ctx(&ph, "the pH/ORP probe");
-    writeln!(out, "\n{} on {}, address {address}", ph_orp::SENSOR.title, ph.opened.port)?;
-    {
-        let mut probe = ph_orp::Device::new(&mut ph.opened.bus, address);
-        let sn = probe.sn().map_err(|e| request_failed(&e, probe.client().last_reply(), &ph_ctx))?;
-        let version = probe.version().map_err(|e| request_failed(&e, probe.client().last_reply(), &ph_ctx))?;
-        row(out, "serial number", sn)?;
-        row(out, "hardware", version.hardware)?;
-        row(out, "software", version.software)?;
-        row(
+    let width = probes.iter().map(|p| p.sensor.name.len()).max().unwrap_or(0);
+    for p in &probes {
+        let (serial, address) = (p.sensor.serial, p.sensor.default_address);
+        writeln!(
             out,
-            "pH",
-            format!("{:.2} pH", probe.ph().map_err(|e| request_failed(&e, probe.client().last_reply(), &ph_ctx))?),
+            "  {:width$}  {} ({} baud {}, address {address})",
+            p.sensor.name, p.opened.port, serial.baud, serial.format
         )?;
-        row(
-            out,
-            "ORP",
-            format!("{:.1} mV", probe.orp().map_err(|e| request_failed(&e, probe.client().last_reply(), &ph_ctx))?),
-        )?;
-        let both = probe.orp_and_ph().map_err(|e| request_failed(&e, probe.client().last_reply(), &ph_ctx))?;
-        row(out, "ORP and pH", format!("{:.1} mV, {:.2} pH (one read)", both.orp_mv, both.ph))?;
-        row(
-            out,
-            "temperature",
-            format!(
-                "{:.2} °C",
-                probe.temperature().map_err(|e| request_failed(&e, probe.client().last_reply(), &ph_ctx))?
-            ),
-        )?;
-        let status =
-            probe.calibration_status().map_err(|e| request_failed(&e, probe.client().last_reply(), &ph_ctx))?;
-        row(out, "calibration", format!("status {}: {}", status.raw(), status.name().unwrap_or("unknown")))?;
-        let c = read_ph_orp(&mut probe).map_err(|e| procedure_failed(&e, probe.client().last_reply(), &ph_ctx))?;
-        row(out, "electrode K1-K6", join(&c.electrode))?;
-        row(out, "pH K, B", join(&c.ph_calibration))?;
-        row(out, "ORP K, B", join(&c.orp_calibration))?;
     }
-
-    // The conductivity probe.
-    let cond_ctx = ctx(&cond, "the conductivity probe");
-    writeln!(out, "\n{} on {}, address {address}", conductivity::SENSOR.title, cond.opened.port)?;
-    {
-        let mut probe = conductivity::Device::new(&mut cond.opened.bus, address);
-        let sn = probe.sn().map_err(|e| request_failed(&e, probe.client().last_reply(), &cond_ctx))?;
-        let version = probe.version().map_err(|e| request_failed(&e, probe.client().last_reply(), &cond_ctx))?;
-        row(out, "serial number", sn)?;
-        row(out, "hardware", version.hardware)?;
-        row(out, "software", version.software)?;
-        let reading = probe
-            .temperature_and_conductivity()
-            .map_err(|e| request_failed(&e, probe.client().last_reply(), &cond_ctx))?;
-        row(out, "temperature", format!("{:.2} °C", reading.temperature_c))?;
-        row(out, "conductivity", format!("{:.4} mS/cm", reading.conductivity_ms_cm))?;
-        row(out, "range status", reading.range_status.name().unwrap_or("unknown code"))?;
-        let c =
-            read_conductivity(&mut probe).map_err(|e| procedure_failed(&e, probe.client().last_reply(), &cond_ctx))?;
-        row(out, "user K, B", join(&c.user_calibration))?;
+    for probe in &mut probes {
+        writeln!(out, "\n{} ({}) on {}", probe.sensor.title, probe.sensor.name, probe.opened.port)?;
+        show_probe(probe, out)?;
     }
-
-    // The manual's measurement procedure, as the spec states it, waits scaled down.
-    let sensor = &cond_entry.sensor;
-    let procedure = sensor.procedure.as_ref().ok_or_else(|| {
-        CliError::usage("the built-in conductivity spec states no procedure").hint("this is a bug in the build")
-    })?;
-    let timing = measure::Timing::of(procedure);
-    writeln!(out, "\nconductivity measurement (manual section 3: {}),", measure::describe(procedure, timing))?;
-    writeln!(out, "waits shortened {}x for the demo:", (1.0 / TIME_SCALE).round())?;
-    out.flush()?;
-    let mut sleep = |d: Duration| std::thread::sleep(d.mul_f64(TIME_SCALE));
-    let m = measure::run_procedure(&mut cond.opened, sensor, address, timing, &mut sleep)?;
-    measure::show(&m, Some(4), out)?;
+    run_procedures(&mut probes, out)?;
 
     let family = family(catalog, args, out)?;
 
-    let requests = ph.server.device().stats().requests + cond.server.device().stats().requests + family;
+    let requests = probes.iter().map(|p| p.server.device().stats().requests).sum::<u64>() + family;
     writeln!(
         out,
         "\n{requests} requests answered over the serial code path in {:.1} s.",
         started.elapsed().as_secs_f64()
     )?;
-    writeln!(
-        out,
-        "Next: `yosemitech simulate ph_orp` serves a probe; `yosemitech read ph_orp get_ph --port <its path>` reads it."
-    )?;
+    if let Some(example) = catalog.example_read() {
+        let name = &example.sensor.name;
+        writeln!(
+            out,
+            "Next: `yosemitech simulate {name}` serves a probe; `yosemitech read {name} {} --port <its path>` reads it.",
+            example.read.name
+        )?;
+    }
     writeln!(out, "`yosemitech scan --port <path>` identifies the probes on a real bus.")?;
     Ok(())
 }

@@ -10,22 +10,22 @@ use crate::error::{CliError, Result};
 
 /// Runs `export`.
 pub fn run(args: &ExportArgs, out: &mut dyn Write) -> Result<()> {
-    if !args.db.is_file() {
-        return Err(CliError::usage(format!("no database at {}", args.db.display()))
+    if !args.range.db.is_file() {
+        return Err(CliError::usage(format!("no database at {}", args.range.db.display()))
             .hint("pass the `[storage] path` of the station file that `yosemitech log` writes"));
     }
-    let store = Store::open(&args.db).map_err(|e| {
-        CliError::device(format!("cannot open {}: {e}", args.db.display()))
+    let store = Store::open(&args.range.db).map_err(|e| {
+        CliError::device(format!("cannot open {}: {e}", args.range.db.display()))
             .hint("is it the SQLite file `yosemitech log` writes?")
     })?;
-    let from = args.from.unwrap_or(UNIX_EPOCH);
+    let from = args.range.from.unwrap_or(UNIX_EPOCH);
     // The far future: every reading.
-    let to = args.to.unwrap_or(UNIX_EPOCH + Duration::from_secs(i64::MAX as u64 / 1000 / 2));
+    let to = args.range.to.unwrap_or(UNIX_EPOCH + Duration::from_secs(i64::MAX as u64 / 1000 / 2));
     if to < from {
         return Err(CliError::usage("--to is before --from").hint("--from is inclusive, --to exclusive"));
     }
     let readings =
-        store.range(from, to).map_err(|e| CliError::device(format!("cannot read {}: {e}", args.db.display())))?;
+        store.range(from, to).map_err(|e| CliError::device(format!("cannot read {}: {e}", args.range.db.display())))?;
     if args.format == ExportFormat::Csv {
         export::write_csv_header(out)?;
     }

@@ -41,14 +41,14 @@ impl Format {
 /// Runs `plot`, saying on `out` what it wrote.
 pub fn run(args: &PlotArgs, out: &mut dyn Write) -> Result<()> {
     let format = Format::of(&args.out)?;
-    let from = args.from.unwrap_or(UNIX_EPOCH);
-    let to = args.to.unwrap_or_else(SystemTime::now);
+    let from = args.range.from.unwrap_or(UNIX_EPOCH);
+    let to = args.range.to.unwrap_or_else(SystemTime::now);
     let span = format!("between {} and {}", time::rfc3339(from), time::rfc3339(to));
     if from >= to {
         return Err(CliError::usage(format!("--from is not before --to: nothing {span}")));
     }
-    let store = StoredReadings::open(&args.db)?;
-    let db = args.db.display();
+    let store = StoredReadings::open(&args.range.db)?;
+    let db = args.range.db.display();
     let latest = store.latest()?;
     let readings = store.range(from, to)?;
     check_known(args, &latest, &readings)?;
@@ -81,7 +81,7 @@ pub fn run(args: &PlotArgs, out: &mut dyn Write) -> Result<()> {
     }
     let times = || series.iter().flat_map(|s| &s.points).map(|(t, _)| *t);
     let (first, last) = (times().min().unwrap_or(from), times().max().unwrap_or(to));
-    let name = args.db.file_name().map_or_else(|| db.to_string(), |n| n.to_string_lossy().into_owned());
+    let name = args.range.db.file_name().map_or_else(|| db.to_string(), |n| n.to_string_lossy().into_owned());
     let title = format!("{name}: {} to {} UTC", time::rfc3339(first), time::rfc3339(last));
     let drawn = match format {
         Format::Png => {
@@ -107,7 +107,7 @@ fn check_known(args: &PlotArgs, latest: &[Reading], readings: &[Reading]) -> Res
     if let Some(probe) = &args.probe {
         let labels: BTreeSet<&str> = all().map(|r| r.probe.as_str()).collect();
         if !labels.contains(probe.as_str()) {
-            return Err(unknown("probe", probe, &labels, &args.db));
+            return Err(unknown("probe", probe, &labels, &args.range.db));
         }
     }
     if let Some(measurement) = &args.measurement {
@@ -117,7 +117,7 @@ fn check_known(args: &PlotArgs, latest: &[Reading], readings: &[Reading]) -> Res
             .map(|v| v.measurement.as_str())
             .collect();
         if !names.contains(measurement.as_str()) {
-            return Err(unknown("measurement", measurement, &names, &args.db));
+            return Err(unknown("measurement", measurement, &names, &args.range.db));
         }
     }
     Ok(())
