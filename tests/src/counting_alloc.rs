@@ -1,7 +1,8 @@
 //! A global allocator that counts the allocations of each thread, for the
 //! tests that a path allocates nothing. A test binary installs it with
 //! `#[global_allocator] static GLOBAL: CountingAllocator = CountingAllocator;`
-//! and compares [`allocations`] before and after.
+//! and compares [`allocations`] before and after (around an `.await` on a
+//! current-thread runtime), or measures a closure with [`allocations_in`].
 
 // Counting needs `unsafe impl GlobalAlloc`; it only forwards to `System`.
 #![allow(unsafe_code)]
@@ -35,4 +36,11 @@ unsafe impl GlobalAlloc for CountingAllocator {
 /// [`CountingAllocator`] (0 when the binary does not install it).
 pub fn allocations() -> usize {
     ALLOCATIONS.with(Cell::get)
+}
+
+/// Runs `f` and returns how many allocations it made on the calling thread.
+pub fn allocations_in(f: impl FnOnce()) -> usize {
+    let before = allocations();
+    f();
+    allocations() - before
 }

@@ -4,8 +4,8 @@
 //!
 //! The benchmarks themselves are in `benches/` (`cargo bench -p
 //! yosemitech-bench`), the zero-allocation tests in `tests/zero_alloc*.rs`
-//! (allocations counted by [`counting`]), and
-//! the results with the command that produced them in `BENCHMARKS.md` at the
+//! (allocations counted by the test kit's `counting_alloc`), and the
+//! results with the command that produced them in `BENCHMARKS.md` at the
 //! workspace root. This crate is not published: it holds criterion and the
 //! comparison crates so the product crates stay lean.
 
@@ -15,8 +15,6 @@ use std::time::Duration;
 use yosemitech_rtu::LineTiming;
 use yosemitech_sim::Simulator;
 use yosemitech_spec::Sensor;
-
-pub mod counting;
 
 /// The pH manual's get_ph request (Fig 23): slave 1, read 2 registers at 0x2800.
 pub const GET_PH_REQUEST: [u8; 8] = [0x01, 0x03, 0x28, 0x00, 0x00, 0x02, 0xCD, 0xAB];

@@ -9,11 +9,11 @@ use yosemitech::conductivity::GetTemperatureAndConductivity;
 use yosemitech::ph_orp::GetPh;
 use yosemitech::rtu::Responder;
 use yosemitech::{Client, ClientConfig, Command, ResponderTransport, ph_orp};
-use yosemitech_bench::counting::{CountingAllocator, allocations_in};
 use yosemitech_bench::{
     CONDUCTIVITY_REPLY, CONDUCTIVITY_VALUES, GET_PH_REPLY, GET_PH_REQUEST, GET_PH_VALUE, fixed_get_ph_responder,
     ph_simulator, sensor, unpaced_config,
 };
+use yosemitech_tests::counting_alloc::{CountingAllocator, allocations_in};
 
 #[global_allocator]
 static GLOBAL: CountingAllocator = CountingAllocator;

@@ -13,9 +13,9 @@ use yosemitech::ph_orp::{self, GetPh};
 use yosemitech::rtu::transport::AsyncLink;
 use yosemitech::rtu::{AsyncClient, MbapLink, RtuStream};
 use yosemitech::{ClientConfig, ResponderTransport};
-use yosemitech_bench::counting::{CountingAllocator, allocations, allocations_in};
 use yosemitech_bench::{GET_PH_VALUE, fixed_get_ph_responder, ph_simulator, unpaced_config};
 use yosemitech_sim::{ServeConfig, serve_mbap, serve_tcp};
+use yosemitech_tests::counting_alloc::{CountingAllocator, allocations, allocations_in};
 
 #[global_allocator]
 static GLOBAL: CountingAllocator = CountingAllocator;

@@ -14,10 +14,10 @@ use std::process::{Child, Stdio};
 use std::time::Duration;
 
 use station::{Station, command, terminate};
+use yosemitech_station::Store;
 use yosemitech_tests::broker::{
     Broker, BrokerKind, Subscriber, available, ids_and_first_occurrences, rumqttd_child_main, wait_until,
 };
-use yosemitech_station::Store;
 
 #[test]
 #[ignore = "the rumqttd broker process of the other tests; they start it"]
