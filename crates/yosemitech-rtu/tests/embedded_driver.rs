@@ -1,4 +1,4 @@
-//! The firmware driver (`client::embedded::AsyncClient`, feature `embedded`)
+//! The firmware driver (`client::embedded::FirmwareClient`, feature `embedded`)
 //! on the host: an in-memory byte pipe and a delay on one virtual clock (a
 //! delay jumps the clock instead of sleeping), a device answering each
 //! request with bytes at chosen times. The same behavioural cases as the
@@ -14,7 +14,7 @@ use std::time::Duration;
 
 use embassy_futures::block_on;
 use yosemitech_rtu::client::Instant;
-use yosemitech_rtu::client::embedded::AsyncClient;
+use yosemitech_rtu::client::embedded::FirmwareClient;
 use yosemitech_rtu::{
     CharFormat, ClientConfig, ClientError, Command, ExceptionCode, FrameError, LineTiming, RetryPolicy,
 };
@@ -162,12 +162,12 @@ impl embedded_hal_async::delay::DelayNs for Delay {
     }
 }
 
-type Client = AsyncClient<Link, Delay, Box<dyn FnMut() -> Instant>>;
+type Client = FirmwareClient<Link, Delay, Box<dyn FnMut() -> Instant>>;
 
 fn client_on(world: &Shared, config: ClientConfig, line: Option<LineTiming>) -> Client {
     let clock_world = Rc::clone(world);
     let clock: Box<dyn FnMut() -> Instant> = Box::new(move || Instant::from_micros(clock_world.borrow().now_ns / 1000));
-    AsyncClient::new(Link(Rc::clone(world)), Delay(Rc::clone(world)), clock, config, line)
+    FirmwareClient::new(Link(Rc::clone(world)), Delay(Rc::clone(world)), clock, config, line)
 }
 
 fn config(retries: u32) -> ClientConfig {

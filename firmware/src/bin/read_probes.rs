@@ -9,14 +9,14 @@ use panic_halt as _;
 use yosemitech::conductivity::GetTemperatureAndConductivity;
 use yosemitech::ph_orp::GetPh;
 use yosemitech_firmware_example::{CycleClock, CycleDelay, Uart, publish};
-use yosemitech_rtu::client::embedded::AsyncClient;
+use yosemitech_rtu::client::embedded::FirmwareClient;
 use yosemitech_rtu::{CharFormat, ClientConfig, LineTiming};
 
 #[entry]
 fn main() -> ! {
     let line = LineTiming::new(9600, CharFormat::EIGHT_N_1);
     let mut bus =
-        AsyncClient::new(Uart, CycleDelay::default(), CycleClock::default(), ClientConfig::default(), Some(line));
+        FirmwareClient::new(Uart, CycleDelay::default(), CycleClock::default(), ClientConfig::default(), Some(line));
     loop {
         embassy_futures::block_on(async {
             if let Ok(reading) = bus.call(1, &GetPh).await {

@@ -6,7 +6,7 @@
 use cortex_m_rt::entry;
 use panic_halt as _;
 use yosemitech_firmware_example::{CycleClock, CycleDelay, Uart, publish};
-use yosemitech_rtu::client::embedded::AsyncClient;
+use yosemitech_rtu::client::embedded::FirmwareClient;
 use yosemitech_rtu::{CharFormat, ClientConfig, Function, Layout, LineTiming};
 
 const READ_2: Layout<'static> = Layout {
@@ -23,7 +23,7 @@ const REQUEST: [u8; 8] = [0x01, 0x03, 0x28, 0x00, 0x00, 0x02, 0xCD, 0xAB];
 fn main() -> ! {
     let line = LineTiming::new(9600, CharFormat::EIGHT_N_1);
     let mut bus =
-        AsyncClient::new(Uart, CycleDelay::default(), CycleClock::default(), ClientConfig::default(), Some(line));
+        FirmwareClient::new(Uart, CycleDelay::default(), CycleClock::default(), ClientConfig::default(), Some(line));
     loop {
         embassy_futures::block_on(async {
             if let Ok(reply) = bus.call_raw(&REQUEST, &READ_2).await {

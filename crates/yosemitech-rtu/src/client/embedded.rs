@@ -1,4 +1,4 @@
-//! [`AsyncClient`]: the firmware driver of [`ClientCore`] over
+//! [`FirmwareClient`]: the firmware driver of [`ClientCore`] over
 //! `embedded-io-async` (a UART's `Read + Write`) and an `embedded-hal-async`
 //! [`DelayNs`], for `no_std` targets without an allocator.
 //!
@@ -37,14 +37,14 @@ impl<F: FnMut() -> Instant> Clock for F {
 ///
 /// `L` is the link (an RS-485 UART with its driver-enable handled below it),
 /// `D` the delay for silences and timeouts, `K` the clock.
-pub struct AsyncClient<L, D, K> {
+pub struct FirmwareClient<L, D, K> {
     link: L,
     delay: D,
     clock: K,
     core: ClientCore,
 }
 
-impl<L: Read + Write, D: DelayNs, K: Clock> AsyncClient<L, D, K> {
+impl<L: Read + Write, D: DelayNs, K: Clock> FirmwareClient<L, D, K> {
     /// A client on `link` with `config`; `line` is the link's baud rate and
     /// character format (t3.5 and the request's time on the line follow from
     /// it), `None` for links without line timing.
@@ -179,8 +179,8 @@ fn micros(duration: core::time::Duration) -> u32 {
     u32::try_from(whole).unwrap_or(u32::MAX)
 }
 
-impl<L, D, K> core::fmt::Debug for AsyncClient<L, D, K> {
+impl<L, D, K> core::fmt::Debug for FirmwareClient<L, D, K> {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
-        f.debug_struct("AsyncClient").field("core", &self.core).finish_non_exhaustive()
+        f.debug_struct("FirmwareClient").field("core", &self.core).finish_non_exhaustive()
     }
 }

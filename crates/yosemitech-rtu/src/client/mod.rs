@@ -6,7 +6,7 @@
 //! allocation, no clock, no I/O); drivers run it over a link: the blocking
 //! `Client` over a `Transport` (feature `std`), the tokio `AsyncClient` over
 //! an `AsyncLink` (feature `tokio`), the async firmware driver
-//! `embedded::AsyncClient` over `embedded-io-async` (feature `embedded`).
+//! `embedded::FirmwareClient` over `embedded-io-async` (feature `embedded`).
 //!
 //! # One transaction
 //!
