@@ -152,10 +152,7 @@ impl<T: Transport> Client<T> {
     fn run(&mut self, check: &mut dyn FnMut(&[u8]) -> Result<(), FrameError>) -> Result<(), Error> {
         self.core.set_line_timing(self.transport.line_timing());
         let result = self.drive(check);
-        if let Err(ClientError::Io(_)) = result {
-            self.core.handle_link_error();
-        }
-        result
+        self.core.finish(result)
     }
 
     fn drive(&mut self, check: &mut dyn FnMut(&[u8]) -> Result<(), FrameError>) -> Result<(), Error> {
@@ -184,15 +181,12 @@ impl<T: Transport> Client<T> {
                     self.core.handle_write_done(now);
                     written?;
                 }
-                Action::Receive { timeout, needs_time } => {
+                Action::Receive { timeout, .. } => {
                     let n = self.transport.read(self.core.recv_buf(), timeout.min(MAX_WAIT))?;
-                    let now = if needs_time || n == 0 { self.now() } else { self.core.now() };
-                    self.core.handle_received(n, now);
+                    let clock = self.clock;
+                    self.core.handle_read(n, || clock.now());
                 }
-                Action::Check(frame) => {
-                    let verdict = check(frame);
-                    self.core.handle_check(verdict);
-                }
+                Action::Check => self.core.check_with(&mut *check),
                 Action::Done(result) => return result.map_err(ClientError::with_io),
                 Action::Idle => return Ok(()),
             }

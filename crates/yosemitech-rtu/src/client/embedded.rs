@@ -103,10 +103,7 @@ impl<L: Read + Write, D: DelayNs, K: Clock> FirmwareClient<L, D, K> {
         check: &mut dyn FnMut(&[u8]) -> Result<(), FrameError>,
     ) -> Result<(), ClientError<L::Error>> {
         let result = self.drive(check).await;
-        if let Err(ClientError::Io(_)) = result {
-            self.core.handle_link_error();
-        }
-        result
+        self.core.finish(result)
     }
 
     async fn drive(
@@ -141,15 +138,12 @@ impl<L: Read + Write, D: DelayNs, K: Clock> FirmwareClient<L, D, K> {
                     self.core.handle_write_done(now);
                     flushed.map_err(ClientError::Io)?;
                 }
-                Action::Receive { timeout, needs_time } => {
+                Action::Receive { timeout, .. } => {
                     let n = read_within(&mut self.link, &mut self.delay, self.core.recv_buf(), micros(timeout)).await?;
-                    let now = if needs_time || n == 0 { self.clock.now() } else { self.core.now() };
-                    self.core.handle_received(n, now);
+                    let clock = &mut self.clock;
+                    self.core.handle_read(n, || clock.now());
                 }
-                Action::Check(frame) => {
-                    let verdict = check(frame);
-                    self.core.handle_check(verdict);
-                }
+                Action::Check => self.core.check_with(&mut *check),
                 Action::Done(result) => return result.map_err(ClientError::with_io),
                 Action::Idle => return Ok(()),
             }

@@ -58,12 +58,14 @@ pub enum Action<'a> {
     Transmit(&'a [u8]),
     /// Read into [`ClientCore::recv_buf`], waiting at most `timeout` for the
     /// first byte (zero: take only what is buffered), measured from the last
-    /// time reported. Report [`ClientCore::handle_received`] with the count,
-    /// or [`ClientCore::handle_timeout`] with the time when nothing arrived.
+    /// time reported. Report [`ClientCore::handle_read`] with the count (0
+    /// when nothing arrived) and the driver's clock, which it reads only
+    /// when it needs the time (or [`ClientCore::handle_received`] with the
+    /// count and the time).
     ///
     /// When `needs_time` is false, bytes read cannot complete a frame (the
-    /// 3-byte head) and the core does not need their time: the driver may
-    /// skip its clock and pass [`ClientCore::now`]. The next read then takes
+    /// 3-byte head) and the core does not need their time: `handle_read`
+    /// skips the clock and uses [`ClientCore::now`]. The next read then takes
     /// only what is buffered, and is timed; so a reply that is already
     /// buffered costs one clock read, not two.
     Receive {
@@ -72,12 +74,14 @@ pub enum Action<'a> {
         /// Whether `handle_received` needs the time the read returned.
         needs_time: bool,
     },
-    /// A candidate reply frame, whole and of the expected length: decode it
-    /// and report [`ClientCore::handle_check`] with the verdict (the decoder
-    /// checks the CRC, so the core does not compute it again). On `Ok` the
+    /// A candidate reply frame, whole and of the expected length
+    /// ([`ClientCore::candidate`]), is to be decoded: call
+    /// [`ClientCore::check_with`] with the decoder (or decode the candidate
+    /// and report [`ClientCore::handle_check`] with the verdict). The decoder
+    /// checks the CRC, so the core does not compute it again. On `Ok` the
     /// driver keeps the decoded value; it is the reply if the next action is
     /// `Done(Ok(()))`.
-    Check(&'a [u8]),
+    Check,
     /// No transaction: none was started, or the driver reported a link error.
     Idle,
     /// The transaction is over. The bytes received are in
@@ -183,9 +187,8 @@ enum Reply {
 /// let rest = core.recv_buf().len(); // then exactly the rest
 /// core.recv_buf().copy_from_slice(&reply[n..n + rest]);
 /// core.handle_received(rest, Instant::from_micros(21_000));
-/// let Action::Check(frame) = core.poll() else { panic!() };
-/// let verdict = GET_PH.decode_response(1, frame).map(drop);
-/// core.handle_check(verdict);
+/// assert_eq!(core.poll(), Action::Check);
+/// core.check_with(|frame| GET_PH.decode_response(1, frame).map(drop));
 /// assert_eq!(core.poll(), Action::Done(Ok(())));
 /// assert_eq!(core.last_reply(), reply);
 /// ```
@@ -440,13 +443,7 @@ impl ClientCore {
             State::Drain { .. } => Action::ReadPending,
             State::Transmit => Action::Transmit(self.tx.get(..self.tx_len).unwrap_or(&[])),
             State::Receive => Action::Receive { timeout: self.receive_timeout(), needs_time: self.read_needs_time() },
-            State::Check(candidate) => {
-                let frame = match candidate {
-                    Candidate::Normal | Candidate::Short => self.candidate_range(candidate),
-                    Candidate::LaterException { at } => at..at + EXCEPTION_LEN,
-                };
-                Action::Check(self.rx.get(frame).unwrap_or(&[]))
-            }
+            State::Check(_) => Action::Check,
             State::Backoff { until } => Action::Wait { until },
         }
     }
@@ -629,15 +626,52 @@ impl ClientCore {
         self.state = State::Idle;
     }
 
-    /// Reports the decoder's verdict on the frame of [`Action::Check`]: `Ok`
+    /// Ends a driver's run of the transaction with its `result`: a link
+    /// error is reported to the core ([`ClientCore::handle_link_error`]),
+    /// every result is passed through.
+    #[inline]
+    pub fn finish<E>(&mut self, result: Result<(), ClientError<E>>) -> Result<(), ClientError<E>> {
+        if let Err(ClientError::Io(_)) = result {
+            self.handle_link_error();
+        }
+        result
+    }
+
+    /// Reports the read of [`Action::Receive`] that returned `n` bytes
+    /// (0: it timed out), reading the driver's `clock` only when the core
+    /// needs the time (see `needs_time`).
+    #[inline]
+    pub fn handle_read(&mut self, n: usize, clock: impl FnOnce() -> Instant) {
+        let now = if n == 0 || self.read_needs_time() { clock() } else { self.now };
+        self.handle_received(n, now);
+    }
+
+    /// Performs [`Action::Check`]: offers the candidate frame to `decode`
+    /// and reports its verdict ([`ClientCore::handle_check`]). Does nothing
+    /// in any other state.
+    #[inline]
+    pub fn check_with(&mut self, decode: impl FnOnce(&[u8]) -> Result<(), FrameError>) {
+        if let State::Check(_) = self.state {
+            let verdict = decode(self.candidate());
+            self.handle_check(verdict);
+        }
+    }
+
+    /// The candidate frame of [`Action::Check`]; empty in any other state.
+    #[inline]
+    pub fn candidate(&self) -> &[u8] {
+        match self.state {
+            State::Check(candidate) => self.rx.get(self.candidate_frame(candidate)).unwrap_or(&[]),
+            _ => &[],
+        }
+    }
+
+    /// Reports the decoder's verdict on [`ClientCore::candidate`]: `Ok`
     /// when it decoded, the first check that failed otherwise.
     #[inline]
     pub fn handle_check(&mut self, verdict: Result<(), FrameError>) {
         let State::Check(candidate) = self.state else { return };
-        let frame = match candidate {
-            Candidate::LaterException { at } => at..at + EXCEPTION_LEN,
-            _ => self.candidate_range(candidate),
-        };
+        let frame = self.candidate_frame(candidate);
         // A decoder checks the CRC first; should one not, a failure is
         // checked here (on the error path only) so realignment still works.
         let crc_failed = match verdict {
@@ -731,11 +765,13 @@ impl ClientCore {
         }
     }
 
+    /// Where the bytes of a candidate frame are in the reply buffer.
     #[inline]
-    fn candidate_range(&self, candidate: Candidate) -> Range<usize> {
+    fn candidate_frame(&self, candidate: Candidate) -> Range<usize> {
         let len = match candidate {
+            Candidate::Normal => self.target,
             Candidate::Short => self.expected.and_then(|expected| expected.short_len).unwrap_or(self.target),
-            _ => self.target,
+            Candidate::LaterException { at } => return at..at + EXCEPTION_LEN,
         };
         self.start..self.start + len
     }

@@ -158,17 +158,14 @@ impl<L: AsyncLink> AsyncClient<L> {
 
     /// The core's clock: microseconds since the client was made, on tokio's clock.
     fn now(&self) -> Instant {
-        Instant::from_elapsed(self.epoch.elapsed())
+        since(self.epoch)
     }
 
     /// Drives the started transaction to its end; `check` decodes each candidate reply.
     async fn run(&mut self, check: impl FnMut(&[u8]) -> Result<(), FrameError>) -> Result<(), Error> {
         self.core.set_line_timing(self.link.line_timing());
         let result = self.drive(check).await;
-        if let Err(ClientError::Io(_)) = result {
-            self.core.handle_link_error();
-        }
-        result
+        self.core.finish(result)
     }
 
     async fn drive(&mut self, mut check: impl FnMut(&[u8]) -> Result<(), FrameError>) -> Result<(), Error> {
@@ -196,7 +193,7 @@ impl<L: AsyncLink> AsyncClient<L> {
                     self.core.handle_write_done(now);
                     written?;
                 }
-                Action::Receive { timeout, needs_time } => {
+                Action::Receive { timeout, .. } => {
                     // Bytes already there need no timer (and no clock read to arm one).
                     let n = match poll_once(self.link.read(self.core.recv_buf())) {
                         Some(read) => read?,
@@ -206,13 +203,10 @@ impl<L: AsyncLink> AsyncClient<L> {
                             tokio::time::timeout(timeout, read).await.unwrap_or(Ok(0))?
                         }
                     };
-                    let now = if needs_time || n == 0 { self.now() } else { self.core.now() };
-                    self.core.handle_received(n, now);
+                    let epoch = self.epoch;
+                    self.core.handle_read(n, || since(epoch));
                 }
-                Action::Check(frame) => {
-                    let verdict = check(frame);
-                    self.core.handle_check(verdict);
-                }
+                Action::Check => self.core.check_with(&mut check),
                 Action::Done(result) => return result.map_err(ClientError::with_io),
                 Action::Idle => return Ok(()),
             }
@@ -234,4 +228,9 @@ impl<L: fmt::Debug> fmt::Debug for AsyncClient<L> {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         f.debug_struct("AsyncClient").field("link", &self.link).field("core", &self.core).finish_non_exhaustive()
     }
+}
+
+/// The core's [`Instant`]: the time since `epoch` on tokio's clock.
+fn since(epoch: tokio::time::Instant) -> Instant {
+    Instant::from_elapsed(epoch.elapsed())
 }

@@ -157,7 +157,8 @@ impl Harness {
                         }
                     }
                 }
-                Action::Check(frame) => {
+                Action::Check => {
+                    let frame = self.core.candidate();
                     self.checks.push(frame.to_vec());
                     let verdict = layout.decode_response(slave, frame).map(drop);
                     self.core.handle_check(verdict);
