@@ -4,7 +4,7 @@
 
 use yosemitech_rtu::codec::{ByteOrder4, f32_from_wire, f32_to_wire};
 use yosemitech_rtu::frame::encode_exception;
-use yosemitech_rtu::{Command, EncodeError, FrameError, Function, Layout};
+use yosemitech_rtu::{Command, EncodeError, FrameError, Layout};
 
 /// The pH manual's get_ph request (Fig 23): [`ReadFloat`] to slave 1.
 pub const READ_FLOAT_REQUEST: [u8; 8] = [0x01, 0x03, 0x28, 0x00, 0x00, 0x02, 0xCD, 0xAB];
@@ -18,14 +18,7 @@ pub struct ReadFloat;
 impl Command for ReadFloat {
     type Response = f32;
     const NAME: &'static str = "read_float";
-    const LAYOUT: Layout<'static> = Layout {
-        function: Function::Read,
-        address: 0x2800,
-        count: 2,
-        fixed_slave: None,
-        extra_byte_counts: &[],
-        trigger: false,
-    };
+    const LAYOUT: Layout<'static> = Layout::read(0x2800, 2);
 
     fn encode_request(&self, slave: u8, out: &mut [u8]) -> Result<usize, EncodeError> {
         Self::LAYOUT.encode_request(slave, &[], out)
@@ -53,14 +46,7 @@ pub struct StartMeasurement;
 impl Command for StartMeasurement {
     type Response = ();
     const NAME: &'static str = "start_measurement";
-    const LAYOUT: Layout<'static> = Layout {
-        function: Function::Write,
-        address: 0x1C00,
-        count: 0,
-        fixed_slave: None,
-        extra_byte_counts: &[],
-        trigger: true,
-    };
+    const LAYOUT: Layout<'static> = Layout { trigger: true, ..Layout::write(0x1C00, 0) };
 
     fn encode_request(&self, slave: u8, out: &mut [u8]) -> Result<usize, EncodeError> {
         Self::LAYOUT.encode_request(slave, &[], out)
@@ -86,14 +72,7 @@ pub struct ReadAtFixedSlave;
 impl Command for ReadAtFixedSlave {
     type Response = u8;
     const NAME: &'static str = "read_at_fixed_slave";
-    const LAYOUT: Layout<'static> = Layout {
-        function: Function::Read,
-        address: 0x3000,
-        count: 1,
-        fixed_slave: Some(0xFF),
-        extra_byte_counts: &[],
-        trigger: false,
-    };
+    const LAYOUT: Layout<'static> = Layout { fixed_slave: Some(0xFF), ..Layout::read(0x3000, 1) };
 
     fn encode_request(&self, slave: u8, out: &mut [u8]) -> Result<usize, EncodeError> {
         Self::LAYOUT.encode_request(slave, &[], out)

@@ -77,6 +77,19 @@ pub struct Layout<'a> {
     pub trigger: bool,
 }
 
+impl Layout<'static> {
+    /// A plain read of `count` registers from `address`: no fixed slave, no
+    /// byte-count quirks, not a trigger.
+    pub const fn read(address: u16, count: u16) -> Self {
+        Self { function: Function::Read, address, count, fixed_slave: None, extra_byte_counts: &[], trigger: false }
+    }
+
+    /// A plain write of `count` registers at `address`: no fixed slave, not a trigger.
+    pub const fn write(address: u16, count: u16) -> Self {
+        Self { function: Function::Write, address, count, fixed_slave: None, extra_byte_counts: &[], trigger: false }
+    }
+}
+
 impl Layout<'_> {
     /// Register data bytes: `2 * count`.
     pub const fn data_len(&self) -> usize {
@@ -458,22 +471,8 @@ mod tests {
     use super::*;
     use crate::ExceptionCode;
 
-    const READ_FLOAT: Layout<'static> = Layout {
-        function: Function::Read,
-        address: 0x2800,
-        count: 2,
-        fixed_slave: None,
-        extra_byte_counts: &[],
-        trigger: false,
-    };
-    const START: Layout<'static> = Layout {
-        function: Function::Write,
-        address: 0x1C00,
-        count: 0,
-        fixed_slave: None,
-        extra_byte_counts: &[],
-        trigger: true,
-    };
+    const READ_FLOAT: Layout<'static> = Layout::read(0x2800, 2);
+    const START: Layout<'static> = Layout { trigger: true, ..Layout::write(0x1C00, 0) };
 
     #[test]
     fn encodes_manual_requests() {
@@ -486,14 +485,7 @@ mod tests {
         assert_eq!(f.as_bytes(), [0x01, 0x10, 0x1C, 0x00, 0x00, 0x00, 0xC7, 0x99]);
     }
 
-    const START_OPTICAL: Layout<'static> = Layout {
-        function: Function::Read,
-        address: 0x2500,
-        count: 1,
-        fixed_slave: None,
-        extra_byte_counts: &[],
-        trigger: true,
-    };
+    const START_OPTICAL: Layout<'static> = Layout { trigger: true, ..Layout::read(0x2500, 1) };
 
     #[test]
     fn trigger_reads_accept_each_form_the_manuals_allow_and_return_no_data() {

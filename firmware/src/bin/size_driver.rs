@@ -7,16 +7,9 @@ use cortex_m_rt::entry;
 use panic_halt as _;
 use yosemitech_firmware_example::{CycleClock, CycleDelay, Uart, publish};
 use yosemitech_rtu::client::embedded::FirmwareClient;
-use yosemitech_rtu::{CharFormat, ClientConfig, Function, Layout, LineTiming};
+use yosemitech_rtu::{CharFormat, ClientConfig, Layout, LineTiming};
 
-const READ_2: Layout<'static> = Layout {
-    function: Function::Read,
-    address: 0x2800,
-    count: 2,
-    fixed_slave: None,
-    extra_byte_counts: &[],
-    trigger: false,
-};
+const READ_2: Layout<'static> = Layout::read(0x2800, 2);
 const REQUEST: [u8; 8] = [0x01, 0x03, 0x28, 0x00, 0x00, 0x02, 0xCD, 0xAB];
 
 #[entry]

@@ -166,12 +166,9 @@ enum Reply {
 /// ```
 /// use core::time::Duration;
 /// use yosemitech_rtu::client::{Action, ClientCore, Instant};
-/// use yosemitech_rtu::{ClientConfig, Function, Layout};
+/// use yosemitech_rtu::{ClientConfig, Layout};
 ///
-/// const GET_PH: Layout<'static> = Layout {
-///     function: Function::Read, address: 0x2800, count: 2,
-///     fixed_slave: None, extra_byte_counts: &[], trigger: false,
-/// };
+/// const GET_PH: Layout<'static> = Layout::read(0x2800, 2);
 /// let mut core = ClientCore::new(ClientConfig::default());
 /// let len = GET_PH.encode_request(1, &[], core.request_buf()).unwrap();
 /// core.start_call(len, &GET_PH).unwrap();

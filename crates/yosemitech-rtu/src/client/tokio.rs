@@ -40,10 +40,7 @@ use crate::transport::AsyncLink;
 /// let config = ClientConfig { timeout: std::time::Duration::from_millis(5), ..ClientConfig::default() };
 /// let mut client = AsyncClient::with_config(RtuStream::new(near), config);
 /// let request = [0x01, 0x03, 0x28, 0x00, 0x00, 0x02, 0xCD, 0xAB];
-/// let layout = yosemitech_rtu::Layout {
-///     function: yosemitech_rtu::Function::Read, address: 0x2800, count: 2,
-///     fixed_slave: None, extra_byte_counts: &[], trigger: false,
-/// };
+/// let layout = yosemitech_rtu::Layout::read(0x2800, 2);
 /// client.config_mut().retry = yosemitech_rtu::RetryPolicy::NONE;
 /// assert!(client.call_raw(&request, &layout).await.unwrap_err().is_timeout());
 /// # }

@@ -10,22 +10,8 @@ use crate::crc::crc16;
 use crate::error::ExceptionCode;
 use crate::timing::CharFormat;
 
-const READ_FLOAT: Layout<'static> = Layout {
-    function: Function::Read,
-    address: 0x2800,
-    count: 2,
-    fixed_slave: None,
-    extra_byte_counts: &[],
-    trigger: false,
-};
-const START: Layout<'static> = Layout {
-    function: Function::Write,
-    address: 0x1C00,
-    count: 0,
-    fixed_slave: None,
-    extra_byte_counts: &[],
-    trigger: true,
-};
+const READ_FLOAT: Layout<'static> = Layout::read(0x2800, 2);
+const START: Layout<'static> = Layout { trigger: true, ..Layout::write(0x1C00, 0) };
 /// A two-register float read reply (7.6), slave 1.
 const READ_FLOAT_REPLY: [u8; 9] = [0x01, 0x03, 0x04, 0x33, 0x33, 0xF3, 0x40, 0x40, 0x78];
 
