@@ -65,6 +65,19 @@ pub struct Backup {
 }
 
 impl Backup {
+    /// A backup of `blocks`, just read from `entry`'s probe at `slave` on
+    /// the open port, stamped with the time now.
+    pub fn taken_now(opened: &Opened, entry: &Entry, slave: u8, serial_number: Option<String>, blocks: Blocks) -> Self {
+        Self {
+            sensor: entry.sensor.name.clone(),
+            address: slave,
+            port: opened.port.clone(),
+            serial_number,
+            saved_at: time::rfc3339(SystemTime::now()),
+            blocks,
+        }
+    }
+
     /// The file's JSON.
     pub fn to_json(&self) -> Json {
         let blocks: Map<String, Json> = self
@@ -207,14 +220,7 @@ pub fn serial_number(opened: &mut Opened, entry: &Entry, slave: u8) -> Option<St
 pub fn take_backup(opened: &mut Opened, entry: &Entry, slave: u8) -> Result<Backup> {
     let blocks = read_blocks(opened, entry, slave)?;
     let serial_number = serial_number(opened, entry, slave);
-    Ok(Backup {
-        sensor: entry.sensor.name.clone(),
-        address: slave,
-        port: opened.port.clone(),
-        serial_number,
-        saved_at: time::rfc3339(SystemTime::now()),
-        blocks,
-    })
+    Ok(Backup::taken_now(opened, entry, slave, serial_number, blocks))
 }
 
 /// Writes `backup` to `path`, never overwriting a file.

@@ -8,7 +8,7 @@
 
 use std::io::{self, BufRead, IsTerminal, Write};
 use std::sync::mpsc::{self, Receiver, TryRecvError};
-use std::time::{Duration, SystemTime};
+use std::time::Duration;
 
 use yosemitech::ph_orp;
 use yosemitech::procedures::coefficients::PhOrpCoefficients;
@@ -22,7 +22,7 @@ use crate::confirm::{confirm, ensure_can_ask};
 use crate::device::{is_typed, procedure_failed};
 use crate::error::{CliError, Result, show_duration};
 use crate::port::Opened;
-use crate::{port, progress, time};
+use crate::{port, progress};
 
 /// Saves every coefficient of the probe (the spec's coefficient blocks) to
 /// a new file and returns the command that restores it. Nothing has been
@@ -41,14 +41,7 @@ fn save_backup(
         ..e
     };
     let blocks = backup::read_blocks(opened, entry, slave).map_err(not_started)?;
-    let backup = Backup {
-        sensor: entry.sensor.name.clone(),
-        address: slave,
-        port: opened.port.clone(),
-        serial_number,
-        saved_at: time::rfc3339(SystemTime::now()),
-        blocks,
-    };
+    let backup = Backup::taken_now(opened, entry, slave, serial_number, blocks);
     let path = backup::save_in(args.backup_dir.as_deref(), &backup).map_err(not_started)?;
     let restore = backup::restore_command(catalog, entry, &backup.port, backup.address, &path);
     writeln!(out, "saved every coefficient to {}", path.display())?;
