@@ -1,6 +1,6 @@
 //! Zero heap allocations per encode, per decode and per transaction (issue
 //! #6, design: "no allocation per transaction"), counted by a global
-//! allocator on the test's own thread ([`yosemitech_bench::counting`]).
+//! allocator on the test's own thread (`yosemitech_tests::counting_alloc`).
 
 use std::hint::black_box;
 use std::time::Duration;

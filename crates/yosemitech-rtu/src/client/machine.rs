@@ -214,9 +214,9 @@ pub struct ClientCore {
     attempt: u32,
     /// When the current attempt's reply must be complete.
     deadline: Instant,
-    /// The inter-frame delay of this transaction (from the config and the line).
-    gap: Duration,
-    /// `gap` in microseconds, rounded up (added to a time at every poll before a request).
+    /// The inter-frame delay of this transaction (from the config and the
+    /// line) in microseconds, rounded up: added to a time at every poll
+    /// before a request, so kept in the unit of [`Instant`].
     gap_micros: u64,
     /// The latest time a driver reported, and whether it was reported in this transaction.
     now: Instant,
@@ -254,7 +254,6 @@ impl ClientCore {
             expected: None,
             attempt: 0,
             deadline: Instant::ZERO,
-            gap: Duration::ZERO,
             gap_micros: 0,
             now: Instant::ZERO,
             now_is_fresh: false,
@@ -291,8 +290,7 @@ impl ClientCore {
 
     #[inline]
     fn set_gap(&mut self) {
-        self.gap = self.inter_frame_delay();
-        self.gap_micros = micros_ceil(self.gap);
+        self.gap_micros = micros_ceil(self.inter_frame_delay());
     }
 
     /// The silence kept before each request (see
@@ -792,7 +790,7 @@ impl ClientCore {
         }
         let remaining = self.deadline.saturating_duration_since(self.now);
         if self.rejected_error.is_some() {
-            remaining.min(self.gap.max(self.config.min_inter_frame_delay))
+            remaining.min(Duration::from_micros(self.gap_micros).max(self.config.min_inter_frame_delay))
         } else {
             remaining
         }
