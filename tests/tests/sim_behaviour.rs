@@ -3,6 +3,7 @@
 
 use yosemitech_tests::sim as sim_common;
 
+use std::collections::BTreeMap;
 use std::time::Duration;
 
 use sim_common::{
@@ -247,43 +248,51 @@ fn a_client_asking_for_a_register_the_probe_lacks_times_out() {
     assert_eq!(err.exception(), Some(yosemitech_rtu::ExceptionCode::IllegalDataAddress), "{err}");
 }
 
-/// The sensor whose spec has a calibration point command, with its single
-/// float point field and the standards (the list constant in the field's
-/// unit, as the simulator finds them).
-fn calibrating() -> (Sensor, CommandSpec, String, Vec<f32>) {
-    let probe = sensor_with_role(spec(), Role::CalibrationPoint);
-    let point = with_role(&probe, Role::CalibrationPoint);
-    let field = point.named_fields().next().expect("a point field");
-    let unit = field.unit.clone().expect("the point's unit");
-    let standards = probe
-        .constants
-        .iter()
-        .find(|c| c.is_list && c.unit.as_deref() == Some(unit.as_str()))
-        .expect("the calibration standards")
-        .values
-        .iter()
-        .map(|v| *v as f32)
-        .collect();
-    let name = field.name.clone().unwrap();
-    (probe, point, name, standards)
+/// Every sensor whose calibration the simulator runs (a calibration point,
+/// a status enum with the rule's variants, one list of standards in the
+/// point's unit), with its point command, the point field and the standards.
+fn calibrating() -> Vec<(Sensor, CommandSpec, String, Vec<f32>)> {
+    let mut out = Vec::new();
+    for probe in spec().sensors.iter().filter(|s| yosemitech_sim::behaviour::simulates_calibration(s)) {
+        let point = with_role(probe, Role::CalibrationPoint);
+        let field = point.named_fields().next().expect("a point field").clone();
+        let standards = yosemitech_sim::behaviour::calibration_standards(probe, &field)
+            .expect("the calibration standards")
+            .values
+            .iter()
+            .map(|v| *v as f32)
+            .collect();
+        out.push((probe.clone(), point, field.display_name().to_owned(), standards));
+    }
+    out
 }
 
 #[test]
 fn exceptions_for_unknown_function_address_and_bad_counts_when_asked_for() {
-    let (probe, point, standard, standards) = calibrating();
-    let slave = probe.default_address;
-    let mut sim = Simulator::new(probe.clone());
-    sim.set_unknown_request_policy(UnknownRequestPolicy::Exception);
-    let read = probe
-        .commands
-        .iter()
-        .find(|c| {
+    let mut checked = 0;
+    for probe in &spec().sensors {
+        // A read-only float read, and a write whose first field is a float with a range.
+        let read = probe.commands.iter().find(|c| {
             is_float_read(c)
                 && !probe.commands.iter().any(|o| o.is_read() && o.address == c.address && o.count == c.count + 1)
                 && !probe.commands.iter().any(|o| !o.is_read() && o.address == c.address)
-        })
-        .expect("a read-only float read")
-        .clone();
+        });
+        let point = probe
+            .commands
+            .iter()
+            .find(|c| !c.is_read() && c.named_fields().next().is_some_and(|f| is_f32(f) && f.range.is_some()));
+        let (Some(read), Some(point)) = (read, point) else { continue };
+        exceptions_of(probe, read, point);
+        checked += 1;
+    }
+    yosemitech_tests::report!("exceptions: {checked} sensors with a read-only float read and a ranged float write");
+}
+
+fn exceptions_of(probe: &Sensor, read: &CommandSpec, point: &CommandSpec) {
+    let standard = first_field(point);
+    let slave = probe.default_address;
+    let mut sim = Simulator::new(probe.clone());
+    sim.set_unknown_request_policy(UnknownRequestPolicy::Exception);
     let [rh, rl] = read.address.to_be_bytes();
     let [ch, cl] = read.count.to_be_bytes();
     // Unknown function (0x04, read input registers): 01.
@@ -316,7 +325,8 @@ fn exceptions_for_unknown_function_address_and_bad_counts_when_asked_for() {
     // A point outside its field's range: 03, nothing stored.
     let field = point.field(&standard).unwrap();
     let (_, max) = field.range.expect("the point's range");
-    let mut bad = request(&point, slave, &[(standard.as_str(), f(standards[0]))]);
+    let values = yosemitech_tests::values::sample_values(point);
+    let mut bad = point.encode_request(slave, &values).unwrap();
     bad[7 + field.offset..11 + field.offset].copy_from_slice(&f32_bytes(field, max as f32 + 6.0));
     let bad = with_crc(&bad[..bad.len() - 2]);
     assert_eq!(exchange(&mut sim, &bad), exception(slave, 0x10, 0x03));
@@ -407,53 +417,94 @@ fn bus_with_two_sensors_only_the_addressed_one_answers() {
 
 #[test]
 fn three_point_calibration_status_of_the_calibration_point_role() {
-    // The manual's own procedure (the pH probe's three-point rule): the
-    // sensor whose spec has the calibration point role.
-    let (probe, point, standard, standards) = calibrating();
-    assert!(standards.len() >= 2, "{standards:?}");
-    let status = with_role(&probe, Role::CalibrationStatus);
+    use yosemitech_sim::behaviour::STATUS_TOO_FEW_POINTS as TOO_FEW;
+    use yosemitech_sim::behaviour::{STATUS_NOT_A_STANDARD as NOT_A_STANDARD, STATUS_SUCCESS as SUCCESS};
+    let mut checked = 0;
+    for (probe, point, standard, standards) in calibrating() {
+        calibration_rule_of(&probe, &point, &standard, &standards, (SUCCESS, NOT_A_STANDARD, TOO_FEW));
+        checked += 1;
+    }
+    // A calibration point the rule does not apply to is a plain write.
+    let mut plain = 0;
+    for probe in spec().sensors.iter().filter(|s| !yosemitech_sim::behaviour::simulates_calibration(s)) {
+        let Some(point) = probe.command_with_role(Role::CalibrationPoint) else { continue };
+        let slave = probe.default_address;
+        let mut sim = Simulator::new(probe.clone());
+        let values = yosemitech_tests::values::sample_values(point);
+        let reply = exchange(&mut sim, &point.encode_request(slave, &values).unwrap());
+        assert_eq!(reply, point.encode_response(slave, &BTreeMap::new()).unwrap(), "{}: the echo", probe.name);
+        assert!(sim.calibration_points().is_empty(), "{}", probe.name);
+        plain += 1;
+    }
+    yosemitech_tests::report!("calibration: the rule on {checked} sensors, {plain} calibration points as plain writes");
+}
+
+/// The rule on one sensor; `names` are the status variants it reports.
+fn calibration_rule_of(
+    probe: &Sensor,
+    point: &CommandSpec,
+    standard: &str,
+    standards: &[f32],
+    (success, not_a_standard, too_few): (&str, &str, &str),
+) {
+    assert!(!standards.is_empty(), "{standards:?}");
+    let status = with_role(probe, Role::CalibrationStatus);
     let slave = probe.default_address;
     let mut sim = Simulator::new(probe.clone());
     let calibrate = |sim: &mut Simulator, v: f32| {
-        let reply = exchange(sim, &request(&point, slave, &[(standard.as_str(), f(v))]));
+        let reply = exchange(sim, &request(point, slave, &[(standard, f(v))]));
         assert_eq!(reply[1], 0x10, "echo");
     };
     let read_status = |sim: &mut Simulator| -> String {
         let values = status.decode_response(slave, &exchange(sim, &request(&status, slave, &[]))).unwrap();
-        match &values[0].1 {
-            Value::Enum { name: Some(name), .. } => name.clone(),
+        match values.iter().find(|(_, v)| matches!(v, Value::Enum { .. })) {
+            Some((_, Value::Enum { name: Some(name), .. })) => name.clone(),
             other => panic!("{other:?}"),
         }
     };
-    let (first, second, last) = (standards[0], standards[1], standards[standards.len() - 1]);
+    // Before any point: what the manual's example shows, if it shows one.
+    let initial = read_status(&mut sim);
+    if let Some(example) = example_reading(&status) {
+        let shown = example.iter().find_map(|(_, v)| match v {
+            Value::Enum { name: Some(name), .. } => Some(name.clone()),
+            _ => None,
+        });
+        assert_eq!(Some(initial), shown, "{}: as the manual's example", probe.name);
+    }
+    let first = standards[0];
+    let last = standards[standards.len() - 1];
     let all_but_last = &standards[..standards.len() - 1];
-    assert_eq!(read_status(&mut sim), "success", "as the manual's example");
-    calibrate(&mut sim, first);
-    assert_eq!(read_status(&mut sim), "fewer_than_three_points");
-    for &v in &all_but_last[1..] {
-        calibrate(&mut sim, v);
+    if standards.len() >= 2 {
+        calibrate(&mut sim, first);
+        assert_eq!(read_status(&mut sim), too_few);
+        for &v in &all_but_last[1..] {
+            calibrate(&mut sim, v);
+        }
+        assert_eq!(sim.calibration_points(), all_but_last);
+        assert_eq!(read_status(&mut sim), too_few);
     }
-    assert_eq!(sim.calibration_points(), all_but_last);
-    assert_eq!(read_status(&mut sim), "fewer_than_three_points");
     calibrate(&mut sim, last);
-    assert_eq!(read_status(&mut sim), "success");
-    // Not a standard: between the first two.
+    assert_eq!(read_status(&mut sim), success);
+    // Not a standard: between the first standard and the next (or beside the only one).
+    let next = standards.get(1).copied().unwrap_or(first + 1.0);
     calibrate(&mut sim, first);
-    calibrate(&mut sim, (first + second) / 2.0);
-    assert_eq!(read_status(&mut sim), "not_a_calibration_standard");
+    calibrate(&mut sim, (first + next) / 2.0);
+    assert_eq!(read_status(&mut sim), not_a_standard);
     assert!(sim.calibration_points().is_empty());
-    // Out of order: the second standard first is not the expected standard.
-    calibrate(&mut sim, second);
-    assert_eq!(read_status(&mut sim), "not_a_calibration_standard");
-    // Restart in the middle: the first standard again starts over.
-    calibrate(&mut sim, first);
-    calibrate(&mut sim, second);
-    calibrate(&mut sim, first);
-    assert_eq!(sim.calibration_points(), [first]);
-    for &v in &standards[1..] {
-        calibrate(&mut sim, v);
+    if standards.len() >= 2 {
+        // Out of order: the second standard first is not the expected standard.
+        calibrate(&mut sim, standards[1]);
+        assert_eq!(read_status(&mut sim), not_a_standard);
+        // Restart in the middle: the first standard again starts over.
+        calibrate(&mut sim, first);
+        calibrate(&mut sim, standards[1]);
+        calibrate(&mut sim, first);
+        assert_eq!(sim.calibration_points(), [first]);
+        for &v in &standards[1..] {
+            calibrate(&mut sim, v);
+        }
+        assert_eq!(read_status(&mut sim), success);
     }
-    assert_eq!(read_status(&mut sim), "success");
 }
 
 #[test]
@@ -507,8 +558,13 @@ fn measurement_trigger_and_warm_up() {
     }
 }
 
-/// The reply a trigger read gets: the manuals' form from the layout.
+/// The reply a trigger read gets: the form its manual prints (the layout's, unless a complete 5-byte reply is printed).
 fn manual_form(command: &CommandSpec, slave: u8) -> Vec<u8> {
+    // A manual that prints the reply complete as slave, function, byte
+    // count 0 and the CRC: that short form.
+    if command.examples.iter().filter_map(|e| e.true_response()).any(|r| r.len() == 5) {
+        return with_crc(&[slave, 0x03, 0]);
+    }
     let mut out = vec![0u8; command.layout().response_len()];
     let n = command.layout().encode_response(slave, &[], &mut out).unwrap();
     out.truncate(n);

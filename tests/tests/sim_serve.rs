@@ -215,28 +215,30 @@ mod pty {
         let mut client = Client::with_config(transport, config());
         let reply = client.call_raw(&request(&read, slave, &[]), &read.layout()).unwrap();
         assert_eq!(reply, example_reply(&read).unwrap(), "the manual's example reply");
+        // A value of its own for every field, however many the write has.
         let written: Vec<(String, Value)> = set_cal
-            .fields
-            .iter()
-            .zip([0.9, 0.1, 0.2, 0.3])
-            .map(|(f, v)| (f.name.clone().unwrap(), Value::Float(v)))
+            .named_fields()
+            .enumerate()
+            .map(|(i, f)| (f.display_name().to_owned(), Value::Float(yosemitech_tests::values::varied_float(f, i))))
             .collect();
         let values: Vec<(&str, Value)> = written.iter().map(|(n, v)| (n.as_str(), v.clone())).collect();
         client.call_raw(&request(&set_cal, slave, &values), &set_cal.layout()).unwrap();
         let reply = client.call_raw(&request(&get_cal, slave, &[]), &get_cal.layout()).unwrap();
-        assert_eq!(get_cal.decode_response(slave, reply).unwrap()[0].1, Value::Float(0.9));
+        assert_eq!(get_cal.decode_response(slave, reply).unwrap(), written, "what was written reads back");
         // Unknown function over the pty: framed by silence, exception 01 (asked for).
         let t = client.transport_mut();
         t.write_all(&with_crc(&[slave, 0x08, 0x00, 0x00, 0xA5, 0x37])).unwrap();
         assert_eq!(read_n(t, 5), exception(slave, 0x08, 0x01));
         // get_slave_id via 0xFF after set_slave_id: the reply from the old address, then the new one.
         let address = first_field(&set_id);
-        let reply =
-            client.call_raw(&request(&set_id, slave, &[(address.as_str(), Value::Int(9))]), &set_id.layout()).unwrap();
+        let new = (probe.min_address..=probe.max_address).find(|&a| a != slave).expect("another address");
+        let to = [(address.as_str(), Value::Int(i64::from(new)))];
+        let reply = client.call_raw(&request(&set_id, slave, &to), &set_id.layout()).unwrap();
         assert_eq!(reply[0], slave);
         let reply = client.call_raw(&request(&get_id, 0xFF, &[]), &get_id.layout()).unwrap();
-        assert_eq!(get_id.decode_response(0xFF, reply).unwrap()[0].1, Value::Int(9));
-        assert_eq!(server.device().address(), 9);
+        let reported = get_id.decode_response(0xFF, reply).unwrap();
+        assert_eq!(reported.iter().find(|(n, _)| *n == first_field(&get_id)).map(|(_, v)| v), Some(&to[0].1));
+        assert_eq!(server.device().address(), new);
         drop(client);
         server.stop().unwrap();
     }

@@ -62,6 +62,7 @@ const FIRST_LOCATION: &[(&str, &str)] = &[
     ("request-wrong-register", "request-wrong-register.yaml:20:18"),
     ("sensor-and-fragment", "sensor-and-fragment.yaml:11:1"),
     ("sensor-settings-out-of-range", "sensor-settings-out-of-range.yaml:7:18"),
+    ("sensor-without-commands", "sensor-without-commands.yaml:3:9"),
     ("size-too-few", "size-too-few.yaml:15:12"),
     ("size-too-many", "size-too-many.yaml:15:12"),
     ("stated-value-disagrees", "stated-value-disagrees.yaml:22:22"),
@@ -266,4 +267,181 @@ fn truncated_and_mutated_real_specs_never_panic() {
         }
     }
     println!("spec corpus: {checked} truncated or mutated real spec files loaded without a panic");
+}
+
+/// One row of the key table of docs/spec-language.md.
+struct KeyRow {
+    /// `commands[].fields[].type`.
+    path: String,
+    /// `required`, `required for ...` or `required with(out) ...`.
+    required: bool,
+}
+
+/// The rows of the table under "Required and optional keys".
+fn key_table() -> Vec<KeyRow> {
+    let docs = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../docs/spec-language.md");
+    let text = std::fs::read_to_string(&docs).expect("docs/spec-language.md");
+    let section = text.split("## Required and optional keys").nth(1).expect("the key table's section");
+    let section = section.split("\n## ").next().unwrap_or(section);
+    section
+        .lines()
+        .filter_map(|line| {
+            let cells: Vec<&str> = line.trim().strip_prefix('|')?.split('|').map(str::trim).collect();
+            let path = cells.first()?.strip_prefix('`')?.strip_suffix('`')?.to_owned();
+            let status = *cells.get(1)?;
+            assert!(status.starts_with("required") || status == "optional", "{path}: `{status}`");
+            Some(KeyRow { path, required: status.starts_with("required") })
+        })
+        .collect()
+}
+
+/// Leading spaces of `line`, a list item's dash counted as indentation.
+fn key_indent(line: &str) -> usize {
+    let spaces = line.len() - line.trim_start().len();
+    if line.trim_start().starts_with("- ") { spaces + 2 } else { spaces }
+}
+
+/// The end of the block that starts at `at` (its deeper-indented lines).
+fn block_end(lines: &[String], at: usize, indent: usize) -> usize {
+    let deeper = |l: &String| l.trim().is_empty() || (l.len() - l.trim_start().len()) > indent;
+    at + 1 + lines[at + 1..].iter().take_while(|l| deeper(l)).count()
+}
+
+/// `lines[start..end]` (a mapping whose keys sit at `indent`) without the
+/// key at `path`; `false` when the mapping lacks it.
+fn remove_key(lines: &mut Vec<String>, start: usize, end: usize, indent: usize, path: &[&str]) -> bool {
+    let Some((segment, rest)) = path.split_first() else { return false };
+    let (name, list) = match segment.strip_suffix("[]") {
+        Some(n) => (n, true),
+        None => (*segment, false),
+    };
+    let at = (start..end).find(|&i| {
+        let l = &lines[i];
+        key_indent(l) == indent && l.trim_start().trim_start_matches("- ").starts_with(&format!("{name}:"))
+    });
+    let Some(at) = at else { return false };
+    let key_end = block_end(lines, at, indent);
+    if rest.is_empty() {
+        let on_dash = lines[at].trim_start().starts_with("- ");
+        lines.drain(at..key_end);
+        if on_dash {
+            // The item's next key moves up onto its dash.
+            let Some(next) = lines.get(at).cloned().filter(|l| key_indent(l) == indent) else { return false };
+            lines[at] = format!("{}- {}", " ".repeat(indent - 2), next.trim_start());
+        }
+        return true;
+    }
+    if !list {
+        return remove_key(lines, at + 1, key_end, indent + 2, rest);
+    }
+    // Each item of the list, first to last, until one has the key.
+    let items: Vec<usize> = (at + 1..key_end)
+        .filter(|&i| lines[i].trim_start().starts_with("- ") && key_indent(&lines[i]) == indent + 4)
+        .collect();
+    for (k, &item) in items.iter().enumerate() {
+        let item_end = items.get(k + 1).copied().unwrap_or(key_end);
+        if remove_key(lines, item, item_end, indent + 4, rest) {
+            return true;
+        }
+    }
+    false
+}
+
+/// The every-key sensor and its fragment, one key removed from the file
+/// that holds it; `None` when neither has it.
+fn every_key_without(path: &str) -> Option<MemSources> {
+    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("specs/every-key");
+    let files = ["probe.yaml", "shared.yaml"];
+    let segments: Vec<&str> = path.split('.').collect();
+    let mut sources = MemSources::default();
+    let mut removed = false;
+    for file in files {
+        let text = std::fs::read_to_string(dir.join(file)).expect("an every-key file");
+        let mut lines: Vec<String> = text.lines().map(str::to_owned).collect();
+        let end = lines.len();
+        if !removed {
+            removed = remove_key(&mut lines, 0, end, 0, &segments);
+        }
+        sources = sources.with(PathBuf::from("spec").join(file), lines.join("\n") + "\n");
+    }
+    removed.then_some(sources)
+}
+
+/// Every key of the table, removed in turn from the every-key sensor: a
+/// required key's absence is a located error that names it and says what
+/// to add; without an optional one the spec loads and generates. Every
+/// key of spec/schema.json is in the table.
+#[test]
+fn the_key_table_holds_for_every_key() {
+    let rows = key_table();
+    let spec_dir = [PathBuf::from("spec")];
+    let complete = every_key_without("no_such_key");
+    assert!(complete.is_none(), "removing a key the files lack removes nothing");
+    let (mut required, mut optional) = (0, 0);
+    let mut wrong = Vec::new();
+    for row in &rows {
+        let sources = every_key_without(&row.path)
+            .unwrap_or_else(|| panic!("{}: tests/specs/every-key uses no such key; add it there", row.path));
+        let leaf = row.path.rsplit('.').next().unwrap_or_default().trim_end_matches("[]");
+        let result = catch_unwind(AssertUnwindSafe(|| load_with(&sources, &spec_dir)))
+            .unwrap_or_else(|_| panic!("{}: the loader panicked", row.path));
+        match (row.required, result) {
+            (true, Ok(_)) => wrong.push(format!("{}: documented as required, but the spec loads without it", row.path)),
+            (true, Err(diags)) => {
+                // Located, naming the key (in the message, the key path or
+                // the hint), and saying what to add.
+                let named = diags.0.iter().any(|d| {
+                    let help = d.help.as_deref().unwrap_or_default();
+                    d.pos.line > 0
+                        && !help.is_empty()
+                        && (d.message.contains(&format!("`{leaf}`"))
+                            || d.key.ends_with(leaf)
+                            || help.contains(&format!("`{leaf}"))
+                            || help.contains(&format!(".{leaf}`")))
+                });
+                if !named {
+                    wrong.push(format!("{}: no located error naming `{leaf}` with a hint:\n{diags}", row.path));
+                }
+                required += 1;
+            }
+            (false, Err(diags)) => wrong.push(format!("{}: documented as optional, but\n{diags}", row.path)),
+            (false, Ok(spec)) => {
+                if let Err(e) = yosemitech_codegen::Config::new().generate_spec(&spec) {
+                    wrong.push(format!("{}: loads without it, but does not generate: {e}", row.path));
+                }
+                optional += 1;
+            }
+        }
+    }
+    assert!(wrong.is_empty(), "{} rows of the key table do not hold:\n{}", wrong.len(), wrong.join("\n"));
+    // Every key the schema knows is in the table.
+    let schema: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(yosemitech_tests::spec_dir().join("schema.json")).expect("spec/schema.json"),
+    )
+    .expect("the schema is JSON");
+    let mut names = std::collections::BTreeSet::new();
+    schema_keys(&schema, &mut names);
+    for name in &names {
+        let listed = rows.iter().any(|r| r.path.rsplit('.').next().is_some_and(|l| l.trim_end_matches("[]") == name));
+        assert!(listed, "the schema's key `{name}` is not in the key table of docs/spec-language.md");
+    }
+    yosemitech_tests::report!(
+        "key table: {required} required keys refused with a located error, {optional} optional keys left out; \
+         {} schema keys listed",
+        names.len()
+    );
+}
+
+/// Every property name anywhere in a JSON schema.
+fn schema_keys(value: &serde_json::Value, out: &mut std::collections::BTreeSet<String>) {
+    match value {
+        serde_json::Value::Object(map) => {
+            if let Some(serde_json::Value::Object(props)) = map.get("properties") {
+                out.extend(props.keys().cloned());
+            }
+            map.values().for_each(|v| schema_keys(v, out));
+        }
+        serde_json::Value::Array(items) => items.iter().for_each(|v| schema_keys(v, out)),
+        _ => {}
+    }
 }

@@ -155,9 +155,18 @@ fn pdf_to_text(path: &Path) -> Result<String, BadInput> {
             "the manual is a PDF and `pdftotext` is not installed; install poppler-utils (`apt-get install poppler-utils`, `brew install poppler`) or pass the output of `pdftotext -layout MANUAL.pdf`",
         ),
         Err(e) => bad(format!("cannot run pdftotext: {e}")),
-        Ok(o) if !o.status.success() => bad(format!("pdftotext failed: {}", String::from_utf8_lossy(&o.stderr).trim())),
+        Ok(o) if !o.status.success() => {
+            bad(format!("the PDF cannot be read: pdftotext says {}", one_line(&String::from_utf8_lossy(&o.stderr))))
+        }
         Ok(o) => decode_text(&o.stdout),
     }
+}
+
+/// A tool's diagnostics as one line: poppler prints a warning and an error a
+/// line each for one broken file, and the importer answers with one message.
+fn one_line(text: &str) -> String {
+    let lines: Vec<&str> = text.lines().map(str::trim).filter(|l| !l.is_empty()).collect();
+    if lines.is_empty() { "nothing".to_string() } else { lines.join("; ") }
 }
 
 fn decode_text(bytes: &[u8]) -> Result<String, BadInput> {
@@ -1991,8 +2000,8 @@ pub fn accuracy_all() -> anyhow::Result<Option<Vec<Accuracy>>> {
         let draft =
             import_with(&text, "imported", &file, &shared).map_err(|e| anyhow::anyhow!("{}: {e}", m.display()))?;
         let millis = t.elapsed().as_secs_f64() * 1000.0;
-        let mut a =
-            compare(&draft, &spec, &file).unwrap_or_else(|| Accuracy { manual: file.clone(), ..Accuracy::default() });
+        // A manual no spec transcribes yet has nothing to be compared with.
+        let Some(mut a) = compare(&draft, &spec, &file) else { continue };
         a.millis = millis;
         out.push(a);
     }

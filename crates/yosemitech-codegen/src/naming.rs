@@ -4,18 +4,10 @@
 use std::collections::BTreeMap;
 
 use heck::{ToShoutySnakeCase, ToUpperCamelCase};
-use yosemitech_spec::names::{PRELUDE_NAMES, check_snake};
+use yosemitech_spec::names::{DEVICE_METHODS, MODULE_CONSTS, MODULE_TYPES, PRELUDE_NAMES, check_snake};
 use yosemitech_spec::{CommandSpec, EnumRepr, FieldKind, Sensor, Variant};
 
 use crate::Error;
-
-/// Types every sensor module declares itself.
-const FIXED_TYPES: &[&str] = &["CommandId", "Request", "Response", "Device"];
-/// Constants every sensor module declares itself.
-const FIXED_CONSTS: &[&str] = &["SENSOR"];
-/// Methods of `Device` that are not commands (`set_slave_address` only for
-/// sensors with the roles it needs, reserved for all).
-const DEVICE_METHODS: &[&str] = &["new", "address", "set_address", "client", "call", "set_slave_address"];
 
 /// Names of one command's items.
 #[derive(Debug, Clone)]
@@ -61,7 +53,7 @@ impl Names {
     pub fn plan(sensor: &Sensor) -> Result<Self, Error> {
         let collision = |detail: String| Error::NameCollision { sensor: sensor.name.clone(), detail };
         let mut types: BTreeMap<String, String> =
-            FIXED_TYPES.iter().map(|t| ((*t).to_owned(), "the generated module".to_owned())).collect();
+            MODULE_TYPES.iter().map(|t| ((*t).to_owned(), "the generated module".to_owned())).collect();
         // The module relies on the prelude (`Option`, `Some`, `From`, `Iterator`, ...):
         // an enum type falls back to another name, a command is refused.
         for name in PRELUDE_NAMES {
@@ -152,7 +144,7 @@ impl Names {
         }
 
         let mut consts: BTreeMap<String, String> =
-            FIXED_CONSTS.iter().map(|c| ((*c).to_owned(), "the generated module".to_owned())).collect();
+            MODULE_CONSTS.iter().map(|c| ((*c).to_owned(), "the generated module".to_owned())).collect();
         let mut constants = Vec::new();
         for c in &sensor.constants {
             let name = c.name.to_shouty_snake_case();

@@ -231,9 +231,18 @@ fn with_model_code(command: &CommandSpec, model_code: Option<&str>, data: &[u8])
     own
 }
 
+/// Whether the simulator runs the calibration rule for `sensor`: it has a
+/// calibration point write, a calibration status read whose enum names
+/// [`STATUS_SUCCESS`], [`STATUS_NOT_A_STANDARD`] and [`STATUS_TOO_FEW_POINTS`],
+/// and one list of standards in the point's unit. Otherwise the point is a
+/// plain write.
+pub fn simulates_calibration(sensor: &Sensor) -> bool {
+    Calibration::new(sensor).is_some()
+}
+
 /// The calibration standards: the one list constant whose unit is the
 /// calibration point field's unit (`None` when none or several fit).
-pub(crate) fn calibration_standards<'s>(sensor: &'s Sensor, point: &Field) -> Option<&'s Constant> {
+pub fn calibration_standards<'s>(sensor: &'s Sensor, point: &Field) -> Option<&'s Constant> {
     let unit = point.unit.as_deref()?;
     let mut fitting = sensor.constants.iter().filter(|c| c.is_list && c.unit.as_deref() == Some(unit));
     let standards = fitting.next()?;

@@ -98,7 +98,7 @@ fn printed_frame(
                         0..4 => format!("the printed {what} is too short to carry a CRC ({} bytes)", all.len()),
                         _ => format!("the printed CRC of the {what} is wrong: the bytes before it give {}", crc_text(&all)),
                     },
-                    Some("fix the frame; if the manual prints it wrong, add an `erratum` with the corrected frame; if it prints no CRC, write the bytes before it and `*_crc: missing`".into()),
+                    Some(format!("fix the frame; if the manual prints it wrong, add an `erratum` with the corrected frame; if it prints no CRC, write the bytes before it and `{what}_crc: missing`")),
                 );
                 return None;
             }
@@ -110,7 +110,7 @@ fn printed_frame(
                     Pos::at(text),
                     key,
                     "the frame already ends in its CRC",
-                    Some("remove `*_crc: missing`, or remove the CRC bytes the manual does not print".into()),
+                    Some(format!("remove `{what}_crc: missing`, or remove the CRC bytes the manual does not print")),
                 );
                 return None;
             }

@@ -16,8 +16,22 @@ const KEYWORDS: &[&str] = &[
 /// `safe fn`); legal identifiers, but refused to keep generated code plain.
 const CONTEXTUAL_KEYWORDS: &[&str] = &["union", "raw", "safe", "macro_rules"];
 
-/// Names the generated code uses itself.
-const TAKEN_TYPE_NAMES: &[&str] = &["Command", "Response", "Request", "Unknown", "Device", "Error", "Result"];
+/// Types every generated sensor module declares itself. The generator
+/// declares exactly these (`yosemitech_codegen` takes them from here), so a
+/// spec that validates cannot collide with them.
+pub const MODULE_TYPES: &[&str] = &["CommandId", "Request", "Response", "Device", "AsyncDevice"];
+
+/// Constants every generated sensor module declares itself.
+pub const MODULE_CONSTS: &[&str] = &["SENSOR", "MODULE", "COMMAND_NAMES"];
+
+/// Methods of the generated `Device` and `AsyncDevice` that are not
+/// commands (`set_slave_address` only for sensors with the roles it needs,
+/// reserved for all). A command's method is its name or, for a read, its
+/// name without `get_`; the full name must be free.
+pub const DEVICE_METHODS: &[&str] = &["new", "address", "set_address", "client", "call", "set_slave_address"];
+
+/// Other type names the generated code uses (traits and variants it names).
+const TAKEN_TYPE_NAMES: &[&str] = &["Command", "Unknown", "Error", "Result"];
 
 /// Why `name` cannot be used, or `None` if it can.
 ///
@@ -48,7 +62,10 @@ pub fn check_snake(name: &str) -> Option<String> {
         return Some(format!("`{name}` is a contextual Rust keyword"));
     }
     let camel = name.to_upper_camel_case();
-    if KEYWORDS.contains(&camel.as_str()) || TAKEN_TYPE_NAMES.contains(&camel.as_str()) {
+    if KEYWORDS.contains(&camel.as_str())
+        || TAKEN_TYPE_NAMES.contains(&camel.as_str())
+        || MODULE_TYPES.contains(&camel.as_str())
+    {
         return Some(format!("`{name}` becomes `{camel}`, which the generated code reserves"));
     }
     None
@@ -137,9 +154,22 @@ pub fn check_sensor_name(name: &str) -> Option<String> {
 /// of the Rust prelude.
 pub fn check_command_name(name: &str) -> Option<String> {
     let camel = camel(name);
+    if DEVICE_METHODS.contains(&name) {
+        return Some(format!("`{name}` would take `Device::{name}`, a method every generated `Device` has"));
+    }
     PRELUDE_NAMES
         .contains(&camel.as_str())
         .then(|| format!("`{name}` becomes the type `{camel}`, which would shadow the Rust prelude's `{camel}`"))
+}
+
+/// Why `name` (already a valid [`check_snake`] name) cannot name a
+/// constant, or `None` if it can: its constant must not be one the module
+/// declares itself.
+pub fn check_constant_name(name: &str) -> Option<String> {
+    let upper = shouty(name);
+    MODULE_CONSTS
+        .contains(&upper.as_str())
+        .then(|| format!("`{name}` becomes the constant `{upper}`, which every generated module declares itself"))
 }
 
 /// `name` with control and bidi-override characters escaped, shortened to
@@ -183,6 +213,17 @@ mod tests {
             assert_eq!(check_sensor_name(shadowing), None, "{shadowing}");
         }
         assert_eq!(check_command_name("get_option"), None);
+        for method in DEVICE_METHODS {
+            assert!(check_command_name(method).is_some(), "{method}");
+        }
+        for ty in MODULE_TYPES {
+            let snake = heck::ToSnakeCase::to_snake_case(*ty);
+            assert!(check_snake(&snake).is_some(), "{snake}");
+        }
+        for constant in MODULE_CONSTS {
+            assert!(check_constant_name(&constant.to_lowercase()).is_some(), "{constant}");
+        }
+        assert_eq!(check_constant_name("module_count"), None);
         assert_eq!(check_sensor_name("probe_x"), None);
     }
 }

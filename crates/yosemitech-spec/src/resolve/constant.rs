@@ -12,7 +12,7 @@ use crate::check::{check_name, check_text};
 use crate::diag::{Pos, Reporter};
 use crate::document::{ConstantDoc, ConstantTypeDoc};
 use crate::model::{Constant, ConstantType};
-use crate::names::{check_snake, shouty};
+use crate::names::{check_constant_name, check_snake, shouty};
 
 use super::sensor::resolve_source;
 
@@ -25,7 +25,11 @@ pub(super) fn resolve_constants(docs: &[ConstantDoc], r: &mut Reporter<'_>) -> V
             None => format!("constants[{i}] ({})", c.name.value),
             Some(_) => format!("constants[{i}]"),
         };
-        let name_ok = check_name(&c.name, &format!("{key}.name"), r);
+        let mut name_ok = check_name(&c.name, &format!("{key}.name"), r);
+        if name_ok && let Some(why) = check_constant_name(&c.name.value) {
+            r.error(Pos::at(&c.name), format!("{key}.name"), why, Some("rename the constant".into()));
+            name_ok = false;
+        }
         let mut ok = name_ok;
         if let Some(first) = names.insert(c.name.value.clone(), Pos::at(&c.name)) {
             r.error(

@@ -551,6 +551,16 @@ impl Loader<'_> {
             }
         }
 
+        // A sensor with no command gives no tool anything to send.
+        if head.is_some() && commands.is_empty() && doc.commands.is_empty() && doc.include.is_empty() {
+            r.error(
+                Pos::at(&sensor_doc.name),
+                "commands",
+                "the sensor has no command",
+                Some("add `commands:` with the manual's commands (definitions, or `use:` of an included one)".into()),
+            );
+        }
+
         // Names, the Rust types they become, and wire positions must be unique.
         let mut names: BTreeMap<String, usize> = BTreeMap::new();
         let mut types: BTreeMap<String, usize> = BTreeMap::new();
@@ -608,6 +618,28 @@ impl Loader<'_> {
             } else {
                 wires.insert(wire, k);
             }
+        }
+
+        // A read's reply type, `<Command>Response`, is a type too.
+        for (cmd, origin) in commands.iter().zip(&origins) {
+            let reply = format!("{}Response", camel(&cmd.name));
+            let Some(&j) = types.get(&reply).filter(|_| cmd.is_read()) else { continue };
+            let mut fr = match self.files.get(origin.file) {
+                Some(p) => Reporter { file: origin.file, text: &p.text, out: r.out },
+                None => continue,
+            };
+            fr.error(
+                origin.pos,
+                format!("{}.name", origin.key),
+                format!(
+                    "the reply of `{}` becomes the Rust type `{reply}`, the type of `{}`",
+                    cmd.name, commands[j].name
+                ),
+                Some(format!(
+                    "rename one of them (the other is at {})",
+                    place(origins[j].file, origins[j].pos, origin.file)
+                )),
+            );
         }
 
         // One command per role.

@@ -28,7 +28,10 @@ pub(super) fn resolve_procedure(p: &ProcedureDoc, commands: &[CommandSpec], r: &
                 None => {
                     let help = match crate::yaml::closest(&name.value, &names) {
                         Some(best) => format!("did you mean `{best}`?"),
-                        None => format!("commands: {}", names.join(", ")),
+                        None => format!(
+                            "the sensor's commands are {}; name one of them, or add it to `commands`",
+                            names.join(", ")
+                        ),
                     };
                     r.error(
                         Pos::at(name),

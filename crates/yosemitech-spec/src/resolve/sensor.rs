@@ -32,7 +32,11 @@ pub(super) fn check_manual_refs(sensor: &SensorDoc, doc: &SpecFile, r: &mut Repo
             let help = if known.is_empty() {
                 "state the manuals' software revisions: `sensor.manual.software` and `sensor.revisions`".to_string()
             } else {
-                format!("the file's manuals document software {}", known.join(", "))
+                format!(
+                    "the file's manuals document software {}; add the manual of software {} to `sensor.revisions`",
+                    known.join(", "),
+                    escape(&value.value)
+                )
             };
             r.error(
                 Pos::at(value),
