@@ -165,7 +165,12 @@ fn pdf_to_text(path: &Path) -> Result<String, BadInput> {
 /// A tool's diagnostics as one line: poppler prints a warning and an error a
 /// line each for one broken file, and the importer answers with one message.
 fn one_line(text: &str) -> String {
-    let lines: Vec<&str> = text.lines().map(str::trim).filter(|l| !l.is_empty()).collect();
+    let mut lines: Vec<&str> = Vec::new();
+    for line in text.lines().map(str::trim).filter(|l| !l.is_empty()) {
+        if !lines.contains(&line) {
+            lines.push(line);
+        }
+    }
     if lines.is_empty() { "nothing".to_string() } else { lines.join("; ") }
 }
 
