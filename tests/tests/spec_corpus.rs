@@ -45,6 +45,7 @@ const FIRST_LOCATION: &[(&str, &str)] = &[
     ("frame-not-hex", "frame-not-hex.yaml:21:19"),
     ("gap-between-fields", "gap-between-fields.yaml:18:55"),
     ("huge-file", "huge.yaml:1:1"),
+    ("import-todo-left", "import-todo-left.yaml:13:5"),
     ("include-cycle", "include-cycle/b.yaml:7:5"),
     ("include-non-fragment", "include-non-fragment/sensor.yaml:12:5"),
     ("include-not-relative-yaml", "include-not-relative-yaml.yaml:12:5"),

@@ -12,8 +12,14 @@
 //! table ("Start address ... Number of registers ... Function code" over a row
 //! of values), and frame tables (a "Byte 0 1 2 ..." row over a "Value 0x01
 //! 0x03 ..." row) captioned "Figure N" (after) or "Table N" (before). It never
-//! invents a byte: what it cannot decide becomes a `# TODO(import)` comment
-//! plus a `todo_import:` key that `cargo xtask validate` rejects with its line.
+//! invents a byte: what it cannot decide becomes a `# TODO(import)` comment,
+//! which `cargo xtask validate` rejects with its line and column.
+//!
+//! `cargo xtask import MANUAL --into spec/NAME.yaml [--out FILE] [--json]`:
+//! merges another revision of a probe's manual into its spec instead
+//! (`into`: the task, `identify`: is it this probe's manual, `merge`: the
+//! comparison, `procedure`: the procedure chapter, `edit`: the YAML text,
+//! `review`: what changed).
 
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
@@ -24,7 +30,7 @@ use std::time::Instant;
 /// Largest manual accepted (the real ones are under 100 kB of text).
 pub const MAX_INPUT: u64 = 8 * 1024 * 1024;
 
-const USAGE: &str = "usage: cargo xtask import MANUAL [--name NAME] [--out FILE]   (MANUAL: pdftotext -layout text or a PDF)\n       cargo xtask import --accuracy [--write]                 (the accuracy table of docs/importer.md)";
+const USAGE: &str = "usage: cargo xtask import MANUAL [--name NAME] [--out FILE]   (MANUAL: pdftotext -layout text or a PDF)\n       cargo xtask import MANUAL --into spec/NAME.yaml [--out FILE] [--json]   (another revision of a probe the spec has)\n       cargo xtask import --accuracy [--write]                 (the accuracy table of docs/importer.md)";
 
 /// An input the importer refuses: one message, exit code 2, nothing written.
 #[derive(Debug)]
@@ -45,6 +51,8 @@ pub fn run(args: &[String]) -> anyhow::Result<ExitCode> {
     let mut manual: Option<PathBuf> = None;
     let mut name: Option<String> = None;
     let mut out: Option<PathBuf> = None;
+    let mut into: Option<PathBuf> = None;
+    let mut json = false;
     let mut accuracy = false;
     let mut write = false;
     let mut it = args.iter();
@@ -56,6 +64,8 @@ pub fn run(args: &[String]) -> anyhow::Result<ExitCode> {
             }
             "--name" => name = it.next().cloned(),
             "--out" => out = it.next().map(PathBuf::from),
+            "--into" => into = it.next().map(PathBuf::from),
+            "--json" => json = true,
             "--accuracy" => accuracy = true,
             "--write" => write = true,
             a if a.starts_with('-') => {
@@ -76,6 +86,17 @@ pub fn run(args: &[String]) -> anyhow::Result<ExitCode> {
         eprintln!("error: no MANUAL given\n{USAGE}");
         return Ok(ExitCode::from(2));
     };
+    if let Some(into) = into {
+        if name.is_some() {
+            eprintln!("error: --name names a new sensor; with --into the sensor is the spec's\n{USAGE}");
+            return Ok(ExitCode::from(2));
+        }
+        return into::run(&manual, &into, out.as_deref(), json);
+    }
+    if json {
+        eprintln!("error: --json goes with --into\n{USAGE}");
+        return Ok(ExitCode::from(2));
+    }
     let name = match name {
         Some(n) => n,
         None => default_name(&manual),
@@ -458,6 +479,8 @@ pub struct DCommand {
     pub todos: Vec<String>,
     /// Table contradictions: (figure, key, table value, note).
     pub table_errata: Vec<(String, &'static str, String)>,
+    /// The page the section starts on, when the text keeps page breaks.
+    pub page: Option<u32>,
 }
 
 /// A drafted spec.
@@ -469,6 +492,12 @@ pub struct Draft {
     pub commands: Vec<DCommand>,
     /// Manual-wide TODOs.
     pub todos: Vec<String>,
+    /// The manual's header (cover, scope line, serial settings).
+    pub(crate) header: Header,
+    /// The manual's lines (cleaned) and where the command chapter ends.
+    pub(crate) lines: Vec<String>,
+    /// The first line after the command chapter (the procedure chapter).
+    pub(crate) chapter_end: usize,
 }
 
 impl Draft {
@@ -511,15 +540,17 @@ impl Draft {
 // ---------------------------------------------------------------------------
 // Parsing
 
-struct Header {
-    title: String,
-    manual_title: String,
-    revision: Option<String>,
-    software: Option<String>,
-    baud: Option<u32>,
-    data_bits: Option<u8>,
-    parity: Option<&'static str>,
-    stop_bits: Option<u8>,
+/// What the cover and the first chapter say about the manual.
+#[derive(Debug, Clone)]
+pub(crate) struct Header {
+    pub(crate) title: String,
+    pub(crate) manual_title: String,
+    pub(crate) revision: Option<String>,
+    pub(crate) software: Option<String>,
+    pub(crate) baud: Option<u32>,
+    pub(crate) data_bits: Option<u8>,
+    pub(crate) parity: Option<&'static str>,
+    pub(crate) stop_bits: Option<u8>,
 }
 
 /// The revision number printed within a dozen characters after `key` in
@@ -1119,6 +1150,11 @@ pub struct Shared {
 /// The fragments of `spec/` (empty when they do not load).
 pub fn shared_commands(spec_dir: &Path) -> Vec<Shared> {
     let Ok(spec) = yosemitech_spec::load_paths(&[spec_dir.to_path_buf()]) else { return Vec::new() };
+    shared_from(&spec)
+}
+
+/// The fragments' commands of a loaded spec.
+pub(crate) fn shared_from(spec: &yosemitech_spec::Spec) -> Vec<Shared> {
     let mut out = Vec::new();
     for frag in &spec.fragments {
         for c in &frag.commands {
@@ -1209,9 +1245,19 @@ pub fn import_with(text: &str, name: &str, file: &str, shared: &[Shared]) -> Res
     let header = parse_header(&lines);
     let mut commands = Vec::new();
     let mut used_names: BTreeMap<String, usize> = BTreeMap::new();
+    // Pages, where the text keeps pdftotext's form feeds.
+    let breaks = text.contains('\u{c}');
+    let pages: Vec<u32> = text
+        .lines()
+        .scan(1u32, |page, l| {
+            *page += l.matches('\u{c}').count() as u32;
+            Some(*page)
+        })
+        .collect();
     for (k, &s) in starts.iter().enumerate() {
         let e = starts.get(k + 1).copied().unwrap_or(end);
         let mut c = import_command(&lines[s..e], shared);
+        c.page = pages.get(s).copied().filter(|_| breaks);
         let n = used_names.entry(c.name.clone()).or_insert(0);
         *n += 1;
         if *n > 1 {
@@ -1243,8 +1289,8 @@ pub fn import_with(text: &str, name: &str, file: &str, shared: &[Shared]) -> Res
     if header.baud.is_none() {
         todos.push("the manual states no baud rate".into());
     }
-    let mut draft = Draft { yaml: String::new(), commands, todos };
-    draft.yaml = render(&draft, &header, name, file);
+    let mut draft = Draft { yaml: String::new(), commands, todos, header, lines, chapter_end: end };
+    draft.yaml = render(&draft, &draft.header, name, file);
     Ok(draft)
 }
 
@@ -1268,6 +1314,7 @@ fn import_command(sec: &[String], shared: &[Shared]) -> DCommand {
         examples: Vec::new(),
         todos: Vec::new(),
         table_errata: Vec::new(),
+        page: None,
     };
     let mut table_figure = None;
     for l in sec {
@@ -1665,8 +1712,8 @@ fn render(d: &Draft, h: &Header, name: &str, file: &str) -> String {
     let _ = writeln!(y, "# yaml-language-server: $schema=schema.json");
     let _ = writeln!(y, "#");
     let _ = writeln!(y, "# DRAFT imported by `cargo xtask import` from {file}.");
-    let _ = writeln!(y, "# Every byte and number below comes from the manual. Resolve each");
-    let _ = writeln!(y, "# `TODO(import)` (and delete its `todo_import` key) until `cargo xtask validate` passes.");
+    let _ = writeln!(y, "# Every byte and number below comes from the manual. Resolve each TODO");
+    let _ = writeln!(y, "# point the importer left (and delete its comment) until `cargo xtask validate` passes.");
     let _ = writeln!(y, "sensor:");
     let _ = writeln!(y, "  name: {name}");
     let _ = writeln!(y, "  title: {}", q(if h.title.is_empty() { name } else { &h.title }));
@@ -1694,8 +1741,7 @@ fn render(d: &Draft, h: &Header, name: &str, file: &str) -> String {
             }
         }
         None => {
-            let _ = writeln!(y, "  # TODO(import): the manual states no baud rate");
-            let _ = writeln!(y, "  todo_import: serial settings not found");
+            let _ = writeln!(y, "  # TODO(import): the manual states no baud rate; add `serial:`");
         }
     }
     let _ = writeln!(y, "  addresses: {{min: 1, max: 247}}");
@@ -1715,135 +1761,166 @@ fn render(d: &Draft, h: &Header, name: &str, file: &str) -> String {
     }
     let _ = writeln!(y, "\ncommands:");
     let mut erratum_id = 0;
+    let mut next_id = || {
+        erratum_id += 1;
+        format!("import-{erratum_id}")
+    };
     for c in &d.commands {
-        let _ = writeln!(y);
-        for t in &c.todos {
-            let _ = writeln!(y, "  # TODO(import): section {}: {t}", c.section);
+        let mut o =
+            CommandRender { manual: None, since: None, todos: None, table_notes: Vec::new(), next_id: &mut next_id };
+        render_command(&mut y, c, &mut o);
+    }
+    y
+}
+
+/// How [`render_command`] writes a drafted command: into a new file, or
+/// merged into a spec as another revision's (`manual`, `since`).
+pub(crate) struct CommandRender<'a> {
+    /// The revision's software, written as `manual:` on the source, the examples and the errata.
+    pub manual: Option<&'a str>,
+    /// The `since:` to write.
+    pub since: Option<&'a str>,
+    /// The TODOs to write instead of the command's own.
+    pub todos: Option<&'a [String]>,
+    /// Notes of the table errata, in order (default: a neutral note).
+    pub table_notes: Vec<String>,
+    /// The next erratum id.
+    pub next_id: &'a mut dyn FnMut() -> String,
+}
+
+/// Text on one line (a TODO comment must not end early).
+pub(crate) fn one_line_text(t: &str) -> String {
+    t.split_whitespace().collect::<Vec<_>>().join(" ")
+}
+
+/// Writes one drafted command as an item of `commands:` (two-space indent).
+pub(crate) fn render_command(y: &mut String, c: &DCommand, o: &mut CommandRender<'_>) {
+    let manual_key = o.manual.map(|m| format!("manual: {}, ", q(m))).unwrap_or_default();
+    let _ = writeln!(y);
+    for t in o.todos.unwrap_or(&c.todos) {
+        let _ = writeln!(y, "  # TODO(import): section {}: {}", c.section, one_line_text(t));
+    }
+    match &c.uses {
+        Some((_, n)) => {
+            let _ = writeln!(y, "  - use: {n}");
+            let _ = writeln!(y, "    title: {}", q(&c.title));
         }
-        match &c.uses {
-            Some((_, n)) => {
-                let _ = writeln!(y, "  - use: {n}");
-                let _ = writeln!(y, "    title: {}", q(&c.title));
-            }
-            None => {
-                let _ = writeln!(y, "  - name: {}", c.name);
-                let _ = writeln!(y, "    title: {}", q(&c.title));
-                let _ = writeln!(y, "    doc: {}", q(&format!("Section {} of the manual.", c.section)));
-            }
+        None => {
+            let _ = writeln!(y, "  - name: {}", c.name);
+            let _ = writeln!(y, "    title: {}", q(&c.title));
+            let _ = writeln!(y, "    doc: {}", q(&format!("Section {} of the manual.", c.section)));
         }
-        let _ = writeln!(y, "    source: {{section: {}, figures: {}}}", q(&c.section), fig_list(&c.figures));
-        if !c.todos.is_empty() {
-            let _ = writeln!(y, "    todo_import: {}", q(&c.todos.join("; ")));
+    }
+    let source_manual = o.manual.map(|m| format!(", manual: {}", q(m))).unwrap_or_default();
+    let _ = writeln!(y, "    source: {{section: {}, figures: {}{source_manual}}}", q(&c.section), fig_list(&c.figures));
+    if let Some(since) = o.since {
+        let _ = writeln!(y, "    since: {}", q(since));
+    }
+    if c.uses.is_none() {
+        match c.function {
+            Some(0x03) => {
+                let _ = writeln!(y, "    function: read");
+            }
+            Some(_) => {
+                let _ = writeln!(y, "    function: write");
+            }
+            None => {}
         }
-        if c.uses.is_none() {
-            match c.function {
-                Some(0x03) => {
-                    let _ = writeln!(y, "    function: read");
-                }
-                Some(_) => {
-                    let _ = writeln!(y, "    function: write");
-                }
-                None => {}
-            }
-            if let Some(a) = c.address {
-                let _ = writeln!(y, "    address: 0x{a:04X}");
-            }
-            if let Some(n) = c.count {
-                let _ = writeln!(y, "    count: {n}");
-                let is_trigger_read = c.function == Some(0x03)
-                    && c.fields.is_empty()
-                    && c.examples
-                        .iter()
-                        .any(|e| e.response.as_ref().is_some_and(|r| r.open_ended && r.bytes.get(2) == Some(&Some(0))));
-                if n == 0 || is_trigger_read {
-                    let _ = writeln!(y, "    trigger: true");
-                }
-            }
-            if c.examples
-                .iter()
-                .any(|e| e.request.as_ref().and_then(|r| r.bytes.first().copied().flatten()) == Some(0xFF))
-            {
-                let _ = writeln!(y, "    fixed_slave: 0xFF");
-            }
-            if !c.fields.is_empty() {
-                let _ = writeln!(y, "    fields:");
-                for f in &c.fields {
-                    render_field(&mut y, f);
-                }
-            }
+        if let Some(a) = c.address {
+            let _ = writeln!(y, "    address: 0x{a:04X}");
         }
-        if !c.table_errata.is_empty() {
-            let _ = writeln!(y, "    errata:");
-            for (fig, key, val) in &c.table_errata {
-                erratum_id += 1;
-                let figure = if fig.is_empty() { String::new() } else { format!("figure: {fig}, ") };
-                let _ = writeln!(
-                    y,
-                    "      - {{id: import-{erratum_id}, {figure}table: {{{key}: {val}}}, note: {}}}",
-                    q("The register table disagrees with the printed frames; the frames are used.")
-                );
-            }
-        }
-        if !c.examples.is_empty() {
-            let _ = writeln!(y, "    examples:");
-        }
-        for e in &c.examples {
-            let _ = writeln!(y, "      - figures: {}", fig_list(&e.figures));
-            let mut erratum = None;
-            for (key, f) in [("request", &e.request), ("response", &e.response)] {
-                let Some(f) = f else { continue };
-                let _ = writeln!(y, "        {key}: {}", q(&f.text()));
-                if f.crc.is_none() {
-                    let _ = writeln!(y, "        {key}_crc: missing");
-                }
-                if f.crc_wrong() {
-                    erratum = Some((key, f));
-                }
-            }
-            if !e.values.is_empty() || c.fields.iter().all(|f| f.name.is_none()) {
-                let vals: Vec<String> = e
-                    .values
+        if let Some(n) = c.count {
+            let _ = writeln!(y, "    count: {n}");
+            let is_trigger_read = c.function == Some(0x03)
+                && c.fields.is_empty()
+                && c.examples
                     .iter()
-                    .filter_map(|(off, v)| {
-                        c.fields
-                            .iter()
-                            .find(|f| f.offset == *off)
-                            .and_then(|f| f.name.clone())
-                            .map(|n| format!("{n}: {v}"))
-                    })
-                    .collect();
-                let _ = writeln!(y, "        values: {{{}}}", vals.join(", "));
+                    .any(|e| e.response.as_ref().is_some_and(|r| r.open_ended && r.bytes.get(2) == Some(&Some(0))));
+            if n == 0 || is_trigger_read {
+                let _ = writeln!(y, "    trigger: true");
             }
-            if let Some((key, f)) = erratum {
-                erratum_id += 1;
-                let fig = e
-                    .figures
-                    .get(if key == "request" { 0 } else { e.figures.len().saturating_sub(1) })
-                    .cloned()
-                    .unwrap_or_default();
-                let correct = f.computed_crc().unwrap_or([0, 0]);
-                let printed = f.crc.unwrap_or([0, 0]);
-                let _ = writeln!(y, "        erratum:");
-                let _ = writeln!(y, "          id: import-{erratum_id}");
-                let _ = writeln!(
-                    y,
-                    "          figure: {}",
-                    if fig.chars().all(|c| c.is_ascii_digit()) { fig } else { q(&fig) }
-                );
-                let _ = writeln!(
-                    y,
-                    "          printed: {}",
-                    q(&format!(
-                        "The printed CRC {:02X} {:02X} is wrong; the frame's CRC is {:02X} {:02X}.",
-                        printed[0], printed[1], correct[0], correct[1]
-                    ))
-                );
-                let _ = writeln!(y, "          corrected_{key}: {}", q(&f.spec_text(Some(correct))));
-                let _ = writeln!(y, "          printed_decodes: false");
+        }
+        if c.examples.iter().any(|e| e.request.as_ref().and_then(|r| r.bytes.first().copied().flatten()) == Some(0xFF))
+        {
+            let _ = writeln!(y, "    fixed_slave: 0xFF");
+        }
+        if !c.fields.is_empty() {
+            let _ = writeln!(y, "    fields:");
+            for f in &c.fields {
+                render_field(y, f);
             }
         }
     }
-    y
+    if !c.table_errata.is_empty() {
+        let _ = writeln!(y, "    errata:");
+        for (k, (fig, key, val)) in c.table_errata.iter().enumerate() {
+            let id = (o.next_id)();
+            let figure = if fig.is_empty() { String::new() } else { format!("figure: {fig}, ") };
+            let note =
+                o.table_notes.get(k).cloned().unwrap_or_else(|| {
+                    "The register table disagrees with the printed frames; the frames are used.".into()
+                });
+            let _ =
+                writeln!(y, "      - {{id: {id}, {manual_key}{figure}table: {{{key}: {val}}}, note: {}}}", q(&note));
+        }
+    }
+    if !c.examples.is_empty() {
+        let _ = writeln!(y, "    examples:");
+    }
+    for e in &c.examples {
+        let _ = writeln!(y, "      - figures: {}", fig_list(&e.figures));
+        if let Some(m) = o.manual {
+            let _ = writeln!(y, "        manual: {}", q(m));
+        }
+        let mut erratum = None;
+        for (key, f) in [("request", &e.request), ("response", &e.response)] {
+            let Some(f) = f else { continue };
+            let _ = writeln!(y, "        {key}: {}", q(&f.text()));
+            if f.crc.is_none() {
+                let _ = writeln!(y, "        {key}_crc: missing");
+            }
+            if f.crc_wrong() {
+                erratum = Some((key, f));
+            }
+        }
+        if !e.values.is_empty() || c.fields.iter().all(|f| f.name.is_none()) {
+            let vals: Vec<String> = e
+                .values
+                .iter()
+                .filter_map(|(off, v)| {
+                    c.fields.iter().find(|f| f.offset == *off).and_then(|f| f.name.clone()).map(|n| format!("{n}: {v}"))
+                })
+                .collect();
+            let _ = writeln!(y, "        values: {{{}}}", vals.join(", "));
+        }
+        if let Some((key, f)) = erratum {
+            let id = (o.next_id)();
+            let fig = e
+                .figures
+                .get(if key == "request" { 0 } else { e.figures.len().saturating_sub(1) })
+                .cloned()
+                .unwrap_or_default();
+            let correct = f.computed_crc().unwrap_or([0, 0]);
+            let printed = f.crc.unwrap_or([0, 0]);
+            let _ = writeln!(y, "        erratum:");
+            let _ = writeln!(y, "          id: {id}");
+            let _ = writeln!(
+                y,
+                "          figure: {}",
+                if fig.chars().all(|c| c.is_ascii_digit()) { fig } else { q(&fig) }
+            );
+            let _ = writeln!(
+                y,
+                "          printed: {}",
+                q(&format!(
+                    "The printed CRC {:02X} {:02X} is wrong; the frame's CRC is {:02X} {:02X}.",
+                    printed[0], printed[1], correct[0], correct[1]
+                ))
+            );
+            let _ = writeln!(y, "          corrected_{key}: {}", q(&f.spec_text(Some(correct))));
+            let _ = writeln!(y, "          printed_decodes: false");
+        }
+    }
 }
 
 fn render_field(y: &mut String, f: &DField) {
@@ -2078,6 +2155,12 @@ fn accuracy_task(write: bool) -> anyhow::Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
+mod edit;
+mod identify;
+mod into;
 mod layout;
+mod merge;
+mod procedure;
+mod review;
 #[cfg(test)]
 mod tests;

@@ -174,7 +174,22 @@ pub fn manuals(sensor: &yosemitech_spec::Sensor) -> Vec<String> {
         .map(|(m, serial_settings, doc)| {
             let software = m.software.as_deref().map(|s| format!("SW {}: ", one_line(s))).unwrap_or_default();
             let note = doc.map(|d| format!(" {}", one_line(d))).unwrap_or_default();
-            format!("{software}\"{}\" ({}), {}.{note}", one_line(&m.title), one_line(&m.revision), serial_settings)
+            let claims: Vec<String> = m
+                .serial_claims
+                .iter()
+                .map(|c| match &c.file {
+                    Some(file) => format!("{} ({})", c.serial, one_line(file)),
+                    None => c.serial.to_string(),
+                })
+                .collect();
+            let claimed =
+                if claims.is_empty() { String::new() } else { format!(" (the manual states {})", claims.join("; ")) };
+            format!(
+                "{software}\"{}\" ({}), {}{claimed}.{note}",
+                one_line(&m.title),
+                one_line(&m.revision),
+                serial_settings
+            )
         })
         .collect()
 }

@@ -90,6 +90,26 @@ pub struct ManualDoc {
     /// The text extraction the spec was written from.
     #[schemars(with = "Option<String>")]
     pub file: Option<Spanned<String>>,
+    /// The serial settings this manual (each build of it) states: a claim,
+    /// recorded as printed. A client uses the sensor's (or the revision's)
+    /// `serial`, not these; two builds of one revision that disagree are two
+    /// claims.
+    #[serde(default)]
+    pub serial_claims: Vec<SerialClaimDoc>,
+}
+
+/// Serial settings a manual states.
+#[derive(Debug, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct SerialClaimDoc {
+    /// The settings as the manual prints them.
+    pub serial: SerialDoc,
+    /// The text extraction of the build that states them, when not the manual's `file`.
+    #[schemars(with = "Option<String>")]
+    pub file: Option<Spanned<String>>,
+    /// What is known about this build (its date, where it came from).
+    #[schemars(with = "Option<String>")]
+    pub doc: Option<Spanned<String>>,
 }
 
 /// Another manual of the same probe.
@@ -621,6 +641,21 @@ pub struct ExampleDoc {
     pub doc: Option<Spanned<String>>,
     /// Where a printed frame contradicts the truth.
     pub erratum: Option<ExampleErratumDoc>,
+    /// Other manuals that print the same frames, byte for byte: cited with
+    /// their own figure numbers instead of copied.
+    #[serde(default)]
+    pub also_in: Vec<CitationDoc>,
+}
+
+/// Another manual's figures that print an example's frames identically.
+#[derive(Debug, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct CitationDoc {
+    /// The manual (its `software` revision).
+    #[schemars(with = "String")]
+    pub manual: Spanned<String>,
+    /// Its figures and tables that print the frames.
+    pub figures: Vec<FigureDoc>,
 }
 
 /// A printed frame that is wrong, and its correction.

@@ -15,7 +15,7 @@ use crate::check::{check_erratum_id, check_text, crc_text, parse_hex, resolve_fi
 use crate::diag::{Pos, Reporter};
 use crate::document::{CrcDoc, ExampleDoc};
 use crate::interp::{Value, decode_field};
-use crate::model::{CommandSpec, Example, ExampleErratum, PrintedFrame};
+use crate::model::{Citation, CommandSpec, Example, ExampleErratum, PrintedFrame};
 
 fn hex(text: &Spanned<String>, key: &str, r: &mut Reporter<'_>) -> Option<Vec<u8>> {
     match parse_hex(&text.value) {
@@ -136,6 +136,30 @@ pub(crate) fn check_example(
     let at = e.request.as_ref().or(e.response.as_ref()).map_or_else(|| values_at(Pos::default()), Pos::at);
     let figures = resolve_figures(&e.figures, &format!("{key}.figures"), at, r);
     let manual = e.manual.as_ref().map(|m| check_text(m, &format!("{key}.manual"), r));
+    let mut also_in: Vec<Citation> = Vec::new();
+    for (k, cited) in e.also_in.iter().enumerate() {
+        let cited_key = format!("{key}.also_in[{k}]");
+        let at = Pos::at(&cited.manual);
+        let citation = Citation {
+            manual: check_text(&cited.manual, &format!("{cited_key}.manual"), r),
+            figures: resolve_figures(&cited.figures, &format!("{cited_key}.figures"), at, r),
+        };
+        if also_in.iter().any(|c| c.manual == citation.manual) || manual.as_ref() == Some(&citation.manual) {
+            r.error(
+                at,
+                format!("{cited_key}.manual"),
+                format!(
+                    "the example already cites the manual of software `{}`",
+                    crate::names::escape(&citation.manual)
+                ),
+                Some(
+                    "cite each other manual once, with all its figures; the example's own manual is its `manual`"
+                        .into(),
+                ),
+            );
+        }
+        also_in.push(citation);
+    }
     if e.request.is_none() && e.response.is_none() {
         r.error(
             at,
@@ -493,7 +517,16 @@ pub(crate) fn check_example(
             compare_values(&decoded, &values, e, key, " (printed frame)", r);
         }
     }
-    (r.out.len() == errors_before).then_some(Example { figures, manual, request, response, values, doc, erratum })
+    (r.out.len() == errors_before).then_some(Example {
+        figures,
+        manual,
+        request,
+        response,
+        values,
+        doc,
+        erratum,
+        also_in,
+    })
 }
 
 /// Why `corrected` cannot be the frame a partial `printed` frame stands for:

@@ -45,7 +45,8 @@ pub use diag::{Diagnostic, Diagnostics, Pos};
 pub use interp::{Value, Values};
 pub use model::*;
 pub use resolve::{
-    MAX_INCLUDE_DEPTH, MAX_READ_COUNT, MAX_TEXT_LEN, MAX_WRITE_COUNT, Summary, load_paths, load_with, parse_hex,
+    IMPORT_TODO, MAX_INCLUDE_DEPTH, MAX_READ_COUNT, MAX_TEXT_LEN, MAX_WRITE_COUNT, Summary, load_paths, load_with,
+    parse_hex,
 };
 pub use yaml::{MAX_ALIAS_REPLAY, MAX_YAML_ALIASES, MAX_YAML_DEPTH, MAX_YAML_NODES};
 

@@ -248,6 +248,21 @@ pub struct Manual {
     pub software: Option<String>,
     /// The text extraction used.
     pub file: Option<String>,
+    /// The serial settings the manual's builds state (claims, as printed;
+    /// a client uses the sensor's or the revision's `serial`).
+    pub serial_claims: Vec<SerialClaim>,
+}
+
+/// Serial settings a build of a manual states.
+#[derive(Debug, Clone, Serialize)]
+pub struct SerialClaim {
+    /// The settings as printed.
+    #[serde(serialize_with = "ser_line")]
+    pub serial: LineSettings,
+    /// The text extraction of the build, when not the manual's `file`.
+    pub file: Option<String>,
+    /// What is known about the build.
+    pub doc: Option<String>,
 }
 
 /// Serializes line settings in the spec's own form,
@@ -742,6 +757,17 @@ pub struct Example {
     pub doc: Option<String>,
     /// Where the printed frame is wrong.
     pub erratum: Option<ExampleErratum>,
+    /// Other manuals that print the same frames, with their figures.
+    pub also_in: Vec<Citation>,
+}
+
+/// Another manual's figures that print an example's frames byte for byte.
+#[derive(Debug, Clone, Serialize, PartialEq, Eq)]
+pub struct Citation {
+    /// The manual's software revision.
+    pub manual: String,
+    /// Its figures and tables.
+    pub figures: Vec<Figure>,
 }
 
 impl Example {

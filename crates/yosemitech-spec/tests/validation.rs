@@ -231,3 +231,71 @@ fn limits_refuse_hostile_input_quickly() {
     let d = load(&[("spec/big.yaml", &big)]).expect_err("too big");
     assert!(d.0[0].message.contains("limited to 1048576 bytes"), "{d}");
 }
+
+/// A sensor of two manuals (SW 1.0 by default, SW 2.0 a revision) with one
+/// example whose `also_in` is `cite`.
+fn two_manuals(cite: &str) -> String {
+    format!(
+        "sensor:
+  name: probe
+  title: Probe
+  doc: A probe.
+  manual:
+    title: Manual
+    revision: SW Rev1.0
+    software: \"1.0\"
+    serial_claims:
+      - serial: {{baud: 9600, data_bits: 8, parity: none, stop_bits: 2}}
+        doc: One build states two stop bits.
+  revisions:
+    - manual: {{title: Manual, revision: SW Rev2.0, software: \"2.0\"}}
+  serial: {{baud: 9600, data_bits: 8, parity: none, stop_bits: 1}}
+  addresses: {{min: 1, max: 247}}
+  default_address: 1
+commands:
+  - name: read_value
+    function: read
+    address: 0x2800
+    count: 2
+    fields:
+      - {{name: level, type: f32, byte_order: dcba}}
+    examples:
+      - figures: [6]
+        request: \"01 03 28 00 00 02 CD AB\"
+        also_in: {cite}
+"
+    )
+}
+
+#[test]
+fn citations_name_another_manual_and_claims_are_kept_apart_from_serial() {
+    let text = two_manuals("[{manual: \"2.0\", figures: [9]}]");
+    let spec = load(&[("spec/probe.yaml", &text)]).expect("loads");
+    let s = &spec.sensors[0];
+    let cited = &s.commands[0].examples[0].also_in;
+    assert_eq!((cited[0].manual.as_str(), cited[0].figures[0].to_string()), ("2.0", "9".to_string()));
+    assert_eq!(s.manual.serial_claims[0].serial.to_string(), "9600 baud, 8N2");
+    assert_eq!(s.serial_for("1.0").to_string(), "9600 baud, 8N1", "a claim is not what clients use");
+
+    for (cite, message) in [
+        ("[{manual: \"3.0\", figures: [9]}]", "no manual of this sensor documents software `3.0`"),
+        ("[{manual: \"1.0\", figures: [9]}]", "`also_in` cites other manuals"),
+        (
+            "[{manual: \"2.0\", figures: [9]}, {manual: \"2.0\", figures: [10]}]",
+            "already cites the manual of software `2.0`",
+        ),
+    ] {
+        let text = two_manuals(cite);
+        let d = load(&[("spec/probe.yaml", &text)]).expect_err(cite);
+        assert!(d.0.iter().any(|x| x.pos.line == 27 && x.message.contains(message)), "{cite}: {d}");
+    }
+}
+
+#[test]
+fn an_import_todo_is_an_error_at_its_line_and_column() {
+    let text = format!("{HEAD}commands:\n  # TODO(import): section 2.2.1: check the count\n{READ_VALUE}");
+    let d = load(&[("spec/probe.yaml", &text)]).expect_err("a TODO is left");
+    assert_eq!(d.len(), 1, "{d}");
+    assert_eq!((d.0[0].pos.line, d.0[0].pos.column), (10, 5), "{d}");
+    assert!(d.0[0].message.contains("section 2.2.1: check the count"), "{d}");
+}

@@ -27,6 +27,7 @@ mod field;
 mod includes;
 mod procedure;
 mod sensor;
+mod todo;
 
 use command::{check_use_entry, command_key, resolve_command, resolve_command_extras};
 use constant::resolve_constants;
@@ -34,6 +35,7 @@ use errata::resolve_errata;
 use includes::{check_fragment, collect_includes, include_target};
 use procedure::resolve_procedure;
 use sensor::{check_manual_refs, resolve_sensor_head, resolve_source};
+pub use todo::IMPORT_TODO;
 
 pub use crate::check::{MAX_TEXT_LEN, parse_hex};
 
@@ -235,6 +237,7 @@ impl Loader<'_> {
                 return;
             }
         };
+        todo::check_import_todos(&text, &mut Reporter { file: path, text: &text, out: &mut self.diags });
         let doc = match crate::yaml::parse(&text) {
             Ok(doc) => Some(doc),
             Err(problems) => {

@@ -15,7 +15,7 @@ use serde_saphyr::Spanned;
 use crate::check::{check_name, check_role, check_text, resolve_figures};
 use crate::diag::{Pos, Reporter};
 use crate::document::{ManualDoc, SensorDoc, SerialDoc, SourceDoc, SpecFile};
-use crate::model::{Manual, Revision, Source};
+use crate::model::{Manual, Revision, SerialClaim, Source};
 use crate::names::escape;
 use yosemitech_rtu::{CharFormat, DataBits, LineSettings, StopBits};
 
@@ -57,6 +57,22 @@ pub(super) fn check_manual_refs(sensor: &SensorDoc, doc: &SpecFile, r: &mut Repo
         for (j, e) in c.examples.iter().enumerate() {
             if let Some(m) = &e.manual {
                 check(m, format!("{key}.examples[{j}].manual"), r);
+            }
+            for (k, cited) in e.also_in.iter().enumerate() {
+                let cited_key = format!("{key}.examples[{j}].also_in[{k}].manual");
+                check(&cited.manual, cited_key.clone(), r);
+                let default = sensor.manual.software.as_ref().map(|s| &s.value);
+                if e.manual.is_none() && default == Some(&cited.manual.value) {
+                    r.error(
+                        Pos::at(&cited.manual),
+                        cited_key,
+                        format!(
+                            "the example's own manual is the file's `manual` (software `{}`); `also_in` cites other manuals",
+                            escape(&cited.manual.value)
+                        ),
+                        Some("remove this citation, or give the example the `manual:` it was printed in".into()),
+                    );
+                }
             }
         }
         for (j, e) in c.errata.iter().enumerate() {
@@ -210,11 +226,22 @@ pub(super) fn resolve_sensor_head(s: &SensorDoc, r: &mut Reporter<'_>) -> Option
 }
 
 fn resolve_manual(m: &ManualDoc, key: &str, r: &mut Reporter<'_>) -> Manual {
+    let mut serial_claims = Vec::new();
+    for (i, claim) in m.serial_claims.iter().enumerate() {
+        let claim_key = format!("{key}.serial_claims[{i}]");
+        let serial = resolve_serial(&claim.serial, &format!("{claim_key}.serial"), r);
+        let file = claim.file.as_ref().map(|f| check_text(f, &format!("{claim_key}.file"), r));
+        let doc = claim.doc.as_ref().map(|d| check_text(d, &format!("{claim_key}.doc"), r));
+        if let Some(serial) = serial {
+            serial_claims.push(SerialClaim { serial, file, doc });
+        }
+    }
     Manual {
         title: check_text(&m.title, &format!("{key}.title"), r),
         revision: check_text(&m.revision, &format!("{key}.revision"), r),
         software: m.software.as_ref().map(|s| check_text(s, &format!("{key}.software"), r)),
         file: m.file.as_ref().map(|f| check_text(f, &format!("{key}.file"), r)),
+        serial_claims,
     }
 }
 
