@@ -212,3 +212,75 @@ pub fn read_requests(module: &yosemitech_rtu::SensorModule) -> Vec<ReadRequest> 
         })
         .collect()
 }
+
+/// An address `sensor` may be given (inside its `addresses` and 1..=247)
+/// that is none of `taken`, the lowest such: where a test moves a probe, or
+/// puts several on one bus, without assuming which addresses a manual allows.
+pub fn free_address(sensor: &Sensor, taken: &[u8]) -> Option<u8> {
+    (sensor.min_address.max(1)..=sensor.max_address.min(247)).find(|a| !taken.contains(a))
+}
+
+/// True when the registers of `a` and `b` share a register.
+pub fn overlap(a: &CommandSpec, b: &CommandSpec) -> bool {
+    let end = |c: &CommandSpec| u32::from(c.address) + u32::from(c.count);
+    u32::from(a.address) < end(b) && u32::from(b.address) < end(a)
+}
+
+/// The register data a read's example leaves in a fresh simulator's
+/// registers: its true reply's data, when the layout decodes it.
+fn seeded_data(read: &CommandSpec, example: &yosemitech_spec::Example) -> Option<Vec<u8>> {
+    let frame = example.true_response()?;
+    read.layout().decode_response(example.slave(), frame).ok().filter(|d| !d.is_empty()).map(<[u8]>::to_vec)
+}
+
+/// Whether a fresh simulator of `sensor` serves `read`'s last example reply
+/// from power-on, by the simulator's seeding rule (examples of writes
+/// first, then of reads, in spec order, each over the last): `read` has an
+/// example whose reply data seeds its registers, and no read after it in
+/// the spec seeds a register it shares, and no role rewrites them (the
+/// serial number, the slave address). Where a later read's example covers
+/// the same registers, the manual shows two states of the probe: a test
+/// loads the one it needs.
+pub fn seeded_from_example(sensor: &Sensor, read: &CommandSpec) -> bool {
+    use yosemitech_spec::Role;
+    let Some(position) = sensor.commands.iter().position(|c| c.name == read.name) else { return false };
+    let rewritten = [Role::SerialNumber, Role::SetSlaveAddress, Role::GetSlaveAddress]
+        .iter()
+        .filter_map(|role| sensor.command_with_role(*role))
+        .any(|c| overlap(c, read));
+    read.is_read()
+        && !read.trigger
+        && !rewritten
+        && read.examples.iter().any(|e| seeded_data(read, e).is_some())
+        && !reseeded_by_a_later_read(sensor, position)
+}
+
+/// Whether a read after `sensor.commands[position]` in the spec has an
+/// example that seeds a register of it in a fresh simulator (reads' examples
+/// are applied in spec order, each over the last).
+fn reseeded_by_a_later_read(sensor: &Sensor, position: usize) -> bool {
+    let Some(read) = sensor.commands.get(position) else { return false };
+    sensor.commands[position + 1..]
+        .iter()
+        .filter(|c| c.is_read() && overlap(c, read))
+        .any(|c| c.examples.iter().any(|e| seeded_data(c, e).is_some()))
+}
+
+/// Whether a read after `read` in the spec seeds a register of `read` from
+/// its example in a fresh simulator, so that `read`'s own examples are not
+/// what the simulator serves from power-on.
+pub fn reseeded_later(sensor: &Sensor, read: &CommandSpec) -> bool {
+    sensor.commands.iter().position(|c| c.name == read.name).is_some_and(|i| reseeded_by_a_later_read(sensor, i))
+}
+
+/// The first sensor of the spec with a measurement read
+/// ([`Sensor::is_measurement`]: the simulator varies it) whose only field is
+/// an f32, and that read; `None` when the spec has none.
+pub fn measurement_float_read(spec: &Spec) -> Option<(Sensor, CommandSpec)> {
+    spec.sensors.iter().find_map(|s| {
+        s.commands
+            .iter()
+            .find(|c| is_float_read(c) && c.fields.len() == 1 && s.is_measurement(c))
+            .map(|c| (s.clone(), c.clone()))
+    })
+}

@@ -7,8 +7,9 @@ use std::collections::BTreeMap;
 use std::time::Duration;
 
 use sim_common::{
-    client, command, example_reading, example_reply, exception, exchange, f32_bytes, first_field, float_read,
-    float_write_with_readback, is_f32, is_float_read, request, same, sensor_with_role, spec, with_crc, with_role,
+    client, command, example_reading, exception, exchange, f32_bytes, first_field, float_read,
+    float_write_with_readback, free_address, is_f32, is_float_read, measurement_float_read, request, same,
+    seeded_from_example, spec, with_crc, with_role,
 };
 use yosemitech_rtu::{Error, Function, ResponderTransport};
 use yosemitech_sim::{Bus, FrameHandler, MeasurementState, Simulator, UnknownRequestPolicy, Variation, WarmUpPolicy};
@@ -21,12 +22,14 @@ fn f(v: f32) -> Value {
 #[test]
 fn writes_are_read_back() {
     // Every float write the spec reads back at the same registers, both directions.
-    let mut checked = 0;
+    let (mut checked, mut from_examples) = (0, 0);
     for sensor in &spec().sensors {
         let Some((set, get)) = float_write_with_readback(sensor) else { continue };
         let slave = sensor.default_address;
         let mut sim = Simulator::new(sensor.clone());
-        if let Some(reading) = example_reading(&get) {
+        // Before any write: the manual's example, where the simulator is seeded from it.
+        if let Some(reading) = example_reading(&get).filter(|_| seeded_from_example(sensor, &get)) {
+            from_examples += 1;
             assert!(
                 same(&sim.values(&get.name).unwrap(), &reading),
                 "{}.{}: the manual's example",
@@ -50,7 +53,10 @@ fn writes_are_read_back() {
         assert_eq!(sim.stats().reads, 1);
         checked += 1;
     }
-    assert!(checked >= 2, "float writes read back in several sensors: {checked}");
+    yosemitech_tests::report!(
+        "writes read back: {checked} float writes ({from_examples} first read as their manual's example)"
+    );
+    assert!(checked > 0, "the spec has a float write read back");
 }
 
 #[test]
@@ -84,7 +90,8 @@ fn readings_set_by_name_are_served() {
     let (_, max) = get.fields[0].range.unwrap_or((0.0, 14.0));
     sim.set(&get.name, &name, f(max as f32 + 5.0)).unwrap();
     assert_eq!(sim.get(&get.name, &name).unwrap(), f(max as f32 + 5.0));
-    assert!(sim.is_measurement(&get.name));
+    // The simulator classifies the read as the spec does (a read that no write covers, with a unit).
+    assert_eq!(sim.is_measurement(&get.name), probe.is_measurement(&get), "{}", get.name);
     if let Some((_, readback)) = float_write_with_readback(&probe) {
         assert!(!sim.is_measurement(&readback.name), "{}", readback.name);
     }
@@ -116,21 +123,28 @@ fn address_write_takes_effect_after_the_reply() {
     let slave = probe.default_address;
     let set_id = with_role(&probe, Role::SetSlaveAddress);
     let field = first_field(&set_id);
+    let Some(new) = free_address(&probe, &[slave]) else {
+        return yosemitech_tests::report!("{}: one address only, nothing to move to", probe.name);
+    };
     let mut sim = Simulator::new(probe.clone());
-    let reply = exchange(&mut sim, &request(&set_id, slave, &[(field.as_str(), Value::Int(20))]));
+    let to = [(field.as_str(), Value::Int(i64::from(new)))];
+    let reply = exchange(&mut sim, &request(&set_id, slave, &to));
     assert_eq!(reply, set_id.encode_response(slave, &Default::default()).unwrap(), "from the old address");
-    assert_eq!(sim.address(), 20);
+    assert_eq!(sim.address(), new);
     assert!(exchange(&mut sim, &request(&read, slave, &[])).is_empty(), "the old address is silent");
-    let reply = exchange(&mut sim, &request(&read, 20, &[]));
-    assert_eq!(reply[0], 20);
+    let reply = exchange(&mut sim, &request(&read, new, &[]));
+    assert_eq!(reply[0], new);
     assert_eq!(sim.stats().address_changes, 1);
-    // Out of the field's range: exception 03, address kept.
-    let mut frame = request(&set_id, 20, &[(field.as_str(), Value::Int(20))]);
-    let at = 7 + set_id.fields[0].offset;
-    frame[at] = probe.max_address + 1;
-    let frame = with_crc(&frame[..frame.len() - 2]);
-    assert_eq!(exchange(&mut sim, &frame), exception(20, 0x10, 0x03));
-    assert_eq!(sim.address(), 20);
+    // Outside the sensor's addresses: exception 03, address kept.
+    let outside = probe.max_address.checked_add(1).or_else(|| probe.min_address.checked_sub(1));
+    let address_field = set_id.named_fields().next().unwrap();
+    if let Some(outside) = outside.filter(|_| address_field.size() == 1) {
+        let mut frame = request(&set_id, new, &to);
+        frame[7 + address_field.offset] = outside;
+        let frame = with_crc(&frame[..frame.len() - 2]);
+        assert_eq!(exchange(&mut sim, &frame), exception(new, 0x10, 0x03));
+        assert_eq!(sim.address(), new);
+    }
 }
 
 #[test]
@@ -142,7 +156,8 @@ fn fixed_slave_read_via_the_wildcard_reports_the_current_address() {
     let reply = wildcard.clone();
     assert_eq!(reply[0], 0xFF, "the reply comes from the fixed slave 0xFF");
     let values = get_id.decode_response(0xFF, &reply).unwrap();
-    assert_eq!(values, [(first_field(&get_id), Value::Int(7))]);
+    let address = values.iter().find(|(n, _)| *n == first_field(&get_id)).map(|(_, v)| v);
+    assert_eq!(address, Some(&Value::Int(7)), "{values:?}");
     // The same registers at the device's own address: answered from it.
     let mut own = request(&get_id, 0xFF, &[])[..6].to_vec();
     own[0] = 7;
@@ -464,7 +479,7 @@ fn calibration_rule_of(
     };
     // Before any point: what the manual's example shows, if it shows one.
     let initial = read_status(&mut sim);
-    if let Some(example) = example_reading(&status) {
+    if let Some(example) = example_reading(&status).filter(|_| seeded_from_example(probe, &status)) {
         let shown = example.iter().find_map(|(_, v)| match v {
             Value::Enum { name: Some(name), .. } => Some(name.clone()),
             _ => None,
@@ -485,8 +500,14 @@ fn calibration_rule_of(
     }
     calibrate(&mut sim, last);
     assert_eq!(read_status(&mut sim), success);
-    // Not a standard: between the first standard and the next (or beside the only one).
-    let next = standards.get(1).copied().unwrap_or(first + 1.0);
+    // Not a standard: between the first standard and the next (or beside the
+    // only one, inside the point's range).
+    let range = point.field(standard).and_then(|fl| fl.range).map(|(lo, hi)| (lo as f32, hi as f32));
+    let beside = [first + 1.0, first - 1.0, first + 0.1, first - 0.1]
+        .into_iter()
+        .find(|v| range.is_none_or(|(lo, hi)| (lo..=hi).contains(v)))
+        .unwrap_or(first + 0.02);
+    let next = standards.get(1).copied().unwrap_or(beside);
     calibrate(&mut sim, first);
     calibrate(&mut sim, (first + next) / 2.0);
     assert_eq!(read_status(&mut sim), not_a_standard);
@@ -509,23 +530,21 @@ fn calibration_rule_of(
 
 #[test]
 fn measurement_trigger_and_warm_up() {
-    // A sensor whose procedure starts the measurement and waits for it.
-    let probe = spec()
+    // A sensor whose procedure starts the measurement and waits for it, and
+    // the procedure's first read that is a measurement (the reads the warm-up holds back).
+    let (probe, read) = spec()
         .sensors
         .iter()
-        .find(|s| {
-            s.command_with_role(Role::StartMeasurement).is_some_and(|start| {
-                s.procedure
-                    .as_ref()
-                    .is_some_and(|p| p.before.contains(&start.name) && p.warm_up_ms > 0 && !p.read.is_empty())
-            })
+        .find_map(|s| {
+            let start = s.command_with_role(Role::StartMeasurement)?;
+            let p = s.procedure.as_ref().filter(|p| p.before.contains(&start.name) && p.warm_up_ms > 0)?;
+            let read = p.read.iter().filter_map(|n| s.command(n)).find(|c| s.is_measurement(c))?;
+            Some((s.clone(), read.clone()))
         })
-        .expect("a sensor with a start command and a warm-up")
-        .clone();
+        .expect("a sensor with a start command, a warm-up and a measurement read");
     let slave = probe.default_address;
     let start = with_role(&probe, Role::StartMeasurement);
     let procedure = probe.procedure.as_ref().unwrap();
-    let read = command(&probe, &procedure.read[0]);
     let warm_up = Duration::from_millis(u64::from(procedure.warm_up_ms));
     let part = warm_up / 2;
     let mut sim = Simulator::new(probe.clone()).with_manual_clock();
@@ -534,7 +553,11 @@ fn measurement_trigger_and_warm_up() {
     assert_eq!(exchange(&mut sim, &request(&read, slave, &[]))[1], 0x03);
     sim.set_warm_up_policy(WarmUpPolicy::Busy);
     assert_eq!(exchange(&mut sim, &request(&read, slave, &[])), exception(slave, 0x03, 0x06));
-    let echo = example_reply(&start).unwrap_or_else(|| start.encode_response(slave, &Default::default()).unwrap());
+    let echo = if start.is_read() {
+        manual_form(&start, slave)
+    } else {
+        start.encode_response(slave, &Default::default()).unwrap()
+    };
     assert_eq!(exchange(&mut sim, &request(&start, slave, &[])), echo);
     assert_eq!(sim.measurement_state(), MeasurementState::WarmingUp { remaining: warm_up });
     sim.advance(part);
@@ -620,12 +643,19 @@ fn every_start_and_stop_command_is_answered_and_moves_the_measurement_state() {
 
 #[test]
 fn variation_is_deterministic_and_bounded() {
-    let (probe, read) = float_read(spec());
+    // The simulator varies measurement reads only.
+    let Some((probe, read)) = measurement_float_read(spec()) else {
+        return yosemitech_tests::report!("variation: the spec has no single-float measurement read");
+    };
     let (slave, name) = (probe.default_address, first_field(&read));
+    // A base inside the measuring range; readings are clamped to it.
+    let field = &read.fields[0];
+    let base = yosemitech_tests::values::varied_float(field, 3);
+    let (min, max) = field.range.map_or((f32::MIN, f32::MAX), |(lo, hi)| (lo as f32, hi as f32));
     let run = |seed: u64| -> Vec<f32> {
         let mut sim = Simulator::new(probe.clone());
         sim.set_variation(Some(Variation { seed, noise: 0.05, drift_per_read: 0.01 }));
-        sim.set(&read.name, &name, f(7.0)).unwrap();
+        sim.set(&read.name, &name, f(base)).unwrap();
         (0..20)
             .map(|_| {
                 let reply = exchange(&mut sim, &request(&read, slave, &[]));
@@ -637,11 +667,14 @@ fn variation_is_deterministic_and_bounded() {
     };
     let (a, b, c) = (run(1), run(1), run(2));
     assert_eq!(a, b, "same seed, same readings");
-    assert_ne!(a, c);
+    assert_ne!(a, c, "{}.{}", probe.name, read.name);
+    let slack = 1e-4 * base.abs().max(1.0);
     for (n, v) in a.iter().enumerate() {
-        let centre = 7.0 + 0.01 * n as f32;
-        assert!((v - centre).abs() <= 0.05 + 1e-4, "reading {n}: {v}");
+        let centre = base + 0.01 * n as f32;
+        let (lo, hi) = ((centre - 0.05).clamp(min, max), (centre + 0.05).clamp(min, max));
+        assert!(*v >= lo - slack && *v <= hi + slack, "{}.{} reading {n}: {v}", probe.name, read.name);
     }
+    yosemitech_tests::report!("variation: {} readings of {}.{name} around {base}", a.len(), probe.name);
 }
 
 #[test]

@@ -6,8 +6,8 @@ use yosemitech_tests::sim as sim_common;
 use std::time::{Duration, Instant};
 
 use sim_common::{
-    example_reading, example_reply, exception, first_field, float_read, float_write_with_readback, is_float_read,
-    request, spec, with_crc,
+    example_reading, example_reply, exception, first_field, float_read, float_write_with_readback, free_address,
+    is_float_read, request, seeded_from_example, spec, with_crc,
 };
 use yosemitech_rtu::{CharFormat, Client, ClientConfig, LineTiming, RetryPolicy, TcpTransport, Transport};
 use yosemitech_sim::{Bus, Endpoint, ServeConfig, Simulator, UnknownRequestPolicy, serve_memory, serve_tcp};
@@ -17,15 +17,18 @@ fn config() -> ClientConfig {
     ClientConfig { timeout: Duration::from_secs(2), retry: RetryPolicy::NONE, ..ClientConfig::default() }
 }
 
-/// The sensor of the spec that the pty test needs: a float read with an
-/// example reply, a float write read back, and slave address commands (the
-/// getter answering the 0xFF wildcard); with those commands.
+/// The sensor of the spec that the pty test needs: a float read whose
+/// example reply the simulator is seeded with, a float write read back, and
+/// slave address commands (the getter answering the 0xFF wildcard) with an
+/// address to move to; with those commands.
 fn addressable_probe() -> (Sensor, CommandSpec, (CommandSpec, CommandSpec), (CommandSpec, CommandSpec)) {
     spec()
         .sensors
         .iter()
+        .filter(|s| s.min_address < s.max_address)
         .find_map(|s| {
-            let read = s.commands.iter().find(|c| is_float_read(c) && example_reply(c).is_some())?.clone();
+            let read = s.commands.iter().find(|c| is_float_read(c) && seeded_from_example(s, c))?.clone();
+            example_reply(&read)?;
             let cal = float_write_with_readback(s)?;
             let set_id = s.command_with_role(Role::SetSlaveAddress)?.clone();
             let get_id = s.command_with_role(Role::GetSlaveAddress).filter(|c| c.fixed_slave == Some(0xFF))?.clone();
@@ -58,10 +61,10 @@ fn tcp_serves_a_bus_of_two_sensors() {
         .iter()
         .filter(|s| s.name != first.name)
         .find_map(|s| {
-            let read = s.commands.iter().find(|c| is_float_read(c) && example_reading(c).is_some())?;
+            let read = s.commands.iter().find(|c| is_float_read(c) && seeded_from_example(s, c))?;
             Some((s.clone(), read.clone(), example_reading(read)?))
         })
-        .expect("another sensor with a float read and an example reply");
+        .expect("another sensor with a float read served from its example");
     let field = first_field(&get_one);
     // The first probe is silent for unknown requests, as a real probe; the
     // second answers them with exceptions.
@@ -207,14 +210,16 @@ mod pty {
     #[test]
     fn pty_serves_the_rtu_serial_transport() {
         let (probe, read, (set_cal, get_cal), (set_id, get_id)) = addressable_probe();
-        let slave = probe.default_address;
-        let mut sim = Simulator::new(probe.clone());
+        // At the address of the manual's example, so that the reply is the printed one.
+        let example = example_reply(&read).unwrap();
+        let slave = example[0];
+        let mut sim = Simulator::new(probe.clone()).with_address(slave);
         sim.set_unknown_request_policy(UnknownRequestPolicy::Exception);
         let Some((server, transport)) = open_with(sim, ServeConfig::default()) else { return };
         println!("serving on {} ({})", server.endpoint(), probe.name);
         let mut client = Client::with_config(transport, config());
         let reply = client.call_raw(&request(&read, slave, &[]), &read.layout()).unwrap();
-        assert_eq!(reply, example_reply(&read).unwrap(), "the manual's example reply");
+        assert_eq!(reply, example, "the manual's example reply");
         // A value of its own for every field, however many the write has.
         let written: Vec<(String, Value)> = set_cal
             .named_fields()
@@ -231,7 +236,7 @@ mod pty {
         assert_eq!(read_n(t, 5), exception(slave, 0x08, 0x01));
         // get_slave_id via 0xFF after set_slave_id: the reply from the old address, then the new one.
         let address = first_field(&set_id);
-        let new = (probe.min_address..=probe.max_address).find(|&a| a != slave).expect("another address");
+        let new = free_address(&probe, &[slave]).expect("another address");
         let to = [(address.as_str(), Value::Int(i64::from(new)))];
         let reply = client.call_raw(&request(&set_id, slave, &to), &set_id.layout()).unwrap();
         assert_eq!(reply[0], slave);

@@ -49,11 +49,11 @@ Definition  Address  Function  Number of bytes  Register value  CRC\n Byte  0  1
     )
 }
 
-/// SW 3.4: Get Temperature (new) before Get Level (as recorded, renumbered).
+/// SW 3.4: Get Pressure (new) before Get Level (as recorded, renumbered).
 fn manual_text() -> String {
     manual_with(
         "3.4",
-        &[("2.2.1", "Get Temperature", 0x24, [5, 6, 7], "21.5"), ("2.2.2", "Get Level", 0x26, [8, 9, 10], "17.625")],
+        &[("2.2.1", "Get Pressure", 0x24, [5, 6, 7], "21.5"), ("2.2.2", "Get Level", 0x26, [8, 9, 10], "17.625")],
     )
 }
 
@@ -98,7 +98,7 @@ fn a_new_revision_is_merged_reviewed_and_refused_where_it_must_be() {
     println!("{review}");
     for want in [
         "revision: SW 3.4, newer than every recorded manual (1.0)",
-        "+ get_temperature",
+        "+ get_pressure",
         "since \"3.4\"",
         "= get_level",
         "Figs 9, 10",
@@ -123,7 +123,7 @@ fn a_new_revision_is_merged_reviewed_and_refused_where_it_must_be() {
         assert!(merged.contains(want), "the merged spec lacks `{want}`:\n{merged}");
     }
     assert!(
-        merged.find("- name: get_temperature").unwrap() < merged.find("- name: get_level").unwrap(),
+        merged.find("- name: get_pressure").unwrap() < merged.find("- name: get_level").unwrap(),
         "in the manual's order"
     );
     assert_eq!(std::fs::read_to_string(&into).unwrap(), spec(), "the original is untouched");
@@ -170,7 +170,7 @@ fn the_review_as_json_carries_the_same_points() {
     assert_eq!(code, 0, "{err}");
     let v: serde_json::Value = serde_json::from_str(&json).expect("JSON");
     assert_eq!(v["software"], "3.4");
-    assert_eq!(v["commands_added"][0]["name"], "get_temperature");
+    assert_eq!(v["commands_added"][0]["name"], "get_pressure");
     assert_eq!(v["commands_added"][0]["address"], "0x2400");
     assert_eq!(v["frames_cited"][0]["command"], "get_level");
     assert_eq!(v["figures_renumbered"][0]["section_to"], "2.2.2");
@@ -187,7 +187,7 @@ fn spec3() -> String {
             "  - name: {name}\n    function: read\n    address: 0x{addr:04X}\n    count: 2\n    fields:\n      - {{name: value, type: f32, byte_order: dcba}}\n"
         )
     };
-    spec() + &read("get_conductivity", 0x2800) + &read("get_depth", 0x2200)
+    spec() + &read("get_redox", 0x2800) + &read("get_depth", 0x2200)
 }
 
 /// An older manual: the recorded command it lacks gets `since`, the one only
@@ -199,8 +199,8 @@ fn an_older_manual_sets_since_and_leaves_a_todo_validate_rejects() {
     let manual = d.join("level-0.5.txt");
     let sections = [
         ("2.2.1", "Get Level", 0x26, [5, 6, 7], "17.625"),
-        ("2.2.2", "Get Conductivity", 0x28, [8, 9, 10], "1.5"),
-        ("2.2.3", "Get Temperature", 0x24, [11, 12, 13], "21.5"),
+        ("2.2.2", "Get Redox", 0x28, [8, 9, 10], "1.5"),
+        ("2.2.3", "Get Pressure", 0x24, [11, 12, 13], "21.5"),
     ];
     std::fs::write(&manual, manual_with("0.5", &sections)).unwrap();
     let into = d.join("probe.yaml");
@@ -250,7 +250,7 @@ fn a_command_at_another_address_is_a_change() {
     let manual = d.join("level-2.0.txt");
     let sections = [
         ("2.2.1", "Get Level", 0x27, [5, 6, 7], "17.625"),
-        ("2.2.2", "Get Conductivity", 0x28, [8, 9, 10], "1.5"),
+        ("2.2.2", "Get Redox", 0x28, [8, 9, 10], "1.5"),
         ("2.2.3", "Get Depth", 0x22, [11, 12, 13], "2.5"),
     ];
     std::fs::write(&manual, manual_with("2.0", &sections)).unwrap();

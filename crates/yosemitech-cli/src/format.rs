@@ -215,7 +215,7 @@ pub fn parse_values(command: &CommandSpec, args: &[String]) -> Result<BTreeMap<S
                 CliError::usage(format!("`{name}` is given twice")).hint(format!("fields: {}", fields_hint(command)))
             );
         }
-        out.insert(name, parse_value(field, text)?);
+        out.insert(name, parse_value(field, text, !command.is_read())?);
     }
     if let Some(missing) = fields.iter().find(|f| !out.contains_key(f.display_name())) {
         return Err(CliError::usage(format!("no value for `{}` of `{}`", missing.display_name(), command.name))
@@ -250,14 +250,18 @@ pub fn fields_hint(command: &CommandSpec) -> String {
         .join(" ")
 }
 
-/// Parses one field's value.
-pub fn parse_value(field: &Field, text: &str) -> Result<Value> {
+/// Parses one field's value. `bounded`: the value is a write's, which must
+/// lie in the field's `range`; a read's range is the measuring range, which
+/// a probe may leave (a reply encoded with `encode --response` may carry a
+/// value outside it, such as an `absent` sentinel), so it bounds nothing.
+pub fn parse_value(field: &Field, text: &str, bounded: bool) -> Result<Value> {
     let name = field.display_name();
+    let range = field.range.filter(|_| bounded);
     let bad = |what: &str| {
         CliError::usage(format!("`{text}` is not {what} (field `{name}`)")).hint(format!(
             "`{name}` is a {}{}",
             field.kind.type_name(),
-            field.range.map(|(a, b)| format!(" in {a}..={b}")).unwrap_or_default()
+            range.map(|(a, b)| format!(" in {a}..={b}")).unwrap_or_default()
         ))
     };
     let value = match &field.kind {
@@ -308,8 +312,8 @@ pub fn parse_value(field: &Field, text: &str) -> Result<Value> {
             Value::Int(raw)
         }
     };
-    // Check the range here too, for a message that names the range.
-    if let (Some((min, max)), Some(v)) = (field.range, numeric(&value))
+    // Check a write's range here too, for a message that names the range.
+    if let (Some((min, max)), Some(v)) = (range, numeric(&value))
         && !(min..=max).contains(&v)
     {
         return Err(CliError::usage(format!("{name} = {text} is outside the valid range {min}..={max}"))

@@ -115,6 +115,20 @@ pub fn decode_text(text: &str, json: bool, out: &mut dyn std::io::Write) -> Resu
     commands::decode::run(catalog, &args, out).map_err(|e| e.to_string())
 }
 
+/// The name of the sensor `yosemitech calibrate ph` drives: the built-in
+/// sensor of the pH manual whose typed procedure it runs. Tests ask the tool
+/// which sensor that is instead of guessing it from the spec (several
+/// sensors may have a calibration point).
+pub fn calibrate_ph_sensor() -> &'static str {
+    commands::calibrate::SENSOR
+}
+
+/// A unit as the tool shows it to people (`degC` is `°C`): what `read`,
+/// `list`, `decode` and `measure` print after a value.
+pub fn shown_unit(unit: &str) -> &str {
+    format::unit(unit)
+}
+
 /// The `decode` subcommand's hex parser: hex with or without spaces, `0x`
 /// prefixes, commas, colons or dashes between bytes.
 pub fn parse_frame(text: &str) -> Result<Vec<u8>, String> {

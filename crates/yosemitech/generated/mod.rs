@@ -181,7 +181,7 @@ pub mod sonde {
 ///
 /// Manual revisions (commands a later firmware added say since when):
 ///
-/// - SW 1.1: "MODBUS RTU for optical pH probes" (HW Rev1.1 / SW Rev1.1 or later), 9600 baud, 8N2. The older manual. It documents pH, potential, temperature, the revisions, the three-point pH calibration and the write of the electrode coefficients K1..K6 (titled "Set Customer Calibration Coefficients" there). SW 1.7 adds the potential-and-pH block, the read of K1..K6, the ORP and pH K/B calibrations and Get Slave Device ID; no command was removed and no layout changed. SW 1.1 uses two stop bits.
+/// - SW 1.1: "MODBUS RTU for optical pH probes" (HW Rev1.1 / SW Rev1.1 or later), 9600 baud, 8N1 (the manual states 9600 baud, 8N2). The older manual. It documents pH, potential, temperature, the revisions, the three-point pH calibration and the write of the electrode coefficients K1..K6 (titled "Set Customer Calibration Coefficients" there). SW 1.7 adds the potential-and-pH block, the read of K1..K6, the ORP and pH K/B calibrations and Get Slave Device ID; no command was removed and no layout changed. Its text states two stop bits (see `serial_claims`).
 /// - SW 1.7: "MODBUS RTU for optical pH (or ORP) probes" (HW Rev1.2 / SW Rev1.7 or later), 9600 baud, 8N1.
 ///
 /// | Command | Function | Address | Registers | Request | Reply |
@@ -208,7 +208,7 @@ pub mod sonde {
 /// - **E3**: Addresses are 1..247 and a slave answers with its own address, yet Get Slave ID is sent to 0xFF and answered from 0xFF. Taken as a vendor wildcard, usable with one device on the bus.
 /// - **E6**: The byte-index rows label the CRC positions as in a longer frame. Only the labels are wrong; the bytes are consistent. SW 1.1's manual has the same rows in its Figs 24, 31, 38 and 42 (CRC labelled 11-12) and 34 and 45 (CRC labelled 15-16; Fig 45 labels the data 7-30).
 /// - **E7**: "Two registers starting from address 2" uses PDU address 0x0001: the 1-based register number. Command tables give wire addresses. SW 1.1's manual has the same text and figure.
-/// - **E9**: "Each byte (11 bits)" lists 1 start + 8 data + no parity + 1 stop = 10 bits. Taken as 9600 8N1. SW 1.1's manual lists 2 stop bits, which makes the 11 bits: the count is a leftover of SW 1.1, whose probes use 8N2 (see `revisions`).
+/// - **E9**: "Each byte (11 bits)" lists 1 start + 8 data + no parity + 1 stop = 10 bits. Taken as 9600 8N1. SW 1.1's manual (a 2017 build) lists 2 stop bits, which makes the 11 bits: the count is a leftover of that text, recorded as its claim (`serial_claims`); probes run 8N1.
 /// - **E10**: Write quantity 1..0x78 in the request but 1..123 in the reply; Modbus uses 1..123 for both. SW 1.1's manual has the same figures.
 /// - **E12**: Section 1.4.1 puts the high byte first, but every device value is a little-endian image (floats `dcba`, single bytes in the register's first byte). SW 1.1's manual has the same text.
 /// - **E13**: The scope says HW Rev1.2 / SW Rev1.7 or later; the version example returns 1.1 / 1.1. It is SW 1.1's example (its section 2.2.4, Figs 27-28, under a HW 1.1 / SW 1.1 scope), carried over unchanged.

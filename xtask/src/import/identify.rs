@@ -234,7 +234,7 @@ mod tests {
     fn serial_numbers_and_title_words() {
         let lines = vec!["For example: \"YL0914010022\" and YL0914010022".to_string(), "YL12 YLX".into()];
         assert_eq!(printed_serials(&lines), vec!["YL0914010022".to_string()]);
-        assert_eq!(title_words("Optical Chlorophyll Sensor, MODBUS RTU Programmer Manuel"), vec!["chlorophyll"]);
+        assert_eq!(title_words("Optical Nitrogen Sensor, MODBUS RTU Programmer Manuel"), vec!["nitrogen"]);
         assert_eq!(title_words("Multi - Parameter Sensor"), vec!["multi", "parameter"]);
     }
 }

@@ -24,6 +24,10 @@ use crate::error::{CliError, Result, show_duration};
 use crate::port::Opened;
 use crate::{port, progress};
 
+/// The sensor `calibrate ph` drives: the pH manual's, whose typed device the
+/// procedure takes.
+pub const SENSOR: &str = ph_orp::SENSOR.name;
+
 /// Saves every coefficient of the probe (the spec's coefficient blocks) to
 /// a new file and returns the command that restores it. Nothing has been
 /// written yet; on an error the calibration does not start.
@@ -135,7 +139,7 @@ impl CalibrationGuide for Guide<'_> {
 
 /// Runs `calibrate ph`.
 pub fn run(catalog: &Catalog, global: &Global, args: &CalibratePhArgs, out: &mut dyn Write) -> Result<()> {
-    let name = ph_orp::SENSOR.name;
+    let name = SENSOR;
     let entry = catalog.entry(name)?;
     if !is_typed(entry, name) {
         return Err(CliError::usage(format!("`calibrate ph` needs the built-in {name} sensor"))

@@ -201,7 +201,10 @@ pub fn run(catalog: &Catalog, args: &DemoArgs, out: &mut dyn Write) -> Result<()
 
 /// Every sensor of the catalog simulated at its own address (1, 2, 3, ...)
 /// on one pty bus, identified by `scan`'s reads through the serial code.
-/// Returns the requests the bus answered.
+/// A probe `scan` does not name alone (no serial-number read or model code
+/// in its spec, or a model code other loaded sensors share) gets `scan`'s
+/// line and the sensor simulated there; only probes named as the sensor
+/// they are count as identified. Returns the requests the bus answered.
 fn family(catalog: &Catalog, args: &DemoArgs, out: &mut dyn Write) -> Result<u64> {
     let started = Instant::now();
     let mut bus = Bus::new();
@@ -226,14 +229,22 @@ fn family(catalog: &Catalog, args: &DemoArgs, out: &mut dyn Write) -> Result<u64
     writeln!(out, "({} baud, addresses {first}-{last}), identified as `yosemitech scan` does:", serial.baud)?;
     out.flush()?;
     let mut identified = 0;
-    for &address in &addresses {
-        match scan::identify_at(catalog, &mut opened, address)? {
-            Some(found) => {
-                identified += usize::from(found.sensor.is_some());
-                writeln!(out, "  {}", found.line)?;
+    for (&address, entry) in addresses.iter().zip(catalog.entries()) {
+        let simulated = &entry.sensor;
+        let line = match scan::identify_at(catalog, &mut opened, address)? {
+            Some(found) if found.sensor.is_some_and(|s| s.name == simulated.name) => {
+                identified += 1;
+                found.line
             }
-            None => writeln!(out, "  address {address:3}  no reply to the serial-number reads")?,
-        }
+            Some(found) => format!("{}  {}", found.line, simulated_note(simulated)),
+            None if own_serial_number_read(simulated).is_none() => {
+                format!("address {address:3}  not identified: no serial number read  {}", simulated_note(simulated))
+            }
+            None => {
+                format!("address {address:3}  no reply to the serial-number reads  {}", simulated_note(simulated))
+            }
+        };
+        writeln!(out, "  {line}")?;
         out.flush()?;
     }
     let bus = server.device();
@@ -247,6 +258,29 @@ fn family(catalog: &Catalog, args: &DemoArgs, out: &mut dyn Write) -> Result<u64
         started.elapsed().as_secs_f64()
     )?;
     Ok(answered)
+}
+
+/// The serial-number read `scan` can send to `sensor` (at its own address).
+fn own_serial_number_read(sensor: &Sensor) -> Option<&CommandSpec> {
+    sensor.command_with_role(Role::SerialNumber).filter(|c| c.fixed_slave.is_none())
+}
+
+/// What the demo knows and `scan` could not tell: the sensor simulated at
+/// an address, and what its spec lacks to be identified by
+/// (`[simulated: name, whose spec declares no model code]`).
+fn simulated_note(sensor: &Sensor) -> String {
+    let mut lacks = Vec::new();
+    if own_serial_number_read(sensor).is_none() {
+        lacks.push("serial-number read");
+    }
+    if sensor.model_code.is_none() {
+        lacks.push("model code");
+    }
+    if lacks.is_empty() {
+        format!("[simulated: {}]", sensor.name)
+    } else {
+        format!("[simulated: {}, whose spec declares no {}]", sensor.name, lacks.join(" and no "))
+    }
 }
 
 /// Makes a simulated probe report the software revision of its newest

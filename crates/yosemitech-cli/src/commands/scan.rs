@@ -81,6 +81,50 @@ fn sn_reads(catalog: &Catalog) -> Vec<SnRead<'_>> {
     }))
 }
 
+/// One serial-number request on the wire and every loaded read that sends
+/// it: reads that differ only in how they read the reply (the padding of
+/// the text, say) send the same bytes, so `scan` sends it once and reads the
+/// reply each of their ways.
+struct SnRequest<'c> {
+    /// The request's command (of its most common read).
+    command: &'c CommandSpec,
+    /// The reads that send it, the read of most sensors first.
+    reads: Vec<SnRead<'c>>,
+}
+
+impl SnRequest<'_> {
+    /// How many loaded sensors send this request.
+    fn sensors(&self) -> usize {
+        self.reads.iter().map(|r| r.sensors.len()).sum()
+    }
+}
+
+/// True when two commands send the same request frame.
+fn same_request(a: &CommandSpec, b: &CommandSpec) -> bool {
+    (a.function, a.address, a.count, a.fixed_slave) == (b.function, b.address, b.count, b.fixed_slave)
+}
+
+/// The distinct serial-number requests of the loaded sensors, the request
+/// of most sensors first (ties: load order).
+fn sn_requests(catalog: &Catalog) -> Vec<SnRequest<'_>> {
+    let mut requests: Vec<SnRequest<'_>> = Vec::new();
+    for read in sn_reads(catalog) {
+        match requests.iter_mut().find(|r| same_request(r.command, read.command)) {
+            Some(request) => request.reads.push(read),
+            None => requests.push(SnRequest { command: read.command, reads: vec![read] }),
+        }
+    }
+    requests.sort_by_key(|r| std::cmp::Reverse(r.sensors()));
+    requests
+}
+
+/// `sensors` in the catalog's load order.
+fn in_load_order<'c>(catalog: &Catalog, mut sensors: Vec<&'c Sensor>) -> Vec<&'c Sensor> {
+    sensors.sort_by_key(|s| catalog.entries().iter().position(|e| e.sensor.name == s.name));
+    sensors.dedup_by(|a, b| a.name == b.name);
+    sensors
+}
+
 /// The serial number and the model code a serial-number reply carries:
 /// the byte before the text when it is not 0 (real probes send the code
 /// there: 0x09 is "09"), and the text's characters 3-4 (`YL09...`).
@@ -193,10 +237,37 @@ fn probe(opened: &mut Opened, command: &CommandSpec, address: u8) -> Result<Answ
     }
 }
 
+/// What one read of a serial-number request makes of the reply: the
+/// serial number, the model code it carries and the read's sensors that
+/// declare that code.
+struct Reading<'c> {
+    serial_number: Option<String>,
+    model_code: Option<String>,
+    matches: Vec<&'c Sensor>,
+}
+
+/// Reads a serial-number reply `read`'s way.
+fn read_reply<'c>(read: &SnRead<'c>, data: &[u8]) -> Reading<'c> {
+    let (text, before, in_text) = read_sn(read.command, data);
+    let matching = |code: &Option<String>| -> Vec<&'c Sensor> {
+        code.as_ref().map_or_else(Vec::new, |c| {
+            read.sensors.iter().copied().filter(|s| s.model_code.as_ref() == Some(c)).collect()
+        })
+    };
+    // The byte before the text first, unless it names no sensor and the text does.
+    let (by_before, by_text) = (matching(&before), matching(&in_text));
+    let (model_code, matches) = if before.is_some() && (!by_before.is_empty() || by_text.is_empty()) {
+        (before, by_before)
+    } else {
+        (in_text, by_text)
+    };
+    Reading { serial_number: text, model_code, matches }
+}
+
 /// Identifies the device at `address`; `None` when nothing answers.
 fn identify<'c>(
     catalog: &'c Catalog,
-    reads: &[SnRead<'c>],
+    requests: &[SnRequest<'c>],
     opened: &mut Opened,
     address: u8,
 ) -> Result<Option<Found<'c>>> {
@@ -214,10 +285,10 @@ fn identify<'c>(
     };
     let mut answered = false;
     let mut sn = None;
-    for read in reads {
-        match probe(opened, read.command, address)? {
+    for request in requests {
+        match probe(opened, request.command, address)? {
             Answer::Data(data) => {
-                sn = Some((read, data));
+                sn = Some((request, data));
                 break;
             }
             Answer::Silent => {}
@@ -228,30 +299,25 @@ fn identify<'c>(
         }
     }
     match sn {
-        Some((read, data)) => {
-            let (text, before, in_text) = read_sn(read.command, &data);
-            found.serial_number = text;
-            let matching = |code: &Option<String>| -> Vec<&'c Sensor> {
-                code.as_ref().map_or_else(Vec::new, |c| {
-                    read.sensors.iter().copied().filter(|s| s.model_code.as_ref() == Some(c)).collect()
-                })
-            };
-            // The byte before the text first, unless it names no sensor and the text does.
-            let (by_before, by_text) = (matching(&before), matching(&in_text));
-            let (code, mut matches) = if before.is_some() && (!by_before.is_empty() || by_text.is_empty()) {
-                (before, by_before)
-            } else {
-                (in_text, by_text)
-            };
-            found.model_code = code.clone();
-            let at = format!("0x{:04X}", read.command.address);
-            match matches.len() {
-                1 => {
-                    found.identified = matches.first().copied();
-                    found.candidates = std::mem::take(&mut matches);
+        Some((request, data)) => {
+            // Every read that sends this request reads the reply its own way.
+            let readings: Vec<Reading<'c>> = request.reads.iter().map(|read| read_reply(read, &data)).collect();
+            let matches = in_load_order(catalog, readings.iter().flat_map(|r| r.matches.iter().copied()).collect());
+            // Shown: what the read that found a sensor makes of it, else the most common read.
+            if let Some(reading) = readings.iter().find(|r| !r.matches.is_empty()).or(readings.first()) {
+                found.serial_number = reading.serial_number.clone();
+                found.model_code = reading.model_code.clone();
+            }
+            let code = found.model_code.clone();
+            let at = format!("0x{:04X}", request.command.address);
+            match matches.as_slice() {
+                [one] => {
+                    found.identified = Some(*one);
+                    found.candidates = matches;
                 }
-                0 => {
-                    found.candidates = read.sensors.clone();
+                [] => {
+                    let all = request.reads.iter().flat_map(|r| r.sensors.iter().copied()).collect();
+                    found.candidates = in_load_order(catalog, all);
                     found.reason = Some(match &code {
                         Some(c) => format!(
                             "model code {c} is declared by no loaded sensor that reads its serial number at {at}"
@@ -259,12 +325,13 @@ fn identify<'c>(
                         None => "the serial number carries no model code".to_owned(),
                     });
                 }
-                n => {
-                    found.candidates = matches;
+                many => {
                     found.reason = Some(format!(
-                        "{n} loaded sensors read their serial number at {at} and declare model code {}",
+                        "{} loaded sensors read their serial number at {at} and declare model code {}",
+                        many.len(),
                         code.as_deref().unwrap_or("?")
                     ));
+                    found.candidates = matches;
                 }
             }
         }
@@ -329,26 +396,26 @@ pub struct Identification<'c> {
 /// makes; `None` when nothing answers (or no loaded sensor has a
 /// serial-number read).
 pub fn identify_at<'c>(catalog: &'c Catalog, opened: &mut Opened, address: u8) -> Result<Option<Identification<'c>>> {
-    let reads = sn_reads(catalog);
-    let found = identify(catalog, &reads, opened, address)?;
+    let requests = sn_requests(catalog);
+    let found = identify(catalog, &requests, opened, address)?;
     Ok(found.map(|f| Identification { line: found_line(&f), sensor: f.identified }))
 }
 
 /// Runs `scan`.
 pub fn run(catalog: &Catalog, global: &Global, args: &ScanArgs, out: &mut dyn Write) -> Result<()> {
     let addresses = parse_addresses(&args.addresses)?;
-    let reads = sn_reads(catalog);
-    if reads.is_empty() {
+    let requests = sn_requests(catalog);
+    if requests.is_empty() {
         return Err(CliError::usage("no loaded sensor has a serial-number read to identify probes with")
             .hint("scan reads the command with `role: serial_number`; check the --spec files"));
     }
     let serial = common_serial(catalog);
     let mut opened = port::open_with(&args.port, global, &serial, Duration::from_millis(100), 0)?;
     if !args.json {
-        let with: Vec<String> = reads
+        let with: Vec<String> = requests
             .iter()
             .map(|r| {
-                let n = r.sensors.len();
+                let n = r.sensors();
                 format!("0x{:04X} ({n} sensor{})", r.command.address, if n == 1 { "" } else { "s" })
             })
             .collect();
@@ -365,7 +432,7 @@ pub fn run(catalog: &Catalog, global: &Global, args: &ScanArgs, out: &mut dyn Wr
     let mut found = Vec::new();
     for &address in &addresses {
         bar.set_message(format!("address {address}"));
-        if let Some(item) = identify(catalog, &reads, &mut opened, address)? {
+        if let Some(item) = identify(catalog, &requests, &mut opened, address)? {
             if !args.json {
                 let line = found_line(&item);
                 bar.suspend(|| writeln!(out, "{line}"))?;
@@ -464,6 +531,21 @@ mod tests {
             assert_eq!(groups.len(), 1, "{} is in one group", s.name);
             assert!(same_wire(groups[0].command, own));
         }
+    }
+
+    #[test]
+    fn sends_each_serial_number_request_once() {
+        let catalog = catalog();
+        let requests = sn_requests(&catalog);
+        assert!(requests.windows(2).all(|w| w[0].sensors() >= w[1].sensors()));
+        for (i, request) in requests.iter().enumerate() {
+            assert!(!request.reads.is_empty());
+            assert!(request.reads.iter().all(|r| same_request(r.command, request.command)));
+            assert!(requests[i + 1..].iter().all(|other| !same_request(other.command, request.command)));
+        }
+        // Every read is in exactly one request.
+        let reads: usize = requests.iter().map(|r| r.reads.len()).sum();
+        assert_eq!(reads, sn_reads(&catalog).len());
     }
 
     #[test]

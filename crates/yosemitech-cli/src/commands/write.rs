@@ -3,7 +3,7 @@
 
 use std::io::Write;
 
-use yosemitech_spec::{CommandSpec, Value};
+use yosemitech_spec::{CommandSpec, Role, Value};
 
 use crate::backup;
 use crate::catalog::{self, Catalog, read_back_for};
@@ -52,8 +52,14 @@ pub fn run(catalog: &Catalog, global: &Global, args: &WriteArgs, out: &mut dyn W
     device::call(&mut opened, command, address, &values)?;
     writeln!(out, "written: the probe acknowledged {}", command.name)?;
 
-    // A new slave address applies from the next request on.
-    let read_from = match values.get("slave_address") {
+    // A new slave address (the write with that role, whatever its field is
+    // called) applies from the next request on.
+    let new_address = command
+        .named_fields()
+        .next()
+        .filter(|_| command.role == Some(Role::SetSlaveAddress))
+        .and_then(|f| values.get(f.display_name()));
+    let read_from = match new_address {
         Some(Value::Int(new)) => {
             let new = u8::try_from(*new).unwrap_or(address);
             writeln!(out, "the probe now answers at address {new} (the reply came from {address})")?;

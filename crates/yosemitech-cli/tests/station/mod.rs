@@ -53,6 +53,10 @@ impl Station {
             db.display(),
             server.tty_path().unwrap()
         );
+        // Sensors whose specs disagree on the line need the bus to say it (a pty carries any).
+        if sensors.iter().any(|s| s.serial != sensors[0].serial) {
+            toml += "baud = 9600\nparity = \"none\"\n";
+        }
         for (i, s) in sensors.iter().enumerate() {
             toml += &format!(
                 "[[bus.probe]]\nlabel = \"p{i}\"\nsensor = \"{}\"\naddress = {}\ninterval = \"{interval}\"\nprocedure = false\n",
