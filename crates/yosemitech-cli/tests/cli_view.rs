@@ -132,6 +132,11 @@ impl Station {
         self.db.to_str().unwrap()
     }
 
+    /// The distinct measurements of the probes: the panels of a chart of them all.
+    fn measurements(&self) -> usize {
+        self.probes.iter().flat_map(|p| &p.measurements).map(|(m, _)| m.as_str()).collect::<BTreeSet<_>>().len()
+    }
+
     fn out(&self, name: &str) -> PathBuf {
         self.db.with_file_name(name)
     }
@@ -153,6 +158,12 @@ fn reading(probe: &Probe, at: SystemTime, values: Vec<Measurement>, error: Optio
     }
 }
 
+/// A chart height of at least `height` pixels with room for `panels`
+/// measurements (`plot` wants 90 pixels each; 100 leaves a margin).
+fn tall_enough(height: u32, panels: usize) -> u32 {
+    height.max(100 * panels as u32)
+}
+
 /// The decoded PNG: width, height and RGB(A) pixels.
 fn decode_png(path: &Path) -> (u32, u32, usize, Vec<u8>) {
     let file = std::fs::File::open(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
@@ -167,13 +178,14 @@ fn decode_png(path: &Path) -> (u32, u32, usize, Vec<u8>) {
 fn plot_png_has_the_stated_size_and_is_not_blank() {
     let station = Station::new();
     let out = station.out("chart.png");
-    let run = yosemitech(&["plot", "--db", station.db(), "--out", out.to_str().unwrap(), "--size", "900x700"]);
-    let measurements: BTreeSet<&str> =
-        station.probes.iter().flat_map(|p| &p.measurements).map(|(m, _)| m.as_str()).collect();
-    let expected = format!("(900x700): {} measurement(s), {PROBES} probe(s)", measurements.len());
+    let measurements = station.measurements();
+    let tall = tall_enough(700, measurements);
+    let size = format!("900x{tall}");
+    let run = yosemitech(&["plot", "--db", station.db(), "--out", out.to_str().unwrap(), "--size", &size]);
+    let expected = format!("({size}): {measurements} measurement(s), {PROBES} probe(s)");
     assert!(run.ok().contains(&expected), "`{expected}` not in {}", run.stdout);
     let (width, height, samples, pixels) = decode_png(&out);
-    assert_eq!((width, height), (900, 700));
+    assert_eq!((width, height), (900, tall));
     let colours: BTreeSet<&[u8]> = pixels.chunks(samples).collect();
     let white = pixels.chunks(samples).filter(|p| p.iter().take(3).all(|c| *c == 255)).count();
     let drawn = pixels.len() / samples - white;
@@ -187,12 +199,14 @@ fn plot_png_has_the_stated_size_and_is_not_blank() {
 fn plot_svg_parses_with_the_stated_size_and_names_every_probe() {
     let station = Station::new();
     let out = station.out("chart.svg");
-    yosemitech(&["plot", "--db", station.db(), "--out", out.to_str().unwrap(), "--size", "1000x1500"]).ok();
+    let tall = tall_enough(1500, station.measurements());
+    let size = format!("1000x{tall}");
+    yosemitech(&["plot", "--db", station.db(), "--out", out.to_str().unwrap(), "--size", &size]).ok();
     let text = std::fs::read_to_string(&out).unwrap();
     let doc = roxmltree::Document::parse(&text).expect("the SVG is XML");
     let root = doc.root_element();
     assert_eq!(root.tag_name().name(), "svg");
-    assert_eq!((root.attribute("width"), root.attribute("height")), (Some("1000"), Some("1500")));
+    assert_eq!((root.attribute("width"), root.attribute("height")), (Some("1000"), Some(tall.to_string().as_str())));
     let lines = doc.descendants().filter(|n| n.has_tag_name("polyline")).count();
     let series: usize = station.probes.iter().map(|p| p.measurements.len()).sum();
     // A line per series, and one per legend sample.

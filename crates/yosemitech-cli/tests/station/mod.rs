@@ -1,13 +1,18 @@
 //! The station both logger tests run (`cli_station`, `cli_station_mqtt`):
 //! two spec sensors with measurements on one simulated pty bus, and the
 //! station file that logs them into a SQLite file in a temporary directory.
+//! Each probe sits at an address of its sensor's range; where the two
+//! sensors' serial settings differ, the bus states the first one's line for
+//! both (as a mixed RS-485 bus must; a pty carries any).
 
 use std::path::PathBuf;
 use std::process::Child;
 use std::sync::Arc;
 use std::time::Duration;
 
+use yosemitech_rtu::Parity;
 use yosemitech_sim::{Bus, ServeConfig, Server, Simulator, serve_pty};
+use yosemitech_spec::Sensor;
 use yosemitech_station::plan;
 use yosemitech_tests::cli::{Binary, wait};
 use yosemitech_tests::spec;
@@ -29,23 +34,24 @@ pub struct Station {
     /// The SQLite store the station file names.
     pub db: PathBuf,
     /// The station file's text: `station`, `[storage]`, one `[[bus]]` on
-    /// the pty, one probe per simulated sensor (addresses 1, 2...) polled
+    /// the pty, one probe per simulated sensor (at [`addresses`]) polled
     /// every `interval`, no procedures. Callers append their own sections
     /// and write it with [`Station::write_config`].
     pub toml: String,
 }
 
 impl Station {
-    /// Two spec sensors with measurements, simulated at addresses 1 and 2,
+    /// Two spec sensors with measurements, simulated at [`addresses`],
     /// logged by station `name` every `interval` (a station-file duration).
     pub fn simulated(name: &str, interval: &str) -> Station {
         let dir = tempfile::tempdir().unwrap();
-        let sensors: Vec<_> =
+        let sensors: Vec<Sensor> =
             spec().sensors.iter().filter(|&s| !plan::measurements(s).is_empty()).take(2).cloned().collect();
+        let addresses = addresses(&sensors);
         let bus = sensors
             .iter()
-            .enumerate()
-            .fold(Bus::new(), |bus, (i, s)| bus.with(Simulator::new(Arc::new(s.clone())).with_address(i as u8 + 1)));
+            .zip(&addresses)
+            .fold(Bus::new(), |bus, (s, &a)| bus.with(Simulator::new(Arc::new(s.clone())).with_address(a)));
         let server = serve_pty(bus, ServeConfig::default()).unwrap();
         let db = dir.path().join("station.sqlite");
         let mut toml = format!(
@@ -54,14 +60,20 @@ impl Station {
             server.tty_path().unwrap()
         );
         // Sensors whose specs disagree on the line need the bus to say it (a pty carries any).
-        if sensors.iter().any(|s| s.serial != sensors[0].serial) {
-            toml += "baud = 9600\nparity = \"none\"\n";
+        if let Some(first) = sensors.first()
+            && sensors.iter().any(|s| s.serial != first.serial)
+        {
+            let parity = match first.serial.format.parity {
+                Parity::None => "none",
+                Parity::Even => "even",
+                Parity::Odd => "odd",
+            };
+            toml += &format!("baud = {}\nparity = \"{parity}\"\n", first.serial.baud);
         }
-        for (i, s) in sensors.iter().enumerate() {
+        for (i, (s, address)) in sensors.iter().zip(&addresses).enumerate() {
             toml += &format!(
-                "[[bus.probe]]\nlabel = \"p{i}\"\nsensor = \"{}\"\naddress = {}\ninterval = \"{interval}\"\nprocedure = false\n",
-                s.name,
-                i + 1
+                "[[bus.probe]]\nlabel = \"p{i}\"\nsensor = \"{}\"\naddress = {address}\ninterval = \"{interval}\"\nprocedure = false\n",
+                s.name
             );
         }
         Station { dir, _bus: server, db, toml }
@@ -73,6 +85,20 @@ impl Station {
         std::fs::write(&config, &self.toml).unwrap();
         config
     }
+}
+
+/// An address for each of `sensors` on one bus: its factory address, or
+/// where another probe has that, the first free one of its range.
+pub fn addresses(sensors: &[Sensor]) -> Vec<u8> {
+    let mut taken = Vec::new();
+    for s in sensors {
+        let free = std::iter::once(s.default_address)
+            .chain(s.min_address.max(1)..=s.max_address.min(247))
+            .find(|a| !taken.contains(a))
+            .expect("a free address in the sensor's range");
+        taken.push(free);
+    }
+    taken
 }
 
 /// Sends SIGTERM to `child` and waits up to `limit` for it; its exit code.
