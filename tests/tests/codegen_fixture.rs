@@ -82,7 +82,7 @@ fn fixture_types_are_typed() {
     assert_eq!(do_probe::SENSOR.baud, 19_200);
     assert_eq!(do_probe::SENSOR.format.to_string(), "8E1");
     assert_eq!((do_probe::SENSOR.max_address, do_probe::SENSOR.default_address), (200, 10));
-    assert_eq!(do_probe::SENSOR.manual, "MODBUS RTU for the fixture DO probe */ \"#]", "text survives as data");
+    assert_eq!(do_probe::SENSOR.manual, Some("MODBUS RTU for the fixture DO probe */ \"#]"), "text survives as data");
 }
 
 #[test]

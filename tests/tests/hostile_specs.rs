@@ -475,8 +475,8 @@ fn hostile_fixture_keeps_its_text_verbatim() {
     let sensor = spec.sensor("hostile").expect("the fixture sensor");
     assert_eq!(hostile::SENSOR.title, sensor.title);
     assert_eq!(hostile::SENSOR.title, r##"Hostile */ probe "#] \ `x` {} 'q' ""##);
-    assert_eq!(hostile::SENSOR.manual, r##"MODBUS RTU */ for "#] hostile {} probes \"##);
-    assert_eq!(hostile::SENSOR.revision, r##"Rev "1" */ `2` \"##);
+    assert_eq!(hostile::SENSOR.manual, Some(r##"MODBUS RTU */ for "#] hostile {} probes \"##));
+    assert_eq!(hostile::SENSOR.revision, Some(r##"Rev "1" */ `2` \"##));
     for id in hostile::CommandId::ALL {
         let c = sensor.command(id.name()).expect("every generated command is in the spec");
         assert_eq!(id.title(), c.title, "{id}");

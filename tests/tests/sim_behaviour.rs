@@ -654,7 +654,7 @@ fn variation_is_deterministic_and_bounded() {
     let (min, max) = field.range.map_or((f32::MIN, f32::MAX), |(lo, hi)| (lo as f32, hi as f32));
     let run = |seed: u64| -> Vec<f32> {
         let mut sim = Simulator::new(probe.clone());
-        sim.set_variation(Some(Variation { seed, noise: 0.05, drift_per_read: 0.01 }));
+        sim.set_variation(Some(Variation::noise(seed, 0.05, 0.01)));
         sim.set(&read.name, &name, f(base)).unwrap();
         (0..20)
             .map(|_| {
@@ -757,4 +757,71 @@ fn a_device_trait_object_serves_too() {
     let mut devices: Vec<Box<dyn FrameHandler>> = vec![Box::new(Simulator::new(probe)), Box::new(Bus::new())];
     assert_eq!(exchange(&mut devices[0], &req).len(), read.layout().response_len());
     assert!(exchange(&mut devices[1], &req).is_empty(), "an empty bus is silent");
+}
+
+/// Every measured quantity of every sensor over a simulated day of
+/// natural water: inside its declared range at every reading, changing
+/// over the day, and one water temperature for every probe.
+#[test]
+fn a_simulated_day_of_water_stays_in_range_and_moves() {
+    let quarter = Duration::from_secs(15 * 60);
+    let mut sims: Vec<(Sensor, Simulator)> = spec()
+        .sensors
+        .iter()
+        .map(|sensor| {
+            let mut sim = Simulator::new(sensor.clone()).with_manual_clock();
+            sim.fill_with_water();
+            sim.set_variation(Some(Variation::water(3, 0.05, Duration::from_secs(86_400))));
+            if let Some(start) = sensor.command_with_role(Role::StartMeasurement) {
+                exchange(&mut sim, &request(start, sensor.default_address, &[]));
+            }
+            (sensor.clone(), sim)
+        })
+        .collect();
+    let mut seen: BTreeMap<(String, String, String), (f32, f32)> = BTreeMap::new();
+    let (mut readings, mut shared) = (0, 0);
+    for _ in 0..96 {
+        let mut temperatures: Vec<(String, f32)> = Vec::new();
+        for (sensor, sim) in &mut sims {
+            sim.advance(quarter);
+            let slave = sensor.default_address;
+            for read in sensor.measurement_reads() {
+                let reply = exchange(sim, &request(read, slave, &[]));
+                let Ok(values) = read.decode_response(slave, &reply) else {
+                    panic!("{}.{}: no reading in water: {reply:02X?}", sensor.name, read.name)
+                };
+                for (name, value) in values {
+                    let (Some(field), Value::Float(v)) = (read.field(&name), value) else { continue };
+                    readings += 1;
+                    if let Some((min, max)) = field.range {
+                        assert!(
+                            (min..=max).contains(&f64::from(v)),
+                            "{}.{name}: {v} outside {min}..={max}",
+                            sensor.name
+                        );
+                    }
+                    if field.unit.as_deref() == Some("degC")
+                        && field.range.is_none_or(|(min, max)| min <= 10.0 && max >= 30.0)
+                    {
+                        temperatures.push((format!("{}.{name}", sensor.name), v));
+                    }
+                    let e = seen.entry((sensor.name.clone(), read.name.clone(), name)).or_insert((v, v));
+                    *e = (e.0.min(v), e.1.max(v));
+                }
+            }
+        }
+        if let Some((first, t)) = temperatures.first() {
+            for (other, u) in &temperatures {
+                assert!((t - u).abs() < 1e-3, "one water: {first} reads {t} degC, {other} {u} degC");
+                shared += 1;
+            }
+        }
+    }
+    for ((sensor, read, field), (min, max)) in &seen {
+        assert!(max > min, "{sensor}.{read}.{field} stays at {min} all day");
+    }
+    yosemitech_tests::report!(
+        "a simulated day: {readings} readings of {} quantities inside their ranges, {shared} temperatures shared",
+        seen.len()
+    );
 }

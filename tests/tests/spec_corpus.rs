@@ -352,7 +352,7 @@ fn remove_key(lines: &mut Vec<String>, start: usize, end: usize, indent: usize, 
 /// that holds it; `None` when neither has it.
 fn every_key_without(path: &str) -> Option<MemSources> {
     let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("specs/every-key");
-    let files = ["probe.yaml", "shared.yaml"];
+    let files = ["probe.yaml", "shared.yaml", "unsourced.yaml"];
     let segments: Vec<&str> = path.split('.').collect();
     let mut sources = MemSources::default();
     let mut removed = false;

@@ -2001,7 +2001,7 @@ pub fn compare(draft: &Draft, spec: &yosemitech_spec::Spec, file: &str) -> Optio
     let sensor = spec.sensors.iter().find(|s| s.manuals().any(|m| m.file.as_deref() == Some(file)))?;
     let manual = sensor.manuals().find(|m| m.file.as_deref() == Some(file))?;
     let software = manual.software.clone().unwrap_or_default();
-    let is_default = sensor.manual.file.as_deref() == Some(file);
+    let is_default = sensor.manual.as_ref().and_then(|m| m.file.as_deref()) == Some(file);
     let mut acc = Accuracy {
         manual: file.to_string(),
         spec: file_name(&sensor.file),

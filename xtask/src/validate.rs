@@ -28,10 +28,15 @@ pub fn run(args: &[String]) -> anyhow::Result<ExitCode> {
         Ok(spec) => {
             let s = spec.summary();
             let manuals: usize = spec.sensors.iter().map(|x| x.manuals().count()).sum();
+            let unsourced = spec.sensors.iter().filter(|x| x.manual.is_none()).count();
+            let aliases: usize = spec.sensors.iter().map(|x| x.aliases.len()).sum();
             println!(
-                "validated {} ({}), {}, {}: {} frames printed ({} complete with their CRC, {} without a CRC or with placeholders), {} checked with the errata's corrections; {}",
+                "validated {} ({} from {}, {} without a manual, from the field's sources; {} sharing a sensor's commands), {}, {}: {} frames printed ({} complete with their CRC, {} without a CRC or with placeholders), {} checked with the errata's corrections; {}",
                 count(s.sensors, "sensor", "sensors"),
+                s.sensors - unsourced,
                 count(manuals, "manual", "manuals"),
+                unsourced,
+                count(aliases, "model alias", "model aliases"),
                 count(s.commands, "command", "commands"),
                 count(s.examples, "example", "examples"),
                 s.printed_frames,

@@ -146,6 +146,29 @@ impl Catalog {
         if let Some(entry) = self.entries.iter().find(|e| e.sensor.name == wanted) {
             return Ok(entry);
         }
+        // A model name (`Y504`, `y521`), the sensor's or one of its aliases'.
+        let by_model: Vec<&Entry> = self
+            .entries
+            .iter()
+            .filter(|e| {
+                let s = &e.sensor;
+                s.model.as_deref().is_some_and(|m| m.eq_ignore_ascii_case(name))
+                    || s.aliases.iter().any(|a| a.model.eq_ignore_ascii_case(name))
+            })
+            .collect();
+        match by_model.as_slice() {
+            [entry] => return Ok(entry),
+            [] => {}
+            many => {
+                let names: Vec<&str> = many.iter().map(|e| e.sensor.name.as_str()).collect();
+                return Err(CliError::usage(format!(
+                    "model `{name}` is {} sensors: {}",
+                    names.len(),
+                    names.join(", ")
+                ))
+                .hint("name the sensor (`yosemitech list` says how they differ)"));
+            }
+        }
         // A unique prefix (`ph` for `ph_orp`, `cond` for `conductivity`).
         let prefixed: Vec<&Entry> = self.entries.iter().filter(|e| e.sensor.name.starts_with(&wanted)).collect();
         if let ([entry], false) = (prefixed.as_slice(), wanted.is_empty()) {

@@ -566,6 +566,11 @@ pub struct SimulateArgs {
     /// Noise amplitude added to every measurement, in its unit.
     #[arg(long, value_name = "X")]
     pub noise: Option<f32>,
+    /// Serve plausible values of natural water (each quantity's typical
+    /// value or the middle of its range, the temperature of a river) that
+    /// follow a daily cycle, instead of the manual's example values.
+    #[arg(long)]
+    pub water: bool,
     /// Emulate the serial line's timing at the sensor's baud rate (at 9600 baud, about 1 ms a byte).
     #[arg(long)]
     pub line_timing: bool,

@@ -129,6 +129,13 @@ pub fn shown_unit(unit: &str) -> &str {
     format::unit(unit)
 }
 
+/// Whether `scan` tells apart, by reads, probes of `candidates`: sensors
+/// that read their serial number alike and declare the same model code
+/// (each has a read whose register block no other has).
+pub fn scan_tells_apart(candidates: &[&yosemitech_spec::Sensor]) -> bool {
+    commands::scan::can_tell_apart(candidates)
+}
+
 /// The `decode` subcommand's hex parser: hex with or without spaces, `0x`
 /// prefixes, commas, colons or dashes between bytes.
 pub fn parse_frame(text: &str) -> Result<Vec<u8>, String> {

@@ -159,7 +159,18 @@ fn list_json_has_every_command_with_its_layout() {
         assert_eq!(s["model_code"].as_str(), sensor.model_code.as_deref());
         // Every manual, with the serial settings of its firmware.
         let manuals = s["manuals"].as_array().expect("manuals");
-        assert_eq!(manuals.len(), 1 + sensor.revisions.len(), "{}", sensor.name);
+        assert_eq!(manuals.len(), sensor.manuals().count(), "{}", sensor.name);
+        assert_eq!(s["manual"].is_null(), sensor.manual.is_none(), "{}", sensor.name);
+        // Where the facts come from without a manual, and the models that share the commands.
+        let sources: Vec<&str> = s["provenance"]["sources"]
+            .as_array()
+            .map_or_else(Vec::new, |a| a.iter().filter_map(|v| v.as_str()).collect());
+        let want: Vec<&str> = sensor.provenance.iter().flat_map(|p| p.sources.iter().map(String::as_str)).collect();
+        assert_eq!(sources, want, "{}", sensor.name);
+        let aliases: Vec<&str> =
+            s["aliases"].as_array().expect("aliases").iter().filter_map(|a| a["model"].as_str()).collect();
+        let want: Vec<&str> = sensor.aliases.iter().map(|a| a.model.as_str()).collect();
+        assert_eq!(aliases, want, "{}", sensor.name);
         for manual in sensor.manuals() {
             let m = manuals
                 .iter()
@@ -204,6 +215,22 @@ fn list_json_has_every_command_with_its_layout() {
         let one = YOSEMITECH.run(&["list", &sensor.name, "--json"]).json();
         assert_eq!(one["sensors"].as_array().unwrap().len(), 1);
         assert_eq!(one["sensors"][0]["name"], sensor.name.as_str());
+        // A model name, in any case, names the sensor where no other sensor answers to it.
+        let models = sensor.model.iter().chain(sensor.aliases.iter().map(|a| &a.model));
+        for model in models {
+            let sharing: Vec<&str> =
+                spec.sensors.iter().filter(|s| s.answers_to(model)).map(|s| s.name.as_str()).collect();
+            let lower = model.to_lowercase();
+            let run = YOSEMITECH.run(&["list", &lower, "--json"]);
+            if sharing.len() == 1 {
+                assert_eq!(run.json()["sensors"][0]["name"], sensor.name.as_str(), "list {lower}");
+            } else {
+                let err = run.fails_with_hint(2);
+                for name in &sharing {
+                    assert!(err.contains(name), "list {lower} names every sensor of the model: {err}");
+                }
+            }
+        }
     }
 }
 

@@ -46,15 +46,24 @@ pub fn module_declaration(s: &Sensor, file: &str) -> TokenStream {
             one_line(code)
         );
     }
+    for alias in &s.aliases {
+        let code = alias.model_code.as_deref().map(|c| format!(", model code {}", one_line(c))).unwrap_or_default();
+        let _ = writeln!(
+            d,
+            "Model {} answers with the same commands{code} ({}).\n",
+            one_line(&alias.model),
+            one_line(&alias.provenance.summary())
+        );
+    }
+    let from = match (&s.manual, &s.provenance) {
+        (Some(m), _) => format!("the spec of the manual \"{}\" ({})", one_line(&m.title), one_line(&m.revision)),
+        (None, Some(p)) => format!("a spec of facts without a Modbus manual ({})", one_line(&p.summary())),
+        (None, None) => "its spec".to_owned(),
+    };
     let _ = writeln!(
         d,
-        "Generated from the spec of the manual \"{}\" ({}). Serial: {}; slave addresses {}..={}, factory address {}.",
-        one_line(&s.manual.title),
-        one_line(&s.manual.revision),
-        s.serial,
-        s.min_address,
-        s.max_address,
-        s.default_address
+        "Generated from {from}. Serial: {}; slave addresses {}..={}, factory address {}.",
+        s.serial, s.min_address, s.max_address, s.default_address
     );
     if !s.revisions.is_empty() {
         d.push_str("\nManual revisions (commands a later firmware added say since when):\n\n");
@@ -134,13 +143,10 @@ pub fn fragment_module(fragment: &yosemitech_spec::Fragment, o: &Options) -> Res
         doc: fragment.doc.clone(),
         model: None,
         model_code: None,
-        manual: yosemitech_spec::Manual {
-            title: String::new(),
-            revision: String::new(),
-            software: None,
-            file: None,
-            serial_claims: Vec::new(),
-        },
+        also_model_codes: Vec::new(),
+        aliases: Vec::new(),
+        manual: None,
+        provenance: None,
         revisions: Vec::new(),
         serial: LineSettings::default(),
         min_address: 1,
@@ -244,8 +250,16 @@ pub fn module(s: &Sensor, names: &Names, o: &Options, shared: &[SharedModule]) -
 fn sensor_info(s: &Sensor) -> Result<TokenStream, Error> {
     let name = lit(&s.name);
     let title = lit(&one_line(&s.title));
-    let manual = lit(&one_line(&s.manual.title));
-    let revision = lit(&one_line(&s.manual.revision));
+    let optional = |text: Option<String>| match text {
+        Some(t) => {
+            let t = lit(&one_line(&t));
+            quote!(Some(#t))
+        }
+        None => quote!(None),
+    };
+    let manual = optional(s.manual.as_ref().map(|m| m.title.clone()));
+    let revision = optional(s.manual.as_ref().map(|m| m.revision.clone()));
+    let provenance = optional(s.provenance.as_ref().map(|p| p.summary()));
     let baud = Literal::u32_unsuffixed(s.serial.baud);
     let data_bits = match s.serial.format.data_bits {
         DataBits::Seven => quote!(Seven),
@@ -273,6 +287,7 @@ fn sensor_info(s: &Sensor) -> Result<TokenStream, Error> {
             title: #title,
             manual: #manual,
             revision: #revision,
+            provenance: #provenance,
             baud: #baud,
             format: rtu::CharFormat {
                 data_bits: rtu::DataBits::#data_bits,

@@ -161,7 +161,7 @@ pub fn printed_frame(frame: &yosemitech_spec::PrintedFrame) -> String {
 /// `SW 1.1: "TITLE" (REVISION), 9600 baud, 8N2`.
 pub fn manuals(sensor: &yosemitech_spec::Sensor) -> Vec<String> {
     let mut manuals: Vec<(&yosemitech_spec::Manual, LineSettings, Option<&str>)> =
-        vec![(&sensor.manual, sensor.serial, None)];
+        sensor.manual.iter().map(|m| (m, sensor.serial, None)).collect();
     manuals.extend(sensor.revisions.iter().map(|r| (&r.manual, r.serial, r.doc.as_deref())));
     manuals.sort_by(|a, b| {
         let key = |m: &yosemitech_spec::Manual| {

@@ -13,10 +13,14 @@ pub struct SensorInfo {
     pub name: &'static str,
     /// Human title of the probe (one line).
     pub title: &'static str,
-    /// Title of the vendor manual the spec transcribes.
-    pub manual: &'static str,
+    /// Title of the vendor manual the spec transcribes; `None` for a model
+    /// no Modbus manual covers.
+    pub manual: Option<&'static str>,
     /// Hardware and firmware revisions the manual covers.
-    pub revision: &'static str,
+    pub revision: Option<&'static str>,
+    /// Where the facts come from when no manual covers the model
+    /// (`no manual: from <source>`).
+    pub provenance: Option<&'static str>,
     /// Factory baud rate (300..=1000000, validated by the spec).
     pub baud: u32,
     /// Factory character format (8N1 for every Yosemitech probe).

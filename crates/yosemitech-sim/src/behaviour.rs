@@ -34,6 +34,10 @@
 //! A sensor without `model_code` answers the manual's bytes.
 //! [`SerialNumberPolicy::AsPrinted`] answers exactly what the manual prints.
 //!
+//! A spec that prints no serial number (no example: a model without a
+//! manual) gets a made-up one of the family's form, `YL` and digits with the
+//! model code as characters 3-4 (`YL4400000001` for code 44).
+//!
 //! # Measurement
 //!
 //! A sensor with neither a `start_measurement` nor a `stop_measurement`
@@ -220,6 +224,22 @@ fn with_model_code(command: &CommandSpec, model_code: Option<&str>, data: &[u8])
     if reserved_before && let Some(slot) = own.get_mut(text.offset - 1) {
         *slot = byte;
     }
+    // No serial number printed (a spec without examples): a made-up one of
+    // the family's form, `YL<code>` and digits, so the model code is there.
+    if let Some(chars) = own.get_mut(text.offset..text.offset + text.size())
+        && chars.len() >= 4
+        && chars.iter().all(|&c| c == 0)
+    {
+        let last = chars.len() - 1;
+        for (i, c) in chars.iter_mut().enumerate() {
+            *c = match i {
+                0 => b'Y',
+                1 => b'L',
+                _ if i == last => b'1',
+                _ => b'0',
+            };
+        }
+    }
     // Characters 3-4 of the text, when the manual's serial number has them.
     if let Some(chars) = own.get_mut(text.offset..text.offset + text.size())
         && chars.len() >= 4
@@ -376,6 +396,12 @@ impl Behaviour {
         }
     }
 
+    /// Measures from now on whatever start or stop arrives (a probe that
+    /// refuses Start Measurement and measures from power-on).
+    pub(crate) fn free_running(&mut self) {
+        self.cycle = Cycle::FreeRunning;
+    }
+
     /// Calibration points recorded since the calibration (re)started.
     pub(crate) fn calibration_points(&self) -> &[f32] {
         self.calibration.as_ref().map_or(&[], |c| &c.points)
@@ -433,6 +459,7 @@ mod tests {
                 unit: None,
                 doc: None,
                 range: None,
+                typical: None,
                 absent: None,
                 examples: Vec::new(),
             },

@@ -7,7 +7,7 @@ use std::time::{Duration, Instant};
 
 use yosemitech_rtu::frame::{BROADCAST, encode_exception};
 use yosemitech_rtu::{EncodeError, ExceptionCode, Function, Layout, LineTiming, Responder, codec, crc_ok, crc16};
-use yosemitech_spec::interp::{EncodeValuesError, decode_field, decode_fields, encode_command_field, encode_field};
+use yosemitech_spec::interp::{EncodeValuesError, decode_field, decode_fields, encode_command_field};
 use yosemitech_spec::{CommandSpec, EnumRepr, Field, FieldKind, Role, Sensor, Value, Values};
 
 use crate::FrameHandler;
@@ -86,17 +86,23 @@ pub struct Stats {
     pub address_changes: u64,
 }
 
-/// Deterministic variation of the readings: noise and drift.
+/// Deterministic variation of the readings: a daily cycle, noise and drift.
 ///
 /// On each read of a *measurement* command (a read that no write command
 /// covers and that has a field with a unit: pH, temperature, conductivity,
-/// ORP), every f32 field is set to `base + drift_per_read * n + noise * u`
+/// ORP), every f32 field is set to
+/// `base + swing * span * sin(2 pi t / day + phase) + drift_per_read * n + noise * u`
 /// before the reply is built, where `base` is the value when the variation
-/// was enabled or last [`Simulator::set`], `n` the number of earlier reads
-/// of the command and `u` uniform in `[-1, 1)` from a generator seeded with
-/// `seed`; clamped to the field's `range` if it has one. The registers hold
-/// what was sent, so [`Simulator::get`] after a read is the truth the
-/// client saw.
+/// was enabled or last [`Simulator::set`] (see [`Simulator::fill_with_water`]
+/// for plausible ones), `span` the field's range (or `|base|`, or 1;
+/// [`WATER_TEMPERATURE_SPAN_C`] for every temperature), `t`
+/// the time of day (the wall clock, so probes on one bus see the same
+/// water; the manual clock when [`Simulator::with_manual_clock`]), `phase`
+/// the same for every temperature (unit `degC`) and different for other
+/// fields, `n` the number of earlier reads of the command and `u` uniform in
+/// `[-1, 1)` from a generator seeded with `seed`; clamped to the field's
+/// `range` if it has one. The registers hold what was sent, so
+/// [`Simulator::get`] after a read is the truth the client saw.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Variation {
     /// Seed of the noise: the same seed gives the same readings.
@@ -105,7 +111,32 @@ pub struct Variation {
     pub noise: f32,
     /// Drift per read, in the field's unit.
     pub drift_per_read: f32,
+    /// Amplitude of the daily cycle, as a fraction of the field's span (0: none).
+    pub daily_swing: f32,
+    /// Length of the simulated day (a shorter one shows the cycle sooner).
+    pub day: Duration,
 }
+
+impl Variation {
+    /// Noise and drift only, no daily cycle.
+    pub const fn noise(seed: u64, noise: f32, drift_per_read: f32) -> Self {
+        Self { seed, noise, drift_per_read, daily_swing: 0.0, day: Duration::from_secs(86_400) }
+    }
+
+    /// Natural water: a daily cycle of `daily_swing` of each field's span
+    /// over `day`, and a little noise.
+    pub const fn water(seed: u64, daily_swing: f32, day: Duration) -> Self {
+        Self { seed, noise: 0.0, drift_per_read: 0.0, daily_swing, day }
+    }
+}
+
+/// The temperature of the simulated water, degrees C, before its daily
+/// cycle: a plausible river in spring.
+pub const WATER_TEMPERATURE_C: f64 = 18.0;
+
+/// The span a temperature's daily swing is a fraction of, degrees C, the
+/// same for every probe whatever its range, so they all read one water.
+pub const WATER_TEMPERATURE_SPAN_C: f64 = 50.0;
 
 #[derive(Debug, Clone)]
 struct VariationState {
@@ -233,6 +264,8 @@ pub struct Simulator {
     clock: Clock,
     stats: Stats,
     /// The reply being built.
+    /// Start Measurement is refused ([`Simulator::set_refuses_start`]).
+    refuses_start: bool,
     out: Vec<u8>,
 }
 
@@ -265,6 +298,7 @@ impl Simulator {
             variation: None,
             warm_up_policy: WarmUpPolicy::default(),
             byte_count_quirk: false,
+            refuses_start: false,
             clock: Clock { start: Some(Instant::now()), offset: Duration::ZERO },
             stats: Stats::default(),
             out: Vec::with_capacity(2 * yosemitech_rtu::frame::MAX_ADU),
@@ -275,6 +309,16 @@ impl Simulator {
         sim.set_serial_number_policy(sim.serial_number_policy);
         sim.set_address(sim.address);
         sim
+    }
+
+    /// Makes the probe refuse Start Measurement (exception 01) while it
+    /// measures and answers reads all the same, as a real Y533 does. A
+    /// probe that refuses it starts measuring at power-on.
+    pub fn set_refuses_start(&mut self, refuses: bool) {
+        self.refuses_start = refuses;
+        if refuses {
+            self.behaviour.free_running();
+        }
     }
 
     /// Builder form of [`Simulator::set_address`].
@@ -657,11 +701,56 @@ impl Simulator {
         }
     }
 
+    /// Sets every f32 field of every measurement read to a plausible value
+    /// of natural water: the field's `typical`, else the water temperature
+    /// for a temperature (within its range), else the middle of its range;
+    /// a field with none of these keeps its value. Variation then cycles
+    /// around these.
+    pub fn fill_with_water(&mut self) {
+        let sensor = Arc::clone(&self.sensor);
+        for (index, command) in sensor.commands.iter().enumerate() {
+            if !self.measurement.get(index).copied().unwrap_or(false) {
+                continue;
+            }
+            for field in &command.fields {
+                if !matches!(field.kind, FieldKind::F32 { .. }) {
+                    continue;
+                }
+                let temperature = field.unit.as_deref() == Some("degC");
+                let value = match (field.typical, field.range) {
+                    (Some(t), _) => t,
+                    (None, Some((min, max))) if temperature => WATER_TEMPERATURE_C.clamp(min, max),
+                    (None, Some((min, max))) => (min + max) / 2.0,
+                    (None, None) if temperature => WATER_TEMPERATURE_C,
+                    (None, None) => continue,
+                };
+                if let Ok(bytes) = encode_command_field(command, field, &Value::Float(value as f32)) {
+                    self.registers.write_bytes(command.address, field.offset, &bytes);
+                }
+            }
+        }
+        if let Some(v) = self.variation.as_mut() {
+            v.bases.clear();
+        }
+    }
+
+    /// The time of day for the daily cycle, in seconds.
+    fn time_of_day(&self, day: Duration) -> f64 {
+        let now = match self.clock.start {
+            Some(_) => std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).unwrap_or_default(),
+            None => self.clock.offset,
+        };
+        let day = day.as_secs_f64().max(1.0);
+        now.as_secs_f64() % day / day
+    }
+
     /// Applies the variation to a measurement read about to be served.
     fn vary(&mut self, index: usize, command: &CommandSpec) {
         if !self.measurement.get(index).copied().unwrap_or(false) {
             return;
         }
+        let Some(day) = self.variation.as_ref().map(|v| v.config.day) else { return };
+        let fraction = self.time_of_day(day);
         let Some(variation) = self.variation.as_mut() else { return };
         let reads = variation.reads.entry(index).or_insert(0);
         let n = *reads as f32;
@@ -679,11 +768,24 @@ impl Simulator {
                 }
             });
             let noise = variation.config.noise * variation.rng.next_signed() as f32;
-            let mut value = base + variation.config.drift_per_read * n + noise;
+            // Every temperature swings alike and peaks together (one water);
+            // other quantities swing with their range, each at its own hour.
+            let temperature = field.unit.as_deref() == Some("degC");
+            let span = match field.range {
+                _ if temperature => WATER_TEMPERATURE_SPAN_C,
+                Some((min, max)) => (max - min).max(0.0),
+                None => f64::from(base.abs()).max(1.0),
+            };
+            let phase = if temperature { 0.0 } else { 0.7 * (field_index as f64 + 1.0) };
+            let cycle = f64::from(variation.config.daily_swing)
+                * span
+                * (std::f64::consts::TAU * fraction - std::f64::consts::FRAC_PI_2 + phase).sin();
+            let mut value = base + cycle as f32 + variation.config.drift_per_read * n + noise;
             if let Some((min, max)) = field.range {
                 value = value.clamp(min as f32, max as f32);
             }
-            if let Ok(bytes) = encode_field(field, &Value::Float(value)) {
+            // A read is not bounded by its range on the wire: encode as the probe would.
+            if let Ok(bytes) = encode_command_field(command, field, &Value::Float(value)) {
                 self.registers.write_bytes(command.address, field.offset, &bytes);
             }
         }
@@ -732,6 +834,13 @@ impl FrameHandler for Simulator {
         let mut new_address = None;
         if fault == Some(FaultKind::Busy) {
             push_exception(&mut self.out, reply_slave, function, ExceptionCode::ServerDeviceBusy);
+        } else if self.refuses_start
+            && let Ok((index, _)) = found
+            && self.sensor.commands.get(index).is_some_and(|c| c.role == Some(Role::StartMeasurement))
+        {
+            // As a real Y533: the start is refused, the probe measures anyway.
+            self.stats.exceptions += 1;
+            push_exception(&mut self.out, reply_slave, function, ExceptionCode::IllegalFunction);
         } else {
             match found.and_then(|(index, data)| self.process(request, route, index, data)) {
                 Ok(address) => new_address = address,
@@ -1048,6 +1157,7 @@ mod tests {
             unit: None,
             doc: None,
             range: None,
+            typical: None,
             absent: None,
             examples: Vec::new(),
         };

@@ -60,8 +60,18 @@ pub struct SensorDoc {
     /// The two-digit model code of the serial number (`"09"` in `YL0914010022`).
     #[schemars(with = "Option<String>")]
     pub model_code: Option<Spanned<String>>,
-    /// The manual whose figure numbers this file cites by default.
-    pub manual: ManualDoc,
+    /// Other model codes this model's serial numbers have carried (over the years).
+    #[serde(default)]
+    #[schemars(with = "Vec<String>")]
+    pub also_model_codes: Vec<Spanned<String>>,
+    /// Other models that answer with exactly these commands.
+    #[serde(default)]
+    pub aliases: Vec<AliasDoc>,
+    /// The manual whose figure numbers this file cites by default; absent
+    /// for a sensor whose facts come from other sources (`provenance`).
+    pub manual: Option<ManualDoc>,
+    /// Where the facts come from when no Modbus manual covers the model.
+    pub provenance: Option<ProvenanceDoc>,
     /// Other manuals (older or newer firmware) of the same probe.
     #[serde(default)]
     pub revisions: Vec<RevisionDoc>,
@@ -72,6 +82,36 @@ pub struct SensorDoc {
     /// The factory slave address.
     #[schemars(with = "u32")]
     pub default_address: Spanned<u32>,
+}
+
+/// Where facts come from when no Modbus manual states them: the field's
+/// drivers, loggers and issue trackers.
+#[derive(Debug, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct ProvenanceDoc {
+    /// Each source, as a reader can find it (a driver and version, an issue).
+    #[schemars(with = "Vec<String>")]
+    pub sources: Vec<Spanned<String>>,
+    /// What the sources say and do not say.
+    #[schemars(with = "Option<String>")]
+    pub doc: Option<Spanned<String>>,
+}
+
+/// Another model that answers with the sensor's commands.
+#[derive(Debug, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct AliasDoc {
+    /// The vendor's model name, like `Y521`.
+    #[schemars(with = "String")]
+    pub model: Spanned<String>,
+    /// Its serial numbers' model code, when it differs from the sensor's.
+    #[schemars(with = "Option<String>")]
+    pub model_code: Option<Spanned<String>>,
+    /// What sets it apart from the sensor's model.
+    #[schemars(with = "Option<String>")]
+    pub doc: Option<Spanned<String>>,
+    /// Where the fact that it shares the commands comes from.
+    pub provenance: ProvenanceDoc,
 }
 
 /// The manual a spec transcribes.
@@ -300,6 +340,8 @@ pub enum RoleDoc {
 pub struct ProcedureDoc {
     /// Where the manual describes it.
     pub source: Option<SourceDoc>,
+    /// Where its steps and timings come from when no manual states them.
+    pub provenance: Option<ProvenanceDoc>,
     /// The procedure in words.
     #[schemars(with = "Option<String>")]
     pub doc: Option<Spanned<String>>,
@@ -365,6 +407,8 @@ pub struct CommandDoc {
     pub doc: Option<Spanned<String>>,
     /// Where the manual documents it.
     pub source: Option<SourceDoc>,
+    /// Where its facts come from when no manual states them.
+    pub provenance: Option<ProvenanceDoc>,
     /// `read` (0x03) or `write` (0x10).
     #[schemars(with = "Option<FunctionDoc>")]
     pub function: Option<Spanned<FunctionDoc>>,
@@ -531,6 +575,10 @@ pub struct FieldDoc {
     /// Values a write may send.
     #[schemars(with = "Option<RangeDoc>")]
     pub range: Option<Spanned<RangeDoc>>,
+    /// The value of natural water the simulator centres a reading on
+    /// (default: the middle of `range`). Not a fact of the probe.
+    #[schemars(with = "Option<f64>")]
+    pub typical: Option<Spanned<f64>>,
     /// Named codes of an `enum`.
     #[schemars(with = "Option<Vec<VariantDoc>>")]
     pub variants: Option<Spanned<Vec<VariantDoc>>>,

@@ -62,8 +62,15 @@ pub struct Sensor {
     pub model: Option<String>,
     /// The two-digit model code of the serial number (`"09"` in `YL0914010022`).
     pub model_code: Option<String>,
-    /// The manual whose figure numbers the spec cites by default.
-    pub manual: Manual,
+    /// Other model codes the model's serial numbers have carried.
+    pub also_model_codes: Vec<String>,
+    /// Other models that answer with exactly these commands.
+    pub aliases: Vec<ModelAlias>,
+    /// The manual whose figure numbers the spec cites by default; `None`
+    /// when no Modbus manual covers the model (see `provenance`).
+    pub manual: Option<Manual>,
+    /// Where the facts come from when no manual covers the model.
+    pub provenance: Option<Provenance>,
     /// Other manuals of the same probe, in the order written.
     pub revisions: Vec<Revision>,
     /// Serial settings (of the newest firmware).
@@ -150,7 +157,49 @@ impl Sensor {
 
     /// Every manual of the probe: the file's `manual` first, then its revisions.
     pub fn manuals(&self) -> impl Iterator<Item = &Manual> {
-        std::iter::once(&self.manual).chain(self.revisions.iter().map(|r| &r.manual))
+        self.manual.iter().chain(self.revisions.iter().map(|r| &r.manual))
+    }
+
+    /// Every model code the sensor's own model carries, the main one first.
+    pub fn model_codes(&self) -> impl Iterator<Item = &str> {
+        self.model_code.iter().chain(&self.also_model_codes).map(String::as_str)
+    }
+
+    /// The models whose serial numbers carry `code`: the sensor's own model
+    /// and its aliases (an alias without a code of its own shares the
+    /// sensor's). Empty when the sensor declares no such code.
+    pub fn models_with_code(&self, code: &str) -> Vec<&str> {
+        let own = self.model_codes().any(|c| c == code);
+        let mut models: Vec<&str> = Vec::new();
+        if own {
+            models.push(self.model.as_deref().unwrap_or(&self.name));
+        }
+        for alias in &self.aliases {
+            let alias_code = alias.model_code.as_deref().or(self.model_code.as_deref());
+            if alias_code == Some(code) {
+                models.push(&alias.model);
+            }
+        }
+        models
+    }
+
+    /// True when `code` names this sensor's model or one of its aliases.
+    pub fn declares_model_code(&self, code: &str) -> bool {
+        !self.models_with_code(code).is_empty()
+    }
+
+    /// True when `name` is the sensor's name, its model or one of its
+    /// aliases' models (ignoring ASCII case).
+    pub fn answers_to(&self, name: &str) -> bool {
+        self.name.eq_ignore_ascii_case(name)
+            || self.model.as_deref().is_some_and(|m| m.eq_ignore_ascii_case(name))
+            || self.aliases.iter().any(|a| a.model.eq_ignore_ascii_case(name))
+    }
+
+    /// Where a command's facts come from when no manual states them: its
+    /// own provenance, else the sensor's.
+    pub fn provenance_of<'s>(&'s self, command: &'s CommandSpec) -> Option<&'s Provenance> {
+        command.provenance.as_ref().or(self.provenance.as_ref())
     }
 
     /// The serial settings of a probe running `software` (the newest when unknown).
@@ -221,6 +270,8 @@ impl Role {
 pub struct Procedure {
     /// Where the manual describes it.
     pub source: Option<Source>,
+    /// Where its steps and timings come from when no manual states them.
+    pub provenance: Option<Provenance>,
     /// The procedure in the manual's words, when the spec transcribes them.
     pub doc: Option<String>,
     /// Commands sent first, in order.
@@ -235,6 +286,35 @@ pub struct Procedure {
     pub interval_ms: u32,
     /// Commands sent at the end, in order.
     pub after: Vec<String>,
+}
+
+/// Where facts come from when no Modbus manual states them.
+#[derive(Debug, Clone, Serialize, PartialEq, Eq)]
+pub struct Provenance {
+    /// Each source (a driver and its version, an issue), never empty.
+    pub sources: Vec<String>,
+    /// What the sources say and leave open.
+    pub doc: Option<String>,
+}
+
+impl Provenance {
+    /// `no manual: from A; B`, as `list`, the docs and the register maps show it.
+    pub fn summary(&self) -> String {
+        format!("no manual: from {}", self.sources.join("; "))
+    }
+}
+
+/// Another model that answers with a sensor's commands.
+#[derive(Debug, Clone, Serialize)]
+pub struct ModelAlias {
+    /// The vendor's model name.
+    pub model: String,
+    /// Its serial numbers' model code, when not the sensor's.
+    pub model_code: Option<String>,
+    /// What sets it apart.
+    pub doc: Option<String>,
+    /// Where the fact that it shares the commands comes from.
+    pub provenance: Provenance,
 }
 
 /// The manual a sensor's spec transcribes.
@@ -375,6 +455,9 @@ pub struct CommandSpec {
     pub doc: String,
     /// Where this sensor's manual documents it.
     pub source: Source,
+    /// Where its facts come from when no manual states them (the sensor's
+    /// `provenance` covers every command of a sensor without a manual).
+    pub provenance: Option<Provenance>,
     /// `Read` (0x03) or `Write` (0x10): the only functions Yosemitech probes use.
     #[serde(serialize_with = "ser_function")]
     pub function: Function,
@@ -518,6 +601,8 @@ pub struct Field {
     pub doc: Option<String>,
     /// Values a write may send (inclusive); on a read, the measuring range.
     pub range: Option<(f64, f64)>,
+    /// The value of natural water the simulator centres a reading on.
+    pub typical: Option<f64>,
     /// The value read where a sub-probe is not fitted.
     pub absent: Option<f64>,
     /// Values with their bytes, printed outside a frame; each verified both ways.

@@ -274,7 +274,7 @@ fn citations_name_another_manual_and_claims_are_kept_apart_from_serial() {
     let s = &spec.sensors[0];
     let cited = &s.commands[0].examples[0].also_in;
     assert_eq!((cited[0].manual.as_str(), cited[0].figures[0].to_string()), ("2.0", "9".to_string()));
-    assert_eq!(s.manual.serial_claims[0].serial.to_string(), "9600 baud, 8N2");
+    assert_eq!(s.manual.as_ref().expect("a manual").serial_claims[0].serial.to_string(), "9600 baud, 8N2");
     assert_eq!(s.serial_for("1.0").to_string(), "9600 baud, 8N1", "a claim is not what clients use");
 
     for (cite, message) in [

@@ -237,6 +237,8 @@ struct Sample<'c> {
     values: Vec<Accumulator<'c>>,
     retries: u32,
     errors: Vec<String>,
+    /// What failed without spoiling the reading (a refused Start Measurement).
+    warnings: Vec<String>,
     /// The `before` commands went out: the `after` commands must too.
     started: bool,
 }
@@ -351,7 +353,15 @@ impl<'c> ProbeRun<'c> {
                 })
             })
             .collect();
-        Sample { timestamp: SystemTime::now(), taken: 0, values, retries: 0, errors: Vec::new(), started: false }
+        Sample {
+            timestamp: SystemTime::now(),
+            taken: 0,
+            values,
+            retries: 0,
+            errors: Vec::new(),
+            warnings: Vec::new(),
+            started: false,
+        }
     }
 }
 
@@ -478,6 +488,18 @@ impl<'c> BusRun<'c> {
             sample.started = true;
             let before: Vec<&CommandSpec> = probe.steps.as_ref().map(|s| s.before.clone()).unwrap_or_default();
             for command in before {
+                // Some probes refuse Start Measurement and read all the same
+                // (a real Y533 does): that refusal does not stop the reading.
+                if command.role == Some(Role::StartMeasurement) {
+                    let Some(outcome) = self.transact(command, address, retries) else {
+                        return Some(self.finish(index, sample));
+                    };
+                    sample.retries += outcome.retries;
+                    if let Err(f) = outcome.result {
+                        sample.warnings.push(format!("{} refused ({}); read anyway", f.command, f.message));
+                    }
+                    continue;
+                }
                 if !self.send(command, address, retries, &mut sample) {
                     return Some(self.finish(index, sample));
                 }
@@ -587,7 +609,10 @@ impl<'c> BusRun<'c> {
             firmware,
             values: sample.values.iter().filter_map(Accumulator::measurement).collect(),
             retries: sample.retries,
-            error: (!sample.errors.is_empty()).then(|| sample.errors.join("; ")),
+            error: {
+                let all: Vec<String> = sample.errors.iter().chain(&sample.warnings).cloned().collect();
+                (!all.is_empty()).then(|| all.join("; "))
+            },
         }
     }
 }

@@ -6,8 +6,9 @@ use ::yosemitech_rtu as rtu;
 pub const SENSOR: rtu::SensorInfo = rtu::SensorInfo {
     name: "chlorophyll",
     title: "Self-cleaning chlorophyll probe",
-    manual: "Optical Chlorophyll Sensor, MODBUS RTU Programmer Manuel",
-    revision: "HW Rev1.0 / SW Rev1.6 or later",
+    manual: Some("Optical Chlorophyll Sensor, MODBUS RTU Programmer Manuel"),
+    revision: Some("HW Rev1.0 / SW Rev1.6 or later"),
+    provenance: None,
     baud: 9600,
     format: rtu::CharFormat {
         data_bits: rtu::DataBits::Eight,

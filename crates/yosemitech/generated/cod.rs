@@ -6,8 +6,9 @@ use ::yosemitech_rtu as rtu;
 pub const SENSOR: rtu::SensorInfo = rtu::SensorInfo {
     name: "cod",
     title: "UV254 / COD probe",
-    manual: "Optical COD Sensor, MODBUS RTU Programmer Manuel",
-    revision: "HW Rev1.0 / SW Rev1.5 or later",
+    manual: Some("Optical COD Sensor, MODBUS RTU Programmer Manuel"),
+    revision: Some("HW Rev1.0 / SW Rev1.5 or later"),
+    provenance: None,
     baud: 9600,
     format: rtu::CharFormat {
         data_bits: rtu::DataBits::Eight,

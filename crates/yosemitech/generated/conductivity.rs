@@ -6,8 +6,9 @@ use ::yosemitech_rtu as rtu;
 pub const SENSOR: rtu::SensorInfo = rtu::SensorInfo {
     name: "conductivity",
     title: "Conductivity probe",
-    manual: "MODBUS RTU for conductivity probes",
-    revision: "HW Rev1.0 / SW Rev1.0 or later",
+    manual: Some("MODBUS RTU for conductivity probes"),
+    revision: Some("HW Rev1.0 / SW Rev1.0 or later"),
+    provenance: None,
     baud: 9600,
     format: rtu::CharFormat {
         data_bits: rtu::DataBits::Eight,

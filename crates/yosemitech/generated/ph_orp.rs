@@ -6,8 +6,9 @@ use ::yosemitech_rtu as rtu;
 pub const SENSOR: rtu::SensorInfo = rtu::SensorInfo {
     name: "ph_orp",
     title: "Optical pH / ORP probe",
-    manual: "MODBUS RTU for optical pH (or ORP) probes",
-    revision: "HW Rev1.2 / SW Rev1.7 or later",
+    manual: Some("MODBUS RTU for optical pH (or ORP) probes"),
+    revision: Some("HW Rev1.2 / SW Rev1.7 or later"),
+    provenance: None,
     baud: 9600,
     format: rtu::CharFormat {
         data_bits: rtu::DataBits::Eight,

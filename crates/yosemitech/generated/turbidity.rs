@@ -6,8 +6,9 @@ use ::yosemitech_rtu as rtu;
 pub const SENSOR: rtu::SensorInfo = rtu::SensorInfo {
     name: "turbidity",
     title: "Optical turbidity probe",
-    manual: "Optical Turbidity Sensor, MODBUS RTU Programmer Manuel",
-    revision: "HW Rev1.0 / SW Rev1.7 or later",
+    manual: Some("Optical Turbidity Sensor, MODBUS RTU Programmer Manuel"),
+    revision: Some("HW Rev1.0 / SW Rev1.7 or later"),
+    provenance: None,
     baud: 9600,
     format: rtu::CharFormat {
         data_bits: rtu::DataBits::Eight,

@@ -122,8 +122,10 @@ pub(crate) fn merge_text(text: &str, file: &str, into: &Path) -> Result<Merged, 
     // A cover title that is prose (a text without its cover page) is no title.
     let mut draft = draft;
     let cover = draft.header.manual_title.trim().to_string();
-    if cover.is_empty() || cover.len() > 100 || cover.contains(". ") {
-        draft.header.manual_title = sensor.manual.title.clone();
+    if (cover.is_empty() || cover.len() > 100 || cover.contains(". "))
+        && let Some(m) = &sensor.manual
+    {
+        draft.header.manual_title = m.title.clone();
     }
     let mut review = Review {
         manual: file.to_string(),

@@ -139,7 +139,7 @@ fn vkey(s: &str) -> Vec<u32> {
 /// Where `software` stands among the sensor's manuals.
 pub(crate) fn place(sensor: &Sensor, software: &str) -> Result<Place, String> {
     let mut recorded: Vec<(Option<usize>, &str)> = Vec::new();
-    if let Some(sw) = &sensor.manual.software {
+    if let Some(sw) = sensor.manual.as_ref().and_then(|m| m.software.as_ref()) {
         recorded.push((None, sw));
     }
     for (i, r) in sensor.revisions.iter().enumerate() {
@@ -291,7 +291,8 @@ fn known_table_erratum(
     if let Some(c) = sensor.command(name)
         && let Some(e) = c.errata.iter().find(|e| same_table(e, key, val))
     {
-        let m = e.manual.clone().or_else(|| sensor.manual.software.clone()).unwrap_or_default();
+        let m =
+            e.manual.clone().or_else(|| sensor.manual.as_ref().and_then(|m| m.software.clone())).unwrap_or_default();
         return Some(format!("{} (SW {m})", e.id));
     }
     let frag = shared_from?;
@@ -421,7 +422,7 @@ pub(crate) fn plan(
     review: &mut Review,
 ) -> Plan {
     let mut plan = Plan { software: software.to_string(), ..Plan::default() };
-    let default_sw = sensor.manual.software.clone().unwrap_or_default();
+    let default_sw = sensor.manual.as_ref().and_then(|m| m.software.clone()).unwrap_or_default();
     let mut next_id = id_generator(sensor);
     let recorded_sw: Vec<String> = sensor.manuals().filter_map(|m| m.software.clone()).collect();
     let oldest = recorded_sw.iter().min_by_key(|s| vkey(s)).cloned().unwrap_or_default();
@@ -881,7 +882,12 @@ pub(crate) fn plan(
             (Serial::of(&r.serial), r.manual.serial_claims.clone(), r.manual.file.clone())
         }
         Place::Recorded(None) => {
-            (Serial::of(&sensor.serial), sensor.manual.serial_claims.clone(), sensor.manual.file.clone())
+            let manual = sensor.manual.as_ref();
+            (
+                Serial::of(&sensor.serial),
+                manual.map(|m| m.serial_claims.clone()).unwrap_or_default(),
+                manual.and_then(|m| m.file.clone()),
+            )
         }
         _ => (Serial::of(&sensor.serial), Vec::new(), None),
     };

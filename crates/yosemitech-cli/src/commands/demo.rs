@@ -27,9 +27,15 @@ use crate::port::Opened;
 const WAIT_BUDGET: Duration = Duration::from_millis(500);
 
 /// Noise the simulators add to every measurement, in the field's unit:
-/// small enough to leave the manuals' example values recognisable, large
-/// enough that an average has something to average.
+/// small next to the daily cycle, large enough that an average has
+/// something to average.
 const NOISE: f32 = 0.002;
+
+/// The daily cycle of the simulated water: a swing of this fraction of each
+/// quantity's range, over a day shortened so that `watch` and `plot` show it
+/// within minutes.
+const DAILY_SWING: f32 = 0.04;
+const DEMO_DAY: Duration = Duration::from_secs(15 * 60);
 
 /// The reply timeout on the family bus, far below scan's usual second: the
 /// simulators answer at once (in ~30 ms with `--line-timing`), and only
@@ -48,7 +54,8 @@ struct Probe {
 fn setup(sensor: &Arc<Sensor>, line: bool) -> Result<Probe> {
     let mut sim = Simulator::new(Arc::clone(sensor));
     run_newest_firmware(&mut sim, sensor)?;
-    sim.set_variation(Some(Variation { seed: 7, noise: NOISE, drift_per_read: 0.0 }));
+    sim.fill_with_water();
+    sim.set_variation(Some(Variation { noise: NOISE, ..Variation::water(7, DAILY_SWING, DEMO_DAY) }));
     let config = if line { ServeConfig::emulating(sensor.serial.timing()) } else { ServeConfig::default() };
     let (server, port, transport) = serve(sim, config, sensor.serial.baud)?;
     let config = ClientConfig { timeout: Duration::from_secs(1), ..ClientConfig::default() };

@@ -29,9 +29,51 @@ pub fn run(catalog: &Catalog, args: &ListArgs, out: &mut dyn Write) -> Result<()
         show_sensor(entry, args.sensor.is_some(), out)?;
     }
     if args.sensor.is_none() {
-        writeln!(out, "\n`yosemitech list SENSOR` shows each command's fields; --json for programs.")?;
+        writeln!(out)?;
+        for line in models_summary(entries.iter().map(|e| e.sensor.as_ref())) {
+            writeln!(out, "{line}")?;
+        }
+        let model = entries.iter().find_map(|e| e.sensor.model.as_deref()).unwrap_or("MODEL");
+        writeln!(
+            out,
+            "\n`yosemitech list SENSOR` (or a model: `list {model}`) shows each command's fields; --json for programs."
+        )?;
     }
     Ok(())
+}
+
+/// The models the sensors speak for: those with a Modbus manual, those
+/// known from other sources (aliases and sensors with a provenance), and
+/// other hardware of a model that has a manual.
+pub fn models_summary<'s>(sensors: impl Iterator<Item = &'s Sensor> + Clone) -> Vec<String> {
+    let with_manual: Vec<&str> =
+        sensors.clone().filter(|s| s.manual.is_some()).filter_map(|s| s.model.as_deref()).collect();
+    let mut from_sources: Vec<String> = Vec::new();
+    let mut other_hardware: Vec<String> = Vec::new();
+    for s in sensors.clone() {
+        for alias in &s.aliases {
+            from_sources.push(format!("{} (as {})", alias.model, s.name));
+        }
+        if let (None, Some(model)) = (&s.manual, &s.model) {
+            if with_manual.contains(&model.as_str()) {
+                other_hardware.push(format!("{model} ({})", s.name));
+            } else {
+                from_sources.push(format!("{model} ({})", s.name));
+            }
+        }
+    }
+    let mut lines = vec![format!(
+        "{} models: {} with a Modbus manual ({}), {} without one, from the field's drivers and loggers ({})",
+        with_manual.len() + from_sources.len(),
+        with_manual.len(),
+        with_manual.join(", "),
+        from_sources.len(),
+        from_sources.join(", ")
+    )];
+    if !other_hardware.is_empty() {
+        lines.push(format!("other hardware of a model with a manual: {}", other_hardware.join(", ")));
+    }
+    lines
 }
 
 fn origin_text(origin: &Origin) -> String {
@@ -50,7 +92,10 @@ pub fn serial_text(serial: &LineSettings) -> String {
 /// `model Y520, model code 09 (serial numbers YL09...)`, as far as the spec states them.
 pub fn model_text(s: &Sensor) -> Option<String> {
     let model = s.model.as_ref().map(|m| format!("model {m}"));
-    let code = s.model_code.as_ref().map(|c| format!("model code {c} (serial numbers YL{c}...)"));
+    let code = s.model_code.as_ref().map(|c| {
+        let also: Vec<String> = s.also_model_codes.iter().map(|a| format!("; also {a}, YL{a}...")).collect();
+        format!("model code {c} (serial numbers YL{c}...{})", also.concat())
+    });
     let parts: Vec<String> = model.into_iter().chain(code).collect();
     (!parts.is_empty()).then(|| parts.join(", "))
 }
@@ -58,7 +103,10 @@ pub fn model_text(s: &Sensor) -> Option<String> {
 /// The manuals of a sensor, oldest firmware first (manuals without a
 /// software revision last), each with the serial settings of that firmware.
 pub fn manuals(s: &Sensor) -> Vec<(&Manual, LineSettings, Option<&str>, bool)> {
-    let mut all: Vec<(&Manual, LineSettings, Option<&str>, bool)> = std::iter::once((&s.manual, None, true))
+    let mut all: Vec<(&Manual, LineSettings, Option<&str>, bool)> = s
+        .manual
+        .iter()
+        .map(|m| (m, None, true))
         .chain(s.revisions.iter().map(|r| (&r.manual, r.doc.as_deref(), false)))
         .map(|(m, doc, main)| (m, m.software.as_deref().map_or(s.serial, |sw| s.serial_for(sw)), doc, main))
         .collect();
@@ -77,6 +125,13 @@ fn show_sensor(entry: &Entry, with_fields: bool, out: &mut dyn Write) -> Result<
     writeln!(out, "{} — {} ({})", s.name, s.title, origin_text(&entry.origin))?;
     if let Some(model) = model_text(s) {
         writeln!(out, "  {model}")?;
+    }
+    if let Some(p) = &s.provenance {
+        writeln!(out, "  {}", p.summary())?;
+    }
+    for alias in &s.aliases {
+        let code = alias.model_code.as_deref().map(|c| format!(", model code {c}")).unwrap_or_default();
+        writeln!(out, "  also model {}{code}: same commands ({})", alias.model, alias.provenance.summary())?;
     }
     for (manual, serial, _, main) in manuals(s) {
         let sw = manual.software.as_deref().map(|v| format!("SW {v}: ")).unwrap_or_default();
@@ -106,9 +161,10 @@ fn show_sensor(entry: &Entry, with_fields: bool, out: &mut dyn Write) -> Result<
         let fixed = c.fixed_slave.map(|a| format!(" (to address 0x{a:02X})")).unwrap_or_default();
         let role = c.role.map(|r| format!(" [{}]", r.name())).unwrap_or_default();
         let since = c.since.as_ref().map(|v| format!(" (since SW {v})")).unwrap_or_default();
+        let sourced = c.provenance.as_ref().map(|p| format!(" ({})", p.summary())).unwrap_or_default();
         writeln!(
             out,
-            "  {:width$}  {function} 0x{:04X} x{:<2}  {}{fixed}{role}{since}",
+            "  {:width$}  {function} 0x{:04X} x{:<2}  {}{fixed}{role}{since}{sourced}",
             c.name,
             c.address,
             c.count,
@@ -151,7 +207,10 @@ pub fn sensor_json(entry: &Entry) -> Json {
         "model": s.model,
         "model_code": s.model_code,
         "origin": match &entry.origin { Origin::BuiltIn => "built-in".to_owned(), Origin::Loaded(p) => p.display().to_string() },
-        "manual": manual_json(&s.manual),
+        "also_model_codes": s.also_model_codes,
+        "aliases": s.aliases,
+        "provenance": s.provenance,
+        "manual": s.manual.as_ref().map(manual_json),
         "manuals": manuals(s).into_iter().map(|(m, serial, doc, main)| {
             let mut j = manual_json(m);
             if let Some(o) = j.as_object_mut() {

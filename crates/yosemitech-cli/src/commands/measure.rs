@@ -9,7 +9,7 @@ use std::io::Write;
 use std::time::{Duration, SystemTime};
 
 use serde_json::{Map, Value as Json, json};
-use yosemitech_spec::{CommandSpec, Field, FieldKind, Procedure, Sensor, Value};
+use yosemitech_spec::{CommandSpec, Field, FieldKind, Procedure, Role, Sensor, Value};
 
 use crate::catalog::Catalog;
 use crate::cli::{Global, MeasureArgs};
@@ -166,6 +166,8 @@ pub struct ProcedureResult {
     pub readings: u32,
     /// Every named field of every read, in the procedure's order.
     pub fields: Vec<FieldResult>,
+    /// What failed without stopping the procedure (a refused Start Measurement).
+    pub warnings: Vec<String>,
 }
 
 /// The commands a procedure names, in order (a name the spec lacks is an error).
@@ -215,9 +217,19 @@ pub fn run_procedure(
     }
 
     let mut taken = 0;
+    let mut warnings = Vec::new();
     let result = (|| -> Result<()> {
         for command in &before {
-            device::read(opened, command, slave)?;
+            match device::read(opened, command, slave) {
+                // Some probes refuse Start Measurement and measure all the
+                // same (a real Y533 does): go on and read.
+                Err(e) if command.role == Some(Role::StartMeasurement) => {
+                    warnings.push(format!("{} failed ({}); reading anyway", command.name, e.message));
+                }
+                other => {
+                    other?;
+                }
+            }
         }
         if !timing.warm_up.is_zero() {
             let bar = progress::timer(timing.warm_up, "warming up");
@@ -258,7 +270,7 @@ pub fn run_procedure(
     }
     result?;
     closing?;
-    Ok(ProcedureResult { readings: taken, fields })
+    Ok(ProcedureResult { readings: taken, fields, warnings })
 }
 
 /// The error for a sensor without a procedure, naming those that have one.
@@ -379,6 +391,7 @@ pub fn run(catalog: &Catalog, global: &Global, args: &MeasureArgs, out: &mut dyn
             "readings": m.readings,
             "values": values,
             "fields": fields,
+            "warnings": m.warnings,
         });
         writeln!(out, "{}", serde_json::to_string_pretty(&doc).unwrap_or_default())?;
     } else {
@@ -390,6 +403,9 @@ pub fn run(catalog: &Catalog, global: &Global, args: &MeasureArgs, out: &mut dyn
 /// The result, one field a line with its unit; `digits` rounds the means
 /// to that many decimals, `None` shows every digit.
 pub fn show(m: &ProcedureResult, digits: Option<usize>, out: &mut dyn Write) -> Result<()> {
+    for warning in &m.warnings {
+        writeln!(out, "note: {warning}")?;
+    }
     let width = m.fields.iter().map(|r| r.label.len()).max().unwrap_or(0);
     for r in &m.fields {
         let text = if r.is_averaged() {

@@ -166,6 +166,13 @@ struct Found<'c> {
     software: Option<Version>,
     /// The manual that covers its firmware.
     manual: Option<&'c Manual>,
+    /// The models it is: one, or those of the identified sensor that share
+    /// its model code and every command (no read tells them apart).
+    models: Vec<String>,
+    /// Why more than one model is named.
+    models_reason: Option<String>,
+    /// Reads sent to tell sensors that share a model code apart.
+    telling_reads: Vec<String>,
     notes: Vec<String>,
 }
 
@@ -250,9 +257,8 @@ struct Reading<'c> {
 fn read_reply<'c>(read: &SnRead<'c>, data: &[u8]) -> Reading<'c> {
     let (text, before, in_text) = read_sn(read.command, data);
     let matching = |code: &Option<String>| -> Vec<&'c Sensor> {
-        code.as_ref().map_or_else(Vec::new, |c| {
-            read.sensors.iter().copied().filter(|s| s.model_code.as_ref() == Some(c)).collect()
-        })
+        code.as_ref()
+            .map_or_else(Vec::new, |c| read.sensors.iter().copied().filter(|s| s.declares_model_code(c)).collect())
     };
     // The byte before the text first, unless it names no sensor and the text does.
     let (by_before, by_text) = (matching(&before), matching(&in_text));
@@ -281,6 +287,9 @@ fn identify<'c>(
         hardware: None,
         software: None,
         manual: None,
+        models: Vec::new(),
+        models_reason: None,
+        telling_reads: Vec::new(),
         notes: Vec::new(),
     };
     let mut answered = false;
@@ -326,12 +335,28 @@ fn identify<'c>(
                     });
                 }
                 many => {
-                    found.reason = Some(format!(
-                        "{} loaded sensors read their serial number at {at} and declare model code {}",
-                        many.len(),
-                        code.as_deref().unwrap_or("?")
-                    ));
-                    found.candidates = matches;
+                    found.candidates = matches.clone();
+                    match tell_apart(opened, address, many, &mut found.telling_reads)? {
+                        Some(one) => {
+                            found.identified = Some(one);
+                            found.candidates = vec![one];
+                        }
+                        None => {
+                            found.reason = Some(format!(
+                                "{} loaded sensors read their serial number at {at} and declare model code {}{}",
+                                many.len(),
+                                code.as_deref().unwrap_or("?"),
+                                if found.telling_reads.is_empty() {
+                                    String::new()
+                                } else {
+                                    format!(
+                                        "; none answers as only one of them would ({})",
+                                        found.telling_reads.join(", ")
+                                    )
+                                }
+                            ));
+                        }
+                    }
                 }
             }
         }
@@ -371,6 +396,23 @@ fn identify<'c>(
             Answer::Other(note) => found.notes.push(note),
         }
     }
+    if let Some(sensor) = found.identified {
+        let own = sensor.model.clone().unwrap_or_else(|| sensor.name.clone());
+        let models: Vec<String> = match &found.model_code {
+            Some(code) if sensor.declares_model_code(code) => {
+                sensor.models_with_code(code).into_iter().map(str::to_owned).collect()
+            }
+            _ => vec![own],
+        };
+        if models.len() > 1 {
+            found.models_reason = Some(format!(
+                "{} share model code {} and every command: no read tells them apart",
+                models.join(" and "),
+                found.model_code.as_deref().unwrap_or("?")
+            ));
+        }
+        found.models = models;
+    }
     if let (Some(sensor), Some(software)) = (found.identified, found.software) {
         found.manual = manual_for(sensor, software);
         if found.manual.is_none() {
@@ -382,6 +424,75 @@ fn identify<'c>(
         }
     }
     Ok(Some(found))
+}
+
+/// A read that tells `sensor` apart from `others`: one whose register
+/// block (address and count) none of them reads, a measurement read first.
+/// A probe that lacks a block stays silent, so an answer names the sensor.
+fn telling_read<'c>(sensor: &'c Sensor, others: &[&'c Sensor]) -> Option<&'c CommandSpec> {
+    let block = |c: &CommandSpec| (c.function, c.address, c.count);
+    let telling = |c: &&'c CommandSpec| {
+        c.is_read()
+            && !c.trigger
+            && c.fixed_slave.is_none()
+            && others.iter().all(|o| o.commands.iter().all(|d| block(d) != block(c)))
+    };
+    sensor.measurement_reads().find(telling).or_else(|| sensor.commands.iter().find(telling))
+}
+
+/// True when `scan` tells every one of `candidates` (sensors that read
+/// their serial number alike and declare one model code) apart by reads:
+/// however the probe answers, each step has a sensor with a telling read.
+pub fn can_tell_apart(candidates: &[&Sensor]) -> bool {
+    let mut left: Vec<&Sensor> = candidates.to_vec();
+    while left.len() > 1 {
+        let Some(i) = (0..left.len()).find(|&i| {
+            let others: Vec<&Sensor> = left.iter().enumerate().filter(|(j, _)| *j != i).map(|(_, o)| *o).collect();
+            telling_read(left[i], &others).is_some()
+        }) else {
+            return false;
+        };
+        left.remove(i);
+    }
+    true
+}
+
+/// Tells apart sensors that read their serial number alike and declare
+/// the same model code, with the fewest reads: each candidate's telling
+/// read in load order until one answers, and the last one left is named
+/// without a read of its own once every other has stayed silent. `None`
+/// when no read tells them apart (or the answers do not settle it).
+fn tell_apart<'c>(
+    opened: &mut Opened,
+    address: u8,
+    candidates: &[&'c Sensor],
+    sent: &mut Vec<String>,
+) -> Result<Option<&'c Sensor>> {
+    let mut left: Vec<&'c Sensor> = candidates.to_vec();
+    while left.len() > 1 {
+        let Some((i, read)) = left.iter().enumerate().find_map(|(i, s)| {
+            let others: Vec<&Sensor> = left.iter().enumerate().filter(|(j, _)| *j != i).map(|(_, o)| *o).collect();
+            telling_read(s, &others).map(|c| (i, c))
+        }) else {
+            return Ok(None);
+        };
+        let what = format!("{} at 0x{:04X} x{}", read.name, read.address, read.count);
+        match probe(opened, read, address)? {
+            Answer::Data(_) => {
+                sent.push(format!("{what}: answered"));
+                return Ok(Some(left[i]));
+            }
+            Answer::Silent => {
+                sent.push(format!("{what}: silent"));
+                left.remove(i);
+            }
+            Answer::Other(note) => {
+                sent.push(format!("{what}: {note}"));
+                left.remove(i);
+            }
+        }
+    }
+    Ok(left.first().copied().filter(|_| !sent.is_empty()))
 }
 
 /// A device identified as `scan` identifies it, for other commands (the demo).
@@ -463,6 +574,9 @@ fn found_json(f: &Found<'_>) -> serde_json::Value {
         "sensors": f.candidates.iter().map(|s| s.name.as_str()).collect::<Vec<_>>(),
         "sensor": f.identified.map(|s| s.name.as_str()),
         "model": f.identified.and_then(|s| s.model.as_deref()),
+        "models": f.models,
+        "models_reason": f.models_reason,
+        "telling_reads": f.telling_reads,
         "reason": f.reason,
         "hardware": f.hardware.map(|v| v.to_string()),
         "software": f.software.map(|v| v.to_string()),
@@ -480,7 +594,18 @@ fn found_line(f: &Found<'_>) -> String {
     let sn = f.serial_number.as_deref().map_or_else(|| "?".to_owned(), printable);
     let mut line = format!("address {:3}  SN {sn:12}  ", f.address);
     match (f.identified, &f.reason) {
-        (Some(sensor), _) => line.push_str(&sensor_text(sensor)),
+        (Some(sensor), _) => {
+            line.push_str(&sensor_text(sensor));
+            if f.models.len() > 1 || f.models.first().is_some_and(|m| Some(m) != sensor.model.as_ref()) {
+                line.push_str(&format!(": model {}", f.models.join(" or ")));
+            }
+            if let Some(why) = &f.models_reason {
+                line.push_str(&format!(" ({why})"));
+            }
+            if !f.telling_reads.is_empty() {
+                line.push_str(&format!(" [told apart by {}]", f.telling_reads.join(", ")));
+            }
+        }
         (None, reason) => {
             let candidates: Vec<String> = f.candidates.iter().map(|s| sensor_text(s)).collect();
             let which = match candidates.as_slice() {

@@ -64,7 +64,12 @@ pub fn run(catalog: &Catalog, args: &SimulateArgs, stop: &Arc<AtomicBool>, out: 
     };
     let mut sim = Simulator::new(Arc::clone(&sensor)).with_address(address).with_faults(faults);
     if let Some(noise) = args.noise {
-        sim.set_variation(Some(Variation { seed: args.seed, noise, drift_per_read: 0.0 }));
+        sim.set_variation(Some(Variation::noise(args.seed, noise, 0.0)));
+    }
+    if args.water {
+        sim.fill_with_water();
+        let noise = args.noise.unwrap_or(0.0);
+        sim.set_variation(Some(Variation { noise, ..Variation::water(args.seed, 0.04, Duration::from_secs(86_400)) }));
     }
     if args.exceptions {
         sim.set_unknown_request_policy(UnknownRequestPolicy::Exception);

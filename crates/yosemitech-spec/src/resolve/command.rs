@@ -22,7 +22,7 @@ use crate::model::{CommandErratum, CommandSpec, Field, FieldKind, Role};
 use crate::names::check_snake;
 
 use super::field::resolve_fields;
-use super::sensor::resolve_source;
+use super::sensor::{resolve_provenance, resolve_source};
 use super::{MAX_READ_COUNT, MAX_WRITE_COUNT};
 
 /// The key of a command entry: `commands[3] (get_ph)`, the name only when it is valid.
@@ -44,6 +44,7 @@ pub(super) fn check_use_entry(c: &CommandDoc, i: usize, r: &mut Reporter<'_>) {
         ("fixed_slave", c.fixed_slave.as_ref().map(Pos::at)),
         ("fields", c.fields.as_ref().map(Pos::at)),
         ("extra_byte_counts", c.extra_byte_counts.first().map(Pos::at)),
+        ("provenance", c.provenance.as_ref().and_then(|p| p.sources.first()).map(Pos::at)),
     ]
     .into_iter()
     .filter_map(|(k, p)| p.map(|p| (k, p)))
@@ -99,6 +100,7 @@ pub(super) fn resolve_command(
     let title = c.title.as_ref().map(|t| check_text(t, &format!("{key}.title"), r));
     let doc = c.doc.as_ref().map(|t| check_text(t, &format!("{key}.doc"), r));
     let source = c.source.as_ref().map(|s| resolve_source(s, &format!("{key}.source"), r)).unwrap_or_default();
+    let provenance = c.provenance.as_ref().map(|p| resolve_provenance(p, &format!("{key}.provenance"), at, r));
     let function = require(&c.function, at, &format!("{key}.function"), "function", r).map(|f| match f.value {
         FunctionDoc::Read => Function::Read,
         FunctionDoc::Write => Function::Write,
@@ -168,6 +170,7 @@ pub(super) fn resolve_command(
         title: title.unwrap_or_else(|| name.value.replace('_', " ")),
         doc: doc.unwrap_or_default(),
         source,
+        provenance,
         function: function?,
         address: address?,
         count: count?,

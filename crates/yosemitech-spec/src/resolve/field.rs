@@ -332,6 +332,30 @@ fn resolve_field(f: &FieldDoc, key: &str, at: Pos, offset: usize, r: &mut Report
         Some(rg) => Some((rg.value.min, rg.value.max)),
         None => None,
     };
+    let typical = match &f.typical {
+        Some(t) if !numeric => {
+            r.error(
+                Pos::at(t),
+                format!("{key}.typical"),
+                format!("`typical` does not apply to a `{ty_name}` field"),
+                None,
+            );
+            ok = false;
+            None
+        }
+        Some(t) if !t.value.is_finite() || range.is_some_and(|(min, max)| t.value < min || t.value > max) => {
+            r.error(
+                Pos::at(t),
+                format!("{key}.typical"),
+                format!("typical value {} is not a finite number within the field's range", t.value),
+                range.map(|(min, max)| format!("use a value in {min}..={max}")),
+            );
+            ok = false;
+            None
+        }
+        Some(t) => Some(t.value),
+        None => None,
+    };
     let unit = f.unit.as_ref().map(|u| check_text(u, &format!("{key}.unit"), r));
     let doc = f.doc.as_ref().map(|d| check_text(d, &format!("{key}.doc"), r));
     let kind = kind?;
@@ -363,7 +387,7 @@ fn resolve_field(f: &FieldDoc, key: &str, at: Pos, offset: usize, r: &mut Report
         r.error(pos, format!("{key}.range"), format!("a `bcd` byte holds 0..=99, not {min}..={max}"), None);
         ok = false;
     }
-    let mut field = Field { name, kind, offset, unit, doc, range, absent, examples: Vec::new() };
+    let mut field = Field { name, kind, offset, unit, doc, range, typical, absent, examples: Vec::new() };
     for (j, e) in f.examples.iter().enumerate() {
         let ek = format!("{key}.examples[{j}]");
         let figures = resolve_figures(&e.figures, &format!("{ek}.figures"), Pos::at(&e.bytes), r);

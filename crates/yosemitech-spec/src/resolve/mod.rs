@@ -34,7 +34,7 @@ use constant::resolve_constants;
 use errata::resolve_errata;
 use includes::{check_fragment, collect_includes, include_target};
 use procedure::resolve_procedure;
-use sensor::{check_manual_refs, resolve_sensor_head, resolve_source};
+use sensor::{check_manual_refs, check_unsourced, resolve_sensor_head, resolve_source};
 pub use todo::IMPORT_TODO;
 
 pub use crate::check::{MAX_TEXT_LEN, parse_hex};
@@ -664,6 +664,7 @@ impl Loader<'_> {
             }
         }
         check_manual_refs(sensor_doc, doc, &mut r);
+        check_unsourced(sensor_doc, doc, &mut r);
         let procedure = doc.procedure.as_ref().and_then(|p| resolve_procedure(p, &commands, &mut r));
         let constants = resolve_constants(&doc.constants, &mut r);
         let errata = resolve_errata(&doc.errata, &mut r);
@@ -678,7 +679,10 @@ impl Loader<'_> {
             doc: head.doc,
             model: head.model,
             model_code: head.model_code,
+            also_model_codes: head.also_model_codes,
+            aliases: head.aliases,
             manual: head.manual,
+            provenance: head.provenance,
             revisions: head.revisions,
             serial: head.serial,
             min_address: head.min_address,

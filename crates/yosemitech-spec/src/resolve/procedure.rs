@@ -14,7 +14,7 @@ use crate::document::ProcedureDoc;
 use crate::model::{CommandSpec, Procedure};
 use crate::names::escape;
 
-use super::sensor::resolve_source;
+use super::sensor::{resolve_provenance, resolve_source};
 
 /// The procedure, with every command it names checked against the sensor's.
 pub(super) fn resolve_procedure(p: &ProcedureDoc, commands: &[CommandSpec], r: &mut Reporter<'_>) -> Option<Procedure> {
@@ -88,9 +88,14 @@ pub(super) fn resolve_procedure(p: &ProcedureDoc, commands: &[CommandSpec], r: &
         }
     }
     let source = p.source.as_ref().map(|s| resolve_source(s, "procedure.source", r));
+    let provenance = p.provenance.as_ref().map(|doc| {
+        let at = doc.sources.first().map_or(Pos { line: 0, column: 0 }, Pos::at);
+        resolve_provenance(doc, "procedure.provenance", at, r)
+    });
     let doc = p.doc.as_ref().map(|d| check_text(d, "procedure.doc", r));
     ok.then(|| Procedure {
         source,
+        provenance,
         doc,
         before,
         warm_up_ms: p.warm_up_ms.as_ref().map_or(0, |v| v.value),

@@ -14,8 +14,8 @@ use serde_saphyr::Spanned;
 
 use crate::check::{check_name, check_role, check_text, resolve_figures};
 use crate::diag::{Pos, Reporter};
-use crate::document::{ManualDoc, SensorDoc, SerialDoc, SourceDoc, SpecFile};
-use crate::model::{Manual, Revision, SerialClaim, Source};
+use crate::document::{ManualDoc, ProvenanceDoc, SensorDoc, SerialDoc, SourceDoc, SpecFile};
+use crate::model::{Manual, ModelAlias, Provenance, Revision, SerialClaim, Source};
 use crate::names::escape;
 use yosemitech_rtu::{CharFormat, DataBits, LineSettings, StopBits};
 
@@ -23,7 +23,9 @@ use super::command::command_key;
 
 /// Every `since` and `manual` of a sensor file names one of its manuals' `software`.
 pub(super) fn check_manual_refs(sensor: &SensorDoc, doc: &SpecFile, r: &mut Reporter<'_>) {
-    let known: Vec<&str> = std::iter::once(&sensor.manual)
+    let known: Vec<&str> = sensor
+        .manual
+        .iter()
         .chain(sensor.revisions.iter().map(|rev| &rev.manual))
         .filter_map(|m| m.software.as_ref().map(|s| s.value.as_str()))
         .collect();
@@ -61,7 +63,7 @@ pub(super) fn check_manual_refs(sensor: &SensorDoc, doc: &SpecFile, r: &mut Repo
             for (k, cited) in e.also_in.iter().enumerate() {
                 let cited_key = format!("{key}.examples[{j}].also_in[{k}].manual");
                 check(&cited.manual, cited_key.clone(), r);
-                let default = sensor.manual.software.as_ref().map(|s| &s.value);
+                let default = sensor.manual.as_ref().and_then(|m| m.software.as_ref()).map(|s| &s.value);
                 if e.manual.is_none() && default == Some(&cited.manual.value) {
                     r.error(
                         Pos::at(&cited.manual),
@@ -91,6 +93,64 @@ pub(super) fn check_manual_refs(sensor: &SensorDoc, doc: &SpecFile, r: &mut Repo
     }
 }
 
+/// Facts from a driver carry no manual's figures and no example: no frame,
+/// CRC or value that no source states. That holds for every command of a
+/// sensor with `provenance`, and for a command with its own.
+pub(super) fn check_unsourced(sensor: &SensorDoc, doc: &SpecFile, r: &mut Reporter<'_>) {
+    let sensor_unsourced = sensor.manual.is_none();
+    for (i, c) in doc.commands.iter().enumerate() {
+        if !(sensor_unsourced || c.provenance.is_some()) {
+            continue;
+        }
+        let key = command_key(i, c);
+        let why = if sensor_unsourced {
+            "the sensor has no manual"
+        } else {
+            "the command's facts come from its `provenance`"
+        };
+        if let Some(e) = c.examples.first() {
+            let at = e.request.as_ref().or(e.response.as_ref()).map(Pos::at);
+            r.error(
+                at.unwrap_or_else(|| c.name.as_ref().or(c.uses.as_ref()).map_or(Pos::at(&sensor.name), Pos::at)),
+                format!("{key}.examples"),
+                format!("{why}: an example would be a frame no source prints"),
+                Some("remove `examples`; the tests take values from each field's type and range".into()),
+            );
+        }
+        if let Some(src) = &c.source
+            && sensor_unsourced
+        {
+            r.error(
+                Pos::at(&src.section),
+                format!("{key}.source"),
+                format!("{why}: there are no sections or figures to cite"),
+                Some("name where the facts come from in `sensor.provenance` (or the command's `provenance`)".into()),
+            );
+        }
+        for (j, f) in c.fields.iter().flat_map(|f| f.value.iter()).enumerate() {
+            if let Some(e) = f.examples.first() {
+                r.error(
+                    Pos::at(&e.bytes),
+                    format!("{key}.fields[{j}].examples"),
+                    format!("{why}: a printed value needs a printed source"),
+                    Some("remove the field's `examples`".into()),
+                );
+            }
+        }
+    }
+    if sensor_unsourced
+        && let Some(p) = &doc.procedure
+        && let Some(src) = &p.source
+    {
+        r.error(
+            Pos::at(&src.section),
+            "procedure.source",
+            "the sensor has no manual: there is no section to cite",
+            Some("say where the steps and timings come from with `procedure.provenance`".into()),
+        );
+    }
+}
+
 /// A sensor's header, checked.
 pub(super) struct Head {
     pub(super) name: String,
@@ -98,7 +158,10 @@ pub(super) struct Head {
     pub(super) doc: String,
     pub(super) model: Option<String>,
     pub(super) model_code: Option<String>,
-    pub(super) manual: Manual,
+    pub(super) also_model_codes: Vec<String>,
+    pub(super) aliases: Vec<ModelAlias>,
+    pub(super) manual: Option<Manual>,
+    pub(super) provenance: Option<Provenance>,
     pub(super) revisions: Vec<Revision>,
     pub(super) serial: LineSettings,
     pub(super) min_address: u8,
@@ -117,26 +180,97 @@ pub(super) fn resolve_sensor_head(s: &SensorDoc, r: &mut Reporter<'_>) -> Option
         );
     let title = check_text(&s.title, "sensor.title", r);
     let doc = check_text(&s.doc, "sensor.doc", r);
-    let manual = resolve_manual(&s.manual, "sensor.manual", r);
-    let model = s.model.as_ref().map(|m| check_text(m, "sensor.model", r));
-    let model_code = s.model_code.as_ref().map(|m| {
-        let code = m.value.trim();
-        if code.len() != 2 || !code.chars().all(|c| c.is_ascii_digit()) {
-            r.error(
-                Pos::at(m),
-                "sensor.model_code",
-                format!("model code `{}` is not two digits", escape(&m.value)),
-                Some("write the two digits after `YL` in the serial number, quoted: `model_code: \"09\"`".into()),
-            );
-        }
-        code.to_string()
-    });
+    let manual = s.manual.as_ref().map(|m| resolve_manual(m, "sensor.manual", r));
+    let provenance = s.provenance.as_ref().map(|p| resolve_provenance(p, "sensor.provenance", Pos::at(&s.name), r));
     let mut ok = name_ok;
+    match (&s.manual, &s.provenance) {
+        (None, None) => {
+            r.error(
+                Pos::at(&s.name),
+                "sensor.manual",
+                "a sensor states its `manual`, or its `provenance` when no Modbus manual covers the model",
+                Some("add `manual: {title: ..., revision: ...}`, or `provenance: {sources: [...]}` naming the driver or logger the facts come from".into()),
+            );
+            ok = false;
+        }
+        (Some(m), Some(_)) => {
+            r.error(
+                Pos::at(&m.title),
+                "sensor.provenance",
+                "a sensor with a `manual` takes its facts from it: `provenance` is for a sensor without one",
+                Some(
+                    "remove `sensor.provenance`, or give `provenance` to the commands whose facts come from elsewhere"
+                        .into(),
+                ),
+            );
+            ok = false;
+        }
+        _ => {}
+    }
+    if s.manual.is_none()
+        && let Some(first) = s.revisions.first()
+    {
+        r.error(
+            Pos::at(&first.manual.title),
+            "sensor.revisions",
+            "a sensor without a `manual` has no other manual revisions",
+            Some("make one of the manuals the sensor's `manual` and drop `provenance`".into()),
+        );
+        ok = false;
+    }
+    let model = s.model.as_ref().map(|m| check_text(m, "sensor.model", r));
+    let model_code = s.model_code.as_ref().map(|m| check_model_code(m, "sensor.model_code", r));
+    let also_model_codes: Vec<String> = s
+        .also_model_codes
+        .iter()
+        .enumerate()
+        .map(|(i, m)| check_model_code(m, &format!("sensor.also_model_codes[{i}]"), r))
+        .collect();
+    if let Some(first) = s.also_model_codes.first()
+        && s.model_code.is_none()
+    {
+        r.error(
+            Pos::at(first),
+            "sensor.model_code",
+            "`also_model_codes` lists codes besides the sensor's `model_code`, which is missing",
+            Some("state the model's current code as `model_code`".into()),
+        );
+        ok = false;
+    }
+    let mut aliases = Vec::new();
+    for (i, a) in s.aliases.iter().enumerate() {
+        let key = format!("sensor.aliases[{i}]");
+        let alias_model = check_text(&a.model, &format!("{key}.model"), r);
+        if s.model.is_none() {
+            r.error(
+                Pos::at(&a.model),
+                "sensor.model",
+                "a sensor with `aliases` states its own `model` too",
+                Some("add `model:` to `sensor`".into()),
+            );
+            ok = false;
+        }
+        let taken = s.model.as_ref().is_some_and(|m| m.value.eq_ignore_ascii_case(&a.model.value))
+            || s.aliases[..i].iter().any(|b| b.model.value.eq_ignore_ascii_case(&a.model.value));
+        if taken {
+            r.error(
+                Pos::at(&a.model),
+                format!("{key}.model"),
+                format!("model `{}` is named twice in this sensor", escape(&a.model.value)),
+                Some("each alias is another model".into()),
+            );
+            ok = false;
+        }
+        let alias_code = a.model_code.as_ref().map(|m| check_model_code(m, &format!("{key}.model_code"), r));
+        let doc = a.doc.as_ref().map(|d| check_text(d, &format!("{key}.doc"), r));
+        let provenance = resolve_provenance(&a.provenance, &format!("{key}.provenance"), Pos::at(&a.model), r);
+        aliases.push(ModelAlias { model: alias_model, model_code: alias_code, doc, provenance });
+    }
     let serial = resolve_serial(&s.serial, "sensor.serial", r);
     ok &= serial.is_some();
     let mut revisions = Vec::new();
     let mut softwares: BTreeMap<String, Pos> = BTreeMap::new();
-    if let Some(sw) = &s.manual.software {
+    if let Some(sw) = s.manual.as_ref().and_then(|m| m.software.as_ref()) {
         softwares.insert(sw.value.clone(), Pos::at(sw));
     }
     for (i, rev) in s.revisions.iter().enumerate() {
@@ -153,9 +287,9 @@ pub(super) fn resolve_sensor_head(s: &SensorDoc, r: &mut Reporter<'_>) -> Option
                 ok = false;
             }
             Some(sw) => {
-                if s.manual.software.is_none() {
+                if let Some(m) = s.manual.as_ref().filter(|m| m.software.is_none()) {
                     r.error(
-                        Pos::at(&s.manual.title),
+                        Pos::at(&m.title),
                         "sensor.manual.software",
                         "a sensor with `revisions` states the `software` of its `manual` too",
                         Some("add `software:` to `sensor.manual`".into()),
@@ -216,13 +350,50 @@ pub(super) fn resolve_sensor_head(s: &SensorDoc, r: &mut Reporter<'_>) -> Option
         doc,
         model,
         model_code,
+        also_model_codes,
+        aliases,
         manual,
+        provenance,
         revisions,
         serial: serial?,
         min_address: min as u8,
         max_address: max as u8,
         default_address: default as u8,
     })
+}
+
+fn check_model_code(m: &Spanned<String>, key: &str, r: &mut Reporter<'_>) -> String {
+    let code = m.value.trim();
+    if code.len() != 2 || !code.chars().all(|c| c.is_ascii_digit()) {
+        r.error(
+            Pos::at(m),
+            key,
+            format!("model code `{}` is not two digits", escape(&m.value)),
+            Some("write the two digits after `YL` in the serial number, quoted: `model_code: \"09\"`".into()),
+        );
+    }
+    code.to_string()
+}
+
+/// The sources of facts no manual states: at least one, each one line.
+pub(super) fn resolve_provenance(p: &ProvenanceDoc, key: &str, at: Pos, r: &mut Reporter<'_>) -> Provenance {
+    if p.sources.is_empty() {
+        r.error(
+            at,
+            format!("{key}.sources"),
+            "a provenance names at least one source",
+            Some("add `sources: [\"<driver> <version>\", \"<its issue>\"]`: where a reader can check the facts".into()),
+        );
+    }
+    Provenance {
+        sources: p
+            .sources
+            .iter()
+            .enumerate()
+            .map(|(i, src)| check_text(src, &format!("{key}.sources[{i}]"), r))
+            .collect(),
+        doc: p.doc.as_ref().map(|d| check_text(d, &format!("{key}.doc"), r)),
+    }
 }
 
 fn resolve_manual(m: &ManualDoc, key: &str, r: &mut Reporter<'_>) -> Manual {

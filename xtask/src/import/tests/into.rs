@@ -108,7 +108,7 @@ fn without_revision(text: &str, sensor: &Sensor, spec: &Spec, sw: &str) -> Strin
     let lines = edit::lines_of(text);
     let root = edit::root(&lines);
     let mut e = Edits::default();
-    let default_sw = sensor.manual.software.clone().unwrap_or_default();
+    let default_sw = sensor.manual.as_ref().and_then(|m| m.software.clone()).unwrap_or_default();
     let remaining: Vec<String> = sensor.manuals().filter_map(|m| m.software.clone()).filter(|s| s != sw).collect();
     let oldest = remaining.iter().min_by_key(|s| vkey(s)).cloned().unwrap_or_default();
     let next_above = remaining.iter().filter(|s| vkey(s) > vkey(sw)).min_by_key(|s| vkey(s)).cloned();
@@ -298,7 +298,7 @@ fn layout(c: &CommandSpec) -> String {
 /// The differences between the reviewed sensor and the merged one: (category, what).
 fn differences(want: &Sensor, got: &Sensor, removed_sw: &str) -> Vec<(&'static str, String)> {
     let mut out: Vec<(&'static str, String)> = Vec::new();
-    let default_sw = want.manual.software.clone().unwrap_or_default();
+    let default_sw = want.manual.as_ref().and_then(|m| m.software.clone()).unwrap_or_default();
     // The manuals.
     let serial = |s: &Sensor, sw: &str| s.serial_for(sw).to_string();
     for m in want.manuals() {
@@ -539,7 +539,9 @@ fn a_manual_of_another_probe_is_refused_with_its_spec_named() {
     let (dir, spec) = copy_spec("refused", &manuals);
     let mut refused = 0;
     for owner in &spec.sensors {
-        let Some(file) = owner.manual.file.clone().filter(|f| manuals.contains_key(f)) else { continue };
+        let Some(file) = owner.manual.as_ref().and_then(|m| m.file.clone()).filter(|f| manuals.contains_key(f)) else {
+            continue;
+        };
         let text = read_manual(&manuals[&file]).expect("the manual");
         for other in spec.sensors.iter().filter(|s| s.name != owner.name) {
             match merge_text(&text, &file, &other.file) {
