@@ -11,7 +11,7 @@
 use std::path::PathBuf;
 
 use yosemitech::{Client, Command, EncodeError, ResponderTransport};
-use yosemitech_tests::do_probe::{self, GetOxygenSample, GetModel, Mode, SetOffsets, State};
+use yosemitech_tests::do_probe::{self, GetModel, GetOxygenSample, Mode, SetOffsets, State};
 
 fn fixture_dir() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("fixtures/do-probe/spec")

@@ -16,7 +16,7 @@ use yosemitech_rtu::tokio_modbus::{Error, Unsupported, call, call_raw};
 use yosemitech_rtu::{ExceptionCode, FrameError, SensorModule};
 use yosemitech_sim::{FrameHandler, ServeConfig, Simulator, UnknownRequestPolicy, serve_mbap, serve_tcp};
 use yosemitech_spec::Role;
-use yosemitech_tests::do_probe::{self, GetOxygenSample, GetOffsets, SetOffsets};
+use yosemitech_tests::do_probe::{self, GetOffsets, GetOxygenSample, SetOffsets};
 use yosemitech_tests::spec;
 
 /// Bounds every tokio-modbus call: its RTU client has no timeout of its own.

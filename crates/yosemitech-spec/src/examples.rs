@@ -424,10 +424,7 @@ pub(crate) fn check_example(
             r.error(
                 request_at,
                 format!("{key}.request"),
-                format!(
-                    "the request is {printed_len} bytes with its CRC, but a `{}` request is {want}",
-                    cmd.name
-                ),
+                format!("the request is {printed_len} bytes with its CRC, but a `{}` request is {want}", cmd.name),
                 Some("write one `??` per byte the manual does not give, or end the frame with `...`".into()),
             );
         }
