@@ -11,7 +11,7 @@
 use std::path::PathBuf;
 
 use yosemitech::{Client, Command, EncodeError, ResponderTransport};
-use yosemitech_tests::do_probe::{self, GetDissolvedOxygen, GetModel, Mode, SetOffsets, State};
+use yosemitech_tests::do_probe::{self, GetModel, GetOxygenSample, Mode, SetOffsets, State};
 
 fn fixture_dir() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("fixtures/do-probe/spec")
@@ -46,12 +46,12 @@ fn fixture_decodes_its_own_examples() {
 #[test]
 fn fixture_types_are_typed() {
     let reply = [0x0A, 0x03, 0x0C, 0x41, 0x04, 0x00, 0x00, 0x03, 0xA7, 0x1E, 0xFB, 0xE2, 0x40, 0x00, 0x01, 0xB7, 0x62];
-    let r = GetDissolvedOxygen::decode_response(10, &reply).unwrap();
+    let r = GetOxygenSample::decode_response(10, &reply).unwrap();
     assert_eq!(r.do_mg_l, 8.25_f32);
     assert_eq!(r.saturation_permille, 935_u16);
     assert_eq!(r.temperature_centi_c, -1250_i16);
     assert_eq!(r.sample_count, 123_456_u32);
-    let units: Vec<_> = do_probe::GetDissolvedOxygenResponse::FIELDS.iter().map(|f| f.unit).collect();
+    let units: Vec<_> = do_probe::GetOxygenSampleResponse::FIELDS.iter().map(|f| f.unit).collect();
     assert_eq!(units, [Some("mg/L"), Some("‰"), Some("0.01 degC"), None]);
 
     let model = [0x0A, 0x03, 0x0C, 0x44, 0x4F, 0x2D, 0x35, 0x58, 0x20, 0x20, 0x20, 0x20, 0x20, 0x02, 0x07, 0x5F, 0xC4];
@@ -106,7 +106,7 @@ fn fixture_device_handle() {
     assert_eq!(probe.mode().unwrap(), Mode::OnDemand);
     let status = probe.status().unwrap();
     assert_eq!((status.state, status.error_count), (State::Measuring, 3));
-    assert_eq!(probe.dissolved_oxygen().unwrap().do_mg_l, 8.25);
+    assert_eq!(probe.oxygen_sample().unwrap().do_mg_l, 8.25);
     probe.set_mode(Mode::OnDemand).unwrap();
     probe.start_cleaning().unwrap();
     probe.set_offsets(SetOffsets { pressure_offset_pa: -2500, salinity_ppt: 35.5, membrane_correction: -12 }).unwrap();

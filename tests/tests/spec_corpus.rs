@@ -58,6 +58,7 @@ const FIRST_LOCATION: &[(&str, &str)] = &[
     ("names-collide-after-conversion", "names-collide-after-conversion.yaml:18:11"),
     ("not-utf8", "not-utf8.yaml:4:13"),
     ("overlapping-fields", "overlapping-fields.yaml:18:57"),
+    ("partial-request-wrong-length", "partial-request-wrong-length.yaml:21:18"),
     ("printed-decodes-wrong", "printed-decodes-wrong.yaml:34:28"),
     ("request-does-not-encode", "request-does-not-encode.yaml:20:18"),
     ("request-wrong-register", "request-wrong-register.yaml:20:18"),

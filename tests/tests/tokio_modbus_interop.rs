@@ -16,7 +16,7 @@ use yosemitech_rtu::tokio_modbus::{Error, Unsupported, call, call_raw};
 use yosemitech_rtu::{ExceptionCode, FrameError, SensorModule};
 use yosemitech_sim::{FrameHandler, ServeConfig, Simulator, UnknownRequestPolicy, serve_mbap, serve_tcp};
 use yosemitech_spec::Role;
-use yosemitech_tests::do_probe::{self, GetDissolvedOxygen, GetOffsets, SetOffsets};
+use yosemitech_tests::do_probe::{self, GetOffsets, GetOxygenSample, SetOffsets};
 use yosemitech_tests::spec;
 
 /// Bounds every tokio-modbus call: its RTU client has no timeout of its own.
@@ -131,7 +131,7 @@ fn typed_calls_write_read_back_and_report_exceptions() {
     block_on(async {
         let mut ctx = tcp::connect(addr).await.unwrap();
         // The fixture's example reading, typed.
-        let reading = call(&mut ctx, slave, &GetDissolvedOxygen).await.unwrap();
+        let reading = call(&mut ctx, slave, &GetOxygenSample).await.unwrap();
         assert_eq!((reading.do_mg_l, reading.sample_count), (8.25, 123_456));
         // A write, read back through the generated decoder.
         let offsets = SetOffsets { pressure_offset_pa: -1234, salinity_ppt: 12.5, membrane_correction: 7 };

@@ -202,7 +202,12 @@ fn command_section(d: &mut String, c: &CommandSpec) {
             writeln!(d, "- Reply byte count: 0x{:02X}, also accepted: {}", 2 * usize::from(c.count), counts.join(", "));
     }
     if c.trigger {
-        let _ = writeln!(d, "- Trigger: a write of zero registers with byte count 0");
+        let what = if c.is_read() {
+            "a read used as a command; its reply carries no value"
+        } else {
+            "a write of zero registers with byte count 0"
+        };
+        let _ = writeln!(d, "- Trigger: {what}");
     }
     let mut source = format!("section {}", cell(&c.source.section));
     if !c.source.figures.is_empty() {

@@ -1527,7 +1527,7 @@ fn spec_sensors_work_through_the_interpreter() {
     let dir = fixture_spec_dir();
     let spec = dir.to_str().unwrap();
     let (child, port) = spawn_simulate(&["--spec", spec, "do_probe"]);
-    let out = YOSEMITECH.run(&["read", "--spec", spec, "do_probe", "get_dissolved_oxygen", "-p", &port]);
+    let out = YOSEMITECH.run(&["read", "--spec", spec, "do_probe", "get_oxygen_sample", "-p", &port]);
     let text = out.ok();
     assert!(text.contains("do_mg_l") && text.contains("8.25 mg/L") && text.contains("-1250"), "{text}");
     let run = YOSEMITECH.run(&["--spec", spec, "poll", "do_probe", "-p", &port, "-n", "2", "-i", "0", "-f", "csv"]);

@@ -416,6 +416,18 @@ pub(crate) fn check_example(
             head[0] = fixed;
         }
         check_stated_bytes(partial, &head, "request", key, request_at, cmd, r);
+        // A request has one length; placeholders stand for bytes, one each,
+        // so a partial request without a closing `...` must have it too.
+        let printed_len = partial.bytes.len() + if partial.crc_printed { 0 } else { 2 };
+        let want = cmd.layout().request_len();
+        if !partial.open_ended && printed_len != want {
+            r.error(
+                request_at,
+                format!("{key}.request"),
+                format!("the request is {printed_len} bytes with its CRC, but a `{}` request is {want}", cmd.name),
+                Some("write one `??` per byte the manual does not give, or end the frame with `...`".into()),
+            );
+        }
     }
 
     // The reply: decodes to the stated values and re-encodes to itself, or
