@@ -176,6 +176,10 @@ pub mod conductivity {
 ///
 /// Model Y504, model code 01 (serial numbers `YL01...`).
 ///
+/// Model Y502 answers with the same commands (no manual: from EnviroDIY YosemitechModbus 0.5.x (the field's C++ driver)).
+///
+/// Model Y505 answers with the same commands, model code 50 (no manual: from EnviroDIY YosemitechModbus 0.5.x (the field's C++ driver); YosemitechModbus issue 34 (the Y505 answers the Y504's commands)).
+///
 /// Generated from the spec of the manual "Optical Dissolved Oxygen Sensor, MODBUS RTU Programmer Manuel" (HW Rev2.0 / SW Rev6.2 or later). Serial: 9600 baud, 8N1; slave addresses 1..=247, factory address 1.
 ///
 /// | Command | Function | Address | Registers | Request | Reply |
