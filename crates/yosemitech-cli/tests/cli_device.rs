@@ -106,7 +106,11 @@ fn demo_reads_every_sensor_and_runs_every_procedure() {
                     continue;
                 }
                 let mean = shown_number(part, &read.name, name);
-                let span = field.range.map_or_else(|| f64::from(start.abs()).max(1.0), |(min, max)| max - min);
+                let span = match field.range {
+                    _ if field.unit.as_deref() == Some("degC") => yosemitech_sim::WATER_TEMPERATURE_SPAN_C,
+                    Some((min, max)) => max - min,
+                    None => f64::from(start.abs()).max(1.0),
+                };
                 assert!(
                     (mean - f64::from(start)).abs() <= 0.05 * span + 0.01,
                     "{}: {name} {mean} is far from the water's {start}",
@@ -956,6 +960,30 @@ fn sensors_with_a_procedure() -> Vec<Sensor> {
 }
 
 #[test]
+fn a_refused_start_does_not_stop_a_measurement() {
+    // Some probes refuse Start Measurement and measure all the same (a real
+    // Y533 does): every procedure that starts one reads on, and says so.
+    let mut tried = 0;
+    for sensor in sensors_with_a_procedure() {
+        let procedure = sensor.procedure.clone().unwrap();
+        let Some(start) = sensor.command_with_role(Role::StartMeasurement) else { continue };
+        if !procedure.before.contains(&start.name) {
+            continue;
+        }
+        let mut device = Simulator::new(Arc::new(sensor.clone())).with_address(sensor.default_address);
+        device.set_refuses_start(true);
+        let s = yosemitech_tests::cli::serve(device);
+        let json =
+            YOSEMITECH.run(&["measure", &sensor.name, "-p", &s.path, "--fast", "--readings", "2", "--json"]).json();
+        assert_eq!(json["readings"], 2, "{}: {json}", sensor.name);
+        let warnings = json["warnings"].as_array().unwrap();
+        assert!(warnings.iter().any(|w| w.as_str().is_some_and(|w| w.contains(&start.name))), "{json}");
+        tried += 1;
+    }
+    report!("a refused start: {tried} procedures read on");
+}
+
+#[test]
 fn measure_runs_every_procedure_and_prints_each_field() {
     let sensors = sensors_with_a_procedure();
     for sensor in &sensors {
@@ -1272,14 +1300,73 @@ fn scan_takes_the_model_code_from_the_byte_before_the_serial_number() {
         assert_eq!(device["model_code"].as_str(), Some(code), "{device}");
         assert_eq!(device["serial_number"], text.as_str());
         let twins: Vec<String> = declaring(sensor, code).into_iter().map(|t| t.name).collect();
-        assert_eq!(device["sensors"], serde_json::json!(twins), "{device}");
-        if twins.len() == 1 {
+        let twin_sensors = declaring(sensor, code);
+        let refs: Vec<&Sensor> = twin_sensors.iter().collect();
+        if twins.len() == 1 || yosemitech_cli::scan_tells_apart(&refs) {
             assert_eq!(device["sensor"], sensor.name.as_str(), "{device}");
         } else {
+            assert_eq!(device["sensors"], serde_json::json!(twins), "{device}");
             assert_eq!(device["sensor"], Json::Null, "{device}");
         }
     }
     report!("scan read the model code from the byte before the serial number of {} probes", sensors.len());
+}
+
+#[test]
+fn scan_names_the_model_of_every_code_a_sensor_declares() {
+    // A probe of a sensor sending any code the sensor declares (its own,
+    // older ones, its aliases'): scan names the models of that code, the
+    // aliases that share it beside the sensor's own model, with the reason.
+    let mut bus = Bus::new();
+    let mut expected: Vec<(Sensor, String)> = Vec::new();
+    for sensor in identifiable() {
+        let codes: Vec<String> = sensor
+            .model_codes()
+            .map(str::to_owned)
+            .chain(sensor.aliases.iter().filter_map(|a| a.model_code.clone()))
+            .filter(|c| u8::from_str_radix(c, 16).is_ok())
+            .collect();
+        for code in codes {
+            // Where another sensor reads its serial number alike and declares the code, scan may list both.
+            if declaring(&sensor, &code).len() > 1 {
+                continue;
+            }
+            let (command, field) = sn_field(&sensor);
+            let address = expected.len() as u8 + 1;
+            let mut device = Simulator::new(Arc::new(sensor.clone())).with_address(address);
+            device.set(&command.name, field.display_name(), Value::Text(format!("YL{code}14010022"))).unwrap();
+            if command.fields.iter().any(|f| f.is_reserved() && f.offset + f.size() == field.offset) {
+                let byte = u8::from_str_radix(&code, 16).unwrap();
+                device.registers_mut().write_bytes(command.address, field.offset - 1, &[byte]);
+            }
+            bus.push(device);
+            expected.push((sensor.clone(), code));
+        }
+    }
+    if expected.is_empty() {
+        report!("no sensor of the spec declares a model code scan can read");
+        return;
+    }
+    let s = yosemitech_tests::cli::serve(bus);
+    let addresses = format!("1-{}", expected.len());
+    let json = YOSEMITECH.run(&["scan", "-p", &s.path, "--addresses", &addresses, "--timeout", "1s", "--json"]).json();
+    let devices = json["devices"].as_array().unwrap();
+    assert_eq!(devices.len(), expected.len(), "{json}");
+    let mut shared = 0;
+    for (device, (sensor, code)) in devices.iter().zip(&expected) {
+        assert_eq!(device["model_code"].as_str(), Some(code.as_str()), "{device}");
+        assert_eq!(device["sensor"], sensor.name.as_str(), "{device}");
+        let models = sensor.models_with_code(code);
+        assert_eq!(device["models"], serde_json::json!(models), "{device}");
+        if models.len() > 1 {
+            let why = device["models_reason"].as_str().unwrap_or_default();
+            assert!(models.iter().all(|m| why.contains(m)) && why.contains("no read"), "{device}");
+            shared += 1;
+        } else {
+            assert_eq!(device["models_reason"], Json::Null, "{device}");
+        }
+    }
+    report!("scan named the models of {} codes, {shared} shared by models no read tells apart", expected.len());
 }
 
 #[test]

@@ -64,7 +64,9 @@ pub use registers::RegisterMap;
 #[cfg(all(unix, feature = "pty"))]
 pub use serve::serve_pty;
 pub use serve::{Endpoint, ServeConfig, Server, serve_mbap, serve_memory, serve_tcp, serve_transport};
-pub use simulator::{SimError, Simulator, Stats, UnknownRequestPolicy, Variation};
+pub use simulator::{
+    SimError, Simulator, Stats, UnknownRequestPolicy, Variation, WATER_TEMPERATURE_C, WATER_TEMPERATURE_SPAN_C,
+};
 
 /// Something on the bus that answers request frames: a [`Simulator`] or a
 /// [`Bus`] of them. The serving functions take any `FrameHandler`.
