@@ -252,3 +252,39 @@ fn a_probe_warming_up_leaves_the_bus_to_the_others() {
     assert_eq!(warming_rows, 0, "no reading before the warm-up ends");
     assert!(plain as f64 >= elapsed * 0.6 - 1.0, "the other probe kept its schedule during the warm-up: {plain}");
 }
+
+#[test]
+fn a_probe_that_refuses_start_measurement_is_read_all_the_same() {
+    // Some probes refuse Start Measurement and measure anyway (a real Y533
+    // does): the procedure reads on, and the reading says what was refused.
+    let spec = spec();
+    let starting = spec
+        .sensors
+        .iter()
+        .filter(|s| !plan::measurements(s).is_empty())
+        .filter(|s| {
+            let start = s.command_with_role(yosemitech_spec::Role::StartMeasurement);
+            s.procedure.as_ref().is_some_and(|p| start.is_some_and(|c| p.before.contains(&c.name)))
+        })
+        .min_by_key(|s| s.procedure.as_ref().map_or(0, |p| p.warm_up_ms));
+    let Some(sensor) = starting else {
+        eprintln!("    no procedure of the spec starts a measurement");
+        return;
+    };
+    let sensors = vec![Arc::new(sensor.clone())];
+    let mut device = Simulator::new(Arc::clone(&sensors[0])).with_address(1);
+    device.set_refuses_start(true);
+    let server = serve_pty(device, ServeConfig::default()).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let port = server.tty_path().unwrap().to_owned();
+    let probes = vec![("refusing".to_owned(), sensors[0].as_ref(), 1u8)];
+    let text = station_toml(dir.path(), &port, &probes, "1s").replacen("procedure = false\n", "procedure = true\n", 1);
+    let config = load(dir.path(), &text, &sensors);
+    let store = Mutex::new(Store::open(&config.storage).unwrap());
+    run_until(&config, &store, || !all_rows(&store).is_empty());
+    let rows = all_rows(&store);
+    let row = rows.first().unwrap_or_else(|| panic!("{}: no reading within a minute", sensor.name));
+    assert!(!row.reading.values.is_empty(), "{}: the reading has its values: {row:?}", sensor.name);
+    let error = row.reading.error.as_deref().unwrap_or_default();
+    assert!(error.contains("refused"), "{}: the reading says the start was refused: {row:?}", sensor.name);
+}
