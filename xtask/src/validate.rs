@@ -29,7 +29,7 @@ pub fn run(args: &[String]) -> anyhow::Result<ExitCode> {
             let s = spec.summary();
             let manuals: usize = spec.sensors.iter().map(|x| x.manuals().count()).sum();
             println!(
-                "validated {} ({}), {}, {}: {} frames printed ({} complete with their CRC, {} without a CRC or with placeholders), {} checked with the errata's corrections; {}",
+                "validated {} ({}), {}, {}: {} frames printed ({} complete with their CRC, {} without a CRC or with placeholders), {} checked with the errata's corrections; {}; {} ({} of their examples computed and held)",
                 count(s.sensors, "sensor", "sensors"),
                 count(manuals, "manual", "manuals"),
                 count(s.commands, "command", "commands"),
@@ -39,6 +39,8 @@ pub fn run(args: &[String]) -> anyhow::Result<ExitCode> {
                 s.printed_frames - s.complete_frames,
                 s.frames,
                 count(s.errata, "erratum", "errata"),
+                count(s.derived, "derived quantity", "derived quantities"),
+                s.derived_examples,
             );
             Ok(ExitCode::SUCCESS)
         }
