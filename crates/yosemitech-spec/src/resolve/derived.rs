@@ -408,9 +408,18 @@ pub(crate) fn pos_in_scalar(text: &str, at: Pos, offset: usize) -> Pos {
     // Walk the raw text, one value character at a time.
     let mut remaining = offset;
     let to_pos = |line: usize, column: usize| Pos { line: line as u32 + 1, column: column as u32 + 1 };
-    if open == '|' || open == '>' {
+    // A block scalar (`|`, `>-`, ...) is located at its header or at its first content line.
+    let header = |l: &str| {
+        let t = l.trim_end();
+        let t = t.strip_suffix(['-', '+']).unwrap_or(t);
+        t.ends_with(" |") || t.ends_with(" >") || t.ends_with(":|") || t.ends_with(":>") || t.ends_with("- |") || t == "|" || t == ">"
+    };
+    let starts_line = chars[..col.min(chars.len())].iter().all(|c| *c == ' ');
+    let after_header = starts_line
+        && (0..(at.line as usize).saturating_sub(1)).rev().map(|i| lines[i]).find(|l| !l.trim().is_empty()).is_some_and(header);
+    if open == '|' || open == '>' || after_header {
         // A block scalar: its lines start at the first content line's indentation.
-        let mut line = at.line as usize;
+        let mut line = if after_header { at.line as usize - 1 } else { at.line as usize };
         let indent = lines.get(line).map_or(0, |l| l.len() - l.trim_start().len());
         while let Some(l) = lines.get(line) {
             let content: Vec<char> = l.chars().skip(indent).collect();
@@ -469,5 +478,9 @@ mod tests {
         assert_eq!(at(text, 4, 6, 7), (4, 15));
         assert_eq!(at(text, 5, 6, 4), (7, 5));
         assert_eq!(at(text, 8, 6, 4), (9, 5));
+        // Located at the first content line, as the YAML parser does for block scalars.
+        assert_eq!(at(text, 6, 5, 4), (7, 5));
+        let folded = "e: >-\n  a /\n    b + c\n  d\n";
+        assert_eq!(at(folded, 2, 3, 8), (3, 7));
     }
 }
