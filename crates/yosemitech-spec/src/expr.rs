@@ -42,11 +42,13 @@ pub struct ExprError {
     pub message: String,
     /// What would be valid.
     pub help: Option<String>,
+    /// Another place the help refers to (the `(` a missing `)` would close).
+    pub related: Option<Span>,
 }
 
 impl ExprError {
     fn new(span: Span, message: impl Into<String>, help: Option<String>) -> Self {
-        Self { span, message: message.into(), help }
+        Self { span, message: message.into(), help, related: None }
     }
 }
 
@@ -546,11 +548,14 @@ impl Parser {
                 self.depth -= 1;
                 match self.bump() {
                     (Tok::RParen, _) => Ok(inner),
-                    (tok, at) => Err(ExprError::new(
-                        at,
-                        format!("expected `)`, found {}", describe(&tok)),
-                        Some(format!("close the `(` at byte {}", span.start + 1)),
-                    )),
+                    (tok, at) => Err(ExprError {
+                        related: Some(span),
+                        ..ExprError::new(
+                            at,
+                            format!("expected `)`, found {}", describe(&tok)),
+                            Some("add the `)` that closes the `(`".into()),
+                        )
+                    }),
                 }
             }
             Tok::Name(name) => {
@@ -580,8 +585,14 @@ impl Parser {
                     "exp" | "ln" => 1,
                     "if" => 3,
                     other => {
-                        let help = match crate::yaml::closest(other, FUNCTION_NAMES) {
-                            Some(best) => format!("did you mean `{best}`? the functions are exp(x), ln(x) and if(c, a, b)"),
+                        let known = match other {
+                            "log" | "log10" | "log2" => Some("did you mean `ln`? (the natural logarithm; log10(x) is `ln(x) / ln(10)`)"),
+                            "pow" => Some("write `a ^ b` for a power"),
+                            "sqrt" => Some("write `x ^ 0.5` for a square root"),
+                            _ => None,
+                        };
+                        let help = match known.map(str::to_string).or_else(|| crate::yaml::closest(other, FUNCTION_NAMES).map(|b| format!("did you mean `{b}`?"))) {
+                            Some(best) => format!("{best} the functions are exp(x), ln(x) and if(c, a, b)"),
                             None => "the functions are exp(x), ln(x) and if(c, a, b)".to_string(),
                         };
                         return Err(ExprError::new(span, format!("unknown function `{other}`"), Some(help)));

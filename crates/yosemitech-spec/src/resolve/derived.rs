@@ -96,7 +96,14 @@ pub(super) fn resolve_derived(
             Ok((formula, _)) => formula,
             Err(e) => {
                 let at = pos_in_scalar(r.text, Pos::at(&d.expr), e.span.start);
-                r.error(at, format!("{key}.expr"), e.message, e.help);
+                let help = match (e.help, e.related) {
+                    (Some(help), Some(related)) => {
+                        let p = pos_in_scalar(r.text, Pos::at(&d.expr), related.start);
+                        Some(format!("{help} at line {}, column {}", p.line, p.column))
+                    }
+                    (help, _) => help,
+                };
+                r.error(at, format!("{key}.expr"), e.message, help);
                 continue;
             }
         };
