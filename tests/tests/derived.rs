@@ -164,7 +164,9 @@ fn nan_infinite_and_out_of_range_inputs_are_not_computable() {
                 let mut inputs = middle.clone();
                 inputs[k] = bad;
                 assert_eq!((info.compute)(&inputs), Err(NotComputable::NotFinite { input: info.inputs[k].name }));
-                assert!(matches!(d.compute(&inputs), Err(yosemitech_spec::NotComputable::NotFinite { input }) if input == name));
+                assert!(
+                    matches!(d.compute(&inputs), Err(yosemitech_spec::NotComputable::NotFinite { input }) if input == name)
+                );
                 checked += 1;
             }
             if let Some((min, max)) = d.inputs[k].range {
@@ -177,7 +179,9 @@ fn nan_infinite_and_out_of_range_inputs_are_not_computable() {
                         sensor.name,
                         d.name
                     );
-                    assert!(matches!(d.compute(&inputs), Err(yosemitech_spec::NotComputable::OutOfRange { input, .. }) if input == name));
+                    assert!(
+                        matches!(d.compute(&inputs), Err(yosemitech_spec::NotComputable::OutOfRange { input, .. }) if input == name)
+                    );
                     checked += 1;
                 }
             }

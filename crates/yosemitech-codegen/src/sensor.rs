@@ -7,7 +7,9 @@ use proc_macro2::{Ident, Literal, Span, TokenStream};
 use quote::{format_ident, quote};
 use yosemitech_rtu::{ByteOrder2, ByteOrder4, DataBits, Function, LineSettings, Parity, StopBits};
 use yosemitech_spec::expr::{Cmp, Func, Node, Op};
-use yosemitech_spec::{CommandSpec, Constant, ConstantType, Derived, EnumRepr, Field, FieldKind, InputSource, Role, Sensor};
+use yosemitech_spec::{
+    CommandSpec, Constant, ConstantType, Derived, EnumRepr, Field, FieldKind, InputSource, Role, Sensor,
+};
 
 use crate::Error;
 use crate::naming::{EnumDef, Names};

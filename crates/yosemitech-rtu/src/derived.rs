@@ -137,7 +137,9 @@ pub fn input(name: &'static str, value: f32, range: Option<(f64, f64)>) -> Resul
     }
     let v = f64::from(value);
     match range {
-        Some((min, max)) if !(min..=max).contains(&v) => Err(NotComputable::OutOfRange { input: name, value, min, max }),
+        Some((min, max)) if !(min..=max).contains(&v) => {
+            Err(NotComputable::OutOfRange { input: name, value, min, max })
+        }
         _ => Ok(v),
     }
 }

@@ -420,8 +420,10 @@ fn lex(src: &str) -> Result<Vec<(Tok, Span)>, ExprError> {
                 let help = match ch {
                     '=' => "compare with `==`; the language has no assignment".to_string(),
                     '&' | '|' | '!' => "the language has no logical operators; nest `if(...)` instead".to_string(),
-                    _ => "formulas hold numbers, names, + - * / ^, parentheses, exp(), ln(), comparisons and if(c, a, b)"
-                        .to_string(),
+                    _ => {
+                        "formulas hold numbers, names, + - * / ^, parentheses, exp(), ln(), comparisons and if(c, a, b)"
+                            .to_string()
+                    }
                 };
                 return Err(ExprError::new(
                     span,
@@ -586,12 +588,16 @@ impl Parser {
                     "if" => 3,
                     other => {
                         let known = match other {
-                            "log" | "log10" | "log2" => Some("did you mean `ln`? (the natural logarithm; log10(x) is `ln(x) / ln(10)`)"),
+                            "log" | "log10" | "log2" => {
+                                Some("did you mean `ln`? (the natural logarithm; log10(x) is `ln(x) / ln(10)`)")
+                            }
                             "pow" => Some("write `a ^ b` for a power"),
                             "sqrt" => Some("write `x ^ 0.5` for a square root"),
                             _ => None,
                         };
-                        let help = match known.map(str::to_string).or_else(|| crate::yaml::closest(other, FUNCTION_NAMES).map(|b| format!("did you mean `{b}`?"))) {
+                        let help = match known.map(str::to_string).or_else(|| {
+                            crate::yaml::closest(other, FUNCTION_NAMES).map(|b| format!("did you mean `{b}`?"))
+                        }) {
                             Some(best) => format!("{best} the functions are exp(x), ln(x) and if(c, a, b)"),
                             None => "the functions are exp(x), ln(x) and if(c, a, b)".to_string(),
                         };
@@ -601,8 +607,16 @@ impl Parser {
                 if args.len() != want {
                     return Err(ExprError::new(
                         span,
-                        format!("`{name}` takes {want} argument{}, not {}", if want == 1 { "" } else { "s" }, args.len()),
-                        Some(if want == 3 { "write `if(condition, then, else)`".into() } else { format!("write `{name}(x)`") }),
+                        format!(
+                            "`{name}` takes {want} argument{}, not {}",
+                            if want == 1 { "" } else { "s" },
+                            args.len()
+                        ),
+                        Some(if want == 3 {
+                            "write `if(condition, then, else)`".into()
+                        } else {
+                            format!("write `{name}(x)`")
+                        }),
                     ));
                 }
                 let mut args = args.into_iter();

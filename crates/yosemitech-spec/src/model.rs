@@ -958,9 +958,7 @@ impl Derived {
     pub fn example_inputs(&self, example: &DerivedExample) -> Result<Vec<f32>, String> {
         self.inputs
             .iter()
-            .map(|i| {
-                example.inputs.get(&i.name).copied().or(i.default).map(|v| v as f32).ok_or_else(|| i.name.clone())
-            })
+            .map(|i| example.inputs.get(&i.name).copied().or(i.default).map(|v| v as f32).ok_or_else(|| i.name.clone()))
             .collect()
     }
 
@@ -1039,7 +1037,9 @@ impl std::fmt::Display for NotComputable {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
             Self::NotFinite { input } => write!(f, "input `{input}` is not a finite number"),
-            Self::OutOfRange { input, value, min, max } => write!(f, "input `{input}` is {value}, outside {min}..={max}"),
+            Self::OutOfRange { input, value, min, max } => {
+                write!(f, "input `{input}` is {value}, outside {min}..={max}")
+            }
             Self::Undefined => f.write_str("the formula has no finite value for these inputs"),
             Self::Inputs { expected, given } => write!(f, "{given} inputs given, {expected} expected"),
         }

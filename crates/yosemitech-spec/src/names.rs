@@ -190,9 +190,7 @@ pub fn check_derived_name(name: &str) -> Option<String> {
 /// a derived quantity, or `None` if it can: the formula's functions are
 /// taken.
 pub fn check_input_name(name: &str) -> Option<String> {
-    crate::expr::FUNCTION_NAMES
-        .contains(&name)
-        .then(|| format!("`{name}` is a function of the formula language"))
+    crate::expr::FUNCTION_NAMES.contains(&name).then(|| format!("`{name}` is a function of the formula language"))
 }
 
 /// `name` with control and bidi-override characters escaped, shortened to

@@ -17,7 +17,9 @@ use crate::check::{check_name, check_text};
 use crate::diag::{Pos, Reporter};
 use crate::document::{DerivedDoc, DerivedInputDoc};
 use crate::expr::{self, Binding, Name, Unit};
-use crate::model::{CommandSpec, Constant, ConstantType, Derived, DerivedExample, DerivedInput, FieldKind, InputSource};
+use crate::model::{
+    CommandSpec, Constant, ConstantType, Derived, DerivedExample, DerivedInput, FieldKind, InputSource,
+};
 use crate::names::{check_derived_name, check_input_name, check_snake, escape};
 use crate::yaml::closest;
 
@@ -187,7 +189,7 @@ pub(super) fn resolve_derived(
                     let diff = (f64::from(got) - example.value).abs();
                     // Without a tolerance the value must match to f32 precision.
                     let allowed = tolerance.max(example.value.abs().max(1.0) * 4.0 * f64::from(f32::EPSILON));
-                    if !(diff <= allowed) {
+                    if diff.is_nan() || diff > allowed {
                         r.error(
                             Pos::at(&ex.value),
                             format!("{ekey}.value"),
@@ -329,7 +331,9 @@ fn resolve_input(
                 Pos::at(&input.name),
                 format!("{key}.field"),
                 format!("the input `{name}` needs `field` or `station`"),
-                Some("add `field: <command>.<field>` (a read's number) or `station: <name>` (salinity, pressure)".into()),
+                Some(
+                    "add `field: <command>.<field>` (a read's number) or `station: <name>` (salinity, pressure)".into(),
+                ),
             );
             return None;
         }
@@ -366,7 +370,8 @@ fn resolve_field(
         );
         return None;
     };
-    let reads: Vec<&str> = commands.iter().filter(|c| c.is_read() && !c.fields.is_empty()).map(|c| c.name.as_str()).collect();
+    let reads: Vec<&str> =
+        commands.iter().filter(|c| c.is_read() && !c.fields.is_empty()).map(|c| c.name.as_str()).collect();
     let Some(cmd) = commands.iter().find(|c| c.name == command && c.is_read()) else {
         let help = match closest(command, &reads) {
             Some(best) => format!("did you mean `{best}`? reads: {}", reads.join(", ")),
@@ -419,11 +424,21 @@ pub(crate) fn pos_in_scalar(text: &str, at: Pos, offset: usize) -> Pos {
     let header = |l: &str| {
         let t = l.trim_end();
         let t = t.strip_suffix(['-', '+']).unwrap_or(t);
-        t.ends_with(" |") || t.ends_with(" >") || t.ends_with(":|") || t.ends_with(":>") || t.ends_with("- |") || t == "|" || t == ">"
+        t.ends_with(" |")
+            || t.ends_with(" >")
+            || t.ends_with(":|")
+            || t.ends_with(":>")
+            || t.ends_with("- |")
+            || t == "|"
+            || t == ">"
     };
     let starts_line = chars[..col.min(chars.len())].iter().all(|c| *c == ' ');
     let after_header = starts_line
-        && (0..(at.line as usize).saturating_sub(1)).rev().map(|i| lines[i]).find(|l| !l.trim().is_empty()).is_some_and(header);
+        && (0..(at.line as usize).saturating_sub(1))
+            .rev()
+            .map(|i| lines[i])
+            .find(|l| !l.trim().is_empty())
+            .is_some_and(header);
     if open == '|' || open == '>' || after_header {
         // A block scalar: its lines start at the first content line's indentation.
         let mut line = if after_header { at.line as usize - 1 } else { at.line as usize };
@@ -479,7 +494,8 @@ mod tests {
 
     #[test]
     fn positions_inside_scalars() {
-        let text = "a:\n  expr: x + yy\n  q: \"x + yy\"\n  s: 'it''s + yy'\n  b: |\n    x +\n    yy\n  f: x +\n    yy\n";
+        let text =
+            "a:\n  expr: x + yy\n  q: \"x + yy\"\n  s: 'it''s + yy'\n  b: |\n    x +\n    yy\n  f: x +\n    yy\n";
         assert_eq!(at(text, 2, 9, 4), (2, 13));
         assert_eq!(at(text, 3, 6, 4), (3, 11));
         assert_eq!(at(text, 4, 6, 7), (4, 15));
