@@ -91,6 +91,16 @@ pub mod hostile_fixture {
 }
 pub use hostile_fixture::hostile;
 
+/// The derived-quantity fixture (tests/specs/derived), as generated.
+pub mod derived_fixture {
+    include!(concat!(env!("OUT_DIR"), "/derived/mod.rs"));
+}
+
+/// The directory of the derived-quantity fixture's spec.
+pub fn derived_spec_dir() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("specs").join("derived")
+}
+
 /// Prints a test's summary line (counts of frames replayed, cases checked)
 /// so that it shows in `cargo test` output even when the test passes.
 ///

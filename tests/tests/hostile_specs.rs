@@ -278,7 +278,7 @@ fn loader_cases() -> Vec<Case> {
 /// them (what it accepts, the generator generates).
 fn generated_name_cases() -> Vec<Case> {
     let u16_field = "    fields:\n      - {name: v, type: u16, byte_order: ab}\n";
-    vec![
+    let mut cases = vec![
         case("type-command-id", with_command("command_id", "read", 0x0300, 1, u16_field), "CommandId"),
         case("type-async-device", with_command("async_device", "read", 0x0300, 1, u16_field), "AsyncDevice"),
         case("type-x-response", with_command("get_value_response", "read", 0x0300, 1, u16_field), "GetValueResponse"),
@@ -304,7 +304,23 @@ fn generated_name_cases() -> Vec<Case> {
             format!("{BASE}constants:\n  - {{name: command_names, type: u32, value: 1, doc: Clashes.}}\n"),
             "COMMAND_NAMES",
         ),
-    ]
+        case(
+            "constant-derived",
+            format!("{BASE}constants:\n  - {{name: derived, type: u32, value: 1, doc: Clashes.}}\n"),
+            "DERIVED",
+        ),
+    ];
+    // A derived quantity's function must not be one of the module's own.
+    for function in yosemitech_spec::names::MODULE_FUNCTIONS {
+        cases.push(case(
+            format!("derived-{function}"),
+            format!(
+                "{BASE}derived:\n  - {{name: {function}, title: T, doc: D, inputs: [{{name: x, field: get_value.value}}], expr: \"x * 2\"}}\n"
+            ),
+            format!("the function `{function}`"),
+        ));
+    }
+    cases
 }
 
 /// Texts that must survive into generated code as text and nothing else.

@@ -160,6 +160,55 @@ pub fn register_map(s: &Sensor) -> String {
         d.push('\n');
     }
 
+    if !s.derived.is_empty() {
+        d.push_str("## Derived quantities\n\nComputed from the readings, not read from the probe: one function each in the Rust module (`Result<f32, NotComputable>`), listed in its `DERIVED`.\n\n");
+        for q in &s.derived {
+            let _ = writeln!(d, "### {}\n", q.name);
+            let _ = writeln!(
+                d,
+                "{}{}. {}\n",
+                cell(&q.title),
+                q.unit.as_deref().map_or_else(String::new, |u| format!(", in {}", cell(u))),
+                q.doc.split_whitespace().collect::<Vec<_>>().join(" ")
+            );
+            if let Some(source) = &q.source {
+                let _ = writeln!(d, "Manual section {}.\n", cell(&source.section));
+            }
+            let _ = writeln!(d, "```text\n{}\n```\n", q.expr.trim());
+            d.push_str("| Input | From | Unit | Range | Default |\n|---|---|---|---|---|\n");
+            for i in &q.inputs {
+                let from = match &i.source {
+                    yosemitech_spec::InputSource::Field { command, field } => format!("field `{command}.{field}`"),
+                    yosemitech_spec::InputSource::Station(name) => format!("station `{name}`"),
+                };
+                let _ = writeln!(
+                    d,
+                    "| `{}` | {from} | {} | {} | {} |",
+                    i.name,
+                    cell(i.unit.as_deref().unwrap_or("")),
+                    i.range.map_or_else(String::new, |(a, b)| format!("{a}..={b}")),
+                    i.default.map_or_else(String::new, |v| format!("{v}"))
+                );
+            }
+            d.push('\n');
+            if !q.examples.is_empty() {
+                d.push_str("| Inputs | Value | Tolerance | Source |\n|---|---|---|---|\n");
+                for e in &q.examples {
+                    let inputs: Vec<String> = e.inputs.iter().map(|(k, v)| format!("{k} = {v}")).collect();
+                    let _ = writeln!(
+                        d,
+                        "| {} | {} | {} | {} |",
+                        cell(&inputs.join(", ")),
+                        e.value,
+                        if e.tolerance > 0.0 { format!("{}", e.tolerance) } else { "f32".into() },
+                        cell(&e.doc)
+                    );
+                }
+                d.push('\n');
+            }
+        }
+    }
+
     if !s.errata.is_empty() {
         d.push_str("## Manual errata\n\n| Id | Figures | Sections | Note |\n|---|---|---|---|\n");
         for e in &s.errata {

@@ -31,7 +31,7 @@ pub fn run(args: &[String]) -> anyhow::Result<ExitCode> {
             let unsourced = spec.sensors.iter().filter(|x| x.manual.is_none()).count();
             let aliases: usize = spec.sensors.iter().map(|x| x.aliases.len()).sum();
             println!(
-                "validated {} ({} from {}, {} without a manual, from the field's sources; {} sharing a sensor's commands), {}, {}: {} frames printed ({} complete with their CRC, {} without a CRC or with placeholders), {} checked with the errata's corrections; {}",
+                "validated {} ({} from {}, {} without a manual, from the field's sources; {} sharing a sensor's commands), {}, {}: {} frames printed ({} complete with their CRC, {} without a CRC or with placeholders), {} checked with the errata's corrections; {}; {} ({} of their examples computed and held)",
                 count(s.sensors, "sensor", "sensors"),
                 s.sensors - unsourced,
                 count(manuals, "manual", "manuals"),
@@ -44,6 +44,8 @@ pub fn run(args: &[String]) -> anyhow::Result<ExitCode> {
                 s.printed_frames - s.complete_frames,
                 s.frames,
                 count(s.errata, "erratum", "errata"),
+                count(s.derived, "derived quantity", "derived quantities"),
+                s.derived_examples,
             );
             Ok(ExitCode::SUCCESS)
         }

@@ -157,3 +157,27 @@ fn the_client_adds_no_allocation_to_the_simulators() {
     );
     assert_eq!(with_client, simulator_alone, "the client's share of {ROUNDS} transactions with the simulator");
 }
+
+/// Every derived quantity of every sensor (`SensorModule::derived`, no
+/// sensor named), computed at its examples' inputs and at inputs it
+/// refuses, through the generated functions.
+#[test]
+fn derived_quantities_do_not_allocate() {
+    let mut computed = 0usize;
+    for module in yosemitech::SENSORS {
+        let sensor = sensor(module.info.name).unwrap();
+        for (d, info) in sensor.derived.iter().zip(module.derived) {
+            let mut cases: Vec<Vec<f32>> = d.examples.iter().map(|e| d.example_inputs(e).unwrap()).collect();
+            cases.push(vec![f32::NAN; d.inputs.len()]);
+            cases.push(vec![0.0; d.inputs.len() + 1]);
+            let n = allocations_in(|| {
+                for inputs in &cases {
+                    let _ = black_box((info.compute)(black_box(inputs)));
+                }
+            });
+            assert_eq!(n, 0, "allocations computing {}.{}", sensor.name, d.name);
+            computed += cases.len();
+        }
+    }
+    yosemitech_tests::report!("derived quantities: {computed} computations without an allocation");
+}

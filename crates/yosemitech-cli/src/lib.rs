@@ -29,6 +29,7 @@ mod cli;
 mod commands;
 mod confirm;
 mod dashboard;
+mod derived;
 mod device;
 mod error;
 mod format;

@@ -325,7 +325,7 @@ fn read_shows_values_with_units() {
                 let line = format!("{:width$}  {}", field.display_name(), shown(value, field.unit.as_deref()));
                 assert!(out.lines().any(|l| l == line), "{name} {}: `{line}` in:\n{out}", command.name);
             }
-            assert_eq!(out.lines().count(), f32_with_unit.len(), "{out}");
+            assert_eq!(out.lines().filter(|l| !l.ends_with("(derived)")).count(), f32_with_unit.len(), "{out}");
             checked += 1;
         }
         // The version, as JSON.
@@ -602,6 +602,73 @@ fn plain(value: &Value) -> Option<String> {
     }
 }
 
+/// The inputs of a derived quantity as (command, field, station default).
+type DerivedInputs = Vec<(String, String, Option<f32>)>;
+
+/// The derived quantities whose field inputs all come from `reads`, each
+/// with its inputs as (command, field, station default).
+fn derived_of(sensor: &Sensor, reads: &[&str]) -> Vec<(yosemitech_spec::Derived, DerivedInputs)> {
+    use yosemitech_spec::InputSource;
+    sensor
+        .derived
+        .iter()
+        .filter(|d| {
+            d.inputs.iter().all(|i| match &i.source {
+                InputSource::Field { command, .. } => reads.contains(&command.as_str()),
+                InputSource::Station(_) => true,
+            })
+        })
+        .map(|d| {
+            let inputs = d
+                .inputs
+                .iter()
+                .map(|i| match &i.source {
+                    InputSource::Field { command, field } => (command.clone(), field.clone(), None),
+                    InputSource::Station(_) => (String::new(), String::new(), i.default.map(|v| v as f32)),
+                })
+                .collect();
+            (d.clone(), inputs)
+        })
+        .collect()
+}
+
+/// `read` shows each derived quantity its read gives beside the measured
+/// values, marked derived, and in `--json`: the interpreter's value for
+/// the simulator's reading, station inputs at their defaults.
+#[test]
+fn read_shows_derived_quantities_beside_measured_ones() {
+    let mut shown = 0;
+    for sensor in spec().sensors.clone() {
+        let name = sensor.name.as_str();
+        let s = sim(name, sensor.default_address);
+        for command in sensor.commands.iter().filter(|c| c.is_read() && !c.fields.is_empty()) {
+            let derived = derived_of(&sensor, &[command.name.as_str()]);
+            if derived.is_empty() {
+                continue;
+            }
+            let out = YOSEMITECH.run(&["read", name, &command.name, "-p", &s.path]).ok().to_owned();
+            let json = YOSEMITECH.run(&["read", name, &command.name, "-p", &s.path, "--json"]).json();
+            for (d, inputs) in &derived {
+                let inputs: Vec<f32> =
+                    inputs.iter().map(|(c, f, default)| default.unwrap_or_else(|| float(&s, c, f))).collect();
+                let line =
+                    out.lines().find(|l| l.starts_with(d.name.as_str())).unwrap_or_else(|| panic!("{}: {out}", d.name));
+                assert!(line.ends_with("(derived)"), "{line}");
+                match d.compute(&inputs) {
+                    Ok(v) => {
+                        assert!(line.contains(&v.to_string()), "{line}, want {v}");
+                        let got = json["derived"][&d.name]["value"].as_f64().unwrap_or_else(|| panic!("{json}"));
+                        assert_eq!((got as f32).to_bits(), v.to_bits(), "{json}");
+                    }
+                    Err(_) => assert!(line.contains("not computable"), "{line}"),
+                }
+                shown += 1;
+            }
+        }
+    }
+    report!("read: {shown} derived quantities shown beside the measured values");
+}
+
 #[test]
 fn poll_csv_gives_one_row_per_poll() {
     let (mut polled, mut cells_checked) = (0, 0);
@@ -618,10 +685,26 @@ fn poll_csv_gives_one_row_per_poll() {
         let lines: Vec<&str> = out.lines().collect();
         assert_eq!(lines.len(), 4, "a header and 3 rows:\n{out}");
         let names: Vec<&str> = columns.iter().map(|(_, _, n)| n.as_str()).collect();
-        assert_eq!(lines[0], format!("timestamp,{},error", names.join(",")));
+        // Then the derived quantities the polled reads give, marked so.
+        let derived = derived_of(&sensor, &columns.iter().map(|(r, _, _)| r.as_str()).collect::<Vec<_>>());
+        let head = format!("timestamp,{}", names.join(","));
+        let middle = lines[0].strip_prefix(&head).and_then(|m| m.strip_suffix(",error"));
+        let middle = middle.unwrap_or_else(|| panic!("`{head},...,error` in {}", lines[0]));
+        let derived_heads: Vec<&str> = middle.split(',').filter(|h| !h.is_empty()).collect();
+        assert_eq!(derived_heads.len(), derived.len(), "{}", lines[0]);
+        for (h, (d, _)) in derived_heads.iter().zip(&derived) {
+            assert!(h.starts_with(d.name.as_str()) && h.ends_with("(derived)"), "{h}");
+        }
         for row in &lines[1..] {
             let cells: Vec<&str> = row.split(',').collect();
-            assert_eq!(cells.len(), columns.len() + 2, "{row}");
+            assert_eq!(cells.len(), columns.len() + derived.len() + 2, "{row}");
+            for ((d, inputs), cell) in derived.iter().zip(&cells[1 + columns.len()..]) {
+                let inputs: Vec<f32> =
+                    inputs.iter().map(|(c, f, default)| default.unwrap_or_else(|| float(&s, c, f))).collect();
+                let want = d.compute(&inputs).map(|v| v.to_string()).unwrap_or_default();
+                assert_eq!(*cell, want, "{name} {}: {row}", d.name);
+                cells_checked += 1;
+            }
             assert!(cells[0].len() == 24 && cells[0].ends_with('Z') && cells[0].as_bytes()[10] == b'T', "{row}");
             for ((read, field, _), cell) in columns.iter().zip(&cells[1..]) {
                 let want = s.server.device().get(read, field).unwrap();

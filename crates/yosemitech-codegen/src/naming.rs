@@ -4,7 +4,9 @@
 use std::collections::BTreeMap;
 
 use heck::{ToShoutySnakeCase, ToUpperCamelCase};
-use yosemitech_spec::names::{DEVICE_METHODS, MODULE_CONSTS, MODULE_TYPES, PRELUDE_NAMES, check_snake};
+use yosemitech_spec::names::{
+    DEVICE_METHODS, MODULE_CONSTS, MODULE_FUNCTIONS, MODULE_TYPES, PRELUDE_NAMES, check_snake,
+};
 use yosemitech_spec::{CommandSpec, EnumRepr, FieldKind, Sensor, Variant};
 
 use crate::Error;
@@ -152,6 +154,15 @@ impl Names {
                 return Err(collision(format!("constant `{name}` of `{}` is also {other}", c.name)));
             }
             constants.push(name);
+        }
+
+        // One function per derived quantity, beside the module's own.
+        let mut functions: BTreeMap<&str, &str> =
+            MODULE_FUNCTIONS.iter().map(|f| (*f, "the generated module")).collect();
+        for d in &sensor.derived {
+            if let Some(other) = functions.insert(&d.name, "another derived quantity") {
+                return Err(collision(format!("the function `{}` of a derived quantity is also {other}", d.name)));
+            }
         }
 
         Ok(Self { commands, enums, enum_of, constants })

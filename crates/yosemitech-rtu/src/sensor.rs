@@ -106,6 +106,9 @@ pub struct SensorModule {
     /// Decodes a reply to the named command and passes each field, in wire
     /// order, to the visitor.
     pub visit_response: VisitResponseFn,
+    /// The derived quantities the spec declares (`DERIVED` of the module):
+    /// each with its inputs and its generated function.
+    pub derived: &'static [crate::derived::DerivedInfo],
 }
 
 impl core::fmt::Debug for SensorModule {
@@ -113,6 +116,7 @@ impl core::fmt::Debug for SensorModule {
         f.debug_struct("SensorModule")
             .field("info", &self.info)
             .field("commands", &self.commands)
+            .field("derived", &self.derived)
             .finish_non_exhaustive()
     }
 }

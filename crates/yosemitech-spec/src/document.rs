@@ -39,6 +39,10 @@ pub struct SpecFile {
     /// Contradictions in the manual that no single command or frame carries.
     #[serde(default)]
     pub errata: Vec<ErratumDoc>,
+    /// Measurements the probe does not send, computed from its fields, the
+    /// constants and per-station inputs.
+    #[serde(default)]
+    pub derived: Vec<DerivedDoc>,
 }
 
 /// The sensor a manual describes.
@@ -825,4 +829,77 @@ pub struct ConstantDoc {
     pub doc: Spanned<String>,
     /// Where the manual states it.
     pub source: Option<SourceDoc>,
+}
+
+/// A derived quantity: a formula over fields, constants and station inputs.
+#[derive(Debug, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct DerivedDoc {
+    /// snake_case name; becomes the generated function's name.
+    #[schemars(with = "String")]
+    pub name: Spanned<String>,
+    /// Human title.
+    #[schemars(with = "String")]
+    pub title: Spanned<String>,
+    /// The result's unit, checked against the formula's.
+    #[schemars(with = "Option<String>")]
+    pub unit: Option<Spanned<String>>,
+    /// What the quantity is.
+    #[schemars(with = "String")]
+    pub doc: Spanned<String>,
+    /// Where the manual gives the formula.
+    pub source: Option<SourceDoc>,
+    /// The formula's inputs, in parameter order.
+    #[schemars(with = "Vec<DerivedInputDoc>")]
+    pub inputs: Spanned<Vec<DerivedInputDoc>>,
+    /// The formula: numbers, inputs and constants by name, `+ - * / ^`,
+    /// parentheses, `exp()`, `ln()`, comparisons and `if(c, a, b)`.
+    #[schemars(with = "String")]
+    pub expr: Spanned<String>,
+    /// Values computed independently, each with its source.
+    #[serde(default)]
+    pub examples: Vec<DerivedExampleDoc>,
+}
+
+/// One input of a derived quantity: a field of a read, or a station value.
+#[derive(Debug, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+#[schemars(extend("oneOf" = [{"required": ["field"]}, {"required": ["station"]}]))]
+pub struct DerivedInputDoc {
+    /// snake_case name the formula uses; the generated function's parameter.
+    #[schemars(with = "String")]
+    pub name: Spanned<String>,
+    /// `command.field` of a read of the sensor.
+    #[schemars(with = "Option<String>")]
+    pub field: Option<Spanned<String>>,
+    /// The station input's name (`salinity`, `barometric_pressure`).
+    #[schemars(with = "Option<String>")]
+    pub station: Option<Spanned<String>>,
+    /// The unit of a station input (a field input has its field's).
+    #[schemars(with = "Option<String>")]
+    pub unit: Option<Spanned<String>>,
+    /// The value used when a station gives none.
+    #[schemars(with = "Option<f64>")]
+    pub default: Option<Spanned<f64>>,
+    /// The values the formula takes; others make the quantity not computable.
+    #[schemars(with = "Option<RangeDoc>")]
+    pub range: Option<Spanned<RangeDoc>>,
+}
+
+/// A value of a derived quantity computed independently of the formula.
+#[derive(Debug, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct DerivedExampleDoc {
+    /// The inputs by name (station inputs left out take their `default`).
+    #[schemars(with = "BTreeMap<String, f64>")]
+    pub inputs: Spanned<BTreeMap<String, Spanned<f64>>>,
+    /// The value the source gives.
+    #[schemars(with = "f64")]
+    pub value: Spanned<f64>,
+    /// How far the formula's value may be from `value`.
+    #[schemars(with = "Option<f64>")]
+    pub tolerance: Option<Spanned<f64>>,
+    /// Where the value comes from.
+    #[schemars(with = "String")]
+    pub doc: Spanned<String>,
 }

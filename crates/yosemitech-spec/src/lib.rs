@@ -34,6 +34,7 @@ mod check;
 mod diag;
 pub mod document;
 mod examples;
+pub mod expr;
 pub mod interp;
 pub mod model;
 pub mod names;

@@ -22,7 +22,12 @@ const CONTEXTUAL_KEYWORDS: &[&str] = &["union", "raw", "safe", "macro_rules"];
 pub const MODULE_TYPES: &[&str] = &["CommandId", "Request", "Response", "Device", "AsyncDevice"];
 
 /// Constants every generated sensor module declares itself.
-pub const MODULE_CONSTS: &[&str] = &["SENSOR", "MODULE", "COMMAND_NAMES"];
+pub const MODULE_CONSTS: &[&str] = &["SENSOR", "MODULE", "COMMAND_NAMES", "DERIVED"];
+
+/// Functions every generated sensor module declares itself, besides one per
+/// derived quantity (whose names must avoid these), and `rtu`, the module's
+/// alias of the runtime.
+pub const MODULE_FUNCTIONS: &[&str] = &["decode_response", "identify_request", "rtu"];
 
 /// Methods of the generated `Device` and `AsyncDevice` that are not
 /// commands (`set_slave_address` only for sensors with the roles it needs,
@@ -172,6 +177,22 @@ pub fn check_constant_name(name: &str) -> Option<String> {
         .then(|| format!("`{name}` becomes the constant `{upper}`, which every generated module declares itself"))
 }
 
+/// Why `name` (already a valid [`check_snake`] name) cannot name a derived
+/// quantity, or `None` if it can: its function must not be one the module
+/// declares itself.
+pub fn check_derived_name(name: &str) -> Option<String> {
+    MODULE_FUNCTIONS
+        .contains(&name)
+        .then(|| format!("`{name}` would take the function `{name}`, which every generated module declares itself"))
+}
+
+/// Why `name` (already a valid [`check_snake`] name) cannot name an input of
+/// a derived quantity, or `None` if it can: the formula's functions are
+/// taken.
+pub fn check_input_name(name: &str) -> Option<String> {
+    crate::expr::FUNCTION_NAMES.contains(&name).then(|| format!("`{name}` is a function of the formula language"))
+}
+
 /// `name` with control and bidi-override characters escaped, shortened to
 /// 80 characters, for messages.
 pub fn escape(name: &str) -> String {
@@ -224,6 +245,12 @@ mod tests {
             assert!(check_constant_name(&constant.to_lowercase()).is_some(), "{constant}");
         }
         assert_eq!(check_constant_name("module_count"), None);
+        for f in MODULE_FUNCTIONS {
+            assert!(check_derived_name(f).is_some(), "{f}");
+        }
+        assert_eq!(check_derived_name("tds_mg_l"), None);
+        assert!(check_input_name("exp").is_some());
+        assert_eq!(check_input_name("salinity"), None);
         assert_eq!(check_sensor_name("probe_x"), None);
     }
 }

@@ -51,6 +51,55 @@ pub const TDS_MG_L_PER_US_CM: f32 = 0.64;
 /// Manual section 2.2.6.
 pub const DEFAULT_USER_CALIBRATION: [f32; 2] = [1.0, 0.0];
 
+/// Conductivity in microsiemens per centimetre.
+///
+/// The conductivity the probe reads in mS/cm, in uS/cm, the unit the manual's TDS formula takes.
+///
+/// Formula (from the spec): `conductivity * 1000`, in uS/cm.
+///
+/// Manual section 3.
+///
+/// # Inputs
+///
+/// - `conductivity`: the field `conductivity_ms_cm` of `get_temperature_and_conductivity`, in mS/cm.
+///
+/// # Examples
+///
+/// - `conductivity_us_cm(17.625)` is 17625 uS/cm: Section 3, Cond(uS/cm) = Cond(mS/cm) x 1000, for the 17.625 mS/cm of the Get Temperature and Conductivity example.
+///
+/// # Errors
+///
+/// `NotComputable` when an input is NaN, infinite or outside its range, or when the formula has no finite value for the inputs.
+pub fn conductivity_us_cm(conductivity: f32) -> Result<f32, rtu::NotComputable> {
+    let conductivity = rtu::derived::input("conductivity", conductivity, None)?;
+    rtu::derived::output(conductivity * 1000.0)
+}
+
+/// Total dissolved solids.
+///
+/// Total dissolved solids estimated from the conductivity by the manual's factor, TDS (mg/L) = Cond (uS/cm) x 0.64 (not temperature-compensated beyond what the probe's conductivity is).
+///
+/// Formula (from the spec): `conductivity * 1000 * tds_mg_l_per_us_cm`, in mg/L.
+///
+/// Manual section 3.
+///
+/// # Inputs
+///
+/// - `conductivity`: the field `conductivity_ms_cm` of `get_temperature_and_conductivity`, in mS/cm.
+///
+/// # Examples
+///
+/// - `tds_mg_l(1.0)` is 640 mg/L within 0.001: Section 3's formula worked by hand, 1 mS/cm = 1000 uS/cm, x 0.64.
+/// - `tds_mg_l(17.625)` is 11280 mg/L within 0.01: Section 3's formula worked by hand for the 17.625 mS/cm of the Get Temperature and Conductivity example.
+///
+/// # Errors
+///
+/// `NotComputable` when an input is NaN, infinite or outside its range, or when the formula has no finite value for the inputs.
+pub fn tds_mg_l(conductivity: f32) -> Result<f32, rtu::NotComputable> {
+    let conductivity = rtu::derived::input("conductivity", conductivity, None)?;
+    rtu::derived::output(conductivity * 1000.0 * f64::from(TDS_MG_L_PER_US_CM))
+}
+
 /// Whether automatic range switching worked; discard the reading on an error.
 ///
 /// A code of one byte on the wire, used by `get_temperature_and_conductivity.range_status`. Codes the spec does not name decode to [`Self::Unknown`]; `from_raw` never returns `Unknown` for a named code.
@@ -1257,10 +1306,70 @@ pub const COMMAND_NAMES: [&str; 9] = [
     "get_slave_id",
 ];
 
+/// Every derived quantity of the sensor as data, in spec order: its
+/// inputs, and its function (`compute` takes the inputs in parameter order).
+pub const DERIVED: [rtu::DerivedInfo; 2] = [
+    rtu::DerivedInfo {
+        name: "conductivity_us_cm",
+        title: "Conductivity in microsiemens per centimetre",
+        unit: Some("uS/cm"),
+        expr: "conductivity * 1000",
+        inputs: &[
+            rtu::DerivedInput {
+                name: "conductivity",
+                source: rtu::InputSource::Field {
+                    command: "get_temperature_and_conductivity",
+                    field: "conductivity_ms_cm",
+                },
+                unit: Some("mS/cm"),
+                default: None,
+                range: None,
+            },
+        ],
+        compute: |inputs| match *inputs {
+            [conductivity] => conductivity_us_cm(conductivity),
+            _ => {
+                Err(rtu::NotComputable::Inputs {
+                    expected: 1,
+                    given: inputs.len(),
+                })
+            }
+        },
+    },
+    rtu::DerivedInfo {
+        name: "tds_mg_l",
+        title: "Total dissolved solids",
+        unit: Some("mg/L"),
+        expr: "conductivity * 1000 * tds_mg_l_per_us_cm",
+        inputs: &[
+            rtu::DerivedInput {
+                name: "conductivity",
+                source: rtu::InputSource::Field {
+                    command: "get_temperature_and_conductivity",
+                    field: "conductivity_ms_cm",
+                },
+                unit: Some("mS/cm"),
+                default: None,
+                range: None,
+            },
+        ],
+        compute: |inputs| match *inputs {
+            [conductivity] => tds_mg_l(conductivity),
+            _ => {
+                Err(rtu::NotComputable::Inputs {
+                    expected: 1,
+                    given: inputs.len(),
+                })
+            }
+        },
+    },
+];
+
 /// This module as data, for code that serves every sensor without naming one
 /// (`crate::SENSORS` lists them all).
 pub const MODULE: rtu::SensorModule = rtu::SensorModule {
     info: SENSOR,
+    derived: &DERIVED,
     commands: &COMMAND_NAMES,
     layout: |name| CommandId::from_name(name).map(CommandId::layout),
     identify_request: |frame| identify_request(frame).map(CommandId::name),

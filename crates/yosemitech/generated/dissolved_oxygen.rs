@@ -25,15 +25,54 @@ pub const SENSOR: rtu::SensorInfo = rtu::SensorInfo {
 /// Manual section 2.2.7.
 pub const DEFAULT_USER_CALIBRATION: [f32; 2] = [1.0, 0.0];
 
-/// A1 to A4, in order, of the oxygen solubility term X1 (mL/L, from the absolute temperature) in the section-3 conversion to mg/L.
+/// A1 of the oxygen solubility ln X1 = A1 + A2 100/T + A3 ln(T/100) + A4 T/100 + S [B1 + B2 T/100 + B3 (T/100)^2], X1 in mL/L.
+///
+/// Unit: 1.
 ///
 /// Manual section 3.
-pub const OXYGEN_SOLUBILITY_A: [f32; 4] = [-173.4292, 249.6339, 143.3483, -21.8492];
+pub const DO_SOLUBILITY_A1: f32 = -173.4292;
 
-/// B1 to B3, in order, of the salinity part of the solubility term X1 (zero salinity in fresh water).
+/// A2 of the oxygen solubility.
+///
+/// Unit: 1.
 ///
 /// Manual section 3.
-pub const OXYGEN_SOLUBILITY_B: [f32; 3] = [-0.033096, 0.014259, -0.0017];
+pub const DO_SOLUBILITY_A2: f32 = 249.6339;
+
+/// A3 of the oxygen solubility.
+///
+/// Unit: 1.
+///
+/// Manual section 3.
+pub const DO_SOLUBILITY_A3: f32 = 143.3483;
+
+/// A4 of the oxygen solubility.
+///
+/// Unit: 1.
+///
+/// Manual section 3.
+pub const DO_SOLUBILITY_A4: f32 = -21.8492;
+
+/// B1 of the oxygen solubility, per unit of salinity.
+///
+/// Unit: 1/ppt.
+///
+/// Manual section 3.
+pub const DO_SOLUBILITY_B1: f32 = -0.033096;
+
+/// B2 of the oxygen solubility, per unit of salinity.
+///
+/// Unit: 1/ppt.
+///
+/// Manual section 3.
+pub const DO_SOLUBILITY_B2: f32 = 0.014259;
+
+/// B3 of the oxygen solubility, per unit of salinity.
+///
+/// Unit: 1/ppt.
+///
+/// Manual section 3.
+pub const DO_SOLUBILITY_B3: f32 = -0.0017;
 
 /// Mass of one millilitre of oxygen, turning the solubility in mL/L into mg/L.
 ///
@@ -60,6 +99,68 @@ pub const STANDARD_ATMOSPHERE_MMHG: f32 = 760.0;
 ///
 /// Manual section 3.
 pub const STANDARD_ATMOSPHERE_KPA: f32 = 101.325;
+
+/// Dissolved oxygen concentration.
+///
+/// The dissolved oxygen in mg/L from the saturation in % the probe reads: DO(mg/L) = DO(%) x X1 x X2 x 1.4276, with X1 the oxygen solubility (mL/L) at the water's temperature and salinity and X2 = (Phmg - u) / (760 - u) the barometric pressure correction, Phmg the pressure in mmHg and u the water vapour pressure, log10 u = 8.10765 - 1750.286 / (235 + t). The manual's DO(%) is a fraction (100 % is 1), hence the division by 100. The manual averages 10 readings of the saturation first.
+///
+/// Formula (from the spec): `saturation / 100 * exp(do_solubility_a1 + do_solubility_a2 * (100 / (273.15 + temperature)) + do_solubility_a3 * ln((273.15 + temperature) / 100) + do_solubility_a4 * ((273.15 + temperature) / 100) + salinity * (do_solubility_b1 + do_solubility_b2 * ((273.15 + temperature) / 100) + do_solubility_b3 * ((273.15 + temperature) / 100)^2)) * (pressure * 760 / 101.325 - 10^(8.10765 - 1750.286 / (235 + temperature))) / (760 - 10^(8.10765 - 1750.286 / (235 + temperature))) * oxygen_mg_per_ml`, in mg/L.
+///
+/// Manual section 3, figure 46.
+///
+/// # Inputs
+///
+/// - `saturation`: the field `do_saturation_pct` of `get_temperature_and_do`, in %, taken in 0..=500.
+/// - `temperature`: the field `temperature_c` of `get_temperature_and_do`, in degC, taken in 0..=50.
+/// - `salinity`: the station's `salinity`, in ppt, taken in 0..=40 (default 0).
+/// - `pressure`: the station's `barometric_pressure`, in kPa, taken in 50..=110 (default 101.325).
+///
+/// # Examples
+///
+/// - `dissolved_oxygen_mg_l(100.0, 20.0, 0.0, 101.325)` is 9.09 mg/L within 0.05: Air-saturated fresh water at 20 degC and 101.325 kPa holds 9.09 mg/L (standard solubility tables, Benson and Krause; APHA Standard Methods 4500-O).
+/// - `dissolved_oxygen_mg_l(100.0, 0.0, 0.0, 101.325)` is 14.62 mg/L within 0.05: Air-saturated fresh water at 0 degC and 101.325 kPa holds 14.62 mg/L (standard solubility tables, Benson and Krause; APHA Standard Methods 4500-O).
+/// - `dissolved_oxygen_mg_l(100.0, 30.0, 0.0, 101.325)` is 7.56 mg/L within 0.05: Air-saturated fresh water at 30 degC and 101.325 kPa holds 7.56 mg/L (standard solubility tables, Benson and Krause; APHA Standard Methods 4500-O).
+/// - `dissolved_oxygen_mg_l(50.0, 20.0, 0.0, 101.325)` is 4.545 mg/L within 0.025: Half saturation at 20 degC is half of the table's 9.09 mg/L.
+///
+/// # Errors
+///
+/// `NotComputable` when an input is NaN, infinite or outside its range, or when the formula has no finite value for the inputs.
+pub fn dissolved_oxygen_mg_l(
+    saturation: f32,
+    temperature: f32,
+    salinity: f32,
+    pressure: f32,
+) -> Result<f32, rtu::NotComputable> {
+    let saturation = rtu::derived::input("saturation", saturation, Some((0.0, 500.0)))?;
+    let temperature = rtu::derived::input(
+        "temperature",
+        temperature,
+        Some((0.0, 50.0)),
+    )?;
+    let salinity = rtu::derived::input("salinity", salinity, Some((0.0, 40.0)))?;
+    let pressure = rtu::derived::input("pressure", pressure, Some((50.0, 110.0)))?;
+    rtu::derived::output(
+        saturation / 100.0
+            * rtu::derived::exp(
+                f64::from(DO_SOLUBILITY_A1)
+                    + f64::from(DO_SOLUBILITY_A2) * (100.0 / (273.15 + temperature))
+                    + f64::from(DO_SOLUBILITY_A3)
+                        * rtu::derived::ln((273.15 + temperature) / 100.0)
+                    + f64::from(DO_SOLUBILITY_A4) * ((273.15 + temperature) / 100.0)
+                    + salinity
+                        * (f64::from(DO_SOLUBILITY_B1)
+                            + f64::from(DO_SOLUBILITY_B2)
+                                * ((273.15 + temperature) / 100.0)
+                            + f64::from(DO_SOLUBILITY_B3)
+                                * rtu::derived::pow((273.15 + temperature) / 100.0, 2.0)),
+            )
+            * (pressure * 760.0 / 101.325
+                - rtu::derived::pow(10.0, 8.10765 - 1750.286 / (235.0 + temperature)))
+            / (760.0
+                - rtu::derived::pow(10.0, 8.10765 - 1750.286 / (235.0 + temperature)))
+            * f64::from(OXYGEN_MG_PER_ML),
+    )
+}
 
 /// Set Slave Device ID.
 ///
@@ -1370,10 +1471,73 @@ pub const COMMAND_NAMES: [&str; 10] = [
     "get_slave_id",
 ];
 
+/// Every derived quantity of the sensor as data, in spec order: its
+/// inputs, and its function (`compute` takes the inputs in parameter order).
+pub const DERIVED: [rtu::DerivedInfo; 1] = [
+    rtu::DerivedInfo {
+        name: "dissolved_oxygen_mg_l",
+        title: "Dissolved oxygen concentration",
+        unit: Some("mg/L"),
+        expr: "saturation / 100 * exp(do_solubility_a1 + do_solubility_a2 * (100 / (273.15 + temperature)) + do_solubility_a3 * ln((273.15 + temperature) / 100) + do_solubility_a4 * ((273.15 + temperature) / 100) + salinity * (do_solubility_b1 + do_solubility_b2 * ((273.15 + temperature) / 100) + do_solubility_b3 * ((273.15 + temperature) / 100)^2)) * (pressure * 760 / 101.325 - 10^(8.10765 - 1750.286 / (235 + temperature))) / (760 - 10^(8.10765 - 1750.286 / (235 + temperature))) * oxygen_mg_per_ml",
+        inputs: &[
+            rtu::DerivedInput {
+                name: "saturation",
+                source: rtu::InputSource::Field {
+                    command: "get_temperature_and_do",
+                    field: "do_saturation_pct",
+                },
+                unit: Some("%"),
+                default: None,
+                range: Some((0.0, 500.0)),
+            },
+            rtu::DerivedInput {
+                name: "temperature",
+                source: rtu::InputSource::Field {
+                    command: "get_temperature_and_do",
+                    field: "temperature_c",
+                },
+                unit: Some("degC"),
+                default: None,
+                range: Some((0.0, 50.0)),
+            },
+            rtu::DerivedInput {
+                name: "salinity",
+                source: rtu::InputSource::Station {
+                    name: "salinity",
+                },
+                unit: Some("ppt"),
+                default: Some(0.0),
+                range: Some((0.0, 40.0)),
+            },
+            rtu::DerivedInput {
+                name: "pressure",
+                source: rtu::InputSource::Station {
+                    name: "barometric_pressure",
+                },
+                unit: Some("kPa"),
+                default: Some(101.325),
+                range: Some((50.0, 110.0)),
+            },
+        ],
+        compute: |inputs| match *inputs {
+            [saturation, temperature, salinity, pressure] => {
+                dissolved_oxygen_mg_l(saturation, temperature, salinity, pressure)
+            }
+            _ => {
+                Err(rtu::NotComputable::Inputs {
+                    expected: 4,
+                    given: inputs.len(),
+                })
+            }
+        },
+    },
+];
+
 /// This module as data, for code that serves every sensor without naming one
 /// (`crate::SENSORS` lists them all).
 pub const MODULE: rtu::SensorModule = rtu::SensorModule {
     info: SENSOR,
+    derived: &DERIVED,
     commands: &COMMAND_NAMES,
     layout: |name| CommandId::from_name(name).map(CommandId::layout),
     identify_request: |frame| identify_request(frame).map(CommandId::name),

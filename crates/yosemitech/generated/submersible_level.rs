@@ -987,10 +987,15 @@ pub const COMMAND_NAMES: [&str; 8] = [
     "get_temperature",
 ];
 
+/// Every derived quantity of the sensor as data, in spec order: its
+/// inputs, and its function (`compute` takes the inputs in parameter order).
+pub const DERIVED: [rtu::DerivedInfo; 0] = [];
+
 /// This module as data, for code that serves every sensor without naming one
 /// (`crate::SENSORS` lists them all).
 pub const MODULE: rtu::SensorModule = rtu::SensorModule {
     info: SENSOR,
+    derived: &DERIVED,
     commands: &COMMAND_NAMES,
     layout: |name| CommandId::from_name(name).map(CommandId::layout),
     identify_request: |frame| identify_request(frame).map(CommandId::name),

@@ -14,6 +14,8 @@ use yosemitech_station::plan;
 
 use crate::catalog::Catalog;
 use crate::cli::{Global, PollArgs, PollFormat};
+use crate::commands::read::derived_json;
+use crate::derived;
 use crate::error::{CliError, Result, short};
 use crate::format::{unit, value_json, value_text};
 use crate::{device, port, time};
@@ -71,6 +73,16 @@ pub fn run(
         .collect();
     let widths: Vec<usize> =
         columns.iter().map(|c| (c.field.len() + c.unit.as_ref().map_or(0, |u| u.chars().count() + 3)).max(9)).collect();
+    // Derived quantities whose field inputs the planned reads give, after the measured columns.
+    let read_names: Vec<&str> = reads.iter().map(|c| c.name.as_str()).collect();
+    let derived_heads: Vec<String> = derived::beside(sensor, &|_, _| None, &read_names)
+        .iter()
+        .map(|d| match &d.quantity.unit {
+            Some(u) => format!("{} [{}] (derived)", d.quantity.name, unit(u)),
+            None => format!("{} (derived)", d.quantity.name),
+        })
+        .collect();
+    let derived_widths: Vec<usize> = derived_heads.iter().map(|h| h.chars().count().max(9)).collect();
 
     match args.format {
         PollFormat::Table => {
@@ -82,10 +94,14 @@ pub fn run(
                 };
                 write!(out, "  {head:>w$}")?;
             }
+            for (head, w) in derived_heads.iter().zip(&derived_widths) {
+                write!(out, "  {head:>w$}")?;
+            }
             writeln!(out, "  error")?;
         }
         PollFormat::Csv => {
-            let names: Vec<String> = columns.iter().map(|c| csv(c.field)).collect();
+            let names: Vec<String> =
+                columns.iter().map(|c| csv(c.field)).chain(derived_heads.iter().map(|h| csv(h))).collect();
             writeln!(out, "timestamp,{},error", names.join(","))?;
         }
         PollFormat::Json => {}
@@ -119,12 +135,18 @@ pub fn run(
             failed += 1;
         }
         let cell = |c: &Column<'_>| values.get(c.command.name.as_str()).and_then(|v| v.get(c.field));
+        let lookup = |c: &str, f: &str| values.get(c).and_then(|v| v.get(f));
+        let computed = derived::beside(sensor, &lookup, &read_names);
+        let derived_cell = |d: &derived::DerivedValue<'_>| d.value.as_ref().map(|v| v.to_string()).ok();
         let error = errors.join("; ");
         match args.format {
             PollFormat::Table => {
                 write!(out, "{timestamp:24}")?;
                 for (c, w) in columns.iter().zip(&widths) {
                     write!(out, "  {:>w$}", cell(c).map(plain).unwrap_or_else(|| "-".into()))?;
+                }
+                for (d, w) in computed.iter().zip(&derived_widths) {
+                    write!(out, "  {:>w$}", derived_cell(d).unwrap_or_else(|| "-".into()))?;
                 }
                 if error.is_empty() {
                     writeln!(out)?;
@@ -133,7 +155,11 @@ pub fn run(
                 }
             }
             PollFormat::Csv => {
-                let cells: Vec<String> = columns.iter().map(|c| csv(&cell(c).map(plain).unwrap_or_default())).collect();
+                let cells: Vec<String> = columns
+                    .iter()
+                    .map(|c| csv(&cell(c).map(plain).unwrap_or_default()))
+                    .chain(computed.iter().map(|d| csv(&derived_cell(d).unwrap_or_default())))
+                    .collect();
                 writeln!(out, "{timestamp},{},{}", cells.join(","), csv(&error))?;
             }
             PollFormat::Json => {
@@ -142,6 +168,7 @@ pub fn run(
                 let row = json!({
                     "timestamp": timestamp,
                     "values": map,
+                    "derived": derived_json(&computed),
                     "error": if errors.is_empty() { Json::Null } else { Json::String(error) },
                 });
                 writeln!(out, "{row}")?;

@@ -8,9 +8,10 @@ use yosemitech_spec::{CommandSpec, Values};
 
 use crate::catalog::{self, Catalog};
 use crate::cli::{Global, ReadArgs};
+use crate::derived::{self, DerivedValue};
 use crate::device;
 use crate::error::{CliError, Result};
-use crate::format::{fields_json, value_with_unit, values_json};
+use crate::format::{f32_json, fields_json, unit, value_with_unit, values_json};
 use crate::{port, time};
 
 /// Runs `read`.
@@ -24,6 +25,9 @@ pub fn run(catalog: &Catalog, global: &Global, args: &ReadArgs, out: &mut dyn Wr
     let address = args.address.get(sensor.default_address)?;
     let mut opened = port::open(&args.port, global, &sensor.serial)?;
     let values = device::read(&mut opened, command, address)?;
+    let lookup =
+        |c: &str, f: &str| if c == command.name { values.iter().find(|(n, _)| n == f).map(|(_, v)| v) } else { None };
+    let derived = derived::beside(sensor, &lookup, &[command.name.as_str()]);
     if args.json {
         let doc = json!({
             "sensor": sensor.name,
@@ -33,12 +37,45 @@ pub fn run(catalog: &Catalog, global: &Global, args: &ReadArgs, out: &mut dyn Wr
             "timestamp": time::rfc3339(SystemTime::now()),
             "values": values_json(&values),
             "fields": fields_json(command, &values),
+            "derived": derived_json(&derived),
         });
         writeln!(out, "{}", serde_json::to_string_pretty(&doc).unwrap_or_default())?;
     } else {
         show(command, &values, out)?;
+        show_derived(&derived, out)?;
     }
     Ok(())
+}
+
+/// Derived quantities as `name  value unit  (derived)` lines, or why there is none.
+pub fn show_derived(derived: &[DerivedValue<'_>], out: &mut dyn Write) -> Result<()> {
+    let width = derived.iter().map(|d| d.quantity.name.len()).max().unwrap_or(0);
+    for d in derived {
+        let name = &d.quantity.name;
+        match &d.value {
+            Ok(v) => {
+                let u = d.quantity.unit.as_deref().map(|u| format!(" {}", unit(u))).unwrap_or_default();
+                writeln!(out, "{name:width$}  {v}{u}  (derived)")?;
+            }
+            Err(why) => writeln!(out, "{name:width$}  not computable: {why}  (derived)")?,
+        }
+    }
+    Ok(())
+}
+
+/// Derived quantities as JSON: `{name: {value, unit}}` or `{name: {error}}`.
+pub fn derived_json(derived: &[DerivedValue<'_>]) -> serde_json::Value {
+    let map: serde_json::Map<String, serde_json::Value> = derived
+        .iter()
+        .map(|d| {
+            let v = match &d.value {
+                Ok(v) => json!({"value": f32_json(*v), "unit": d.quantity.unit}),
+                Err(why) => json!({"error": why, "unit": d.quantity.unit}),
+            };
+            (d.quantity.name.clone(), v)
+        })
+        .collect();
+    serde_json::Value::Object(map)
 }
 
 /// Values as aligned `name  value unit` lines.

@@ -44,6 +44,7 @@ pub(super) fn check_fragment(doc: &SpecFile, r: &mut Reporter<'_>) {
         ("constants", !doc.constants.is_empty()),
         ("errata", !doc.errata.is_empty()),
         ("procedure", doc.procedure.is_some()),
+        ("derived", !doc.derived.is_empty()),
     ] {
         if present {
             r.error(

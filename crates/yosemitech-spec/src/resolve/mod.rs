@@ -22,6 +22,7 @@ use crate::sources::{FsSources, NotUtf8, Sources};
 
 mod command;
 mod constant;
+mod derived;
 mod errata;
 mod field;
 mod includes;
@@ -31,6 +32,7 @@ mod todo;
 
 use command::{check_use_entry, command_key, resolve_command, resolve_command_extras};
 use constant::resolve_constants;
+use derived::resolve_derived;
 use errata::resolve_errata;
 use includes::{check_fragment, collect_includes, include_target};
 use procedure::resolve_procedure;
@@ -118,6 +120,10 @@ pub struct Summary {
     pub complete_frames: usize,
     /// Errata recorded.
     pub errata: usize,
+    /// Derived quantities, their formulas checked.
+    pub derived: usize,
+    /// Examples of derived quantities computed and compared.
+    pub derived_examples: usize,
 }
 
 impl Spec {
@@ -127,6 +133,8 @@ impl Spec {
         for sensor in &self.sensors {
             s.commands += sensor.commands.len();
             s.errata += sensor.errata.len();
+            s.derived += sensor.derived.len();
+            s.derived_examples += sensor.derived.iter().map(|d| d.examples.len()).sum::<usize>();
             for c in &sensor.commands {
                 s.errata += c.errata.len();
                 for e in &c.examples {
@@ -668,6 +676,7 @@ impl Loader<'_> {
         let procedure = doc.procedure.as_ref().and_then(|p| resolve_procedure(p, &commands, &mut r));
         let constants = resolve_constants(&doc.constants, &mut r);
         let errata = resolve_errata(&doc.errata, &mut r);
+        let derived = resolve_derived(&doc.derived, &commands, &constants, &mut r);
         let head = head?;
         let mut files = vec![root.to_path_buf()];
         files.extend(included.iter().map(|d| d.file.to_path_buf()));
@@ -692,6 +701,7 @@ impl Loader<'_> {
             procedure,
             constants,
             errata,
+            derived,
             file: root.to_path_buf(),
             files,
         })
