@@ -366,7 +366,7 @@ fn resolve_field(
             Pos::at(at),
             fkey,
             format!("`{}` is not `command.field`", escape(&at.value)),
-            Some("name a read and its field, like `get_conductivity.conductivity_ms_cm`".into()),
+            Some("name a read and its field, like `get_reading.value_mg_l`".into()),
         );
         return None;
     };
