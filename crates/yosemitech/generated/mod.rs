@@ -414,7 +414,7 @@ pub mod sonde_per_parameter {
 /// | Get Slave Device ID | read (0x03) | 0x3000 | 1 | [`GetSlaveId`](submersible_level::GetSlaveId) | [`GetSlaveIdResponse`](submersible_level::GetSlaveIdResponse) |
 /// | Set Customer Calibration Coefficients | write (0x10) | 0x1100 | 4 | [`SetUserCalibration`](submersible_level::SetUserCalibration) | `()` |
 /// | Get User Calibration Coefficients | read (0x03) | 0x1100 | 4 | [`GetUserCalibration`](submersible_level::GetUserCalibration) | [`GetUserCalibrationResponse`](submersible_level::GetUserCalibrationResponse) |
-/// | Get water level | read (0x03) | 0x2600 | 6 | [`GetLevel`](submersible_level::GetLevel) | [`GetLevelResponse`](submersible_level::GetLevelResponse) |
+/// | Get water level | read (0x03) | 0x2600 | 6 | [`GetWaterLevel`](submersible_level::GetWaterLevel) | [`GetWaterLevelResponse`](submersible_level::GetWaterLevelResponse) |
 /// | Get temperature | read (0x03) | 0x2400 | 2 | [`GetTemperature`](submersible_level::GetTemperature) | [`GetTemperatureResponse`](submersible_level::GetTemperatureResponse) |
 pub mod submersible_level {
     include!("submersible_level.rs");

@@ -296,9 +296,9 @@ impl rtu::Command for GetUserCalibration {
 ///
 /// Reads (function 0x03) 6 registers at 0x2600.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
-pub struct GetLevel;
+pub struct GetWaterLevel;
 
-impl GetLevel {
+impl GetWaterLevel {
     /// Name and unit of each field, in wire order.
     pub const FIELDS: [rtu::FieldInfo; 0] = [];
     /// Each field's value, in the order of [`Self::FIELDS`].
@@ -307,9 +307,9 @@ impl GetLevel {
     }
 }
 
-/// Reply to [`GetLevel`]. The water level and its status byte, in a six-register block.
+/// Reply to [`GetWaterLevel`]. The water level and its status byte, in a six-register block.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct GetLevelResponse {
+pub struct GetWaterLevelResponse {
     /// Water level in millimetres of water above the sensor. Unit: mmH2O.
     ///
     /// Wire: `f32`, little-endian image (`dcba`), data bytes 4..8.
@@ -320,7 +320,7 @@ pub struct GetLevelResponse {
     pub status: u8,
 }
 
-impl GetLevelResponse {
+impl GetWaterLevelResponse {
     /// Name and unit of each field, in wire order.
     pub const FIELDS: [rtu::FieldInfo; 2] = [
         rtu::FieldInfo {
@@ -361,9 +361,9 @@ impl GetLevelResponse {
     }
 }
 
-impl rtu::Command for GetLevel {
-    type Response = GetLevelResponse;
-    const NAME: &'static str = "get_level";
+impl rtu::Command for GetWaterLevel {
+    type Response = GetWaterLevelResponse;
+    const NAME: &'static str = "get_water_level";
     const LAYOUT: rtu::Layout<'static> = rtu::Layout {
         function: rtu::Function::Read,
         address: 0x2600,
@@ -384,7 +384,7 @@ impl rtu::Command for GetLevel {
         Ok((slave, Self))
     }
     fn encode_response(
-        response: &GetLevelResponse,
+        response: &GetWaterLevelResponse,
         slave: u8,
         out: &mut [u8],
     ) -> Result<usize, rtu::EncodeError> {
@@ -393,14 +393,14 @@ impl rtu::Command for GetLevel {
     fn decode_response(
         slave: u8,
         frame: &[u8],
-    ) -> Result<GetLevelResponse, rtu::FrameError> {
+    ) -> Result<GetWaterLevelResponse, rtu::FrameError> {
         let data = Self::LAYOUT.decode_response(slave, frame)?;
         let data = <&[u8; 12]>::try_from(data)
             .map_err(|_| rtu::FrameError::Truncated {
                 expected: Self::RESPONSE_LEN,
                 actual: frame.len(),
             })?;
-        Ok(GetLevelResponse::from_data(data))
+        Ok(GetWaterLevelResponse::from_data(data))
     }
 }
 
@@ -522,8 +522,8 @@ pub enum CommandId {
     SetUserCalibration,
     /// `get_user_calibration`: [`GetUserCalibration`].
     GetUserCalibration,
-    /// `get_level`: [`GetLevel`].
-    GetLevel,
+    /// `get_water_level`: [`GetWaterLevel`].
+    GetWaterLevel,
     /// `get_temperature`: [`GetTemperature`].
     GetTemperature,
 }
@@ -537,7 +537,7 @@ impl CommandId {
         Self::GetSlaveId,
         Self::SetUserCalibration,
         Self::GetUserCalibration,
-        Self::GetLevel,
+        Self::GetWaterLevel,
         Self::GetTemperature,
     ];
     /// The command's snake_case name in the spec.
@@ -549,7 +549,7 @@ impl CommandId {
             Self::GetSlaveId => "get_slave_id",
             Self::SetUserCalibration => "set_user_calibration",
             Self::GetUserCalibration => "get_user_calibration",
-            Self::GetLevel => "get_level",
+            Self::GetWaterLevel => "get_water_level",
             Self::GetTemperature => "get_temperature",
         }
     }
@@ -562,7 +562,7 @@ impl CommandId {
             "get_slave_id" => Some(Self::GetSlaveId),
             "set_user_calibration" => Some(Self::SetUserCalibration),
             "get_user_calibration" => Some(Self::GetUserCalibration),
-            "get_level" => Some(Self::GetLevel),
+            "get_water_level" => Some(Self::GetWaterLevel),
             "get_temperature" => Some(Self::GetTemperature),
             _ => None,
         }
@@ -576,7 +576,7 @@ impl CommandId {
             Self::GetSlaveId => "Get Slave Device ID",
             Self::SetUserCalibration => "Set Customer Calibration Coefficients",
             Self::GetUserCalibration => "Get User Calibration Coefficients",
-            Self::GetLevel => "Get water level",
+            Self::GetWaterLevel => "Get water level",
             Self::GetTemperature => "Get temperature",
         }
     }
@@ -589,7 +589,7 @@ impl CommandId {
             Self::GetSlaveId => <GetSlaveId as rtu::Command>::LAYOUT,
             Self::SetUserCalibration => <SetUserCalibration as rtu::Command>::LAYOUT,
             Self::GetUserCalibration => <GetUserCalibration as rtu::Command>::LAYOUT,
-            Self::GetLevel => <GetLevel as rtu::Command>::LAYOUT,
+            Self::GetWaterLevel => <GetWaterLevel as rtu::Command>::LAYOUT,
             Self::GetTemperature => <GetTemperature as rtu::Command>::LAYOUT,
         }
     }
@@ -602,7 +602,7 @@ impl CommandId {
             Self::GetSlaveId => &GetSlaveId::FIELDS,
             Self::SetUserCalibration => &SetUserCalibration::FIELDS,
             Self::GetUserCalibration => &GetUserCalibration::FIELDS,
-            Self::GetLevel => &GetLevel::FIELDS,
+            Self::GetWaterLevel => &GetWaterLevel::FIELDS,
             Self::GetTemperature => &GetTemperature::FIELDS,
         }
     }
@@ -615,7 +615,7 @@ impl CommandId {
             Self::GetSlaveId => &GetSlaveIdResponse::FIELDS,
             Self::SetUserCalibration => &[],
             Self::GetUserCalibration => &GetUserCalibrationResponse::FIELDS,
-            Self::GetLevel => &GetLevelResponse::FIELDS,
+            Self::GetWaterLevel => &GetWaterLevelResponse::FIELDS,
             Self::GetTemperature => &GetTemperatureResponse::FIELDS,
         }
     }
@@ -646,9 +646,9 @@ impl CommandId {
                 <GetUserCalibration as rtu::Command>::decode_request(frame)
                     .map(|(slave, r)| (slave, Request::GetUserCalibration(r)))
             }
-            Self::GetLevel => {
-                <GetLevel as rtu::Command>::decode_request(frame)
-                    .map(|(slave, r)| (slave, Request::GetLevel(r)))
+            Self::GetWaterLevel => {
+                <GetWaterLevel as rtu::Command>::decode_request(frame)
+                    .map(|(slave, r)| (slave, Request::GetWaterLevel(r)))
             }
             Self::GetTemperature => {
                 <GetTemperature as rtu::Command>::decode_request(frame)
@@ -687,9 +687,9 @@ impl CommandId {
                 <GetUserCalibration as rtu::Command>::decode_response(slave, frame)
                     .map(Response::GetUserCalibration)
             }
-            Self::GetLevel => {
-                <GetLevel as rtu::Command>::decode_response(slave, frame)
-                    .map(Response::GetLevel)
+            Self::GetWaterLevel => {
+                <GetWaterLevel as rtu::Command>::decode_response(slave, frame)
+                    .map(Response::GetWaterLevel)
             }
             Self::GetTemperature => {
                 <GetTemperature as rtu::Command>::decode_response(slave, frame)
@@ -720,8 +720,8 @@ pub enum Request {
     SetUserCalibration(SetUserCalibration),
     /// A [`GetUserCalibration`] request.
     GetUserCalibration(GetUserCalibration),
-    /// A [`GetLevel`] request.
-    GetLevel(GetLevel),
+    /// A [`GetWaterLevel`] request.
+    GetWaterLevel(GetWaterLevel),
     /// A [`GetTemperature`] request.
     GetTemperature(GetTemperature),
 }
@@ -736,7 +736,7 @@ impl Request {
             Self::GetSlaveId(_) => CommandId::GetSlaveId,
             Self::SetUserCalibration(_) => CommandId::SetUserCalibration,
             Self::GetUserCalibration(_) => CommandId::GetUserCalibration,
-            Self::GetLevel(_) => CommandId::GetLevel,
+            Self::GetWaterLevel(_) => CommandId::GetWaterLevel,
             Self::GetTemperature(_) => CommandId::GetTemperature,
         }
     }
@@ -749,7 +749,7 @@ impl Request {
             Self::GetSlaveId(r) => rtu::Command::encode_request(r, slave, out),
             Self::SetUserCalibration(r) => rtu::Command::encode_request(r, slave, out),
             Self::GetUserCalibration(r) => rtu::Command::encode_request(r, slave, out),
-            Self::GetLevel(r) => rtu::Command::encode_request(r, slave, out),
+            Self::GetWaterLevel(r) => rtu::Command::encode_request(r, slave, out),
             Self::GetTemperature(r) => rtu::Command::encode_request(r, slave, out),
         }
     }
@@ -762,7 +762,7 @@ impl Request {
             Self::GetSlaveId(r) => r.fields().get(index).copied(),
             Self::SetUserCalibration(r) => r.fields().get(index).copied(),
             Self::GetUserCalibration(r) => r.fields().get(index).copied(),
-            Self::GetLevel(r) => r.fields().get(index).copied(),
+            Self::GetWaterLevel(r) => r.fields().get(index).copied(),
             Self::GetTemperature(r) => r.fields().get(index).copied(),
         }
     }
@@ -793,8 +793,8 @@ pub enum Response {
     SetUserCalibration,
     /// The reply to [`GetUserCalibration`].
     GetUserCalibration(GetUserCalibrationResponse),
-    /// The reply to [`GetLevel`].
-    GetLevel(GetLevelResponse),
+    /// The reply to [`GetWaterLevel`].
+    GetWaterLevel(GetWaterLevelResponse),
     /// The reply to [`GetTemperature`].
     GetTemperature(GetTemperatureResponse),
 }
@@ -809,7 +809,7 @@ impl Response {
             Self::GetSlaveId(_) => CommandId::GetSlaveId,
             Self::SetUserCalibration => CommandId::SetUserCalibration,
             Self::GetUserCalibration(_) => CommandId::GetUserCalibration,
-            Self::GetLevel(_) => CommandId::GetLevel,
+            Self::GetWaterLevel(_) => CommandId::GetWaterLevel,
             Self::GetTemperature(_) => CommandId::GetTemperature,
         }
     }
@@ -832,8 +832,8 @@ impl Response {
             Self::GetUserCalibration(r) => {
                 <GetUserCalibration as rtu::Command>::encode_response(r, slave, out)
             }
-            Self::GetLevel(r) => {
-                <GetLevel as rtu::Command>::encode_response(r, slave, out)
+            Self::GetWaterLevel(r) => {
+                <GetWaterLevel as rtu::Command>::encode_response(r, slave, out)
             }
             Self::GetTemperature(r) => {
                 <GetTemperature as rtu::Command>::encode_response(r, slave, out)
@@ -849,7 +849,7 @@ impl Response {
             Self::GetSlaveId(r) => r.fields().get(index).copied(),
             Self::SetUserCalibration => None,
             Self::GetUserCalibration(r) => r.fields().get(index).copied(),
-            Self::GetLevel(r) => r.fields().get(index).copied(),
+            Self::GetWaterLevel(r) => r.fields().get(index).copied(),
             Self::GetTemperature(r) => r.fields().get(index).copied(),
         }
     }
@@ -925,15 +925,15 @@ impl From<GetUserCalibration> for Request {
     }
 }
 
-impl From<GetLevelResponse> for Response {
-    fn from(response: GetLevelResponse) -> Self {
-        Self::GetLevel(response)
+impl From<GetWaterLevelResponse> for Response {
+    fn from(response: GetWaterLevelResponse) -> Self {
+        Self::GetWaterLevel(response)
     }
 }
 
-impl From<GetLevel> for Request {
-    fn from(request: GetLevel) -> Self {
-        Self::GetLevel(request)
+impl From<GetWaterLevel> for Request {
+    fn from(request: GetWaterLevel) -> Self {
+        Self::GetWaterLevel(request)
     }
 }
 
@@ -983,7 +983,7 @@ pub const COMMAND_NAMES: [&str; 8] = [
     "get_slave_id",
     "set_user_calibration",
     "get_user_calibration",
-    "get_level",
+    "get_water_level",
     "get_temperature",
 ];
 
@@ -1113,9 +1113,9 @@ impl<'c, T: rtu::Transport> Device<'c, T> {
     ) -> Result<GetUserCalibrationResponse, rtu::Error> {
         self.call(&GetUserCalibration)
     }
-    /// Get water level: sends [`GetLevel`] and returns the reply.
-    pub fn level(&mut self) -> Result<GetLevelResponse, rtu::Error> {
-        self.call(&GetLevel)
+    /// Get water level: sends [`GetWaterLevel`] and returns the reply.
+    pub fn water_level(&mut self) -> Result<GetWaterLevelResponse, rtu::Error> {
+        self.call(&GetWaterLevel)
     }
     /// Get temperature: sends [`GetTemperature`] and returns its `temperature_c` (degC).
     pub fn temperature(&mut self) -> Result<f32, rtu::Error> {
@@ -1201,9 +1201,9 @@ impl<'c, L: rtu::transport::AsyncLink> AsyncDevice<'c, L> {
     ) -> Result<GetUserCalibrationResponse, rtu::Error> {
         self.call(&GetUserCalibration).await
     }
-    /// Get water level: sends [`GetLevel`] and returns the reply.
-    pub async fn level(&mut self) -> Result<GetLevelResponse, rtu::Error> {
-        self.call(&GetLevel).await
+    /// Get water level: sends [`GetWaterLevel`] and returns the reply.
+    pub async fn water_level(&mut self) -> Result<GetWaterLevelResponse, rtu::Error> {
+        self.call(&GetWaterLevel).await
     }
     /// Get temperature: sends [`GetTemperature`] and returns its `temperature_c` (degC).
     pub async fn temperature(&mut self) -> Result<f32, rtu::Error> {
