@@ -130,8 +130,9 @@ enum Candidate {
     Normal,
     /// A trigger read's short reply (byte count 0, no data) at `rx[start..]`.
     Short,
-    /// An exception reply further on whose CRC already checked, at `rx[at..]`.
-    LaterException { at: usize },
+    /// An exception reply, or a trigger read's short reply, further on
+    /// whose CRC already checked, at `rx[at..at + len]`.
+    Later { at: usize, len: usize },
 }
 
 /// Where the bytes of [`ClientCore::last_reply`] are.
@@ -672,10 +673,7 @@ impl ClientCore {
         let crc_failed = match verdict {
             Ok(()) => false,
             Err(FrameError::Crc { .. }) => true,
-            Err(_) => {
-                !matches!(candidate, Candidate::LaterException { .. })
-                    && !self.rx.get(frame.clone()).is_some_and(crc_ok)
-            }
+            Err(_) => !matches!(candidate, Candidate::Later { .. }) && !self.rx.get(frame.clone()).is_some_and(crc_ok),
         };
         if crc_failed {
             let error = match verdict {
@@ -766,7 +764,7 @@ impl ClientCore {
         let len = match candidate {
             Candidate::Normal => self.target,
             Candidate::Short => self.expected.and_then(|expected| expected.short_len).unwrap_or(self.target),
-            Candidate::LaterException { at } => return at..at + EXCEPTION_LEN,
+            Candidate::Later { at, len } => return at..at + len,
         };
         self.start..self.start + len
     }
@@ -850,13 +848,20 @@ impl ClientCore {
             return;
         }
         // Noise may also open a normal-length candidate around a shorter
-        // exception reply (`AA 03 03 83 06 ..` from slave 3): take an
-        // exception frame further on as soon as it is complete and checks.
-        // (A later normal-length candidate cannot complete before this one.)
-        if let Some(at) = (self.start + 1..self.end.saturating_sub(EXCEPTION_LEN - 1)).find(|&at| {
-            self.rx.get(at + 1) == Some(&exception) && self.rx.get(at..at + EXCEPTION_LEN).is_some_and(crc_ok)
-        }) {
-            self.state = State::Check(Candidate::LaterException { at });
+        // reply: an exception (`AA 03 03 83 06 ..` from slave 3) or a
+        // trigger read's short reply (`AA AA 01 03 01 03 00 ..`). Take such a
+        // frame further on as soon as it is complete and checks. (A later
+        // normal-length candidate cannot complete before this one.)
+        let later = (self.start + 1..self.end).find_map(|at| {
+            let len = match self.rx.get(at + 1) {
+                Some(&f) if f == exception => EXCEPTION_LEN,
+                Some(&f) if f == expected.function && self.rx.get(at + 2) == Some(&0) => expected.short_len?,
+                _ => return None,
+            };
+            self.rx.get(at..at + len).is_some_and(crc_ok).then_some((at, len))
+        });
+        if let Some((at, len)) = later {
+            self.state = State::Check(Candidate::Later { at, len });
             return;
         }
         if self.start + target > MAX_ADU {

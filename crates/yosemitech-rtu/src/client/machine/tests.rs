@@ -394,3 +394,16 @@ fn the_core_holds_its_buffers_and_little_else() {
     std::println!("ClientCore: {size} bytes");
     assert!(size <= 3 * MAX_ADU + 400, "{size}");
 }
+
+#[test]
+fn a_short_trigger_reply_after_noise_that_opens_a_longer_frame_is_found() {
+    // The noise `AA AA 01 03` aligns a frame whose head announces more
+    // bytes than will come; the short reply `01 03 00 CRC` inside it checks.
+    const TRIGGER_READ: Layout<'static> = Layout { trigger: true, ..Layout::read(0x2500, 2) };
+    let short = with_crc(&[0x01, 0x03, 0x00]);
+    let mut bytes = vec![0xAA, 0xAA, 0x01, 0x03];
+    bytes.extend_from_slice(&short);
+    let mut h = Harness::new(no_retries(), move |_, _| vec![(ms(5), bytes.clone())]);
+    assert_eq!(h.call(1, &TRIGGER_READ), Ok(()));
+    assert_eq!(h.core.last_reply(), short);
+}
