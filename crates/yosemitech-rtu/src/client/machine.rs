@@ -852,7 +852,10 @@ impl ClientCore {
         // trigger read's short reply (`AA AA 01 03 01 03 00 ..`). Take such a
         // frame further on as soon as it is complete and checks. (A later
         // normal-length candidate cannot complete before this one.)
-        let later = (self.start + 1..self.end).find_map(|at| {
+        // Only where the shortest such frame would already be complete: a
+        // head alone costs no search.
+        let shortest = expected.short_len.map_or(EXCEPTION_LEN, |short| short.min(EXCEPTION_LEN));
+        let later = (self.start + 1..(self.end + 1).saturating_sub(shortest)).find_map(|at| {
             let len = match self.rx.get(at + 1) {
                 Some(&f) if f == exception => EXCEPTION_LEN,
                 Some(&f) if f == expected.function && self.rx.get(at + 2) == Some(&0) => expected.short_len?,
