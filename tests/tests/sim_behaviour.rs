@@ -825,3 +825,50 @@ fn a_simulated_day_of_water_stays_in_range_and_moves() {
         seen.len()
     );
 }
+
+#[test]
+fn setting_a_reading_changes_no_other_read_but_the_same_registers() {
+    // A value set on one read shows in another read only where that read's
+    // field is the same bytes of the same registers; reads whose addresses
+    // are parameter numbers (fields straddling each other) keep their own.
+    let span = |c: &CommandSpec, name: &str| {
+        c.field(name).map(|f| {
+            let start = u32::from(c.address) * 2 + f.offset as u32;
+            (start, start + f.size() as u32)
+        })
+    };
+    let (mut set, mut looked_at) = (0, 0);
+    for sensor in &spec().sensors {
+        let reads: Vec<&CommandSpec> = sensor.commands.iter().filter(|c| c.is_read() && !c.trigger).collect();
+        for read in &reads {
+            for field in read.named_fields().filter(|f| is_f32(f)) {
+                let name = field.display_name();
+                let mut sim = Simulator::new(sensor.clone());
+                sim.fill_with_water();
+                let before: Vec<_> = reads.iter().map(|r| sim.values(&r.name).unwrap()).collect();
+                let new = 12345.5;
+                sim.set(&read.name, name, f(new)).unwrap();
+                set += 1;
+                for (other, old) in reads.iter().zip(&before) {
+                    for (other_name, value) in sim.values(&other.name).unwrap() {
+                        let shared = span(other, &other_name) == span(read, name);
+                        let expected = if shared {
+                            f(new)
+                        } else {
+                            old.iter().find(|(n, _)| *n == other_name).map(|(_, v)| v.clone()).unwrap()
+                        };
+                        assert!(
+                            value.same_as(&expected),
+                            "{}: after setting {}.{name}, {}.{other_name} is {value:?}, not {expected:?}",
+                            sensor.name,
+                            read.name,
+                            other.name
+                        );
+                        looked_at += 1;
+                    }
+                }
+            }
+        }
+    }
+    assert!(set > 0 && looked_at > set, "{set} set, {looked_at} looked at");
+}

@@ -106,11 +106,7 @@ fn demo_reads_every_sensor_and_runs_every_procedure() {
                     continue;
                 }
                 let mean = shown_number(part, &read.name, name);
-                let span = match field.range {
-                    _ if field.unit.as_deref() == Some("degC") => yosemitech_sim::WATER_TEMPERATURE_SPAN_C,
-                    Some((min, max)) => max - min,
-                    None => f64::from(start.abs()).max(1.0),
-                };
+                let span = yosemitech_sim::daily_span(field, start);
                 assert!(
                     (mean - f64::from(start)).abs() <= 0.05 * span + 0.01,
                     "{}: {name} {mean} is far from the water's {start}",

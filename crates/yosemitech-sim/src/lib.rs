@@ -66,6 +66,7 @@ pub use serve::serve_pty;
 pub use serve::{Endpoint, ServeConfig, Server, serve_mbap, serve_memory, serve_tcp, serve_transport};
 pub use simulator::{
     SimError, Simulator, Stats, UnknownRequestPolicy, Variation, WATER_TEMPERATURE_C, WATER_TEMPERATURE_SPAN_C,
+    daily_span,
 };
 
 /// Something on the bus that answers request frames: a [`Simulator`] or a

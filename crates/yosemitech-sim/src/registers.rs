@@ -111,3 +111,45 @@ mod tests {
         assert!(format!("{r:?}").contains("0x2800: 33 33"));
     }
 }
+
+/// Which reads keep registers of their own (by command index).
+///
+/// Two reads that cover a register share it when their fields there are the
+/// same fields (a block read and a read of its first value). Where a field
+/// of one straddles a field of the other, the addresses cannot be register
+/// offsets (the Y4000's newer hardware numbers its parameters at 0x26NN, one
+/// float each), so each read answers from its own registers: writing one
+/// value would otherwise corrupt its neighbours.
+pub fn reads_of_their_own(sensor: &yosemitech_spec::Sensor) -> Vec<bool> {
+    // A field's bytes on the register line: register address * 2 + offset.
+    let spans = |c: &yosemitech_spec::CommandSpec| -> Vec<(u32, u32)> {
+        c.fields
+            .iter()
+            .map(|f| {
+                let start = u32::from(c.address) * 2 + f.offset as u32;
+                (start, start + f.size() as u32)
+            })
+            .collect()
+    };
+    let reads: Vec<(usize, Vec<(u32, u32)>)> = sensor
+        .commands
+        .iter()
+        .enumerate()
+        .filter(|(_, c)| c.is_read() && c.count > 0 && !c.trigger)
+        .map(|(i, c)| (i, spans(c)))
+        .collect();
+    let mut own = vec![false; sensor.commands.len()];
+    for (a, (ia, fa)) in reads.iter().enumerate() {
+        for (ib, fb) in reads.iter().skip(a + 1) {
+            let straddle = fa.iter().any(|x| fb.iter().any(|y| x.0 < y.1 && y.0 < x.1 && x != y));
+            if straddle {
+                for i in [*ia, *ib] {
+                    if let Some(o) = own.get_mut(i) {
+                        *o = true;
+                    }
+                }
+            }
+        }
+    }
+    own
+}

@@ -15,7 +15,7 @@ use crate::behaviour::{
     AddressSlot, Behaviour, MeasurementState, SerialNumber, SerialNumberPolicy, WarmUpPolicy, address_slots, role_index,
 };
 use crate::fault::{FaultConfig, FaultCounts, FaultKind, Injector, Rng};
-use crate::registers::RegisterMap;
+use crate::registers::{RegisterMap, reads_of_their_own};
 
 /// Why a value could not be read or set through the simulator's API.
 #[derive(Debug, Clone, PartialEq)]
@@ -94,8 +94,7 @@ pub struct Stats {
 /// `base + swing * span * sin(2 pi t / day + phase) + drift_per_read * n + noise * u`
 /// before the reply is built, where `base` is the value when the variation
 /// was enabled or last [`Simulator::set`] (see [`Simulator::fill_with_water`]
-/// for plausible ones), `span` the field's range (or `|base|`, or 1;
-/// [`WATER_TEMPERATURE_SPAN_C`] for every temperature), `t`
+/// for plausible ones), `span` from [`daily_span`], `t`
 /// the time of day (the wall clock, so probes on one bus see the same
 /// water; the manual clock when [`Simulator::with_manual_clock`]), `phase`
 /// the same for every temperature (unit `degC`) and different for other
@@ -137,6 +136,22 @@ pub const WATER_TEMPERATURE_C: f64 = 18.0;
 /// The span a temperature's daily swing is a fraction of, degrees C, the
 /// same for every probe whatever its range, so they all read one water.
 pub const WATER_TEMPERATURE_SPAN_C: f64 = 50.0;
+
+/// The span a field's daily swing is a fraction of ([`Variation::daily_swing`]):
+/// [`WATER_TEMPERATURE_SPAN_C`] for a temperature; for a field with a
+/// `typical` value, twice that value, but no more than its range (a river's
+/// 12 NTU swings by NTUs, not by the hundreds a 0-1000 NTU range allows);
+/// else its range, or `|base|` (at least 1) without one.
+pub fn daily_span(field: &Field, base: f32) -> f64 {
+    let range = field.range.map(|(min, max)| (max - min).max(0.0));
+    match (field.typical, range) {
+        _ if field.unit.as_deref() == Some("degC") => WATER_TEMPERATURE_SPAN_C,
+        (Some(typical), Some(range)) => (2.0 * typical.abs()).min(range),
+        (Some(typical), None) => 2.0 * typical.abs(),
+        (None, Some(range)) => range,
+        (None, None) => f64::from(base.abs()).max(1.0),
+    }
+}
 
 #[derive(Debug, Clone)]
 struct VariationState {
@@ -244,6 +259,8 @@ pub struct Simulator {
     sensor: Arc<Sensor>,
     address: u8,
     registers: RegisterMap,
+    /// The registers of reads that keep their own ([`reads_of_their_own`]), by command index.
+    own_registers: BTreeMap<usize, RegisterMap>,
     address_slots: Vec<AddressSlot>,
     /// Index of the `set_slave_address` command.
     set_address_command: Option<usize>,
@@ -263,9 +280,9 @@ pub struct Simulator {
     byte_count_quirk: bool,
     clock: Clock,
     stats: Stats,
-    /// The reply being built.
     /// Start Measurement is refused ([`Simulator::set_refuses_start`]).
     refuses_start: bool,
+    /// The reply being built.
     out: Vec<u8>,
 }
 
@@ -285,6 +302,12 @@ impl Simulator {
         let mut sim = Self {
             address: sensor.default_address,
             registers: RegisterMap::new(),
+            own_registers: reads_of_their_own(&sensor)
+                .into_iter()
+                .enumerate()
+                .filter(|&(_, own)| own)
+                .map(|(i, _)| (i, RegisterMap::new()))
+                .collect(),
             address_slots,
             set_address_command: role_index(&sensor, Role::SetSlaveAddress),
             serial_number: None,
@@ -348,7 +371,7 @@ impl Simulator {
         // Writes first, then reads: where both cover a register, it reads
         // back as the manual's read example shows.
         for reads in [false, true] {
-            for command in sensor.commands.iter().filter(|c| c.is_read() == reads) {
+            for (index, command) in sensor.commands.iter().enumerate().filter(|(_, c)| c.is_read() == reads) {
                 let layout = command.layout();
                 for example in &command.examples {
                     let data = if reads {
@@ -357,7 +380,7 @@ impl Simulator {
                         example.true_request().and_then(|frame| layout.decode_request(frame).ok().map(|(_, data)| data))
                     };
                     if let Some(data) = data {
-                        self.registers.write(command.address, data);
+                        self.registers_of_mut(index).write(command.address, data);
                     }
                 }
             }
@@ -403,6 +426,18 @@ impl Simulator {
         &mut self.registers
     }
 
+    /// The registers command `index` reads: its own, or the shared ones.
+    fn registers_of(&self, index: usize) -> &RegisterMap {
+        self.own_registers.get(&index).unwrap_or(&self.registers)
+    }
+
+    fn registers_of_mut(&mut self, index: usize) -> &mut RegisterMap {
+        match self.own_registers.get_mut(&index) {
+            Some(own) => own,
+            None => &mut self.registers,
+        }
+    }
+
     fn command_index(&self, name: &str) -> Result<usize, SimError> {
         self.sensor.commands.iter().position(|c| c.name == name).ok_or_else(|| SimError::UnknownCommand(name.into()))
     }
@@ -410,8 +445,9 @@ impl Simulator {
     /// The current values of `command`'s fields, decoded from the registers
     /// (what a read would return now, variation aside).
     pub fn values(&self, command: &str) -> Result<Values, SimError> {
-        let command = self.sensor.command(command).ok_or_else(|| SimError::UnknownCommand(command.into()))?;
-        Ok(decode_fields(command, &self.registers.read(command.address, command.count)))
+        let index = self.command_index(command)?;
+        let command = self.sensor.commands.get(index).ok_or_else(|| SimError::UnknownCommand(command.into()))?;
+        Ok(decode_fields(command, &self.registers_of(index).read(command.address, command.count)))
     }
 
     /// The current value of one field.
@@ -449,7 +485,7 @@ impl Simulator {
         {
             self.set_address(a);
         }
-        self.registers.write_bytes(cmd.address, spec_field.offset, &bytes);
+        self.registers_of_mut(index).write_bytes(cmd.address, spec_field.offset, &bytes);
         if let (Some(variation), Value::Float(v)) = (self.variation.as_mut(), &value) {
             variation.bases.insert((index, field_index), *v);
         }
@@ -655,7 +691,11 @@ impl Simulator {
             self.vary(index, command);
             self.stats.reads += 1;
             // A trigger read's reply carries no value: the layout writes the manuals' form.
-            let data = if command.trigger { Vec::new() } else { self.registers.read(command.address, command.count) };
+            let data = if command.trigger {
+                Vec::new()
+            } else {
+                self.registers_of(index).read(command.address, command.count)
+            };
             push_frame(&mut self.out, layout.response_len(), |buf| layout.encode_response(slave, &data, buf))?;
             if command.trigger && prints_empty_reply(command) {
                 // The manual prints the 5-byte form (byte count 0, no data), CRC and all.
@@ -725,7 +765,7 @@ impl Simulator {
                     (None, None) => continue,
                 };
                 if let Ok(bytes) = encode_command_field(command, field, &Value::Float(value as f32)) {
-                    self.registers.write_bytes(command.address, field.offset, &bytes);
+                    self.registers_of_mut(index).write_bytes(command.address, field.offset, &bytes);
                 }
             }
         }
@@ -759,7 +799,7 @@ impl Simulator {
             if !matches!(field.kind, FieldKind::F32 { .. }) {
                 continue;
             }
-            let registers = &self.registers;
+            let registers = self.own_registers.get(&index).unwrap_or(&self.registers);
             let base = *variation.bases.entry((index, field_index)).or_insert_with(|| {
                 let bytes = registers.read(command.address, command.count);
                 match bytes.get(field.offset..field.offset + field.size()).map(|b| decode_field(field, b)) {
@@ -771,11 +811,7 @@ impl Simulator {
             // Every temperature swings alike and peaks together (one water);
             // other quantities swing with their range, each at its own hour.
             let temperature = field.unit.as_deref() == Some("degC");
-            let span = match field.range {
-                _ if temperature => WATER_TEMPERATURE_SPAN_C,
-                Some((min, max)) => (max - min).max(0.0),
-                None => f64::from(base.abs()).max(1.0),
-            };
+            let span = daily_span(field, base);
             let phase = if temperature { 0.0 } else { 0.7 * (field_index as f64 + 1.0) };
             let cycle = f64::from(variation.config.daily_swing)
                 * span
@@ -786,7 +822,11 @@ impl Simulator {
             }
             // A read is not bounded by its range on the wire: encode as the probe would.
             if let Ok(bytes) = encode_command_field(command, field, &Value::Float(value)) {
-                self.registers.write_bytes(command.address, field.offset, &bytes);
+                let registers = match self.own_registers.get_mut(&index) {
+                    Some(own) => own,
+                    None => &mut self.registers,
+                };
+                registers.write_bytes(command.address, field.offset, &bytes);
             }
         }
     }
