@@ -1,13 +1,26 @@
-//! The runtime knows no sensor: `yosemitech-rtu`'s own dependencies (normal
-//! and per target, not its tests') name no other crate of the workspace, so
-//! nothing generated, simulated or spec-derived can reach the runtime. Its
-//! tests may use the workspace test kit.
+//! House rules, held by tests (in the manner of rust-analyzer's tidy test):
+//!
+//! - The runtime knows no sensor: `yosemitech-rtu`'s own dependencies
+//!   (normal and per target, not its tests') name no other crate of the
+//!   workspace, so nothing generated, simulated or spec-derived can reach
+//!   the runtime. Its tests may use the workspace test kit.
+//! - A hand-written Rust file stays under a size ceiling, or says in
+//!   [`LARGE_FILES`] why it does not yet.
+//! - The product talks no process: no `issue #N` of ours, no path outside
+//!   the repository (a spec cites its manual by title and revision).
+//! - Every workspace member, and every project beside it, is in README's
+//!   layout table and in ARCHITECTURE.md.
 
 use std::path::PathBuf;
 
 /// The names of the workspace's crates, from the root manifest's members
 /// (`crates/*` expanded).
 fn workspace_crates(root: &std::path::Path) -> Vec<String> {
+    workspace_members(root).into_iter().map(|(_, name)| name).collect()
+}
+
+/// The workspace's members: (folder relative to the root, package name).
+fn workspace_members(root: &std::path::Path) -> Vec<(String, String)> {
     let manifest: toml::Table = read(&root.join("Cargo.toml"));
     let members = manifest
         .get("workspace")
@@ -27,7 +40,9 @@ fn workspace_crates(root: &std::path::Path) -> Vec<String> {
     dirs.iter()
         .map(|dir| {
             let crate_manifest = read(&dir.join("Cargo.toml"));
-            crate_manifest["package"]["name"].as_str().expect("a package name").to_owned()
+            let name = crate_manifest["package"]["name"].as_str().expect("a package name").to_owned();
+            let relative = dir.strip_prefix(root).unwrap_or(dir).to_string_lossy().replace('\\', "/");
+            (relative, name)
         })
         .collect()
 }
@@ -52,4 +67,174 @@ fn the_runtime_depends_on_no_crate_of_the_workspace() {
     assert!(dependencies.iter().any(|d| *d == "serialport"), "dependencies read: {dependencies:?}");
     let inward: Vec<&&String> = dependencies.iter().filter(|d| crates.contains(d)).collect();
     assert!(inward.is_empty(), "the runtime depends on workspace crates: {inward:?}");
+}
+
+/// Lines a hand-written Rust file may have.
+const CEILING: usize = 1000;
+
+/// Files over [`CEILING`], each with why and how it is to be split. A file
+/// listed here that is back under the ceiling fails too: take it off.
+const LARGE_FILES: &[(&str, &str)] = &[
+    ("xtask/src/import.rs", "tokens, draft types, parsing and YAML rendering: one module each"),
+    ("crates/yosemitech-codegen/src/sensor.rs", "frame bodies per command, to move into the runtime"),
+    (
+        "crates/yosemitech-cli/tests/cli_device.rs",
+        "one binary's tests of every device subcommand, to split by subcommand",
+    ),
+    ("crates/yosemitech-cli/src/commands/decode.rs", "two pipelines, to become one segmenter in the runtime"),
+    ("crates/yosemitech-spec/src/yaml.rs", "limits, recovery, the line lexer and messages: one module each"),
+    ("crates/yosemitech-sim/src/simulator.rs", "variation and water, to split from the device"),
+    ("crates/yosemitech-spec/src/model.rs", "the sensor's queries, to split from the types"),
+    ("crates/yosemitech-spec/src/expr.rs", "the parser, to split from the evaluator and the unit check"),
+    ("xtask/src/import/merge.rs", "revision merging and its rendering, to split"),
+];
+
+/// The workspace root.
+fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..")
+}
+
+/// Files under `dir` whose name ends with one of `extensions`, skipping
+/// build output, generated code and version control.
+fn files(dir: &std::path::Path, extensions: &[&str], out: &mut Vec<PathBuf>) {
+    let Ok(entries) = std::fs::read_dir(dir) else { return };
+    for entry in entries.flatten() {
+        let path = entry.path();
+        let name = entry.file_name().to_string_lossy().into_owned();
+        if path.is_dir() {
+            if !matches!(name.as_str(), "target" | "generated" | ".git" | "corpus" | "artifacts") {
+                files(&path, extensions, out);
+            }
+        } else if extensions.iter().any(|e| name.ends_with(e)) {
+            out.push(path);
+        }
+    }
+}
+
+fn relative(path: &std::path::Path) -> String {
+    let root = root();
+    path.strip_prefix(&root).unwrap_or(path).to_string_lossy().replace('\\', "/")
+}
+
+#[test]
+fn hand_written_files_stay_under_the_ceiling() {
+    let root = root();
+    let mut rust = Vec::new();
+    for dir in ["crates", "xtask", "tests", "fuzz", "firmware"] {
+        files(&root.join(dir), &[".rs"], &mut rust);
+    }
+    assert!(rust.len() > 20, "{} Rust files found", rust.len());
+    let mut problems = Vec::new();
+    for path in &rust {
+        let name = relative(path);
+        let lines = std::fs::read_to_string(path).map(|t| t.lines().count()).unwrap_or(0);
+        let listed = LARGE_FILES.iter().any(|(f, _)| *f == name);
+        if lines > CEILING && !listed {
+            problems.push(format!("{name}: {lines} lines, over {CEILING}: split it along its own sections"));
+        }
+        if lines <= CEILING && listed {
+            problems.push(format!("{name}: {lines} lines, back under {CEILING}: take it off LARGE_FILES"));
+        }
+    }
+    for (name, _) in LARGE_FILES {
+        if !root.join(name).exists() {
+            problems.push(format!("{name}: listed in LARGE_FILES but gone"));
+        }
+    }
+    assert!(problems.is_empty(), "{}", problems.join("\n"));
+}
+
+/// What the product must not say: our own issue numbers, and paths out of
+/// the repository. A source's own tracker is cited by name
+/// ("YosemitechModbus issue 19"), never as `issue #N`.
+fn process_talk(text: &str) -> Option<String> {
+    for (number, line) in text.lines().enumerate() {
+        let lower = line.to_ascii_lowercase();
+        if let Some(at) = lower.find("issue #")
+            && lower[at + 7..].starts_with(|c: char| c.is_ascii_digit())
+        {
+            return Some(format!("line {}: `{}`", number + 1, line.trim()));
+        }
+        if line.contains("../shared") {
+            return Some(format!("line {}: a path out of the repository: `{}`", number + 1, line.trim()));
+        }
+    }
+    None
+}
+
+#[test]
+fn the_product_talks_no_process() {
+    let root = root();
+    let mut product = Vec::new();
+    files(&root.join("spec"), &[".yaml"], &mut product);
+    files(&root.join("docs"), &[".md"], &mut product);
+    // The importer's page documents where it reads the manuals.
+    product.retain(|p| !p.ends_with("docs/importer.md"));
+    files(&root.join("crates"), &[".rs", ".toml", ".md"], &mut product);
+    for top in ["README.md", "ARCHITECTURE.md", "BENCHMARKS.md", "Cargo.toml"] {
+        product.push(root.join(top));
+    }
+    // The importer reads the vendor's manuals where they are kept, beside
+    // the repository: xtask and its tests may name that place; its issue
+    // numbers they may not.
+    let mut tooling = Vec::new();
+    files(&root.join("xtask"), &[".rs", ".toml"], &mut tooling);
+    files(&root.join("tests"), &[".rs", ".toml", ".md", ".yaml"], &mut tooling);
+    tooling.push(root.join("docs/importer.md"));
+    assert!(product.len() > 20 && !tooling.is_empty(), "{} product files", product.len());
+    let mut problems = Vec::new();
+    for path in &product {
+        let text = std::fs::read_to_string(path).unwrap_or_default();
+        if let Some(what) = process_talk(&text) {
+            problems.push(format!("{}: {what}", relative(path)));
+        }
+    }
+    for path in &tooling {
+        let text = std::fs::read_to_string(path).unwrap_or_default();
+        if let Some(what) = process_talk(&text).filter(|w| !w.contains("out of the repository")) {
+            problems.push(format!("{}: {what}", relative(path)));
+        }
+    }
+    assert!(problems.is_empty(), "{}", problems.join("\n"));
+}
+
+#[test]
+fn the_process_rule_catches_what_it_is_for() {
+    assert!(process_talk("Benchmarks (issue #6): shared").is_some());
+    assert!(process_talk("# (../../shared/manuals/Y510.txt), with").is_some());
+    assert!(process_talk("sources: [YosemitechModbus issue 19]").is_none());
+    assert!(process_talk("the issue #s of a tracker").is_none());
+}
+
+#[test]
+fn every_member_is_in_the_readme_layout_and_the_architecture() {
+    let root = root();
+    let readme = std::fs::read_to_string(root.join("README.md")).expect("README.md");
+    let architecture = std::fs::read_to_string(root.join("ARCHITECTURE.md")).expect("ARCHITECTURE.md");
+    let manifest: toml::Table = read(&root.join("Cargo.toml"));
+    // The members, and the projects kept beside the workspace (`exclude`).
+    let mut members = workspace_members(&root);
+    let excluded = manifest.get("workspace").and_then(|w| w.get("exclude")).and_then(toml::Value::as_array);
+    for dir in excluded.into_iter().flatten().filter_map(toml::Value::as_str) {
+        let name = std::fs::read_to_string(root.join(dir).join("Cargo.toml"))
+            .ok()
+            .and_then(|t| t.parse::<toml::Table>().ok())
+            .and_then(|t| t.get("package")?.get("name")?.as_str().map(str::to_owned))
+            .unwrap_or_else(|| dir.to_owned());
+        members.push((dir.to_owned(), name));
+    }
+    assert!(members.len() > 5, "{members:?}");
+    let mut missing = Vec::new();
+    for (dir, name) in &members {
+        let row = readme
+            .lines()
+            .any(|l| l.starts_with("| `") && (l.contains(&format!("`{dir}`")) || l.contains(&format!("`{dir}/`"))));
+        if !row {
+            missing.push(format!("{dir} has no row in README's layout table"));
+        }
+        if !architecture.contains(name.as_str()) && !architecture.contains(dir.as_str()) {
+            missing.push(format!("{dir} ({name}) is not in ARCHITECTURE.md"));
+        }
+    }
+    assert!(missing.is_empty(), "{}", missing.join("\n"));
 }

@@ -6,7 +6,7 @@
 //! transaction. Counted instructions do not depend on the machine's load,
 //! so the comparison is exact and repeatable on the same compiler; it is not
 //! a timing. With `--check` it fails unless the whole client transaction
-//! costs fewer instructions than rmodbus's round trip (issue #13's target).
+//! costs fewer instructions than rmodbus's round trip (the client's target).
 
 use std::path::Path;
 use std::process::{Command, ExitCode};

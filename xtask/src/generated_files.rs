@@ -101,3 +101,23 @@ impl GeneratedFiles<'_> {
 fn display(root: &Path, path: &Path) -> String {
     path.strip_prefix(root).unwrap_or(path).display().to_string()
 }
+
+#[cfg(test)]
+mod tests {
+    use std::process::ExitCode;
+
+    /// `cargo test` fails on a stale generated copy, as CI's `--check` steps
+    /// do: a spec edited without `cargo xtask codegen` / `docs` / `schema`.
+    #[test]
+    fn every_generated_file_is_fresh() {
+        let check = ["--check".to_owned()];
+        for (what, run) in [
+            ("cargo xtask codegen", crate::codegen::run as fn(&[String]) -> anyhow::Result<ExitCode>),
+            ("cargo xtask docs", crate::docs::run),
+            ("cargo xtask schema", crate::schema::run),
+        ] {
+            let code = run(&check).unwrap_or_else(|e| panic!("{what} --check: {e:#}"));
+            assert_eq!(code, ExitCode::SUCCESS, "stale files: run `{what}` and commit the result");
+        }
+    }
+}

@@ -1,4 +1,4 @@
-//! Benchmarks of the Yosemitech Modbus runtime (issue #6): shared fixtures,
+//! Benchmarks of the Yosemitech Modbus runtime: shared fixtures,
 //! the reference implementations it is compared with, and the wire-limit
 //! arithmetic of the bus-efficiency run.
 //!

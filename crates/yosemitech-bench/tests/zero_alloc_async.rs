@@ -1,5 +1,5 @@
-//! Zero heap allocations per transaction of the tokio `AsyncClient`
-//! (issue #13), counted by a global allocator on the test's own thread,
+//! Zero heap allocations per transaction of the tokio `AsyncClient`,
+//! counted by a global allocator on the test's own thread,
 //! around the awaited calls only, after a warm-up, on a current-thread
 //! runtime (so every poll runs on this thread and is counted). In memory
 //! (the in-process responder), and over real sockets: RTU on TCP and Modbus

@@ -91,27 +91,6 @@ impl fmt::Debug for RegisterMap {
     }
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn reads_back_writes_and_zeros() {
-        let mut r = RegisterMap::new();
-        r.write(0x2800, &[0x33, 0x33, 0xF3, 0x40]);
-        assert_eq!(r.read(0x2800, 2), [0x33, 0x33, 0xF3, 0x40]);
-        assert_eq!(r.read(0x27FF, 4), [0, 0, 0x33, 0x33, 0xF3, 0x40, 0, 0]);
-        r.write_bytes(0x3000, 0, &[0x14]);
-        assert_eq!(r.get(0x3000), Some([0x14, 0]));
-        r.write_bytes(0x2600, 3, &[0xAA, 0xBB]);
-        assert_eq!(r.read(0x2600, 3), [0, 0, 0, 0xAA, 0xBB, 0]);
-        r.write(0xFFFF, &[1, 2, 3, 4]);
-        assert_eq!(r.get(0x0000), Some([3, 4]), "wraps");
-        assert_eq!(r.len(), 7);
-        assert!(format!("{r:?}").contains("0x2800: 33 33"));
-    }
-}
-
 /// Which reads keep registers of their own (by command index).
 ///
 /// Two reads that cover a register share it when their fields there are the
@@ -152,4 +131,25 @@ pub fn reads_of_their_own(sensor: &yosemitech_spec::Sensor) -> Vec<bool> {
         }
     }
     own
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn reads_back_writes_and_zeros() {
+        let mut r = RegisterMap::new();
+        r.write(0x2800, &[0x33, 0x33, 0xF3, 0x40]);
+        assert_eq!(r.read(0x2800, 2), [0x33, 0x33, 0xF3, 0x40]);
+        assert_eq!(r.read(0x27FF, 4), [0, 0, 0x33, 0x33, 0xF3, 0x40, 0, 0]);
+        r.write_bytes(0x3000, 0, &[0x14]);
+        assert_eq!(r.get(0x3000), Some([0x14, 0]));
+        r.write_bytes(0x2600, 3, &[0xAA, 0xBB]);
+        assert_eq!(r.read(0x2600, 3), [0, 0, 0, 0xAA, 0xBB, 0]);
+        r.write(0xFFFF, &[1, 2, 3, 4]);
+        assert_eq!(r.get(0x0000), Some([3, 4]), "wraps");
+        assert_eq!(r.len(), 7);
+        assert!(format!("{r:?}").contains("0x2800: 33 33"));
+    }
 }
