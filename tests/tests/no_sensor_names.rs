@@ -32,6 +32,10 @@ use yosemitech_spec::Role;
 /// A folder entry ends in `/` and covers what it holds.
 const EXEMPT: &[(&str, &str)] = &[
     ("crates/yosemitech/src/procedures/ph.rs", "the pH manual's own three-point calibration"),
+    (
+        "crates/yosemitech/src/procedures/ph_electrode.rs",
+        "the pH probe's electrode model: its coefficients computed from its buffers' potentials",
+    ),
     ("crates/yosemitech/src/procedures/conductivity.rs", "the conductivity manual's own measurement with TDS"),
     (
         "crates/yosemitech/src/procedures/coefficients.rs",
@@ -42,6 +46,10 @@ const EXEMPT: &[(&str, &str)] = &[
         "crates/yosemitech-cli/src/commands/calibrate.rs",
         "`calibrate ph`, the command line of the pH manual's three-point calibration above: it hands that \
          procedure the manual's typed device (its backup and restore go through the spec's coefficient blocks)",
+    ),
+    (
+        "crates/yosemitech-cli/src/commands/calibrate_electrode.rs",
+        "`calibrate ph --compute`, the command line of the pH electrode model above, on the pH probe's typed device",
     ),
     ("crates/yosemitech/examples/", "examples show the typed API of named sensors"),
     (

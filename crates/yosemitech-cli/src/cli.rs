@@ -367,6 +367,20 @@ pub struct CalibratePhArgs {
     /// Where to save the coefficient backup [default: the current directory].
     #[arg(long, value_name = "DIR")]
     pub backup_dir: Option<PathBuf>,
+    /// Compute the electrode coefficients K1..K6 here, by the vendor's
+    /// model, from the potential and temperature read in each buffer,
+    /// instead of the probe's own calibration; show them against the
+    /// probe's and write them after a confirmation.
+    #[arg(long)]
+    pub compute: bool,
+    /// With --compute: the readings of each buffer from a CSV file
+    /// (`buffer,mv,temperature_c`, one line per buffer, 4.00, 6.86, 9.18),
+    /// taken with another tool. Without --port nothing is written.
+    #[arg(long, value_name = "FILE")]
+    pub readings: Option<PathBuf>,
+    /// With --compute: print the readings and the coefficients as JSON.
+    #[arg(long)]
+    pub json: bool,
 }
 
 /// `coefficients`.

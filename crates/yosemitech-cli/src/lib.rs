@@ -124,6 +124,13 @@ pub fn calibrate_ph_sensor() -> &'static str {
     commands::calibrate::SENSOR
 }
 
+/// The reads `calibrate ph --compute` takes in each buffer, as
+/// `(command, field)`: the electrode potential, then the temperature. Tests
+/// set these on a simulated probe instead of naming the pH manual's reads.
+pub fn electrode_reads() -> [(&'static str, &'static str); 2] {
+    commands::calibrate_electrode::READS
+}
+
 /// A unit as the tool shows it to people (`degC` is `°C`): what `read`,
 /// `list`, `decode` and `measure` print after a value.
 pub fn shown_unit(unit: &str) -> &str {

@@ -51,6 +51,57 @@ pub const DEFAULT_ELECTRODE_COEFFICIENTS: [f32; 6] = [
 /// Manual section 2.2.12, figures 58, 66.
 pub const DEFAULT_CALIBRATION: [f32; 2] = [1.0, 0.0];
 
+/// The electrode's slope at 0 °C, mV per pH unit, in the vendor's model of the potential E = E0 + S (7 - pH), S = 54.2 + 0.1984 t + S0 (t in °C, E0 = S0 = 0 by default): 120 mV at 18 °C is pH 7 - 120 / 57.7712 = 4.92. From the vendor's explanation, not the manual.
+///
+/// Unit: mV/pH.
+pub const ELECTRODE_SLOPE_MV: f32 = 54.2;
+
+/// How the electrode's slope grows per °C in the vendor's model (see `electrode_slope_mv`).
+///
+/// Unit: mV/pH/degC.
+pub const ELECTRODE_SLOPE_PER_DEGC: f32 = 0.1984;
+
+/// The pH at which the vendor's model puts a potential of E0 (see `electrode_slope_mv`).
+///
+/// Unit: pH.
+pub const ELECTRODE_ZERO_PH: f32 = 7.0;
+
+/// pH from the electrode potential.
+///
+/// The pH the vendor's electrode model gives for the potential the probe reads, with E0 = S0 = 0: pH = 7 - E / (54.2 + 0.1984 t). Beside the probe's own pH, it shows how far its calibration has moved the electrode from the model. The model is the vendor's explanation, not the manual's (see `electrode_slope_mv`).
+///
+/// Formula (from the spec): `electrode_zero_ph - potential / (electrode_slope_mv + electrode_slope_per_degc * temperature)`, in pH.
+///
+/// # Inputs
+///
+/// - `potential`: the field `orp_mv` of `get_orp_and_ph`, in mV.
+/// - `temperature`: the field `temperature_c` of `get_temperature`, in degC, taken in 0..=60.
+///
+/// # Examples
+///
+/// - `ph_from_potential(120.0, 18.0)` is 4.9228 pH within 0.0005: The vendor's example, 120 mV at 18 °C, 7 - 120 / 57.7712 (4.92 as the vendor rounds it).
+///
+/// # Errors
+///
+/// `NotComputable` when an input is NaN, infinite or outside its range, or when the formula has no finite value for the inputs.
+pub fn ph_from_potential(
+    potential: f32,
+    temperature: f32,
+) -> Result<f32, rtu::NotComputable> {
+    let potential = rtu::derived::input("potential", potential, None)?;
+    let temperature = rtu::derived::input(
+        "temperature",
+        temperature,
+        Some((0.0, 60.0)),
+    )?;
+    rtu::derived::output(
+        f64::from(ELECTRODE_ZERO_PH)
+            - potential
+                / (f64::from(ELECTRODE_SLOPE_MV)
+                    + f64::from(ELECTRODE_SLOPE_PER_DEGC) * temperature),
+    )
+}
+
 /// Calibration status code (Fig 43).
 ///
 /// A code of one byte on the wire, used by `get_calibration_status.status`. Codes the spec does not name decode to [`Self::Unknown`]; `from_raw` never returns `Unknown` for a named code.
@@ -2690,7 +2741,45 @@ pub const COMMAND_NAMES: [&str; 16] = [
 
 /// Every derived quantity of the sensor as data, in spec order: its
 /// inputs, and its function (`compute` takes the inputs in parameter order).
-pub const DERIVED: [rtu::DerivedInfo; 0] = [];
+pub const DERIVED: [rtu::DerivedInfo; 1] = [
+    rtu::DerivedInfo {
+        name: "ph_from_potential",
+        title: "pH from the electrode potential",
+        unit: Some("pH"),
+        expr: "electrode_zero_ph - potential / (electrode_slope_mv + electrode_slope_per_degc * temperature)",
+        inputs: &[
+            rtu::DerivedInput {
+                name: "potential",
+                source: rtu::InputSource::Field {
+                    command: "get_orp_and_ph",
+                    field: "orp_mv",
+                },
+                unit: Some("mV"),
+                default: None,
+                range: None,
+            },
+            rtu::DerivedInput {
+                name: "temperature",
+                source: rtu::InputSource::Field {
+                    command: "get_temperature",
+                    field: "temperature_c",
+                },
+                unit: Some("degC"),
+                default: None,
+                range: Some((0.0, 60.0)),
+            },
+        ],
+        compute: |inputs| match *inputs {
+            [potential, temperature] => ph_from_potential(potential, temperature),
+            _ => {
+                Err(rtu::NotComputable::Inputs {
+                    expected: 2,
+                    given: inputs.len(),
+                })
+            }
+        },
+    },
+];
 
 /// This module as data, for code that serves every sensor without naming one
 /// (`crate::SENSORS` lists them all).

@@ -31,7 +31,7 @@ pub const SENSOR: &str = ph_orp::SENSOR.name;
 /// Saves every coefficient of the probe (the spec's coefficient blocks) to
 /// a new file and returns the command that restores it. Nothing has been
 /// written yet; on an error the calibration does not start.
-fn save_backup(
+pub(crate) fn save_backup(
     opened: &mut Opened,
     catalog: &Catalog,
     entry: &Entry,
@@ -55,7 +55,7 @@ fn save_backup(
 }
 
 /// Lines typed on stdin, read by a thread so a wait can be cut short.
-fn stdin_lines() -> Receiver<String> {
+pub(crate) fn stdin_lines() -> Receiver<String> {
     let (tx, rx) = mpsc::channel();
     std::thread::spawn(move || {
         for line in io::stdin().lock().lines() {
@@ -139,6 +139,12 @@ impl CalibrationGuide for Guide<'_> {
 
 /// Runs `calibrate ph`.
 pub fn run(catalog: &Catalog, global: &Global, args: &CalibratePhArgs, out: &mut dyn Write) -> Result<()> {
+    if args.compute || args.readings.is_some() {
+        return super::calibrate_electrode::run(catalog, global, args, out);
+    }
+    if args.json {
+        return Err(CliError::usage("`calibrate ph --json` prints computed coefficients: add --compute"));
+    }
     let name = SENSOR;
     let entry = catalog.entry(name)?;
     if !is_typed(entry, name) {

@@ -1,6 +1,7 @@
 //! One module per subcommand.
 
 pub mod calibrate;
+pub mod calibrate_electrode;
 pub mod coefficients;
 pub mod decode;
 pub mod demo;

@@ -4,6 +4,8 @@
 //!   readings at the manual's interval, discard range-switch errors, TDS.
 //! - [`ph`]: the three-point pH calibration in the manual's order, with the
 //!   coefficients backed up before anything is written.
+//! - [`ph_electrode`]: the electrode coefficients K1..K6 computed on the
+//!   master from the potentials read in the buffers, by the vendor's model.
 //! - [`coefficients`]: every calibration coefficient of a probe, read and
 //!   restored with read-back.
 //! - [`address`]: changing a probe's slave address, verified at the new one.
@@ -18,6 +20,7 @@ use std::time::Duration;
 pub mod coefficients;
 pub mod conductivity;
 pub mod ph;
+pub mod ph_electrode;
 
 /// Changing a probe's slave address, verified at the new one (it lives in
 /// the runtime so that every generated `Device` can call it).
@@ -118,6 +121,6 @@ impl From<crate::Error> for ProcedureError {
 }
 
 /// Bit-exact equality of two float slices.
-pub(crate) fn same_bits(a: &[f32], b: &[f32]) -> bool {
+pub fn same_bits(a: &[f32], b: &[f32]) -> bool {
     a.len() == b.len() && a.iter().zip(b).all(|(x, y)| x.to_bits() == y.to_bits())
 }
