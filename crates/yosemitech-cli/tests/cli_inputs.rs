@@ -26,7 +26,7 @@ fn other_value(sensor: &Sensor, name: &str) -> f64 {
     }
     let default = input.uses.iter().find_map(|(_, i)| i.default);
     let candidates =
-        [(min.is_finite() && max.is_finite()).then(|| min + (max - min) * 0.37), default.map(|d| d + 1.0), Some(1.0)];
+        [(min.is_finite() && max.is_finite()).then_some(min + (max - min) * 0.37), default.map(|d| d + 1.0), Some(1.0)];
     candidates
         .into_iter()
         .flatten()
