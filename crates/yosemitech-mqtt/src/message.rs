@@ -182,6 +182,33 @@ mod tests {
     }
 
     #[test]
+    fn derived_values_carry_their_mark_and_error_and_old_payloads_still_parse() {
+        let mut message = sample();
+        message.values.push(MeasuredValue { derived: true, ..MeasuredValue::new("d", 8.5, Some("mg/L".into())) });
+        message.values.push(MeasuredValue {
+            derived: true,
+            error: Some("input out of range".into()),
+            value: None,
+            ..MeasuredValue::new("e", 0.0, None)
+        });
+        let payload = message.to_payload().unwrap();
+        assert_eq!(ReadingMessage::from_payload(&payload).unwrap(), message);
+        let json: serde_json::Value = serde_json::from_slice(&payload).unwrap();
+        assert_eq!(json["values"][0]["derived"], false);
+        assert_eq!(json["values"][2]["derived"], true);
+        assert_eq!(json["values"][3]["error"], "input out of range");
+        // A station before derived values sent neither key.
+        let mut old = json.clone();
+        for v in old["values"].as_array_mut().unwrap() {
+            let v = v.as_object_mut().unwrap();
+            v.remove("derived");
+            v.remove("error");
+        }
+        let parsed = ReadingMessage::from_payload(&serde_json::to_vec(&old).unwrap()).unwrap();
+        assert!(parsed.values.iter().all(|v| !v.derived && v.error.is_none()));
+    }
+
+    #[test]
     fn other_schema_versions_and_garbage_are_refused() {
         let mut json: serde_json::Value = serde_json::to_value(sample()).unwrap();
         json["schema"] = 2.into();
