@@ -242,6 +242,8 @@ pub struct ReadArgs {
     /// Print JSON.
     #[arg(long)]
     pub json: bool,
+    #[command(flatten)]
+    pub inputs: InputArgs,
 }
 
 /// `write`.
@@ -309,6 +311,8 @@ pub struct PollArgs {
     /// Output format.
     #[arg(short, long, value_enum, default_value_t = PollFormat::Table)]
     pub format: PollFormat,
+    #[command(flatten)]
+    pub inputs: InputArgs,
 }
 
 /// `measure`.
@@ -335,6 +339,8 @@ pub struct MeasureArgs {
     /// Shorthand for --warm-up 0 --interval 0 (tests, demos).
     #[arg(long, hide = true)]
     pub fast: bool,
+    #[command(flatten)]
+    pub inputs: InputArgs,
 }
 
 /// `calibrate`.
@@ -676,4 +682,12 @@ pub struct ExportArgs {
     /// Output format.
     #[arg(short, long, value_enum, default_value_t = ExportFormat::Csv)]
     pub format: ExportFormat,
+}
+
+/// Station inputs of derived quantities (`read`, `poll`, `measure`).
+#[derive(Args, Debug, Default)]
+pub struct InputArgs {
+    /// A station input of the sensor's derived quantities, e.g. `salinity=35` (repeatable) [default: the spec's].
+    #[arg(long = "input", value_name = "NAME=VALUE", value_parser = crate::derived::parse_input)]
+    pub inputs: Vec<(String, f64)>,
 }

@@ -1,66 +1,76 @@
-//! Derived quantities beside the measured values: each quantity of the
-//! spec whose field inputs were all read, its station inputs at the spec's
-//! defaults, computed by the interpreter (so a `--spec` sensor has them too).
+//! Derived quantities beside the measured values, through
+//! `yosemitech_spec::beside` (the station logger's implementation too):
+//! here only the command line's station inputs (`--input NAME=VALUE`) and
+//! how the CLI shows the defaults it assumed.
 
-use yosemitech_spec::{Derived, InputSource, Sensor, Value};
+use std::collections::BTreeMap;
 
-/// One derived quantity's outcome.
-pub struct DerivedValue<'s> {
-    /// The quantity.
-    pub quantity: &'s Derived,
-    /// Its value, or why there is none.
-    pub value: Result<f32, String>,
-}
+use yosemitech_spec::Sensor;
+use yosemitech_spec::beside::{self, DerivedValue, station_inputs};
 
-/// The number a field's value is, for a formula.
-fn number(value: &Value) -> Option<f32> {
-    match value {
-        Value::Float(f) => Some(*f),
-        // Integer fields are whole numbers well within f32's exact range in practice.
-        Value::Int(i) => Some(*i as f32),
-        _ => None,
+use crate::error::{CliError, Result};
+
+/// Parses `NAME=VALUE` of `--input` (the sensor is checked later, when known).
+pub fn parse_input(text: &str) -> std::result::Result<(String, f64), String> {
+    let (name, value) = text.split_once('=').ok_or_else(|| format!("`{text}` is not NAME=VALUE (e.g. salinity=35)"))?;
+    let name = name.trim();
+    if name.is_empty() {
+        return Err(format!("`{text}` names no input: write NAME=VALUE"));
     }
+    let number: f64 = value.trim().parse().map_err(|_| format!("`{}` is not a number (in `{text}`)", value.trim()))?;
+    if !number.is_finite() {
+        return Err(format!("`{}` is not a finite number (in `{text}`)", value.trim()));
+    }
+    Ok((name.to_owned(), number))
 }
 
-/// The quantities whose field inputs are all among the reads `values`
-/// gives (`(command, field) -> value`), computed; the others are left out.
-pub fn beside<'s, 'v>(
-    sensor: &'s Sensor,
-    values: &dyn Fn(&str, &str) -> Option<&'v Value>,
-    reads: &[&str],
-) -> Vec<DerivedValue<'s>> {
-    let mut out = Vec::new();
-    for d in &sensor.derived {
-        let covered = d.inputs.iter().all(|i| match &i.source {
-            InputSource::Field { command, .. } => reads.contains(&command.as_str()),
-            InputSource::Station(_) => true,
-        });
-        if !covered {
-            continue;
-        }
-        let mut inputs = Vec::with_capacity(d.inputs.len());
-        let mut missing = None;
-        for i in &d.inputs {
-            let v = match &i.source {
-                InputSource::Field { command, field } => values(command, field).and_then(number),
-                InputSource::Station(_) => i.default.map(|v| v as f32),
+/// The `--input`s given, checked against `sensor`'s derived quantities:
+/// every name one of them takes, every value within its range, no name twice.
+pub fn station(sensor: &Sensor, given: &[(String, f64)]) -> Result<BTreeMap<String, f64>> {
+    let mut out = BTreeMap::new();
+    for (name, value) in given {
+        beside::check_station_input(sensor, name, *value).map_err(|e| {
+            let hint = if station_inputs(sensor).is_empty() {
+                format!("`yosemitech list {}` shows its derived quantities; leave out --input", sensor.name)
+            } else {
+                format!("`yosemitech list {}` shows its derived quantities and their inputs", sensor.name)
             };
-            match v {
-                Some(v) => inputs.push(v),
-                None => {
-                    missing = Some(match &i.source {
-                        InputSource::Field { command, field } => format!("no value for {command}.{field}"),
-                        InputSource::Station(name) => format!("no value for the station's {name}"),
-                    });
-                    break;
-                }
+            CliError::usage(e.to_string()).hint(hint)
+        })?;
+        if out.insert(name.clone(), *value).is_some() {
+            return Err(CliError::usage(format!("--input {name} is given twice")).hint("give each input once"));
+        }
+    }
+    Ok(out)
+}
+
+/// `station inputs at the spec's default: salinity = 0 ppt, ...`, when any
+/// quantity shown took a default, so a reader knows what was assumed.
+pub fn defaults_note(sensor: &Sensor, derived: &[DerivedValue<'_>]) -> Option<String> {
+    let mut seen: Vec<(&str, f64)> = Vec::new();
+    for d in derived {
+        for (name, value) in &d.defaulted {
+            if !seen.iter().any(|(n, _)| n == name) {
+                seen.push((name, *value));
             }
         }
-        let value = match missing {
-            Some(why) => Err(why),
-            None => d.compute(&inputs).map_err(|e| e.to_string()),
-        };
-        out.push(DerivedValue { quantity: d, value });
     }
-    out
+    if seen.is_empty() {
+        return None;
+    }
+    let inputs = station_inputs(sensor);
+    let parts: Vec<String> = seen
+        .iter()
+        .map(|(name, value)| {
+            let unit = inputs
+                .iter()
+                .find(|s| s.name == *name)
+                .and_then(|s| s.uses.first())
+                .and_then(|(_, i)| i.unit.as_deref())
+                .map(|u| format!(" {u}"))
+                .unwrap_or_default();
+            format!("{name} = {value}{unit}")
+        })
+        .collect();
+    Some(format!("station inputs at the spec's default: {} (give --input NAME=VALUE)", parts.join(", ")))
 }

@@ -76,7 +76,7 @@ fn reading(stored: StoredReading) -> Reading {
             .into_iter()
             .filter_map(|m| match m.value {
                 Datum::Number(value) => Some(Value { measurement: m.name, unit: m.unit.unwrap_or_default(), value }),
-                Datum::Text(_) => None,
+                Datum::Text(_) | Datum::NotComputable(_) => None,
             })
             .collect(),
         retries: r.retries,

@@ -110,7 +110,12 @@ impl Station {
                     .enumerate()
                     .map(|(m, (name, unit))| {
                         let value = if last { latest(p, m) } else { latest(p, m) + (f64::from(n) / 5.0).sin() * 5.0 };
-                        Measurement { name: name.clone(), value: Datum::Number(value), unit: unit.clone() }
+                        Measurement {
+                            name: name.clone(),
+                            value: Datum::Number(value),
+                            unit: unit.clone(),
+                            derived: false,
+                        }
                     })
                     .collect();
                 store.insert(&reading(probe, at, values, None)).unwrap();

@@ -12,8 +12,9 @@
 //!   "serial_number": "0A1B2C3D4E5F6071",
 //!   "firmware": "1.2",
 //!   "values": [
-//!     { "name": "<measurement>", "value": 7.02, "unit": "<unit>" },
-//!     { "name": "temperature", "value": 18.4, "unit": "°C" }
+//!     { "name": "<measurement>", "value": 7.02, "unit": "<unit>", "derived": false, "error": null },
+//!     { "name": "temperature", "value": 18.4, "unit": "°C", "derived": false, "error": null },
+//!     { "name": "<derived quantity>", "value": 8.9, "unit": "mg/L", "derived": true, "error": null }
 //!   ],
 //!   "retries": 0,
 //!   "error": null
@@ -64,7 +65,10 @@ pub struct ReadingMessage {
     pub error: Option<String>,
 }
 
-/// One measured quantity of a reading.
+/// One quantity of a reading: measured by the probe, or derived by the
+/// station from measured values (`derived`; `derived` and `error` are
+/// absent from payloads of stations that predate them, hence their
+/// defaults).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct MeasuredValue {
@@ -75,12 +79,20 @@ pub struct MeasuredValue {
     pub value: Option<f64>,
     /// The unit the spec states, if any.
     pub unit: Option<String>,
+    /// A derived quantity of the spec, computed by the station from the
+    /// measured values and its station inputs, not a value the probe sent.
+    #[serde(default)]
+    pub derived: bool,
+    /// Why a derived quantity has no value for this reading (an input NaN
+    /// or outside its range); `value` is then `None`.
+    #[serde(default)]
+    pub error: Option<String>,
 }
 
 impl MeasuredValue {
     /// A value, with a non-finite `value` stored as `None`.
     pub fn new(name: impl Into<String>, value: f64, unit: Option<String>) -> Self {
-        Self { name: name.into(), value: value.is_finite().then_some(value), unit }
+        Self { name: name.into(), value: value.is_finite().then_some(value), unit, derived: false, error: None }
     }
 }
 
@@ -167,6 +179,33 @@ mod tests {
             assert!(json.get(key).is_some(), "{key} missing from {json}");
         }
         assert_eq!(json["values"][1]["value"], serde_json::Value::Null);
+    }
+
+    #[test]
+    fn derived_values_carry_their_mark_and_error_and_old_payloads_still_parse() {
+        let mut message = sample();
+        message.values.push(MeasuredValue { derived: true, ..MeasuredValue::new("d", 8.5, Some("mg/L".into())) });
+        message.values.push(MeasuredValue {
+            derived: true,
+            error: Some("input out of range".into()),
+            value: None,
+            ..MeasuredValue::new("e", 0.0, None)
+        });
+        let payload = message.to_payload().unwrap();
+        assert_eq!(ReadingMessage::from_payload(&payload).unwrap(), message);
+        let json: serde_json::Value = serde_json::from_slice(&payload).unwrap();
+        assert_eq!(json["values"][0]["derived"], false);
+        assert_eq!(json["values"][2]["derived"], true);
+        assert_eq!(json["values"][3]["error"], "input out of range");
+        // A station before derived values sent neither key.
+        let mut old = json.clone();
+        for v in old["values"].as_array_mut().unwrap() {
+            let v = v.as_object_mut().unwrap();
+            v.remove("derived");
+            v.remove("error");
+        }
+        let parsed = ReadingMessage::from_payload(&serde_json::to_vec(&old).unwrap()).unwrap();
+        assert!(parsed.values.iter().all(|v| !v.derived && v.error.is_none()));
     }
 
     #[test]

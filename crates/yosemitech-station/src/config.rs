@@ -26,6 +26,11 @@
 //! interval = "15m"                # 500ms, 30s, 15m, 1h, 1h30m ...
 //! align = true                    # on the clock: 00:00, 00:15, 00:30 ... UTC
 //! # procedure = true              # follow the spec's procedure (default when it has one)
+//! # inputs = { salinity = 35 }    # this probe's station inputs, over the station's [inputs]
+//!
+//! # [inputs]                      # station inputs of derived quantities (`yosemitech list SENSOR`):
+//! # salinity = 0.5                # every probe whose derived quantities take them; default: the spec's
+//! # barometric_pressure = 98.2
 //!
 //! # [mqtt] ...                    # `yosemitech_mqtt::MqttConfig`: host, client_id, tls, credentials ...
 //! ```
@@ -45,6 +50,7 @@ use toml::Spanned;
 use yosemitech_mqtt::MqttConfig;
 use yosemitech_rtu::{LineSettings, Parity};
 use yosemitech_spec::Sensor;
+use yosemitech_spec::beside::StationInputError;
 
 use crate::plan;
 
@@ -150,6 +156,9 @@ pub struct ProbeConfig {
     pub align: bool,
     /// Follow the spec's procedure (before, warm-up, averaged readings, after).
     pub procedure: bool,
+    /// The station inputs of its derived quantities: the probe's own, else
+    /// the station's; an input absent here takes the spec's default.
+    pub inputs: BTreeMap<String, f64>,
 }
 
 /// A validated bus.
@@ -202,7 +211,12 @@ struct RawStation {
     #[serde(default)]
     bus: Vec<Spanned<RawBus>>,
     mqtt: Option<Spanned<toml::Table>>,
+    #[serde(default)]
+    inputs: RawInputs,
 }
+
+/// Station inputs as written: name -> value, both located.
+type RawInputs = BTreeMap<Spanned<String>, Spanned<f64>>;
 
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -238,6 +252,8 @@ struct RawProbe {
     #[serde(default)]
     align: bool,
     procedure: Option<Spanned<bool>>,
+    #[serde(default)]
+    inputs: RawInputs,
 }
 
 /// Parses a duration: one or more `<number><unit>` with units `ms`, `s`,
@@ -478,6 +494,7 @@ pub fn parse(path: &Path, text: &str, sensors: &[Arc<Sensor>]) -> Result<Station
             }
         }
     });
+    station_inputs(&mut loc, &raw.inputs, &mut buses);
     if loc.errors.is_empty() {
         Ok(StationConfig { file: path.to_owned(), station: raw.station.into_inner(), storage, buses, mqtt })
     } else {
@@ -567,6 +584,19 @@ fn validate_probe(
         Some(p) => *p.get_ref(),
         None => sensor.procedure.is_some(),
     };
+    let mut inputs = BTreeMap::new();
+    for (name, value) in &raw.inputs {
+        match yosemitech_spec::beside::check_station_input(sensor, name.get_ref(), *value.get_ref()) {
+            Ok(()) => {
+                inputs.insert(name.get_ref().clone(), *value.get_ref());
+            }
+            Err(e) => {
+                let span = if matches!(e, StationInputError::Unknown { .. }) { name.span() } else { value.span() };
+                loc.error(span, format!("probe `{}`: {e}", raw.label.get_ref()));
+                ok = false;
+            }
+        }
+    }
     let spans = (raw.label.span(), raw.address.span());
     ok.then(|| {
         (
@@ -578,11 +608,47 @@ fn validate_probe(
                 interval,
                 align: raw.align,
                 procedure,
+                inputs,
             },
             spans.0,
             spans.1,
         )
     })
+}
+
+/// Checks the station's `[inputs]` against every probe and gives each
+/// probe those its derived quantities take, under its own.
+fn station_inputs(loc: &mut Locator<'_>, raw: &RawInputs, buses: &mut [BusConfig]) {
+    for (name, value) in raw {
+        let (name_span, name, value_span, value) = (name.span(), name.get_ref(), value.span(), *value.get_ref());
+        let mut used = false;
+        for probe in buses.iter_mut().flat_map(|b| b.probes.iter_mut()) {
+            let takes = yosemitech_spec::beside::station_inputs(&probe.sensor).iter().any(|i| i.name == name);
+            if !takes {
+                continue;
+            }
+            used = true;
+            if let Err(e) = yosemitech_spec::beside::check_station_input(&probe.sensor, name, value) {
+                loc.error(value_span.clone(), format!("[inputs] for probe `{}`: {e}", probe.label));
+            }
+            probe.inputs.entry(name.clone()).or_insert(value);
+        }
+        if !used {
+            let mut known: Vec<String> = buses
+                .iter()
+                .flat_map(|b| &b.probes)
+                .flat_map(|p| yosemitech_spec::beside::station_inputs(&p.sensor).into_iter().map(|i| i.describe()))
+                .collect();
+            known.sort();
+            known.dedup();
+            let takes = if known.is_empty() {
+                "no probe of the station has a derived quantity with a station input".to_owned()
+            } else {
+                format!("the probes' station inputs: {}", known.join(", "))
+            };
+            loc.error(name_span, format!("[inputs]: no derived quantity of any probe takes `{name}`; {takes}"));
+        }
+    }
 }
 
 #[cfg(test)]

@@ -4,6 +4,10 @@
 //! repeated, so that every row has the same columns whatever the probe; a
 //! reading without values (a failed one) is one row with empty value
 //! columns. JSON lines is one reading per line.
+//!
+//! Both mark the derived quantities the station computed (`derived`:
+//! `true`), and give a derived quantity that could not be computed for a
+//! sample no value and its `value_error` (CSV) or `error` (JSON).
 
 use std::io::{self, Write};
 
@@ -13,7 +17,7 @@ use crate::store::{Datum, StoredReading};
 use crate::time::rfc3339;
 
 /// The CSV header row's columns.
-pub const CSV_COLUMNS: [&str; 14] = [
+pub const CSV_COLUMNS: [&str; 16] = [
     "id",
     "timestamp",
     "station",
@@ -28,6 +32,8 @@ pub const CSV_COLUMNS: [&str; 14] = [
     "name",
     "value",
     "unit",
+    "derived",
+    "value_error",
 ];
 
 /// A CSV field, quoted when it needs to be (RFC 4180).
@@ -40,6 +46,7 @@ fn datum_text(value: &Datum) -> String {
     match value {
         Datum::Number(n) => n.to_string(),
         Datum::Text(t) => t.clone(),
+        Datum::NotComputable(_) => String::new(),
     }
 }
 
@@ -74,34 +81,42 @@ pub fn write_csv(stored: &StoredReading, out: &mut dyn Write) -> io::Result<()> 
     ]
     .join(",");
     if r.values.is_empty() {
-        return writeln!(out, "{head},,,");
+        return writeln!(out, "{head},,,,,");
     }
     for m in &r.values {
+        let error = match &m.value {
+            Datum::NotComputable(why) => why.as_str(),
+            Datum::Number(_) | Datum::Text(_) => "",
+        };
         writeln!(
             out,
-            "{head},{},{},{}",
+            "{head},{},{},{},{},{}",
             csv_field(&m.name),
             csv_field(&datum_text(&m.value)),
-            csv_field(m.unit.as_deref().unwrap_or_default())
+            csv_field(m.unit.as_deref().unwrap_or_default()),
+            m.derived,
+            csv_field(error)
         )?;
     }
     Ok(())
 }
 
 /// `stored` as one JSON object: the reading's columns, `timestamp` in
-/// RFC 3339, `values` a list of `{name, value, unit}` (value a number or
-/// a string; a non-finite number is `null`).
+/// RFC 3339, `values` a list of `{name, value, unit, derived, error}`
+/// (value a number or a string; a non-finite number, or a derived
+/// quantity not computable, is `null`; `error` says why for the latter).
 pub fn to_json(stored: &StoredReading) -> Json {
     let r = &stored.reading;
     let values: Vec<Json> = r
         .values
         .iter()
         .map(|m| {
-            let value = match &m.value {
-                Datum::Number(n) => serde_json::Number::from_f64(*n).map_or(Json::Null, Json::Number),
-                Datum::Text(t) => Json::String(t.clone()),
+            let (value, error) = match &m.value {
+                Datum::Number(n) => (serde_json::Number::from_f64(*n).map_or(Json::Null, Json::Number), None),
+                Datum::Text(t) => (Json::String(t.clone()), None),
+                Datum::NotComputable(why) => (Json::Null, Some(why)),
             };
-            json!({"name": m.name, "value": value, "unit": m.unit})
+            json!({"name": m.name, "value": value, "unit": m.unit, "derived": m.derived, "error": error})
         })
         .collect();
     json!({

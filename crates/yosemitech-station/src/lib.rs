@@ -5,6 +5,7 @@
 //!
 //! * [`store`]: the SQLite store and its outbox (what is not yet published).
 //! * [`config`]: the station file (`station.toml`), validated against the spec.
+//! * [`derive`]: the derived quantities of a sample, stored beside its values.
 //! * [`plan`]: the fewest reads that cover the measurements chosen for a probe.
 //! * [`logger`]: the scheduler, one thread and one master per bus.
 //! * [`link`]: a bus's master and its requests through the spec interpreter.
@@ -17,6 +18,7 @@
 #![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used, clippy::panic))]
 
 pub mod config;
+pub mod derive;
 pub mod export;
 pub mod link;
 pub mod logger;

@@ -30,6 +30,7 @@ use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 use yosemitech_spec::{CommandSpec, FieldKind, Role, Sensor, Value};
 
 use crate::config::{BusConfig, ProbeConfig, StationConfig};
+use crate::derive;
 use crate::link::{self, Master, Outcome};
 use crate::plan::{self, Plan};
 use crate::store::{Datum, Measurement, Reading, Store, StoreError};
@@ -225,7 +226,7 @@ impl Accumulator<'_> {
         } else {
             Datum::Text(self.text.clone()?)
         };
-        Some(Measurement { name: self.name.to_owned(), value, unit: self.unit.map(str::to_owned) })
+        Some(Measurement { name: self.name.to_owned(), value, unit: self.unit.map(str::to_owned), derived: false })
     }
 }
 
@@ -598,6 +599,11 @@ impl<'c> BusRun<'c> {
             self.probes[index].identity = Some((serial, firmware));
         }
         let (serial_number, firmware) = self.probes[index].identity.clone().unwrap_or_default();
+        let mut values: Vec<Measurement> = sample.values.iter().filter_map(Accumulator::measurement).collect();
+        // A sample without a value has nothing to derive from: its error says enough.
+        if !values.is_empty() {
+            values.extend(derive::measurements(config, &self.probes[index].plan, &values));
+        }
         Reading {
             timestamp: sample.timestamp,
             station: self.station.to_owned(),
@@ -607,7 +613,7 @@ impl<'c> BusRun<'c> {
             address,
             serial_number,
             firmware,
-            values: sample.values.iter().filter_map(Accumulator::measurement).collect(),
+            values,
             retries: sample.retries,
             error: {
                 let all: Vec<String> = sample.errors.iter().chain(&sample.warnings).cloned().collect();

@@ -5,7 +5,9 @@
 //! rebuilt from its row every time, so a resend is identical; ids are the
 //! store's, increasing in commit order. Text values (enumeration names)
 //! have no place in the payload's numeric values and are left out of it;
-//! they stay in the store and in `export`.
+//! they stay in the store and in `export`. Derived quantities are
+//! published marked so; one not computable for a sample has no value and
+//! its error.
 
 use yosemitech_mqtt::{MeasuredValue, Outbox, ReadingMessage, SCHEMA_VERSION};
 
@@ -32,9 +34,20 @@ pub fn message(stored: &StoredReading) -> ReadingMessage {
         values: r
             .values
             .iter()
-            .filter_map(|m| match m.value {
-                Datum::Number(n) => Some(MeasuredValue::new(m.name.clone(), n, m.unit.clone())),
-                Datum::Text(_) => None,
+            .filter_map(|m| {
+                let mut v = match &m.value {
+                    Datum::Number(n) => MeasuredValue::new(m.name.clone(), *n, m.unit.clone()),
+                    Datum::NotComputable(why) => MeasuredValue {
+                        name: m.name.clone(),
+                        value: None,
+                        unit: m.unit.clone(),
+                        derived: false,
+                        error: Some(why.clone()),
+                    },
+                    Datum::Text(_) => return None,
+                };
+                v.derived = m.derived;
+                Some(v)
             })
             .collect(),
         retries: r.retries,

@@ -1,7 +1,7 @@
 //! The station's storage: every reading in a SQLite file, and the outbox
 //! cursor that says which of them have been published.
 //!
-//! # Schema (version 1)
+//! # Schema (version 2)
 //!
 //! ```sql
 //! -- One row per reading, in the order the logger committed them: `id`
@@ -27,8 +27,10 @@
 //!     position   INTEGER NOT NULL,
 //!     name       TEXT    NOT NULL,     -- the spec's field name
 //!     number     REAL,                 -- a numeric value ...
-//!     text       TEXT,                 -- ... or a textual one (enum names): exactly one is set
+//!     text       TEXT,                 -- ... or a textual one (enum names) ...
 //!     unit       TEXT,                 -- the spec's unit
+//!     derived    INTEGER NOT NULL DEFAULT 0,  -- 1: a derived quantity of the spec, computed by the station
+//!     error      TEXT,                 -- ... or why a derived quantity has no value: exactly one of the three is set
 //!     PRIMARY KEY (reading_id, position)
 //! ) WITHOUT ROWID;
 //! -- The outbox: every reading with id <= published_up_to has been published.
@@ -38,8 +40,10 @@
 //! );
 //! ```
 //!
-//! `PRAGMA user_version` holds the schema version; a file of another
-//! version is refused rather than misread.
+//! `PRAGMA user_version` holds the schema version. A file of version 1
+//! (no `derived` and `error` columns) is migrated in place when opened:
+//! its values are measured ones, which is what the new columns' defaults
+//! say. A file of another version is refused rather than misread.
 //!
 //! # Durability
 //!
@@ -60,7 +64,14 @@ use crate::time::{from_unix_ms, unix_ms};
 pub const BUSY_TIMEOUT: Duration = Duration::from_secs(10);
 
 /// The schema version this crate writes and reads.
-pub const SCHEMA_VERSION: i64 = 1;
+pub const SCHEMA_VERSION: i64 = 2;
+
+/// From version 1: values gain the derived mark and the error of a
+/// derived quantity that could not be computed.
+const MIGRATE_1_TO_2: &str = "
+ALTER TABLE reading_value ADD COLUMN derived INTEGER NOT NULL DEFAULT 0;
+ALTER TABLE reading_value ADD COLUMN error TEXT;
+";
 
 const SCHEMA: &str = "
 CREATE TABLE reading (
@@ -84,6 +95,8 @@ CREATE TABLE reading_value (
     number     REAL,
     text       TEXT,
     unit       TEXT,
+    derived    INTEGER NOT NULL DEFAULT 0,
+    error      TEXT,
     PRIMARY KEY (reading_id, position)
 ) WITHOUT ROWID;
 CREATE TABLE outbox (
@@ -100,7 +113,7 @@ pub enum StoreError {
     #[error("database error: {0}")]
     Sqlite(#[from] rusqlite::Error),
     /// The file was written by another version of the schema.
-    #[error("the database has schema version {found}; this logger reads version {SCHEMA_VERSION}")]
+    #[error("the database has schema version {found}; this logger reads versions 1 to {SCHEMA_VERSION}")]
     SchemaVersion {
         /// The file's `user_version`.
         found: i64,
@@ -135,6 +148,9 @@ pub enum Datum {
     Number(f64),
     /// Text: an enum's variant name, an ASCII field.
     Text(String),
+    /// No value: why a derived quantity could not be computed for this
+    /// sample (an input NaN or out of its range, the formula undefined).
+    NotComputable(String),
 }
 
 /// One value of a reading: a spec field's name, value and unit.
@@ -146,6 +162,9 @@ pub struct Measurement {
     pub value: Datum,
     /// The spec's unit, if the field has one.
     pub unit: Option<String>,
+    /// A derived quantity of the spec computed by the station from the
+    /// measured values (and its station inputs), not a value the probe sent.
+    pub derived: bool,
 }
 
 /// One sample of one probe: what the logger commits.
@@ -219,6 +238,10 @@ impl Store {
                 tx.execute_batch(SCHEMA)?;
                 tx.pragma_update(None, "user_version", SCHEMA_VERSION)?;
             }
+            1 => {
+                tx.execute_batch(MIGRATE_1_TO_2)?;
+                tx.pragma_update(None, "user_version", SCHEMA_VERSION)?;
+            }
             SCHEMA_VERSION => {}
             found => return Err(StoreError::SchemaVersion { found }),
         }
@@ -264,7 +287,8 @@ impl Store {
                  VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10)",
             )?;
             let mut value = tx.prepare_cached(
-                "INSERT INTO reading_value (reading_id, position, name, number, text, unit) VALUES (?1, ?2, ?3, ?4, ?5, ?6)",
+                "INSERT INTO reading_value (reading_id, position, name, number, text, unit, derived, error)
+                 VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8)",
             )?;
             for reading in readings {
                 row.execute(params![
@@ -281,11 +305,12 @@ impl Store {
                 ])?;
                 let id = tx.last_insert_rowid();
                 for (position, m) in reading.values.iter().enumerate() {
-                    let (number, text) = match &m.value {
-                        Datum::Number(n) => (Some(*n), None),
-                        Datum::Text(t) => (None, Some(t.as_str())),
+                    let (number, text, error) = match &m.value {
+                        Datum::Number(n) => (Some(*n), None, None),
+                        Datum::Text(t) => (None, Some(t.as_str()), None),
+                        Datum::NotComputable(why) => (None, None, Some(why.as_str())),
                     };
-                    value.execute(params![id, position as i64, m.name, number, text, m.unit])?;
+                    value.execute(params![id, position as i64, m.name, number, text, m.unit, m.derived, error])?;
                 }
                 ids.push(id);
             }
@@ -384,7 +409,7 @@ impl Store {
              FROM reading {filter}"
         ))?;
         let mut values = self.connection.prepare_cached(
-            "SELECT name, number, text, unit FROM reading_value WHERE reading_id = ?1 ORDER BY position",
+            "SELECT name, number, text, unit, derived, error FROM reading_value WHERE reading_id = ?1 ORDER BY position",
         )?;
         let rows = readings.query_map(rusqlite::params_from_iter(args), |row| {
             Ok((
@@ -414,16 +439,24 @@ impl Store {
                         row.get::<_, Option<f64>>(1)?,
                         row.get::<_, Option<String>>(2)?,
                         row.get::<_, Option<String>>(3)?,
+                        row.get::<_, bool>(4)?,
+                        row.get::<_, Option<String>>(5)?,
                     ))
                 })?
                 .map(|v| {
-                    let (name, number, text, unit) = v?;
-                    let value = match (number, text) {
-                        (Some(n), None) => Datum::Number(n),
-                        (None, Some(t)) => Datum::Text(t),
-                        _ => return Err(malformed(&format!("value `{name}` is neither a number nor text"))),
+                    let (name, number, text, unit, derived, error) = v?;
+                    let value = match (number, text, error) {
+                        (Some(n), None, None) => Datum::Number(n),
+                        (None, Some(t), None) => Datum::Text(t),
+                        // Only a derived quantity is ever stored without a value.
+                        (None, None, Some(why)) if derived => Datum::NotComputable(why),
+                        _ => {
+                            return Err(malformed(&format!(
+                                "value `{name}` is not exactly one of a number, text or a derived quantity's error"
+                            )));
+                        }
                     };
-                    Ok(Measurement { name, value, unit })
+                    Ok(Measurement { name, value, unit, derived })
                 })
                 .collect::<Result<Vec<_>, StoreError>>()?;
             out.push(StoredReading {

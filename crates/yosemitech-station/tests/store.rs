@@ -24,6 +24,7 @@ fn reading(probe: &str, secs: u64, n: u32) -> Reading {
                 name: format!("field_{i}"),
                 value: if i == 2 { Datum::Text(format!("state {n}")) } else { Datum::Number(f64::from(n) + 0.25) },
                 unit: (i != 1).then(|| "mg/L".into()),
+                derived: false,
             })
             .collect(),
         retries: n % 3,

@@ -58,6 +58,10 @@ pub fn check(catalog: &Catalog, args: &LogArgs, out: &mut dyn Write) -> Result<(
                 if probe.align { " on the clock" } else { "" },
                 if probe.procedure { ", with the spec's procedure" } else { "" },
             )?;
+            if !probe.inputs.is_empty() {
+                let inputs: Vec<String> = probe.inputs.iter().map(|(n, v)| format!("{n} = {v}")).collect();
+                writeln!(out, "    station inputs: {}", inputs.join(", "))?;
+            }
             writeln!(
                 out,
                 "    {}: {} read{} ({}) instead of {}",

@@ -11,12 +11,15 @@ use std::time::{Duration, SystemTime};
 use serde_json::{Map, Value as Json, json};
 use yosemitech_spec::{CommandSpec, Field, FieldKind, Procedure, Role, Sensor, Value};
 
+use yosemitech_spec::beside::{self, DerivedValue};
+
 use crate::catalog::Catalog;
 use crate::cli::{Global, MeasureArgs};
+use crate::commands::read::derived_json;
 use crate::error::{CliError, Result};
 use crate::format::{f32_json, field_value_text, unit, value_json};
 use crate::port::{self, Opened};
-use crate::{device, progress, time};
+use crate::{derived, device, progress, time};
 
 /// The waits and the number of readings of one run.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -168,6 +171,16 @@ pub struct ProcedureResult {
     pub fields: Vec<FieldResult>,
     /// What failed without stopping the procedure (a refused Start Measurement).
     pub warnings: Vec<String>,
+}
+
+impl ProcedureResult {
+    /// The derived quantities whose fields the procedure read, from the
+    /// fields' means (a field with no valid reading leaves its quantities
+    /// not computable); station inputs from `station`, else the spec's defaults.
+    pub fn derived<'s>(&self, sensor: &'s Sensor, station: &dyn Fn(&str) -> Option<f64>) -> Vec<DerivedValue<'s>> {
+        let of = |c: &str, f: &str| self.fields.iter().find(|r| r.command == c && r.field.name.as_deref() == Some(f));
+        beside::beside(sensor, &|c, f| of(c, f).is_some(), &|c, f| of(c, f).and_then(FieldResult::mean), station)
+    }
 }
 
 /// The commands a procedure names, in order (a name the spec lacks is an error).
@@ -339,6 +352,7 @@ pub fn run(catalog: &Catalog, global: &Global, args: &MeasureArgs, out: &mut dyn
     let sensor = catalog.sensor(&args.sensor)?;
     let procedure = sensor.procedure.as_ref().ok_or_else(|| no_procedure(sensor, Some(catalog)))?;
     let timing = timing(procedure, args)?;
+    let station = derived::station(sensor, &args.inputs.inputs)?;
     let slave = args.address.get(sensor.default_address)?;
     let mut opened = port::open(&args.port, global, &sensor.serial)?;
     if !args.json {
@@ -353,6 +367,7 @@ pub fn run(catalog: &Catalog, global: &Global, args: &MeasureArgs, out: &mut dyn
         out.flush()?;
     }
     let m = run_procedure(&mut opened, sensor, slave, timing, &mut std::thread::sleep)?;
+    let computed = m.derived(sensor, &|name| station.get(name).copied());
     if args.json {
         let values: Map<String, Json> = m.fields.iter().map(|r| (r.label.clone(), r.value_json())).collect();
         let fields: Vec<Json> = m
@@ -391,11 +406,33 @@ pub fn run(catalog: &Catalog, global: &Global, args: &MeasureArgs, out: &mut dyn
             "readings": m.readings,
             "values": values,
             "fields": fields,
+            "derived": derived_json(&computed),
             "warnings": m.warnings,
         });
         writeln!(out, "{}", serde_json::to_string_pretty(&doc).unwrap_or_default())?;
     } else {
         show(&m, None, out)?;
+        show_derived(&m, &computed, out)?;
+        if let Some(note) = derived::defaults_note(sensor, &computed) {
+            writeln!(out, "note: {note}")?;
+        }
+    }
+    Ok(())
+}
+
+/// Derived quantities under the fields, aligned with them and marked.
+pub fn show_derived(m: &ProcedureResult, computed: &[DerivedValue<'_>], out: &mut dyn Write) -> Result<()> {
+    let width = m.fields.iter().map(|r| r.label.len()).chain(computed.iter().map(|d| d.quantity.name.len())).max();
+    let width = width.unwrap_or(0);
+    for d in computed {
+        let name = &d.quantity.name;
+        match &d.value {
+            Ok(v) => {
+                let u = d.quantity.unit.as_deref().map(|u| format!(" {}", unit(u))).unwrap_or_default();
+                writeln!(out, "  {name:width$}  {v}{u}  (derived from the means)")?;
+            }
+            Err(why) => writeln!(out, "  {name:width$}  not computable: {why}  (derived)")?,
+        }
     }
     Ok(())
 }

@@ -19,6 +19,7 @@ use crate::derived;
 use crate::error::{CliError, Result, short};
 use crate::format::{unit, value_json, value_text};
 use crate::{device, port, time};
+use yosemitech_spec::beside::{self, DerivedValue};
 
 /// One output column: a chosen measurement and the planned read it comes from.
 struct Column<'s> {
@@ -57,6 +58,8 @@ pub fn run(
     // The fewest reads that cover the chosen measurements.
     let planned = plan::plan(sensor, &chosen);
     let reads: Vec<&CommandSpec> = planned.reads.iter().map(|r| r.command).collect();
+    let station = derived::station(sensor, &args.inputs.inputs)?;
+    let station = |name: &str| station.get(name).copied();
     let address = args.address.get(sensor.default_address)?;
     let mut opened = port::open(&args.port, global, &sensor.serial)?;
 
@@ -75,7 +78,9 @@ pub fn run(
         columns.iter().map(|c| (c.field.len() + c.unit.as_ref().map_or(0, |u| u.chars().count() + 3)).max(9)).collect();
     // Derived quantities whose field inputs the planned reads give, after the measured columns.
     let read_names: Vec<&str> = reads.iter().map(|c| c.name.as_str()).collect();
-    let derived_heads: Vec<String> = derived::beside(sensor, &|_, _| None, &read_names)
+    let was_read = |c: &str, _: &str| read_names.contains(&c);
+    let heads = beside::beside(sensor, &was_read, &|_, _| None, &station);
+    let derived_heads: Vec<String> = heads
         .iter()
         .map(|d| match &d.quantity.unit {
             Some(u) => format!("{} [{}] (derived)", d.quantity.name, unit(u)),
@@ -86,6 +91,9 @@ pub fn run(
 
     match args.format {
         PollFormat::Table => {
+            if let Some(note) = derived::defaults_note(sensor, &heads) {
+                writeln!(out, "note: {note}")?;
+            }
             write!(out, "{:24}", "timestamp")?;
             for (c, w) in columns.iter().zip(&widths) {
                 let head = match &c.unit {
@@ -135,9 +143,9 @@ pub fn run(
             failed += 1;
         }
         let cell = |c: &Column<'_>| values.get(c.command.name.as_str()).and_then(|v| v.get(c.field));
-        let lookup = |c: &str, f: &str| values.get(c).and_then(|v| v.get(f));
-        let computed = derived::beside(sensor, &lookup, &read_names);
-        let derived_cell = |d: &derived::DerivedValue<'_>| d.value.as_ref().map(|v| v.to_string()).ok();
+        let lookup = |c: &str, f: &str| values.get(c).and_then(|v| v.get(f)).and_then(beside::field_number);
+        let computed = beside::beside(sensor, &was_read, &lookup, &station);
+        let derived_cell = |d: &DerivedValue<'_>| d.value.as_ref().map(|v| v.to_string()).ok();
         let error = errors.join("; ");
         match args.format {
             PollFormat::Table => {

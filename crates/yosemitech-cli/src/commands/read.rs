@@ -8,11 +8,12 @@ use yosemitech_spec::{CommandSpec, Values};
 
 use crate::catalog::{self, Catalog};
 use crate::cli::{Global, ReadArgs};
-use crate::derived::{self, DerivedValue};
+use crate::derived;
 use crate::device;
 use crate::error::{CliError, Result};
 use crate::format::{f32_json, fields_json, unit, value_with_unit, values_json};
 use crate::{port, time};
+use yosemitech_spec::beside::{self, DerivedValue};
 
 /// Runs `read`.
 pub fn run(catalog: &Catalog, global: &Global, args: &ReadArgs, out: &mut dyn Write) -> Result<()> {
@@ -22,12 +23,18 @@ pub fn run(catalog: &Catalog, global: &Global, args: &ReadArgs, out: &mut dyn Wr
         return Err(CliError::usage(format!("`{}` is a write command", command.name))
             .hint(format!("send it with `yosemitech write {} {} ...`", sensor.name, command.name)));
     }
+    let station = derived::station(sensor, &args.inputs.inputs)?;
     let address = args.address.get(sensor.default_address)?;
     let mut opened = port::open(&args.port, global, &sensor.serial)?;
     let values = device::read(&mut opened, command, address)?;
-    let lookup =
-        |c: &str, f: &str| if c == command.name { values.iter().find(|(n, _)| n == f).map(|(_, v)| v) } else { None };
-    let derived = derived::beside(sensor, &lookup, &[command.name.as_str()]);
+    let lookup = |c: &str, f: &str| {
+        if c == command.name {
+            values.iter().find(|(n, _)| n == f).and_then(|(_, v)| beside::field_number(v))
+        } else {
+            None
+        }
+    };
+    let derived = beside::beside(sensor, &|c, _| c == command.name, &lookup, &|name: &str| station.get(name).copied());
     if args.json {
         let doc = json!({
             "sensor": sensor.name,
@@ -43,6 +50,9 @@ pub fn run(catalog: &Catalog, global: &Global, args: &ReadArgs, out: &mut dyn Wr
     } else {
         show(command, &values, out)?;
         show_derived(&derived, out)?;
+        if let Some(note) = derived::defaults_note(sensor, &derived) {
+            writeln!(out, "note: {note}")?;
+        }
     }
     Ok(())
 }
@@ -63,14 +73,18 @@ pub fn show_derived(derived: &[DerivedValue<'_>], out: &mut dyn Write) -> Result
     Ok(())
 }
 
-/// Derived quantities as JSON: `{name: {value, unit}}` or `{name: {error}}`.
+/// Derived quantities as JSON: `{name: {value, unit, defaults}}` or
+/// `{name: {error, unit, defaults}}`, `defaults` the station inputs that
+/// took the spec's default (`{name: value}`).
 pub fn derived_json(derived: &[DerivedValue<'_>]) -> serde_json::Value {
     let map: serde_json::Map<String, serde_json::Value> = derived
         .iter()
         .map(|d| {
+            let defaults: serde_json::Map<String, serde_json::Value> =
+                d.defaulted.iter().map(|(n, v)| ((*n).to_owned(), json!(v))).collect();
             let v = match &d.value {
-                Ok(v) => json!({"value": f32_json(*v), "unit": d.quantity.unit}),
-                Err(why) => json!({"error": why, "unit": d.quantity.unit}),
+                Ok(v) => json!({"value": f32_json(*v), "unit": d.quantity.unit, "defaults": defaults}),
+                Err(why) => json!({"error": why, "unit": d.quantity.unit, "defaults": defaults}),
             };
             (d.quantity.name.clone(), v)
         })
