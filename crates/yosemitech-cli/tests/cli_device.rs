@@ -75,6 +75,24 @@ fn demo_reads_every_sensor_and_runs_every_procedure() {
             line(read);
             reads += 1;
         }
+        // Each derived quantity whose reads the section shows, beside them.
+        let shown = |command: &str| section.lines().any(|l| l.trim_start().starts_with(&format!("{command} ")));
+        for d in &sensor.derived {
+            let covered = d.inputs.iter().all(|i| match &i.source {
+                yosemitech_spec::InputSource::Field { command, .. } => shown(command),
+                yosemitech_spec::InputSource::Station(_) => true,
+            });
+            if covered {
+                let derived_line = section.lines().find(|l| l.trim_start().starts_with(&format!("{} ", d.name)));
+                assert!(
+                    derived_line.is_some_and(|l| l.ends_with("(derived)") && !l.contains("not computable")),
+                    "{}: no value of {} (derived):\n{section}",
+                    sensor.name,
+                    d.name
+                );
+                reads += 1;
+            }
+        }
         // Its manual's procedure: every field it reads, and the mean of what the simulator serves.
         let Some(procedure) = &sensor.procedure else { continue };
         let part = procedures

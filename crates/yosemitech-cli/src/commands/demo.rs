@@ -11,7 +11,8 @@ use std::time::{Duration, Instant};
 
 use yosemitech_rtu::{Client, ClientConfig, RetryPolicy, Transport, Version};
 use yosemitech_sim::{Bus, FrameHandler, ServeConfig, Server, Simulator, Variation};
-use yosemitech_spec::{CommandSpec, FieldKind, Role, Sensor, Value};
+use yosemitech_spec::beside;
+use yosemitech_spec::{CommandSpec, FieldKind, Role, Sensor, Value, Values};
 
 use crate::catalog::Catalog;
 use crate::cli::DemoArgs;
@@ -118,7 +119,9 @@ fn shown_reads(sensor: &Sensor) -> Vec<&CommandSpec> {
 fn show_probe(probe: &mut Probe, out: &mut dyn Write) -> Result<()> {
     let sensor = Arc::clone(&probe.sensor);
     let reads = shown_reads(&sensor);
-    let width = reads.iter().map(|r| r.name.len()).max().unwrap_or(0);
+    let width =
+        reads.iter().map(|r| r.name.len()).chain(sensor.derived.iter().map(|d| d.name.len())).max().unwrap_or(0);
+    let mut read_values: Vec<(&str, Values)> = Vec::new();
     for read in reads {
         let values = device::read(&mut probe.opened, read, sensor.default_address)?;
         let shown: Vec<String> = values
@@ -131,6 +134,23 @@ fn show_probe(probe: &mut Probe, out: &mut dyn Write) -> Result<()> {
             })
             .collect();
         writeln!(out, "  {:width$}  {}", read.name, shown.join(", "))?;
+        read_values.push((read.name.as_str(), values));
+    }
+    // Beside the reads, what the spec derives from them (station inputs at their defaults).
+    let lookup = |c: &str, f: &str| {
+        let (_, values) = read_values.iter().find(|(name, _)| *name == c)?;
+        values.iter().find(|(n, _)| n == f).and_then(|(_, v)| beside::field_number(v))
+    };
+    let derived = beside::beside(&sensor, &|c, _| read_values.iter().any(|(n, _)| *n == c), &lookup, &|_| None);
+    for d in &derived {
+        let text = match &d.value {
+            Ok(v) => {
+                let u = d.quantity.unit.as_deref().map(|u| format!(" {}", unit(u))).unwrap_or_default();
+                format!("{v}{u}")
+            }
+            Err(why) => format!("not computable: {why}"),
+        };
+        writeln!(out, "  {:width$}  {text}  (derived)", d.quantity.name)?;
     }
     Ok(())
 }
@@ -156,6 +176,7 @@ fn run_procedures(probes: &mut [Probe], out: &mut dyn Write) -> Result<()> {
         let sensor = Arc::clone(&probe.sensor);
         let m = measure::run_procedure(&mut probe.opened, &sensor, sensor.default_address, timing, &mut sleep)?;
         measure::show(&m, Some(4), out)?;
+        measure::show_derived(&m, &m.derived(&sensor, &|_| None), out)?;
     }
     Ok(())
 }
