@@ -242,6 +242,11 @@ pub struct ReadArgs {
     /// Print JSON.
     #[arg(long)]
     pub json: bool,
+    /// Show values in another unit of the same dimension: `UNIT` for every
+    /// value of its dimension (`degF`, `uS/cm`), `NAME=UNIT` for one field
+    /// or derived quantity; repeatable.
+    #[arg(long = "unit", value_name = "[NAME=]UNIT")]
+    pub units: Vec<String>,
 }
 
 /// `write`.
@@ -309,6 +314,11 @@ pub struct PollArgs {
     /// Output format.
     #[arg(short, long, value_enum, default_value_t = PollFormat::Table)]
     pub format: PollFormat,
+    /// Show values in another unit of the same dimension: `UNIT` for every
+    /// value of its dimension (`degF`, `uS/cm`), `NAME=UNIT` for one field
+    /// or derived quantity; repeatable.
+    #[arg(long = "unit", value_name = "[NAME=]UNIT")]
+    pub units: Vec<String>,
 }
 
 /// `measure`.

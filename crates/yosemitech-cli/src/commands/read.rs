@@ -4,7 +4,7 @@ use std::io::Write;
 use std::time::SystemTime;
 
 use serde_json::json;
-use yosemitech_spec::{CommandSpec, Values};
+use yosemitech_spec::{CommandSpec, Derived, Values};
 
 use crate::catalog::{self, Catalog};
 use crate::cli::{Global, ReadArgs};
@@ -12,6 +12,7 @@ use crate::derived::{self, DerivedValue};
 use crate::device;
 use crate::error::{CliError, Result};
 use crate::format::{f32_json, fields_json, unit, value_with_unit, values_json};
+use crate::units::{self, Chosen};
 use crate::{port, time};
 
 /// Runs `read`.
@@ -23,11 +24,23 @@ pub fn run(catalog: &Catalog, global: &Global, args: &ReadArgs, out: &mut dyn Wr
             .hint(format!("send it with `yosemitech write {} {} ...`", sensor.name, command.name)));
     }
     let address = args.address.get(sensor.default_address)?;
+    // The units are checked before the port opens: a typo costs no transaction.
+    let beside: Vec<&Derived> =
+        derived::beside(sensor, &|_, _| None, &[command.name.as_str()]).iter().map(|d| d.quantity).collect();
+    let chosen = Chosen::resolve(&args.units, &units::quantities(command, &beside), &sensor.name)?;
     let mut opened = port::open(&args.port, global, &sensor.serial)?;
     let values = device::read(&mut opened, command, address)?;
     let lookup =
         |c: &str, f: &str| if c == command.name { values.iter().find(|(n, _)| n == f).map(|(_, v)| v) } else { None };
+    // Derived quantities take the spec's units: convert after computing them.
     let derived = derived::beside(sensor, &lookup, &[command.name.as_str()]);
+    let (command, values) = (&chosen.command(command), chosen.values(&values));
+    let quantities: Vec<Derived> = derived.iter().map(|d| chosen.derived(d.quantity)).collect();
+    let derived: Vec<DerivedValue<'_>> = derived
+        .iter()
+        .zip(&quantities)
+        .map(|(d, q)| DerivedValue { quantity: q, value: d.value.clone().map(|v| chosen.number(&q.name, v)) })
+        .collect();
     if args.json {
         let doc = json!({
             "sensor": sensor.name,
