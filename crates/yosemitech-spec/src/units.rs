@@ -32,8 +32,8 @@ use std::collections::BTreeMap;
 /// What a unit measures; units convert only within one dimension.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub enum Dimension {
-    /// Electrical conductivity (base µS/cm).
-    Conductivity,
+    /// Electrical conductivity, as water-quality work calls it: specific conductance (base µS/cm).
+    SpecificConductance,
     /// Temperature (base degC).
     Temperature,
     /// Mass concentration (base µg/L).
@@ -49,10 +49,10 @@ pub enum Dimension {
 }
 
 impl Dimension {
-    /// Its name in messages (`conductivity`).
+    /// Its name in messages (`temperature`).
     pub fn name(self) -> &'static str {
         match self {
-            Dimension::Conductivity => "conductivity",
+            Dimension::SpecificConductance => "specific conductance",
             Dimension::Temperature => "temperature",
             Dimension::Concentration => "concentration",
             Dimension::Pressure => "pressure",
@@ -117,10 +117,10 @@ const fn unit(
 /// the lower-case `l` of litres and the two micro signs are listed as aliases.
 pub static UNITS: &[UnitDef] = &[
     // Conductivity; base µS/cm. 1 S/m = 10 mS/cm.
-    unit("uS/cm", &["µS/cm", "μS/cm"], Dimension::Conductivity, 1.0, 1.0),
-    unit("mS/cm", &[], Dimension::Conductivity, 1000.0, 1.0),
-    unit("mS/m", &[], Dimension::Conductivity, 10.0, 1.0),
-    unit("S/m", &[], Dimension::Conductivity, 10_000.0, 1.0),
+    unit("uS/cm", &["µS/cm", "μS/cm"], Dimension::SpecificConductance, 1.0, 1.0),
+    unit("mS/cm", &[], Dimension::SpecificConductance, 1000.0, 1.0),
+    unit("mS/m", &[], Dimension::SpecificConductance, 10.0, 1.0),
+    unit("S/m", &[], Dimension::SpecificConductance, 10_000.0, 1.0),
     // Temperature; base degC.
     unit("degC", &["°C", "℃"], Dimension::Temperature, 1.0, 1.0),
     UnitDef {
