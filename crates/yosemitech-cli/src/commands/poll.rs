@@ -185,8 +185,10 @@ pub fn run(
                 writeln!(out, "{timestamp},{},{}", cells.join(","), csv(&error))?;
             }
             PollFormat::Json => {
-                let map: Map<String, Json> =
-                    columns.iter().map(|c| (c.field.to_owned(), cell(c).as_ref().map_or(Json::Null, value_json))).collect();
+                let map: Map<String, Json> = columns
+                    .iter()
+                    .map(|c| (c.field.to_owned(), cell(c).as_ref().map_or(Json::Null, value_json)))
+                    .collect();
                 let units: Map<String, Json> = columns
                     .iter()
                     .filter_map(|c| c.symbol.map(|u| (c.field.to_owned(), Json::String(u.to_owned()))))
