@@ -47,6 +47,15 @@ pub fn run(args: &[String]) -> anyhow::Result<ExitCode> {
                 count(s.derived, "derived quantity", "derived quantities"),
                 s.derived_examples,
             );
+            // A note, never an error: a spec may use any unit; only conversion needs the table.
+            let outside = units_outside_the_table(&spec);
+            if !outside.is_empty() {
+                eprintln!(
+                    "note: {} of the fields' and derived quantities' units are not in the unit table, so `--unit` and a station's `units` cannot convert them: {}",
+                    outside.len(),
+                    outside.join(", ")
+                );
+            }
             Ok(ExitCode::SUCCESS)
         }
         Err(diags) => {
@@ -54,6 +63,23 @@ pub fn run(args: &[String]) -> anyhow::Result<ExitCode> {
             Ok(ExitCode::FAILURE)
         }
     }
+}
+
+/// The units of fields and derived quantities that `yosemitech_spec::units`
+/// does not know, sorted, each once.
+fn units_outside_the_table(spec: &yosemitech_spec::Spec) -> Vec<String> {
+    let mut out: Vec<String> = spec
+        .sensors
+        .iter()
+        .flat_map(|s| {
+            let fields = s.commands.iter().flat_map(|c| c.fields.iter().filter_map(|f| f.unit.clone()));
+            fields.chain(s.derived.iter().filter_map(|d| d.unit.clone())).collect::<Vec<_>>()
+        })
+        .filter(|u| yosemitech_spec::units::lookup(u).is_none())
+        .collect();
+    out.sort();
+    out.dedup();
+    out
 }
 
 /// `n` and the noun in the right number.

@@ -244,6 +244,11 @@ pub struct ReadArgs {
     pub json: bool,
     #[command(flatten)]
     pub inputs: InputArgs,
+    /// Show values in another unit of the same dimension: `UNIT` for every
+    /// value of its dimension (`degF`, `uS/cm`), `NAME=UNIT` for one field
+    /// or derived quantity; repeatable.
+    #[arg(long = "unit", value_name = "[NAME=]UNIT")]
+    pub units: Vec<String>,
 }
 
 /// `write`.
@@ -313,6 +318,11 @@ pub struct PollArgs {
     pub format: PollFormat,
     #[command(flatten)]
     pub inputs: InputArgs,
+    /// Show values in another unit of the same dimension: `UNIT` for every
+    /// value of its dimension (`degF`, `uS/cm`), `NAME=UNIT` for one field
+    /// or derived quantity; repeatable.
+    #[arg(long = "unit", value_name = "[NAME=]UNIT")]
+    pub units: Vec<String>,
 }
 
 /// `measure`.

@@ -12,6 +12,7 @@ use crate::error::{CliError, Result};
 pub fn unit(unit: &str) -> &str {
     match unit {
         "degC" => "°C",
+        "degF" => "°F",
         other => other,
     }
 }

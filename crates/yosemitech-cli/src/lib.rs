@@ -40,6 +40,7 @@ mod readings;
 mod shell;
 mod stored;
 mod time;
+mod units;
 
 use std::io::{IsTerminal as _, Write as _};
 use std::process::ExitCode;

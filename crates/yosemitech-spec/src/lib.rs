@@ -41,6 +41,7 @@ pub mod model;
 pub mod names;
 mod resolve;
 pub mod sources;
+pub mod units;
 mod yaml;
 
 pub use diag::{Diagnostic, Diagnostics, Pos};

@@ -27,6 +27,9 @@
 //! align = true                    # on the clock: 00:00, 00:15, 00:30 ... UTC
 //! # procedure = true              # follow the spec's procedure (default when it has one)
 //! # inputs = { salinity = 35 }    # this probe's station inputs, over the station's [inputs]
+//! # units = { temperature_c = "degF" }  # a measurement or derived quantity in another unit
+//!                                 # of its dimension (the spec's unit table): stored,
+//!                                 # exported and published converted, with the chosen unit
 //!
 //! # [inputs]                      # station inputs of derived quantities (`yosemitech list SENSOR`):
 //! # salinity = 0.5                # every probe whose derived quantities take them; default: the spec's
@@ -51,6 +54,7 @@ use yosemitech_mqtt::MqttConfig;
 use yosemitech_rtu::{LineSettings, Parity};
 use yosemitech_spec::Sensor;
 use yosemitech_spec::beside::StationInputError;
+use yosemitech_spec::units::{self, ChoiceError, Conversion, Quantity};
 
 use crate::plan;
 
@@ -159,6 +163,10 @@ pub struct ProbeConfig {
     /// The station inputs of its derived quantities: the probe's own, else
     /// the station's; an input absent here takes the spec's default.
     pub inputs: BTreeMap<String, f64>,
+    /// The units chosen for measurements or derived quantities, by name
+    /// (`units = { name = "uS/cm" }`): readings carry the converted value
+    /// and the chosen unit. Empty: every value in its spec unit.
+    pub units: BTreeMap<String, Conversion>,
 }
 
 /// A validated bus.
@@ -254,6 +262,7 @@ struct RawProbe {
     procedure: Option<Spanned<bool>>,
     #[serde(default)]
     inputs: RawInputs,
+    units: Option<BTreeMap<String, Spanned<String>>>,
 }
 
 /// Parses a duration: one or more `<number><unit>` with units `ms`, `s`,
@@ -597,6 +606,16 @@ fn validate_probe(
             }
         }
     }
+    let units = match &raw.units {
+        Some(chosen) => match probe_units(loc, raw.label.get_ref(), sensor, &measurements, chosen) {
+            Some(units) => units,
+            None => {
+                ok = false;
+                BTreeMap::new()
+            }
+        },
+        None => BTreeMap::new(),
+    };
     let spans = (raw.label.span(), raw.address.span());
     ok.then(|| {
         (
@@ -609,6 +628,7 @@ fn validate_probe(
                 align: raw.align,
                 procedure,
                 inputs,
+                units,
             },
             spans.0,
             spans.1,
@@ -649,6 +669,57 @@ fn station_inputs(loc: &mut Locator<'_>, raw: &RawInputs, buses: &mut [BusConfig
             loc.error(name_span, format!("[inputs]: no derived quantity of any probe takes `{name}`; {takes}"));
         }
     }
+}
+
+/// A probe's `units`, checked against its measurements and the sensor's
+/// derived quantities through the spec's unit table; `None` after
+/// recording every entry that cannot be given.
+fn probe_units(
+    loc: &mut Locator<'_>,
+    label: &str,
+    sensor: &Sensor,
+    measurements: &[String],
+    chosen: &BTreeMap<String, Spanned<String>>,
+) -> Option<BTreeMap<String, Conversion>> {
+    // The unit of a measurement is its field's in the read the planner takes it from.
+    let names: Vec<&str> = measurements.iter().map(String::as_str).collect();
+    let planned = plan::plan(sensor, &names);
+    let quantities: Vec<Quantity<'_>> = planned
+        .reads
+        .iter()
+        .flat_map(|r| {
+            r.fields.iter().map(|f| Quantity { name: f, unit: r.command.field(f).and_then(|f| f.unit.as_deref()) })
+        })
+        .chain(sensor.derived.iter().map(|d| Quantity { name: &d.name, unit: d.unit.as_deref() }))
+        .collect();
+    let mut out = BTreeMap::new();
+    let mut ok = true;
+    for (name, unit) in chosen {
+        match units::choose_named(name, unit.get_ref(), &quantities) {
+            Ok(c) => {
+                out.insert(name.clone(), c);
+            }
+            Err(e) => {
+                let hint = match &e {
+                    // Unit symbols are case-sensitive (mS is not MS): a spelling
+                    // that differs only in case is the likeliest meaning.
+                    ChoiceError::UnknownUnit { unit } => {
+                        match units::spellings().find(|s| s.eq_ignore_ascii_case(unit)) {
+                            Some(same) => format!(" (did you mean `{same}`?)"),
+                            None => format!(
+                                " (units that convert: {})",
+                                units::UNITS.iter().map(|u| u.symbol).collect::<Vec<_>>().join(", ")
+                            ),
+                        }
+                    }
+                    _ => String::new(),
+                };
+                loc.error(unit.span(), format!("probe `{label}`: units.{name} = \"{}\": {e}{hint}", unit.get_ref()));
+                ok = false;
+            }
+        }
+    }
+    ok.then_some(out)
 }
 
 #[cfg(test)]

@@ -26,5 +26,6 @@ pub mod outbox;
 pub mod plan;
 pub mod store;
 pub mod time;
+pub mod units;
 
 pub use store::{Datum, Measurement, Reading, Store, StoreError, StoredReading};

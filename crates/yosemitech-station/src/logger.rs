@@ -402,7 +402,9 @@ impl<'c> BusRun<'c> {
                 continue;
             }
             self.ensure_open();
-            if let Some(reading) = self.step(next) {
+            if let Some(mut reading) = self.step(next) {
+                // The probe's chosen units, last: whatever the sample computed is in spec units.
+                crate::units::apply(&self.probes[next].config.units, &mut reading);
                 let ok = reading.error.is_none();
                 self.report.readings += 1;
                 self.report.failed_readings += u64::from(!ok);

@@ -71,6 +71,14 @@ pub fn check(catalog: &Catalog, args: &LogArgs, out: &mut dyn Write) -> Result<(
                 reads.join(", "),
                 naive.reads.len()
             )?;
+            if !probe.units.is_empty() {
+                let units: Vec<String> = probe
+                    .units
+                    .iter()
+                    .map(|(name, c)| format!("{name} in {} (from {})", c.to.symbol, c.from.symbol))
+                    .collect();
+                writeln!(out, "    units: {}", units.join(", "))?;
+            }
         }
     }
     if let Some(mqtt) = &station.mqtt {

@@ -8,7 +8,8 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant, SystemTime};
 
 use serde_json::{Map, Value as Json, json};
-use yosemitech_spec::{CommandSpec, Value};
+use yosemitech_spec::units::Quantity;
+use yosemitech_spec::{CommandSpec, Derived, Sensor, Value};
 
 use yosemitech_station::plan;
 
@@ -18,6 +19,7 @@ use crate::commands::read::derived_json;
 use crate::derived;
 use crate::error::{CliError, Result, short};
 use crate::format::{unit, value_json, value_text};
+use crate::units::Chosen;
 use crate::{device, port, time};
 use yosemitech_spec::beside::{self, DerivedValue};
 
@@ -26,6 +28,10 @@ struct Column<'s> {
     command: &'s CommandSpec,
     field: &'s str,
     unit: Option<String>,
+    /// The unit as the spec spells it (`degF`), when the column has one.
+    symbol: Option<&'s str>,
+    /// Shown in a unit `--unit` chose: CSV's header then names the unit.
+    converted: bool,
 }
 
 /// A value as a logger wants it: numbers plain, enums by name.
@@ -61,28 +67,35 @@ pub fn run(
     let station = derived::station(sensor, &args.inputs.inputs)?;
     let station = |name: &str| station.get(name).copied();
     let address = args.address.get(sensor.default_address)?;
+    let read_names: Vec<&str> = reads.iter().map(|c| c.name.as_str()).collect();
+    // The units are checked before the port opens: a typo costs no transaction.
+    let chosen = choose_units(sensor, &planned, &read_names, &args.units)?;
     let mut opened = port::open(&args.port, global, &sensor.serial)?;
 
     let columns: Vec<Column<'_>> = planned
         .reads
         .iter()
         .flat_map(|r| {
-            r.fields.iter().map(|f| Column {
-                command: r.command,
-                field: f,
-                unit: r.command.field(f).and_then(|f| f.unit.as_deref()).map(|u| unit(u).to_owned()),
+            r.fields.iter().map(|f| {
+                let symbol = chosen.unit(f, r.command.field(f).and_then(|f| f.unit.as_deref()));
+                Column {
+                    command: r.command,
+                    field: f,
+                    unit: symbol.map(|u| unit(u).to_owned()),
+                    symbol,
+                    converted: chosen.conversion(f).is_some(),
+                }
             })
         })
         .collect();
     let widths: Vec<usize> =
         columns.iter().map(|c| (c.field.len() + c.unit.as_ref().map_or(0, |u| u.chars().count() + 3)).max(9)).collect();
     // Derived quantities whose field inputs the planned reads give, after the measured columns.
-    let read_names: Vec<&str> = reads.iter().map(|c| c.name.as_str()).collect();
     let was_read = |c: &str, _: &str| read_names.contains(&c);
     let heads = beside::beside(sensor, &was_read, &|_, _| None, &station);
     let derived_heads: Vec<String> = heads
         .iter()
-        .map(|d| match &d.quantity.unit {
+        .map(|d| match chosen.unit(&d.quantity.name, d.quantity.unit.as_deref()) {
             Some(u) => format!("{} [{}] (derived)", d.quantity.name, unit(u)),
             None => format!("{} (derived)", d.quantity.name),
         })
@@ -108,8 +121,12 @@ pub fn run(
             writeln!(out, "  error")?;
         }
         PollFormat::Csv => {
-            let names: Vec<String> =
-                columns.iter().map(|c| csv(c.field)).chain(derived_heads.iter().map(|h| csv(h))).collect();
+            // A converted column names its unit: the spec's unit is no longer the column's.
+            let head = |c: &Column<'_>| match (&c.unit, c.converted) {
+                (Some(u), true) => csv(&format!("{} [{u}]", c.field)),
+                _ => csv(c.field),
+            };
+            let names: Vec<String> = columns.iter().map(head).chain(derived_heads.iter().map(|h| csv(h))).collect();
             writeln!(out, "timestamp,{},error", names.join(","))?;
         }
         PollFormat::Json => {}
@@ -142,16 +159,20 @@ pub fn run(
         if values.is_empty() {
             failed += 1;
         }
-        let cell = |c: &Column<'_>| values.get(c.command.name.as_str()).and_then(|v| v.get(c.field));
+        let cell = |c: &Column<'_>| {
+            values.get(c.command.name.as_str()).and_then(|v| v.get(c.field)).map(|v| chosen.value(c.field, v))
+        };
         let lookup = |c: &str, f: &str| values.get(c).and_then(|v| v.get(f)).and_then(beside::field_number);
         let computed = beside::beside(sensor, &was_read, &lookup, &station);
-        let derived_cell = |d: &DerivedValue<'_>| d.value.as_ref().map(|v| v.to_string()).ok();
+        let quantities: Vec<Derived> = computed.iter().map(|d| chosen.derived(d.quantity)).collect();
+        let derived_cell =
+            |d: &DerivedValue<'_>| d.value.as_ref().map(|v| chosen.number(&d.quantity.name, *v).to_string()).ok();
         let error = errors.join("; ");
         match args.format {
             PollFormat::Table => {
                 write!(out, "{timestamp:24}")?;
                 for (c, w) in columns.iter().zip(&widths) {
-                    write!(out, "  {:>w$}", cell(c).map(plain).unwrap_or_else(|| "-".into()))?;
+                    write!(out, "  {:>w$}", cell(c).as_ref().map(plain).unwrap_or_else(|| "-".into()))?;
                 }
                 for (d, w) in computed.iter().zip(&derived_widths) {
                     write!(out, "  {:>w$}", derived_cell(d).unwrap_or_else(|| "-".into()))?;
@@ -165,18 +186,25 @@ pub fn run(
             PollFormat::Csv => {
                 let cells: Vec<String> = columns
                     .iter()
-                    .map(|c| csv(&cell(c).map(plain).unwrap_or_default()))
+                    .map(|c| csv(&cell(c).as_ref().map(plain).unwrap_or_default()))
                     .chain(computed.iter().map(|d| csv(&derived_cell(d).unwrap_or_default())))
                     .collect();
                 writeln!(out, "{timestamp},{},{}", cells.join(","), csv(&error))?;
             }
             PollFormat::Json => {
-                let map: Map<String, Json> =
-                    columns.iter().map(|c| (c.field.to_owned(), cell(c).map_or(Json::Null, value_json))).collect();
+                let map: Map<String, Json> = columns
+                    .iter()
+                    .map(|c| (c.field.to_owned(), cell(c).as_ref().map_or(Json::Null, value_json)))
+                    .collect();
+                let units: Map<String, Json> = columns
+                    .iter()
+                    .filter_map(|c| c.symbol.map(|u| (c.field.to_owned(), Json::String(u.to_owned()))))
+                    .collect();
                 let row = json!({
                     "timestamp": timestamp,
                     "values": map,
-                    "derived": derived_json(&computed),
+                    "units": units,
+                    "derived": derived_json(&shown_derived(&chosen, &computed, &quantities)),
                     "error": if errors.is_empty() { Json::Null } else { Json::String(error) },
                 });
                 writeln!(out, "{row}")?;
@@ -204,4 +232,37 @@ pub fn run(
         .hint("the error column says why; check the port, the address and the sensor type"));
     }
     Ok(())
+}
+
+/// The units `--unit` asks for, resolved against the planned columns and
+/// the derived quantities beside them.
+fn choose_units(sensor: &Sensor, planned: &plan::Plan<'_>, reads: &[&str], args: &[String]) -> Result<Chosen> {
+    let was_read = |c: &str, _: &str| reads.contains(&c);
+    let beside = beside::beside(sensor, &was_read, &|_, _| None, &|_| None);
+    let quantities: Vec<Quantity<'_>> = planned
+        .reads
+        .iter()
+        .flat_map(|r| {
+            r.fields.iter().map(|f| Quantity { name: f, unit: r.command.field(f).and_then(|f| f.unit.as_deref()) })
+        })
+        .chain(beside.iter().map(|d| Quantity { name: &d.quantity.name, unit: d.quantity.unit.as_deref() }))
+        .collect();
+    Chosen::resolve(args, &quantities, &sensor.name)
+}
+
+/// Derived values in their chosen units, each beside its quantity as shown (`quantities`, in the same order).
+fn shown_derived<'q>(
+    chosen: &Chosen,
+    computed: &[DerivedValue<'q>],
+    quantities: &'q [Derived],
+) -> Vec<DerivedValue<'q>> {
+    computed
+        .iter()
+        .zip(quantities)
+        .map(|(d, q)| DerivedValue {
+            quantity: q,
+            value: d.value.clone().map(|v| chosen.number(&q.name, v)),
+            defaulted: d.defaulted.clone(),
+        })
+        .collect()
 }

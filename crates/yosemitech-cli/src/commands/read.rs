@@ -4,7 +4,7 @@ use std::io::Write;
 use std::time::SystemTime;
 
 use serde_json::json;
-use yosemitech_spec::{CommandSpec, Values};
+use yosemitech_spec::{CommandSpec, Derived, Values};
 
 use crate::catalog::{self, Catalog};
 use crate::cli::{Global, ReadArgs};
@@ -12,6 +12,7 @@ use crate::derived;
 use crate::device;
 use crate::error::{CliError, Result};
 use crate::format::{f32_json, fields_json, unit, value_with_unit, values_json};
+use crate::units::{self, Chosen};
 use crate::{port, time};
 use yosemitech_spec::beside::{self, DerivedValue};
 
@@ -25,6 +26,10 @@ pub fn run(catalog: &Catalog, global: &Global, args: &ReadArgs, out: &mut dyn Wr
     }
     let station = derived::station(sensor, &args.inputs.inputs)?;
     let address = args.address.get(sensor.default_address)?;
+    // The units are checked before the port opens: a typo costs no transaction.
+    let covered: Vec<&Derived> =
+        beside::beside(sensor, &|c, _| c == command.name, &|_, _| None, &|_| None).iter().map(|d| d.quantity).collect();
+    let chosen = Chosen::resolve(&args.units, &units::quantities(command, &covered), &sensor.name)?;
     let mut opened = port::open(&args.port, global, &sensor.serial)?;
     let values = device::read(&mut opened, command, address)?;
     let lookup = |c: &str, f: &str| {
@@ -34,7 +39,19 @@ pub fn run(catalog: &Catalog, global: &Global, args: &ReadArgs, out: &mut dyn Wr
             None
         }
     };
+    // Derived quantities take the spec's units: convert after computing them.
     let derived = beside::beside(sensor, &|c, _| c == command.name, &lookup, &|name: &str| station.get(name).copied());
+    let (command, values) = (&chosen.command(command), chosen.values(&values));
+    let quantities: Vec<Derived> = derived.iter().map(|d| chosen.derived(d.quantity)).collect();
+    let derived: Vec<DerivedValue<'_>> = derived
+        .iter()
+        .zip(&quantities)
+        .map(|(d, q)| DerivedValue {
+            quantity: q,
+            value: d.value.clone().map(|v| chosen.number(&q.name, v)),
+            defaulted: d.defaulted.clone(),
+        })
+        .collect();
     if args.json {
         let doc = json!({
             "sensor": sensor.name,
