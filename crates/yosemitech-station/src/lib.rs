@@ -5,7 +5,7 @@
 //!
 //! * [`store`]: the SQLite store and its outbox (what is not yet published).
 //! * [`config`]: the station file (`station.toml`), validated against the spec.
-//! * [`derive`]: the derived quantities of a sample, stored beside its values.
+//! * [`derive`](mod@derive): the derived quantities of a sample, stored beside its values.
 //! * [`plan`]: the fewest reads that cover the measurements chosen for a probe.
 //! * [`logger`]: the scheduler, one thread and one master per bus.
 //! * [`link`]: a bus's master and its requests through the spec interpreter.
