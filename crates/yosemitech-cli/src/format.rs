@@ -346,6 +346,20 @@ pub fn parse_int(text: &str) -> Option<i64> {
     Some(if negative { -v } else { v })
 }
 
+/// A derived quantity's value as shown after its name: `9.1 mg/L  (derived)`
+/// (`origin` says from what when not the reads, e.g. "from the means"), or
+/// why it has none.
+pub fn derived_text(d: &yosemitech_spec::beside::DerivedValue<'_>, origin: Option<&str>) -> String {
+    match &d.value {
+        Ok(v) => {
+            let u = d.quantity.unit.as_deref().map(|u| format!(" {}", unit(u))).unwrap_or_default();
+            let origin = origin.map(|o| format!(" {o}")).unwrap_or_default();
+            format!("{v}{u}  (derived{origin})")
+        }
+        Err(why) => format!("not computable: {why}  (derived)"),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

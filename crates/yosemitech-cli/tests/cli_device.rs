@@ -1795,12 +1795,17 @@ fn electrode_readings(
     slopes: (f32, f32),
     t: f32,
 ) -> Vec<yosemitech::procedures::ph_electrode::BufferReading> {
-    let standards = yosemitech_tests::sensor(yosemitech_cli::calibrate_ph_sensor())
-        .constants
+    // The buffers: the standards the spec states for the calibration point,
+    // as the simulator's calibration takes them.
+    let sensor = calibrated_sensor();
+    let point = sensor.command_with_role(Role::CalibrationPoint).expect("the pH manual's calibration point");
+    let field = point.named_fields().next().unwrap();
+    let standards: Vec<f32> = yosemitech_sim::behaviour::calibration_standards(&sensor, field)
+        .expect("the calibration's standard buffers")
+        .values
         .iter()
-        .find(|c| c.values.len() == 3 && c.unit.as_deref() == Some("pH"))
-        .map(|c| c.values.iter().map(|v| *v as f32).collect::<Vec<f32>>())
-        .expect("the calibration's standard buffers");
+        .map(|v| *v as f32)
+        .collect();
     let neutral = standards[1];
     standards
         .iter()

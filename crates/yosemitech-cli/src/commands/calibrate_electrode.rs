@@ -102,7 +102,10 @@ pub fn run(catalog: &Catalog, global: &Global, args: &CalibratePhArgs, out: &mut
     let Some(_) = args.port.port.as_ref() else {
         let readings = from_file.unwrap_or_default();
         let k = compute(&readings).map_err(|e| CliError::usage(format!("cannot compute K1..K6: {e}")))?;
-        return show(out, args.json, &readings, &k, None, false);
+        if args.json {
+            return print_json(out, &readings, &k, None, false);
+        }
+        return show(out, &readings, &k, None);
     };
     let slave = args.address.get(entry.sensor.default_address)?;
     ensure_can_ask(args.yes, "write electrode coefficients")?;
@@ -169,8 +172,8 @@ pub fn run(catalog: &Catalog, global: &Global, args: &CalibratePhArgs, out: &mut
         let c = probe.ph_electrode_coefficients().map_err(|e| request_failed(&e, probe.client().last_reply(), &ctx))?;
         [c.k1, c.k2, c.k3, c.k4, c.k5, c.k6]
     };
-    show(out, args.json, &readings, &k, Some(&current), false)?;
     if !args.json {
+        show(out, &readings, &k, Some(&current))?;
         out.flush()?;
     }
     // The write: confirmed, after a backup of every coefficient.
@@ -203,7 +206,7 @@ pub fn run(catalog: &Catalog, global: &Global, args: &CalibratePhArgs, out: &mut
         ))));
     }
     if args.json {
-        show(out, true, &readings, &k, Some(&current), true)
+        print_json(out, &readings, &k, Some(&current), true)
     } else {
         writeln!(out, "written and read back: K1..K6 = {}", join(&k))?;
         writeln!(out, "restore the previous coefficients with: {restore}")?;
@@ -215,36 +218,33 @@ fn join(k: &[f32]) -> String {
     k.iter().map(|v| format!("{v:.4}")).collect::<Vec<_>>().join(", ")
 }
 
-/// The readings and the coefficients (against the probe's, if read), as
-/// text or, with `json`, one JSON document (printed once, at the end).
-fn show(
+/// The readings and the coefficients as one JSON document: `previous` the
+/// probe's before the write (`null` offline), `written` whether they are now its.
+fn print_json(
     out: &mut dyn Write,
-    json: bool,
     readings: &[BufferReading],
     k: &[f32; 6],
-    current: Option<&[f32; 6]>,
+    previous: Option<&[f32; 6]>,
     written: bool,
 ) -> Result<()> {
-    if json {
-        if current.is_some() && !written {
-            // Shown once the write is done (or refused, which is an error).
-            return Ok(());
-        }
-        let names = ["k1", "k2", "k3", "k4", "k5", "k6"];
-        let map = |v: &[f32; 6]| -> serde_json::Map<String, serde_json::Value> {
-            names.iter().zip(v).map(|(n, v)| ((*n).to_owned(), serde_json::json!(v))).collect()
-        };
-        let doc = serde_json::json!({
-            "readings": readings.iter().map(|r| serde_json::json!({
-                "buffer": r.buffer_ph, "mv": r.potential_mv, "temperature_c": r.temperature_c,
-            })).collect::<Vec<_>>(),
-            "coefficients": map(k),
-            "previous": current.map(map),
-            "written": written,
-        });
-        writeln!(out, "{}", serde_json::to_string_pretty(&doc).unwrap_or_default())?;
-        return Ok(());
-    }
+    let names = ["k1", "k2", "k3", "k4", "k5", "k6"];
+    let map = |v: &[f32; 6]| -> serde_json::Map<String, serde_json::Value> {
+        names.iter().zip(v).map(|(n, v)| ((*n).to_owned(), serde_json::json!(v))).collect()
+    };
+    let doc = serde_json::json!({
+        "readings": readings.iter().map(|r| serde_json::json!({
+            "buffer": r.buffer_ph, "mv": r.potential_mv, "temperature_c": r.temperature_c,
+        })).collect::<Vec<_>>(),
+        "coefficients": map(k),
+        "previous": previous.map(map),
+        "written": written,
+    });
+    writeln!(out, "{}", serde_json::to_string_pretty(&doc).unwrap_or_default())?;
+    Ok(())
+}
+
+/// The readings and the coefficients, against the probe's when read.
+fn show(out: &mut dyn Write, readings: &[BufferReading], k: &[f32; 6], current: Option<&[f32; 6]>) -> Result<()> {
     writeln!(out, "electrode coefficients by the vendor's model, from:")?;
     for r in readings {
         writeln!(out, "  buffer {:.2}: {:.2} mV at {:.2} °C", r.buffer_ph, r.potential_mv, r.temperature_c)?;

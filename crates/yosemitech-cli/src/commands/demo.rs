@@ -20,7 +20,7 @@ use crate::commands::list::software_key;
 use crate::commands::{measure, scan};
 use crate::device;
 use crate::error::{CliError, Result};
-use crate::format::{field_value_text, unit};
+use crate::format::{derived_text, field_value_text, unit};
 use crate::port::Opened;
 
 /// How long the waits of every measuring procedure may take together:
@@ -143,14 +143,7 @@ fn show_probe(probe: &mut Probe, out: &mut dyn Write) -> Result<()> {
     };
     let derived = beside::beside(&sensor, &|c, _| read_values.iter().any(|(n, _)| *n == c), &lookup, &|_| None);
     for d in &derived {
-        let text = match &d.value {
-            Ok(v) => {
-                let u = d.quantity.unit.as_deref().map(|u| format!(" {}", unit(u))).unwrap_or_default();
-                format!("{v}{u}")
-            }
-            Err(why) => format!("not computable: {why}"),
-        };
-        writeln!(out, "  {:width$}  {text}  (derived)", d.quantity.name)?;
+        writeln!(out, "  {:width$}  {}", d.quantity.name, derived_text(d, None))?;
     }
     Ok(())
 }

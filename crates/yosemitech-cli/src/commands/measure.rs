@@ -17,7 +17,7 @@ use crate::catalog::Catalog;
 use crate::cli::{Global, MeasureArgs};
 use crate::commands::read::derived_json;
 use crate::error::{CliError, Result};
-use crate::format::{f32_json, field_value_text, unit, value_json};
+use crate::format::{derived_text, f32_json, field_value_text, unit, value_json};
 use crate::port::{self, Opened};
 use crate::{derived, device, progress, time};
 
@@ -425,14 +425,7 @@ pub fn show_derived(m: &ProcedureResult, computed: &[DerivedValue<'_>], out: &mu
     let width = m.fields.iter().map(|r| r.label.len()).chain(computed.iter().map(|d| d.quantity.name.len())).max();
     let width = width.unwrap_or(0);
     for d in computed {
-        let name = &d.quantity.name;
-        match &d.value {
-            Ok(v) => {
-                let u = d.quantity.unit.as_deref().map(|u| format!(" {}", unit(u))).unwrap_or_default();
-                writeln!(out, "  {name:width$}  {v}{u}  (derived from the means)")?;
-            }
-            Err(why) => writeln!(out, "  {name:width$}  not computable: {why}  (derived)")?,
-        }
+        writeln!(out, "  {:width$}  {}", d.quantity.name, derived_text(d, Some("from the means")))?;
     }
     Ok(())
 }

@@ -11,7 +11,7 @@ use crate::cli::{Global, ReadArgs};
 use crate::derived;
 use crate::device;
 use crate::error::{CliError, Result};
-use crate::format::{f32_json, fields_json, unit, value_with_unit, values_json};
+use crate::format::{derived_text, f32_json, fields_json, value_with_unit, values_json};
 use crate::units::{self, Chosen};
 use crate::{port, time};
 use yosemitech_spec::beside::{self, DerivedValue};
@@ -78,14 +78,7 @@ pub fn run(catalog: &Catalog, global: &Global, args: &ReadArgs, out: &mut dyn Wr
 pub fn show_derived(derived: &[DerivedValue<'_>], out: &mut dyn Write) -> Result<()> {
     let width = derived.iter().map(|d| d.quantity.name.len()).max().unwrap_or(0);
     for d in derived {
-        let name = &d.quantity.name;
-        match &d.value {
-            Ok(v) => {
-                let u = d.quantity.unit.as_deref().map(|u| format!(" {}", unit(u))).unwrap_or_default();
-                writeln!(out, "{name:width$}  {v}{u}  (derived)")?;
-            }
-            Err(why) => writeln!(out, "{name:width$}  not computable: {why}  (derived)")?,
-        }
+        writeln!(out, "{:width$}  {}", d.quantity.name, derived_text(d, None))?;
     }
     Ok(())
 }
