@@ -167,7 +167,13 @@ defaults to 100ms here and retries to 0 (--timeout, --retries).")]
     #[command(long_about = "\
 Change a probe's slave address: both addresses are checked (1..=247, the new one free), the
 change is confirmed, sent, and verified at the new address. If anything fails after the write,
-the tool finds out where the probe answers and says so.")]
+the tool finds out where the probe answers and says so.
+
+With --plan, a bus of probes that all leave the factory at the same address (1): connect them
+one at a time, leaving the others connected; each is identified (serial number, model), given
+the next free address of a plan spaced apart (3, 5, 7, ... by default), and verified there.
+It ends with the bus table (address in decimal and hex, serial number, model), from which
+--station-toml writes a draft station file.")]
     SetAddress(SetAddressArgs),
 
     /// Decode frames from a log or a bus capture: command, fields with units, CRC.
@@ -457,15 +463,35 @@ pub struct ScanArgs {
 pub struct SetAddressArgs {
     #[command(flatten)]
     pub port: PortArgs,
-    /// The probe's current address.
-    #[arg(long, value_name = "A")]
-    pub from: u32,
+    /// The probe's current address [with --plan: the address every new probe arrives at, default 1].
+    #[arg(long, value_name = "A", required_unless_present = "plan")]
+    pub from: Option<u32>,
     /// The new address, 1..=247.
-    #[arg(long, value_name = "B")]
-    pub to: u32,
+    #[arg(long, value_name = "B", required_unless_present = "plan", conflicts_with = "plan")]
+    pub to: Option<u32>,
     /// The sensor [default: any; the address commands are shared by every probe].
     #[arg(long, value_name = "SENSOR")]
     pub sensor: Option<String>,
+    /// Address a bus of probes that all arrive at --from: connect them one at a time, each
+    /// gets the next address of the plan, verified there; ends with the bus table.
+    #[arg(long)]
+    pub plan: bool,
+    /// With --plan: the addresses to give, in order (1,5,10-20) [default: --first, then every --step].
+    #[arg(long, value_name = "RANGES", requires = "plan")]
+    pub addresses: Option<String>,
+    /// With --plan: the first address of the plan [default: --from + 2].
+    #[arg(long, value_name = "N", requires = "plan", conflicts_with = "addresses")]
+    pub first: Option<u32>,
+    /// With --plan: the spacing of the plan's addresses (probes at neighbouring addresses
+    /// have been seen to answer for each other).
+    #[arg(long, value_name = "N", default_value_t = 2, conflicts_with = "addresses")]
+    pub step: u32,
+    /// With --plan: stop after N probes [default: when you answer `d`, or at the plan's end].
+    #[arg(long, value_name = "N", requires = "plan")]
+    pub count: Option<u32>,
+    /// With --plan: write a draft station file (`yosemitech log --config`) for the bus table.
+    #[arg(long, value_name = "FILE", requires = "plan")]
+    pub station_toml: Option<PathBuf>,
     /// Change without asking.
     #[arg(short, long)]
     pub yes: bool,

@@ -1,5 +1,6 @@
 //! One module per subcommand.
 
+pub mod address_plan;
 pub mod calibrate;
 pub mod calibrate_electrode;
 pub mod coefficients;

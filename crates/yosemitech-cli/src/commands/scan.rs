@@ -177,7 +177,7 @@ struct Found<'c> {
 }
 
 /// A serial number as printed: control and non-ASCII characters escaped.
-fn printable(text: &str) -> String {
+pub(crate) fn printable(text: &str) -> String {
     text.chars()
         .map(|c| if c.is_ascii_graphic() || c == ' ' { c.to_string() } else { format!("\\x{:02X}", u32::from(c)) })
         .collect()
@@ -495,12 +495,21 @@ fn tell_apart<'c>(
     Ok(left.first().copied().filter(|_| !sent.is_empty()))
 }
 
-/// A device identified as `scan` identifies it, for other commands (the demo).
+/// A device identified as `scan` identifies it, for other commands (the
+/// demo, `set-address --plan`).
 pub struct Identification<'c> {
     /// The line `scan` prints for it.
     pub line: String,
     /// The sensor, when exactly one loaded sensor matches.
     pub sensor: Option<&'c Sensor>,
+    /// The loaded sensors it may be (one when identified).
+    pub candidates: Vec<&'c Sensor>,
+    /// Its serial number as printed (control characters escaped), if it answered one.
+    pub serial_number: Option<String>,
+    /// The models it is: one, or several that no read tells apart.
+    pub models: Vec<String>,
+    /// Its software revision, if it answered the version read.
+    pub software: Option<Version>,
 }
 
 /// Identifies the device at `address` on `opened` with the reads `scan`
@@ -509,7 +518,14 @@ pub struct Identification<'c> {
 pub fn identify_at<'c>(catalog: &'c Catalog, opened: &mut Opened, address: u8) -> Result<Option<Identification<'c>>> {
     let requests = sn_requests(catalog);
     let found = identify(catalog, &requests, opened, address)?;
-    Ok(found.map(|f| Identification { line: found_line(&f), sensor: f.identified }))
+    Ok(found.map(|f| Identification {
+        line: found_line(&f),
+        sensor: f.identified,
+        candidates: f.candidates.clone(),
+        serial_number: f.serial_number.as_deref().map(printable),
+        models: f.models.clone(),
+        software: f.software,
+    }))
 }
 
 /// Runs `scan`.

@@ -11,12 +11,12 @@ use crate::catalog::Catalog;
 use crate::cli::{Global, SetAddressArgs};
 use crate::confirm::{confirm, ensure_can_ask};
 use crate::error::{CliError, Result, request_failed};
-use crate::port::{self, check_address};
+use crate::port::{self, Opened, check_address};
 use crate::shell;
 
 /// A sensor's address write (role `set_slave_address`) and the read that
 /// finds the probe (role `serial_number`), both sent to the probe's own address.
-fn address_commands(sensor: &Sensor) -> Option<(&CommandSpec, &CommandSpec)> {
+pub(crate) fn address_commands(sensor: &Sensor) -> Option<(&CommandSpec, &CommandSpec)> {
     let own = |role| sensor.command_with_role(role).filter(|c| c.fixed_slave.is_none());
     Some((own(Role::SetSlaveAddress)?, own(Role::SerialNumber)?))
 }
@@ -24,7 +24,7 @@ fn address_commands(sensor: &Sensor) -> Option<(&CommandSpec, &CommandSpec)> {
 /// The commands of `--sensor`, or without it the ones most sensors of the
 /// catalog share (same frames, same field): the probe's type is unknown,
 /// and most Yosemitech probes change their address alike.
-fn pick_commands<'c>(
+pub(crate) fn pick_commands<'c>(
     catalog: &'c Catalog,
     sensor: Option<&str>,
 ) -> Result<(&'c Sensor, &'c CommandSpec, &'c CommandSpec)> {
@@ -58,44 +58,29 @@ fn pick_commands<'c>(
     })
 }
 
-/// Runs `set-address`.
+/// Runs `set-address` (`--plan`: [`super::address_plan`]).
 pub fn run(catalog: &Catalog, global: &Global, args: &SetAddressArgs, out: &mut dyn Write) -> Result<()> {
-    let from = check_address(args.from, "--from")?;
-    let to = check_address(args.to, "--to")?;
+    if args.plan {
+        return super::address_plan::run(catalog, global, args, out);
+    }
+    let (Some(from), Some(to)) = (args.from, args.to) else {
+        return Err(CliError::usage("set-address needs --from and --to").hint("or --plan to address a bus of probes"));
+    };
+    let from = check_address(from, "--from")?;
+    let to = check_address(to, "--to")?;
     if from == to {
         return Err(CliError::usage(format!("--from and --to are both {from}")).hint("give the new address with --to"));
     }
     let (sensor, write, probe) = pick_commands(catalog, args.sensor.as_deref())?;
-    // The three frames the change can send, built before anything is sent.
-    let address_field = write.named_fields().next().and_then(|f| f.name.clone()).unwrap_or_default();
-    let values = BTreeMap::from([(address_field, Value::Int(i64::from(to)))]);
-    let build = |c: &CommandSpec, slave: u8, values: &BTreeMap<String, Value>| {
-        c.encode_request(slave, values)
-            .map_err(|e| CliError::usage(format!("cannot build the {} request: {e}", c.name)))
-    };
-    let write_frame = build(write, from, &values)?;
-    let probe_from = build(probe, from, &BTreeMap::new())?;
-    let probe_to = build(probe, to, &BTreeMap::new())?;
+    let frames = ChangeFrames::build(write, probe, from, to)?;
     let serial = if args.sensor.is_some() { sensor.serial } else { LineSettings::default() };
     ensure_can_ask(args.yes, "change the address")?;
     let mut opened = port::open(&args.port, global, &serial)?;
     writeln!(out, "changing the slave address of the probe at {from} to {to} on {}", opened.port)?;
     out.flush()?;
     confirm(args.yes, &format!("Change address {from} to {to}?"))?;
-    let result = change_address_with(
-        &mut opened.bus,
-        from,
-        to,
-        |bus| bus.call_raw(&write_frame, &write.layout()).map(|_| ()),
-        |bus, slave| {
-            let frame = if slave == to { &probe_to } else { &probe_from };
-            bus.call_raw(frame, &probe.layout()).map(<[u8]>::to_vec)
-        },
-    );
-    match result {
-        Ok(reply) => {
-            let sn =
-                probe.decode_response(to, &reply).ok().and_then(|v| v.into_iter().next()).map(|(_, v)| v.to_string());
+    match frames.send(&mut opened) {
+        Ok(sn) => {
             writeln!(out, "done: the probe (SN {}) now answers at address {to}", sn.as_deref().unwrap_or("?"))?;
             Ok(())
         }
@@ -103,7 +88,60 @@ pub fn run(catalog: &Catalog, global: &Global, args: &SetAddressArgs, out: &mut 
     }
 }
 
-fn explain(
+/// The frames one address change can send, built before anything is sent.
+pub(crate) struct ChangeFrames<'c> {
+    probe: &'c CommandSpec,
+    from: u8,
+    to: u8,
+    write: &'c CommandSpec,
+    write_frame: Vec<u8>,
+    probe_from: Vec<u8>,
+    probe_to: Vec<u8>,
+}
+
+impl<'c> ChangeFrames<'c> {
+    /// The address write of `from` to `to` and the probe read at each address.
+    pub(crate) fn build(write: &'c CommandSpec, probe: &'c CommandSpec, from: u8, to: u8) -> Result<Self> {
+        let address_field = write.named_fields().next().and_then(|f| f.name.clone()).unwrap_or_default();
+        let values = BTreeMap::from([(address_field, Value::Int(i64::from(to)))]);
+        let build = |c: &CommandSpec, slave: u8, values: &BTreeMap<String, Value>| {
+            c.encode_request(slave, values)
+                .map_err(|e| CliError::usage(format!("cannot build the {} request: {e}", c.name)))
+        };
+        Ok(Self {
+            probe,
+            from,
+            to,
+            write,
+            write_frame: build(write, from, &values)?,
+            probe_from: build(probe, from, &BTreeMap::new())?,
+            probe_to: build(probe, to, &BTreeMap::new())?,
+        })
+    }
+
+    /// Changes the address (the new one must be free, the probe must answer
+    /// at the old one) and verifies it at the new one: the serial number
+    /// read there, when it decodes.
+    pub(crate) fn send(&self, opened: &mut Opened) -> std::result::Result<Option<String>, AddressChangeError> {
+        let (write_layout, probe_layout) = (self.write.layout(), self.probe.layout());
+        let reply = change_address_with(
+            &mut opened.bus,
+            self.from,
+            self.to,
+            |bus| bus.call_raw(&self.write_frame, &write_layout).map(|_| ()),
+            |bus, slave| {
+                let frame = if slave == self.to { &self.probe_to } else { &self.probe_from };
+                bus.call_raw(frame, &probe_layout).map(<[u8]>::to_vec)
+            },
+        )?;
+        Ok(self.probe.decode_response(self.to, &reply).ok().and_then(|v| v.into_iter().next()).map(|(_, v)| match v {
+            Value::Text(text) => text.trim_end().to_owned(),
+            other => other.to_string(),
+        }))
+    }
+}
+
+pub(crate) fn explain(
     e: &AddressChangeError,
     reply: &[u8],
     port: &str,
