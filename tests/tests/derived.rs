@@ -189,17 +189,3 @@ fn nan_infinite_and_out_of_range_inputs_are_not_computable() {
     }
     yosemitech_tests::report!("derived inputs: {checked} NaN, infinite or out-of-range inputs refused by both");
 }
-
-/// `DO-DERIVED-BLOCK.yaml` (to paste into spec/dissolved-oxygen.yaml) is
-/// the fixture's block verbatim, so what the tests check is what is pasted.
-#[test]
-fn the_saved_do_block_is_the_fixtures() {
-    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
-    let block = std::fs::read_to_string(root.join("DO-DERIVED-BLOCK.yaml")).expect("DO-DERIVED-BLOCK.yaml");
-    let dir = yosemitech_tests::derived_spec_dir();
-    let found = std::fs::read_dir(&dir)
-        .expect("the fixture directory")
-        .filter_map(|e| std::fs::read_to_string(e.ok()?.path()).ok())
-        .any(|text| text.ends_with(&block));
-    assert!(found, "no file of {} ends with DO-DERIVED-BLOCK.yaml", dir.display());
-}
