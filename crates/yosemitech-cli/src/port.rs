@@ -126,7 +126,8 @@ pub fn open_failed(port: &str, e: &io::Error) -> CliError {
     let tcp = port.starts_with("tcp://");
     match e.kind() {
         io::ErrorKind::NotFound if !tcp && Path::new(port).exists() => {
-            CliError::device(format!("cannot open {port}: it is in use ({e})"))
+            // The transport's error names the port and the settings tried.
+            CliError::device(format!("{e} (the port is in use)"))
                 .hint("another program holds the port (a logger, a terminal, ModemManager): close it and retry")
         }
         io::ErrorKind::NotFound => CliError::device(format!("port {port} not found")).hint(if cfg!(windows) {
@@ -142,7 +143,7 @@ pub fn open_failed(port: &str, e: &io::Error) -> CliError {
         }
         _ if tcp => CliError::device(format!("cannot connect to {port}: {e}"))
             .hint("give the gateway as tcp://HOST:PORT, e.g. tcp://192.168.1.50:4001"),
-        _ => CliError::device(format!("cannot open {port} as a serial port: {e}"))
+        _ => CliError::device(e.to_string())
             .hint("is it a serial device? `ls /dev/ttyUSB* /dev/ttyACM*` lists USB serial ports"),
     }
 }

@@ -88,7 +88,9 @@ pub struct SerialTransport {
 }
 
 impl SerialTransport {
-    /// Opens and configures the port described by `config`.
+    /// Opens and configures the port described by `config`. The error
+    /// names the port and the settings attempted, and keeps the cause's kind
+    /// (`NotFound`, `PermissionDenied`, ...).
     pub fn open(config: &SerialConfig) -> io::Result<Self> {
         let port = serialport::new(config.path.as_str(), config.baud)
             .data_bits(match config.data_bits {
@@ -106,7 +108,11 @@ impl SerialTransport {
             })
             .flow_control(serialport::FlowControl::None)
             .timeout(Duration::ZERO)
-            .open()?;
+            .open()
+            .map_err(|e| {
+                let e = io::Error::from(e);
+                io::Error::new(e.kind(), format!("cannot open serial port {} at {} baud: {e}", config.path, config.baud))
+            })?;
         Ok(Self::from_port(port, config))
     }
 
@@ -215,5 +221,19 @@ impl core::fmt::Debug for SerialTransport {
             .field("timing", &self.timing)
             .field("echo_suppression", &self.echo_suppression)
             .finish_non_exhaustive()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_missing_port_is_named_in_the_error() {
+        let path = "/nonexistent/yosemitech-test-port";
+        let Err(e) = SerialTransport::open(&SerialConfig::new(path)) else { panic!("{path} opened") };
+        assert_eq!(e.kind(), io::ErrorKind::NotFound, "{e}");
+        let text = e.to_string();
+        assert!(text.contains(path) && text.contains("9600 baud"), "{text}");
     }
 }
