@@ -54,7 +54,8 @@ use tracing_subscriber::EnvFilter;
 /// `-vv` everything (trace); `RUST_LOG` overrides both.
 fn init_logging(verbose: u8) {
     let level = match verbose {
-        0 => "error",
+        // The station logger's own notes (a full store, space back) show by default.
+        0 => "error,yosemitech_station=info",
         1 => "debug",
         _ => "trace",
     };

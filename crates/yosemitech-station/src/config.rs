@@ -6,6 +6,7 @@
 //!
 //! [storage]
 //! path = "station.sqlite"         # relative to this file's directory
+//! max_size = "64MB"               # optional: beyond it readings are refused, as on a full disk
 //!
 //! [[bus]]
 //! name = "rs485"
@@ -197,6 +198,10 @@ pub struct StationConfig {
     pub station: String,
     /// The SQLite file (relative paths resolved against the file's directory).
     pub storage: PathBuf,
+    /// The most the store may grow to, in bytes (`[storage] max_size`):
+    /// beyond it readings are refused, as on a full disk, until rows are
+    /// deleted. `None`: as large as the disk allows.
+    pub storage_max_size: Option<u64>,
     /// The buses (at least one), in file order.
     pub buses: Vec<BusConfig>,
     /// Publishing, when the file has an `[mqtt]` section (validated by
@@ -230,6 +235,27 @@ type RawInputs = BTreeMap<Spanned<String>, Spanned<f64>>;
 #[serde(deny_unknown_fields)]
 struct RawStorage {
     path: Spanned<String>,
+    max_size: Option<Spanned<String>>,
+}
+
+/// Parses a size: a whole number with `B`, `kB`, `MB` or `GB` (powers of
+/// 1000) or `KiB`, `MiB`, `GiB` (powers of 1024): `64MB`, `512 KiB`.
+pub fn parse_size(text: &str) -> Result<u64, String> {
+    let bad = || format!("`{text}` is not a size: write e.g. 64MB, 512KiB or 2GB");
+    let trimmed = text.trim();
+    let digits = trimmed.bytes().take_while(u8::is_ascii_digit).count();
+    let number: u64 = trimmed[..digits].parse().map_err(|_| bad())?;
+    let unit: u64 = match trimmed[digits..].trim() {
+        "B" => 1,
+        "kB" | "KB" => 1_000,
+        "MB" => 1_000_000,
+        "GB" => 1_000_000_000,
+        "KiB" => 1 << 10,
+        "MiB" => 1 << 20,
+        "GiB" => 1 << 30,
+        _ => return Err(bad()),
+    };
+    number.checked_mul(unit).ok_or_else(bad)
 }
 
 #[derive(Deserialize)]
@@ -264,6 +290,9 @@ struct RawProbe {
     inputs: RawInputs,
     units: Option<BTreeMap<String, Spanned<String>>>,
 }
+
+/// The least `[storage] max_size` accepted: the schema and a few readings.
+pub const MIN_STORAGE_SIZE: u64 = 64 * 1024;
 
 /// Parses a duration: one or more `<number><unit>` with units `ms`, `s`,
 /// `m`, `h`, `d` (`500ms`, `30s`, `15m`, `1h30m`).
@@ -359,6 +388,23 @@ pub fn parse(path: &Path, text: &str, sensors: &[Arc<Sensor>]) -> Result<Station
     }
     let base = path.parent().unwrap_or_else(|| Path::new("."));
     let storage = base.join(raw.storage.path.get_ref());
+    let storage_max_size = raw.storage.max_size.as_ref().and_then(|size| {
+        match parse_size(size.get_ref()) {
+            // Below a few pages SQLite cannot even hold the schema.
+            Ok(bytes) if bytes < MIN_STORAGE_SIZE => {
+                loc.error(
+                    size.span(),
+                    format!("max_size {} is below the least a store needs, {MIN_STORAGE_SIZE} bytes", size.get_ref()),
+                );
+                None
+            }
+            Ok(bytes) => Some(bytes),
+            Err(e) => {
+                loc.error(size.span(), e);
+                None
+            }
+        }
+    });
     if raw.storage.path.get_ref().trim().is_empty() {
         loc.error(raw.storage.path.span(), "the storage path is empty");
     }
@@ -505,7 +551,14 @@ pub fn parse(path: &Path, text: &str, sensors: &[Arc<Sensor>]) -> Result<Station
     });
     station_inputs(&mut loc, &raw.inputs, &mut buses);
     if loc.errors.is_empty() {
-        Ok(StationConfig { file: path.to_owned(), station: raw.station.into_inner(), storage, buses, mqtt })
+        Ok(StationConfig {
+            file: path.to_owned(),
+            station: raw.station.into_inner(),
+            storage,
+            storage_max_size,
+            buses,
+            mqtt,
+        })
     } else {
         loc.errors.sort_by_key(|e| (e.line, e.column));
         Err(ConfigErrors(loc.errors))
@@ -733,6 +786,29 @@ mod tests {
         assert_eq!(parse_duration("250ms"), Ok(Duration::from_millis(250)));
         for bad in ["", "15", "m", "1x", "-1s", "1.5s", "99999999999999999999s"] {
             assert!(parse_duration(bad).is_err(), "{bad}");
+        }
+    }
+
+    #[test]
+    fn sizes() {
+        assert_eq!(parse_size("64MB"), Ok(64_000_000));
+        assert_eq!(parse_size("512 KiB"), Ok(512 * 1024));
+        assert_eq!(parse_size("2GiB"), Ok(2 << 30));
+        assert_eq!(parse_size("4096B"), Ok(4096));
+        for bad in ["", "64", "MB", "1.5MB", "-1MB", "64 mb", "99999999999999999999GB", "20000000000GB"] {
+            assert!(parse_size(bad).is_err(), "{bad}");
+        }
+    }
+
+    #[test]
+    fn a_storage_cap_too_small_or_misspelt_is_located() {
+        let dir = tempfile::tempdir().unwrap();
+        for (size, says) in [("1kB", "below the least"), ("lots", "not a size")] {
+            let path = dir.path().join("station.toml");
+            let text = format!("station = \"s\"\n[storage]\npath = \"s.sqlite\"\nmax_size = \"{size}\"\n");
+            std::fs::write(&path, text).unwrap();
+            let Err(ConfigErrors(errors)) = load(&path, &[]) else { panic!("{size} accepted") };
+            assert!(errors.iter().any(|e| e.line == 4 && e.message.contains(says)), "{size}: {errors:?}");
         }
     }
 }

@@ -10,6 +10,7 @@
 //! * [`logger`]: the scheduler, one thread and one master per bus.
 //! * [`link`]: a bus's master and its requests through the spec interpreter.
 //! * [`outbox`]: the store as the MQTT publisher's outbox.
+//! * [`recovery`]: telling, at start, that the previous run did not stop cleanly.
 //! * [`export`]: stored readings as CSV or JSON lines.
 //! * [`time`]: UTC instants as the store keeps them and people write them.
 //!
@@ -24,6 +25,7 @@ pub mod link;
 pub mod logger;
 pub mod outbox;
 pub mod plan;
+pub mod recovery;
 pub mod store;
 pub mod time;
 pub mod units;

@@ -62,8 +62,8 @@ pub struct BusReport {
 /// Why a run stopped other than by the stop flag.
 #[derive(Debug, thiserror::Error)]
 pub enum LogError {
-    /// Readings could not be committed: the logger stops rather than lose
-    /// readings silently.
+    /// Readings could not be committed for another reason than a full
+    /// disk: the logger stops rather than lose readings silently.
     #[error("cannot commit readings: {0}")]
     Store(#[from] StoreError),
     /// A thread panicked (a bug).
@@ -143,6 +143,8 @@ fn write(
     on_commit: &(dyn Fn(i64, &Reading) + Sync),
 ) -> Result<(), LogError> {
     let mut batch = Vec::with_capacity(BATCH);
+    // Readings refused since the store became full.
+    let mut refused = 0u64;
     while let Ok(first) = queue.recv() {
         batch.push(first);
         while batch.len() < BATCH {
@@ -151,11 +153,32 @@ fn write(
                 Err(_) => break,
             }
         }
-        let ids = store.lock().unwrap_or_else(std::sync::PoisonError::into_inner).insert_all(&batch)?;
-        for (id, reading) in ids.into_iter().zip(&batch) {
-            on_commit(id, reading);
+        match store.lock().unwrap_or_else(std::sync::PoisonError::into_inner).insert_all(&batch) {
+            Ok(ids) => {
+                if refused > 0 {
+                    tracing::info!("the store has room again: {refused} reading(s) were refused while it was full");
+                    refused = 0;
+                }
+                for (id, reading) in ids.into_iter().zip(&batch) {
+                    on_commit(id, reading);
+                }
+            }
+            // A full disk (or the store's size cap) refuses the batch; the
+            // buses keep their schedule and the next batch tries again.
+            Err(e) if e.is_full() => {
+                if refused == 0 {
+                    tracing::error!(
+                        "the store is full ({e}): readings are refused until space returns; the schedule goes on"
+                    );
+                }
+                refused += batch.len() as u64;
+            }
+            Err(e) => return Err(e.into()),
         }
         batch.clear();
+    }
+    if refused > 0 {
+        tracing::error!("{refused} reading(s) refused at the end of the run: the store was still full");
     }
     Ok(())
 }

@@ -141,6 +141,15 @@ pub enum StoreError {
     },
 }
 
+impl StoreError {
+    /// True when SQLite refused a write because the disk (or the store's
+    /// [`Store::set_max_size`] cap) is full: the write can succeed once
+    /// space returns.
+    pub fn is_full(&self) -> bool {
+        matches!(self, Self::Sqlite(rusqlite::Error::SqliteFailure(e, _)) if e.code == rusqlite::ErrorCode::DiskFull)
+    }
+}
+
 /// A measured value.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Datum {
@@ -227,6 +236,60 @@ impl Store {
         let mut store = Self { connection };
         store.migrate()?;
         Ok(store)
+    }
+
+    /// Caps the file at about `bytes` (SQLite's `max_page_count`, for this
+    /// connection): a write beyond it fails as on a full disk
+    /// ([`StoreError::is_full`]) until rows are deleted. Returns the cap in
+    /// pages.
+    ///
+    /// # Errors
+    ///
+    /// SQLite refused the pragma.
+    pub fn set_max_size(&mut self, bytes: u64) -> Result<u64, StoreError> {
+        let page_size: i64 = self.connection.pragma_query_value(None, "page_size", |row| row.get(0))?;
+        let pages = i64::try_from(bytes / page_size.max(512).unsigned_abs()).unwrap_or(i64::MAX).max(1);
+        let set: i64 = self.connection.pragma_update_and_check(None, "max_page_count", pages, |row| row.get(0))?;
+        Ok(set.unsigned_abs())
+    }
+
+    /// The store's size in bytes as SQLite counts it (pages in use and
+    /// free, whether in the file or still in its WAL).
+    ///
+    /// # Errors
+    ///
+    /// SQLite failed.
+    pub fn size(&self) -> Result<u64, StoreError> {
+        let pages: i64 = self.connection.pragma_query_value(None, "page_count", |row| row.get(0))?;
+        let page_size: i64 = self.connection.pragma_query_value(None, "page_size", |row| row.get(0))?;
+        Ok(pages.unsigned_abs() * page_size.unsigned_abs())
+    }
+
+    /// Deletes the readings with an id up to `id` and their values, to
+    /// free room in a full store; returns how many went. The ids of the
+    /// readings left, and of those to come, do not change.
+    ///
+    /// # Errors
+    ///
+    /// SQLite refused the delete.
+    pub fn delete_up_to(&mut self, id: i64) -> Result<u64, StoreError> {
+        let tx = self.connection.transaction_with_behavior(rusqlite::TransactionBehavior::Immediate)?;
+        tx.execute("DELETE FROM reading_value WHERE reading_id <= ?1", [id])?;
+        let deleted = tx.execute("DELETE FROM reading WHERE id <= ?1", [id])?;
+        tx.commit()?;
+        Ok(deleted as u64)
+    }
+
+    /// SQLite's own check of the whole file (`PRAGMA integrity_check`):
+    /// `Ok(())` when the file is intact, else what it found (at most 10 lines).
+    ///
+    /// # Errors
+    ///
+    /// SQLite could not run the check (the file is not a database).
+    pub fn check_integrity(&self) -> Result<Result<(), String>, StoreError> {
+        let mut statement = self.connection.prepare("PRAGMA integrity_check(10)")?;
+        let lines: Vec<String> = statement.query_map([], |row| row.get(0))?.collect::<Result<_, _>>()?;
+        Ok(if lines.len() == 1 && lines[0] == "ok" { Ok(()) } else { Err(lines.join("; ")) })
     }
 
     /// Creates the schema in an empty file; refuses another version.

@@ -9,6 +9,7 @@ use yosemitech_mqtt::Publisher;
 use yosemitech_station::config::{self, ConfigErrors, Link, StationConfig};
 use yosemitech_station::export::to_json;
 use yosemitech_station::outbox::StoreOutbox;
+use yosemitech_station::recovery::{RunMarker, UncleanStop};
 use yosemitech_station::{Store, StoredReading, logger, plan};
 
 use crate::catalog::Catalog;
@@ -32,7 +33,14 @@ fn load(catalog: &Catalog, args: &LogArgs) -> Result<StationConfig> {
 /// Runs `log --check`: validates the file and prints what it describes.
 pub fn check(catalog: &Catalog, args: &LogArgs, out: &mut dyn Write) -> Result<()> {
     let station = load(catalog, args)?;
-    writeln!(out, "{}: station `{}`, storage {}", args.config.display(), station.station, station.storage.display())?;
+    writeln!(
+        out,
+        "{}: station `{}`, storage {}{}",
+        args.config.display(),
+        station.station,
+        station.storage.display(),
+        station.storage_max_size.map(|b| format!(" (at most {b} bytes)")).unwrap_or_default()
+    )?;
     for bus in &station.buses {
         let link = match &bus.link {
             Link::Serial { port, serial } => format!("serial {port} {serial}"),
@@ -96,13 +104,48 @@ pub fn check(catalog: &Catalog, args: &LogArgs, out: &mut dyn Write) -> Result<(
     Ok(())
 }
 
+/// Says that the previous run did not stop cleanly (a power cut, a kill)
+/// and what the store holds after SQLite's own recovery; refuses to go on
+/// with a store that fails its integrity check.
+fn report_unclean_stop(store: &Store, previous: &UncleanStop, station: &StationConfig) -> Result<()> {
+    let storage = station.storage.display();
+    let failed = |e: yosemitech_station::StoreError| CliError::device(format!("cannot check the store {storage}: {e}"));
+    if let Err(found) = store.check_integrity().map_err(failed)? {
+        return Err(CliError::device(format!(
+            "the previous run ({}) did not stop cleanly and the store {storage} fails its integrity check: {found}",
+            previous.run
+        ))
+        .hint("keep a copy of the file; `sqlite3 FILE .recover` salvages what it can into a new store"));
+    }
+    let (count, last) = (store.count().map_err(failed)?, store.last_id().map_err(failed)?);
+    let _ = writeln!(
+        std::io::stderr(),
+        "log: the previous run ({}) did not stop cleanly (a power cut, a kill or a crash); the store {storage} \
+         passed its integrity check and holds {count} reading(s), the last with id {last}: every reading \
+         committed then is kept, one being written was not stored",
+        previous.run
+    );
+    Ok(())
+}
+
 /// Runs `log` until `stop` (Ctrl-C, SIGTERM): one JSON line per committed reading on stdout.
 pub fn run(catalog: &Catalog, args: &LogArgs, stop: &Arc<AtomicBool>, out: &mut dyn Write) -> Result<()> {
     let station = load(catalog, args)?;
-    let store = Store::open(&station.storage).map_err(|e| {
-        CliError::device(format!("cannot open the store {}: {e}", station.storage.display()))
+    let storage = station.storage.display();
+    let mut store = Store::open(&station.storage).map_err(|e| {
+        CliError::device(format!("cannot open the store {storage}: {e}"))
             .hint("check `[storage] path`: its directory must exist and be writable")
     })?;
+    let (marker, unclean) = RunMarker::begin(&station.storage).map_err(|e| {
+        CliError::device(format!("cannot mark the run beside the store {storage}: {e}"))
+            .hint("the store's directory must be writable")
+    })?;
+    if let Some(previous) = unclean {
+        report_unclean_stop(&store, &previous, &station)?;
+    }
+    if let Some(bytes) = station.storage_max_size {
+        store.set_max_size(bytes).map_err(|e| CliError::device(format!("cannot cap the store {storage}: {e}")))?;
+    }
     let store = Mutex::new(store);
     // The publisher drains the store from a connection of its own, in id
     // order; it learns of each commit through `wake`.
@@ -136,8 +179,14 @@ pub fn run(catalog: &Catalog, args: &LogArgs, stop: &Arc<AtomicBool>, out: &mut 
         }
         logger.join().unwrap_or_else(|_| Err(logger::LogError::Panicked("logger".into())))
     })
-    .map_err(|e| CliError::device(e.to_string()).hint("the readings committed so far are in the store"))?;
+    .map_err(|e| CliError::device(e.to_string()).hint("the readings committed so far are in the store"));
+    // The store was closed in order, whatever the outcome: the next run has nothing to check.
+    let finished = marker.finish();
+    let reports = reports?;
     let mut err = std::io::stderr().lock();
+    if let Err(e) = finished {
+        let _ = writeln!(err, "log: cannot remove the run marker beside the store: {e}");
+    }
     if let Some(p) = publisher {
         // What is not acknowledged in time stays in the outbox for the next run.
         let report = p.shutdown(Duration::from_secs(5));

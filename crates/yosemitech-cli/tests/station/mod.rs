@@ -79,6 +79,12 @@ impl Station {
         Station { dir, _bus: server, db, toml }
     }
 
+    /// Requests the simulated probes have answered or ignored so far.
+    #[allow(dead_code)] // not every test binary of this module asks
+    pub fn requests(&self) -> u64 {
+        self._bus.device().devices().iter().map(|d| d.stats().requests).sum()
+    }
+
     /// Writes [`Station::toml`] beside the store; returns its path.
     pub fn write_config(&self) -> PathBuf {
         let config = self.dir.path().join("station.toml");
