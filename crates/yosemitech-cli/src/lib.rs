@@ -37,6 +37,7 @@ mod help;
 mod port;
 mod progress;
 mod readings;
+mod service;
 mod shell;
 mod stored;
 mod time;

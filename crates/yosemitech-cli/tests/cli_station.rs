@@ -137,3 +137,74 @@ fn log_stops_cleanly_on_sigterm_and_the_file_has_every_reading() {
     let values: usize = stored.iter().map(|s| s.reading.values.len().max(1)).sum();
     assert_eq!(run.ok().lines().count(), 1 + values, "one CSV row per value");
 }
+
+#[cfg(unix)]
+#[test]
+fn under_systemd_the_logger_says_ready_pings_the_watchdog_and_says_stopping() {
+    use std::os::unix::net::UnixDatagram;
+
+    let station = Station::simulated("s", "200ms");
+    let config = station.write_config();
+    let dir = tempfile::tempdir().unwrap();
+    let socket_path = dir.path().join("notify.sock");
+    let socket = UnixDatagram::bind(&socket_path).unwrap();
+    socket.set_read_timeout(Some(WATCHDOG)).unwrap();
+    let mut child = command()
+        .args(["log", "--config", config.to_str().unwrap()])
+        .env("NOTIFY_SOCKET", &socket_path)
+        .env("WATCHDOG_USEC", "300000")
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut receive = || {
+        let mut buf = [0u8; 512];
+        let n = socket.recv(&mut buf).expect("a message from the logger");
+        String::from_utf8_lossy(&buf[..n]).into_owned()
+    };
+    let first = receive();
+    assert!(first.lines().any(|l| l == "READY=1"), "the first message says ready: {first:?}");
+    let probes = station.toml.matches("[[bus.probe]]").count();
+    assert!(first.contains(&format!("STATUS=logging {probes} probe(s)")), "{first:?}");
+    for _ in 0..3 {
+        assert_eq!(receive(), "WATCHDOG=1");
+    }
+    let code = terminate(&mut child, Duration::from_secs(20));
+    let mut stderr = String::new();
+    std::io::Read::read_to_string(&mut child.stderr.take().unwrap(), &mut stderr).unwrap();
+    assert_eq!(code, 0, "{stderr}");
+    // Pings may still be queued before the logger's last word.
+    let last = std::iter::repeat_with(&mut receive).find(|m| m != "WATCHDOG=1").unwrap();
+    assert_eq!(last, "STOPPING=1");
+    // After STOPPING, nothing more.
+    socket.set_nonblocking(true).unwrap();
+    let mut buf = [0u8; 64];
+    assert!(socket.recv(&mut buf).is_err(), "no ping after the logger stopped");
+}
+
+/// The Debian package's pieces agree: the sample station file it installs
+/// checks, the service runs the file where the package puts it, and the
+/// store lies in the service's state directory.
+#[test]
+fn the_packaged_service_runs_the_packaged_station_file() {
+    let crate_dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+    let sample = crate_dir.join("packaging/station.toml");
+    let out = yosemitech(&["log", "--config", sample.to_str().unwrap(), "--check"]).ok().to_owned();
+    let manifest: toml::Table = std::fs::read_to_string(crate_dir.join("Cargo.toml")).unwrap().parse().unwrap();
+    let assets = manifest["package"]["metadata"]["deb"]["assets"].as_array().unwrap();
+    let installed = |source: &str| {
+        let asset = assets.iter().find(|a| a[0].as_str() == Some(source)).unwrap_or_else(|| panic!("{source}"));
+        format!("/{}", asset[1].as_str().unwrap())
+    };
+    let unit = std::fs::read_to_string(crate_dir.join("packaging/yosemitech-station.service")).unwrap();
+    let key = |name: &str| {
+        unit.lines().find_map(|l| l.strip_prefix(&format!("{name}="))).unwrap_or_else(|| panic!("no {name}="))
+    };
+    let config = installed("packaging/station.toml");
+    assert!(key("ExecStart").ends_with(&format!("log --config {config}")), "{unit}");
+    assert!(key("ExecStart").starts_with(&installed("target/release/yosemitech")), "{unit}");
+    assert_eq!(key("Type"), "notify");
+    let state = format!("/var/lib/{}/", key("StateDirectory"));
+    assert!(out.contains(&format!("storage {state}")), "the store is in {state}:\n{out}");
+    assert!(key("SupplementaryGroups").split_whitespace().any(|g| g == "dialout"), "{unit}");
+}

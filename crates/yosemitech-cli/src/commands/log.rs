@@ -15,6 +15,7 @@ use yosemitech_station::{Store, StoredReading, logger, plan};
 use crate::catalog::Catalog;
 use crate::cli::LogArgs;
 use crate::error::{CliError, Result};
+use crate::service;
 
 /// The station file, validated against the loaded spec.
 fn load(catalog: &Catalog, args: &LogArgs) -> Result<StationConfig> {
@@ -160,6 +161,12 @@ pub fn run(catalog: &Catalog, args: &LogArgs, stop: &Arc<AtomicBool>, out: &mut 
         }
         None => None,
     };
+    // Under systemd (`Type=notify`): ready now, watchdog pings while the logger runs.
+    let notifier = service::Notifier::from_environment().map(Arc::new);
+    let watchdog = notifier.as_ref().and_then(|n| {
+        n.notify(&format!("READY=1\nSTATUS=logging {} probe(s) into {storage}", station.probes().count()));
+        service::watchdog_interval().map(|every| service::Watchdog::start(Arc::clone(n), every))
+    });
     // The bus threads hand each committed reading to this thread, which
     // owns stdout.
     let (lines, printed) = mpsc::channel::<String>();
@@ -180,6 +187,12 @@ pub fn run(catalog: &Catalog, args: &LogArgs, stop: &Arc<AtomicBool>, out: &mut 
         logger.join().unwrap_or_else(|_| Err(logger::LogError::Panicked("logger".into())))
     })
     .map_err(|e| CliError::device(e.to_string()).hint("the readings committed so far are in the store"));
+    if let Some(n) = &notifier {
+        n.notify("STOPPING=1");
+    }
+    if let Some(w) = watchdog {
+        w.stop();
+    }
     // The store was closed in order, whatever the outcome: the next run has nothing to check.
     let finished = marker.finish();
     let reports = reports?;
