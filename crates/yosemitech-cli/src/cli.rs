@@ -612,6 +612,33 @@ pub struct SimulateArgs {
     /// it, the manual's text), instead of with the model code, as real probes do.
     #[arg(long)]
     pub serial_as_printed: bool,
+    /// Line faults, to diagnose a link (`yosemitech doctor`).
+    #[command(flatten)]
+    pub line: SimulatedLineArgs,
+}
+
+/// `simulate`'s line faults: what a link to a probe can get wrong.
+#[derive(Args, Debug, Default)]
+pub struct SimulatedLineArgs {
+    /// Never answer (a probe without power, or a broken wire).
+    #[arg(long)]
+    pub mute: bool,
+    /// Write every request back before answering (an RS-485 adapter without echo suppression).
+    #[arg(long)]
+    pub echo: bool,
+    /// Wait this long before every reply (a probe slow to answer), e.g. 1500ms.
+    #[arg(long, value_name = "DURATION", value_parser = parse_duration)]
+    pub turnaround: Option<Duration>,
+    /// Run at these serial settings, BAUD-8N1 (8N2, 8E1, 8O1); on a pty a client at
+    /// another baud rate or parity reads garbage.
+    #[arg(long, value_name = "BAUD-FORMAT", conflicts_with = "tcp")]
+    pub serial: Option<String>,
+    /// Two probes at the address answer every request at once (their serial numbers differ).
+    #[arg(long)]
+    pub collide: bool,
+    /// Refuse Start Measurement with an exception and answer reads all the same.
+    #[arg(long)]
+    pub refuse_start: bool,
 }
 
 /// `watch`.
