@@ -88,26 +88,29 @@ pub fn parse_line_settings(text: &str) -> Result<LineSettings> {
     Ok(LineSettings { baud, format: CharFormat { data_bits, parity, stop_bits } })
 }
 
-/// A second probe like `sim` at its address, its serial number one
-/// character different, so that the two answer a serial-number read with
-/// different bytes (their other replies may agree, as two real probes' do).
+/// A second probe like `sim` at its address, its serial number different
+/// so that the two answer a serial-number read with different bytes (their
+/// other replies may agree, as two real probes' do). On the line the two
+/// replies are ANDed ([`Bus`]): one character gains a bit and another
+/// loses one, so the collision differs from either reply.
 fn twin(sim: &Simulator) -> Simulator {
     let mut other = sim.clone();
-    let sensor = sim.sensor();
-    let text = sensor.command_with_role(Role::SerialNumber).and_then(|command| {
-        let field = command.named_fields().find(|f| matches!(f.kind, FieldKind::Ascii { .. }))?;
-        Some((command.address, field.offset + field.size().checked_sub(1)?))
-    });
-    if let Some((address, last)) = text {
-        let registers = other.registers_mut();
-        let byte = registers.read(address, u16::try_from(last / 2 + 1).unwrap_or(0)).get(last).copied();
-        let changed = match byte {
-            Some(b'0'..=b'8') | Some(b'A'..=b'Y') => byte.map(|b| b + 1),
-            _ => Some(b'1'),
-        };
-        if let Some(b) = changed {
-            registers.write_bytes(address, last, &[b]);
+    let Some(command) = sim.sensor().command_with_role(Role::SerialNumber) else { return other };
+    let Some(field) = command.named_fields().find(|f| matches!(f.kind, FieldKind::Ascii { .. })) else {
+        return other;
+    };
+    let registers = other.registers_mut();
+    let mut text = registers.read(command.address, command.count);
+    let chars: Vec<usize> =
+        (field.offset..field.offset + field.size()).filter(|&i| text.get(i).is_some_and(|b| *b != 0)).collect();
+    if let [.., lose, gain] = chars.as_slice() {
+        if let Some(b) = text.get_mut(*gain) {
+            *b |= 1 << (*b).trailing_ones().min(6);
         }
+        if let Some(b) = text.get_mut(*lose) {
+            *b &= !(1 << (*b).trailing_zeros().min(7));
+        }
+        registers.write(command.address, &text);
     }
     other
 }

@@ -51,6 +51,17 @@ pub(crate) fn settings_of(port: &dyn serialport::SerialPort) -> Option<LineSetti
     Some(LineSettings { baud: port.baud_rate().ok()?, format: CharFormat { data_bits, parity, stop_bits } })
 }
 
+/// True when the parity set on a pty's `slave` side reads back on its
+/// `master` side; the slave is left without parity.
+#[cfg(all(unix, feature = "pty"))]
+pub(crate) fn keeps_parity(slave: &mut serialport::TTYPort, master: &serialport::TTYPort) -> bool {
+    use serialport::SerialPort;
+    let kept = slave.set_parity(serialport::Parity::Even).is_ok()
+        && master.parity().is_ok_and(|p| p == serialport::Parity::Even);
+    let _ = slave.set_parity(serialport::Parity::None);
+    kept
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

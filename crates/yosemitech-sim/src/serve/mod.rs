@@ -89,7 +89,9 @@ pub struct ServeConfig {
     /// The serial settings the device runs at. On a pty a client at another
     /// baud rate, data-bit count or parity is not understood and reads
     /// garbage (deterministic from [`ServeConfig::seed`]); stop bits do not
-    /// matter. `None` (the default): any settings, as a pty has none.
+    /// matter. Linux ptys drop the parity a client sets, so there a parity
+    /// mismatch goes unseen ([`pty_keeps_parity`]). `None` (the default):
+    /// any settings, as a pty has none.
     pub settings: Option<LineSettings>,
     /// Seed of the garbage of [`ServeConfig::settings`].
     pub seed: u64,
@@ -323,16 +325,39 @@ pub fn serve_pty<D: FrameHandler + Send + 'static>(device: D, config: ServeConfi
     use serialport::SerialPort;
     use yosemitech_rtu::{SerialConfig, SerialTransport};
 
-    let (master, slave) = {
+    let (master, mut slave) = {
         let _guard = PTY.lock().unwrap_or_else(PoisonError::into_inner);
         serialport::TTYPort::pair().map_err(io::Error::from)?
     };
     let path = slave.name().ok_or_else(|| io::Error::other("the pty has no slave path"))?;
+    let keeps_parity = line::keeps_parity(&mut slave, &master);
     let mut link = SerialTransport::from_tty(master, &SerialConfig::new(path.clone()));
     spawn(device, Endpoint::Pty(path), move |device, stop| {
         let _slave = slave;
-        serve_link(&mut link, device, stop, &config, |link| line::settings_of(link.port()))
+        serve_link(&mut link, device, stop, &config, |link| {
+            let client = line::settings_of(link.port())?;
+            // A parity the pty does not keep is taken to be the device's own.
+            Some(match config.settings {
+                Some(own) if !keeps_parity => LineSettings {
+                    format: yosemitech_rtu::CharFormat { parity: own.format.parity, ..client.format },
+                    ..client
+                },
+                _ => client,
+            })
+        })
     })
+}
+
+/// True when this system's pseudo-terminals keep the parity a client sets,
+/// so that a served device with [`ServeConfig::settings`] can tell a client
+/// at another parity (Linux ptys clear it).
+#[cfg(all(unix, feature = "pty"))]
+pub fn pty_keeps_parity() -> bool {
+    let pair = {
+        let _guard = PTY.lock().unwrap_or_else(PoisonError::into_inner);
+        serialport::TTYPort::pair()
+    };
+    pair.is_ok_and(|(master, mut slave)| line::keeps_parity(&mut slave, &master))
 }
 
 /// Closed-link errors: the peer went away.
