@@ -78,7 +78,7 @@ pub fn run(
         settings.baud = baud;
     }
     let address = args.address.get(sensors.first().map_or(1, |s| s.default_address))?;
-    let plan = Plan::new(address, settings, global.timeout.unwrap_or(Duration::from_secs(1)));
+    let plan = Plan::new(address, settings, global.timeout.unwrap_or(Duration::from_secs(1)), probes.starts.len());
     let mut line = SerialLine::new(port.clone());
     // Opened here first, so a missing port is an error, not a diagnosis.
     doctor::Line::configure(&mut line, settings).map_err(|e| open_failed(&port, &e))?;

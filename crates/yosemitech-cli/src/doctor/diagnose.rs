@@ -395,6 +395,40 @@ impl<'c> Doctor<'_, 'c> {
         })
     }
 
+    /// Sends each Start Measurement until one is answered; the verdict when it is refused.
+    fn trigger(&mut self, address: u8, wait: Duration) -> Step<Option<Verdict>> {
+        let mut last_silent = None;
+        for start in self.probes.starts.clone() {
+            let a = self.ask(start, address, wait)?;
+            match a.heard {
+                Heard::Exception(code) => {
+                    let text = format!("{} (a trigger) is refused with {}", start.name, exception_text(code));
+                    self.note(FindingKind::TriggerRefused, text.clone(), &a);
+                    return Ok(Some(verdict(
+                        VerdictCode::TriggerRefused,
+                        format!("the probe answers reads, but {text}"),
+                        "some probes measure from power-on and refuse the trigger: read the measurements without \
+                         starting (the tools read on after a refused start); if readings stay stale, power-cycle it",
+                    )));
+                }
+                Heard::Nothing => last_silent = Some(a),
+                Heard::Reply(_) => return Ok(None),
+                _ => {
+                    self.note_answer(&a);
+                    return Ok(None);
+                }
+            }
+        }
+        if let Some(a) = last_silent {
+            let text = format!(
+                "no answer to any of {} Start Measurement request(s): the probe may measure without one",
+                self.probes.starts.len()
+            );
+            self.note(FindingKind::TriggerSilent, text, &a);
+        }
+        Ok(None)
+    }
+
     /// Reads a probe that answers at `address` a few more times, then its
     /// trigger; the verdict for what went wrong, `None` when nothing did.
     fn health(&mut self, address: u8, mut asked: Vec<Asked<'c>>) -> Step<Option<Verdict>> {
@@ -485,27 +519,10 @@ impl<'c> Doctor<'_, 'c> {
                  name its sensor with --sensor (`yosemitech scan` identifies it)",
             ));
         }
-        if let Some(start) = self.probes.start {
-            let a = self.ask(start, address, self.plan.listen)?;
-            match a.heard {
-                Heard::Exception(code) => {
-                    let text = format!("{} (a trigger) is refused with {}", start.name, exception_text(code));
-                    self.note(FindingKind::TriggerRefused, text.clone(), &a);
-                    verdicts.push(verdict(
-                        VerdictCode::TriggerRefused,
-                        format!("the probe answers reads, but {text}"),
-                        "some probes measure from power-on and refuse the trigger: read the measurements without \
-                         starting (the tools read on after a refused start); if readings stay stale, power-cycle it",
-                    ));
-                }
-                Heard::Nothing => self.note(
-                    FindingKind::TriggerSilent,
-                    format!("no answer to {} (a trigger): the probe may not have one", start.name),
-                    &a,
-                ),
-                Heard::Reply(_) => {}
-                _ => self.note_answer(&a),
-            }
+        // The trigger waits the tools' timeout, longer for a slow probe.
+        let slowest = asked.iter().filter_map(|a| a.exchange.turnaround()).max().unwrap_or_default();
+        if let Some(refused) = self.trigger(address, (slowest * 2).max(self.plan.timeout))? {
+            verdicts.push(refused);
         }
         // The most telling first: collisions and noise explain the rest.
         Ok(verdicts.into_iter().next())

@@ -43,6 +43,8 @@ pub struct Plan {
     pub sweep: Vec<LineSettings>,
     /// Reads sent to a probe that answers, to measure its error rate.
     pub repeats: usize,
+    /// Start Measurement requests sent to a probe that answers, at most.
+    pub triggers: usize,
 }
 
 /// Baud rates to try, those real probes are most likely set to first.
@@ -63,7 +65,7 @@ fn formats() -> [CharFormat; 4] {
 impl Plan {
     /// A plan for a probe expected at `address` and `settings`, by tools
     /// that wait `timeout`.
-    pub fn new(address: u8, settings: LineSettings, timeout: Duration) -> Self {
+    pub fn new(address: u8, settings: LineSettings, timeout: Duration, triggers: usize) -> Self {
         let sweep = std::iter::once(settings.baud)
             .chain(BAUD_RATES)
             .flat_map(|baud| formats().map(move |format| LineSettings { baud, format }))
@@ -83,6 +85,7 @@ impl Plan {
             sweep_wait: Duration::from_millis(150),
             sweep,
             repeats: 6,
+            triggers,
         }
     }
 
@@ -95,7 +98,7 @@ impl Plan {
     /// wildcard and the probe's reported address, the scan, two per other
     /// setting, and the checks of a probe found.
     pub fn max_requests(&self) -> usize {
-        1 + 2 + self.scan_addresses().count() + 2 * self.sweep.len() + self.repeats + 1
+        1 + 2 + self.scan_addresses().count() + 2 * self.sweep.len() + self.repeats + self.triggers
     }
 
     /// How long a diagnosis of a line where nothing answers takes, waits only.
@@ -352,7 +355,7 @@ mod tests {
 
     #[test]
     fn a_silent_line_is_diagnosed_in_well_under_a_minute() {
-        let plan = Plan::new(1, LineSettings::default(), Duration::from_secs(1));
+        let plan = Plan::new(1, LineSettings::default(), Duration::from_secs(1), 2);
         assert!(plan.silent_duration() < Duration::from_secs(45), "{:?}", plan.silent_duration());
         assert!(!plan.sweep.contains(&plan.settings));
         assert_eq!(plan.sweep.len(), BAUD_RATES.len() * formats().len() - 1);

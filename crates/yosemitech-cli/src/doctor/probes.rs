@@ -5,15 +5,16 @@ use yosemitech_spec::{CommandSpec, Role, Sensor};
 
 /// The requests of a diagnosis. All are reads but the trigger, which
 /// starts a measurement and changes no setting.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone)]
 pub struct Probes<'c> {
     /// Role `serial_number`, sent to the probe's own address: the read every
     /// probe answers.
     pub identify: &'c CommandSpec,
     /// Role `version`, a second read to tell a damaged reply from two probes' replies.
     pub version: Option<&'c CommandSpec>,
-    /// Role `start_measurement`, sent once to a probe that answers reads.
-    pub start: Option<&'c CommandSpec>,
+    /// Role `start_measurement`: each distinct request, the most common
+    /// first, sent to a probe that answers reads until one is answered.
+    pub starts: Vec<&'c CommandSpec>,
     /// Role `get_slave_address` at a fixed wildcard address (0xFF): a lone
     /// probe answers it whatever its own address.
     pub wildcard: Option<&'c CommandSpec>,
@@ -38,6 +39,22 @@ fn most_common<'c>(sensors: &[&'c Sensor], role: Role, fixed: bool) -> Option<&'
     })
 }
 
+/// Every distinct request with `role` among `sensors`, the one most send first.
+fn distinct<'c>(sensors: &[&'c Sensor], role: Role) -> Vec<&'c CommandSpec> {
+    let commands: Vec<&CommandSpec> = sensors
+        .iter()
+        .filter_map(|s| s.commands.iter().find(|c| c.role == Some(role) && c.fixed_slave.is_none()))
+        .collect();
+    let mut out: Vec<&CommandSpec> = Vec::new();
+    for c in &commands {
+        if !out.iter().any(|o| same_request(o, c)) {
+            out.push(c);
+        }
+    }
+    out.sort_by_key(|c| std::cmp::Reverse(commands.iter().filter(|o| same_request(o, c)).count()));
+    out
+}
+
 impl<'c> Probes<'c> {
     /// The frames of `sensors`: one sensor's own, or those most of them share.
     /// `None` when none has a serial-number read at its own address.
@@ -45,7 +62,7 @@ impl<'c> Probes<'c> {
         Some(Self {
             identify: most_common(sensors, Role::SerialNumber, false)?,
             version: most_common(sensors, Role::Version, false),
-            start: most_common(sensors, Role::StartMeasurement, false),
+            starts: distinct(sensors, Role::StartMeasurement),
             wildcard: most_common(sensors, Role::GetSlaveAddress, true),
         })
     }
@@ -64,10 +81,22 @@ mod tests {
         let count = |role: Role, chosen: &CommandSpec| {
             sensors.iter().filter_map(|s| s.command_with_role(role)).filter(|c| same_request(c, chosen)).count()
         };
+        // Every start request once, the most common first.
+        for (i, start) in probes.starts.iter().enumerate() {
+            assert!(probes.starts[i + 1..].iter().all(|o| !same_request(o, start)));
+            assert!(
+                probes.starts[i + 1..]
+                    .iter()
+                    .all(|o| count(Role::StartMeasurement, start) >= count(Role::StartMeasurement, o))
+            );
+        }
+        let every_start = sensors.iter().filter_map(|s| s.command_with_role(Role::StartMeasurement));
+        assert!(
+            every_start.clone().all(|c| c.fixed_slave.is_some() || probes.starts.iter().any(|o| same_request(o, c)))
+        );
         for (role, chosen) in [
             (Role::SerialNumber, Some(probes.identify)),
             (Role::Version, probes.version),
-            (Role::StartMeasurement, probes.start),
             (Role::GetSlaveAddress, probes.wildcard),
         ] {
             let Some(chosen) = chosen else { continue };
