@@ -42,7 +42,7 @@ fn sensor_with(roles: &[Role]) -> Sensor {
         .clone()
 }
 
-fn role<'s>(sensor: &'s Sensor, role: Role) -> &'s CommandSpec {
+fn role(sensor: &Sensor, role: Role) -> &CommandSpec {
     sensor.command_with_role(role).unwrap()
 }
 
