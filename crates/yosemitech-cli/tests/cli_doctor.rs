@@ -419,3 +419,30 @@ fn doctor_and_simulate_misuse_is_a_usage_error() {
     YOSEMITECH.run(&["doctor", "-p", "/dev/null-no-such-port", "--address", "0"]).fails_with_hint(2);
     YOSEMITECH.run(&["simulate", &sensor.name, "--serial", "9600-9Z1"]).fails_with_hint(2);
 }
+
+#[test]
+fn simulate_line_faults_from_the_command_line_reach_the_doctor() {
+    let sensor = sensor_with(&[Role::StartMeasurement]);
+    let sn = role(&sensor, Role::SerialNumber);
+    // Each flag, and the verdict and evidence the doctor gives for it.
+    let (child, port) = spawn_simulate(&[&sensor.name, "--echo"]);
+    let json = doctor(&port, &sensor, &[]);
+    stop(child);
+    assert_eq!(verdict(&json), "echo", "{json:#}");
+    assert!(received(finding(&json, "echo")).starts_with(&request(sn, sensor.default_address)));
+
+    // Stop bits alone do not garble (a receiver at 1 stop bit accepts 2):
+    // a probe at 19200 8N2 answers the doctor's 19200 8N1.
+    let (child, port) = spawn_simulate(&[&sensor.name, "--serial", "19200-8N2"]);
+    let json = doctor(&port, &sensor, &[]);
+    stop(child);
+    assert_eq!(verdict(&json), "serial_settings", "{json:#}");
+    assert_eq!(json["answering"]["settings"], LineSettings { baud: 19_200, format: CharFormat::EIGHT_N_1 }.to_string());
+
+    let (child, port) = spawn_simulate(&[&sensor.name, "--refuse-start"]);
+    let json = doctor(&port, &sensor, &[]);
+    stop(child);
+    assert_eq!(verdict(&json), "trigger_refused", "{json:#}");
+    let start = role(&sensor, Role::StartMeasurement);
+    assert_eq!(finding(&json, "trigger_refused")["sent"], hex(&request(start, sensor.default_address)));
+}

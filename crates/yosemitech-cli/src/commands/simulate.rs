@@ -88,31 +88,26 @@ pub fn parse_line_settings(text: &str) -> Result<LineSettings> {
     Ok(LineSettings { baud, format: CharFormat { data_bits, parity, stop_bits } })
 }
 
-/// A second probe like `sim` at its address, its serial number different
-/// so that the two answer a serial-number read with different bytes (their
-/// other replies may agree, as two real probes' do). On the line the two
-/// replies are ANDed ([`Bus`]): one character gains a bit and another
-/// loses one, so the collision differs from either reply.
-fn twin(sim: &Simulator) -> Simulator {
+/// Two probes like `sim` at its address whose serial numbers differ in one
+/// character, so that they answer a serial-number read with different
+/// bytes (their other replies may agree, as two real probes' do). On the
+/// line the two replies are ANDed ([`Bus`]): the character is `x|1` in one
+/// and `x|2` in the other, so the collision (`x`) is neither reply.
+fn colliding_pair(mut sim: Simulator) -> (Simulator, Simulator) {
+    let spot = sim.sensor().command_with_role(Role::SerialNumber).and_then(|command| {
+        let field = command.named_fields().find(|f| matches!(f.kind, FieldKind::Ascii { .. }))?;
+        let text = sim.registers().read(command.address, command.count);
+        let chars = field.offset..field.offset + field.size();
+        let at = chars.clone().rev().find(|&i| text.get(i).is_some_and(|b| *b != 0)).unwrap_or(chars.start);
+        Some((command.address, at, text.get(at).copied()?))
+    });
     let mut other = sim.clone();
-    let Some(command) = sim.sensor().command_with_role(Role::SerialNumber) else { return other };
-    let Some(field) = command.named_fields().find(|f| matches!(f.kind, FieldKind::Ascii { .. })) else {
-        return other;
-    };
-    let registers = other.registers_mut();
-    let mut text = registers.read(command.address, command.count);
-    let chars: Vec<usize> =
-        (field.offset..field.offset + field.size()).filter(|&i| text.get(i).is_some_and(|b| *b != 0)).collect();
-    if let [.., lose, gain] = chars.as_slice() {
-        if let Some(b) = text.get_mut(*gain) {
-            *b |= 1 << (*b).trailing_ones().min(6);
-        }
-        if let Some(b) = text.get_mut(*lose) {
-            *b &= !(1 << (*b).trailing_zeros().min(7));
-        }
-        registers.write(command.address, &text);
+    if let Some((register, at, byte)) = spot {
+        let base = if byte == 0 { b'0' } else { byte & !0x03 };
+        sim.registers_mut().write_bytes(register, at, &[base | 0x01]);
+        other.registers_mut().write_bytes(register, at, &[base | 0x02]);
     }
-    other
+    (sim, other)
 }
 
 /// Runs `simulate` until `stop` is set (Ctrl-C).
@@ -145,7 +140,8 @@ pub fn run(catalog: &Catalog, args: &SimulateArgs, stop: &Arc<AtomicBool>, out: 
     let config = serve_config(args, &sensor.serial)?;
     let about = format!("{} ({}) at address {address}", sensor.title, sensor.name);
     if args.line.collide {
-        let bus = Bus::new().with(twin(&sim)).with(sim);
+        let (one, other) = colliding_pair(sim);
+        let bus = Bus::new().with(one).with(other);
         serve_until_stopped(bus, args, config, &format!("two of {about}"), stop, out, |bus| {
             let counts = bus.devices().iter().map(counts_text).collect::<Vec<_>>().join("; ");
             format!("{counts}; {} collisions", bus.collisions())
@@ -259,5 +255,29 @@ mod tests {
         assert!(parse_faults("dorp=0.1", 1).unwrap_err().hint.unwrap().contains("`drop`"));
         assert!(parse_faults("drop=2", 1).is_err());
         assert!(parse_faults("drop", 1).is_err());
+    }
+
+    #[test]
+    fn parses_line_settings() {
+        let even = parse_line_settings("19200-8E1").unwrap();
+        assert_eq!(even.baud, 19_200);
+        assert_eq!(even.format, CharFormat { parity: Parity::Even, ..CharFormat::EIGHT_N_1 });
+        assert_eq!(even.to_string(), "19200 baud, 8E1");
+        assert_eq!(parse_line_settings(" 9600-7o2 ").unwrap().to_string(), "9600 baud, 7O2");
+        for bad in ["9600", "0-8N1", "9600-8N", "9600-9N1", "9600-8X1", "9600-8N3", "fast-8N1", "9600-8N1x"] {
+            assert!(parse_line_settings(bad).is_err(), "{bad}");
+        }
+    }
+
+    #[test]
+    fn a_twin_answers_its_serial_number_with_bytes_that_collide() {
+        let catalog = Catalog::load(&[]).unwrap();
+        for entry in catalog.entries() {
+            let Some(sn) = entry.sensor.command_with_role(Role::SerialNumber) else { continue };
+            let (one, other) = colliding_pair(Simulator::new(Arc::clone(&entry.sensor)));
+            let (a, b) = (one.registers().read(sn.address, sn.count), other.registers().read(sn.address, sn.count));
+            let anded: Vec<u8> = a.iter().zip(&b).map(|(x, y)| x & y).collect();
+            assert!(anded != a && anded != b, "{}: {a:?} / {b:?}", entry.sensor.name);
+        }
     }
 }
