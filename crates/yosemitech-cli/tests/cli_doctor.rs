@@ -167,15 +167,23 @@ fn bare_pty(loop_back: bool) -> (String, std::thread::JoinHandle<()>, Arc<std::s
 
 #[test]
 fn a_loop_back_is_an_echo_and_nothing_else() {
-    let sensor = sensor_with(&[]);
+    // No sensor named: the doctor sends the frames most sensors share.
     let (path, far, stop) = bare_pty(true);
-    let json = doctor(&path, &sensor, &[]);
-    stop.store(true, std::sync::atomic::Ordering::SeqCst);
-    far.join().unwrap();
+    let json = parse(&YOSEMITECH.run(&["doctor", "-p", &path, "--json"]));
     assert_eq!(verdict(&json), "echo", "{json:#}");
     let echo = finding(&json, "echo");
-    assert_eq!(received(echo), unhex(echo["sent"].as_str().unwrap()), "only the request came back");
+    let sent = unhex(echo["sent"].as_str().unwrap());
+    assert_eq!(received(echo), sent, "only the request came back");
     assert_eq!(json["requests"], 1);
+    // It is a serial-number read of some loaded sensor.
+    let sensors = &spec().sensors;
+    assert!(
+        sensors.iter().filter_map(|s| s.command_with_role(Role::SerialNumber)).any(|c| request(c, sent[0]) == sent)
+    );
+    // As text: the verdict is an error (exit 1) with the next step as its hint.
+    YOSEMITECH.run(&["doctor", "-p", &path]).fails_with_hint(1);
+    stop.store(true, std::sync::atomic::Ordering::SeqCst);
+    far.join().unwrap();
 }
 
 #[test]
