@@ -285,6 +285,18 @@ fn replies_damaged_at_a_rate_are_noise() {
     assert!(injected > 0 && injected < s.server.device().stats().replies, "damaged between good ones");
 }
 
+#[test]
+fn replies_damaged_every_time_but_differently_are_noise_not_a_collision() {
+    let sensor = sensor_with(&[Role::Version]);
+    let noisy = probe(&sensor).with_faults(FaultConfig { corrupt_crc: 1.0, ..FaultConfig::seeded(5) });
+    let s = serve(noisy);
+    let json = doctor(&s.path, &sensor, &[]);
+    assert_eq!(verdict(&json), "noise", "{json:#}");
+    assert!(findings(&json, "collision").is_empty());
+    assert!(!crc_ok(&received(finding(&json, "noise"))));
+    assert!(findings(&json, "reply").is_empty(), "no reply came through intact");
+}
+
 /// `yosemitech simulate ARGS` in a child process, and the port it serves.
 fn spawn_simulate(args: &[&str]) -> (std::process::Child, String) {
     let mut child = YOSEMITECH

@@ -470,15 +470,17 @@ impl<'c> Doctor<'_, 'c> {
         let bad: Vec<&Asked<'_>> =
             asked.iter().filter(|a| matches!(a.heard, Heard::Damaged | Heard::Garbage | Heard::Nothing)).collect();
         let good = asked.iter().filter(|a| matches!(a.heard, Heard::Reply(_) | Heard::Exception(_))).count();
+        // Damaged or lost replies that are no collision: noise, or a probe
+        // browning out, whether or not any reply came through intact.
         if verdicts.is_empty()
-            && good > 0
             && let Some(first) = bad.iter().find(|a| a.heard != Heard::Nothing).or(bad.first())
         {
             let (damaged, lost) = (
                 bad.iter().filter(|a| a.heard != Heard::Nothing).count(),
                 bad.iter().filter(|a| a.heard == Heard::Nothing).count(),
             );
-            let text = format!("{damaged} of {total} replies damaged and {lost} lost, between good ones");
+            let among = if good > 0 { format!("between {good} good ones") } else { "none intact".to_owned() };
+            let text = format!("{damaged} of {total} replies damaged and {lost} lost, {among}");
             self.note(FindingKind::Noise, text.clone(), first);
             verdicts.push(verdict(
                 VerdictCode::Noise,
