@@ -551,8 +551,75 @@ fn healthy(address: u8, settings: LineSettings) -> Verdict {
 
 #[cfg(test)]
 mod tests {
-    use super::super::hex;
+    use super::super::{Quiet, hex};
     use super::*;
+    use crate::catalog::Catalog;
+    use std::collections::VecDeque;
+    use std::sync::Arc;
+    use yosemitech_sim::{FrameHandler, Simulator};
+
+    /// A simulated probe straight on the line, no pty: what it answers is
+    /// there to read at once.
+    struct OnTheLine {
+        device: Simulator,
+        pending: VecDeque<u8>,
+    }
+
+    impl Line for OnTheLine {
+        fn configure(&mut self, _: LineSettings) -> io::Result<()> {
+            Ok(())
+        }
+        fn write_all(&mut self, frame: &[u8]) -> io::Result<()> {
+            let mut reply = Vec::new();
+            self.device.handle(frame, &mut reply);
+            self.pending.extend(reply);
+            Ok(())
+        }
+        fn read(&mut self, buf: &mut [u8], timeout: Duration) -> io::Result<usize> {
+            if self.pending.is_empty() {
+                std::thread::sleep(timeout.min(Duration::from_millis(2)));
+            }
+            let n = buf.len().min(self.pending.len());
+            for (slot, b) in buf.iter_mut().zip(self.pending.drain(..n)) {
+                *slot = b;
+            }
+            Ok(n)
+        }
+        fn discard_input(&mut self) -> io::Result<()> {
+            self.pending.clear();
+            Ok(())
+        }
+    }
+
+    #[test]
+    fn every_sensor_of_the_spec_is_found_healthy_or_at_its_address() {
+        let catalog = Catalog::load(&[]).unwrap();
+        let mut checked = 0;
+        for entry in catalog.entries() {
+            let sensor = entry.sensor.as_ref();
+            let Some(probes) = Probes::of(&[sensor]) else { continue };
+            let mut plan =
+                Plan::new(sensor.default_address, sensor.serial, Duration::from_secs(1), probes.starts.len());
+            // Nothing here is slow: short waits keep the silent steps short.
+            (plan.listen, plan.scan_wait, plan.sweep_wait) =
+                (Duration::from_millis(80), Duration::from_millis(5), Duration::from_millis(5));
+            let run = |address: u8| {
+                let device = Simulator::new(Arc::clone(&entry.sensor)).with_address(address);
+                let mut line = OnTheLine { device, pending: VecDeque::new() };
+                diagnose(&mut line, &probes, &plan, &mut Quiet, &AtomicBool::new(false)).unwrap()
+            };
+            let report = run(sensor.default_address);
+            assert_eq!(report.verdict.code, VerdictCode::Healthy, "{}: {:?}", sensor.name, report.verdict);
+            assert_eq!(report.answering.map(|a| a.address), Some(sensor.default_address));
+            let elsewhere = if sensor.default_address == 7 { 9 } else { 7 };
+            let report = run(elsewhere);
+            assert_eq!(report.verdict.code, VerdictCode::OtherAddress, "{}: {:?}", sensor.name, report.verdict);
+            assert_eq!(report.answering.map(|a| a.address), Some(elsewhere), "{}", sensor.name);
+            assert!(report.requests <= plan.max_requests());
+            checked += 1;
+        }
+        assert!(checked > 0);
+    }
 
     #[test]
     fn a_generous_timeout_is_half_again_rounded_up() {

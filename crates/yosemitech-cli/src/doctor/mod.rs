@@ -349,6 +349,16 @@ pub trait Progress {
     fn request(&mut self);
 }
 
+/// No progress shown.
+#[cfg(test)]
+pub struct Quiet;
+
+#[cfg(test)]
+impl Progress for Quiet {
+    fn phase(&mut self, _: &str, _: usize) {}
+    fn request(&mut self) {}
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
