@@ -80,7 +80,9 @@ impl Plan {
             address,
             settings,
             timeout,
-            listen: (timeout * 2).max(Duration::from_secs(3)),
+            // Twice the tools' timeout, to measure a late answer; within
+            // 3..=10 s so that a silent line stays under a minute.
+            listen: (timeout * 2).clamp(Duration::from_secs(3), Duration::from_secs(10)),
             scan_wait: Duration::from_millis(100),
             sweep_wait: Duration::from_millis(150),
             sweep,
@@ -372,5 +374,8 @@ mod tests {
         // 8N2 at the same rate comes right after the settings expected, parities after.
         assert_eq!(plan.sweep[0], LineSettings { format: formats()[1], ..plan.settings });
         assert!(plan.max_requests() < 400);
+        // However long the tools wait.
+        let patient = Plan::new(1, LineSettings::default(), Duration::from_secs(60), 2);
+        assert!(patient.silent_duration() < Duration::from_secs(50), "{:?}", patient.silent_duration());
     }
 }
