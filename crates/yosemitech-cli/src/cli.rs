@@ -163,6 +163,19 @@ and software revisions, and the manual revision that covers that firmware. The r
 defaults to 100ms here and retries to 0 (--timeout, --retries).")]
     Scan(ScanArgs),
 
+    /// Find out why a probe does not answer: a guided diagnosis of the line.
+    #[command(long_about = "\
+Diagnose a probe that does not answer, read-only: send it a serial-number read and look at
+every byte that comes back. It tells apart no byte at all (power, wiring, A/B, port), the
+adapter's echo of our own request, garbage (other serial settings: it tries the common baud
+rates in 8N1, 8N2, 8E1, 8O1 and says which answers), replies damaged at a rate (noise,
+termination), several probes on one address, a probe at another address (the wildcard 0xFF,
+then a scan) or only at 0xFF, a reply later than --timeout (it measures the turnaround),
+exceptions, and a refused Start Measurement. Ends with a verdict and the next thing to try,
+each finding with the bytes seen. A silent line takes about 40 s; Ctrl-C stops with what it
+found so far. --json for a machine-readable report.")]
+    Doctor(DoctorArgs),
+
     /// Change a probe's slave address, verified at the new one.
     #[command(long_about = "\
 Change a probe's slave address: both addresses are checked (1..=247, the new one free), the
@@ -458,6 +471,21 @@ pub struct ScanArgs {
     pub json: bool,
 }
 
+/// `doctor`.
+#[derive(Args, Debug)]
+pub struct DoctorArgs {
+    #[command(flatten)]
+    pub port: PortArgs,
+    #[command(flatten)]
+    pub address: AddressArg,
+    /// The sensor [default: any; the frames most sensors share].
+    #[arg(long, value_name = "SENSOR")]
+    pub sensor: Option<String>,
+    /// Print the report as JSON.
+    #[arg(long)]
+    pub json: bool,
+}
+
 /// `set-address`.
 #[derive(Args, Debug)]
 pub struct SetAddressArgs {
@@ -638,6 +666,33 @@ pub struct SimulateArgs {
     /// it, the manual's text), instead of with the model code, as real probes do.
     #[arg(long)]
     pub serial_as_printed: bool,
+    /// Line faults, to diagnose a link (`yosemitech doctor`).
+    #[command(flatten)]
+    pub line: SimulatedLineArgs,
+}
+
+/// `simulate`'s line faults: what a link to a probe can get wrong.
+#[derive(Args, Debug, Default)]
+pub struct SimulatedLineArgs {
+    /// Never answer (a probe without power, or a broken wire).
+    #[arg(long)]
+    pub mute: bool,
+    /// Write every request back before answering (an RS-485 adapter without echo suppression).
+    #[arg(long)]
+    pub echo: bool,
+    /// Wait this long before every reply (a probe slow to answer), e.g. 1500ms.
+    #[arg(long, value_name = "DURATION", value_parser = parse_duration)]
+    pub turnaround: Option<Duration>,
+    /// Run at these serial settings, BAUD-8N1 (8N2, 8E1, 8O1); on a pty a client at
+    /// another baud rate or parity reads garbage (where the pty keeps parity: Linux ptys drop it).
+    #[arg(long, value_name = "BAUD-FORMAT", conflicts_with = "tcp")]
+    pub serial: Option<String>,
+    /// Two probes at the address answer every request at once (their serial numbers differ).
+    #[arg(long)]
+    pub collide: bool,
+    /// Refuse Start Measurement with an exception and answer reads all the same.
+    #[arg(long)]
+    pub refuse_start: bool,
 }
 
 /// `watch`.

@@ -31,6 +31,7 @@ mod confirm;
 mod dashboard;
 mod derived;
 mod device;
+mod doctor;
 mod error;
 mod format;
 mod help;

@@ -61,9 +61,9 @@ pub use behaviour::{MeasurementState, SerialNumberPolicy, WarmUpPolicy};
 pub use bus::Bus;
 pub use fault::{FaultConfig, FaultCounts, FaultKind, Rng};
 pub use registers::RegisterMap;
-#[cfg(all(unix, feature = "pty"))]
-pub use serve::serve_pty;
 pub use serve::{Endpoint, ServeConfig, Server, serve_mbap, serve_memory, serve_tcp, serve_transport};
+#[cfg(all(unix, feature = "pty"))]
+pub use serve::{pty_keeps_parity, serve_pty};
 pub use simulator::{
     SimError, Simulator, Stats, UnknownRequestPolicy, Variation, WATER_TEMPERATURE_C, WATER_TEMPERATURE_SPAN_C,
     daily_span,

@@ -6,6 +6,7 @@ pub mod calibrate_electrode;
 pub mod coefficients;
 pub mod decode;
 pub mod demo;
+pub mod doctor;
 pub mod encode;
 pub mod export;
 pub mod list;
@@ -67,6 +68,7 @@ pub fn run(cli: &Cli) -> Result<()> {
             coefficients::restore(&catalog, global, args, &mut out)
         }
         Subcommand::Scan(args) => scan::run(&catalog, global, args, &mut out),
+        Subcommand::Doctor(args) => doctor::run(&catalog, global, args, &ctrl_c_flag(), &mut out),
         Subcommand::SetAddress(args) => set_address::run(&catalog, global, args, &mut out),
         Subcommand::Decode(args) => decode::run(&catalog, args, &mut out),
         Subcommand::Encode(args) => encode::run(&catalog, args, &mut out),

@@ -5,13 +5,15 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Duration;
 
+use yosemitech_rtu::{CharFormat, DataBits, LineSettings, Parity, StopBits};
 use yosemitech_sim::{
-    FaultConfig, FaultKind, SerialNumberPolicy, ServeConfig, Server, Simulator, UnknownRequestPolicy, Variation,
-    serve_mbap, serve_tcp,
+    Bus, FaultConfig, FaultKind, FrameHandler, SerialNumberPolicy, ServeConfig, Server, Simulator,
+    UnknownRequestPolicy, Variation, serve_mbap, serve_tcp,
 };
+use yosemitech_spec::{FieldKind, Role};
 
 use crate::catalog::Catalog;
-use crate::cli::{SimulateArgs, TcpProtocol};
+use crate::cli::{SimulateArgs, SimulatedLineArgs, TcpProtocol};
 use crate::error::{CliError, Result};
 use crate::format::parse_duration;
 
@@ -54,14 +56,71 @@ pub fn parse_faults(spec: &str, seed: u64) -> Result<FaultConfig> {
     Ok(config)
 }
 
+/// Parses `19200-8E1` (baud rate, data bits, parity N/E/O, stop bits).
+pub fn parse_line_settings(text: &str) -> Result<LineSettings> {
+    let bad = || {
+        CliError::usage(format!("`{text}` is not serial settings"))
+            .hint("write BAUD-FORMAT, e.g. 9600-8N1, 19200-8E1, 9600-8N2 (data bits 7 or 8, parity N, E or O, stop bits 1 or 2)")
+    };
+    let (baud, format) = text.trim().split_once('-').ok_or_else(bad)?;
+    let baud: u32 = baud.trim().parse().ok().filter(|b| *b > 0).ok_or_else(bad)?;
+    let format = format.trim().to_ascii_uppercase();
+    let (data_bits, parity, stop_bits) = match format.as_bytes() {
+        [d, p, s] => (*d, *p, *s),
+        _ => return Err(bad()),
+    };
+    let data_bits = match data_bits {
+        b'7' => DataBits::Seven,
+        b'8' => DataBits::Eight,
+        _ => return Err(bad()),
+    };
+    let parity = match parity {
+        b'N' => Parity::None,
+        b'E' => Parity::Even,
+        b'O' => Parity::Odd,
+        _ => return Err(bad()),
+    };
+    let stop_bits = match stop_bits {
+        b'1' => StopBits::One,
+        b'2' => StopBits::Two,
+        _ => return Err(bad()),
+    };
+    Ok(LineSettings { baud, format: CharFormat { data_bits, parity, stop_bits } })
+}
+
+/// Two probes like `sim` at its address whose serial numbers differ in one
+/// character, so that they answer a serial-number read with different
+/// bytes (their other replies may agree, as two real probes' do). On the
+/// line the two replies are ANDed ([`Bus`]): the character is `x|1` in one
+/// and `x|2` in the other, so the collision (`x`) is neither reply.
+fn colliding_pair(mut sim: Simulator) -> (Simulator, Simulator) {
+    let spot = sim.sensor().command_with_role(Role::SerialNumber).and_then(|command| {
+        let field = command.named_fields().find(|f| matches!(f.kind, FieldKind::Ascii { .. }))?;
+        let text = sim.registers().read(command.address, command.count);
+        let chars = field.offset..field.offset + field.size();
+        let at = chars.clone().rev().find(|&i| text.get(i).is_some_and(|b| *b != 0)).unwrap_or(chars.start);
+        Some((command.address, at, text.get(at).copied()?))
+    });
+    let mut other = sim.clone();
+    if let Some((register, at, byte)) = spot {
+        let base = if byte == 0 { b'0' } else { byte & !0x03 };
+        sim.registers_mut().write_bytes(register, at, &[base | 0x01]);
+        other.registers_mut().write_bytes(register, at, &[base | 0x02]);
+    }
+    (sim, other)
+}
+
 /// Runs `simulate` until `stop` is set (Ctrl-C).
 pub fn run(catalog: &Catalog, args: &SimulateArgs, stop: &Arc<AtomicBool>, out: &mut dyn Write) -> Result<()> {
     let sensor = Arc::clone(catalog.sensor(&args.sensor)?);
     let address = args.address.get(sensor.default_address)?;
-    let faults = match &args.faults {
+    let mut faults = match &args.faults {
         Some(spec) => parse_faults(spec, args.seed)?,
         None => FaultConfig::seeded(args.seed),
     };
+    if args.line.mute {
+        faults.drop = 1.0;
+    }
     let mut sim = Simulator::new(Arc::clone(&sensor)).with_address(address).with_faults(faults);
     if let Some(noise) = args.noise {
         sim.set_variation(Some(Variation::noise(args.seed, noise, 0.0)));
@@ -77,12 +136,66 @@ pub fn run(catalog: &Catalog, args: &SimulateArgs, stop: &Arc<AtomicBool>, out: 
     if args.serial_as_printed {
         sim.set_serial_number_policy(SerialNumberPolicy::AsPrinted);
     }
-    let config = if args.line_timing { ServeConfig::emulating(sensor.serial.timing()) } else { ServeConfig::default() };
-    let (server, endpoint): (Server<Simulator>, String) = match &args.tcp {
+    sim.set_refuses_start(args.line.refuse_start);
+    let config = serve_config(args, &sensor.serial)?;
+    let about = format!("{} ({}) at address {address}", sensor.title, sensor.name);
+    if args.line.collide {
+        let (one, other) = colliding_pair(sim);
+        let bus = Bus::new().with(one).with(other);
+        serve_until_stopped(bus, args, config, &format!("two of {about}"), stop, out, |bus| {
+            let counts = bus.devices().iter().map(counts_text).collect::<Vec<_>>().join("; ");
+            format!("{counts}; {} collisions", bus.collisions())
+        })
+    } else {
+        serve_until_stopped(sim, args, config, &about, stop, out, counts_text)
+    }
+}
+
+/// How the line is served: line timing and the line faults of `args`.
+fn serve_config(args: &SimulateArgs, own: &LineSettings) -> Result<ServeConfig> {
+    let line: &SimulatedLineArgs = &args.line;
+    let settings = line.serial.as_deref().map(parse_line_settings).transpose()?;
+    let timing = settings.unwrap_or(*own).timing();
+    let config = if args.line_timing { ServeConfig::emulating(timing) } else { ServeConfig::default() };
+    Ok(ServeConfig {
+        echo: line.echo,
+        turnaround: line.turnaround.unwrap_or_default(),
+        settings,
+        seed: args.seed,
+        ..config
+    })
+}
+
+/// What a simulated probe did, for the closing line.
+fn counts_text(device: &Simulator) -> String {
+    let stats = device.stats();
+    format!(
+        "{} requests, {} replies, {} exceptions, {} ignored (bad CRC), {} ignored (registers the probe lacks), {} writes, faults: {}",
+        stats.requests,
+        stats.replies,
+        stats.exceptions,
+        stats.ignored_bad_crc,
+        stats.ignored_unknown,
+        stats.writes,
+        device.faults()
+    )
+}
+
+/// Serves `device` until `stop` is set or the server ends, then says what it did.
+fn serve_until_stopped<D: FrameHandler + Send + 'static>(
+    device: D,
+    args: &SimulateArgs,
+    config: ServeConfig,
+    about: &str,
+    stop: &Arc<AtomicBool>,
+    out: &mut dyn Write,
+    counts: impl Fn(&D) -> String,
+) -> Result<()> {
+    let (server, endpoint): (Server<D>, String) = match &args.tcp {
         Some(addr) => {
             let served = match args.protocol {
-                TcpProtocol::Rtu => serve_tcp(sim, addr.as_str(), config),
-                TcpProtocol::Mbap => serve_mbap(sim, addr.as_str(), config),
+                TcpProtocol::Rtu => serve_tcp(device, addr.as_str(), config),
+                TcpProtocol::Mbap => serve_mbap(device, addr.as_str(), config),
             };
             let server = served.map_err(|e| {
                 CliError::device(format!("cannot listen on {addr}: {e}"))
@@ -91,36 +204,27 @@ pub fn run(catalog: &Catalog, args: &SimulateArgs, stop: &Arc<AtomicBool>, out: 
             let endpoint = server.endpoint().to_string();
             (server, endpoint)
         }
-        None => serve_pty_or_explain(sim, config)?,
+        None => serve_pty_or_explain(device, config)?,
     };
     writeln!(out, "{endpoint}")?;
     out.flush()?;
     let mut err = std::io::stderr().lock();
-    let _ =
-        writeln!(err, "simulating {} ({}) at address {address} on {endpoint}; Ctrl-C stops", sensor.title, sensor.name);
+    let _ = writeln!(err, "simulating {about} on {endpoint}; Ctrl-C stops");
     drop(err);
     while !stop.load(Ordering::SeqCst) && server.is_running() {
         std::thread::sleep(Duration::from_millis(50));
     }
-    let (stats, faults) = {
-        let device = server.device();
-        (*device.stats(), device.faults().to_owned())
-    };
-    let _ = writeln!(
-        std::io::stderr().lock(),
-        "stopped: {} requests, {} replies, {} exceptions, {} ignored (bad CRC), {} ignored (registers the probe lacks), faults: {faults}",
-        stats.requests,
-        stats.replies,
-        stats.exceptions,
-        stats.ignored_bad_crc,
-        stats.ignored_unknown
-    );
+    let done = counts(&server.device());
+    let _ = writeln!(std::io::stderr().lock(), "stopped: {done}");
     server.stop().map_err(|e| CliError::device(format!("the simulator stopped with an error: {e}")))
 }
 
 #[cfg(unix)]
-fn serve_pty_or_explain(sim: Simulator, config: ServeConfig) -> Result<(Server<Simulator>, String)> {
-    let server = yosemitech_sim::serve_pty(sim, config).map_err(|e| {
+fn serve_pty_or_explain<D: FrameHandler + Send + 'static>(
+    device: D,
+    config: ServeConfig,
+) -> Result<(Server<D>, String)> {
+    let server = yosemitech_sim::serve_pty(device, config).map_err(|e| {
         CliError::device(format!("cannot create a pseudo-terminal: {e}")).hint("use --tcp 127.0.0.1:0 instead")
     })?;
     let path = server.tty_path().unwrap_or_default().to_owned();
@@ -128,7 +232,10 @@ fn serve_pty_or_explain(sim: Simulator, config: ServeConfig) -> Result<(Server<S
 }
 
 #[cfg(not(unix))]
-fn serve_pty_or_explain(_sim: Simulator, _config: ServeConfig) -> Result<(Server<Simulator>, String)> {
+fn serve_pty_or_explain<D: FrameHandler + Send + 'static>(
+    _device: D,
+    _config: ServeConfig,
+) -> Result<(Server<D>, String)> {
     Err(CliError::usage("pseudo-terminals need a Unix system").hint("use --tcp 127.0.0.1:5020 instead"))
 }
 
@@ -148,5 +255,29 @@ mod tests {
         assert!(parse_faults("dorp=0.1", 1).unwrap_err().hint.unwrap().contains("`drop`"));
         assert!(parse_faults("drop=2", 1).is_err());
         assert!(parse_faults("drop", 1).is_err());
+    }
+
+    #[test]
+    fn parses_line_settings() {
+        let even = parse_line_settings("19200-8E1").unwrap();
+        assert_eq!(even.baud, 19_200);
+        assert_eq!(even.format, CharFormat { parity: Parity::Even, ..CharFormat::EIGHT_N_1 });
+        assert_eq!(even.to_string(), "19200 baud, 8E1");
+        assert_eq!(parse_line_settings(" 9600-7o2 ").unwrap().to_string(), "9600 baud, 7O2");
+        for bad in ["9600", "0-8N1", "9600-8N", "9600-9N1", "9600-8X1", "9600-8N3", "fast-8N1", "9600-8N1x"] {
+            assert!(parse_line_settings(bad).is_err(), "{bad}");
+        }
+    }
+
+    #[test]
+    fn a_twin_answers_its_serial_number_with_bytes_that_collide() {
+        let catalog = Catalog::load(&[]).unwrap();
+        for entry in catalog.entries() {
+            let Some(sn) = entry.sensor.command_with_role(Role::SerialNumber) else { continue };
+            let (one, other) = colliding_pair(Simulator::new(Arc::clone(&entry.sensor)));
+            let (a, b) = (one.registers().read(sn.address, sn.count), other.registers().read(sn.address, sn.count));
+            let anded: Vec<u8> = a.iter().zip(&b).map(|(x, y)| x & y).collect();
+            assert!(anded != a && anded != b, "{}: {a:?} / {b:?}", entry.sensor.name);
+        }
     }
 }

@@ -31,6 +31,15 @@
 //! byte is released only when it would have finished on the line. A
 //! benchmark against a served simulator then sees the wire limit (about 25
 //! ms per get_ph at 9600 baud).
+//!
+//! # Line faults
+//!
+//! Faults of the line rather than of the device, for diagnosing a link:
+//! [`ServeConfig::echo`] writes every request back, as an RS-485 adapter
+//! without echo suppression does; [`ServeConfig::turnaround`] holds every
+//! reply back; [`ServeConfig::settings`] gives the device serial settings
+//! of its own, and on a pty a client at other settings reads garbage (see
+//! the `line` module).
 
 use std::fmt;
 use std::io;
@@ -41,10 +50,12 @@ use std::thread::{self, JoinHandle};
 use std::time::{Duration, Instant};
 
 use yosemitech_rtu::frame::MAX_ADU;
-use yosemitech_rtu::{Function, LineTiming, MemoryTransport, TcpTransport, Transport, crc_ok};
+use yosemitech_rtu::{Function, LineSettings, LineTiming, MemoryTransport, TcpTransport, Transport, crc_ok};
 
 use crate::FrameHandler;
+use crate::fault::Rng;
 
+mod line;
 mod mbap;
 
 pub use mbap::serve_mbap;
@@ -69,6 +80,21 @@ pub struct ServeConfig {
     /// How often the server thread checks for [`Server::stop`] while idle.
     /// Default 20 ms.
     pub poll_interval: Duration,
+    /// Write every request back as it arrives, before any reply, as an
+    /// RS-485 adapter without echo suppression does. Default off.
+    pub echo: bool,
+    /// How long the device waits after a request before it answers (its
+    /// turnaround), on top of any line timing. Default zero.
+    pub turnaround: Duration,
+    /// The serial settings the device runs at. On a pty a client at another
+    /// baud rate, data-bit count or parity is not understood and reads
+    /// garbage (deterministic from [`ServeConfig::seed`]); stop bits do not
+    /// matter. Linux ptys drop the parity a client sets, so there a parity
+    /// mismatch goes unseen ([`pty_keeps_parity`]). `None` (the default):
+    /// any settings, as a pty has none.
+    pub settings: Option<LineSettings>,
+    /// Seed of the garbage of [`ServeConfig::settings`].
+    pub seed: u64,
 }
 
 impl ServeConfig {
@@ -85,6 +111,10 @@ impl Default for ServeConfig {
             inter_char_timeout: Duration::from_millis(50),
             silence: Duration::from_millis(5),
             poll_interval: Duration::from_millis(20),
+            echo: false,
+            turnaround: Duration::ZERO,
+            settings: None,
+            seed: 0,
         }
     }
 }
@@ -220,7 +250,7 @@ where
     D: FrameHandler + Send + 'static,
     T: Transport + Send + 'static,
 {
-    spawn(device, endpoint, move |device, stop| match serve_link(&mut link, device, stop, &config) {
+    spawn(device, endpoint, move |device, stop| match serve_link(&mut link, device, stop, &config, |_| None) {
         Err(e) if is_closed(&e) => Ok(()),
         other => other,
     })
@@ -253,7 +283,7 @@ where
             stream.set_nonblocking(false)?;
             let mut link = TcpTransport::from_stream(stream)?;
             // Any error ends this connection only.
-            let _ = serve_link(&mut link, device, stop, &config);
+            let _ = serve_link(&mut link, device, stop, &config, |_| None);
         }
         Ok(())
     })
@@ -295,16 +325,39 @@ pub fn serve_pty<D: FrameHandler + Send + 'static>(device: D, config: ServeConfi
     use serialport::SerialPort;
     use yosemitech_rtu::{SerialConfig, SerialTransport};
 
-    let (master, slave) = {
+    let (master, mut slave) = {
         let _guard = PTY.lock().unwrap_or_else(PoisonError::into_inner);
         serialport::TTYPort::pair().map_err(io::Error::from)?
     };
     let path = slave.name().ok_or_else(|| io::Error::other("the pty has no slave path"))?;
+    let keeps_parity = line::keeps_parity(&mut slave, &master);
     let mut link = SerialTransport::from_tty(master, &SerialConfig::new(path.clone()));
     spawn(device, Endpoint::Pty(path), move |device, stop| {
         let _slave = slave;
-        serve_link(&mut link, device, stop, &config)
+        serve_link(&mut link, device, stop, &config, |link| {
+            let client = line::settings_of(link.port())?;
+            // A parity the pty does not keep is taken to be the device's own.
+            Some(match config.settings {
+                Some(own) if !keeps_parity => LineSettings {
+                    format: yosemitech_rtu::CharFormat { parity: own.format.parity, ..client.format },
+                    ..client
+                },
+                _ => client,
+            })
+        })
     })
+}
+
+/// True when this system's pseudo-terminals keep the parity a client sets,
+/// so that a served device with [`ServeConfig::settings`] can tell a client
+/// at another parity (Linux ptys clear it).
+#[cfg(all(unix, feature = "pty"))]
+pub fn pty_keeps_parity() -> bool {
+    let pair = {
+        let _guard = PTY.lock().unwrap_or_else(PoisonError::into_inner);
+        serialport::TTYPort::pair()
+    };
+    pair.is_ok_and(|(master, mut slave)| line::keeps_parity(&mut slave, &master))
 }
 
 /// Closed-link errors: the peer went away.
@@ -318,21 +371,37 @@ fn is_closed(e: &io::Error) -> bool {
     )
 }
 
-/// Reads requests from `link` and answers them until `stop` is set.
+/// Reads requests from `link` and answers them until `stop` is set;
+/// `client_settings` tells the settings the client set, where the link can.
 fn serve_link<T: Transport, D: FrameHandler>(
     link: &mut T,
     device: &Mutex<D>,
     stop: &AtomicBool,
     config: &ServeConfig,
+    client_settings: impl Fn(&T) -> Option<LineSettings>,
 ) -> io::Result<()> {
     let mut frame = [0u8; MAX_REQUEST];
     let mut reply = Vec::with_capacity(2 * MAX_ADU);
+    let mut rng = Rng::new(config.seed);
     while !stop.load(Ordering::Acquire) {
         let Some(request) = read_request(link, &mut frame, config)? else { continue };
         let (request, first_at) = request;
         let request = frame.get(..request).unwrap_or(&[]);
+        if config.echo {
+            link.write_all(request)?;
+        }
         reply.clear();
-        let delay = lock(device).handle(request, &mut reply);
+        let mismatch = config
+            .settings
+            .and_then(|own| client_settings(link).filter(|&client| !line::compatible(client, own)).map(|c| (c, own)));
+        let delay = match mismatch {
+            Some((client, own)) => {
+                reply.extend(line::garbage(&mut rng, request.len(), client, own));
+                Duration::ZERO
+            }
+            None => lock(device).handle(request, &mut reply),
+        };
+        let delay = delay + config.turnaround;
         if !crc_ok(request) {
             drain(link, config.silence)?;
         }
