@@ -41,6 +41,7 @@
 #![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used, clippy::panic))]
 
 mod config;
+pub mod home_assistant;
 pub mod message;
 mod outbox;
 mod publisher;

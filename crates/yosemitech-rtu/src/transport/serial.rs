@@ -111,7 +111,10 @@ impl SerialTransport {
             .open()
             .map_err(|e| {
                 let e = io::Error::from(e);
-                io::Error::new(e.kind(), format!("cannot open serial port {} at {} baud: {e}", config.path, config.baud))
+                io::Error::new(
+                    e.kind(),
+                    format!("cannot open serial port {} at {} baud: {e}", config.path, config.baud),
+                )
             })?;
         Ok(Self::from_port(port, config))
     }
