@@ -32,6 +32,7 @@ pub struct Station {
     /// The simulated bus; serves until dropped.
     bus: Server<Bus>,
     /// The probes' addresses, in the order of their `p0`, `p1`, ... labels.
+    #[allow(dead_code)] // only the tests of a probe going silent use it
     pub addresses: Vec<u8>,
     /// The SQLite store the station file names.
     pub db: PathBuf,
