@@ -16,6 +16,7 @@ use std::time::Duration;
 
 use serde_json::Value;
 use station::{Station, command, terminate};
+use yosemitech_spec::units;
 use yosemitech_station::outbox::message;
 use yosemitech_station::{Store, StoredReading};
 use yosemitech_tests::broker::{Broker, BrokerKind, Subscriber, available, rumqttd_child_main, wait_until};
@@ -64,6 +65,27 @@ const SENSOR_KEYS: &[&str] = &[
     "suggested_display_precision",
     "unique_id",
     "unit_of_measurement",
+    "value_template",
+];
+/// Keys of an MQTT binary sensor's discovery config
+/// (<https://www.home-assistant.io/integrations/binary_sensor.mqtt/>) this
+/// station's own entity may use.
+const BINARY_SENSOR_KEYS: &[&str] = &[
+    "availability",
+    "availability_topic",
+    "device",
+    "device_class",
+    "enabled_by_default",
+    "entity_category",
+    "expire_after",
+    "icon",
+    "name",
+    "off_delay",
+    "payload_off",
+    "payload_on",
+    "qos",
+    "state_topic",
+    "unique_id",
     "value_template",
 ];
 const DEVICE_KEYS: &[&str] = &[
@@ -240,6 +262,14 @@ fn home_assistant_discovery(kind: BrokerKind) {
     let station_configs: Vec<&Value> =
         configs.iter().filter(|(t, _)| t.contains("/binary_sensor/")).map(|(_, c)| c).collect();
     assert_eq!(station_configs.len(), 1, "{kind:?}: the station's own entity");
+    let station_config = station_configs[0].as_object().unwrap();
+    for key in station_config.keys() {
+        assert!(BINARY_SENSOR_KEYS.contains(&key.as_str()), "{kind:?}: {key} is not a key of an MQTT binary sensor");
+    }
+    assert_eq!(station_configs[0]["device_class"], "connectivity", "{kind:?}");
+    for key in ["unique_id", "state_topic", "payload_on", "payload_off"] {
+        assert!(station_configs[0][key].is_string(), "{kind:?}: station config {key}");
+    }
     let station_device = &station_configs[0]["device"]["identifiers"][0];
     let sensors: Vec<(&String, &Value)> = configs.iter().filter(|(t, _)| t.contains("/sensor/")).collect();
     assert_eq!(sensors.len(), total, "{kind:?}: one config per quantity");
@@ -262,7 +292,13 @@ fn home_assistant_discovery(kind: BrokerKind) {
         match (config.get("device_class"), config.get("unit_of_measurement"), &value.unit) {
             (None, unit, stored) => assert_eq!(unit.and_then(Value::as_str), stored.as_deref(), "{topic}: unit"),
             (Some(_), Some(_), None) => panic!("{topic}: a unit the reading does not have"),
-            (Some(_), _, _) => {}
+            // Home Assistant's spelling of the same unit (`°C` for `degC`).
+            (Some(_), Some(unit), Some(stored)) => {
+                let (ha, ours) = (units::lookup(unit.as_str().unwrap()), units::lookup(stored));
+                assert!(ha.is_some() && ha == ours, "{topic}: {unit} is not {stored}");
+            }
+            // Unitless classes (ph) of values whose unit names the quantity itself.
+            (Some(_), None, _) => {}
         }
         // The device: the probe's identity as stored.
         let device = &config["device"];

@@ -303,7 +303,10 @@ impl Tracker {
     /// until Home Assistant's user deletes them). Returns the tracker and
     /// the messages to publish at start: the station's config, and an empty
     /// retained config for every config announced earlier for a probe that
-    /// is not in `probes` any more.
+    /// is not in `probes` any more (or under other topics: another station
+    /// name or prefix). Those stay recorded and are cleared again at every
+    /// start, since nothing tells whether the broker got the empty configs
+    /// before this process ended; clearing twice does no harm.
     pub fn start(discovery: Discovery, file: &Path, probes: &[&str]) -> (Self, Vec<Retained>) {
         let announced: Announced = std::fs::read(file)
             .ok()
@@ -315,24 +318,14 @@ impl Tracker {
                 }
             })
             .unwrap_or_default();
-        let mut tracker = Self { discovery, file: file.to_owned(), announced, sent: BTreeMap::new() };
+        let tracker = Self { discovery, file: file.to_owned(), announced, sent: BTreeMap::new() };
         let mut messages = vec![tracker.discovery.station_config()];
-        let stale: Vec<String> = tracker
-            .announced
-            .probes
-            .iter()
-            .filter(|(label, topics)| {
-                let prefix = tracker.discovery.probe_config_prefix(label);
-                !probes.contains(&label.as_str()) || topics.iter().any(|t| !t.starts_with(&prefix))
-            })
-            .map(|(label, _)| label.clone())
-            .collect();
-        for label in stale {
-            if let Some(topics) = tracker.announced.probes.remove(&label) {
-                messages.extend(topics.into_iter().map(|topic| (topic, Vec::new())));
-            }
+        for (label, topics) in &tracker.announced.probes {
+            let prefix = tracker.discovery.probe_config_prefix(label);
+            let kept = probes.contains(&label.as_str());
+            let stale = topics.iter().filter(|topic| !kept || !topic.starts_with(&prefix));
+            messages.extend(stale.map(|topic| (topic.clone(), Vec::new())));
         }
-        tracker.save();
         (tracker, messages)
     }
 
@@ -443,9 +436,14 @@ mod tests {
         assert_eq!(cleared, [&discovery.config_topic("p", "b")]);
         tracker.observe(&reading("q", &["c"], None));
         drop(tracker);
-        let (_, at_restart) = Tracker::start(discovery.clone(), &file, &["p"]);
-        let cleared: Vec<&String> = at_restart.iter().filter(|(_, p)| p.is_empty()).map(|(t, _)| t).collect();
-        assert_eq!(cleared, [&discovery.config_topic("q", "c")]);
+        for _ in 0..2 {
+            let (_, at_restart) = Tracker::start(discovery.clone(), &file, &["p"]);
+            let cleared: Vec<&String> = at_restart.iter().filter(|(_, p)| p.is_empty()).map(|(t, _)| t).collect();
+            assert_eq!(cleared, [&discovery.config_topic("q", "c")], "cleared at every start");
+        }
+        let elsewhere = Discovery::new(&HomeAssistantConfig { prefix: "other".into() }, "t", "s");
+        let (_, moved) = Tracker::start(elsewhere, &file, &["p", "q"]);
+        assert_eq!(moved.iter().filter(|(_, p)| p.is_empty()).count(), 2, "every config under the old prefix");
     }
 
     fn tempfile_dir() -> PathBuf {
