@@ -41,6 +41,12 @@ use crate::outbox::Outbox;
 ///
 /// Each connection is a clean MQTT session (the broker keeps no state for
 /// the publisher): the outbox, not the broker, is the durable queue.
+///
+/// Beside the readings it can publish retained messages on the station's
+/// own topics ([`Publisher::publish_retained`]: Home Assistant discovery,
+/// states, availability) and keep the logger's availability on a status
+/// topic with an MQTT last will ([`Publisher::start_with_status`]). They
+/// take in-flight slots like readings and change nothing of the above.
 pub struct Publisher {
     shared: Arc<Shared>,
     stop: watch::Sender<Stop>,
