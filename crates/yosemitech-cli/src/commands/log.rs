@@ -120,8 +120,6 @@ pub fn run(catalog: &Catalog, args: &LogArgs, stop: &Arc<AtomicBool>, out: &mut 
             .hint("check `[storage] path`: its directory must exist and be writable")
     })?;
     let store = Mutex::new(store);
-    // The publisher drains the store from a connection of its own, in id
-    // order; it learns of each commit through `wake`.
     // Home Assistant discovery: what changed since the last run is
     // published first (the configs of probes removed from the file cleared).
     let (tracker, at_start) = match station.mqtt.as_ref().and_then(|m| Some((m, m.home_assistant.as_ref()?))) {
@@ -133,6 +131,9 @@ pub fn run(catalog: &Catalog, args: &LogArgs, stop: &Arc<AtomicBool>, out: &mut 
         }
         None => (None, Vec::new()),
     };
+    // The publisher drains the store from a connection of its own, in id
+    // order; it learns of each commit through `wake`, and takes the Home
+    // Assistant messages each commit brings.
     let publisher = match &station.mqtt {
         Some(mqtt) => {
             let outbox = Store::open(&station.storage)
