@@ -328,6 +328,7 @@ impl Broker {
                 reconnect_min_ms: 100,
                 reconnect_max_ms: 1000,
             },
+            home_assistant: None,
         }
     }
 

@@ -1,5 +1,6 @@
 //! `yosemitech log` and `export` as a field person runs them: the sample
-//! station file validates, a broken one is reported line by line, and a
+//! station file validates, a broken one is reported line by line (the
+//! `[mqtt]` and `[mqtt.home_assistant]` sections too), and a
 //! logger on a simulated bus stops cleanly on SIGTERM with every reading it
 //! announced committed to its SQLite file.
 
@@ -81,6 +82,20 @@ fn check_errors_carry_file_line_and_column() {
     let err = run.fails_with_hint(2);
     assert!(err.lines().any(|l| l.contains(&format!("{file}:")) && l.contains("[mqtt]")), "{err}");
     assert!(!err.contains("hunter2"), "{err}");
+
+    // The Home Assistant section: its prefix is checked like a topic
+    // prefix, a misspelt key refused, a good one shown by --check.
+    let mqtt = "[mqtt]\nhost = \"127.0.0.1\"\nclient_id = \"x\"\n";
+    for (section, refused) in [("prefix = \"home/#\"", "mqtt.home_assistant.prefix"), ("prefx = \"ha\"", "prefx")] {
+        std::fs::write(&path, format!("{head}\n{good_probe}{mqtt}[mqtt.home_assistant]\n{section}\n")).unwrap();
+        let run = yosemitech(&["log", "--config", path.to_str().unwrap(), "--check"]);
+        let err = run.fails_with_hint(2);
+        assert!(err.lines().any(|l| l.contains(&format!("{file}:")) && l.contains(refused)), "{err}");
+    }
+    std::fs::write(&path, format!("{head}\n{good_probe}{mqtt}[mqtt.home_assistant]\n")).unwrap();
+    let run = yosemitech(&["log", "--config", path.to_str().unwrap(), "--check"]);
+    let out = run.ok();
+    assert!(out.lines().any(|l| l.starts_with("home assistant: discovery under `homeassistant`")), "{out}");
 
     // A syntax error, located too.
     std::fs::write(&path, "station = \"s\"\n[storage\n").unwrap();

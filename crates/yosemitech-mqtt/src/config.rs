@@ -5,6 +5,7 @@ use std::time::Duration;
 
 use serde::Deserialize;
 
+use crate::home_assistant::HomeAssistantConfig;
 use crate::secret::Secret;
 use crate::topic;
 
@@ -60,6 +61,9 @@ pub struct MqttConfig {
     /// How the publisher paces itself.
     #[serde(default)]
     pub publisher: PublisherTuning,
+    /// Present: Home Assistant MQTT discovery (`[mqtt.home_assistant]`).
+    #[serde(default)]
+    pub home_assistant: Option<HomeAssistantConfig>,
 }
 
 fn default_keep_alive_secs() -> u16 {
@@ -160,6 +164,14 @@ pub enum ConfigError {
         /// Why it is refused.
         reason: &'static str,
     },
+    /// The Home Assistant discovery prefix cannot start a topic.
+    #[error("mqtt.home_assistant.prefix {prefix:?}: {reason}")]
+    DiscoveryPrefix {
+        /// The prefix as configured.
+        prefix: String,
+        /// Why it is refused.
+        reason: &'static str,
+    },
     /// A publisher tuning value is out of range.
     #[error("mqtt.publisher.{field}: {reason}")]
     Tuning {
@@ -255,6 +267,10 @@ impl MqttConfig {
         }
         topic::check_prefix(&self.topic_prefix)
             .map_err(|reason| ConfigError::TopicPrefix { prefix: self.topic_prefix.clone(), reason })?;
+        if let Some(home_assistant) = &self.home_assistant {
+            topic::check_prefix(&home_assistant.prefix)
+                .map_err(|reason| ConfigError::DiscoveryPrefix { prefix: home_assistant.prefix.clone(), reason })?;
+        }
         let tuning = &self.publisher;
         if !(1..=1000).contains(&tuning.max_in_flight) {
             return Err(ConfigError::Tuning { field: "max_in_flight", reason: "must be 1 to 1000" });

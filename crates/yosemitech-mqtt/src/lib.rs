@@ -5,8 +5,9 @@
 //! [`Outbox`]; a [`Publisher`] drains it to the broker in order with QoS 1
 //! and marks a reading published only after the broker's PUBACK. The topic
 //! layout is in [`topic`], the JSON payload in [`message`], the `[mqtt]`
-//! configuration in [`MqttConfig`]; `docs/mqtt.md` tells how stations,
-//! brokers and consumers fit together.
+//! configuration in [`MqttConfig`]; [`home_assistant`] announces a station's
+//! probes to Home Assistant (`[mqtt.home_assistant]`); `docs/mqtt.md` tells
+//! how stations, brokers and consumers fit together.
 //!
 //! ```no_run
 //! use yosemitech_mqtt::{MemoryOutbox, MqttConfig, Publisher, ReadingMessage, SCHEMA_VERSION};
@@ -41,6 +42,7 @@
 #![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used, clippy::panic))]
 
 mod config;
+pub mod home_assistant;
 pub mod message;
 mod outbox;
 mod publisher;

@@ -5,11 +5,12 @@ use std::sync::{Arc, Mutex, PoisonError};
 use std::thread::JoinHandle;
 use std::time::Duration;
 
-use rumqttc::{AsyncClient, ConnectionError, Event, MqttOptions, Outgoing, Packet, QoS, Transport};
+use rumqttc::{AsyncClient, ConnectionError, Event, LastWill, MqttOptions, Outgoing, Packet, QoS, Transport};
 use tokio::sync::{Notify, mpsc, watch};
 use tokio::time::Instant;
 
 use crate::config::{ConfigError, Credentials, MqttConfig, PublisherTuning};
+use crate::home_assistant::{OFFLINE, ONLINE, Retained};
 use crate::outbox::Outbox;
 
 /// Publishes the readings of an [`Outbox`] to the broker from a thread of
@@ -40,6 +41,12 @@ use crate::outbox::Outbox;
 ///
 /// Each connection is a clean MQTT session (the broker keeps no state for
 /// the publisher): the outbox, not the broker, is the durable queue.
+///
+/// Beside the readings it can publish retained messages on the station's
+/// own topics ([`Publisher::publish_retained`]: Home Assistant discovery,
+/// states, availability) and keep the logger's availability on a status
+/// topic with an MQTT last will ([`Publisher::start_with_status`]). They
+/// take in-flight slots like readings and change nothing of the above.
 pub struct Publisher {
     shared: Arc<Shared>,
     stop: watch::Sender<Stop>,
@@ -95,11 +102,33 @@ enum Stop {
 struct Shared {
     wake: Notify,
     status: Mutex<PublisherStatus>,
+    retained: Mutex<RetainedState>,
+}
+
+/// The retained messages of the station's own topics (Home Assistant
+/// discovery, states, availability): the last payload of each topic, sent
+/// again after every connection (a broker restarted without persistence
+/// has forgotten them), and those not yet sent on this connection.
+#[derive(Default)]
+struct RetainedState {
+    latest: Vec<Retained>,
+    pending: Vec<Retained>,
+}
+
+/// Puts `message` in `list`, replacing (and moving to the end) an earlier
+/// payload of its topic: only the last payload of a retained topic matters.
+fn replace_or_push(list: &mut Vec<Retained>, message: Retained) {
+    list.retain(|(topic, _)| *topic != message.0);
+    list.push(message);
 }
 
 impl Shared {
     fn update(&self, change: impl FnOnce(&mut PublisherStatus)) {
         change(&mut self.status.lock().unwrap_or_else(PoisonError::into_inner));
+    }
+
+    fn retained(&self) -> std::sync::MutexGuard<'_, RetainedState> {
+        self.retained.lock().unwrap_or_else(PoisonError::into_inner)
     }
 }
 
@@ -113,6 +142,9 @@ struct Settings {
     tls: Option<Arc<rustls::ClientConfig>>,
     credentials: Option<Credentials>,
     tuning: PublisherTuning,
+    /// The logger's availability topic: last will `offline`, `online` after
+    /// each connection, `offline` at a clean stop.
+    status_topic: Option<String>,
 }
 
 impl Publisher {
@@ -121,6 +153,21 @@ impl Publisher {
     /// connects in the background: an unreachable broker is not an error
     /// here, it is retried (see [`Publisher::status`]).
     pub fn start<O>(config: &MqttConfig, outbox: O) -> Result<Self, StartError>
+    where
+        O: Outbox + Send + 'static,
+    {
+        Self::start_with_status(config, outbox, None)
+    }
+
+    /// [`Publisher::start`], with the logger's availability on
+    /// `status_topic` (retained): `offline` as the MQTT last will (the
+    /// broker sends it when the connection dies) and at a clean stop,
+    /// `online` after each connection.
+    pub fn start_with_status<O>(
+        config: &MqttConfig,
+        outbox: O,
+        status_topic: Option<String>,
+    ) -> Result<Self, StartError>
     where
         O: Outbox + Send + 'static,
     {
@@ -136,6 +183,7 @@ impl Publisher {
             tls,
             credentials,
             tuning: config.publisher.clone(),
+            status_topic,
         };
         let runtime = tokio::runtime::Builder::new_current_thread().enable_all().build()?;
         let shared = Arc::new(Shared::default());
@@ -151,6 +199,22 @@ impl Publisher {
     /// the outbox now instead of at its next poll.
     pub fn wake(&self) {
         self.shared.wake.notify_one();
+    }
+
+    /// Publishes `messages` retained (QoS 1) on the station's own topics,
+    /// after the readings in flight and before the next ones; an empty
+    /// payload clears a topic. Each topic's last payload is sent again after
+    /// every reconnection. Nothing here is stored: a message is lost with
+    /// the process, and its sender announces it again at the next start.
+    pub fn publish_retained(&self, messages: impl IntoIterator<Item = Retained>) {
+        {
+            let mut retained = self.shared.retained();
+            for message in messages {
+                replace_or_push(&mut retained.latest, message.clone());
+                replace_or_push(&mut retained.pending, message);
+            }
+        }
+        self.wake();
     }
 
     /// What the publisher is doing now.
@@ -191,9 +255,10 @@ impl Drop for Publisher {
     }
 }
 
-/// A reading sent on the current connection.
+/// A message sent on the current connection.
 struct InFlight {
-    reading_id: i64,
+    /// The reading's id; `None` for a retained message of the station's own topics.
+    reading_id: Option<i64>,
     /// The MQTT packet id, once the client has sent the PUBLISH.
     packet_id: Option<u16>,
     acknowledged: bool,
@@ -256,6 +321,9 @@ impl<O: Outbox> Worker<O> {
         if let Some(credentials) = &settings.credentials {
             options.set_credentials(&credentials.username, credentials.password.expose());
         }
+        if let Some(topic) = &settings.status_topic {
+            options.set_last_will(LastWill::new(topic, OFFLINE, QoS::AtLeastOnce, true));
+        }
         if let Some(tls) = &settings.tls {
             options.set_transport(Transport::tls_with_config(rumqttc::TlsConfiguration::Rustls(Arc::clone(tls))));
         }
@@ -292,13 +360,17 @@ impl<O: Outbox> Worker<O> {
             match current_stop {
                 Stop::Abort => {
                     self.mark_acknowledged(&mut in_flight);
-                    break SessionEnd::Stopped(self.report(in_flight.len()));
+                    break SessionEnd::Stopped(self.report(readings_in(&in_flight)));
                 }
                 Stop::Drain(deadline) if in_flight.is_empty() || Instant::now() >= deadline => {
                     if connected {
+                        // A clean DISCONNECT cancels the last will: say it ourselves.
+                        if let Some(topic) = &self.settings.status_topic {
+                            let _ = client.try_publish(topic, QoS::AtLeastOnce, true, OFFLINE);
+                        }
                         disconnect(&client, &mut events, deadline).await;
                     }
-                    break SessionEnd::Stopped(self.report(in_flight.len()));
+                    break SessionEnd::Stopped(self.report(readings_in(&in_flight)));
                 }
                 _ => {}
             }
@@ -347,7 +419,7 @@ impl<O: Outbox> Worker<O> {
                 _ = stop.changed() => {}
                 () = tokio::time::sleep_until(drain_deadline) => {}
             }
-            let count = in_flight.len();
+            let count = readings_in(&in_flight);
             shared.update(|status| status.in_flight = count);
         };
         shared.update(|status| {
@@ -372,6 +444,12 @@ impl<O: Outbox> Worker<O> {
                     status.connections += 1;
                     status.last_error = None;
                 });
+                // A new connection: every retained topic again, the logger online first.
+                let mut retained = self.shared.retained();
+                retained.pending = retained.latest.clone();
+                if let Some(topic) = &self.settings.status_topic {
+                    retained.pending.insert(0, (topic.clone(), ONLINE.as_bytes().to_vec()));
+                }
             }
             // The client sends PUBLISHes in the order they were queued.
             Event::Outgoing(Outgoing::Publish(packet_id)) => {
@@ -382,7 +460,7 @@ impl<O: Outbox> Worker<O> {
             Event::Incoming(Packet::PubAck(ack)) => {
                 match in_flight.iter_mut().find(|entry| !entry.acknowledged && entry.packet_id == Some(ack.pkid)) {
                     Some(entry) => entry.acknowledged = true,
-                    None => tracing::warn!(packet_id = ack.pkid, "PUBACK for no reading in flight"),
+                    None => tracing::warn!(packet_id = ack.pkid, "PUBACK for no message in flight"),
                 }
             }
             _ => {}
@@ -402,11 +480,27 @@ impl<O: Outbox> Worker<O> {
         SessionEnd::Lost { was_connected: connected }
     }
 
-    /// Sends unpublished readings until `max_in_flight` are in flight.
+    /// Sends the retained messages waiting, then unpublished readings,
+    /// until `max_in_flight` are in flight.
     fn fill(&mut self, client: &AsyncClient, in_flight: &mut VecDeque<InFlight>) {
         let max_in_flight = usize::from(self.settings.tuning.max_in_flight);
+        {
+            let mut retained = self.shared.retained();
+            let mut sent = 0;
+            for (topic, payload) in &retained.pending {
+                if in_flight.len() >= max_in_flight
+                    || client.try_publish(topic, QoS::AtLeastOnce, true, payload.clone()).is_err()
+                {
+                    break;
+                }
+                in_flight.push_back(InFlight { reading_id: None, packet_id: None, acknowledged: false });
+                sent += 1;
+            }
+            retained.pending.drain(..sent);
+        }
+        let last_reading = |in_flight: &VecDeque<InFlight>| in_flight.iter().rev().find_map(|entry| entry.reading_id);
         while in_flight.len() < max_in_flight {
-            let after = in_flight.back().map(|entry: &InFlight| entry.reading_id).or(self.acked_up_to);
+            let after = last_reading(in_flight).or(self.acked_up_to);
             let limit = max_in_flight - in_flight.len();
             let batch = match self.outbox.unpublished(after, limit) {
                 Ok(batch) => batch,
@@ -420,7 +514,7 @@ impl<O: Outbox> Worker<O> {
             }
             for message in batch.into_iter().take(limit) {
                 if after.is_some_and(|after| message.reading_id <= after)
-                    || in_flight.back().is_some_and(|last| message.reading_id <= last.reading_id)
+                    || last_reading(in_flight).is_some_and(|last| message.reading_id <= last)
                 {
                     tracing::error!(
                         reading_id = message.reading_id,
@@ -448,7 +542,11 @@ impl<O: Outbox> Worker<O> {
                     // reading is not in flight and the next fill takes it again.
                     return;
                 }
-                in_flight.push_back(InFlight { reading_id: message.reading_id, packet_id: None, acknowledged: false });
+                in_flight.push_back(InFlight {
+                    reading_id: Some(message.reading_id),
+                    packet_id: None,
+                    acknowledged: false,
+                });
             }
         }
     }
@@ -456,10 +554,11 @@ impl<O: Outbox> Worker<O> {
     /// Marks the acknowledged prefix of `in_flight` published in the outbox.
     fn mark_acknowledged(&mut self, in_flight: &mut VecDeque<InFlight>) {
         let acknowledged = in_flight.iter().take_while(|entry| entry.acknowledged).count();
-        let Some(last) = acknowledged.checked_sub(1).and_then(|last| in_flight.get(last)) else {
+        let Some(up_to) = in_flight.iter().take(acknowledged).filter_map(|entry| entry.reading_id).next_back() else {
+            // Only retained messages (or nothing) acknowledged: no reading to mark.
+            in_flight.drain(..acknowledged);
             return;
         };
-        let up_to = last.reading_id;
         match self.outbox.mark_published(up_to) {
             Ok(()) => {
                 in_flight.drain(..acknowledged);
@@ -493,6 +592,11 @@ async fn disconnect(
             return;
         }
     }
+}
+
+/// The readings among the messages in flight.
+fn readings_in(in_flight: &VecDeque<InFlight>) -> usize {
+    in_flight.iter().filter(|entry| entry.reading_id.is_some()).count()
 }
 
 struct AbortOnDrop(tokio::task::JoinHandle<()>);

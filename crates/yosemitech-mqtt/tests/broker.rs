@@ -58,6 +58,7 @@ on_every_broker!(
     a_publisher_dropped_mid_run_is_resumed_by_a_new_one,
     a_publisher_shut_down_cleanly_hands_over_without_copies,
     authenticates_with_a_password_file,
+    retained_messages_and_the_last_will_go_beside_the_readings,
 );
 
 /// Pushes `count` readings, returning them with their ids.
@@ -100,6 +101,51 @@ fn delivers_every_reading_once_in_order_with_the_documented_topic_and_payload(ki
     assert_eq!(json["reading_id"], 1);
     assert_eq!(json["probe"], "left bank");
     assert_eq!(json["values"][1]["unit"], "°C");
+}
+
+/// Retained messages of the station's own topics (Home Assistant
+/// discovery) share the connection with the readings: each topic's last
+/// payload is what the broker retains, the readings still arrive once each
+/// in order and are all marked, the status topic says `online`, and a
+/// publisher that dies without a DISCONNECT leaves its last will `offline`.
+fn retained_messages_and_the_last_will_go_beside_the_readings(kind: BrokerKind) {
+    const COUNT: usize = 50;
+    let broker = Broker::start(kind, None);
+    let readings = Subscriber::start(&broker, ALL_READINGS);
+    let outbox = MemoryOutbox::new();
+    let status = "yosemitech/v1/river/status".to_owned();
+    let config = broker.config("station-retained", 4);
+    let publisher = Publisher::start_with_status(&config, outbox.clone(), Some(status.clone())).unwrap();
+    let own = |level: &str| format!("yosemitech/v1/river/own/{level}");
+    publisher.publish_retained([(own("a"), b"first".to_vec()), (own("b"), b"kept".to_vec())]);
+    let sent = push_readings(&outbox, 0..COUNT);
+    publisher.wake();
+    publisher.publish_retained([(own("a"), b"last".to_vec()), (own("c"), Vec::new())]);
+    assert!(
+        wait_until(|| readings.count() >= COUNT && outbox.published_up_to() == Some(COUNT as i64)),
+        "{kind:?}: the readings go on"
+    );
+    let ids: Vec<i64> = readings.received().iter().map(|r| r.message().reading_id).collect();
+    assert_eq!(ids, sent.iter().map(|m| m.reading_id).collect::<Vec<_>>(), "{kind:?}: once each, in order");
+
+    // What a subscriber arriving now gets: the retained messages only.
+    let retained = |subscriber: &Subscriber| -> std::collections::BTreeMap<String, Vec<u8>> {
+        subscriber.received().into_iter().map(|r| (r.topic, r.payload)).collect()
+    };
+    let late = Subscriber::start(&broker, "yosemitech/v1/river/#");
+    assert!(wait_until(|| retained(&late).len() >= 3), "{kind:?}: retained messages");
+    let got = retained(&late);
+    assert_eq!(got.get(&own("a")).map(Vec::as_slice), Some(&b"last"[..]), "{kind:?}: the last payload of a topic");
+    assert_eq!(got.get(&own("b")).map(Vec::as_slice), Some(&b"kept"[..]), "{kind:?}");
+    assert!(!got.contains_key(&own("c")), "{kind:?}: an empty payload retains nothing");
+    assert_eq!(got.get(&status).map(Vec::as_slice), Some(&b"online"[..]), "{kind:?}: online");
+
+    // Dropped: no DISCONNECT, so the broker sends the last will.
+    drop(publisher);
+    assert!(
+        wait_until(|| retained(&late).get(&status).map(Vec::as_slice) == Some(&b"offline"[..])),
+        "{kind:?}: the last will"
+    );
 }
 
 /// An outbox that offers nothing while closed: the test holds the publisher

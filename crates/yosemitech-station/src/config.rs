@@ -37,6 +37,7 @@
 //! # barometric_pressure = 98.2
 //!
 //! # [mqtt] ...                    # `yosemitech_mqtt::MqttConfig`: host, client_id, tls, credentials ...
+//! # [mqtt.home_assistant]        # Home Assistant MQTT discovery; prefix = "homeassistant" by default
 //! ```
 //!
 //! Every error names the file, line and column of the offending value and

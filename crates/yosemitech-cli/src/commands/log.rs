@@ -6,9 +6,10 @@ use std::sync::{Arc, Mutex, mpsc};
 use std::time::Duration;
 
 use yosemitech_mqtt::Publisher;
+use yosemitech_mqtt::home_assistant::{Discovery, Tracker};
 use yosemitech_station::config::{self, ConfigErrors, Link, StationConfig};
 use yosemitech_station::export::to_json;
-use yosemitech_station::outbox::StoreOutbox;
+use yosemitech_station::outbox::{StoreOutbox, message};
 use yosemitech_station::recovery::{RunMarker, UncleanStop};
 use yosemitech_station::{Store, StoredReading, logger, plan};
 
@@ -100,6 +101,14 @@ pub fn check(catalog: &Catalog, args: &LogArgs, out: &mut dyn Write) -> Result<(
             mqtt.client_id,
             mqtt.topic_prefix
         )?;
+        if let Some(home_assistant) = &mqtt.home_assistant {
+            writeln!(
+                out,
+                "home assistant: discovery under `{}`, announcements recorded in {}",
+                home_assistant.prefix,
+                announcements_file(&station).display()
+            )?;
+        }
     }
     writeln!(out, "ok")?;
     Ok(())
@@ -129,6 +138,13 @@ fn report_unclean_stop(store: &Store, previous: &UncleanStop, station: &StationC
     Ok(())
 }
 
+/// Where the Home Assistant configs announced are recorded: beside the store.
+fn announcements_file(station: &StationConfig) -> std::path::PathBuf {
+    let mut file = station.storage.clone().into_os_string();
+    file.push(".home-assistant.json");
+    file.into()
+}
+
 /// Runs `log` until `stop` (Ctrl-C, SIGTERM): one JSON line per committed reading on stdout.
 pub fn run(catalog: &Catalog, args: &LogArgs, stop: &Arc<AtomicBool>, out: &mut dyn Write) -> Result<()> {
     let station = load(catalog, args)?;
@@ -148,16 +164,32 @@ pub fn run(catalog: &Catalog, args: &LogArgs, stop: &Arc<AtomicBool>, out: &mut 
         store.set_max_size(bytes).map_err(|e| CliError::device(format!("cannot cap the store {storage}: {e}")))?;
     }
     let store = Mutex::new(store);
+    // Home Assistant discovery: what changed since the last run is
+    // published first (the configs of probes removed from the file cleared).
+    let (tracker, at_start) = match station.mqtt.as_ref().and_then(|m| Some((m, m.home_assistant.as_ref()?))) {
+        Some((mqtt, home_assistant)) => {
+            let discovery = Discovery::new(home_assistant, &mqtt.topic_prefix, &station.station);
+            let labels: Vec<&str> = station.probes().map(|(_, p)| p.label.as_str()).collect();
+            let (tracker, at_start) = Tracker::start(discovery, &announcements_file(&station), &labels);
+            (Some(Mutex::new(tracker)), at_start)
+        }
+        None => (None, Vec::new()),
+    };
     // The publisher drains the store from a connection of its own, in id
-    // order; it learns of each commit through `wake`.
+    // order; it learns of each commit through `wake`, and takes the Home
+    // Assistant messages each commit brings.
     let publisher = match &station.mqtt {
         Some(mqtt) => {
             let outbox = Store::open(&station.storage)
                 .map_err(|e| CliError::device(format!("cannot open the store {}: {e}", station.storage.display())))?;
-            Some(Publisher::start(mqtt, StoreOutbox(outbox)).map_err(|e| {
+            let status_topic =
+                tracker.as_ref().map(|t| t.lock().unwrap_or_else(std::sync::PoisonError::into_inner).status_topic());
+            let publisher = Publisher::start_with_status(mqtt, StoreOutbox(outbox), status_topic).map_err(|e| {
                 CliError::usage(format!("cannot start publishing: {e}"))
                     .hint("check the [mqtt] section of the station file")
-            })?)
+            })?;
+            publisher.publish_retained(at_start);
+            Some(publisher)
         }
         None => None,
     };
@@ -174,10 +206,17 @@ pub fn run(catalog: &Catalog, args: &LogArgs, stop: &Arc<AtomicBool>, out: &mut 
         let logger = scope.spawn(|| {
             let lines = lines;
             logger::run(&station, &store, stop, &|id, reading| {
+                let stored = StoredReading { id, reading: reading.clone() };
                 if let Some(p) = &publisher {
+                    if let Some(tracker) = &tracker {
+                        let message = message(&stored);
+                        p.publish_retained(
+                            tracker.lock().unwrap_or_else(std::sync::PoisonError::into_inner).observe(&message),
+                        );
+                    }
                     p.wake();
                 }
-                let _ = lines.send(to_json(&StoredReading { id, reading: reading.clone() }).to_string());
+                let _ = lines.send(to_json(&stored).to_string());
             })
         });
         for line in printed {

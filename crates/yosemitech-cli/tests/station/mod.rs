@@ -30,7 +30,10 @@ pub struct Station {
     /// Holds the store and the station file; removed on drop.
     dir: tempfile::TempDir,
     /// The simulated bus; serves until dropped.
-    _bus: Server<Bus>,
+    bus: Server<Bus>,
+    /// The probes' addresses, in the order of their `p0`, `p1`, ... labels.
+    #[allow(dead_code)] // only the tests of a probe going silent use it
+    pub addresses: Vec<u8>,
     /// The SQLite store the station file names.
     pub db: PathBuf,
     /// The station file's text: `station`, `[storage]`, one `[[bus]]` on
@@ -43,10 +46,18 @@ pub struct Station {
 impl Station {
     /// Two spec sensors with measurements, simulated at [`addresses`],
     /// logged by station `name` every `interval` (a station-file duration).
+    #[allow(dead_code)] // the test with three probes uses simulated_probes
     pub fn simulated(name: &str, interval: &str) -> Station {
+        Self::simulated_probes(name, interval, 2)
+    }
+
+    /// [`Station::simulated`] with `count` spec sensors (each a probe `p<i>`),
+    /// its probe sections last in [`Station::toml`].
+    pub fn simulated_probes(name: &str, interval: &str, count: usize) -> Station {
         let dir = tempfile::tempdir().unwrap();
         let sensors: Vec<Sensor> =
-            spec().sensors.iter().filter(|&s| !plan::measurements(s).is_empty()).take(2).cloned().collect();
+            spec().sensors.iter().filter(|&s| !plan::measurements(s).is_empty()).take(count).cloned().collect();
+        assert_eq!(sensors.len(), count, "the spec has {count} sensors with measurements");
         let addresses = addresses(&sensors);
         let bus = sensors
             .iter()
@@ -76,7 +87,15 @@ impl Station {
                 s.name
             );
         }
-        Station { dir, _bus: server, db, toml }
+        Station { dir, bus: server, db, addresses, toml }
+    }
+
+    /// Makes the probe at `address` stop answering (every reply dropped).
+    #[allow(dead_code)] // only the tests of a probe going silent use it
+    pub fn mute(&self, address: u8) {
+        let mut bus = self.bus.device();
+        let device = bus.device_mut(address).expect("a simulated probe at that address");
+        device.set_faults(yosemitech_sim::FaultConfig { drop: 1.0, ..yosemitech_sim::FaultConfig::none() });
     }
 
     /// Requests the simulated probes have answered or ignored so far.
