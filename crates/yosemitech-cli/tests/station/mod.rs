@@ -101,7 +101,7 @@ impl Station {
     /// Requests the simulated probes have answered or ignored so far.
     #[allow(dead_code)] // not every test binary of this module asks
     pub fn requests(&self) -> u64 {
-        self._bus.device().devices().iter().map(|d| d.stats().requests).sum()
+        self.bus.device().devices().iter().map(|d| d.stats().requests).sum()
     }
 
     /// Writes [`Station::toml`] beside the store; returns its path.
