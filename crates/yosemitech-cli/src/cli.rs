@@ -143,9 +143,9 @@ or now. Values that are not numbers (NaN) break a line. Fails (exit 1) when the 
 no reading, and (exit 2) for an unknown probe or measurement.")]
     Plot(PlotArgs),
 
-    /// Run a guided calibration.
-    #[command(subcommand)]
-    Calibrate(CalibrateSubcommand),
+    /// Run a guided calibration: any probe's K/B block, or the pH probe's own.
+    #[command(long_about = CALIBRATE_LONG_ABOUT)]
+    Calibrate(CalibrateArgs),
 
     /// Back up or restore every calibration coefficient of a probe (JSON).
     #[command(subcommand)]
@@ -353,7 +353,78 @@ pub struct MeasureArgs {
     pub inputs: InputArgs,
 }
 
-/// `calibrate`.
+const CALIBRATE_LONG_ABOUT: &str = "\
+`calibrate SENSOR --standard VALUE ...` calibrates a probe's user calibration block (the
+write with role `user_calibration`: final = K x raw + B) in standards of known value. Every
+coefficient is saved to a JSON file first (the calibration stops if it cannot be saved), then
+K = 1, B = 0 are written, and for each standard in turn: put the probe in it and press Enter
+(q quits), watch the readings until they are stable (the coefficient of variation over
+--window readings below --cv-threshold, after the spec's settling wait; Enter on a line
+accepts them as they are), and --readings readings are averaged (mean, SD, CV). One standard
+gives an offset (K = 1), two or more a least-squares line: K, B, each standard's residual and
+R² are shown, confirmed, written and read back bit for bit, and the probe is read once more
+through them. Stopping at any step (q, end of input, a device error, a failed read-back)
+writes the saved coefficients back and reads them back. --quantity FIELD names the measured
+field when the spec does not say what the block calibrates, or picks one of several blocks.
+
+`calibrate ph` is the pH manual's own three-point calibration (see `calibrate ph --help`).";
+
+/// `calibrate`: a subcommand, or the K/B calibration of a sensor.
+#[derive(Args, Debug)]
+#[command(args_conflicts_with_subcommands = true, subcommand_negates_reqs = true)]
+pub struct CalibrateArgs {
+    /// A calibration of its own.
+    #[command(subcommand)]
+    pub command: Option<CalibrateSubcommand>,
+    /// The K/B calibration.
+    #[command(flatten)]
+    pub linear: CalibrateLinearArgs,
+}
+
+/// `calibrate SENSOR`: the K/B calibration.
+#[derive(Args, Debug, Default)]
+pub struct CalibrateLinearArgs {
+    /// Sensor whose user calibration block to calibrate.
+    pub sensor: Option<String>,
+    #[command(flatten)]
+    pub port: PortArgs,
+    #[command(flatten)]
+    pub address: AddressArg,
+    /// A standard's value, in the calibrated field's unit, in the order the
+    /// probe goes into them; repeatable (one: an offset; two or more: a line).
+    #[arg(long = "standard", value_name = "VALUE", allow_negative_numbers = true)]
+    pub standards: Vec<f64>,
+    /// The measured field the block calibrates, where the spec does not say,
+    /// or to pick one of several blocks.
+    #[arg(long, value_name = "FIELD")]
+    pub quantity: Option<String>,
+    /// Readings averaged in each standard.
+    #[arg(long, value_name = "N", default_value_t = 5)]
+    pub readings: u32,
+    /// Time between two readings.
+    #[arg(long, value_name = "DURATION", default_value = "1s", value_parser = parse_duration)]
+    pub interval: Duration,
+    /// Readings the stability is judged over.
+    #[arg(long, value_name = "N", default_value_t = 10)]
+    pub window: u32,
+    /// Stable when the coefficient of variation over the window is below this, in percent.
+    #[arg(long, value_name = "PERCENT", default_value_t = 0.5)]
+    pub cv_threshold: f64,
+    /// Give up when the readings are not stable after this long (the calibration stops).
+    #[arg(long, value_name = "DURATION", default_value = "10m", value_parser = parse_duration)]
+    pub max_wait: Duration,
+    /// Do not wait for stable readings (nor the spec's settling time).
+    #[arg(long)]
+    pub skip_wait: bool,
+    /// Start and write without asking (the standard prompts still read stdin).
+    #[arg(short, long)]
+    pub yes: bool,
+    /// Where to save the coefficient backup [default: the current directory].
+    #[arg(long, value_name = "DIR")]
+    pub backup_dir: Option<PathBuf>,
+}
+
+/// `calibrate`'s own calibrations.
 #[derive(clap::Subcommand, Debug)]
 pub enum CalibrateSubcommand {
     /// Guided three-point pH calibration (buffers 4.00, 6.86, 9.18).

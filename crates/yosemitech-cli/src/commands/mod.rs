@@ -2,6 +2,7 @@
 
 pub mod calibrate;
 pub mod calibrate_electrode;
+pub mod calibrate_linear;
 pub mod coefficients;
 pub mod decode;
 pub mod demo;
@@ -58,7 +59,10 @@ pub fn run(cli: &Cli) -> Result<()> {
         Subcommand::Measure(args) => measure::run(&catalog, global, args, &mut out),
         Subcommand::Watch(args) => watch::run(args, &ctrl_c_flag()),
         Subcommand::Plot(args) => plot::run(args, &mut out),
-        Subcommand::Calibrate(CalibrateSubcommand::Ph(args)) => calibrate::run(&catalog, global, args, &mut out),
+        Subcommand::Calibrate(args) => match &args.command {
+            Some(CalibrateSubcommand::Ph(args)) => calibrate::run(&catalog, global, args, &mut out),
+            None => calibrate_linear::run(&catalog, global, &args.linear, &mut out),
+        },
         Subcommand::Coefficients(CoefficientsSubcommand::Backup(args)) => {
             coefficients::backup(&catalog, global, args, &mut out)
         }

@@ -1,0 +1,292 @@
+//! `yosemitech calibrate SENSOR`: the K/B calibration of every probe with a
+//! user calibration block, against simulated probes on pseudo-terminals
+//! sitting in standards whose raw reading is a known line of the standard.
+#![cfg(unix)]
+
+use std::io::{BufRead, BufReader, Write};
+use std::process::Stdio;
+use std::time::Duration;
+
+use yosemitech_sim::{FaultConfig, FaultKind, Simulator, Standard};
+use yosemitech_spec::{CommandSpec, Sensor, Value};
+use yosemitech_tests::cli::{Binary, Sim, serve, wait};
+use yosemitech_tests::spec;
+
+/// The binary under test.
+const YOSEMITECH: Binary = Binary(env!("CARGO_BIN_EXE_yosemitech"));
+
+/// The probe's own error in the tests: raw = (standard - B_TRUE) / K_TRUE.
+const K_TRUE: f64 = 1.08;
+const B_TRUE: f64 = -0.35;
+/// Noise on the raw reading, half-width: small enough that the mean of
+/// [`READINGS`] readings keeps K and B within 1e-3 of the truth.
+const NOISE: f64 = 2e-4;
+const READINGS: &str = "10";
+
+/// Every sensor's user calibration blocks that state the field they calibrate.
+fn stated_blocks() -> Vec<(Sensor, CommandSpec, String)> {
+    let mut out = Vec::new();
+    for sensor in &spec().sensors {
+        for (write, _) in sensor.user_calibrations() {
+            if let Some(c) = &write.calibrates {
+                out.push((sensor.clone(), write.clone(), c.field.clone()));
+            }
+        }
+    }
+    out
+}
+
+/// K and B as the probe holds them.
+fn held(s: &Sim<Simulator>, write: &CommandSpec) -> (f32, f32) {
+    let device = s.server.device();
+    let mut fields = write.named_fields().map(|f| match device.get(&write.name, f.display_name()) {
+        Ok(Value::Float(v)) => v,
+        other => panic!("{}.{}: {other:?}", write.name, f.display_name()),
+    });
+    (fields.next().unwrap(), fields.next().unwrap())
+}
+
+/// Sets K and B on the probe.
+fn hold(s: &Sim<Simulator>, write: &CommandSpec, k: f32, b: f32) {
+    let mut device = s.server.device();
+    let mut names = write.named_fields().map(|f| f.display_name().to_owned());
+    device.set(&write.name, &names.next().unwrap(), Value::Float(k)).unwrap();
+    device.set(&write.name, &names.next().unwrap(), Value::Float(b)).unwrap();
+}
+
+/// What a run printed and how it ended.
+struct Transcript {
+    code: i32,
+    stdout: String,
+    stderr: String,
+}
+
+/// Runs `calibrate` with `args`, moving the probe into each standard when
+/// the tool asks for it; `answer(i)` is the line typed at standard `i`'s
+/// prompt (`None`: close stdin there).
+fn drive(
+    s: &Sim<Simulator>,
+    field: &str,
+    write: &CommandSpec,
+    standards: &[f64],
+    args: &[&str],
+    answer: impl Fn(usize) -> Option<&'static str>,
+) -> Transcript {
+    let dir = tempfile::tempdir().unwrap();
+    let mut cmd = YOSEMITECH.command();
+    cmd.arg("calibrate")
+        .args(args)
+        .args(["-p", &s.path, "--yes", "--backup-dir"])
+        .arg(dir.path())
+        .args(["--readings", READINGS, "--interval", "0s", "--window", "3", "--cv-threshold", "5"])
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped());
+    for standard in standards {
+        cmd.arg(format!("--standard={standard}"));
+    }
+    let mut child = cmd.spawn().unwrap();
+    let mut stdin = child.stdin.take();
+    let stderr = {
+        let mut pipe = child.stderr.take().unwrap();
+        std::thread::spawn(move || {
+            let mut text = String::new();
+            let _ = std::io::Read::read_to_string(&mut pipe, &mut text);
+            text
+        })
+    };
+    let mut stdout = String::new();
+    let mut next = 0;
+    for line in BufReader::new(child.stdout.take().unwrap()).lines() {
+        let Ok(line) = line else { break };
+        stdout.push_str(&line);
+        stdout.push('\n');
+        if next < standards.len() && line.contains(&format!("standard {} of {}", next + 1, standards.len())) {
+            let standard = Standard { value: standards[next], k_true: K_TRUE, b_true: B_TRUE, noise: NOISE, seed: 7 };
+            s.server.device().immerse(Some((standard, field, &write.name))).unwrap();
+            match (answer(next), stdin.as_mut()) {
+                (Some(text), Some(pipe)) => {
+                    // The tool may have stopped already: a closed pipe is its answer.
+                    let _ = pipe.write_all(format!("{text}\n").as_bytes());
+                    let _ = pipe.flush();
+                }
+                _ => stdin = None,
+            }
+            next += 1;
+        }
+    }
+    drop(stdin);
+    let code = wait(&mut child, Duration::from_secs(120));
+    Transcript { code, stdout, stderr: stderr.join().unwrap() }
+}
+
+#[test]
+fn two_and_three_standards_find_the_probes_line() {
+    let blocks = stated_blocks();
+    assert!(blocks.len() > 1, "no sensor states what its calibration block calibrates");
+    for (sensor, write, field) in &blocks {
+        let several = sensor.user_calibrations().len() > 1;
+        for standards in [&[10.0, 100.0][..], &[10.0, 40.0, 100.0][..]] {
+            let s = serve(Simulator::new(sensor.clone()));
+            let mut args = vec![sensor.name.as_str()];
+            if several {
+                args.extend(["--quantity", field.as_str()]);
+            }
+            let run = drive(&s, field, write, standards, &args, |_| Some(""));
+            let context = format!("{} {field} {standards:?}:\n{}\n{}", sensor.name, run.stdout, run.stderr);
+            assert_eq!(run.code, 0, "{context}");
+            let (k, b) = held(&s, write);
+            assert!((f64::from(k) - K_TRUE).abs() < 1e-3, "K {k}: {context}");
+            assert!((f64::from(b) - B_TRUE).abs() < 1e-3, "B {b}: {context}");
+            // The steps the calibrator sheets prescribe, in order.
+            let order = ["saved every coefficient", "wrote K = 1, B = 0", "stable: CV", "readings: mean", "R² = "];
+            let at: Vec<Option<usize>> = order.iter().map(|n| run.stdout.find(n)).collect();
+            assert!(at.iter().all(Option::is_some), "{context}");
+            assert!(at.windows(2).all(|w| w[0] < w[1]), "{context}");
+            assert_eq!(run.stdout.matches("residual").count(), standards.len(), "{context}");
+            assert!(run.stdout.contains("written and read back"), "{context}");
+            // Read once more through the new K and B: the last standard, within the noise.
+            let error = yosemitech_tests::cli::number_after(&run.stdout, "the probe now reads");
+            let last = standards.last().unwrap();
+            assert!((error - last).abs() < 1e-2, "{context}");
+        }
+    }
+}
+
+#[test]
+fn one_standard_is_an_offset() {
+    let (sensor, write, field) = stated_blocks().into_iter().next().unwrap();
+    let several = sensor.user_calibrations().len() > 1;
+    let s = serve(Simulator::new(sensor.clone()));
+    let mut args = vec![sensor.name.as_str()];
+    if several {
+        args.extend(["--quantity", field.as_str()]);
+    }
+    let run = drive(&s, &field, &write, &[50.0], &args, |_| Some(""));
+    assert_eq!(run.code, 0, "{}\n{}", run.stdout, run.stderr);
+    let (k, b) = held(&s, &write);
+    assert_eq!(k, 1.0, "one standard keeps the slope");
+    let want = 50.0 - (50.0 - B_TRUE) / K_TRUE;
+    assert!((f64::from(b) - want).abs() < 1e-3, "B {b}, want {want}");
+    assert!(!run.stdout.contains("R² = "), "no R² for one standard:\n{}", run.stdout);
+}
+
+/// The sensor with the most coefficient blocks among those that state
+/// what a block calibrates: a restore there must leave every other block alone too.
+fn richest() -> (Sensor, CommandSpec, String) {
+    stated_blocks().into_iter().max_by_key(|(s, _, _)| s.coefficient_blocks().len()).unwrap()
+}
+
+/// Every coefficient the probe holds, bit for bit.
+fn every_coefficient(s: &Sim<Simulator>, sensor: &Sensor) -> Vec<(String, Vec<u8>)> {
+    let device = s.server.device();
+    sensor
+        .coefficient_blocks()
+        .into_iter()
+        .map(|(_, read)| (read.name.clone(), device.registers().read(read.address, read.count)))
+        .collect()
+}
+
+fn args_for<'a>(sensor: &'a Sensor, field: &'a str) -> Vec<&'a str> {
+    let mut args = vec![sensor.name.as_str(), "--quantity", field, "--timeout", "300ms", "--retries", "0"];
+    args.push("--skip-wait");
+    args
+}
+
+#[test]
+fn a_fault_at_any_step_leaves_the_coefficients_as_they_were() {
+    let (sensor, write, field) = richest();
+    let standards = [10.0, 100.0];
+    // The replies of a clean run: one fault is injected at each in turn.
+    let clean = serve(Simulator::new(sensor.clone()));
+    let run = drive(&clean, &field, &write, &standards, &args_for(&sensor, &field), |_| Some(""));
+    assert_eq!(run.code, 0, "{}\n{}", run.stdout, run.stderr);
+    let replies = clean.server.device().stats().replies;
+    assert!(replies > 10, "{replies} replies");
+    let mut failed = 0;
+    for n in 0..replies {
+        let mut script = vec![None; n as usize];
+        script.push(Some(FaultKind::Drop));
+        let s = serve(Simulator::new(sensor.clone()).with_faults(FaultConfig::scripted(script)));
+        hold(&s, &write, 1.25, 0.375);
+        let before = every_coefficient(&s, &sensor);
+        let run = drive(&s, &field, &write, &standards, &args_for(&sensor, &field), |_| Some(""));
+        let context = format!("fault at reply {n}:\n{}\n{}", run.stdout, run.stderr);
+        if run.code == 0 {
+            // Only a reply the calibration does without (the serial number) may be lost.
+            assert!(!run.stdout.contains("(SN "), "{context}");
+            continue;
+        }
+        failed += 1;
+        assert_eq!(run.code, 1, "{context}");
+        assert_eq!(every_coefficient(&s, &sensor), before, "{context}");
+        assert!(
+            run.stderr.contains("nothing was written") || run.stderr.contains("read back bit for bit"),
+            "{context}"
+        );
+    }
+    assert!(failed + 1 >= replies as usize, "{failed} of {replies} faults stopped the calibration");
+}
+
+#[test]
+fn stopping_at_any_standard_restores_the_coefficients() {
+    let (sensor, write, field) = richest();
+    let standards = [10.0, 40.0, 100.0];
+    for stop in 0..standards.len() {
+        for quit in [true, false] {
+            let s = serve(Simulator::new(sensor.clone()));
+            hold(&s, &write, 0.875, -1.5);
+            let before = every_coefficient(&s, &sensor);
+            let run = drive(&s, &field, &write, &standards, &args_for(&sensor, &field), |i| match i {
+                _ if i < stop => Some(""),
+                _ if quit => Some("q"),
+                _ => None,
+            });
+            let context = format!("stop at {stop}, q {quit}:\n{}\n{}", run.stdout, run.stderr);
+            assert_eq!(run.code, 1, "{context}");
+            let why = if quit { "stopped by the user" } else { "stdin ended" };
+            assert!(run.stderr.contains(why), "{context}");
+            assert!(run.stderr.contains("read back bit for bit"), "{context}");
+            assert_eq!(every_coefficient(&s, &sensor), before, "{context}");
+            assert_eq!(held(&s, &write), (0.875, -1.5), "{context}");
+        }
+    }
+}
+
+#[test]
+fn a_backup_that_cannot_be_saved_stops_before_any_write() {
+    let (sensor, write, field) = richest();
+    let s = serve(Simulator::new(sensor.clone()));
+    let args = ["calibrate", &sensor.name, "--quantity", &field, "-p", &s.path, "--yes", "--standard", "5"];
+    let run = YOSEMITECH.run_with_input(&[&args[..], &["--backup-dir", "/nonexistent/dir"]].concat(), "\n");
+    assert!(run.fails(1).contains("nothing was written"), "{}", run.stderr);
+    assert_eq!(s.server.device().stats().writes, 0);
+    assert_eq!(held(&s, &write), (1.0, 0.0), "the manual's defaults, untouched");
+}
+
+#[test]
+fn misuse_is_a_usage_error() {
+    let (sensor, _, field) = richest();
+    // No standard: the hint names how to give them.
+    YOSEMITECH.run(&["calibrate", &sensor.name, "--quantity", &field, "-p", "/dev/null"]).fails_with_hint(2);
+    // An unknown field.
+    YOSEMITECH.run(&["calibrate", &sensor.name, "--quantity", "no_such_field", "--standard", "1"]).fails_with_hint(2);
+    // No sensor at all.
+    YOSEMITECH.run(&["calibrate", "--standard", "1"]).fails_with_hint(2);
+    // Bad numbers.
+    for bad in [["--readings", "0"], ["--window", "1"], ["--cv-threshold", "0"]] {
+        let args = ["calibrate", &sensor.name, "--quantity", &field, "--standard", "1", bad[0], bad[1]];
+        YOSEMITECH.run(&args).fails(2);
+    }
+    for s in &spec().sensors {
+        let blocks = s.user_calibrations();
+        let run = YOSEMITECH.run(&["calibrate", &s.name, "--standard", "1", "--yes"]);
+        if blocks.is_empty() {
+            // A sensor without a K/B block.
+            assert!(run.fails_with_hint(2).contains("no user calibration block"), "{}", run.stderr);
+        } else if blocks.len() > 1 || blocks[0].0.calibrates.is_none() {
+            // Several blocks, or one the spec does not say the field of: --quantity, asked for.
+            assert!(run.fails_with_hint(2).contains("--quantity"), "{}: {}", s.name, run.stderr);
+        }
+    }
+}
