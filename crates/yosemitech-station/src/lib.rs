@@ -17,6 +17,7 @@
 //! loaded spec (`yosemitech_spec`).
 #![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used, clippy::panic))]
 
+pub mod calibration;
 pub mod config;
 pub mod derive;
 pub mod export;
@@ -28,4 +29,5 @@ pub mod store;
 pub mod time;
 pub mod units;
 
+pub use calibration::{Calibration, StoredCalibration};
 pub use store::{Datum, Measurement, Reading, Store, StoreError, StoredReading};

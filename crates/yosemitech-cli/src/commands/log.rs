@@ -127,7 +127,8 @@ pub fn run(catalog: &Catalog, args: &LogArgs, stop: &Arc<AtomicBool>, out: &mut 
                 if let Some(p) = &publisher {
                     p.wake();
                 }
-                let _ = lines.send(to_json(&StoredReading { id, reading: reading.clone() }).to_string());
+                let _ = lines
+                    .send(to_json(&StoredReading { id, reading: reading.clone(), calibration_id: None }).to_string());
             })
         });
         for line in printed {
