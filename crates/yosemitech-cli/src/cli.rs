@@ -422,6 +422,55 @@ pub struct CalibrateLinearArgs {
     /// Where to save the coefficient backup [default: the current directory].
     #[arg(long, value_name = "DIR")]
     pub backup_dir: Option<PathBuf>,
+    #[command(flatten)]
+    pub history: HistoryArgs,
+}
+
+/// Where the calibration history is kept, and the note a calibration adds to it.
+#[derive(Args, Debug, Default, Clone)]
+pub struct HistoryArgs {
+    /// Keep the history in this station's store (its readings then name the
+    /// calibration in force).
+    #[arg(long, value_name = "STATION_TOML", conflicts_with = "history")]
+    pub config: Option<PathBuf>,
+    /// The history file [default: calibrations.sqlite in $XDG_DATA_HOME/yosemitech or ~/.local/share/yosemitech].
+    #[arg(long, value_name = "FILE")]
+    pub history: Option<PathBuf>,
+    /// The operator's note, kept with the calibration.
+    #[arg(long, value_name = "TEXT")]
+    pub note: Option<String>,
+}
+
+/// `calibrate history`.
+#[derive(Args, Debug)]
+pub struct CalibrateHistoryArgs {
+    /// Only the calibrations of the probe with this serial number.
+    #[arg(long, value_name = "SN")]
+    pub sn: Option<String>,
+    /// Print every calibration, with all its readings, as one JSON array.
+    #[arg(long)]
+    pub json: bool,
+    #[command(flatten)]
+    pub history: HistoryArgs,
+}
+
+/// `calibrate restore`.
+#[derive(Args, Debug)]
+pub struct CalibrateRestoreArgs {
+    /// The calibration to write back (`calibrate history` lists the ids).
+    pub id: i64,
+    #[command(flatten)]
+    pub port: PortArgs,
+    #[command(flatten)]
+    pub address: AddressArg,
+    /// Write without asking.
+    #[arg(short, long)]
+    pub yes: bool,
+    /// Where to save the coefficient backup [default: the current directory].
+    #[arg(long, value_name = "DIR")]
+    pub backup_dir: Option<PathBuf>,
+    #[command(flatten)]
+    pub history: HistoryArgs,
 }
 
 /// `calibrate`'s own calibrations.
@@ -436,6 +485,20 @@ Enter (q quits), wait for it to settle (a minute; a progress bar shows it; Enter
 terminal or --skip-wait skips), and the buffer's pH is written. Finally the probe's
 calibration status is read and explained.")]
     Ph(CalibratePhArgs),
+    /// List the calibrations recorded (every `calibrate` records its own).
+    #[command(long_about = "\
+List the calibrations recorded: id, time, sensor, serial number, kind, the coefficients
+written and the note. --json prints everything kept, every reading taken and the fit
+included. The history is the station's store with --config, the file --history names, or
+calibrations.sqlite in the user's data directory.")]
+    History(CalibrateHistoryArgs),
+    /// Write the coefficients of an earlier calibration back to its probe.
+    #[command(long_about = "\
+Write the coefficients an earlier calibration wrote (`calibrate history` lists the ids) back
+to the probe: the probe's serial number must be the calibration's, every coefficient is saved
+to a JSON file first, the write is confirmed (--yes), read back bit for bit, and recorded
+in the history as a calibration of kind `restore`.")]
+    Restore(CalibrateRestoreArgs),
 }
 
 /// `calibrate ph`.
@@ -468,6 +531,8 @@ pub struct CalibratePhArgs {
     /// With --compute: print the readings and the coefficients as JSON.
     #[arg(long)]
     pub json: bool,
+    #[command(flatten)]
+    pub history: HistoryArgs,
 }
 
 /// `coefficients`.

@@ -34,6 +34,7 @@ mod device;
 mod error;
 mod format;
 mod help;
+mod history;
 mod port;
 mod progress;
 mod readings;

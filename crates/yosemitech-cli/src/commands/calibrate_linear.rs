@@ -19,6 +19,9 @@ use std::time::{Duration, Instant};
 use yosemitech::procedures::linear::{self, LinearFit, ReadingStats, StandardReading};
 use yosemitech_spec::{CommandSpec, Sensor, Value};
 
+use serde_json::{Map, json};
+use yosemitech_station::Calibration;
+
 use super::calibrate::stdin_lines;
 use crate::backup::{self, Backup};
 use crate::catalog::Catalog;
@@ -26,6 +29,8 @@ use crate::cli::{CalibrateLinearArgs, Global};
 use crate::confirm::{confirm, ensure_can_ask};
 use crate::device;
 use crate::error::{CliError, Result, show_duration};
+use crate::format::f32_json;
+use crate::history::{self, Probe};
 use crate::port::{self, Opened};
 
 /// The block a calibration writes and the measured field it applies to.
@@ -383,6 +388,47 @@ impl Session<'_, '_> {
     }
 }
 
+/// The history's record of a finished calibration.
+fn record_of(
+    probe: &Probe<'_>,
+    target: &Target<'_>,
+    args: &CalibrateLinearArgs,
+    before: &BTreeMap<String, f32>,
+    outcome: &Outcome,
+) -> Result<Calibration> {
+    let mut record = probe.record("linear", args.history.note.as_deref());
+    let block = target.write.name.clone();
+    let (k_name, b_name) = target.names()?;
+    let (k, b) = outcome.written;
+    record.block = Some(block.clone());
+    record.before = json!({ &block: before.iter().map(|(n, v)| (n.clone(), f32_json(*v))).collect::<Map<_, _>>() });
+    record.after = json!({ &block: { k_name: f32_json(k), b_name: f32_json(b) } });
+    record.standards = json!(args.standards);
+    record.readings = json!(
+        outcome
+            .runs
+            .iter()
+            .map(|r| json!({
+                "standard": r.standard,
+                "field": target.field,
+                "settling": r.settling,
+                "readings": r.readings,
+                "mean": r.stats.mean,
+                "sd": r.stats.sd,
+                "cv_percent": r.stats.cv_percent,
+            }))
+            .collect::<Vec<_>>()
+    );
+    record.fit = Some(json!({
+        "k": outcome.fit.k,
+        "b": outcome.fit.b,
+        "residuals": outcome.fit.residuals,
+        "r_squared": outcome.fit.r_squared,
+        "check": {"standard": args.standards.last(), "mean": outcome.check.mean, "sd": outcome.check.sd},
+    }));
+    Ok(record)
+}
+
 /// Runs `calibrate SENSOR`.
 pub fn run(catalog: &Catalog, global: &Global, args: &CalibrateLinearArgs, out: &mut dyn Write) -> Result<()> {
     let Some(name) = args.sensor.as_deref() else {
@@ -394,8 +440,11 @@ pub fn run(catalog: &Catalog, global: &Global, args: &CalibrateLinearArgs, out: 
     check_args(args, &target)?;
     let slave = args.address.get(entry.sensor.default_address)?;
     ensure_can_ask(args.yes, "calibrate")?;
+    // The history opens before anything is written: a calibration is always recorded.
+    let (mut store, history_file) = history::open(catalog, &args.history)?;
     let mut opened = port::open(&args.port, global, &entry.sensor.serial)?;
-    let serial_number = backup::serial_number(&mut opened, entry, slave);
+    let identity = history::identity(&mut opened, entry, slave);
+    let serial_number = identity.0.clone();
     let unit = target.unit.as_deref().map(|u| format!(" {u}")).unwrap_or_default();
     writeln!(
         out,
@@ -433,8 +482,11 @@ pub fn run(catalog: &Catalog, global: &Global, args: &CalibrateLinearArgs, out: 
 
     let mut session = Session { opened: &mut opened, slave, target: &target, args, input: stdin_lines(), out };
     match session.run() {
-        Ok(_outcome) => {
+        Ok(outcome) => {
             writeln!(out, "calibrated; the previous coefficients restore with: {restore}")?;
+            let probe = Probe { entry, address: slave, port: opened.port.clone(), identity };
+            let record = record_of(&probe, &target, args, &before, &outcome)?;
+            history::record(&mut store, &history_file, &record, out)?;
             Ok(())
         }
         Err(e) => {

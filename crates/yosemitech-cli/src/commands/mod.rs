@@ -3,6 +3,7 @@
 pub mod calibrate;
 pub mod calibrate_electrode;
 pub mod calibrate_linear;
+pub mod calibration_history;
 pub mod coefficients;
 pub mod decode;
 pub mod demo;
@@ -61,6 +62,8 @@ pub fn run(cli: &Cli) -> Result<()> {
         Subcommand::Plot(args) => plot::run(args, &mut out),
         Subcommand::Calibrate(args) => match &args.command {
             Some(CalibrateSubcommand::Ph(args)) => calibrate::run(&catalog, global, args, &mut out),
+            Some(CalibrateSubcommand::History(args)) => calibration_history::list(&catalog, args, &mut out),
+            Some(CalibrateSubcommand::Restore(args)) => calibration_history::restore(&catalog, global, args, &mut out),
             None => calibrate_linear::run(&catalog, global, &args.linear, &mut out),
         },
         Subcommand::Coefficients(CoefficientsSubcommand::Backup(args)) => {
