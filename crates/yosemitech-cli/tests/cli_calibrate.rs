@@ -396,3 +396,71 @@ fn two_calibrations_are_listed_exported_and_the_first_restored() {
     assert!(run.fails_with_hint(2).contains("is of probe"), "{}", run.stderr);
     assert_eq!(other.server.device().stats().writes, writes);
 }
+
+/// Runs `yosemitech log --config` until it has announced `n` readings, then stops it.
+fn log_readings(config: &str, n: usize) {
+    let mut child = YOSEMITECH
+        .command()
+        .args(["log", "--config", config])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let mut lines = BufReader::new(child.stdout.take().unwrap()).lines();
+    for _ in 0..n {
+        assert!(lines.next().is_some_and(|l| l.is_ok()), "the logger announced a reading");
+    }
+    let pid = child.id().to_string();
+    assert!(std::process::Command::new("kill").args(["-TERM", &pid]).status().unwrap().success());
+    assert_eq!(wait(&mut child, Duration::from_secs(30)), 0, "SIGTERM stops the logger cleanly");
+}
+
+#[test]
+fn a_station_run_names_the_calibration_in_force() {
+    let (sensor, write, field) = single_block();
+    let s = serve(Simulator::new(sensor.clone()));
+    let dir = tempfile::tempdir().unwrap();
+    let db = dir.path().join("station.sqlite");
+    let config = dir.path().join("station.toml");
+    std::fs::write(
+        &config,
+        format!(
+            "station = \"s\"\n[storage]\npath = \"{}\"\n[[bus]]\nname = \"a\"\nport = \"{}\"\n\
+             [[bus.probe]]\nlabel = \"p\"\nsensor = \"{}\"\naddress = {}\ninterval = \"100ms\"\nprocedure = false\n",
+            db.display(),
+            s.path,
+            sensor.name,
+            sensor.default_address
+        ),
+    )
+    .unwrap();
+    let config = config.to_str().unwrap();
+    log_readings(config, 3);
+    // Calibrated with the station's file: the calibration goes into its store.
+    let run = drive(&s, &field, &write, &[10.0, 100.0], &[sensor.name.as_str(), "--config", config], |_| Some(""));
+    assert_eq!(run.code, 0, "{}\n{}", run.stdout, run.stderr);
+    assert!(run.stdout.contains(&format!("recorded as calibration 1 in {}", db.display())), "{}", run.stdout);
+    log_readings(config, 3);
+
+    let store = yosemitech_station::Store::open(&db).unwrap();
+    let recorded = store.calibrations(None).unwrap();
+    assert_eq!(recorded.len(), 1);
+    let calibration = &recorded[0];
+    let readings = store.range(std::time::UNIX_EPOCH, std::time::SystemTime::now()).unwrap();
+    assert!(readings.len() >= 6, "{} readings", readings.len());
+    let (before, after): (Vec<_>, Vec<_>) =
+        readings.iter().partition(|r| r.reading.timestamp < calibration.calibration.timestamp);
+    assert!(before.len() >= 3 && after.len() >= 3, "{} before, {} after", before.len(), after.len());
+    for r in &before {
+        assert_eq!(r.calibration_id, None, "a reading before the calibration: {r:?}");
+    }
+    for r in &after {
+        assert_eq!(r.reading.serial_number, calibration.calibration.serial_number);
+        assert_eq!(r.calibration_id, Some(calibration.id), "a reading after the calibration: {r:?}");
+    }
+    // `export` carries it.
+    let run = YOSEMITECH.run(&["export", "--db", db.to_str().unwrap(), "--format", "jsonl"]);
+    let exported: Vec<serde_json::Value> = run.ok().lines().map(|l| serde_json::from_str(l).unwrap()).collect();
+    let named = exported.iter().filter(|r| r["calibration_id"] == calibration.id).count();
+    assert_eq!(named, after.len());
+}
