@@ -145,7 +145,7 @@ no reading, and (exit 2) for an unknown probe or measurement.")]
 
     /// Run a guided calibration: any probe's K/B block, or the pH probe's own.
     #[command(long_about = CALIBRATE_LONG_ABOUT)]
-    Calibrate(CalibrateArgs),
+    Calibrate(Box<CalibrateArgs>),
 
     /// Back up or restore every calibration coefficient of a probe (JSON).
     #[command(subcommand)]
