@@ -464,3 +464,48 @@ fn a_station_run_names_the_calibration_in_force() {
     let named = exported.iter().filter(|r| r["calibration_id"] == calibration.id).count();
     assert_eq!(named, after.len());
 }
+
+#[test]
+fn the_ph_calibrations_are_recorded_too() {
+    let sensor = yosemitech_tests::sensor(yosemitech_cli::calibrate_ph_sensor());
+    let s = serve(Simulator::new(sensor.clone()));
+    let dir = tempfile::tempdir().unwrap();
+    let history = dir.path().join("calibrations.sqlite");
+    let (history, backups) = (history.to_str().unwrap(), dir.path().to_str().unwrap());
+    let common = ["-p", s.path.as_str(), "--yes", "--backup-dir", backups, "--history", history];
+    let three_point = [&["calibrate", "ph", "--skip-wait", "--note", "three buffers"][..], &common].concat();
+    let out = YOSEMITECH.run_with_input(&three_point, "\n\n\n").ok().to_owned();
+    assert!(out.contains("recorded as calibration 1"), "{out}");
+    let csv = dir.path().join("buffers.csv");
+    std::fs::write(&csv, "buffer,mv,temperature_c\n4.00,172.5,21.0\n6.86,8.25,21.5\n9.18,-125.0,22.0\n").unwrap();
+    let compute = [&["calibrate", "ph", "--compute", "--readings", csv.to_str().unwrap()][..], &common].concat();
+    let out = YOSEMITECH.run(&compute).ok().to_owned();
+    assert!(out.contains("recorded as calibration 2"), "{out}");
+
+    let json = YOSEMITECH.run(&["calibrate", "history", "--history", history, "--json"]).json();
+    let all = json.as_array().unwrap();
+    let kinds: Vec<&str> = all.iter().map(|c| c["kind"].as_str().unwrap()).collect();
+    assert_eq!(kinds, ["ph_three_point", "ph_electrode"]);
+    assert_eq!(all[0]["note"], "three buffers");
+    // The three-point one keeps every block before and after; the computed one its readings.
+    assert_eq!(all[0]["after"].as_object().unwrap().len(), sensor.coefficient_blocks().len());
+    assert_eq!(all[1]["readings"].as_array().unwrap().len(), 3);
+    assert_eq!(all[1]["readings"][1]["mv"], 8.25);
+    let block = all[1]["block"].as_str().unwrap();
+    let written: Vec<f32> = sensor
+        .command(block)
+        .unwrap()
+        .named_fields()
+        .map(|f| match s.server.device().get(block, f.display_name()).unwrap() {
+            Value::Float(v) => v,
+            other => panic!("{other:?}"),
+        })
+        .collect();
+    let recorded: Vec<f32> = sensor
+        .command(block)
+        .unwrap()
+        .named_fields()
+        .map(|f| all[1]["after"][block][f.display_name()].as_f64().unwrap() as f32)
+        .collect();
+    assert_eq!(written, recorded, "the record holds what the probe holds");
+}
