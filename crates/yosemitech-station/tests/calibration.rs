@@ -22,10 +22,10 @@ fn calibration(serial_number: &str, secs: u64, k: f64) -> Calibration {
         address: 3,
         port: "/dev/ttyUSB0".into(),
         kind: "linear".into(),
-        block: Some("set_user_calibration".into()),
+        block: Some("set_coefficients".into()),
         note: Some("after cleaning, \"quoted\"".into()),
-        before: json!({"set_user_calibration": {"k_slope": 1.0, "b_offset": 0.0}}),
-        after: json!({"set_user_calibration": {"k_slope": k, "b_offset": -0.25}}),
+        before: json!({"set_coefficients": {"k_slope": 1.0, "b_offset": 0.0}}),
+        after: json!({"set_coefficients": {"k_slope": k, "b_offset": -0.25}}),
         standards: json!([10.0, 100.0]),
         readings: json!([{"standard": 10.0, "readings": [9.5, 9.6]}, {"standard": 100.0, "readings": [91.0]}]),
         fit: Some(json!({"k": k, "b": -0.25, "residuals": [0.0, 0.0], "r_squared": 1.0})),
@@ -68,7 +68,7 @@ fn calibrations_come_back_as_recorded_and_by_serial_number() {
     assert!(store.calibrations(Some("SN9")).unwrap().is_empty());
     let second = store.calibration(ids[1]).unwrap().unwrap();
     assert_eq!(second.calibration, recorded[1]);
-    assert_eq!(second.to_json()["after"]["set_user_calibration"]["k_slope"], json!(0.9));
+    assert_eq!(second.to_json()["after"]["set_coefficients"]["k_slope"], json!(0.9));
     assert_eq!(second.to_json()["id"], json!(ids[1]));
     assert_eq!(store.calibration(ids[2] + 1).unwrap(), None);
 }
