@@ -509,3 +509,41 @@ fn the_ph_calibrations_are_recorded_too() {
         .collect();
     assert_eq!(written, recorded, "the record holds what the probe holds");
 }
+
+#[test]
+fn ctrl_c_at_a_prompt_restores_the_coefficients() {
+    let (sensor, write, field) = richest();
+    let s = serve(Simulator::new(sensor.clone()));
+    hold(&s, &write, 1.5, 0.125);
+    let before = every_coefficient(&s, &sensor);
+    let dir = tempfile::tempdir().unwrap();
+    let mut child = YOSEMITECH
+        .command()
+        .args(["calibrate", &sensor.name, "--quantity", &field, "-p", &s.path, "--yes", "--skip-wait"])
+        .args(["--standard", "10", "--standard", "100", "--backup-dir"])
+        .arg(dir.path())
+        .arg("--history")
+        .arg(dir.path().join("history.sqlite"))
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let _stdin = child.stdin.take();
+    let mut lines = BufReader::new(child.stdout.take().unwrap()).lines();
+    let mut seen = String::new();
+    while !seen.contains("standard 1 of 2") {
+        let line = lines.next().unwrap_or_else(|| panic!("no prompt:\n{seen}")).unwrap();
+        seen.push_str(&line);
+        seen.push('\n');
+    }
+    assert_ne!(every_coefficient(&s, &sensor), before, "K = 1, B = 0 were written");
+    let pid = child.id().to_string();
+    assert!(std::process::Command::new("kill").args(["-INT", &pid]).status().unwrap().success());
+    let code = wait(&mut child, Duration::from_secs(30));
+    let mut stderr = String::new();
+    std::io::Read::read_to_string(&mut child.stderr.take().unwrap(), &mut stderr).unwrap();
+    assert_eq!(code, 1, "{seen}\n{stderr}");
+    assert!(stderr.contains("stopped by Ctrl-C") && stderr.contains("read back bit for bit"), "{stderr}");
+    assert_eq!(every_coefficient(&s, &sensor), before);
+}

@@ -7,13 +7,15 @@
 //! the spec's `calibrates.field`, or `--quantity`. Every coefficient is
 //! backed up first (no backup, no calibration); from the first write on,
 //! any failure or stop writes the block's saved values back and reads them
-//! back bit for bit. The statistics and the fit are
+//! back bit for bit (Ctrl-C included: the first one stops the calibration
+//! that way, a second one exits at once). The statistics and the fit are
 //! [`yosemitech::procedures::linear`]'s; the writes go through the spec's
 //! commands by the interpreter, as a coefficient restore does.
 
 use std::collections::{BTreeMap, VecDeque};
 use std::io::{self, IsTerminal, Write};
-use std::sync::mpsc::{Receiver, TryRecvError};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::mpsc::{Receiver, RecvTimeoutError, TryRecvError};
 use std::time::{Duration, Instant};
 
 use yosemitech::procedures::linear::{self, LinearFit, ReadingStats, StandardReading};
@@ -195,10 +197,29 @@ struct Session<'a, 's> {
     target: &'a Target<'s>,
     args: &'a CalibrateLinearArgs,
     input: Receiver<String>,
+    /// Set by Ctrl-C: the calibration stops (and the block is written back).
+    stop: &'a AtomicBool,
     out: &'a mut dyn Write,
 }
 
 impl Session<'_, '_> {
+    /// Stops when Ctrl-C was pressed.
+    fn check_stop(&self) -> Result<()> {
+        if self.stop.load(Ordering::SeqCst) { Err(CliError::device("calibration stopped by Ctrl-C")) } else { Ok(()) }
+    }
+
+    /// The next line typed (`None`: the end of input), or a stop by Ctrl-C.
+    fn next_line(&mut self) -> Result<Option<String>> {
+        loop {
+            self.check_stop()?;
+            match self.input.recv_timeout(Duration::from_millis(200)) {
+                Ok(line) => return Ok(Some(line)),
+                Err(RecvTimeoutError::Timeout) => {}
+                Err(RecvTimeoutError::Disconnected) => return Ok(None),
+            }
+        }
+    }
+
     fn say(&mut self, text: &str) -> Result<()> {
         writeln!(self.out, "{text}")?;
         self.out.flush()?;
@@ -211,6 +232,7 @@ impl Session<'_, '_> {
 
     /// One reading of the calibrated field.
     fn read(&mut self) -> Result<f64> {
+        self.check_stop()?;
         let values = device::read(self.opened, self.target.measurement, self.slave)?;
         match values.into_iter().find(|(name, _)| *name == self.target.field) {
             Some((_, Value::Float(v))) if v.is_finite() => Ok(f64::from(v)),
@@ -227,12 +249,12 @@ impl Session<'_, '_> {
 
     /// Waits for a line: Enter goes on, `q` or the end of input stops.
     fn wait_for_enter(&mut self, what: &str) -> Result<()> {
-        match self.input.recv() {
-            Ok(line) if line.trim().eq_ignore_ascii_case("q") => {
+        match self.next_line()? {
+            Some(line) if line.trim().eq_ignore_ascii_case("q") => {
                 Err(CliError::device(format!("calibration stopped by the user at {what}")))
             }
-            Ok(_) => Ok(()),
-            Err(_) => Err(CliError::device(format!("stdin ended before {what} was confirmed"))
+            Some(_) => Ok(()),
+            None => Err(CliError::device(format!("stdin ended before {what} was confirmed"))
                 .hint("answer each standard's prompt with Enter (a line on stdin)")),
         }
     }
@@ -351,7 +373,7 @@ impl Session<'_, '_> {
         }
         if !self.args.yes {
             eprint!("Write K = {k}, B = {b} to the probe at address {}? [y/N] ", self.slave);
-            let answer = self.input.recv().unwrap_or_default();
+            let answer = self.next_line()?.unwrap_or_default();
             if !matches!(answer.trim().to_ascii_lowercase().as_str(), "y" | "yes") {
                 return Err(CliError::device("not confirmed"));
             }
@@ -430,7 +452,13 @@ fn record_of(
 }
 
 /// Runs `calibrate SENSOR`.
-pub fn run(catalog: &Catalog, global: &Global, args: &CalibrateLinearArgs, out: &mut dyn Write) -> Result<()> {
+pub fn run(
+    catalog: &Catalog,
+    global: &Global,
+    args: &CalibrateLinearArgs,
+    stop: &AtomicBool,
+    out: &mut dyn Write,
+) -> Result<()> {
     let Some(name) = args.sensor.as_deref() else {
         return Err(CliError::usage("`calibrate` needs a sensor (or the subcommand `ph`)")
             .hint("yosemitech calibrate SENSOR --standard VALUE ... -p PORT; `yosemitech list` names the sensors"));
@@ -480,7 +508,7 @@ pub fn run(catalog: &Catalog, global: &Global, args: &CalibrateLinearArgs, out: 
         .cloned()
         .ok_or_else(|| not_started(CliError::device(format!("the backup has no `{}`", target.write.name))))?;
 
-    let mut session = Session { opened: &mut opened, slave, target: &target, args, input: stdin_lines(), out };
+    let mut session = Session { opened: &mut opened, slave, target: &target, args, input: stdin_lines(), stop, out };
     match session.run() {
         Ok(outcome) => {
             writeln!(out, "calibrated; the previous coefficients restore with: {restore}")?;

@@ -64,7 +64,7 @@ pub fn run(cli: &Cli) -> Result<()> {
             Some(CalibrateSubcommand::Ph(args)) => calibrate::run(&catalog, global, args, &mut out),
             Some(CalibrateSubcommand::History(args)) => calibration_history::list(&catalog, args, &mut out),
             Some(CalibrateSubcommand::Restore(args)) => calibration_history::restore(&catalog, global, args, &mut out),
-            None => calibrate_linear::run(&catalog, global, &args.linear, &mut out),
+            None => calibrate_linear::run(&catalog, global, &args.linear, &ctrl_c_flag(), &mut out),
         },
         Subcommand::Coefficients(CoefficientsSubcommand::Backup(args)) => {
             coefficients::backup(&catalog, global, args, &mut out)
