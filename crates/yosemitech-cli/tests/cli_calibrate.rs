@@ -547,3 +547,28 @@ fn ctrl_c_at_a_prompt_restores_the_coefficients() {
     assert!(stderr.contains("stopped by Ctrl-C") && stderr.contains("read back bit for bit"), "{stderr}");
     assert_eq!(every_coefficient(&s, &sensor), before);
 }
+
+#[test]
+fn a_restore_that_fails_leaves_the_probe_as_it_was() {
+    let (sensor, write, field) = single_block();
+    let dir = tempfile::tempdir().unwrap();
+    let history = dir.path().join("calibrations.sqlite");
+    let history = history.to_str().unwrap();
+    let s = serve(Simulator::new(sensor.clone()));
+    let run = drive(&s, &field, &write, &[10.0, 100.0], &[sensor.name.as_str(), "--history", history], |_| Some(""));
+    assert_eq!(run.code, 0, "{}\n{}", run.stdout, run.stderr);
+    hold(&s, &write, 3.0, -2.0);
+    let before = every_coefficient(&s, &sensor);
+    // The restore reads the identity and every block, then writes: its write's reply is lost.
+    let identity_reads =
+        [Role::SerialNumber, Role::Version].iter().filter(|&&role| sensor.command_with_role(role).is_some()).count();
+    let mut script = vec![None; identity_reads + sensor.coefficient_blocks().len()];
+    script.push(Some(FaultKind::Drop));
+    s.server.device().set_faults(FaultConfig::scripted(script));
+    let args = ["calibrate", "restore", "1", "-p", &s.path, "--yes", "--history", history, "--timeout", "300ms"];
+    let run = YOSEMITECH.run(&[&args[..], &["--retries", "0", "--backup-dir", dir.path().to_str().unwrap()]].concat());
+    assert!(run.fails(1).contains("written back and read back"), "{}", run.stderr);
+    assert_eq!(every_coefficient(&s, &sensor), before);
+    let json = YOSEMITECH.run(&["calibrate", "history", "--history", history, "--json"]).json();
+    assert_eq!(json.as_array().unwrap().len(), 1, "a failed restore is not recorded");
+}

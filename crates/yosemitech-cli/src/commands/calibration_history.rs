@@ -147,10 +147,25 @@ pub fn restore(catalog: &Catalog, global: &Global, args: &CalibrateRestoreArgs, 
     let restore_command = backup::restore_command(catalog, entry, &saved.port, slave, &file);
     writeln!(out, "saved every coefficient to {}", file.display())?;
     let pairs = entry.sensor.coefficient_blocks();
-    for (name, values) in &planned {
+    for (done, (name, values)) in planned.iter().enumerate() {
         let Some((write, read)) = pairs.iter().find(|(w, _)| w.name == *name) else { continue };
-        backup::write_block(&mut opened, write, read, slave, values)
-            .map_err(|e| e.detail(format!("the coefficients before the restore are back with: {restore_command}")))?;
+        if let Err(e) = backup::write_block(&mut opened, write, read, slave, values) {
+            // The blocks written so far (and this one) get the probe's values back.
+            let mut back = Ok(());
+            for (name, _) in &planned[..=done] {
+                let (Some((write, read)), Some(fields)) =
+                    (pairs.iter().find(|(w, _)| w.name == *name), current.get(name))
+                else {
+                    continue;
+                };
+                let fields = fields.iter().map(|(k, v)| (k.clone(), Value::Float(*v))).collect();
+                back = back.and(backup::write_block(&mut opened, write, read, slave, &fields));
+            }
+            return Err(match back {
+                Ok(()) => e.detail("the probe's coefficients before the restore were written back and read back"),
+                Err(_) => e.detail(format!("the coefficients before the restore are back with: {restore_command}")),
+            });
+        }
     }
     writeln!(out, "restored and verified: every coefficient reads back as recorded")?;
     let probe = Probe { entry, address: slave, port: opened.port.clone(), identity };
