@@ -286,6 +286,21 @@ fn misuse_is_a_usage_error() {
         let args = ["calibrate", &sensor.name, "--quantity", &field, "--standard", "1", bad[0], bad[1]];
         YOSEMITECH.run(&args).fails(2);
     }
+    // Where the manual recommends standards, the hint gives them.
+    let mut recommended = 0;
+    for (sensor, write, field) in stated_blocks() {
+        let standards = &write.calibrates.as_ref().unwrap().standards;
+        if standards.is_empty() {
+            continue;
+        }
+        let run = YOSEMITECH.run(&["calibrate", &sensor.name, "--quantity", &field, "-p", "/dev/null", "--yes"]);
+        let err = run.fails_with_hint(2);
+        for standard in standards {
+            assert!(err.contains(&format!("--standard {standard}")), "{err}");
+        }
+        recommended += 1;
+    }
+    assert!(recommended > 0, "no spec recommends standards");
     for s in &spec().sensors {
         let blocks = s.user_calibrations();
         let run = YOSEMITECH.run(&["calibrate", &s.name, "--standard", "1", "--yes"]);
