@@ -410,6 +410,10 @@ pub struct CalibrateLinearArgs {
     /// Stable when the coefficient of variation over the window is below this, in percent.
     #[arg(long, value_name = "PERCENT", default_value_t = 0.5)]
     pub cv_threshold: f64,
+    /// Stable also when the standard deviation over the window is below this, in
+    /// the field's unit (a standard near zero, where a CV means little).
+    #[arg(long, value_name = "VALUE")]
+    pub sd_threshold: Option<f64>,
     /// Give up when the readings are not stable after this long (the calibration stops).
     #[arg(long, value_name = "DURATION", default_value = "10m", value_parser = parse_duration)]
     pub max_wait: Duration,

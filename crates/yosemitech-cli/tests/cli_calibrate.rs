@@ -282,7 +282,7 @@ fn misuse_is_a_usage_error() {
     // No sensor at all.
     YOSEMITECH.run(&["calibrate", "--standard", "1"]).fails_with_hint(2);
     // Bad numbers.
-    for bad in [["--readings", "0"], ["--window", "1"], ["--cv-threshold", "0"]] {
+    for bad in [["--readings", "0"], ["--window", "1"], ["--cv-threshold", "0"], ["--sd-threshold", "-1"]] {
         let args = ["calibrate", &sensor.name, "--quantity", &field, "--standard", "1", bad[0], bad[1]];
         YOSEMITECH.run(&args).fails(2);
     }
@@ -586,4 +586,43 @@ fn a_restore_that_fails_leaves_the_probe_as_it_was() {
     assert_eq!(every_coefficient(&s, &sensor), before);
     let json = YOSEMITECH.run(&["calibrate", "history", "--history", history, "--json"]).json();
     assert_eq!(json.as_array().unwrap().len(), 1, "a failed restore is not recorded");
+}
+
+#[test]
+fn a_standard_near_zero_is_judged_by_its_spread() {
+    let (sensor, write, field) = single_block();
+    let s = serve(Simulator::new(sensor.clone()));
+    // Purified water: the readings scatter around zero, where a CV means nothing.
+    let water = Standard { value: 0.0, k_true: 1.0, b_true: 0.0, noise: 1e-3, seed: 3 };
+    s.server.device().immerse(Some((water, &field, &write.name))).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let history = dir.path().join("history.sqlite");
+    let base = [
+        "calibrate",
+        sensor.name.as_str(),
+        "-p",
+        s.path.as_str(),
+        "--yes",
+        "--standard",
+        "0",
+        "--interval",
+        "50ms",
+        "--window",
+        "3",
+        "--backup-dir",
+        dir.path().to_str().unwrap(),
+        "--history",
+        history.to_str().unwrap(),
+    ];
+    hold(&s, &write, 1.25, 0.5);
+    // By CV alone it never settles: the wait runs out and the block is written back.
+    let run = YOSEMITECH.run_with_input(&[&base[..], &["--max-wait", "1s"]].concat(), "\n");
+    assert!(run.fails_with_hint(1).contains("not stable after"), "{}", run.stderr);
+    assert_eq!(held(&s, &write), (1.25, 0.5));
+    // A spread below --sd-threshold is stable.
+    let run = YOSEMITECH.run_with_input(&[&base[..], &["--max-wait", "60s", "--sd-threshold", "0.01"]].concat(), "\n");
+    assert!(run.ok().contains("stable:"), "{}", run.stdout);
+    let (k, b) = held(&s, &write);
+    assert_eq!(k, 1.0);
+    assert!(b.abs() < 2e-3, "B {b}: the offset that brings the water to zero");
 }

@@ -187,6 +187,9 @@ fn check_args(args: &CalibrateLinearArgs, target: &Target<'_>) -> Result<()> {
     if !(args.cv_threshold.is_finite() && args.cv_threshold > 0.0) {
         return Err(CliError::usage(format!("--cv-threshold {} is not a positive percentage", args.cv_threshold)));
     }
+    if let Some(sd) = args.sd_threshold.filter(|sd| !(sd.is_finite() && *sd > 0.0)) {
+        return Err(CliError::usage(format!("--sd-threshold {sd} is not a positive number")));
+    }
     Ok(())
 }
 
@@ -305,7 +308,9 @@ impl Session<'_, '_> {
                 self.say(&line)?;
             }
             let full = recent.len() == window;
-            let steady = stats.is_some_and(|s| s.cv_percent.map_or(s.sd == 0.0, |cv| cv < threshold));
+            let steady = stats.is_some_and(|s| {
+                s.cv_percent.is_some_and(|cv| cv < threshold) || s.sd <= self.args.sd_threshold.unwrap_or(0.0)
+            });
             if full && steady && start.elapsed() >= self.target.settle {
                 if live {
                     writeln!(self.out)?;
@@ -317,7 +322,10 @@ impl Session<'_, '_> {
                     "the readings in {what} were not stable after {}",
                     show_duration(self.args.max_wait)
                 ))
-                .hint("rinse the probe and let it settle, raise --cv-threshold or --max-wait, or press Enter"));
+                .hint(
+                    "rinse the probe and let it settle, raise --cv-threshold or --max-wait, give --sd-threshold \
+                     (a standard near zero), or press Enter",
+                ));
             }
             std::thread::sleep(self.args.interval);
         }
