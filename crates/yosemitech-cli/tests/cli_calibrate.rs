@@ -412,8 +412,9 @@ fn two_calibrations_are_listed_exported_and_the_first_restored() {
     assert_eq!(other.server.device().stats().writes, writes);
 }
 
-/// Runs `yosemitech log --config` until it has announced `n` readings, then stops it.
-fn log_readings(config: &str, n: usize) {
+/// Runs `yosemitech log --config` until it has announced `n` readings, then
+/// stops it; the readings it announced.
+fn log_readings(config: &str, n: usize) -> Vec<serde_json::Value> {
     let mut child = YOSEMITECH
         .command()
         .args(["log", "--config", config])
@@ -422,12 +423,15 @@ fn log_readings(config: &str, n: usize) {
         .spawn()
         .unwrap();
     let mut lines = BufReader::new(child.stdout.take().unwrap()).lines();
+    let mut announced = Vec::new();
     for _ in 0..n {
-        assert!(lines.next().is_some_and(|l| l.is_ok()), "the logger announced a reading");
+        let line = lines.next().expect("the logger announced a reading").unwrap();
+        announced.push(serde_json::from_str(&line).unwrap());
     }
     let pid = child.id().to_string();
     assert!(std::process::Command::new("kill").args(["-TERM", &pid]).status().unwrap().success());
     assert_eq!(wait(&mut child, Duration::from_secs(30)), 0, "SIGTERM stops the logger cleanly");
+    announced
 }
 
 #[test]
@@ -450,12 +454,14 @@ fn a_station_run_names_the_calibration_in_force() {
     )
     .unwrap();
     let config = config.to_str().unwrap();
-    log_readings(config, 3);
+    let uncalibrated = log_readings(config, 3);
+    assert!(uncalibrated.iter().all(|r| r.get("calibration_id").is_none()), "{uncalibrated:?}");
     // Calibrated with the station's file: the calibration goes into its store.
     let run = drive(&s, &field, &write, &[10.0, 100.0], &[sensor.name.as_str(), "--config", config], |_| Some(""));
     assert_eq!(run.code, 0, "{}\n{}", run.stdout, run.stderr);
     assert!(run.stdout.contains(&format!("recorded as calibration 1 in {}", db.display())), "{}", run.stdout);
-    log_readings(config, 3);
+    let calibrated = log_readings(config, 3);
+    assert!(calibrated.iter().all(|r| r["calibration_id"] == 1), "the logger announces it too: {calibrated:?}");
 
     let store = yosemitech_station::Store::open(&db).unwrap();
     let recorded = store.calibrations(None).unwrap();

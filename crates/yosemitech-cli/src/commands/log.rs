@@ -2,7 +2,7 @@
 
 use std::io::Write;
 use std::sync::atomic::AtomicBool;
-use std::sync::{Arc, Mutex, mpsc};
+use std::sync::{Arc, Mutex, PoisonError, mpsc};
 use std::time::Duration;
 
 use yosemitech_mqtt::Publisher;
@@ -127,8 +127,11 @@ pub fn run(catalog: &Catalog, args: &LogArgs, stop: &Arc<AtomicBool>, out: &mut 
                 if let Some(p) = &publisher {
                     p.wake();
                 }
-                let _ = lines
-                    .send(to_json(&StoredReading { id, reading: reading.clone(), calibration_id: None }).to_string());
+                // As stored: with the calibration in force the insert looked up.
+                let stored = store.lock().unwrap_or_else(PoisonError::into_inner).get(id).ok().flatten();
+                let stored =
+                    stored.unwrap_or_else(|| StoredReading { id, reading: reading.clone(), calibration_id: None });
+                let _ = lines.send(to_json(&stored).to_string());
             })
         });
         for line in printed {
