@@ -20,8 +20,9 @@ encode, scan) before the tool is rebuilt.
 
 Generic commands work on any command of any sensor through the spec's reference
 interpreter (`measure` runs the procedure a spec states, `coefficients` saves and restores
-the coefficient blocks a spec pairs, `demo` runs every sensor simulated); `calibrate` and
-`set-address` follow the manuals' procedures through the typed `yosemitech` crate.
+the coefficient blocks a spec pairs, `calibrate SENSOR` calibrates any user calibration block,
+`demo` runs every sensor simulated); `calibrate ph` and `set-address` follow the manuals'
+procedures through the typed `yosemitech` crate.
 
 Exit codes: 0 success, 1 device or protocol error, 2 usage error.";
 
@@ -363,9 +364,12 @@ K = 1, B = 0 are written, and for each standard in turn: put the probe in it and
 accepts them as they are), and --readings readings are averaged (mean, SD, CV). One standard
 gives an offset (K = 1), two or more a least-squares line: K, B, each standard's residual and
 R² are shown, confirmed, written and read back bit for bit, and the probe is read once more
-through them. Stopping at any step (q, end of input, a device error, a failed read-back)
-writes the saved coefficients back and reads them back. --quantity FIELD names the measured
-field when the spec does not say what the block calibrates, or picks one of several blocks.
+through them. Stopping at any step (q, end of input, Ctrl-C, a device error, a failed
+read-back) writes the saved coefficients back and reads them back. --quantity FIELD names the
+measured field when the spec does not say what the block calibrates, or picks one of several
+blocks. Every calibration is recorded (`calibrate history`): in the station's store with
+--config station.toml (its readings then carry the calibration's id), else in --history FILE or
+calibrations.sqlite in the user's data directory.
 
 `calibrate ph` is the pH manual's own three-point calibration (see `calibrate ph --help`).";
 
