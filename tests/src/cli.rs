@@ -86,6 +86,8 @@ impl Binary {
             .env_remove("YOSEMITECH_BAUD")
             .env_remove("RUST_LOG")
             .env_remove("RUST_BACKTRACE")
+            // Calibrations record their history in the user's data directory: never the real one.
+            .env("XDG_DATA_HOME", std::env::temp_dir().join("yosemitech-tests-data"))
             .current_dir(std::env::temp_dir());
         cmd
     }

@@ -193,14 +193,26 @@ pub fn write_blocks(opened: &mut Opened, entry: &Entry, slave: u8, blocks: &Bloc
         planned.push((*write, *read, fields));
     }
     for (write, read, fields) in planned {
-        device::call(opened, write, slave, &fields)?;
-        let back = named_as_write(write, device::read(opened, read, slave)?)?;
-        let same =
-            fields.iter().all(|(name, want)| back.get(name).is_some_and(|got| want.same_as(&Value::Float(*got))));
-        if !same {
-            return Err(CliError::device(format!("verification failed: {} did not read back as written", write.name))
-                .hint("the probe did not keep the values written; read them with `yosemitech read` and retry"));
-        }
+        write_block(opened, write, read, slave, &fields)?;
+    }
+    Ok(())
+}
+
+/// Writes one coefficient block and reads it back with `read` (the read
+/// of the same registers), comparing bit for bit.
+pub fn write_block(
+    opened: &mut Opened,
+    write: &CommandSpec,
+    read: &CommandSpec,
+    slave: u8,
+    fields: &BTreeMap<String, Value>,
+) -> Result<()> {
+    device::call(opened, write, slave, fields)?;
+    let back = named_as_write(write, device::read(opened, read, slave)?)?;
+    let same = fields.iter().all(|(name, want)| back.get(name).is_some_and(|got| want.same_as(&Value::Float(*got))));
+    if !same {
+        return Err(CliError::device(format!("verification failed: {} did not read back as written", write.name))
+            .hint("the probe did not keep the values written; read them with `yosemitech read` and retry"));
     }
     Ok(())
 }

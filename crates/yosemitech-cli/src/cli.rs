@@ -20,8 +20,9 @@ encode, scan) before the tool is rebuilt.
 
 Generic commands work on any command of any sensor through the spec's reference
 interpreter (`measure` runs the procedure a spec states, `coefficients` saves and restores
-the coefficient blocks a spec pairs, `demo` runs every sensor simulated); `calibrate` and
-`set-address` follow the manuals' procedures through the typed `yosemitech` crate.
+the coefficient blocks a spec pairs, `calibrate SENSOR` calibrates any user calibration block,
+`demo` runs every sensor simulated); `calibrate ph` and `set-address` follow the manuals'
+procedures through the typed `yosemitech` crate.
 
 Exit codes: 0 success, 1 device or protocol error, 2 usage error.";
 
@@ -143,9 +144,9 @@ or now. Values that are not numbers (NaN) break a line. Fails (exit 1) when the 
 no reading, and (exit 2) for an unknown probe or measurement.")]
     Plot(PlotArgs),
 
-    /// Run a guided calibration.
-    #[command(subcommand)]
-    Calibrate(CalibrateSubcommand),
+    /// Run a guided calibration: any probe's K/B block, or the pH probe's own.
+    #[command(long_about = CALIBRATE_LONG_ABOUT)]
+    Calibrate(Box<CalibrateArgs>),
 
     /// Back up or restore every calibration coefficient of a probe (JSON).
     #[command(subcommand)]
@@ -372,7 +373,134 @@ pub struct MeasureArgs {
     pub inputs: InputArgs,
 }
 
-/// `calibrate`.
+const CALIBRATE_LONG_ABOUT: &str = "\
+`calibrate SENSOR --standard VALUE ...` calibrates a probe's user calibration block (the
+write with role `user_calibration`: final = K x raw + B) in standards of known value. Every
+coefficient is saved to a JSON file first (the calibration stops if it cannot be saved), then
+K = 1, B = 0 are written, and for each standard in turn: put the probe in it and press Enter
+(q quits), watch the readings until they are stable (the coefficient of variation over
+--window readings below --cv-threshold, after the spec's settling wait; Enter on a line
+accepts them as they are), and --readings readings are averaged (mean, SD, CV). One standard
+gives an offset (K = 1), two or more a least-squares line: K, B, each standard's residual and
+R² are shown, confirmed, written and read back bit for bit, and the probe is read once more
+through them. Stopping at any step (q, end of input, Ctrl-C, a device error, a failed
+read-back) writes the saved coefficients back and reads them back. --quantity FIELD names the
+measured field when the spec does not say what the block calibrates, or picks one of several
+blocks. Every calibration is recorded (`calibrate history`): in the station's store with
+--config station.toml (its readings then carry the calibration's id), else in --history FILE or
+calibrations.sqlite in the user's data directory.
+
+`calibrate ph` is the pH manual's own three-point calibration (see `calibrate ph --help`).";
+
+/// `calibrate`: a subcommand, or the K/B calibration of a sensor.
+#[derive(Args, Debug)]
+#[command(args_conflicts_with_subcommands = true, subcommand_negates_reqs = true)]
+pub struct CalibrateArgs {
+    /// A calibration of its own.
+    #[command(subcommand)]
+    pub command: Option<CalibrateSubcommand>,
+    /// The K/B calibration.
+    #[command(flatten)]
+    pub linear: CalibrateLinearArgs,
+}
+
+/// `calibrate SENSOR`: the K/B calibration.
+#[derive(Args, Debug, Default)]
+pub struct CalibrateLinearArgs {
+    /// Sensor whose user calibration block to calibrate.
+    pub sensor: Option<String>,
+    #[command(flatten)]
+    pub port: PortArgs,
+    #[command(flatten)]
+    pub address: AddressArg,
+    /// A standard's value, in the calibrated field's unit, in the order the
+    /// probe goes into them; repeatable (one: an offset; two or more: a line).
+    #[arg(long = "standard", value_name = "VALUE", allow_negative_numbers = true)]
+    pub standards: Vec<f64>,
+    /// The measured field the block calibrates, where the spec does not say,
+    /// or to pick one of several blocks.
+    #[arg(long, value_name = "FIELD")]
+    pub quantity: Option<String>,
+    /// Readings averaged in each standard.
+    #[arg(long, value_name = "N", default_value_t = 5)]
+    pub readings: u32,
+    /// Time between two readings.
+    #[arg(long, value_name = "DURATION", default_value = "1s", value_parser = parse_duration)]
+    pub interval: Duration,
+    /// Readings the stability is judged over.
+    #[arg(long, value_name = "N", default_value_t = 10)]
+    pub window: u32,
+    /// Stable when the coefficient of variation over the window is below this, in percent.
+    #[arg(long, value_name = "PERCENT", default_value_t = 0.5)]
+    pub cv_threshold: f64,
+    /// Stable also when the standard deviation over the window is below this, in
+    /// the field's unit (a standard near zero, where a CV means little).
+    #[arg(long, value_name = "VALUE")]
+    pub sd_threshold: Option<f64>,
+    /// Give up when the readings are not stable after this long (the calibration stops).
+    #[arg(long, value_name = "DURATION", default_value = "10m", value_parser = parse_duration)]
+    pub max_wait: Duration,
+    /// Do not wait for stable readings (nor the spec's settling time).
+    #[arg(long)]
+    pub skip_wait: bool,
+    /// Start and write without asking (the standard prompts still read stdin).
+    #[arg(short, long)]
+    pub yes: bool,
+    /// Where to save the coefficient backup [default: the current directory].
+    #[arg(long, value_name = "DIR")]
+    pub backup_dir: Option<PathBuf>,
+    #[command(flatten)]
+    pub history: HistoryArgs,
+}
+
+/// Where the calibration history is kept, and the note a calibration adds to it.
+#[derive(Args, Debug, Default, Clone)]
+pub struct HistoryArgs {
+    /// Keep the history in this station's store (its readings then name the
+    /// calibration in force).
+    #[arg(long, value_name = "STATION_TOML", conflicts_with = "history")]
+    pub config: Option<PathBuf>,
+    /// The history file [default: calibrations.sqlite in $XDG_DATA_HOME/yosemitech or ~/.local/share/yosemitech].
+    #[arg(long, value_name = "FILE")]
+    pub history: Option<PathBuf>,
+    /// The operator's note, kept with the calibration.
+    #[arg(long, value_name = "TEXT")]
+    pub note: Option<String>,
+}
+
+/// `calibrate history`.
+#[derive(Args, Debug)]
+pub struct CalibrateHistoryArgs {
+    /// Only the calibrations of the probe with this serial number.
+    #[arg(long, value_name = "SN")]
+    pub sn: Option<String>,
+    /// Print every calibration, with all its readings, as one JSON array.
+    #[arg(long)]
+    pub json: bool,
+    #[command(flatten)]
+    pub history: HistoryArgs,
+}
+
+/// `calibrate restore`.
+#[derive(Args, Debug)]
+pub struct CalibrateRestoreArgs {
+    /// The calibration to write back (`calibrate history` lists the ids).
+    pub id: i64,
+    #[command(flatten)]
+    pub port: PortArgs,
+    #[command(flatten)]
+    pub address: AddressArg,
+    /// Write without asking.
+    #[arg(short, long)]
+    pub yes: bool,
+    /// Where to save the coefficient backup [default: the current directory].
+    #[arg(long, value_name = "DIR")]
+    pub backup_dir: Option<PathBuf>,
+    #[command(flatten)]
+    pub history: HistoryArgs,
+}
+
+/// `calibrate`'s own calibrations.
 #[derive(clap::Subcommand, Debug)]
 pub enum CalibrateSubcommand {
     /// Guided three-point pH calibration (buffers 4.00, 6.86, 9.18).
@@ -384,6 +512,20 @@ Enter (q quits), wait for it to settle (a minute; a progress bar shows it; Enter
 terminal or --skip-wait skips), and the buffer's pH is written. Finally the probe's
 calibration status is read and explained.")]
     Ph(CalibratePhArgs),
+    /// List the calibrations recorded (every `calibrate` records its own).
+    #[command(long_about = "\
+List the calibrations recorded: id, time, sensor, serial number, kind, the coefficients
+written and the note. --json prints everything kept, every reading taken and the fit
+included. The history is the station's store with --config, the file --history names, or
+calibrations.sqlite in the user's data directory.")]
+    History(CalibrateHistoryArgs),
+    /// Write the coefficients of an earlier calibration back to its probe.
+    #[command(long_about = "\
+Write the coefficients an earlier calibration wrote (`calibrate history` lists the ids) back
+to the probe: the probe's serial number must be the calibration's, every coefficient is saved
+to a JSON file first, the write is confirmed (--yes), read back bit for bit, and recorded
+in the history as a calibration of kind `restore`.")]
+    Restore(CalibrateRestoreArgs),
 }
 
 /// `calibrate ph`.
@@ -416,6 +558,8 @@ pub struct CalibratePhArgs {
     /// With --compute: print the readings and the coefficients as JSON.
     #[arg(long)]
     pub json: bool,
+    #[command(flatten)]
+    pub history: HistoryArgs,
 }
 
 /// `coefficients`.

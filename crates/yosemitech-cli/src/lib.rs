@@ -35,6 +35,7 @@ mod doctor;
 mod error;
 mod format;
 mod help;
+mod history;
 mod port;
 mod progress;
 mod readings;

@@ -15,6 +15,7 @@
 //! | serial number | the command with role `serial_number` (its `ascii` field and the `reserved` byte right before it), the sensor's `model_code` | see [Serial number](#serial-number) and [`SerialNumberPolicy`] |
 //! | measurement trigger | the commands with role `start_measurement` and `stop_measurement` (trigger writes or trigger reads); the sensor's `procedure` (`before`, `warm_up_ms`) | [`MeasurementState`] goes `Idle` → `WarmingUp` → `Measuring` on a start and back to `Idle` on a stop; see [Measurement](#measurement) |
 //! | three-point calibration | the write with role `calibration_point` (its first named field is the standard written); the read with role `calibration_status` (its `enum` field, with the variants named [`STATUS_SUCCESS`], [`STATUS_NOT_A_STANDARD`], [`STATUS_TOO_FEW_POINTS`]); the list constant in the point field's unit | see [Three-point calibration](#three-point-calibration) |
+//! | a probe in a calibration standard | the write with role `user_calibration` (its two fields: K, then B) and the measured field it calibrates | only after [`crate::Simulator::immerse`]: see [`crate::bath`] |
 //!
 //! # Serial number
 //!

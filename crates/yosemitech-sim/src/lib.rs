@@ -50,6 +50,7 @@
 
 use std::time::Duration;
 
+pub mod bath;
 pub mod behaviour;
 mod bus;
 pub mod fault;
@@ -57,6 +58,7 @@ mod registers;
 pub mod serve;
 mod simulator;
 
+pub use bath::Standard;
 pub use behaviour::{MeasurementState, SerialNumberPolicy, WarmUpPolicy};
 pub use bus::Bus;
 pub use fault::{FaultConfig, FaultCounts, FaultKind, Rng};

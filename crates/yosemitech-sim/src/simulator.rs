@@ -11,6 +11,7 @@ use yosemitech_spec::interp::{EncodeValuesError, decode_field, decode_fields, en
 use yosemitech_spec::{CommandSpec, EnumRepr, Field, FieldKind, Role, Sensor, Value, Values};
 
 use crate::FrameHandler;
+use crate::bath::{Bath, Standard};
 use crate::behaviour::{
     AddressSlot, Behaviour, MeasurementState, SerialNumber, SerialNumberPolicy, WarmUpPolicy, address_slots, role_index,
 };
@@ -282,6 +283,8 @@ pub struct Simulator {
     stats: Stats,
     /// Start Measurement is refused ([`Simulator::set_refuses_start`]).
     refuses_start: bool,
+    /// The calibration standard the probe sits in ([`Simulator::immerse`]).
+    bath: Option<Bath>,
     /// The reply being built.
     out: Vec<u8>,
 }
@@ -322,6 +325,7 @@ impl Simulator {
             warm_up_policy: WarmUpPolicy::default(),
             byte_count_quirk: false,
             refuses_start: false,
+            bath: None,
             clock: Clock { start: Some(Instant::now()), offset: Duration::ZERO },
             stats: Stats::default(),
             out: Vec::with_capacity(2 * yosemitech_rtu::frame::MAX_ADU),
@@ -332,6 +336,40 @@ impl Simulator {
         sim.set_serial_number_policy(sim.serial_number_policy);
         sim.set_address(sim.address);
         sim
+    }
+
+    /// Puts the probe in a calibration [`Standard`]: every measurement read
+    /// with `field` then reports the standard through the probe's error and
+    /// the K and B that the user calibration write `block` holds (see
+    /// [`crate::bath`]). `None` takes it out (reads return registers again).
+    pub fn immerse(&mut self, standard: Option<(Standard, &str, &str)>) -> Result<(), SimError> {
+        let Some((standard, field, block)) = standard else {
+            self.bath = None;
+            return Ok(());
+        };
+        let index = self.command_index(block)?;
+        if !self.sensor.measurement_reads().any(|r| r.named_fields().any(|f| f.display_name() == field)) {
+            return Err(SimError::NoSuchField(field.to_owned()));
+        }
+        self.bath = Some(Bath::new(standard, field.to_owned(), index));
+        Ok(())
+    }
+
+    /// The standard the probe sits in, shown in a measurement read about to be served.
+    fn show_standard(&mut self, index: usize, command: &CommandSpec) {
+        if !self.measurement.get(index).copied().unwrap_or(false) {
+            return;
+        }
+        let sensor = Arc::clone(&self.sensor);
+        let Some(bath) = self.bath.as_mut() else { return };
+        let Some(block) = sensor.commands.get(bath.block) else { return };
+        // Writes land in the shared registers: K and B are read from there.
+        let Some((offset, bytes)) = bath.reading(command, block, &self.registers) else { return };
+        let out = match self.own_registers.get_mut(&index) {
+            Some(own) => own,
+            None => &mut self.registers,
+        };
+        out.write_bytes(command.address, offset, &bytes);
     }
 
     /// Makes the probe refuse Start Measurement (exception 01) while it
@@ -689,6 +727,7 @@ impl Simulator {
                 return Err(ExceptionCode::ServerDeviceBusy);
             }
             self.vary(index, command);
+            self.show_standard(index, command);
             self.stats.reads += 1;
             // A trigger read's reply carries no value: the layout writes the manuals' form.
             let data = if command.trigger {

@@ -336,6 +336,26 @@ pub enum RoleDoc {
     CalibrationPoint,
     /// Reads the result of a calibration.
     CalibrationStatus,
+    /// Writes a user calibration block: slope K, then offset B (two `f32`),
+    /// applied as final = K x raw + B; a read of the same registers pairs it.
+    UserCalibration,
+}
+
+/// What a user calibration block (role `user_calibration`) calibrates,
+/// where the manual says it.
+#[derive(Debug, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct CalibratesDoc {
+    /// The measured field K and B apply to: a named field of a measurement read.
+    #[schemars(with = "String")]
+    pub field: Spanned<String>,
+    /// The standards the manual recommends, in the field's unit.
+    #[serde(default)]
+    #[schemars(with = "Vec<f64>")]
+    pub standards: Vec<Spanned<f64>>,
+    /// Milliseconds to let the probe settle in each standard.
+    #[schemars(with = "Option<u32>")]
+    pub settle_ms: Option<Spanned<u32>>,
 }
 
 /// The measuring procedure of a manual.
@@ -403,6 +423,8 @@ pub struct CommandDoc {
     /// What the command is for, where the simulator or the CLI must know.
     #[schemars(with = "Option<RoleDoc>")]
     pub role: Option<Spanned<RoleDoc>>,
+    /// Of a user calibration block: the field it calibrates, where the manual says it.
+    pub calibrates: Option<CalibratesDoc>,
     /// In a `use` entry: the unit this manual states for a field.
     #[schemars(with = "Option<BTreeMap<String, String>>")]
     pub units: Option<Spanned<BTreeMap<String, Spanned<String>>>>,

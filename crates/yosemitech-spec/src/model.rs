@@ -125,12 +125,7 @@ impl Sensor {
     /// setting nor a calibration block). The simulator varies these, `poll`
     /// and the station logger read them.
     pub fn is_measurement(&self, read: &CommandSpec) -> bool {
-        let end = |c: &CommandSpec| u32::from(c.address) + u32::from(c.count);
-        read.is_read()
-            && read.fields.iter().any(|f| f.unit.is_some())
-            && !self.commands.iter().any(|w| {
-                !w.is_read() && w.count > 0 && u32::from(w.address) < end(read) && u32::from(read.address) < end(w)
-            })
+        is_measurement_among(&self.commands, read)
     }
 
     /// The measurement reads ([`Sensor::is_measurement`]), in spec order.
@@ -155,6 +150,28 @@ impl Sensor {
                     .map(|r| (w, r))
             })
             .collect()
+    }
+
+    /// The user calibration blocks: each write with role `user_calibration`
+    /// paired with the read of the same registers (validation guarantees
+    /// the read), in spec order. Their fields are slope K, then offset B.
+    pub fn user_calibrations(&self) -> Vec<(&CommandSpec, &CommandSpec)> {
+        self.coefficient_blocks().into_iter().filter(|(w, _)| w.role == Some(Role::UserCalibration)).collect()
+    }
+
+    /// The named fields of the measurement reads among `commands` (see
+    /// [`Sensor::is_measurement`]), in order.
+    pub fn measured_fields(commands: &[CommandSpec]) -> Vec<&str> {
+        commands
+            .iter()
+            .filter(|read| is_measurement_among(commands, read))
+            .flat_map(|c| c.named_fields().map(Field::display_name))
+            .collect()
+    }
+
+    /// The measurement read with a named field called `field`.
+    pub fn measurement_with_field(&self, field: &str) -> Option<&CommandSpec> {
+        self.measurement_reads().find(|c| c.named_fields().any(|f| f.display_name() == field))
     }
 
     /// The command with `role`, if the sensor has one.
@@ -237,13 +254,24 @@ pub struct Revision {
     pub serial: LineSettings,
 }
 
+/// [`Sensor::is_measurement`] for a sensor of `commands`.
+fn is_measurement_among(commands: &[CommandSpec], read: &CommandSpec) -> bool {
+    let end = |c: &CommandSpec| u32::from(c.address) + u32::from(c.count);
+    read.is_read()
+        && read.fields.iter().any(|f| f.unit.is_some())
+        && !commands.iter().any(|w| {
+            !w.is_read() && w.count > 0 && u32::from(w.address) < end(read) && u32::from(read.address) < end(w)
+        })
+}
+
 /// What a command is for, where the simulator or the CLI must know. A sensor
-/// has at most one command per role; validation checks each role's shape.
+/// has at most one command per role (but any number of `user_calibration`
+/// blocks); validation checks each role's shape.
 pub use crate::document::RoleDoc as Role;
 
 impl Role {
     /// Every role, in the order the spec language documents them.
-    pub const ALL: [Role; 9] = [
+    pub const ALL: [Role; 10] = [
         Role::SetSlaveAddress,
         Role::GetSlaveAddress,
         Role::SerialNumber,
@@ -253,6 +281,7 @@ impl Role {
         Role::Wipe,
         Role::CalibrationPoint,
         Role::CalibrationStatus,
+        Role::UserCalibration,
     ];
 
     /// The spec's name of the role.
@@ -267,6 +296,7 @@ impl Role {
             Role::Wipe => "wipe",
             Role::CalibrationPoint => "calibration_point",
             Role::CalibrationStatus => "calibration_status",
+            Role::UserCalibration => "user_calibration",
         }
     }
 }
@@ -491,6 +521,21 @@ pub struct CommandSpec {
     pub errata: Vec<CommandErratum>,
     /// The fragment this command was included from.
     pub shared_from: Option<String>,
+    /// Of a user calibration block: what it calibrates, where the manual says it.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub calibrates: Option<Calibrates>,
+}
+
+/// What a user calibration block calibrates. Validation guarantees that
+/// `field` is a named field of one of the sensor's measurement reads.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Calibrates {
+    /// The measured field K and B apply to.
+    pub field: String,
+    /// The standards the manual recommends, in the field's unit (may be empty).
+    pub standards: Vec<f64>,
+    /// Milliseconds to let the probe settle in each standard.
+    pub settle_ms: Option<u32>,
 }
 
 fn ser_function<S: serde::Serializer>(f: &Function, s: S) -> Result<S::Ok, S::Error> {

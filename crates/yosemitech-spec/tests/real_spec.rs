@@ -2,6 +2,7 @@
 
 use std::path::PathBuf;
 
+use yosemitech_spec::Role;
 use yosemitech_tests::spec;
 
 /// Every sensor of `spec/`, whatever is there: no sensor is named here, so a
@@ -24,12 +25,30 @@ fn every_sensor_loads_with_its_identity_and_sources() {
                 assert!(softwares.contains(&since.as_str()), "{}.{}: since {since}", sensor.name, c.name);
             }
         }
-        // One command per role.
-        let mut roles: Vec<_> = sensor.commands.iter().filter_map(|c| c.role).collect();
+        // One command per role, calibration blocks aside.
+        let mut roles: Vec<_> =
+            sensor.commands.iter().filter_map(|c| c.role).filter(|&r| r != Role::UserCalibration).collect();
         let n = roles.len();
         roles.sort();
         roles.dedup();
         assert_eq!(roles.len(), n, "{}: a role twice", sensor.name);
+        // Several calibration blocks each say which field they calibrate, so
+        // a tool can tell them apart; each is a coefficient block.
+        let blocks = sensor.user_calibrations();
+        let writes = sensor.commands.iter().filter(|c| c.role == Some(Role::UserCalibration)).count();
+        assert_eq!(blocks.len(), writes, "{}: a calibration block without its read", sensor.name);
+        if blocks.len() > 1 {
+            let mut fields: Vec<&str> =
+                blocks.iter().filter_map(|(w, _)| w.calibrates.as_ref().map(|c| c.field.as_str())).collect();
+            fields.sort_unstable();
+            fields.dedup();
+            assert_eq!(fields.len(), blocks.len(), "{}: calibration blocks not told apart", sensor.name);
+        }
+        for (write, _) in &blocks {
+            if let Some(c) = &write.calibrates {
+                assert!(sensor.measurement_with_field(&c.field).is_some(), "{}.{}", sensor.name, write.name);
+            }
+        }
     }
 }
 

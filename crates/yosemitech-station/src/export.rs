@@ -5,6 +5,10 @@
 //! reading without values (a failed one) is one row with empty value
 //! columns. JSON lines is one reading per line.
 //!
+//! Both carry the id of the probe's calibration in force when the reading
+//! was taken (`calibration_id`, the store's calibration history; empty or
+//! absent when none is recorded).
+//!
 //! Both mark the derived quantities the station computed (`derived`:
 //! `true`), and give a derived quantity that could not be computed for a
 //! sample no value and its `value_error` (CSV) or `error` (JSON).
@@ -17,7 +21,7 @@ use crate::store::{Datum, StoredReading};
 use crate::time::rfc3339;
 
 /// The CSV header row's columns.
-pub const CSV_COLUMNS: [&str; 16] = [
+pub const CSV_COLUMNS: [&str; 17] = [
     "id",
     "timestamp",
     "station",
@@ -34,6 +38,7 @@ pub const CSV_COLUMNS: [&str; 16] = [
     "unit",
     "derived",
     "value_error",
+    "calibration_id",
 ];
 
 /// A CSV field, quoted when it needs to be (RFC 4180).
@@ -80,8 +85,9 @@ pub fn write_csv(stored: &StoredReading, out: &mut dyn Write) -> io::Result<()> 
         csv_field(r.error.as_deref().unwrap_or_default()),
     ]
     .join(",");
+    let calibration = stored.calibration_id.map(|id| id.to_string()).unwrap_or_default();
     if r.values.is_empty() {
-        return writeln!(out, "{head},,,,,");
+        return writeln!(out, "{head},,,,,,{calibration}");
     }
     for m in &r.values {
         let error = match &m.value {
@@ -90,7 +96,7 @@ pub fn write_csv(stored: &StoredReading, out: &mut dyn Write) -> io::Result<()> 
         };
         writeln!(
             out,
-            "{head},{},{},{},{},{}",
+            "{head},{},{},{},{},{},{calibration}",
             csv_field(&m.name),
             csv_field(&datum_text(&m.value)),
             csv_field(m.unit.as_deref().unwrap_or_default()),
@@ -119,7 +125,7 @@ pub fn to_json(stored: &StoredReading) -> Json {
             json!({"name": m.name, "value": value, "unit": m.unit, "derived": m.derived, "error": error})
         })
         .collect();
-    json!({
+    let mut doc = json!({
         "id": stored.id,
         "timestamp": rfc3339(r.timestamp),
         "station": r.station,
@@ -132,7 +138,12 @@ pub fn to_json(stored: &StoredReading) -> Json {
         "values": values,
         "retries": r.retries,
         "error": r.error,
-    })
+    });
+    // The calibration in force, where one is recorded.
+    if let (Some(id), Some(object)) = (stored.calibration_id, doc.as_object_mut()) {
+        object.insert("calibration_id".into(), json!(id));
+    }
+    doc
 }
 
 /// Writes `stored` as one JSON line.

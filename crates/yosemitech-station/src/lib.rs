@@ -18,6 +18,7 @@
 //! loaded spec (`yosemitech_spec`).
 #![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used, clippy::panic))]
 
+pub mod calibration;
 pub mod config;
 pub mod derive;
 pub mod export;
@@ -30,4 +31,5 @@ pub mod store;
 pub mod time;
 pub mod units;
 
+pub use calibration::{Calibration, StoredCalibration};
 pub use store::{Datum, Measurement, Reading, Store, StoreError, StoredReading};

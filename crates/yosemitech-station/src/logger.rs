@@ -153,7 +153,9 @@ fn write(
                 Err(_) => break,
             }
         }
-        match store.lock().unwrap_or_else(std::sync::PoisonError::into_inner).insert_all(&batch) {
+        // The lock is released before `on_commit`, which may read the store.
+        let inserted = store.lock().unwrap_or_else(std::sync::PoisonError::into_inner).insert_all(&batch);
+        match inserted {
             Ok(ids) => {
                 if refused > 0 {
                     tracing::info!("the store has room again: {refused} reading(s) were refused while it was full");

@@ -1,7 +1,7 @@
 //! The station's storage: every reading in a SQLite file, and the outbox
 //! cursor that says which of them have been published.
 //!
-//! # Schema (version 2)
+//! # Schema (version 3)
 //!
 //! ```sql
 //! -- One row per reading, in the order the logger committed them: `id`
@@ -18,7 +18,11 @@
 //!     serial_number TEXT,              -- as the probe reported it, when it did
 //!     firmware      TEXT,              -- likewise
 //!     retries       INTEGER NOT NULL,  -- requests repeated to get this reading
-//!     error         TEXT               -- why the reading failed (NULL: it did not)
+//!     error         TEXT,              -- why the reading failed (NULL: it did not)
+//!     calibration_id INTEGER REFERENCES calibration (id)
+//!                                      -- the calibration in force: set at insert to the latest
+//!                                      -- one of this serial number and sensor at or before
+//!                                      -- the reading's time (NULL: none recorded)
 //! );
 //! CREATE INDEX reading_time ON reading (timestamp_ms);
 //! -- The values of a reading, in the order the probe's plan reads them.
@@ -33,6 +37,28 @@
 //!     error      TEXT,                 -- ... or why a derived quantity has no value: exactly one of the three is set
 //!     PRIMARY KEY (reading_id, position)
 //! ) WITHOUT ROWID;
+//! -- Every calibration of a probe the field tool performed (`yosemitech
+//! -- calibrate`), one row each; the coefficients, standards, readings and
+//! -- fit are JSON (see crate::calibration).
+//! CREATE TABLE calibration (
+//!     id            INTEGER PRIMARY KEY AUTOINCREMENT,
+//!     timestamp_ms  INTEGER NOT NULL,  -- when the coefficients were written
+//!     sensor        TEXT    NOT NULL,
+//!     model         TEXT,
+//!     serial_number TEXT,
+//!     firmware      TEXT,
+//!     address       INTEGER NOT NULL,
+//!     port          TEXT    NOT NULL,
+//!     kind          TEXT    NOT NULL,  -- linear, ph_three_point, ph_electrode, restore
+//!     block         TEXT,              -- the write command calibrated (NULL: every block)
+//!     note          TEXT,              -- the operator's note
+//!     before        TEXT    NOT NULL,  -- coefficients before: {block: {field: value}}
+//!     after         TEXT    NOT NULL,  -- coefficients after, likewise
+//!     standards     TEXT    NOT NULL,  -- [value, ...]
+//!     readings      TEXT    NOT NULL,  -- every reading taken, per standard
+//!     fit           TEXT               -- the fit (K, B, residuals, R²), if one was made
+//! );
+//! CREATE INDEX calibration_probe ON calibration (serial_number, sensor, timestamp_ms);
 //! -- The outbox: every reading with id <= published_up_to has been published.
 //! CREATE TABLE outbox (
 //!     singleton       INTEGER PRIMARY KEY CHECK (singleton = 0),
@@ -43,7 +69,13 @@
 //! `PRAGMA user_version` holds the schema version. A file of version 1
 //! (no `derived` and `error` columns) is migrated in place when opened:
 //! its values are measured ones, which is what the new columns' defaults
-//! say. A file of another version is refused rather than misread.
+//! say. A file of version 2 (or 1) gains the `calibration` table and
+//! `reading.calibration_id` (NULL for the readings it holds: no calibration
+//! was recorded then). A file of another version is refused rather than
+//! misread.
+//!
+//! The same file type, holding calibrations only, is the field tool's
+//! calibration history outside a station.
 //!
 //! # Durability
 //!
@@ -64,13 +96,38 @@ use crate::time::{from_unix_ms, unix_ms};
 pub const BUSY_TIMEOUT: Duration = Duration::from_secs(10);
 
 /// The schema version this crate writes and reads.
-pub const SCHEMA_VERSION: i64 = 2;
+pub const SCHEMA_VERSION: i64 = 3;
 
 /// From version 1: values gain the derived mark and the error of a
 /// derived quantity that could not be computed.
 const MIGRATE_1_TO_2: &str = "
 ALTER TABLE reading_value ADD COLUMN derived INTEGER NOT NULL DEFAULT 0;
 ALTER TABLE reading_value ADD COLUMN error TEXT;
+";
+
+/// From version 2: the calibration history, and the calibration in force
+/// for each reading.
+const MIGRATE_2_TO_3: &str = "
+CREATE TABLE calibration (
+    id            INTEGER PRIMARY KEY AUTOINCREMENT,
+    timestamp_ms  INTEGER NOT NULL,
+    sensor        TEXT    NOT NULL,
+    model         TEXT,
+    serial_number TEXT,
+    firmware      TEXT,
+    address       INTEGER NOT NULL,
+    port          TEXT    NOT NULL,
+    kind          TEXT    NOT NULL,
+    block         TEXT,
+    note          TEXT,
+    before        TEXT    NOT NULL,
+    after         TEXT    NOT NULL,
+    standards     TEXT    NOT NULL,
+    readings      TEXT    NOT NULL,
+    fit           TEXT
+);
+CREATE INDEX calibration_probe ON calibration (serial_number, sensor, timestamp_ms);
+ALTER TABLE reading ADD COLUMN calibration_id INTEGER REFERENCES calibration (id);
 ";
 
 const SCHEMA: &str = "
@@ -210,6 +267,9 @@ pub struct StoredReading {
     pub id: i64,
     /// The reading.
     pub reading: Reading,
+    /// The calibration of the probe in force when it was taken (see the
+    /// module doc); `None` when none is recorded.
+    pub calibration_id: Option<i64>,
 }
 
 /// The SQLite file of a station. One `Store` is one connection: it is
@@ -217,7 +277,7 @@ pub struct StoredReading {
 /// (WAL lets readers run beside the writer).
 #[derive(Debug)]
 pub struct Store {
-    connection: Connection,
+    pub(crate) connection: Connection,
 }
 
 impl Store {
@@ -299,10 +359,16 @@ impl Store {
         match found {
             0 => {
                 tx.execute_batch(SCHEMA)?;
+                tx.execute_batch(MIGRATE_2_TO_3)?;
                 tx.pragma_update(None, "user_version", SCHEMA_VERSION)?;
             }
             1 => {
                 tx.execute_batch(MIGRATE_1_TO_2)?;
+                tx.execute_batch(MIGRATE_2_TO_3)?;
+                tx.pragma_update(None, "user_version", SCHEMA_VERSION)?;
+            }
+            2 => {
+                tx.execute_batch(MIGRATE_2_TO_3)?;
                 tx.pragma_update(None, "user_version", SCHEMA_VERSION)?;
             }
             SCHEMA_VERSION => {}
@@ -346,8 +412,11 @@ impl Store {
         let mut ids = Vec::with_capacity(readings.len());
         {
             let mut row = tx.prepare_cached(
-                "INSERT INTO reading (timestamp_ms, station, bus, probe, sensor, address, serial_number, firmware, retries, error)
-                 VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10)",
+                "INSERT INTO reading (timestamp_ms, station, bus, probe, sensor, address, serial_number, firmware, retries, error,
+                                      calibration_id)
+                 VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10,
+                         (SELECT id FROM calibration WHERE serial_number = ?7 AND sensor = ?5 AND timestamp_ms <= ?1
+                          ORDER BY timestamp_ms DESC, id DESC LIMIT 1))",
             )?;
             let mut value = tx.prepare_cached(
                 "INSERT INTO reading_value (reading_id, position, name, number, text, unit, derived, error)
@@ -468,7 +537,8 @@ impl Store {
     /// `reading`), with their values.
     fn select<const N: usize>(&self, filter: &str, args: [i64; N]) -> Result<Vec<StoredReading>, StoreError> {
         let mut readings = self.connection.prepare_cached(&format!(
-            "SELECT id, timestamp_ms, station, bus, probe, sensor, address, serial_number, firmware, retries, error
+            "SELECT id, timestamp_ms, station, bus, probe, sensor, address, serial_number, firmware, retries, error,
+                    calibration_id
              FROM reading {filter}"
         ))?;
         let mut values = self.connection.prepare_cached(
@@ -487,11 +557,13 @@ impl Store {
                 row.get::<_, Option<String>>(8)?,
                 row.get::<_, i64>(9)?,
                 row.get::<_, Option<String>>(10)?,
+                row.get::<_, Option<i64>>(11)?,
             ))
         })?;
         let mut out = Vec::new();
         for row in rows {
-            let (id, ms, station, bus, probe, sensor, address, serial_number, firmware, retries, error) = row?;
+            let (id, ms, station, bus, probe, sensor, address, serial_number, firmware, retries, error, calibration_id) =
+                row?;
             let malformed = |what: &str| StoreError::Malformed { id, what: what.to_owned() };
             let address = u8::try_from(address).map_err(|_| malformed("the address is not a byte"))?;
             let retries = u32::try_from(retries).map_err(|_| malformed("the retry count is negative"))?;
@@ -537,6 +609,7 @@ impl Store {
                     retries,
                     error,
                 },
+                calibration_id,
             });
         }
         Ok(out)

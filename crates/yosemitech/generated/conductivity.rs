@@ -623,7 +623,7 @@ impl rtu::Command for GetUserCalibration {
 ///
 /// Writes the user calibration K and B (Cond_final = K·Cond + B).
 ///
-/// Manual section 2.2.7, figures 36, 37, 38, 39. Writes (function 0x10) 4 registers at 0x1100.
+/// Manual section 2.2.7, figures 36, 37, 38, 39. Writes (function 0x10) 4 registers at 0x1100. Role: `user_calibration`.
 ///
 /// Example (figures 37, 38, 39):
 ///

@@ -522,7 +522,7 @@ impl rtu::Command for GetUserCalibration {
 ///
 /// Writes the user calibration of the dissolved oxygen (DO = K x measured DO + B, B in percent saturation).
 ///
-/// Manual section 2.2.8, figures 39, 40, 41, 42. Writes (function 0x10) 4 registers at 0x1100. Shared by every Yosemitech probe (`yosemitech_calibration`).
+/// Manual section 2.2.8, figures 39, 40, 41, 42. Writes (function 0x10) 4 registers at 0x1100. Role: `user_calibration`. Shared by every Yosemitech probe (`yosemitech_calibration`).
 ///
 /// Example (figures 40, 41, 42):
 ///

@@ -396,7 +396,7 @@ impl rtu::Command for GetUserCalibration {
 ///
 /// Writes the ORP's slope K and offset B (K = 1, B = 0 restores the defaults).
 ///
-/// Writes (function 0x10) 4 registers at 0x3400.
+/// Writes (function 0x10) 4 registers at 0x3400. Role: `user_calibration`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SetUserCalibration {
     /// Slope K (no unit).

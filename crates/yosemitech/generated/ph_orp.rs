@@ -1410,7 +1410,7 @@ impl rtu::Command for GetPhElectrodeCoefficients {
 ///
 /// Writes the ORP calibration coefficients K and B (ORP = K·raw + B by analogy with conductivity; the manual gives no equation).
 ///
-/// Manual section 2.2.12, figures 56, 57, 58, 59. Writes (function 0x10) 4 registers at 0x3400. Added in software revision 1.7.
+/// Manual section 2.2.12, figures 56, 57, 58, 59. Writes (function 0x10) 4 registers at 0x3400. Added in software revision 1.7. Role: `user_calibration`.
 ///
 /// Example (figures 57, 58, 59):
 ///
@@ -1657,7 +1657,7 @@ impl rtu::Command for GetOrpCalibration {
 ///
 /// Writes the pH customer calibration coefficients K and B.
 ///
-/// Manual section 2.2.14, figures 64, 65, 66, 67. Writes (function 0x10) 4 registers at 0x1100. Added in software revision 1.7.
+/// Manual section 2.2.14, figures 64, 65, 66, 67. Writes (function 0x10) 4 registers at 0x1100. Added in software revision 1.7. Role: `user_calibration`.
 ///
 /// Example (figures 65, 66, 67):
 ///

@@ -66,7 +66,7 @@ pub use super::yosemitech_common::{GetSlaveId, GetSlaveIdResponse};
 /// Writes the user calibration: slope K and offset B (final = K x raw + B).
 /// Writing K = 1, B = 0 restores the defaults.
 ///
-/// Writes (function 0x10) 4 registers at 0x1100. Shared by every Yosemitech probe (`yosemitech_calibration`).
+/// Writes (function 0x10) 4 registers at 0x1100. Role: `user_calibration`. Shared by every Yosemitech probe (`yosemitech_calibration`).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SetUserCalibration {
     /// Slope K (no unit).

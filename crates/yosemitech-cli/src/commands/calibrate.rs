@@ -21,6 +21,7 @@ use crate::cli::{CalibratePhArgs, Global};
 use crate::confirm::{confirm, ensure_can_ask};
 use crate::device::{is_typed, procedure_failed};
 use crate::error::{CliError, Result, show_duration};
+use crate::history::{self, Probe};
 use crate::port::Opened;
 use crate::{port, progress};
 
@@ -29,8 +30,9 @@ use crate::{port, progress};
 pub const SENSOR: &str = ph_orp::SENSOR.name;
 
 /// Saves every coefficient of the probe (the spec's coefficient blocks) to
-/// a new file and returns the command that restores it. Nothing has been
-/// written yet; on an error the calibration does not start.
+/// a new file and returns the command that restores it, and the
+/// coefficients. Nothing has been written yet; on an error the calibration
+/// does not start.
 pub(crate) fn save_backup(
     opened: &mut Opened,
     catalog: &Catalog,
@@ -39,19 +41,19 @@ pub(crate) fn save_backup(
     serial_number: Option<String>,
     args: &CalibratePhArgs,
     out: &mut dyn Write,
-) -> Result<String> {
+) -> Result<(String, backup::Blocks)> {
     let not_started = |e: CliError| CliError {
         message: format!("{}; the calibration did not start, nothing was written", e.message),
         ..e
     };
     let blocks = backup::read_blocks(opened, entry, slave).map_err(not_started)?;
-    let backup = Backup::taken_now(opened, entry, slave, serial_number, blocks);
+    let backup = Backup::taken_now(opened, entry, slave, serial_number, blocks.clone());
     let path = backup::save_in(args.backup_dir.as_deref(), &backup).map_err(not_started)?;
     let restore = backup::restore_command(catalog, entry, &backup.port, backup.address, &path);
     writeln!(out, "saved every coefficient to {}", path.display())?;
     writeln!(out, "restore with: {restore}")?;
     out.flush()?;
-    Ok(restore)
+    Ok((restore, blocks))
 }
 
 /// Lines typed on stdin, read by a thread so a wait can be cut short.
@@ -153,8 +155,10 @@ pub fn run(catalog: &Catalog, global: &Global, args: &CalibratePhArgs, out: &mut
     }
     let slave = args.address.get(entry.sensor.default_address)?;
     ensure_can_ask(args.yes, "calibrate")?;
+    let (mut store, history_file) = history::open(catalog, &args.history)?;
     let mut opened = port::open(&args.port, global, &entry.sensor.serial)?;
-    let serial_number = backup::serial_number(&mut opened, entry, slave);
+    let identity = history::identity(&mut opened, entry, slave);
+    let serial_number = identity.0.clone();
     let config = CalibrationConfig::default();
     writeln!(
         out,
@@ -170,7 +174,7 @@ pub fn run(catalog: &Catalog, global: &Global, args: &CalibratePhArgs, out: &mut
     out.flush()?;
     confirm(args.yes, "Start the calibration?")?;
 
-    let restore = save_backup(&mut opened, catalog, entry, slave, serial_number, args, out)?;
+    let (restore, before) = save_backup(&mut opened, catalog, entry, slave, serial_number, args, out)?;
     let with_restore =
         |e: CliError| e.detail(format!("to restore the coefficients saved before the calibration: {restore}"));
     let ctx = opened.context(slave, "the calibration");
@@ -194,9 +198,16 @@ pub fn run(catalog: &Catalog, global: &Global, args: &CalibratePhArgs, out: &mut
     if report.succeeded() {
         writeln!(out, "\ncalibration succeeded (probe status {})", report.status.raw())?;
         writeln!(out, "coefficients now:")?;
-        for line in backup::show(&backup::read_blocks(&mut opened, entry, slave).map_err(with_restore)?) {
+        let after = backup::read_blocks(&mut opened, entry, slave).map_err(with_restore)?;
+        for line in backup::show(&after) {
             writeln!(out, "  {line}")?;
         }
+        let probe = Probe { entry, address: slave, port: opened.port.clone(), identity };
+        let mut record = probe.record("ph_three_point", args.history.note.as_deref());
+        record.before = history::blocks_json(&before);
+        record.after = history::blocks_json(&after);
+        record.standards = serde_json::json!(config.standards);
+        history::record(&mut store, &history_file, &record, out)?;
         Ok(())
     } else {
         Err(with_restore(

@@ -22,6 +22,8 @@ use crate::cli::{CalibratePhArgs, Global};
 use crate::confirm::ensure_can_ask;
 use crate::device::is_typed;
 use crate::error::{CliError, Result, request_failed, show_duration};
+use crate::format::f32_json;
+use crate::history::{self, Probe};
 use crate::port;
 
 /// Readings averaged in each buffer.
@@ -109,6 +111,7 @@ pub fn run(catalog: &Catalog, global: &Global, args: &CalibratePhArgs, out: &mut
     };
     let slave = args.address.get(entry.sensor.default_address)?;
     ensure_can_ask(args.yes, "write electrode coefficients")?;
+    let (mut store, history_file) = history::open(catalog, &args.history)?;
     let mut opened = port::open(&args.port, global, &entry.sensor.serial)?;
     let ctx = opened.context(slave, "the electrode calibration");
     let input = stdin_lines();
@@ -186,10 +189,10 @@ pub fn run(catalog: &Catalog, global: &Global, args: &CalibratePhArgs, out: &mut
             return Err(CliError::device("not confirmed: nothing was written"));
         }
     }
-    let serial_number = crate::backup::serial_number(&mut opened, entry, slave);
+    let identity = history::identity(&mut opened, entry, slave);
     let mut quiet = io::sink();
     let backup_out: &mut dyn Write = if args.json { &mut quiet } else { out };
-    let restore = save_backup(&mut opened, catalog, entry, slave, serial_number, args, backup_out)?;
+    let (restore, _) = save_backup(&mut opened, catalog, entry, slave, identity.0.clone(), args, backup_out)?;
     let with_restore = |e: CliError| e.detail(format!("to restore the coefficients saved before the write: {restore}"));
     let mut probe = ph_orp::Device::new(&mut opened.bus, slave);
     let [k1, k2, k3, k4, k5, k6] = k;
@@ -205,11 +208,32 @@ pub fn run(catalog: &Catalog, global: &Global, args: &CalibratePhArgs, out: &mut
             "the probe read back K1..K6 = {back:?}, not what was written ({k:?})"
         ))));
     }
+    let probe = Probe { entry, address: slave, port: opened.port.clone(), identity };
+    let mut record = probe.record("ph_electrode", args.history.note.as_deref());
+    let block = <ph_orp::SetPhElectrodeCoefficients as Command>::NAME;
+    let named = |v: &[f32; 6]| -> serde_json::Map<String, serde_json::Value> {
+        ["k1", "k2", "k3", "k4", "k5", "k6"].iter().zip(v).map(|(n, v)| ((*n).to_owned(), f32_json(*v))).collect()
+    };
+    record.block = Some(block.to_owned());
+    record.before = serde_json::json!({ block: named(&current) });
+    record.after = serde_json::json!({ block: named(&k) });
+    record.standards = serde_json::json!(readings.iter().map(|r| r.buffer_ph).collect::<Vec<_>>());
+    record.readings = serde_json::json!(
+        readings
+            .iter()
+            .map(|r| serde_json::json!({
+                "buffer": r.buffer_ph, "mv": r.potential_mv, "temperature_c": r.temperature_c,
+            }))
+            .collect::<Vec<_>>()
+    );
     if args.json {
+        let mut quiet = io::sink();
+        history::record(&mut store, &history_file, &record, &mut quiet)?;
         print_json(out, &readings, &k, Some(&current), true)
     } else {
         writeln!(out, "written and read back: K1..K6 = {}", join(&k))?;
         writeln!(out, "restore the previous coefficients with: {restore}")?;
+        history::record(&mut store, &history_file, &record, out)?;
         Ok(())
     }
 }

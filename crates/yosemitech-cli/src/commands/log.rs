@@ -2,7 +2,7 @@
 
 use std::io::Write;
 use std::sync::atomic::AtomicBool;
-use std::sync::{Arc, Mutex, mpsc};
+use std::sync::{Arc, Mutex, PoisonError, mpsc};
 use std::time::Duration;
 
 use yosemitech_mqtt::Publisher;
@@ -183,7 +183,7 @@ pub fn run(catalog: &Catalog, args: &LogArgs, stop: &Arc<AtomicBool>, out: &mut 
             let outbox = Store::open(&station.storage)
                 .map_err(|e| CliError::device(format!("cannot open the store {}: {e}", station.storage.display())))?;
             let status_topic =
-                tracker.as_ref().map(|t| t.lock().unwrap_or_else(std::sync::PoisonError::into_inner).status_topic());
+                tracker.as_ref().map(|t| t.lock().unwrap_or_else(PoisonError::into_inner).status_topic());
             let publisher = Publisher::start_with_status(mqtt, StoreOutbox(outbox), status_topic).map_err(|e| {
                 CliError::usage(format!("cannot start publishing: {e}"))
                     .hint("check the [mqtt] section of the station file")
@@ -206,13 +206,14 @@ pub fn run(catalog: &Catalog, args: &LogArgs, stop: &Arc<AtomicBool>, out: &mut 
         let logger = scope.spawn(|| {
             let lines = lines;
             logger::run(&station, &store, stop, &|id, reading| {
-                let stored = StoredReading { id, reading: reading.clone() };
+                // As stored: with the calibration in force the insert looked up.
+                let stored = store.lock().unwrap_or_else(PoisonError::into_inner).get(id).ok().flatten();
+                let stored =
+                    stored.unwrap_or_else(|| StoredReading { id, reading: reading.clone(), calibration_id: None });
                 if let Some(p) = &publisher {
                     if let Some(tracker) = &tracker {
                         let message = message(&stored);
-                        p.publish_retained(
-                            tracker.lock().unwrap_or_else(std::sync::PoisonError::into_inner).observe(&message),
-                        );
+                        p.publish_retained(tracker.lock().unwrap_or_else(PoisonError::into_inner).observe(&message));
                     }
                     p.wake();
                 }

@@ -3,6 +3,8 @@
 pub mod address_plan;
 pub mod calibrate;
 pub mod calibrate_electrode;
+pub mod calibrate_linear;
+pub mod calibration_history;
 pub mod coefficients;
 pub mod decode;
 pub mod demo;
@@ -60,7 +62,12 @@ pub fn run(cli: &Cli) -> Result<()> {
         Subcommand::Measure(args) => measure::run(&catalog, global, args, &mut out),
         Subcommand::Watch(args) => watch::run(args, &ctrl_c_flag()),
         Subcommand::Plot(args) => plot::run(args, &mut out),
-        Subcommand::Calibrate(CalibrateSubcommand::Ph(args)) => calibrate::run(&catalog, global, args, &mut out),
+        Subcommand::Calibrate(args) => match &args.command {
+            Some(CalibrateSubcommand::Ph(args)) => calibrate::run(&catalog, global, args, &mut out),
+            Some(CalibrateSubcommand::History(args)) => calibration_history::list(&catalog, args, &mut out),
+            Some(CalibrateSubcommand::Restore(args)) => calibration_history::restore(&catalog, global, args, &mut out),
+            None => calibrate_linear::run(&catalog, global, &args.linear, &ctrl_c_flag(), &mut out),
+        },
         Subcommand::Coefficients(CoefficientsSubcommand::Backup(args)) => {
             coefficients::backup(&catalog, global, args, &mut out)
         }

@@ -8,7 +8,8 @@
 //! the fields fill the registers exactly, a role fits the command's shape,
 //! and a table erratum corrects something the command does differently. A
 //! `use` entry changes only what a manual may add (title, doc, `since`,
-//! units, source, examples, errata), never the wire format.
+//! units, what a calibration block calibrates, source, examples, errata),
+//! never the wire format.
 
 use std::collections::BTreeSet;
 
@@ -17,8 +18,8 @@ use yosemitech_rtu::Function;
 
 use crate::check::{check_erratum_id, check_name, check_role, check_text, resolve_figure};
 use crate::diag::{Pos, Reporter};
-use crate::document::{CommandDoc, FunctionDoc};
-use crate::model::{CommandErratum, CommandSpec, Field, FieldKind, Role};
+use crate::document::{CalibratesDoc, CommandDoc, FunctionDoc};
+use crate::model::{Calibrates, CommandErratum, CommandSpec, Field, FieldKind, Role};
 use crate::names::check_snake;
 
 use super::field::resolve_fields;
@@ -54,7 +55,7 @@ pub(super) fn check_use_entry(c: &CommandDoc, i: usize, r: &mut Reporter<'_>) {
             pos,
             format!("{}.{key}", command_key(i, c)),
             format!("`{key}` cannot be changed by a `use` entry"),
-            Some("a `use` entry takes `title`, `doc`, `since`, `units`, `source`, `examples` and `errata`; change the definition in the fragment".into()),
+            Some("a `use` entry takes `title`, `doc`, `since`, `units`, `calibrates`, `source`, `examples` and `errata`; change the definition in the fragment".into()),
         );
     }
 }
@@ -183,6 +184,7 @@ pub(super) fn resolve_command(
         examples: Vec::new(),
         errata: Vec::new(),
         shared_from: fragment,
+        calibrates: c.calibrates.as_ref().map(|doc| resolve_calibrates(doc, &key, r)),
     };
     if !name_ok {
         return None;
@@ -240,6 +242,29 @@ fn check_role_shape(role: Role, cmd: &CommandSpec) -> Result<(), String> {
         Role::CalibrationStatus => {
             read(cmd.is_read()).and_then(|()| one(|k| matches!(k, FieldKind::Enum { .. }), "an `enum`"))
         }
+        Role::UserCalibration => write(!cmd.is_read()).and_then(|()| match named.as_slice() {
+            [k, b] if [k, b].iter().all(|f| matches!(f.kind, FieldKind::F32 { .. })) => Ok(()),
+            _ => Err("it needs exactly two named fields, `f32` slope K then `f32` offset B".into()),
+        }),
+    }
+}
+
+/// A block's `calibrates`: the field is checked against the sensor's
+/// measurement reads once every command is known.
+pub(super) fn resolve_calibrates(doc: &CalibratesDoc, key: &str, r: &mut Reporter<'_>) -> Calibrates {
+    let key = format!("{key}.calibrates");
+    let mut standards = Vec::new();
+    for (j, s) in doc.standards.iter().enumerate() {
+        if s.value.is_finite() {
+            standards.push(s.value);
+        } else {
+            r.error(Pos::at(s), format!("{key}.standards[{j}]"), "a standard must be a finite number", None);
+        }
+    }
+    Calibrates {
+        field: check_text(&doc.field, &format!("{key}.field"), r),
+        standards,
+        settle_ms: doc.settle_ms.as_ref().map(|m| m.value),
     }
 }
 

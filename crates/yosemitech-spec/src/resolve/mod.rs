@@ -30,7 +30,7 @@ mod procedure;
 mod sensor;
 mod todo;
 
-use command::{check_use_entry, command_key, resolve_command, resolve_command_extras};
+use command::{check_use_entry, command_key, resolve_calibrates, resolve_command, resolve_command_extras};
 use constant::resolve_constants;
 use derived::resolve_derived;
 use errata::resolve_errata;
@@ -223,6 +223,8 @@ struct Origin<'d> {
     file: &'d Path,
     pos: Pos,
     key: String,
+    /// Where the entry states what its calibration block calibrates.
+    calibrates_at: Option<Pos>,
 }
 
 impl Loader<'_> {
@@ -482,7 +484,12 @@ impl Loader<'_> {
             let mut fr = Reporter { file: def.file, text: &parsed.text, out: r.out };
             if let Some(c) = resolve_command(def.doc, None, def.index, def.fragment.clone(), &mut fr) {
                 let pos = def.doc.name.as_ref().map(Pos::at).unwrap_or_default();
-                origins.push(Origin { file: def.file, pos, key: command_key(def.index, def.doc) });
+                origins.push(Origin {
+                    file: def.file,
+                    pos,
+                    key: command_key(def.index, def.doc),
+                    calibrates_at: def.doc.calibrates.as_ref().map(|c| Pos::at(&c.field)),
+                });
                 commands.push(c);
             }
         }
@@ -502,7 +509,12 @@ impl Loader<'_> {
                 ),
                 (Some(n), None) => {
                     if let Some(cmd) = resolve_command(c, None, i, None, &mut r) {
-                        origins.push(Origin { file: root, pos: Pos::at(n), key: command_key(i, c) });
+                        origins.push(Origin {
+                            file: root,
+                            pos: Pos::at(n),
+                            key: command_key(i, c),
+                            calibrates_at: c.calibrates.as_ref().map(|c| Pos::at(&c.field)),
+                        });
                         commands.push(cmd);
                     }
                 }
@@ -553,10 +565,18 @@ impl Loader<'_> {
                             }
                         }
                     }
+                    if let Some(calibrates) = &c.calibrates {
+                        cmd.calibrates = Some(resolve_calibrates(calibrates, &key, &mut r));
+                    }
                     cmd.examples.clear();
                     cmd.errata.clear();
                     resolve_command_extras(c, i, &mut cmd, &mut r);
-                    origins.push(Origin { file: root, pos: Pos::at(u), key: command_key(i, c) });
+                    origins.push(Origin {
+                        file: root,
+                        pos: Pos::at(u),
+                        key: command_key(i, c),
+                        calibrates_at: c.calibrates.as_ref().map(|c| Pos::at(&c.field)),
+                    });
                     commands.push(cmd);
                 }
             }
@@ -653,10 +673,10 @@ impl Loader<'_> {
             );
         }
 
-        // One command per role.
+        // One command per role (a sensor may have several calibration blocks).
         let mut roles: BTreeMap<Role, usize> = BTreeMap::new();
         for (k, (cmd, origin)) in commands.iter().zip(&origins).enumerate() {
-            let Some(role) = cmd.role else { continue };
+            let Some(role) = cmd.role.filter(|&role| role != Role::UserCalibration) else { continue };
             if let Some(&j) = roles.get(&role) {
                 r.error(
                     origin.pos,
@@ -669,6 +689,46 @@ impl Loader<'_> {
                 );
             } else {
                 roles.insert(role, k);
+            }
+        }
+        // A user calibration block: a read of the same registers pairs it,
+        // and what it calibrates is a measured field of the sensor.
+        for (cmd, origin) in commands.iter().zip(&origins) {
+            let mut fr = match self.files.get(origin.file) {
+                Some(p) => Reporter { file: origin.file, text: &p.text, out: r.out },
+                None => continue,
+            };
+            let is_block = cmd.role == Some(Role::UserCalibration);
+            if is_block && !commands.iter().any(|c| c.is_read() && c.address == cmd.address && c.count == cmd.count) {
+                fr.error(
+                    origin.pos,
+                    format!("{}.role", origin.key),
+                    format!(
+                        "`{}` cannot have role `user_calibration`: no read of the same registers (0x{:04X} x{}) pairs it",
+                        cmd.name, cmd.address, cmd.count
+                    ),
+                    Some("add the manual's read of the K/B block, or remove the role".into()),
+                );
+            }
+            let Some(calibrates) = &cmd.calibrates else { continue };
+            let at = origin.calibrates_at.unwrap_or(origin.pos);
+            if !is_block {
+                fr.error(
+                    at,
+                    format!("{}.calibrates", origin.key),
+                    format!("`{}` states `calibrates` but is not a `user_calibration` block", cmd.name),
+                    Some("`calibrates` belongs to the write with role `user_calibration`".into()),
+                );
+                continue;
+            }
+            let probe = Sensor::measured_fields(&commands);
+            if !probe.iter().any(|f| *f == calibrates.field) {
+                fr.error(
+                    at,
+                    format!("{}.calibrates.field", origin.key),
+                    format!("`{}` is not a named field of a measurement read", escape(&calibrates.field)),
+                    Some(format!("measured fields: {}", probe.join(", "))),
+                );
             }
         }
         check_manual_refs(sensor_doc, doc, &mut r);

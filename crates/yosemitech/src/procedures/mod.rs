@@ -6,6 +6,8 @@
 //!   coefficients backed up before anything is written.
 //! - [`ph_electrode`]: the electrode coefficients K1..K6 computed on the
 //!   master from the potentials read in the buffers, by the vendor's model.
+//! - [`linear`]: the statistics of the readings in each standard and the
+//!   K/B line through them (a probe's user calibration).
 //! - [`coefficients`]: every calibration coefficient of a probe, read and
 //!   restored with read-back.
 //! - [`address`]: changing a probe's slave address, verified at the new one.
@@ -19,6 +21,7 @@ use std::time::Duration;
 
 pub mod coefficients;
 pub mod conductivity;
+pub mod linear;
 pub mod ph;
 pub mod ph_electrode;
 
