@@ -99,6 +99,25 @@ impl Binary {
         run_command(cmd, None)
     }
 
+    /// Starts `simulate ARGS` and returns it with the endpoint it printed
+    /// first (a pty path, or the address it listens on).
+    pub fn simulate(self, args: &[&str]) -> (Child, String) {
+        let mut child = self
+            .command()
+            .arg("simulate")
+            .args(args)
+            .stdin(Stdio::null())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .expect("the simulator starts");
+        let mut line = String::new();
+        let stdout = child.stdout.take().expect("stdout is piped");
+        std::io::BufRead::read_line(&mut std::io::BufReader::new(stdout), &mut line)
+            .expect("the simulator prints its endpoint");
+        (child, line.trim().to_owned())
+    }
+
     /// Runs the binary with `args` and `input` on stdin.
     pub fn run_with_input(self, args: &[&str], input: &str) -> Run {
         let mut cmd = self.command();
@@ -130,6 +149,19 @@ fn drain(mut pipe: impl Read + Send + 'static) -> thread::JoinHandle<String> {
         let _ = pipe.read_to_end(&mut bytes);
         String::from_utf8_lossy(&bytes).into_owned()
     })
+}
+
+/// Stops a running binary as Ctrl-C does, asserts it exits cleanly and
+/// returns what it wrote to stderr (piped, as [`Binary::simulate`] does).
+pub fn interrupt(mut child: Child) -> String {
+    let status = Command::new("kill").args(["-INT", &child.id().to_string()]).status().expect("kill runs");
+    assert!(status.success(), "the process could be signalled");
+    assert_eq!(wait(&mut child, Duration::from_secs(10)), 0, "it stops cleanly on Ctrl-C");
+    let mut err = String::new();
+    if let Some(mut stderr) = child.stderr.take() {
+        let _ = stderr.read_to_string(&mut err);
+    }
+    err
 }
 
 /// Waits for `child`, killing it (and failing) after `limit`.

@@ -9,7 +9,7 @@ use std::time::{Duration, Instant};
 
 use std::sync::Arc;
 
-use yosemitech_tests::cli::{Binary, Run, Sim, fixture_spec_dir, number_after, sim};
+use yosemitech_tests::cli::{Binary, Run, Sim, fixture_spec_dir, interrupt, number_after, sim};
 use yosemitech_tests::values::varied_float;
 use yosemitech_tests::{report, spec};
 
@@ -1529,30 +1529,6 @@ fn scan_lists_the_candidates_where_it_cannot_decide() {
 
 /// `yosemitech simulate` in a child process: the port it prints, and a clean
 /// stop on Ctrl-C.
-fn spawn_simulate(args: &[&str]) -> (std::process::Child, String) {
-    let mut child = YOSEMITECH
-        .command()
-        .arg("simulate")
-        .args(args)
-        .stdin(Stdio::null())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let mut line = String::new();
-    BufReader::new(child.stdout.take().unwrap()).read_line(&mut line).unwrap();
-    (child, line.trim().to_owned())
-}
-
-fn interrupt(mut child: std::process::Child) -> String {
-    let status = Command::new("kill").args(["-INT", &child.id().to_string()]).status().unwrap();
-    assert!(status.success());
-    assert_eq!(yosemitech_tests::cli::wait(&mut child, Duration::from_secs(10)), 0, "simulate stops cleanly on Ctrl-C");
-    let mut err = String::new();
-    std::io::Read::read_to_string(&mut child.stderr.take().unwrap(), &mut err).unwrap();
-    err
-}
-
 /// The sensor, the read, its true request and reply, and the line `read` shows.
 type StatedRead = (Sensor, CommandSpec, Vec<u8>, Vec<u8>, String);
 
@@ -1595,7 +1571,7 @@ fn hex(bytes: &[u8]) -> String {
 #[test]
 fn simulate_serves_a_pty_until_interrupted() {
     let Some((sensor, command, _, _, line)) = stated_read() else { return };
-    let (child, port) = spawn_simulate(&[&sensor.name, "--address", "4"]);
+    let (child, port) = YOSEMITECH.simulate(&[&sensor.name, "--address", "4"]);
     assert!(port.starts_with("/dev/"), "{port}");
     let out = YOSEMITECH.run(&["read", &sensor.name, &command.name, "-p", &port, "-a", "4"]);
     assert!(out.ok().contains(&line), "{}", out.stdout);
@@ -1607,7 +1583,7 @@ fn simulate_serves_a_pty_until_interrupted() {
 #[test]
 fn simulate_serves_rtu_over_tcp() {
     let Some((sensor, command, _, _, line)) = stated_read() else { return };
-    let (child, port) = spawn_simulate(&[&sensor.name, "--tcp", "127.0.0.1:0"]);
+    let (child, port) = YOSEMITECH.simulate(&[&sensor.name, "--tcp", "127.0.0.1:0"]);
     assert!(port.starts_with("tcp://127.0.0.1:"), "{port}");
     let out = YOSEMITECH.run(&["read", &sensor.name, &command.name, "-p", &port]);
     assert_eq!(out.ok().trim(), line);
@@ -1620,7 +1596,7 @@ fn simulate_serves_modbus_tcp() {
     use yosemitech_rtu::mbap::{MAX_MBAP_ADU, adu_to_rtu, rtu_to_adu};
 
     let Some((sensor, command, request, reply, _)) = stated_read() else { return };
-    let (child, port) = spawn_simulate(&[&sensor.name, "--tcp", "127.0.0.1:0", "--protocol", "mbap"]);
+    let (child, port) = YOSEMITECH.simulate(&[&sensor.name, "--tcp", "127.0.0.1:0", "--protocol", "mbap"]);
     let addr = port.strip_prefix("mbap://").unwrap_or_else(|| panic!("{port}"));
     let mut stream = std::net::TcpStream::connect(addr).unwrap();
     stream.set_read_timeout(Some(Duration::from_secs(5))).unwrap();
@@ -1652,7 +1628,7 @@ fn simulate_is_silent_for_registers_the_probe_lacks_unless_asked_for_exceptions(
     for (flags, expected) in [(&[][..], "no reply"), (&["--exceptions"][..], "Modbus exception")] {
         let mut args = vec![sensor.name.as_str(), "--tcp", "127.0.0.1:0"];
         args.extend_from_slice(flags);
-        let (child, port) = spawn_simulate(&args);
+        let (child, port) = YOSEMITECH.simulate(&args);
         let mut read = vec!["read", owner.name.as_str(), foreign.name.as_str(), "-p", &port, "-a", &address];
         read.extend(["--timeout", "500ms", "--retries", "0"]);
         let run = YOSEMITECH.run(&read);
@@ -1678,7 +1654,7 @@ fn simulate_injects_faults_the_client_retries() {
             reads.len()
         })
         .unwrap();
-    let (child, port) = spawn_simulate(&[&sensor.name, "--faults", "drop=0.3,corrupt_crc=0.2", "--seed", "5"]);
+    let (child, port) = YOSEMITECH.simulate(&[&sensor.name, "--faults", "drop=0.3,corrupt_crc=0.2", "--seed", "5"]);
     let run = YOSEMITECH.run(&[
         "poll",
         &sensor.name,
@@ -1711,7 +1687,7 @@ fn spec_sensors_work_through_the_interpreter() {
     // The fixture DO probe (19200 8E1, address 10) exists only as a spec file.
     let dir = fixture_spec_dir();
     let spec = dir.to_str().unwrap();
-    let (child, port) = spawn_simulate(&["--spec", spec, "do_probe"]);
+    let (child, port) = YOSEMITECH.simulate(&["--spec", spec, "do_probe"]);
     let out = YOSEMITECH.run(&["read", "--spec", spec, "do_probe", "get_oxygen_sample", "-p", &port]);
     let text = out.ok();
     assert!(text.contains("do_mg_l") && text.contains("8.25 mg/L") && text.contains("-1250"), "{text}");

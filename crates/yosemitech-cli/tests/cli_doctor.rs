@@ -14,7 +14,7 @@ use serde_json::Value as Json;
 use yosemitech_rtu::{CharFormat, Function, LineSettings, crc_ok};
 use yosemitech_sim::{Bus, FaultConfig, FrameHandler, ServeConfig, Simulator, serve_pty};
 use yosemitech_spec::{CommandSpec, Role, Sensor};
-use yosemitech_tests::cli::{Binary, Run, Sim, serve};
+use yosemitech_tests::cli::{Binary, Run, Sim, interrupt, serve};
 use yosemitech_tests::{report, spec};
 
 /// The binary under test.
@@ -298,32 +298,12 @@ fn replies_damaged_every_time_but_differently_are_noise_not_a_collision() {
 }
 
 /// `yosemitech simulate ARGS` in a child process, and the port it serves.
-fn spawn_simulate(args: &[&str]) -> (std::process::Child, String) {
-    let mut child = YOSEMITECH
-        .command()
-        .arg("simulate")
-        .args(args)
-        .stdin(Stdio::null())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::null())
-        .spawn()
-        .unwrap();
-    let mut line = String::new();
-    BufReader::new(child.stdout.take().unwrap()).read_line(&mut line).unwrap();
-    (child, line.trim().to_owned())
-}
-
-fn stop(mut child: std::process::Child) {
-    Command::new("kill").args(["-INT", &child.id().to_string()]).status().unwrap();
-    assert_eq!(yosemitech_tests::cli::wait(&mut child, Duration::from_secs(10)), 0);
-}
-
 #[test]
 fn two_probes_on_one_address_collide_the_same_way_every_time() {
     let sensor = sensor_with(&[Role::Version]);
-    let (child, port) = spawn_simulate(&[&sensor.name, "--collide"]);
+    let (child, port) = YOSEMITECH.simulate(&[&sensor.name, "--collide"]);
     let json = doctor(&port, &sensor, &[]);
-    stop(child);
+    interrupt(child);
     assert_eq!(verdict(&json), "collision", "{json:#}");
     let collision = finding(&json, "collision");
     let bytes = received(collision);
@@ -445,23 +425,23 @@ fn simulate_line_faults_from_the_command_line_reach_the_doctor() {
     let sensor = sensor_with(&[Role::StartMeasurement]);
     let sn = role(&sensor, Role::SerialNumber);
     // Each flag, and the verdict and evidence the doctor gives for it.
-    let (child, port) = spawn_simulate(&[&sensor.name, "--echo"]);
+    let (child, port) = YOSEMITECH.simulate(&[&sensor.name, "--echo"]);
     let json = doctor(&port, &sensor, &[]);
-    stop(child);
+    interrupt(child);
     assert_eq!(verdict(&json), "echo", "{json:#}");
     assert!(received(finding(&json, "echo")).starts_with(&request(sn, sensor.default_address)));
 
     // Stop bits alone do not garble (a receiver at 1 stop bit accepts 2):
     // a probe at 19200 8N2 answers the doctor's 19200 8N1.
-    let (child, port) = spawn_simulate(&[&sensor.name, "--serial", "19200-8N2"]);
+    let (child, port) = YOSEMITECH.simulate(&[&sensor.name, "--serial", "19200-8N2"]);
     let json = doctor(&port, &sensor, &[]);
-    stop(child);
+    interrupt(child);
     assert_eq!(verdict(&json), "serial_settings", "{json:#}");
     assert_eq!(json["answering"]["settings"], LineSettings { baud: 19_200, format: CharFormat::EIGHT_N_1 }.to_string());
 
-    let (child, port) = spawn_simulate(&[&sensor.name, "--refuse-start"]);
+    let (child, port) = YOSEMITECH.simulate(&[&sensor.name, "--refuse-start"]);
     let json = doctor(&port, &sensor, &[]);
-    stop(child);
+    interrupt(child);
     assert_eq!(verdict(&json), "trigger_refused", "{json:#}");
     let start = role(&sensor, Role::StartMeasurement);
     assert_eq!(finding(&json, "trigger_refused")["sent"], hex(&request(start, sensor.default_address)));
