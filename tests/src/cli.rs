@@ -86,10 +86,18 @@ impl Binary {
             .env_remove("YOSEMITECH_BAUD")
             .env_remove("RUST_LOG")
             .env_remove("RUST_BACKTRACE")
-            // Calibrations record their history in the user's data directory: never the real one.
-            .env("XDG_DATA_HOME", std::env::temp_dir().join("yosemitech-tests-data"))
+            // Calibrations record their history in the user's data directory: never the
+            // real one, nor one shared with another checkout's build (its schema may differ).
+            .env("XDG_DATA_HOME", self.data_home())
             .current_dir(std::env::temp_dir());
         cmd
+    }
+
+    /// The user data directory the binary's runs get: beside the binary, in
+    /// its own target directory.
+    pub fn data_home(self) -> PathBuf {
+        let binary = std::path::Path::new(self.0);
+        binary.parent().unwrap_or(binary).join("yosemitech-tests-data")
     }
 
     /// Runs the binary with `args`, stdin empty.
