@@ -261,12 +261,19 @@ mod tests {
         assert_eq!(judge("POST", "/api/data-stream/", Some("tok"), ok, SITE), Ok(()));
         let one = r#"{"sampling_feature":"feat","timestamp":"2026-01-01T00:00:00.250+01:00","u":1.5}"#;
         assert_eq!(judge("POST", "/api/data-stream/", Some("tok"), one, SITE), Ok(()));
-        let status = |token: Option<&str>, body: &str| judge("POST", "/api/data-stream/", token, body, SITE).err().map(|e| e.0);
+        let status =
+            |token: Option<&str>, body: &str| judge("POST", "/api/data-stream/", token, body, SITE).err().map(|e| e.0);
         assert_eq!(status(None, ok), Some(401));
         assert_eq!(status(Some("other"), ok), Some(403));
         assert_eq!(status(Some("tok"), r#"{"timestamp":"2026-01-01T00:00:00+00:00","u":1}"#), Some(400));
-        assert_eq!(status(Some("tok"), r#"{"sampling_feature":"feat","timestamp":"2026-01-01T00:00:00","u":1}"#), Some(400));
-        assert_eq!(status(Some("tok"), r#"{"sampling_feature":"feat","timestamp":"2026-01-01T00:00:00Z","u":1}"#), Some(400));
+        assert_eq!(
+            status(Some("tok"), r#"{"sampling_feature":"feat","timestamp":"2026-01-01T00:00:00","u":1}"#),
+            Some(400)
+        );
+        assert_eq!(
+            status(Some("tok"), r#"{"sampling_feature":"feat","timestamp":"2026-01-01T00:00:00Z","u":1}"#),
+            Some(400)
+        );
         let unequal = r#"{"sampling_feature":"feat","timestamp":["2026-01-01T00:00:00+00:00"],"u":[1,2]}"#;
         assert_eq!(status(Some("tok"), unequal), Some(400));
         assert_eq!(values(ok).len(), 2);

@@ -17,7 +17,9 @@ use station::{Station, YOSEMITECH, command, terminate};
 use yosemitech_portal::body::timestamp;
 use yosemitech_station::portal::PORTAL_PUBLISHER;
 use yosemitech_station::{Datum, Store, plan};
-use yosemitech_tests::broker::{Broker, BrokerKind, Subscriber, ids_and_first_occurrences, rumqttd_child_main, wait_until};
+use yosemitech_tests::broker::{
+    Broker, BrokerKind, Subscriber, ids_and_first_occurrences, rumqttd_child_main, wait_until,
+};
 use yosemitech_tests::portal::{Portal, Stored};
 use yosemitech_tests::spec;
 
@@ -65,7 +67,12 @@ fn start_logger(config: &Path, token: &str, stderr: &Path) -> Child {
 
 fn stored_ids(db: &Path) -> Vec<i64> {
     let store = Store::open(db).unwrap();
-    store.range(std::time::UNIX_EPOCH, std::time::SystemTime::now() + Duration::from_secs(60)).unwrap().iter().map(|s| s.id).collect()
+    store
+        .range(std::time::UNIX_EPOCH, std::time::SystemTime::now() + Duration::from_secs(60))
+        .unwrap()
+        .iter()
+        .map(|s| s.id)
+        .collect()
 }
 
 fn mark(db: &Path, publisher: &str) -> i64 {
@@ -182,8 +189,14 @@ fn portal_and_mqtt_each_get_every_reading_once_across_a_portal_outage_and_a_kill
         assert!(!text.contains(TOKEN), "{run} shows the token: {text}");
     }
     let bodies = portal.accepted();
-    eprintln!("    {} readings stored, {} requests accepted; bodies (first, a batch, last):", stored.len(), bodies.len());
-    for body in [bodies.first(), bodies.iter().find(|b| b.contains("\"timestamp\":[")), bodies.last()].into_iter().flatten() {
+    eprintln!(
+        "    {} readings stored, {} requests accepted; bodies (first, a batch, last):",
+        stored.len(),
+        bodies.len()
+    );
+    for body in
+        [bodies.first(), bodies.iter().find(|b| b.contains("\"timestamp\":[")), bodies.last()].into_iter().flatten()
+    {
         eprintln!("    {body}");
     }
 }
@@ -237,13 +250,36 @@ fn check_validates_the_section_located_and_never_shows_the_token() {
     let line_of = |text: &str, needle: &str| text.lines().position(|l| l.contains(needle)).unwrap() + 1;
     let cases: Vec<(String, &str, &str)> = vec![
         (good.replace(FEATURE, "5a5a5a5a-1111-4222-8333-44445555666"), "sampling_feature = ", "is not a UUID"),
-        (good.replace("[monitor_my_watershed.results.p1]", "[monitor_my_watershed.results.nope]"), "results.nope", "no probe is labelled `nope`"),
-        (good.replacen(&format!("\"{}\"", result_uuid(0, 0)), &format!("\"{}\"", result_uuid(1, 0)), 1), "", "is bound twice"),
+        (
+            good.replace("[monitor_my_watershed.results.p1]", "[monitor_my_watershed.results.nope]"),
+            "results.nope",
+            "no probe is labelled `nope`",
+        ),
+        (
+            good.replacen(&format!("\"{}\"", result_uuid(0, 0)), &format!("\"{}\"", result_uuid(1, 0)), 1),
+            "",
+            "is bound twice",
+        ),
         (good.replacen(&format!("\"{}\"", result_uuid(1, 0)), "\"not-a-uuid\"", 1), "not-a-uuid", "is not a UUID"),
-        (good.replace("https://portal.example.org", "http://portal.example.org").replace("allow_http = true\n", ""), "url = ", "use https://"),
-        (good.replace("[monitor_my_watershed.results.p0]\n", "[monitor_my_watershed.results.p0]\nno_such_measurement = \"ffffffff-0000-4000-8000-000000000000\"\n"), "no_such_measurement", "reads no `no_such_measurement`"),
+        (
+            good.replace("https://portal.example.org", "http://portal.example.org").replace("allow_http = true\n", ""),
+            "url = ",
+            "use https://",
+        ),
+        (
+            good.replace(
+                "[monitor_my_watershed.results.p0]\n",
+                "[monitor_my_watershed.results.p0]\nno_such_measurement = \"ffffffff-0000-4000-8000-000000000000\"\n",
+            ),
+            "no_such_measurement",
+            "reads no `no_such_measurement`",
+        ),
         (good.replace("batch = 5", "batch = 0"), "batch = 0", "not 1 to 1000"),
-        (good.replace("token = \"environment\"", "token = { file = \"/nonexistent/mmw.token\" }"), "token = ", "cannot read token file"),
+        (
+            good.replace("token = \"environment\"", "token = { file = \"/nonexistent/mmw.token\" }"),
+            "token = ",
+            "cannot read token file",
+        ),
     ];
     for (toml, needle, says) in &cases {
         let run = check(dir.path(), toml, Some(TOKEN));

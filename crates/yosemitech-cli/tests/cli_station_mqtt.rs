@@ -106,7 +106,11 @@ fn killed_and_restarted_logger_loses_nothing(kind: BrokerKind) {
         let first = payloads.entry(id).or_insert(&r.payload);
         assert_eq!(*first, r.payload.as_slice(), "{kind:?}: a copy of {id} is identical");
     }
-    assert_eq!(Store::open(&db).unwrap().published_up_to("mqtt").unwrap(), *stored.last().unwrap(), "{kind:?}: all marked");
+    assert_eq!(
+        Store::open(&db).unwrap().published_up_to("mqtt").unwrap(),
+        *stored.last().unwrap(),
+        "{kind:?}: all marked"
+    );
     eprintln!(
         "    {kind:?}: {} readings, {} stored before the kill ({} of them unpublished), {copies} copies",
         stored.len(),

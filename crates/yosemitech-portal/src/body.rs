@@ -174,7 +174,11 @@ mod tests {
         let batch = next_batch(&pending[4..], 10).unwrap();
         assert_eq!((batch.records.len(), batch.up_to), (1, 5));
         let batch = next_batch(&pending, 1).unwrap();
-        assert_eq!((batch.records.len(), batch.up_to), (1, 3), "at most a batch, and the records without values after it");
+        assert_eq!(
+            (batch.records.len(), batch.up_to),
+            (1, 3),
+            "at most a batch, and the records without values after it"
+        );
         let nothing = next_batch(&pending[..1], 10).unwrap();
         assert_eq!((nothing.records.len(), nothing.up_to), (0, 1), "passed over");
         assert_eq!(next_batch(&[], 10), None);

@@ -77,7 +77,12 @@ fn every_record_is_accepted_once_across_an_outage() {
     outbox.push(&[]);
     outbox.push(&[(TEMPERATURE, 30.5)]);
     let publisher = Publisher::start(&config(&portal, &token_file(dir.path(), TOKEN)), outbox.clone()).unwrap();
-    assert!(wait_until(|| outbox.mark() == 12), "the backlog goes out: {:?} {:?}", publisher.status(), portal.refused());
+    assert!(
+        wait_until(|| outbox.mark() == 12),
+        "the backlog goes out: {:?} {:?}",
+        publisher.status(),
+        portal.refused()
+    );
     portal.stop();
     for i in 0..9 {
         outbox.push(&[(TEMPERATURE, 40.0 + f64::from(i)), (PH, 6.5)]);

@@ -765,8 +765,10 @@ fn portal(loc: &mut Locator<'_>, raw: Spanned<RawPortal>, buses: &[BusConfig]) -
         } else if text.starts_with("http://") {
             loc.error(
                 url.span(),
-                format!("{what} url `{text}`: the token travels with every request, so use https:// \
-                         (allow_http = true sends it in the clear, for a portal on a private network)"),
+                format!(
+                    "{what} url `{text}`: the token travels with every request, so use https:// \
+                         (allow_http = true sends it in the clear, for a portal on a private network)"
+                ),
             );
         } else {
             loc.error(url.span(), format!("{what} url `{text}` is not an https:// URL"));
@@ -775,7 +777,8 @@ fn portal(loc: &mut Locator<'_>, raw: Spanned<RawPortal>, buses: &[BusConfig]) -
     if let Some(offset) = &raw.utc_offset {
         match i8::try_from(*offset.get_ref()) {
             Ok(hours) if (-12..=14).contains(&hours) => config.utc_offset_hours = hours,
-            _ => loc.error(offset.span(), format!("{what} utc_offset {} is not whole hours in -12..=14", offset.get_ref())),
+            _ => loc
+                .error(offset.span(), format!("{what} utc_offset {} is not whole hours in -12..=14", offset.get_ref())),
         }
     }
     if let Some(batch) = &raw.batch {
@@ -825,21 +828,22 @@ fn portal(loc: &mut Locator<'_>, raw: Spanned<RawPortal>, buses: &[BusConfig]) -
             if !names.contains(name_text) {
                 loc.error(
                     name.span(),
-                    format!(
-                        "{what}: probe `{}` reads no `{name_text}`; it reads {}",
-                        probe.label,
-                        names.join(", ")
-                    ),
+                    format!("{what}: probe `{}` reads no `{name_text}`; it reads {}", probe.label, names.join(", ")),
                 );
             }
             if !is_uuid(uuid_text) {
-                loc.error(uuid.span(), format!("{what}: result `{uuid_text}` is not a UUID (8-4-4-4-12 hexadecimal digits)"));
+                loc.error(
+                    uuid.span(),
+                    format!("{what}: result `{uuid_text}` is not a UUID (8-4-4-4-12 hexadecimal digits)"),
+                );
             } else if let Some((other_probe, other_name)) =
                 seen.insert(uuid_text.to_ascii_lowercase(), (probe.label.clone(), name_text.clone()))
             {
                 loc.error(
                     uuid.span(),
-                    format!("{what}: result {uuid_text} is bound twice, here and to `{other_name}` of probe `{other_probe}`"),
+                    format!(
+                        "{what}: result {uuid_text} is bound twice, here and to `{other_name}` of probe `{other_probe}`"
+                    ),
                 );
             }
             bound.insert(name_text.clone(), uuid_text.to_owned());

@@ -200,10 +200,8 @@ fn a_version_3_store_keeps_its_cursor_as_mqtts_and_a_new_publisher_starts_at_the
     let path = dir.path().join("v3.sqlite");
     rusqlite::Connection::open(&path).unwrap().execute_batch(SCHEMA_V3).unwrap();
     let mut store = Store::open(&path).unwrap();
-    let version: i64 = rusqlite::Connection::open(&path)
-        .unwrap()
-        .pragma_query_value(None, "user_version", |r| r.get(0))
-        .unwrap();
+    let version: i64 =
+        rusqlite::Connection::open(&path).unwrap().pragma_query_value(None, "user_version", |r| r.get(0)).unwrap();
     assert_eq!(version, yosemitech_station::store::SCHEMA_VERSION);
     assert_eq!(store.publishers().unwrap(), [("mqtt".to_owned(), 2)]);
     assert_eq!(store.published_up_to("mqtt").unwrap(), 2);
