@@ -146,3 +146,30 @@ fn a_missing_token_stops_the_start_and_names_the_variable() {
     let e = TokenSource::Environment.load_with(|_| None).unwrap_err();
     assert!(e.to_string().contains(TOKEN_VAR));
 }
+
+#[test]
+fn https_is_tls_and_a_plain_http_answer_is_no_acceptance() {
+    // A server that answers 201 in clear text where a TLS handshake is due:
+    // the publisher must not take it for an acceptance.
+    let listener = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+    let address = listener.local_addr().unwrap();
+    std::thread::spawn(move || {
+        for stream in listener.incoming().flatten() {
+            use std::io::Write;
+            let mut stream = stream;
+            let _ = stream.write_all(b"HTTP/1.1 201 Created\r\nContent-Length: 0\r\n\r\n");
+        }
+    });
+    let dir = tempfile::tempdir().unwrap();
+    let outbox = Memory::default();
+    outbox.push(&[(TEMPERATURE, 20.0)]);
+    let portal = Portal::start(TOKEN, FEATURE);
+    let mut config = config(&portal, &token_file(dir.path(), TOKEN));
+    config.url = format!("https://{address}/api/data-stream/");
+    let publisher = Publisher::start(&config, outbox.clone()).unwrap();
+    assert!(wait_until(|| publisher.status().failed >= 2));
+    let status = publisher.shutdown(Duration::from_secs(10));
+    assert_eq!(outbox.mark(), 0);
+    assert!(status.last_error.as_deref().is_some_and(|e| e.contains("no answer")), "{status:?}");
+    eprintln!("{status:?}");
+}
