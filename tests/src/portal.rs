@@ -88,13 +88,13 @@ impl Portal {
     /// Listens again on the same port.
     pub fn restart(&mut self) {
         assert!(self.running.is_none(), "the portal is running");
+        // The port may linger a moment after the stop; bind again until it is free.
         let mut tries = 0;
         let listener = loop {
             match TcpListener::bind(self.address) {
                 Ok(l) => break l,
-                Err(e) if tries < 200 => {
+                Err(_) if tries < 200 => {
                     tries += 1;
-                    let _ = e;
                     std::thread::sleep(Duration::from_millis(50));
                 }
                 Err(e) => panic!("cannot listen on {} again: {e}", self.address),

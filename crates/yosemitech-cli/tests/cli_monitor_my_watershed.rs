@@ -306,3 +306,42 @@ fn check_validates_the_section_located_and_never_shows_the_token() {
     let run = check(dir.path(), &in_file, None);
     assert!(run.ok().contains("token from the file") && !run.stdout.contains(TOKEN) && !run.stderr.contains(TOKEN));
 }
+
+#[test]
+fn check_takes_a_derived_quantity_the_station_computes() {
+    use yosemitech_spec::InputSource;
+    let mut found = false;
+    for sensor in spec().sensors.iter().filter(|s| !s.derived.is_empty() && !plan::measurements(s).is_empty()) {
+        let all = plan::measurements(sensor);
+        let planned = plan::plan(sensor, &all);
+        let read = |c: &str, f: &str| planned.reads.iter().any(|r| r.command.name == c && r.fields.contains(&f));
+        let Some(derived) = sensor.derived.iter().find(|d| {
+            d.inputs.iter().all(|i| match &i.source {
+                InputSource::Field { command, field } => read(command, field),
+                InputSource::Station(_) => true,
+            })
+        }) else {
+            continue;
+        };
+        found = true;
+        let dir = tempfile::tempdir().unwrap();
+        let toml = format!(
+            "station = \"s\"\n[storage]\npath = \"s.sqlite\"\n[[bus]]\nname = \"a\"\nport = \"/dev/null\"\n\
+             [[bus.probe]]\nlabel = \"d\"\nsensor = \"{}\"\naddress = {}\ninterval = \"1m\"\n\
+             [monitor_my_watershed]\ntoken = \"environment\"\nsampling_feature = \"{FEATURE}\"\n\
+             [monitor_my_watershed.results.d]\n{} = \"{}\"\n",
+            sensor.name,
+            sensor.default_address,
+            derived.name,
+            result_uuid(9, 9)
+        );
+        let run = check(dir.path(), &toml, Some(TOKEN));
+        assert!(
+            run.ok().contains(&format!("{} -> {}", derived.name, result_uuid(9, 9))),
+            "{}: {}",
+            sensor.name,
+            run.stdout
+        );
+    }
+    assert!(found, "the spec has a derived quantity a station computes");
+}
