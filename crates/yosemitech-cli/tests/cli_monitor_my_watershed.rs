@@ -10,7 +10,7 @@ mod station;
 
 use std::collections::BTreeMap;
 use std::path::Path;
-use std::process::{Child, Stdio};
+use std::process::Child;
 use std::time::Duration;
 
 use station::{Station, YOSEMITECH, command, terminate};
@@ -55,11 +55,13 @@ fn section(url: &str) -> String {
     toml
 }
 
+/// Starts the logger with `token` in its environment, its stderr into
+/// `stderr` and its stdout beside it (`.out`).
 fn start_logger(config: &Path, token: &str, stderr: &Path) -> Child {
     command()
         .args(["log", "--config", config.to_str().unwrap()])
         .env("YOSEMITECH_MMW_TOKEN", token)
-        .stdout(Stdio::null())
+        .stdout(std::fs::File::create(stderr.with_extension("out")).unwrap())
         .stderr(std::fs::File::create(stderr).unwrap())
         .spawn()
         .unwrap()
@@ -184,7 +186,7 @@ fn portal_and_mqtt_each_get_every_reading_once_across_a_portal_outage_and_a_kill
     assert!(wait_until(|| ids_and_first_occurrences(&subscriber.received()).1.len() >= published.len()));
     assert!(first.iter().zip(&published).all(|(a, b)| a == b), "MQTT's first copies are the stored readings in order");
 
-    for run in ["run1.err", "run2.err"] {
+    for run in ["run1.err", "run1.out", "run2.err", "run2.out"] {
         let text = std::fs::read_to_string(logs.path().join(run)).unwrap();
         assert!(!text.contains(TOKEN), "{run} shows the token: {text}");
     }
@@ -214,7 +216,9 @@ fn a_refused_token_is_reported_once_retried_and_never_shown() {
     assert!(wait_until(|| portal.refused().len() >= 3), "the logger keeps trying");
     assert_eq!(terminate(&mut logger, Duration::from_secs(30)), 0);
     let text = std::fs::read_to_string(&err).unwrap();
-    assert!(!text.contains(wrong), "{text}");
+    let out = std::fs::read_to_string(err.with_extension("out")).unwrap();
+    assert!(!text.contains(wrong) && !out.contains(wrong), "{text}");
+    assert!(!out.is_empty(), "readings are logged meanwhile");
     assert_eq!(text.matches("HTTP 403").count(), 1, "one line for the cause, not one per attempt: {text}");
     assert!(text.contains("token"), "{text}");
     assert!(portal.refused().iter().all(|(status, _)| *status == 403));
