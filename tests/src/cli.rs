@@ -85,6 +85,7 @@ impl Binary {
         cmd.env_remove("YOSEMITECH_PORT")
             .env_remove("YOSEMITECH_BAUD")
             .env_remove("RUST_LOG")
+            .env_remove("YOSEMITECH_MMW_TOKEN")
             .env_remove("RUST_BACKTRACE")
             // Calibrations record their history in the user's data directory: never the
             // real one, nor one shared with another checkout's build (its schema may differ).

@@ -1,7 +1,7 @@
 //! The workspace's test kit: the spec loaded once, frames with their CRC,
 //! and the helpers of the codec ([`codec`]), simulator ([`sim`]), CLI
 //! ([`cli`]), runtime ([`rtu`], [`driver`], [`counting_alloc`]) and MQTT
-//! ([`broker`]) tests, and values for any command of the spec ([`values`]),
+//! ([`broker`]) and Monitor My Watershed ([`portal`]) tests, and values for any command of the spec ([`values`]),
 //! used by the tests of every crate so that no test directory writes its own.
 //!
 //! Also home of the fixture sensor `do_probe` (tests/fixtures/do-probe), a
@@ -20,6 +20,7 @@ pub mod cli;
 pub mod codec;
 pub mod counting_alloc;
 pub mod driver;
+pub mod portal;
 pub mod rtu;
 pub mod sim;
 pub mod values;

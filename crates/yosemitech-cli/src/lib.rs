@@ -57,8 +57,8 @@ use tracing_subscriber::EnvFilter;
 /// `-vv` everything (trace); `RUST_LOG` overrides both.
 fn init_logging(verbose: u8) {
     let level = match verbose {
-        // The station logger's own notes (a full store, space back) show by default.
-        0 => "error,yosemitech_station=info",
+        // The station logger's own notes (a full store, space back) and the portal's refusals show by default.
+        0 => "error,yosemitech_station=info,yosemitech_portal=info",
         1 => "debug",
         _ => "trace",
     };

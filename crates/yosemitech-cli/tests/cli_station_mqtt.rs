@@ -74,7 +74,7 @@ fn killed_and_restarted_logger_loses_nothing(kind: BrokerKind) {
     logger.kill().unwrap();
     logger.wait().unwrap();
     let after_kill = stored_ids(&db);
-    let published_at_kill = Store::open(&db).unwrap().published_up_to().unwrap();
+    let published_at_kill = Store::open(&db).unwrap().published_up_to("mqtt").unwrap();
     assert!(published_at_kill < *after_kill.last().unwrap(), "{kind:?}: the kill left readings unpublished");
 
     // The broker comes back, the subscriber with it.
@@ -106,7 +106,11 @@ fn killed_and_restarted_logger_loses_nothing(kind: BrokerKind) {
         let first = payloads.entry(id).or_insert(&r.payload);
         assert_eq!(*first, r.payload.as_slice(), "{kind:?}: a copy of {id} is identical");
     }
-    assert_eq!(Store::open(&db).unwrap().published_up_to().unwrap(), *stored.last().unwrap(), "{kind:?}: all marked");
+    assert_eq!(
+        Store::open(&db).unwrap().published_up_to("mqtt").unwrap(),
+        *stored.last().unwrap(),
+        "{kind:?}: all marked"
+    );
     eprintln!(
         "    {kind:?}: {} readings, {} stored before the kill ({} of them unpublished), {copies} copies",
         stored.len(),

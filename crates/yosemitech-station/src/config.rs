@@ -38,6 +38,16 @@
 //!
 //! # [mqtt] ...                    # `yosemitech_mqtt::MqttConfig`: host, client_id, tls, credentials ...
 //! # [mqtt.home_assistant]        # Home Assistant MQTT discovery; prefix = "homeassistant" by default
+//!
+//! # [monitor_my_watershed]        # publishing to Monitor My Watershed (docs/monitor-my-watershed.md)
+//! # token = "environment"        # YOSEMITECH_MMW_TOKEN, or { file = "/etc/yosemitech/mmw.token" } (owner-only)
+//! # sampling_feature = "..."     # the site's sampling feature UUID
+//! # url = "https://monitormywatershed.org/api/data-stream/"
+//! # utc_offset = 0               # whole hours the timestamps carry; default 0 (+00:00)
+//! # batch = 50                   # records per request at most
+//! # timeout = "30s"              # retry_min = "1s", retry_max = "5m", poll_interval = "1s"
+//! # [monitor_my_watershed.results.upstream-ph]   # a probe label
+//! # temperature_c = "..."        # measurement (or derived quantity) = its result UUID
 //! ```
 //!
 //! Every error names the file, line and column of the offending value and
@@ -53,6 +63,7 @@ use std::time::Duration;
 use serde::Deserialize;
 use toml::Spanned;
 use yosemitech_mqtt::MqttConfig;
+use yosemitech_portal::{PortalConfig, TokenSource, is_uuid};
 use yosemitech_rtu::{LineSettings, Parity};
 use yosemitech_spec::Sensor;
 use yosemitech_spec::beside::StationInputError;
@@ -208,6 +219,10 @@ pub struct StationConfig {
     /// Publishing, when the file has an `[mqtt]` section (validated by
     /// `yosemitech_mqtt`, credentials included when they come from a file).
     pub mqtt: Option<MqttConfig>,
+    /// Publishing to Monitor My Watershed, when the file has a
+    /// `[monitor_my_watershed]` section: every result UUID bound to a
+    /// measurement its probe reads, the token loaded once to check it.
+    pub monitor_my_watershed: Option<PortalConfig>,
 }
 
 impl StationConfig {
@@ -225,8 +240,29 @@ struct RawStation {
     #[serde(default)]
     bus: Vec<Spanned<RawBus>>,
     mqtt: Option<Spanned<toml::Table>>,
+    monitor_my_watershed: Option<Spanned<RawPortal>>,
     #[serde(default)]
     inputs: RawInputs,
+}
+
+/// `[monitor_my_watershed]` as written.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawPortal {
+    url: Option<Spanned<String>>,
+    #[serde(default)]
+    allow_http: bool,
+    token: Spanned<TokenSource>,
+    sampling_feature: Spanned<String>,
+    utc_offset: Option<Spanned<i64>>,
+    batch: Option<Spanned<i64>>,
+    timeout: Option<Spanned<String>>,
+    retry_min: Option<Spanned<String>>,
+    retry_max: Option<Spanned<String>>,
+    poll_interval: Option<Spanned<String>>,
+    /// Probe label -> measurement -> result UUID.
+    #[serde(default)]
+    results: BTreeMap<Spanned<String>, BTreeMap<Spanned<String>, Spanned<String>>>,
 }
 
 /// Station inputs as written: name -> value, both located.
@@ -551,6 +587,7 @@ pub fn parse(path: &Path, text: &str, sensors: &[Arc<Sensor>]) -> Result<Station
         }
     });
     station_inputs(&mut loc, &raw.inputs, &mut buses);
+    let monitor_my_watershed = raw.monitor_my_watershed.and_then(|raw| portal(&mut loc, raw, &buses));
     if loc.errors.is_empty() {
         Ok(StationConfig {
             file: path.to_owned(),
@@ -559,6 +596,7 @@ pub fn parse(path: &Path, text: &str, sensors: &[Arc<Sensor>]) -> Result<Station
             storage_max_size,
             buses,
             mqtt,
+            monitor_my_watershed,
         })
     } else {
         loc.errors.sort_by_key(|e| (e.line, e.column));
@@ -688,6 +726,131 @@ fn validate_probe(
             spans.1,
         )
     })
+}
+
+/// The names a probe's readings carry: its measurements and the derived
+/// quantities whose inputs its plan reads.
+pub fn reading_names(probe: &ProbeConfig) -> Vec<String> {
+    let chosen: Vec<&str> = probe.measurements.iter().map(String::as_str).collect();
+    let planned = plan::plan(&probe.sensor, &chosen);
+    let read = |c: &str, f: &str| planned.reads.iter().any(|r| r.command.name == c && r.fields.contains(&f));
+    let derived = yosemitech_spec::beside::beside(&probe.sensor, &read, &|_, _| None, &|_| None);
+    probe.measurements.iter().cloned().chain(derived.iter().map(|d| d.quantity.name.clone())).collect()
+}
+
+/// `[monitor_my_watershed]`, or `None` after recording what is wrong.
+fn portal(loc: &mut Locator<'_>, raw: Spanned<RawPortal>, buses: &[BusConfig]) -> Option<PortalConfig> {
+    let section = raw.span();
+    let raw = raw.into_inner();
+    let before = loc.errors.len();
+    let what = "[monitor_my_watershed]";
+    let token = raw.token.get_ref().clone();
+    // Loaded to check it is there and readable, then dropped: the
+    // publisher loads it again when it starts. The error names no token.
+    if let Err(e) = token.load() {
+        loc.error(raw.token.span(), format!("{what} token: {e}"));
+    }
+    let feature = raw.sampling_feature.get_ref().trim().to_owned();
+    if !is_uuid(&feature) {
+        loc.error(
+            raw.sampling_feature.span(),
+            format!("{what} sampling_feature `{feature}` is not a UUID (8-4-4-4-12 hexadecimal digits)"),
+        );
+    }
+    let mut config = PortalConfig::new(token, feature);
+    if let Some(url) = &raw.url {
+        let text = url.get_ref().trim();
+        if text.starts_with("https://") || (raw.allow_http && text.starts_with("http://")) {
+            config.url = text.to_owned();
+        } else if text.starts_with("http://") {
+            loc.error(
+                url.span(),
+                format!(
+                    "{what} url `{text}`: the token travels with every request, so use https:// \
+                         (allow_http = true sends it in the clear, for a portal on a private network)"
+                ),
+            );
+        } else {
+            loc.error(url.span(), format!("{what} url `{text}` is not an https:// URL"));
+        }
+    }
+    if let Some(offset) = &raw.utc_offset {
+        match i8::try_from(*offset.get_ref()) {
+            Ok(hours) if (-12..=14).contains(&hours) => config.utc_offset_hours = hours,
+            _ => loc
+                .error(offset.span(), format!("{what} utc_offset {} is not whole hours in -12..=14", offset.get_ref())),
+        }
+    }
+    if let Some(batch) = &raw.batch {
+        match usize::try_from(*batch.get_ref()) {
+            Ok(n) if (1..=1000).contains(&n) => config.batch = n,
+            _ => loc.error(batch.span(), format!("{what} batch {} is not 1 to 1000 records", batch.get_ref())),
+        }
+    }
+    for (raw, field) in [
+        (&raw.timeout, &mut config.timeout),
+        (&raw.retry_min, &mut config.retry_min),
+        (&raw.retry_max, &mut config.retry_max),
+        (&raw.poll_interval, &mut config.poll_interval),
+    ] {
+        if let Some(d) = raw {
+            match parse_duration(d.get_ref()) {
+                Ok(d) if !d.is_zero() => *field = d,
+                Ok(_) => loc.error(d.span(), format!("{what}: a zero duration")),
+                Err(e) => loc.error(d.span(), format!("{what}: {e}")),
+            }
+        }
+    }
+    if config.retry_min > config.retry_max {
+        let span = raw.retry_min.as_ref().map_or(section.clone(), Spanned::span);
+        loc.error(span, format!("{what} retry_min is longer than retry_max"));
+    }
+    if raw.results.is_empty() {
+        loc.error(
+            section.clone(),
+            format!("{what} binds no result: add [monitor_my_watershed.results.<probe label>] with measurement = \"<result uuid>\""),
+        );
+    }
+    let mut seen: BTreeMap<String, (String, String)> = BTreeMap::new();
+    for (label, bindings) in &raw.results {
+        let Some(probe) = buses.iter().flat_map(|b| &b.probes).find(|p| p.label == *label.get_ref()) else {
+            let labels: Vec<&str> = buses.iter().flat_map(|b| &b.probes).map(|p| p.label.as_str()).collect();
+            loc.error(
+                label.span(),
+                format!("{what}: no probe is labelled `{}`; the probes are {}", label.get_ref(), labels.join(", ")),
+            );
+            continue;
+        };
+        let names = reading_names(probe);
+        let mut bound = BTreeMap::new();
+        for (name, uuid) in bindings {
+            let (name_text, uuid_text) = (name.get_ref(), uuid.get_ref().trim());
+            if !names.contains(name_text) {
+                loc.error(
+                    name.span(),
+                    format!("{what}: probe `{}` reads no `{name_text}`; it reads {}", probe.label, names.join(", ")),
+                );
+            }
+            if !is_uuid(uuid_text) {
+                loc.error(
+                    uuid.span(),
+                    format!("{what}: result `{uuid_text}` is not a UUID (8-4-4-4-12 hexadecimal digits)"),
+                );
+            } else if let Some((other_probe, other_name)) =
+                seen.insert(uuid_text.to_ascii_lowercase(), (probe.label.clone(), name_text.clone()))
+            {
+                loc.error(
+                    uuid.span(),
+                    format!(
+                        "{what}: result {uuid_text} is bound twice, here and to `{other_name}` of probe `{other_probe}`"
+                    ),
+                );
+            }
+            bound.insert(name_text.clone(), uuid_text.to_owned());
+        }
+        config.results.insert(probe.label.clone(), bound);
+    }
+    (loc.errors.len() == before).then_some(config)
 }
 
 /// Checks the station's `[inputs]` against every probe and gives each

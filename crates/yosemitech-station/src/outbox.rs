@@ -11,12 +11,19 @@
 
 use yosemitech_mqtt::{MeasuredValue, Outbox, ReadingMessage, SCHEMA_VERSION};
 
-use crate::store::{Datum, Store, StoreError, StoredReading};
+use crate::store::{Datum, MQTT_PUBLISHER, Store, StoreError, StoredReading};
 use crate::time::unix_ms;
 
-/// A [`Store`] connection serving as the publisher's outbox.
+/// A [`Store`] connection serving as the MQTT publisher's outbox: its
+/// cursor is the store's [`MQTT_PUBLISHER`] one, which no other publisher
+/// moves.
 #[derive(Debug)]
 pub struct StoreOutbox(pub Store);
+
+impl StoreOutbox {
+    /// The publisher's name in the store's outbox.
+    pub const PUBLISHER: &'static str = MQTT_PUBLISHER;
+}
 
 /// The published message of a stored reading.
 pub fn message(stored: &StoredReading) -> ReadingMessage {
@@ -59,10 +66,10 @@ impl Outbox for StoreOutbox {
     type Error = StoreError;
 
     fn unpublished(&mut self, after: Option<i64>, limit: usize) -> Result<Vec<ReadingMessage>, StoreError> {
-        Ok(self.0.unpublished_after(after.unwrap_or(0), limit)?.iter().map(message).collect())
+        Ok(self.0.unpublished_after(Self::PUBLISHER, after.unwrap_or(0), limit)?.iter().map(message).collect())
     }
 
     fn mark_published(&mut self, up_to_id: i64) -> Result<(), StoreError> {
-        self.0.mark_published(up_to_id)
+        self.0.mark_published(Self::PUBLISHER, up_to_id)
     }
 }

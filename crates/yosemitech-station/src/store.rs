@@ -1,7 +1,7 @@
 //! The station's storage: every reading in a SQLite file, and the outbox
-//! cursor that says which of them have been published.
+//! cursors that say which of them each publisher has delivered.
 //!
-//! # Schema (version 3)
+//! # Schema (version 4)
 //!
 //! ```sql
 //! -- One row per reading, in the order the logger committed them: `id`
@@ -59,11 +59,13 @@
 //!     fit           TEXT               -- the fit (K, B, residuals, R²), if one was made
 //! );
 //! CREATE INDEX calibration_probe ON calibration (serial_number, sensor, timestamp_ms);
-//! -- The outbox: every reading with id <= published_up_to has been published.
+//! -- The outbox, one cursor per publisher (`mqtt`, `monitor_my_watershed`):
+//! -- every reading with id <= published_up_to has been delivered by that
+//! -- publisher. A publisher without a row has delivered nothing (0).
 //! CREATE TABLE outbox (
-//!     singleton       INTEGER PRIMARY KEY CHECK (singleton = 0),
+//!     publisher       TEXT    PRIMARY KEY,
 //!     published_up_to INTEGER NOT NULL
-//! );
+//! ) WITHOUT ROWID;
 //! ```
 //!
 //! `PRAGMA user_version` holds the schema version. A file of version 1
@@ -71,8 +73,11 @@
 //! its values are measured ones, which is what the new columns' defaults
 //! say. A file of version 2 (or 1) gains the `calibration` table and
 //! `reading.calibration_id` (NULL for the readings it holds: no calibration
-//! was recorded then). A file of another version is refused rather than
-//! misread.
+//! was recorded then). A file of version 3 (or older) had one outbox
+//! cursor, MQTT's: it becomes the `mqtt` publisher's row, so MQTT resumes
+//! where it stopped, and any other publisher starts from the first reading
+//! the file holds (a portal added to an old station receives its history).
+//! A file of another version is refused rather than misread.
 //!
 //! The same file type, holding calibrations only, is the field tool's
 //! calibration history outside a station.
@@ -96,7 +101,10 @@ use crate::time::{from_unix_ms, unix_ms};
 pub const BUSY_TIMEOUT: Duration = Duration::from_secs(10);
 
 /// The schema version this crate writes and reads.
-pub const SCHEMA_VERSION: i64 = 3;
+pub const SCHEMA_VERSION: i64 = 4;
+
+/// The MQTT publisher's name in the outbox (the one cursor of schema 3 and before).
+pub const MQTT_PUBLISHER: &str = "mqtt";
 
 /// From version 1: values gain the derived mark and the error of a
 /// derived quantity that could not be computed.
@@ -128,6 +136,18 @@ CREATE TABLE calibration (
 );
 CREATE INDEX calibration_probe ON calibration (serial_number, sensor, timestamp_ms);
 ALTER TABLE reading ADD COLUMN calibration_id INTEGER REFERENCES calibration (id);
+";
+
+/// From version 3: the single outbox cursor becomes one cursor per
+/// publisher; the old cursor was MQTT's.
+const MIGRATE_3_TO_4: &str = "
+CREATE TABLE outbox_v4 (
+    publisher       TEXT    PRIMARY KEY,
+    published_up_to INTEGER NOT NULL
+) WITHOUT ROWID;
+INSERT INTO outbox_v4 (publisher, published_up_to) SELECT 'mqtt', published_up_to FROM outbox;
+DROP TABLE outbox;
+ALTER TABLE outbox_v4 RENAME TO outbox;
 ";
 
 const SCHEMA: &str = "
@@ -327,7 +347,11 @@ impl Store {
 
     /// Deletes the readings with an id up to `id` and their values, to
     /// free room in a full store; returns how many went. The ids of the
-    /// readings left, and of those to come, do not change.
+    /// readings left, and of those to come, do not change. The publishers'
+    /// cursors are left as they are: a reading deleted before a publisher
+    /// delivered it is lost to that publisher, so a caller that must not
+    /// lose one deletes at most up to [`Store::delivered_by_all`] of the
+    /// station's publishers.
     ///
     /// # Errors
     ///
@@ -357,18 +381,23 @@ impl Store {
         let tx = self.connection.transaction_with_behavior(rusqlite::TransactionBehavior::Immediate)?;
         let found: i64 = tx.pragma_query_value(None, "user_version", |row| row.get(0))?;
         match found {
-            0 => {
-                tx.execute_batch(SCHEMA)?;
+            // SCHEMA is version 2's tables.
+            0 | 2 => {
+                if found == 0 {
+                    tx.execute_batch(SCHEMA)?;
+                }
                 tx.execute_batch(MIGRATE_2_TO_3)?;
+                tx.execute_batch(MIGRATE_3_TO_4)?;
                 tx.pragma_update(None, "user_version", SCHEMA_VERSION)?;
             }
             1 => {
                 tx.execute_batch(MIGRATE_1_TO_2)?;
                 tx.execute_batch(MIGRATE_2_TO_3)?;
+                tx.execute_batch(MIGRATE_3_TO_4)?;
                 tx.pragma_update(None, "user_version", SCHEMA_VERSION)?;
             }
-            2 => {
-                tx.execute_batch(MIGRATE_2_TO_3)?;
+            3 => {
+                tx.execute_batch(MIGRATE_3_TO_4)?;
                 tx.pragma_update(None, "user_version", SCHEMA_VERSION)?;
             }
             SCHEMA_VERSION => {}
@@ -470,48 +499,90 @@ impl Store {
         self.select("WHERE id IN (SELECT max(id) FROM reading GROUP BY bus, probe) ORDER BY bus, probe", [])
     }
 
-    /// The oldest `limit` readings not yet published, oldest (lowest id) first.
+    /// The oldest `limit` readings `publisher` has not delivered, oldest
+    /// (lowest id) first.
     ///
     /// # Errors
     ///
     /// SQLite failed, or a row is malformed.
-    pub fn unpublished(&self, limit: usize) -> Result<Vec<StoredReading>, StoreError> {
-        let limit = i64::try_from(limit).unwrap_or(i64::MAX);
-        self.select("WHERE id > (SELECT published_up_to FROM outbox) ORDER BY id LIMIT ?1", [limit])
+    pub fn unpublished(&self, publisher: &str, limit: usize) -> Result<Vec<StoredReading>, StoreError> {
+        self.unpublished_after(publisher, 0, limit)
     }
 
-    /// The oldest `limit` readings not yet published with an id above
-    /// `after`, oldest first (a publisher's resume point past what it has
-    /// in flight).
+    /// The oldest `limit` readings `publisher` has not delivered with an id
+    /// above `after`, oldest first (a publisher's resume point past what it
+    /// has in flight).
     ///
     /// # Errors
     ///
     /// SQLite failed, or a row is malformed.
-    pub fn unpublished_after(&self, after: i64, limit: usize) -> Result<Vec<StoredReading>, StoreError> {
+    pub fn unpublished_after(
+        &self,
+        publisher: &str,
+        after: i64,
+        limit: usize,
+    ) -> Result<Vec<StoredReading>, StoreError> {
         let limit = i64::try_from(limit).unwrap_or(i64::MAX);
-        self.select("WHERE id > max(?1, (SELECT published_up_to FROM outbox)) ORDER BY id LIMIT ?2", [after, limit])
+        let floor = after.max(self.published_up_to(publisher)?);
+        self.select("WHERE id > ?1 ORDER BY id LIMIT ?2", [floor, limit])
     }
 
-    /// Records that every reading with an id up to `up_to_id` is published.
-    /// The cursor only moves forward: a smaller id than the current one
-    /// changes nothing. Committed when it returns.
+    /// Records that `publisher` has delivered every reading with an id up
+    /// to `up_to_id`. The cursor only moves forward: a smaller id than the
+    /// current one changes nothing. Committed when it returns. Each
+    /// publisher's cursor is its own: marking one never moves another.
     ///
     /// # Errors
     ///
     /// SQLite refused the write.
-    pub fn mark_published(&mut self, up_to_id: i64) -> Result<(), StoreError> {
-        self.connection
-            .execute("UPDATE outbox SET published_up_to = max(published_up_to, ?1) WHERE singleton = 0", [up_to_id])?;
+    pub fn mark_published(&mut self, publisher: &str, up_to_id: i64) -> Result<(), StoreError> {
+        self.connection.execute(
+            "INSERT INTO outbox (publisher, published_up_to) VALUES (?1, ?2)
+             ON CONFLICT (publisher) DO UPDATE SET published_up_to = max(published_up_to, excluded.published_up_to)",
+            params![publisher, up_to_id],
+        )?;
         Ok(())
     }
 
-    /// The id up to which readings are published (0: none).
+    /// The id up to which `publisher` has delivered readings (0: none, or a
+    /// publisher the store has not seen).
     ///
     /// # Errors
     ///
     /// SQLite failed.
-    pub fn published_up_to(&self) -> Result<i64, StoreError> {
-        Ok(self.connection.query_row("SELECT published_up_to FROM outbox", [], |row| row.get(0))?)
+    pub fn published_up_to(&self, publisher: &str) -> Result<i64, StoreError> {
+        let mark: Option<i64> = self
+            .connection
+            .query_row("SELECT published_up_to FROM outbox WHERE publisher = ?1", [publisher], |row| row.get(0))
+            .optional()?;
+        Ok(mark.unwrap_or(0))
+    }
+
+    /// Every publisher's cursor, by name.
+    ///
+    /// # Errors
+    ///
+    /// SQLite failed.
+    pub fn publishers(&self) -> Result<Vec<(String, i64)>, StoreError> {
+        let mut statement =
+            self.connection.prepare_cached("SELECT publisher, published_up_to FROM outbox ORDER BY publisher")?;
+        let rows = statement.query_map([], |row| Ok((row.get(0)?, row.get(1)?)))?;
+        Ok(rows.collect::<Result<_, _>>()?)
+    }
+
+    /// The id up to which every one of `publishers` has delivered readings:
+    /// the smallest of their cursors (the last id stored when none is
+    /// named). Readings up to it can go without any of them missing one.
+    ///
+    /// # Errors
+    ///
+    /// SQLite failed.
+    pub fn delivered_by_all(&self, publishers: &[&str]) -> Result<i64, StoreError> {
+        let mut least = self.last_id()?;
+        for publisher in publishers {
+            least = least.min(self.published_up_to(publisher)?);
+        }
+        Ok(least)
     }
 
     /// The number of readings stored.

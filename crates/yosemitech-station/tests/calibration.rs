@@ -135,11 +135,14 @@ fn a_store_of_version_2_gains_the_calibration_history() {
     let old = store.get(1).unwrap().unwrap();
     assert_eq!(old.calibration_id, None, "no calibration was recorded then");
     assert_eq!(old.reading.values[0].value, Datum::Number(7.25));
-    assert_eq!(store.published_up_to().unwrap(), 1);
+    assert_eq!(store.published_up_to("mqtt").unwrap(), 1);
+    // A publisher new to the file starts at its first reading.
+    assert_eq!(store.published_up_to("monitor_my_watershed").unwrap(), 0);
+    assert_eq!(store.unpublished("monitor_my_watershed", 10).unwrap().len(), 1);
     let id = store.record_calibration(&calibration("SN1", 1_700_000_100, 1.1)).unwrap();
     let new = store.insert(&reading(Some("SN1"), "x", 1_700_000_200)).unwrap();
     assert_eq!(new, 2, "ids go on from the old ones");
     assert_eq!(store.get(new).unwrap().unwrap().calibration_id, Some(id));
     drop(store);
-    assert_eq!(Store::open(&path).unwrap().calibrations(None).unwrap().len(), 1, "opens again as version 3");
+    assert_eq!(Store::open(&path).unwrap().calibrations(None).unwrap().len(), 1, "opens again as the current version");
 }

@@ -330,7 +330,10 @@ fn a_store_of_the_previous_schema_is_migrated_with_its_readings_intact() {
     rusqlite::Connection::open(&path).unwrap().execute_batch(SCHEMA_V1).unwrap();
     let mut store = Store::open(&path).unwrap();
     assert_eq!(store.count().unwrap(), 2);
-    assert_eq!(store.published_up_to().unwrap(), 1, "the outbox cursor survives");
+    assert_eq!(store.published_up_to("mqtt").unwrap(), 1, "the outbox cursor survives");
+    // A publisher new to the file starts at its first reading.
+    assert_eq!(store.published_up_to("monitor_my_watershed").unwrap(), 0);
+    assert_eq!(store.unpublished("monitor_my_watershed", 10).unwrap().len(), 2);
     let first = store.get(1).unwrap().unwrap();
     let values: Vec<(&str, &Datum, Option<&str>, bool)> =
         first.reading.values.iter().map(|m| (m.name.as_str(), &m.value, m.unit.as_deref(), m.derived)).collect();

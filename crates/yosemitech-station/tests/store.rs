@@ -94,26 +94,26 @@ fn outbox_hands_out_each_reading_once_in_order_across_reopen() {
     }
     let mut seen = Vec::new();
     for _ in 0..3 {
-        let batch = store.unpublished(4).unwrap();
+        let batch = store.unpublished("mqtt", 4).unwrap();
         assert_eq!(batch.len(), 4);
         seen.extend(batch.iter().map(|s| s.id));
-        store.mark_published(batch.last().unwrap().id).unwrap();
+        store.mark_published("mqtt", batch.last().unwrap().id).unwrap();
     }
     // A cursor never moves back.
-    store.mark_published(1).unwrap();
+    store.mark_published("mqtt", 1).unwrap();
     drop(store);
 
     let mut store = Store::open(&path).unwrap();
-    assert_eq!(store.published_up_to().unwrap(), *seen.last().unwrap());
+    assert_eq!(store.published_up_to("mqtt").unwrap(), *seen.last().unwrap());
     loop {
-        let batch = store.unpublished(7).unwrap();
+        let batch = store.unpublished("mqtt", 7).unwrap();
         let Some(last) = batch.last() else { break };
         seen.extend(batch.iter().map(|s| s.id));
-        store.mark_published(last.id).unwrap();
+        store.mark_published("mqtt", last.id).unwrap();
     }
     let all: Vec<i64> = store.range(UNIX_EPOCH, SystemTime::now()).unwrap().iter().map(|s| s.id).collect();
     assert_eq!(seen, all, "every reading once, oldest first");
-    assert!(store.unpublished(10).unwrap().is_empty());
+    assert!(store.unpublished("mqtt", 10).unwrap().is_empty());
 }
 
 #[test]
@@ -160,4 +160,78 @@ fn a_value_that_is_not_a_finite_number_is_refused_and_nothing_of_the_batch_is_st
     // What is stored still reads back.
     store.insert(&reading("a", 1_002, 5)).unwrap();
     assert_eq!(store.range(UNIX_EPOCH, SystemTime::now()).unwrap().len(), 1);
+}
+
+/// A store as version 3 wrote it: three readings, MQTT's cursor at 2.
+const SCHEMA_V3: &str = "
+CREATE TABLE reading (
+    id INTEGER PRIMARY KEY AUTOINCREMENT, timestamp_ms INTEGER NOT NULL, station TEXT NOT NULL,
+    bus TEXT NOT NULL, probe TEXT NOT NULL, sensor TEXT NOT NULL, address INTEGER NOT NULL,
+    serial_number TEXT, firmware TEXT, retries INTEGER NOT NULL, error TEXT,
+    calibration_id INTEGER REFERENCES calibration (id)
+);
+CREATE INDEX reading_time ON reading (timestamp_ms);
+CREATE TABLE reading_value (
+    reading_id INTEGER NOT NULL REFERENCES reading (id), position INTEGER NOT NULL, name TEXT NOT NULL,
+    number REAL, text TEXT, unit TEXT, derived INTEGER NOT NULL DEFAULT 0, error TEXT,
+    PRIMARY KEY (reading_id, position)
+) WITHOUT ROWID;
+CREATE TABLE calibration (
+    id INTEGER PRIMARY KEY AUTOINCREMENT, timestamp_ms INTEGER NOT NULL, sensor TEXT NOT NULL, model TEXT,
+    serial_number TEXT, firmware TEXT, address INTEGER NOT NULL, port TEXT NOT NULL, kind TEXT NOT NULL,
+    block TEXT, note TEXT, before TEXT NOT NULL, after TEXT NOT NULL, standards TEXT NOT NULL,
+    readings TEXT NOT NULL, fit TEXT
+);
+CREATE INDEX calibration_probe ON calibration (serial_number, sensor, timestamp_ms);
+CREATE TABLE outbox (singleton INTEGER PRIMARY KEY CHECK (singleton = 0), published_up_to INTEGER NOT NULL);
+INSERT INTO outbox (singleton, published_up_to) VALUES (0, 2);
+INSERT INTO reading VALUES (1, 1700000000000, 's', 'b', 'p', 'x', 3, NULL, NULL, 0, NULL, NULL);
+INSERT INTO reading VALUES (2, 1700000060000, 's', 'b', 'p', 'x', 3, NULL, NULL, 0, NULL, NULL);
+INSERT INTO reading VALUES (3, 1700000120000, 's', 'b', 'p', 'x', 3, NULL, NULL, 0, NULL, NULL);
+INSERT INTO reading_value VALUES (1, 0, 'a', 7.25, NULL, 'mg/L', 0, NULL);
+INSERT INTO reading_value VALUES (2, 0, 'a', 7.5, NULL, 'mg/L', 0, NULL);
+INSERT INTO reading_value VALUES (3, 0, 'a', 7.75, NULL, 'mg/L', 0, NULL);
+PRAGMA user_version = 3;
+";
+
+#[test]
+fn a_version_3_store_keeps_its_cursor_as_mqtts_and_a_new_publisher_starts_at_the_first_reading() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("v3.sqlite");
+    rusqlite::Connection::open(&path).unwrap().execute_batch(SCHEMA_V3).unwrap();
+    let mut store = Store::open(&path).unwrap();
+    let version: i64 =
+        rusqlite::Connection::open(&path).unwrap().pragma_query_value(None, "user_version", |r| r.get(0)).unwrap();
+    assert_eq!(version, yosemitech_station::store::SCHEMA_VERSION);
+    assert_eq!(store.publishers().unwrap(), [("mqtt".to_owned(), 2)]);
+    assert_eq!(store.published_up_to("mqtt").unwrap(), 2);
+    let ids = |v: Vec<yosemitech_station::StoredReading>| v.iter().map(|s| s.id).collect::<Vec<_>>();
+    assert_eq!(ids(store.unpublished("mqtt", 10).unwrap()), [3]);
+    assert_eq!(ids(store.unpublished("monitor_my_watershed", 10).unwrap()), [1, 2, 3], "the history goes out");
+    store.mark_published("monitor_my_watershed", 1).unwrap();
+    drop(store);
+    let store = Store::open(&path).unwrap();
+    assert_eq!(store.publishers().unwrap(), [("monitor_my_watershed".to_owned(), 1), ("mqtt".to_owned(), 2)]);
+    assert_eq!(store.delivered_by_all(&["mqtt", "monitor_my_watershed"]).unwrap(), 1);
+    assert_eq!(store.delivered_by_all(&["mqtt"]).unwrap(), 2);
+    assert_eq!(store.delivered_by_all(&[]).unwrap(), 3);
+}
+
+#[test]
+fn each_publisher_moves_only_its_own_cursor() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut store = Store::open(dir.path().join("s.db")).unwrap();
+    for n in 0..10u32 {
+        store.insert(&reading("a", u64::from(n), n)).unwrap();
+    }
+    assert_eq!(store.publishers().unwrap(), [("mqtt".to_owned(), 0)], "a new store has MQTT's cursor at 0");
+    store.mark_published("mqtt", 8).unwrap();
+    store.mark_published("portal", 3).unwrap();
+    store.mark_published("portal", 2).unwrap();
+    assert_eq!(store.published_up_to("mqtt").unwrap(), 8);
+    assert_eq!(store.published_up_to("portal").unwrap(), 3, "a cursor never moves back");
+    assert_eq!(store.unpublished("mqtt", 10).unwrap().len(), 2);
+    assert_eq!(store.unpublished("portal", 10).unwrap().len(), 7);
+    assert_eq!(store.unpublished_after("portal", 5, 10).unwrap().first().map(|s| s.id), Some(6));
+    assert_eq!(store.unpublished("nobody", 100).unwrap().len(), 10);
 }

@@ -10,6 +10,7 @@ use yosemitech_mqtt::home_assistant::{Discovery, Tracker};
 use yosemitech_station::config::{self, ConfigErrors, Link, StationConfig};
 use yosemitech_station::export::to_json;
 use yosemitech_station::outbox::{StoreOutbox, message};
+use yosemitech_station::portal::PortalOutbox;
 use yosemitech_station::recovery::{RunMarker, UncleanStop};
 use yosemitech_station::{Store, StoredReading, logger, plan};
 
@@ -110,6 +111,19 @@ pub fn check(catalog: &Catalog, args: &LogArgs, out: &mut dyn Write) -> Result<(
             )?;
         }
     }
+    if let Some(portal) = &station.monitor_my_watershed {
+        // The token's source, never the token.
+        writeln!(
+            out,
+            "monitor my watershed: {} for sampling feature {}, token from {}, timestamps at UTC{:+03}:00, \
+             up to {} records a request",
+            portal.url, portal.sampling_feature, portal.token, portal.utc_offset_hours, portal.batch
+        )?;
+        for (label, bindings) in &portal.results {
+            let bound: Vec<String> = bindings.iter().map(|(name, uuid)| format!("{name} -> {uuid}")).collect();
+            writeln!(out, "  probe `{label}`: {}", bound.join(", "))?;
+        }
+    }
     writeln!(out, "ok")?;
     Ok(())
 }
@@ -193,6 +207,21 @@ pub fn run(catalog: &Catalog, args: &LogArgs, stop: &Arc<AtomicBool>, out: &mut 
         }
         None => None,
     };
+    // Monitor My Watershed drains the same store with a cursor of its own:
+    // neither publisher waits on the other.
+    let portal = match &station.monitor_my_watershed {
+        Some(config) => {
+            let outbox = Store::open(&station.storage)
+                .map_err(|e| CliError::device(format!("cannot open the store {}: {e}", station.storage.display())))?;
+            let portal = yosemitech_portal::Publisher::start(config, PortalOutbox::new(outbox, config.clone()))
+                .map_err(|e| {
+                    CliError::usage(format!("cannot start publishing to Monitor My Watershed: {e}"))
+                        .hint("check the [monitor_my_watershed] section of the station file")
+                })?;
+            Some(portal)
+        }
+        None => None,
+    };
     // Under systemd (`Type=notify`): ready now, watchdog pings while the logger runs.
     let notifier = service::Notifier::from_environment().map(Arc::new);
     let watchdog = notifier.as_ref().and_then(|n| {
@@ -215,6 +244,9 @@ pub fn run(catalog: &Catalog, args: &LogArgs, stop: &Arc<AtomicBool>, out: &mut 
                         let message = message(&stored);
                         p.publish_retained(tracker.lock().unwrap_or_else(PoisonError::into_inner).observe(&message));
                     }
+                    p.wake();
+                }
+                if let Some(p) = &portal {
                     p.wake();
                 }
                 let _ = lines.send(to_json(&stored).to_string());
@@ -244,6 +276,15 @@ pub fn run(catalog: &Catalog, args: &LogArgs, stop: &Arc<AtomicBool>, out: &mut 
         // What is not acknowledged in time stays in the outbox for the next run.
         let report = p.shutdown(Duration::from_secs(5));
         let _ = writeln!(err, "mqtt: published up to reading {:?}", report.published_up_to);
+    }
+    if let Some(p) = portal {
+        // A request under way finishes, so a 201 is recorded; the rest waits for the next run.
+        let status = p.shutdown(Duration::from_secs(10));
+        let _ = writeln!(
+            err,
+            "monitor my watershed: sent up to reading {:?} ({} request(s) accepted, {} failed)",
+            status.sent_up_to, status.accepted, status.failed
+        );
     }
     for r in reports {
         let _ = writeln!(
