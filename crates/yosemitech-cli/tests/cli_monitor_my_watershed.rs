@@ -15,7 +15,7 @@ use std::time::Duration;
 
 use station::{Station, YOSEMITECH, command, terminate};
 use yosemitech_portal::body::timestamp;
-use yosemitech_station::portal::PORTAL_PUBLISHER;
+use yosemitech_station::portal::cursor_of;
 use yosemitech_station::{Datum, Store, plan};
 use yosemitech_tests::broker::{
     Broker, BrokerKind, Subscriber, ids_and_first_occurrences, rumqttd_child_main, wait_until,
@@ -31,6 +31,8 @@ fn rumqttd_child_process() {
 
 const TOKEN: &str = "mmw-e2e-token-5c0ffee0";
 const FEATURE: &str = "5a5a5a5a-1111-4222-8333-444455556666";
+/// Readings per request at most.
+const BATCH: usize = 5;
 
 /// The result UUID of measurement `j` of probe `p<i>`.
 fn result_uuid(i: usize, j: usize) -> String {
@@ -43,7 +45,7 @@ fn section(url: &str) -> String {
     let sensors: Vec<_> = spec().sensors.iter().filter(|&s| !plan::measurements(s).is_empty()).take(2).collect();
     let mut toml = format!(
         "[monitor_my_watershed]\nurl = \"{url}\"\nallow_http = true\ntoken = \"environment\"\n\
-         sampling_feature = \"{FEATURE}\"\nbatch = 5\ntimeout = \"5s\"\nretry_min = \"100ms\"\nretry_max = \"1s\"\n\
+         sampling_feature = \"{FEATURE}\"\nbatch = {BATCH}\ntimeout = \"5s\"\nretry_min = \"100ms\"\nretry_max = \"1s\"\n\
          poll_interval = \"100ms\"\n"
     );
     for (i, s) in sensors.iter().enumerate() {
@@ -81,23 +83,32 @@ fn mark(db: &Path, publisher: &str) -> i64 {
     Store::open(db).unwrap().published_up_to(publisher).unwrap()
 }
 
-/// What the portal should hold for the readings up to `up_to`: every
-/// number of a bound measurement, with the timestamp the logger sends.
-fn expected(db: &Path, up_to: i64) -> Vec<Stored> {
-    let bound: BTreeMap<(String, String), String> = {
-        let sensors: Vec<_> = spec().sensors.iter().filter(|&s| !plan::measurements(s).is_empty()).take(2).collect();
-        let mut m = BTreeMap::new();
-        for (i, s) in sensors.iter().enumerate() {
-            for (j, name) in plan::measurements(s).iter().enumerate() {
-                m.insert((format!("p{i}"), (*name).to_owned()), result_uuid(i, j));
-            }
+/// The result UUID of each bound measurement, by (probe label, measurement).
+fn bound() -> BTreeMap<(String, String), String> {
+    let sensors: Vec<_> = spec().sensors.iter().filter(|&s| !plan::measurements(s).is_empty()).take(2).collect();
+    let mut m = BTreeMap::new();
+    for (i, s) in sensors.iter().enumerate() {
+        for (j, name) in plan::measurements(s).iter().enumerate() {
+            m.insert((format!("p{i}"), (*name).to_owned()), result_uuid(i, j));
         }
-        m
-    };
+    }
+    m
+}
+
+/// The portal's cursor of each bound probe.
+fn portal_marks(db: &Path) -> BTreeMap<String, i64> {
+    bound().into_keys().map(|(label, _)| (label.clone(), mark(db, &cursor_of(&label)))).collect()
+}
+
+/// What the portal should hold for the readings up to each probe's cursor
+/// in `marks`: every number of a bound measurement, with the timestamp the
+/// logger sends.
+fn expected(db: &Path, marks: &BTreeMap<String, i64>) -> Vec<Stored> {
+    let bound = bound();
     let store = Store::open(db).unwrap();
     let mut out = Vec::new();
     for s in store.range(std::time::UNIX_EPOCH, std::time::SystemTime::now() + Duration::from_secs(60)).unwrap() {
-        if s.id > up_to {
+        if s.id > marks.get(&s.reading.probe).copied().unwrap_or(0) {
             continue;
         }
         let ms = yosemitech_station::time::unix_ms(s.reading.timestamp);
@@ -108,6 +119,14 @@ fn expected(db: &Path, up_to: i64) -> Vec<Stored> {
         }
     }
     out
+}
+
+/// How many readings a request body carries.
+fn records_in(body: &str) -> usize {
+    match serde_json::from_str::<serde_json::Value>(body).unwrap()["timestamp"].as_array() {
+        Some(stamps) => stamps.len(),
+        None => 1,
+    }
 }
 
 fn sorted(mut v: Vec<Stored>) -> Vec<Stored> {
@@ -143,32 +162,37 @@ fn portal_and_mqtt_each_get_every_reading_once_across_a_portal_outage_and_a_kill
         "logging and MQTT go on without the portal"
     );
     // (A 201 answered just before the stop is marked just after it.)
-    let portal_at_outage = mark(&db, PORTAL_PUBLISHER);
+    let portal_at_outage = portal_marks(&db);
     let accepted_at_outage = portal.accepted().len();
     // Killed without warning while the portal is away: no 201 can be lost in flight.
     logger.kill().unwrap();
     logger.wait().unwrap();
     let after_kill = stored_ids(&db);
     let last_at_kill = *after_kill.last().unwrap();
-    let (portal_at_kill, mqtt_at_kill) = (mark(&db, PORTAL_PUBLISHER), mark(&db, "mqtt"));
+    let (portal_at_kill, mqtt_at_kill) = (portal_marks(&db), mark(&db, "mqtt"));
     assert_eq!(portal_at_kill, portal_at_outage, "nothing marked sent while the portal was away");
     assert_eq!(portal.accepted().len(), accepted_at_outage);
-    assert!(mqtt_at_kill > portal_at_kill + 10, "MQTT did not wait for the portal: {mqtt_at_kill} vs {portal_at_kill}");
+    assert!(
+        portal_at_kill.values().all(|&m| mqtt_at_kill > m + 10),
+        "MQTT did not wait for the portal: {mqtt_at_kill} vs {portal_at_kill:?}"
+    );
+    let backlog = portal.accepted().len();
 
     // The portal comes back; a second run on the same store sends the backlog.
     portal.restart();
     let mut logger = start_logger(&config, TOKEN, &logs.path().join("run2.err"));
     assert!(
-        wait_until(|| mark(&db, PORTAL_PUBLISHER) >= last_at_kill + 10 && mark(&db, "mqtt") >= last_at_kill + 10),
+        wait_until(
+            || portal_marks(&db).values().all(|&m| m >= last_at_kill + 10) && mark(&db, "mqtt") >= last_at_kill + 10
+        ),
         "the backlog reaches the portal and the broker"
     );
     assert_eq!(terminate(&mut logger, Duration::from_secs(30)), 0, "SIGTERM stops cleanly");
 
     let stored = stored_ids(&db);
     assert!(stored.starts_with(&after_kill), "nothing committed before the kill is lost");
-    let sent_up_to = mark(&db, PORTAL_PUBLISHER);
     let got = sorted(portal.stored());
-    let want = sorted(expected(&db, sent_up_to));
+    let want = sorted(expected(&db, &portal_marks(&db)));
     assert!(!want.is_empty());
     let mut keys: Vec<(&str, &str)> = got.iter().map(|(u, t, _)| (u.as_str(), t.as_str())).collect();
     keys.dedup();
@@ -176,7 +200,12 @@ fn portal_and_mqtt_each_get_every_reading_once_across_a_portal_outage_and_a_kill
     assert_eq!(got.len(), want.len(), "every value of every reading up to the cursor, and none beyond it");
     assert_eq!(got, want);
     assert!(portal.refused().is_empty(), "the portal refused: {:?}", portal.refused());
-    assert!(portal.accepted().iter().any(|b| b.contains("\"timestamp\":[")), "several readings per request");
+    // The probes took turns in the store; the backlog went probe by probe in full batches.
+    assert!(
+        portal.accepted()[backlog..].iter().any(|b| records_in(b) == BATCH),
+        "the backlog went in full batches: {:?}",
+        portal.accepted()[backlog..].iter().map(|b| records_in(b)).collect::<Vec<_>>()
+    );
 
     // MQTT: every stored reading up to its cursor, first copies in order.
     let mqtt_up_to = mark(&db, "mqtt");
@@ -223,7 +252,7 @@ fn a_refused_token_is_reported_once_retried_and_never_shown() {
     assert!(text.contains("token"), "{text}");
     assert!(portal.refused().iter().all(|(status, _)| *status == 403));
     assert!(portal.accepted().is_empty());
-    assert_eq!(mark(&station.db, PORTAL_PUBLISHER), 0, "nothing marked sent");
+    assert!(portal_marks(&station.db).values().all(|&m| m == 0), "nothing marked sent");
     assert!(mark(&station.db, "mqtt") == 0 && !stored_ids(&station.db).is_empty());
 }
 
@@ -278,7 +307,7 @@ fn check_validates_the_section_located_and_never_shows_the_token() {
             "no_such_measurement",
             "reads no `no_such_measurement`",
         ),
-        (good.replace("batch = 5", "batch = 0"), "batch = 0", "not 1 to 1000"),
+        (good.replace(&format!("batch = {BATCH}"), "batch = 0"), "batch = 0", "not 1 to 1000"),
         (
             good.replace("token = \"environment\"", "token = { file = \"/nonexistent/mmw.token\" }"),
             "token = ",

@@ -9,11 +9,14 @@ use crate::config::{PortalConfig, Token, TokenError};
 
 /// The station's readings as the portal publisher drains them.
 ///
-/// Contract: [`Outbox::pending`] returns the records with an id above the
-/// publisher's cursor, ascending, at most `limit`, the same record for the
-/// same id every time; [`Outbox::mark_sent`] moves the cursor durably
-/// before it returns `Ok`. The publisher calls it only after the portal
-/// answered 201 for every record up to that id.
+/// Contract: [`Outbox::pending`] returns the records with an id above a
+/// cursor, ascending, at most `limit`, the same record for the same id
+/// every time; [`Outbox::mark_sent`] moves that cursor durably before it
+/// returns `Ok`. The publisher calls it only after the portal answered 201
+/// for every record up to that id. An outbox may keep several cursors
+/// (the station keeps one per probe, so that a request carries a batch of
+/// one probe's readings): `mark_sent` then moves the cursor of the records
+/// the last `pending` returned.
 pub trait Outbox {
     /// The store's error.
     type Error: std::error::Error;
@@ -28,7 +31,8 @@ pub trait Outbox {
 /// What the publisher is doing.
 #[derive(Debug, Clone, Default, PartialEq, Eq)]
 pub struct PortalStatus {
-    /// The highest id marked sent by this publisher.
+    /// The id up to which the last accepted request marked records sent
+    /// (on the cursor of its records).
     pub sent_up_to: Option<i64>,
     /// Requests the portal accepted (201).
     pub accepted: u64,

@@ -59,13 +59,16 @@
 //!     fit           TEXT               -- the fit (K, B, residuals, R²), if one was made
 //! );
 //! CREATE INDEX calibration_probe ON calibration (serial_number, sensor, timestamp_ms);
-//! -- The outbox, one cursor per publisher (`mqtt`, `monitor_my_watershed`):
-//! -- every reading with id <= published_up_to has been delivered by that
-//! -- publisher. A publisher without a row has delivered nothing (0).
+//! -- The outbox, one cursor per publisher (`mqtt`; Monitor My Watershed
+//! -- keeps one per probe, `monitor_my_watershed/<label>`, with
+//! -- `reading_probe` below): every reading (of that probe) with
+//! -- id <= published_up_to has been delivered by that publisher. A
+//! -- publisher without a row has delivered nothing (0).
 //! CREATE TABLE outbox (
 //!     publisher       TEXT    PRIMARY KEY,
 //!     published_up_to INTEGER NOT NULL
 //! ) WITHOUT ROWID;
+//! CREATE INDEX reading_probe ON reading (probe, id);
 //! ```
 //!
 //! `PRAGMA user_version` holds the schema version. A file of version 1
@@ -139,8 +142,10 @@ ALTER TABLE reading ADD COLUMN calibration_id INTEGER REFERENCES calibration (id
 ";
 
 /// From version 3: the single outbox cursor becomes one cursor per
-/// publisher; the old cursor was MQTT's.
+/// publisher; the old cursor was MQTT's. A publisher with a cursor per
+/// probe finds a probe's pending readings through `reading_probe`.
 const MIGRATE_3_TO_4: &str = "
+CREATE INDEX reading_probe ON reading (probe, id);
 CREATE TABLE outbox_v4 (
     publisher       TEXT    PRIMARY KEY,
     published_up_to INTEGER NOT NULL
@@ -496,7 +501,7 @@ impl Store {
     ///
     /// SQLite failed, or a row is malformed.
     pub fn latest_per_probe(&self) -> Result<Vec<StoredReading>, StoreError> {
-        self.select("WHERE id IN (SELECT max(id) FROM reading GROUP BY bus, probe) ORDER BY bus, probe", [])
+        self.select("WHERE id IN (SELECT max(id) FROM reading GROUP BY bus, probe) ORDER BY bus, probe", params![])
     }
 
     /// The oldest `limit` readings `publisher` has not delivered, oldest
@@ -525,6 +530,39 @@ impl Store {
         let limit = i64::try_from(limit).unwrap_or(i64::MAX);
         let floor = after.max(self.published_up_to(publisher)?);
         self.select("WHERE id > ?1 ORDER BY id LIMIT ?2", [floor, limit])
+    }
+
+    /// The oldest `limit` readings of `probe` (its label) that `publisher`
+    /// has not delivered, oldest first: a publisher with a cursor per probe
+    /// (one name per probe) drains each probe's readings on their own.
+    ///
+    /// # Errors
+    ///
+    /// SQLite failed, or a row is malformed.
+    pub fn unpublished_of_probe(
+        &self,
+        publisher: &str,
+        probe: &str,
+        limit: usize,
+    ) -> Result<Vec<StoredReading>, StoreError> {
+        let limit = i64::try_from(limit).unwrap_or(i64::MAX);
+        let floor = self.published_up_to(publisher)?;
+        self.select("WHERE id > ?1 AND probe = ?2 ORDER BY id LIMIT ?3", params![floor, probe, limit])
+    }
+
+    /// The id of the oldest reading of `probe` that `publisher` has not
+    /// delivered, if there is one.
+    ///
+    /// # Errors
+    ///
+    /// SQLite failed.
+    pub fn oldest_unpublished_of_probe(&self, publisher: &str, probe: &str) -> Result<Option<i64>, StoreError> {
+        let floor = self.published_up_to(publisher)?;
+        Ok(self.connection.query_row(
+            "SELECT min(id) FROM reading WHERE id > ?1 AND probe = ?2",
+            params![floor, probe],
+            |row| row.get(0),
+        )?)
     }
 
     /// Records that `publisher` has delivered every reading with an id up
@@ -606,7 +644,7 @@ impl Store {
 
     /// Readings matching `filter` (a WHERE clause and ORDER BY over
     /// `reading`), with their values.
-    fn select<const N: usize>(&self, filter: &str, args: [i64; N]) -> Result<Vec<StoredReading>, StoreError> {
+    fn select(&self, filter: &str, args: impl rusqlite::Params) -> Result<Vec<StoredReading>, StoreError> {
         let mut readings = self.connection.prepare_cached(&format!(
             "SELECT id, timestamp_ms, station, bus, probe, sensor, address, serial_number, firmware, retries, error,
                     calibration_id
@@ -615,7 +653,7 @@ impl Store {
         let mut values = self.connection.prepare_cached(
             "SELECT name, number, text, unit, derived, error FROM reading_value WHERE reading_id = ?1 ORDER BY position",
         )?;
-        let rows = readings.query_map(rusqlite::params_from_iter(args), |row| {
+        let rows = readings.query_map(args, |row| {
             Ok((
                 row.get::<_, i64>(0)?,
                 row.get::<_, i64>(1)?,

@@ -235,3 +235,73 @@ fn each_publisher_moves_only_its_own_cursor() {
     assert_eq!(store.unpublished_after("portal", 5, 10).unwrap().first().map(|s| s.id), Some(6));
     assert_eq!(store.unpublished("nobody", 100).unwrap().len(), 10);
 }
+
+/// A reading of `probe` with one number, the same measurement every time.
+fn one_value(probe: &str, n: u32) -> Reading {
+    Reading {
+        values: vec![Measurement {
+            name: "level".into(),
+            value: Datum::Number(f64::from(n)),
+            unit: Some("mm".into()),
+            derived: false,
+        }],
+        error: None,
+        ..reading(probe, 1_000 + u64::from(n), n)
+    }
+}
+
+#[test]
+fn interleaved_probes_go_to_the_portal_probe_by_probe_in_full_batches() {
+    use yosemitech_portal::body::next_batch;
+    use yosemitech_portal::{Outbox as _, PortalConfig, TokenSource};
+    use yosemitech_station::portal::{PortalOutbox, cursor_of};
+
+    const BATCH: usize = 4;
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("s.db");
+    let probes = ["a", "b", "unbound"];
+    let mut by_probe: std::collections::BTreeMap<&str, Vec<i64>> = Default::default();
+    {
+        let mut store = Store::open(&path).unwrap();
+        for n in 0..41u32 {
+            let probe = probes[n as usize % probes.len()];
+            by_probe.entry(probe).or_default().push(store.insert(&one_value(probe, n)).unwrap());
+        }
+    }
+    let mut config = PortalConfig::new(TokenSource::Environment, "0a1b2c3d-0000-4000-8000-00000000feed");
+    for (probe, uuid) in [("a", "aaaaaaaa-0000-4000-8000-000000000001"), ("b", "bbbbbbbb-0000-4000-8000-000000000002")]
+    {
+        config.results.insert(probe.into(), [("level".to_owned(), uuid.to_owned())].into());
+    }
+
+    // Drained in two runs of the publisher, as across a restart.
+    let mut requests: Vec<Vec<i64>> = Vec::new();
+    for run in 0..2 {
+        let mut outbox = PortalOutbox::new(Store::open(&path).unwrap(), config.clone());
+        for _ in 0..100 {
+            let pending = outbox.pending(4 * BATCH).unwrap();
+            let Some(batch) = next_batch(&pending, BATCH) else { break };
+            requests.push(batch.records.iter().map(|r| r.id).collect());
+            outbox.mark_sent(batch.up_to).unwrap();
+            if run == 0 && requests.len() == 3 {
+                break;
+            }
+        }
+    }
+    let probe_of = |id: i64| *by_probe.iter().find(|(_, ids)| ids.contains(&id)).unwrap().0;
+    for request in &requests {
+        assert!(request.windows(2).all(|w| w[0] < w[1]), "{requests:?}");
+        assert!(request.iter().all(|&id| probe_of(id) == probe_of(request[0])), "one probe per request: {requests:?}");
+        assert_ne!(probe_of(request[0]), "unbound");
+    }
+    for probe in ["a", "b"] {
+        let sent: Vec<i64> = requests.iter().flatten().copied().filter(|&id| probe_of(id) == probe).collect();
+        assert_eq!(sent, by_probe[probe], "each of {probe}'s readings once, in order");
+        let sizes: Vec<usize> = requests.iter().filter(|r| probe_of(r[0]) == probe).map(Vec::len).collect();
+        assert!(sizes[..sizes.len() - 1].iter().all(|&n| n == BATCH), "full batches: {sizes:?}");
+        let store = Store::open(&path).unwrap();
+        assert_eq!(store.published_up_to(&cursor_of(probe)).unwrap(), *by_probe[probe].last().unwrap());
+    }
+    assert_eq!(Store::open(&path).unwrap().published_up_to(&cursor_of("unbound")).unwrap(), 0);
+    assert_eq!(probe_of(requests[0][0]), "a", "the oldest unsent reading's probe goes first");
+}

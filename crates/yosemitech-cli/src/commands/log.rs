@@ -280,11 +280,8 @@ pub fn run(catalog: &Catalog, args: &LogArgs, stop: &Arc<AtomicBool>, out: &mut 
     if let Some(p) = portal {
         // A request under way finishes, so a 201 is recorded; the rest waits for the next run.
         let status = p.shutdown(Duration::from_secs(10));
-        let _ = writeln!(
-            err,
-            "monitor my watershed: sent up to reading {:?} ({} request(s) accepted, {} failed)",
-            status.sent_up_to, status.accepted, status.failed
-        );
+        let _ =
+            writeln!(err, "monitor my watershed: {} request(s) accepted, {} failed", status.accepted, status.failed);
     }
     for r in reports {
         let _ = writeln!(
