@@ -242,10 +242,14 @@ fn the_logger_stores_derived_quantities_marked_and_export_and_mqtt_carry_the_mar
     let stored = store.range(UNIX_EPOCH, SystemTime::now() + Duration::from_secs(60)).unwrap();
     let (mut numbers, mut errors) = (0, 0);
     for (label, sensor, address, _) in &probes {
-        let row = stored
-            .iter()
-            .find(|r| r.reading.probe == *label && r.reading.error.is_none())
-            .unwrap_or_else(|| panic!("no good reading of {label}"));
+        let row = stored.iter().find(|r| r.reading.probe == *label && r.reading.error.is_none()).unwrap_or_else(|| {
+            let errors: Vec<_> = stored
+                .iter()
+                .filter(|r| r.reading.probe == *label)
+                .filter_map(|r| r.reading.error.as_deref())
+                .collect();
+            panic!("no good reading of {label}; its errors: {errors:?}")
+        });
         let p = config.probes().map(|(_, p)| p).find(|p| p.label == *label).unwrap();
         let sim = server.device();
         let sim = sim.device(*address).unwrap();
