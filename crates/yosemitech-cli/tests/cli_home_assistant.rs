@@ -11,14 +11,13 @@
 mod station;
 
 use std::collections::{BTreeMap, BTreeSet};
-use std::process::{Child, Stdio};
 use std::time::Duration;
 
 use serde_json::Value;
-use station::{Station, command, terminate};
+use station::{Station, start_logger, stored, terminate};
 use yosemitech_spec::units;
+use yosemitech_station::StoredReading;
 use yosemitech_station::outbox::message;
-use yosemitech_station::{Store, StoredReading};
 use yosemitech_tests::broker::{Broker, BrokerKind, Subscriber, available, rumqttd_child_main, wait_until};
 
 #[test]
@@ -127,22 +126,6 @@ fn accepted_units(device_class: &str) -> Option<&'static [Option<&'static str>]>
         "duration" => &[Some("d"), Some("h"), Some("min"), Some("s"), Some("ms")],
         _ => return None,
     })
-}
-
-fn start_logger(config: &std::path::Path) -> Child {
-    command()
-        .args(["log", "--config", config.to_str().unwrap()])
-        .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .spawn()
-        .unwrap()
-}
-
-fn stored(db: &std::path::Path) -> Vec<StoredReading> {
-    Store::open(db)
-        .unwrap()
-        .range(std::time::UNIX_EPOCH, std::time::SystemTime::now() + Duration::from_secs(60))
-        .unwrap()
 }
 
 /// The last good reading of each probe, by label.

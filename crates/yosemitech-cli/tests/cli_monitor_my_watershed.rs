@@ -13,7 +13,7 @@ use std::path::Path;
 use std::process::Child;
 use std::time::Duration;
 
-use station::{Station, YOSEMITECH, command, terminate};
+use station::{Station, YOSEMITECH, command, stored_ids, terminate};
 use yosemitech_portal::body::timestamp;
 use yosemitech_station::portal::cursor_of;
 use yosemitech_station::{Datum, Store, plan};
@@ -67,16 +67,6 @@ fn start_logger(config: &Path, token: &str, stderr: &Path) -> Child {
         .stderr(std::fs::File::create(stderr).unwrap())
         .spawn()
         .unwrap()
-}
-
-fn stored_ids(db: &Path) -> Vec<i64> {
-    let store = Store::open(db).unwrap();
-    store
-        .range(std::time::UNIX_EPOCH, std::time::SystemTime::now() + Duration::from_secs(60))
-        .unwrap()
-        .iter()
-        .map(|s| s.id)
-        .collect()
 }
 
 fn mark(db: &Path, publisher: &str) -> i64 {

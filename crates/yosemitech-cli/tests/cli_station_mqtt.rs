@@ -10,10 +10,9 @@
 mod station;
 
 use std::collections::BTreeMap;
-use std::process::{Child, Stdio};
 use std::time::Duration;
 
-use station::{Station, command, terminate};
+use station::{Station, start_logger, stored_ids, terminate};
 use yosemitech_station::Store;
 use yosemitech_tests::broker::{
     Broker, BrokerKind, Subscriber, available, ids_and_first_occurrences, rumqttd_child_main, wait_until,
@@ -27,25 +26,6 @@ fn rumqttd_child_process() {
 
 /// Readings allowed in flight: the copies one interruption can cause.
 const MAX_IN_FLIGHT: usize = 4;
-
-fn start_logger(config: &std::path::Path) -> Child {
-    command()
-        .args(["log", "--config", config.to_str().unwrap()])
-        .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .spawn()
-        .unwrap()
-}
-
-fn stored_ids(db: &std::path::Path) -> Vec<i64> {
-    let store = Store::open(db).unwrap();
-    store
-        .range(std::time::UNIX_EPOCH, std::time::SystemTime::now() + Duration::from_secs(60))
-        .unwrap()
-        .iter()
-        .map(|s| s.id)
-        .collect()
-}
 
 fn killed_and_restarted_logger_loses_nothing(kind: BrokerKind) {
     if !available(kind) {

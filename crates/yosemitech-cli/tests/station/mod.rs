@@ -5,15 +5,15 @@
 //! sensors' serial settings differ, the bus states the first one's line for
 //! both (as a mixed RS-485 bus must; a pty carries any).
 
-use std::path::PathBuf;
-use std::process::Child;
+use std::path::{Path, PathBuf};
+use std::process::{Child, Stdio};
 use std::sync::Arc;
 use std::time::Duration;
 
 use yosemitech_rtu::Parity;
 use yosemitech_sim::{Bus, ServeConfig, Server, Simulator, serve_pty};
 use yosemitech_spec::Sensor;
-use yosemitech_station::plan;
+use yosemitech_station::{Store, StoredReading, plan};
 use yosemitech_tests::cli::{Binary, wait};
 use yosemitech_tests::spec;
 
@@ -131,4 +131,30 @@ pub fn terminate(child: &mut Child, limit: Duration) -> i32 {
     let status = std::process::Command::new("kill").args(["-TERM", &child.id().to_string()]).status().unwrap();
     assert!(status.success(), "kill -TERM {}", child.id());
     wait(child, limit)
+}
+
+/// Starts `yosemitech log` on the station file `config`, its output discarded.
+#[allow(dead_code)] // the tests that read the logger's output start it themselves
+pub fn start_logger(config: &Path) -> Child {
+    command()
+        .args(["log", "--config", config.to_str().unwrap()])
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap()
+}
+
+/// Every reading of the store at `db`, in id order.
+#[allow(dead_code)] // not every test binary of this module reads the store
+pub fn stored(db: &Path) -> Vec<StoredReading> {
+    Store::open(db)
+        .unwrap()
+        .range(std::time::UNIX_EPOCH, std::time::SystemTime::now() + Duration::from_secs(60))
+        .unwrap()
+}
+
+/// The ids of every reading of the store at `db`, ascending.
+#[allow(dead_code)] // not every test binary of this module reads the store
+pub fn stored_ids(db: &Path) -> Vec<i64> {
+    stored(db).iter().map(|s| s.id).collect()
 }
