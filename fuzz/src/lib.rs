@@ -130,19 +130,19 @@ fn check_sensor(module: &SensorModule, slave: u8, frame: &[u8]) {
     let sensor = module.info.name;
     for &name in module.commands {
         let command = spec_command(sensor, name);
-        let layout = (module.layout)(name).unwrap_or_else(|| panic!("{sensor}.{name}: listed but has no layout"));
+        let layout = module.layout(name).unwrap_or_else(|| panic!("{sensor}.{name}: listed but has no layout"));
         assert_eq!(layout, command.layout(), "{sensor}.{name}: generated and spec layouts differ");
 
         // As a reply.
         let interpreted = command.decode_response(slave, frame);
         let mut fields = FieldCheck { sensor, command: name, expected: interpreted.as_ref().ok(), seen: 0 };
-        let typed = (module.visit_response)(name, slave, frame, &mut |info, value| fields.visit(info, value))
+        let typed = module.visit_response(name, slave, frame, &mut |info, value| fields.visit(info, value))
             .unwrap_or_else(|| panic!("{sensor}.{name}: listed but visit_response does not know it"));
         match (&typed, &interpreted) {
             (Ok(()), Ok(_)) => {
                 fields.finish();
                 let mut out = [0u8; MAX_ADU];
-                let n = match (module.reencode_response)(name, slave, frame, &mut out) {
+                let n = match module.reencode_response(name, slave, frame, &mut out) {
                     Some(Ok(n)) => n,
                     Some(Err(RoundTripError::Encode(e))) => {
                         panic!("{sensor}.{name}: a decoded reply does not encode: {e}")
@@ -180,14 +180,14 @@ fn check_sensor(module: &SensorModule, slave: u8, frame: &[u8]) {
         let interpreted = command.decode_request(frame);
         let mut fields =
             FieldCheck { sensor, command: name, expected: interpreted.as_ref().ok().map(|(_, v)| v), seen: 0 };
-        let typed = (module.visit_request)(name, frame, &mut |info, value| fields.visit(info, value))
+        let typed = module.visit_request(name, frame, &mut |info, value| fields.visit(info, value))
             .unwrap_or_else(|| panic!("{sensor}.{name}: listed but visit_request does not know it"));
         match (&typed, &interpreted) {
             (Ok(s), Ok((t, _))) => {
                 assert_eq!(s, t, "{sensor}.{name}: typed and interpreted request slaves differ");
                 fields.finish();
                 let mut out = [0u8; MAX_ADU];
-                match (module.reencode_request)(name, frame, &mut out) {
+                match module.reencode_request(name, frame, &mut out) {
                     Some(Ok(n)) => same_frame(command, Direction::Request, frame, out.get(..n).unwrap_or(&[])),
                     // Decoding takes what the wire carries; encoding refuses
                     // values outside the spec's ranges and unusable addresses.
@@ -202,16 +202,16 @@ fn check_sensor(module: &SensorModule, slave: u8, frame: &[u8]) {
                     }
                     None => panic!("{sensor}.{name}: listed but reencode_request does not know it"),
                 }
-                let found = (module.identify_request)(frame);
+                let found = module.identify_request(frame);
                 assert!(found.is_some(), "{sensor}.{name}: a valid request is not identified");
             }
             (Err(a), Err(b)) => assert_eq!(a, b, "{sensor}.{name}: typed and interpreted request decoding disagree"),
             _ => panic!("{sensor}.{name}: typed and interpreted request decoding disagree on {}", Hex(frame)),
         }
     }
-    if let Some(name) = (module.identify_request)(frame) {
+    if let Some(name) = module.identify_request(frame) {
         assert!(module.commands.contains(&name), "{sensor}: identify_request names an unlisted command {name}");
-        let layout = (module.layout)(name).unwrap_or_else(|| panic!("{sensor}.{name}: identified but has no layout"));
+        let layout = module.layout(name).unwrap_or_else(|| panic!("{sensor}.{name}: identified but has no layout"));
         assert_eq!(frame.get(1), Some(&layout.function.code()));
         assert_eq!(frame.get(2..4), Some(&layout.address.to_be_bytes()[..]));
         assert_eq!(frame.get(4..6), Some(&layout.count.to_be_bytes()[..]));

@@ -109,6 +109,7 @@ impl Decoded {
 
 type DecodeRequest = Box<dyn Fn(&[u8]) -> Result<Decoded, FrameError> + Send + Sync>;
 type DecodeResponse = Box<dyn Fn(u8, &[u8]) -> Result<Decoded, FrameError> + Send + Sync>;
+type IdentifyRequest = Box<dyn Fn(&[u8]) -> Option<&'static str> + Send + Sync>;
 
 /// One generated command, through the generated dispatch API.
 pub struct Cmd {
@@ -121,7 +122,7 @@ pub struct Cmd {
     /// `CommandId::decode_response`, then `Response::fields` and `Response::encode`.
     pub decode_response: DecodeResponse,
     /// `identify_request` of the command's module.
-    pub identify: fn(&[u8]) -> Option<&'static str>,
+    pub identify: IdentifyRequest,
 }
 
 /// One generated sensor module.
@@ -140,16 +141,14 @@ fn api(module: &'static SensorModule) -> Api {
         commands: module
             .commands
             .iter()
-            .map(|&name| Cmd {
-                name,
-                layout: (module.layout)(name).expect("a listed command has a layout"),
+            .map(|entry| Cmd {
+                name: entry.name,
+                layout: entry.layout,
                 decode_request: Box::new(move |frame: &[u8]| {
                     let mut values = Vec::new();
-                    let slave =
-                        (module.visit_request)(name, frame, &mut |info, v| values.push((info.name, Val::of(v))))
-                            .expect("a listed command")?;
+                    let slave = entry.visit_request(frame, &mut |info, v| values.push((info.name, Val::of(v))))?;
                     let mut buf = [0u8; 256];
-                    let encoded = match (module.reencode_request)(name, frame, &mut buf).expect("a listed command") {
+                    let encoded = match entry.reencode_request(frame, &mut buf) {
                         Ok(n) => Ok(buf[..n].to_vec()),
                         Err(RoundTripError::Encode(e)) => Err(e),
                         Err(RoundTripError::Frame(e)) => return Err(e),
@@ -158,18 +157,16 @@ fn api(module: &'static SensorModule) -> Api {
                 }),
                 decode_response: Box::new(move |slave: u8, frame: &[u8]| {
                     let mut values = Vec::new();
-                    (module.visit_response)(name, slave, frame, &mut |info, v| values.push((info.name, Val::of(v))))
-                        .expect("a listed command")?;
+                    entry.visit_response(slave, frame, &mut |info, v| values.push((info.name, Val::of(v))))?;
                     let mut buf = [0u8; 256];
-                    let encoded =
-                        match (module.reencode_response)(name, slave, frame, &mut buf).expect("a listed command") {
-                            Ok(n) => Ok(buf[..n].to_vec()),
-                            Err(RoundTripError::Encode(e)) => Err(e),
-                            Err(RoundTripError::Frame(e)) => return Err(e),
-                        };
+                    let encoded = match entry.reencode_response(slave, frame, &mut buf) {
+                        Ok(n) => Ok(buf[..n].to_vec()),
+                        Err(RoundTripError::Encode(e)) => Err(e),
+                        Err(RoundTripError::Frame(e)) => return Err(e),
+                    };
                     Ok(Decoded { slave, values, encoded })
                 }),
-                identify: module.identify_request,
+                identify: Box::new(move |frame: &[u8]| module.identify_request(frame)),
             })
             .collect(),
     }

@@ -4,7 +4,7 @@
 
 use yosemitech_rtu::codec::{ByteOrder4, f32_from_wire, f32_to_wire};
 use yosemitech_rtu::frame::encode_exception;
-use yosemitech_rtu::{Command, EncodeError, FrameError, Layout};
+use yosemitech_rtu::{Command, FieldInfo, FieldValue, Layout, Message, NoData};
 
 /// The pH manual's get_ph request (Fig 23): [`ReadFloat`] to slave 1.
 pub const READ_FLOAT_REQUEST: [u8; 8] = [0x01, 0x03, 0x28, 0x00, 0x00, 0x02, 0xCD, 0xAB];
@@ -12,83 +12,92 @@ pub const READ_FLOAT_REQUEST: [u8; 8] = [0x01, 0x03, 0x28, 0x00, 0x00, 0x02, 0xC
 pub const READ_FLOAT_REPLY: [u8; 9] = [0x01, 0x03, 0x04, 0x33, 0x33, 0xF3, 0x40, 0x40, 0x78];
 
 /// get_ph: read 2 registers at 0x2800, one f32 (DCBA).
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct ReadFloat;
 
+impl NoData for ReadFloat {}
+
 impl Command for ReadFloat {
-    type Response = f32;
+    type Response = Ph;
     const NAME: &'static str = "read_float";
     const LAYOUT: Layout<'static> = Layout::read(0x2800, 2);
+}
 
-    fn encode_request(&self, slave: u8, out: &mut [u8]) -> Result<usize, EncodeError> {
-        Self::LAYOUT.encode_request(slave, &[], out)
+/// [`ReadFloat`]'s reply: the pH.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Ph(pub f32);
+
+impl PartialEq<f32> for Ph {
+    fn eq(&self, other: &f32) -> bool {
+        self.0 == *other
+    }
+}
+
+impl Message for Ph {
+    type Data = [u8; 4];
+    const FIELDS: &'static [FieldInfo] = &[FieldInfo::new("ph", Some("pH"))];
+
+    fn from_data(data: &[u8; 4]) -> Self {
+        Self(f32_from_wire(ByteOrder4::Dcba, *data))
     }
 
-    fn decode_request(frame: &[u8]) -> Result<(u8, Self), FrameError> {
-        Self::LAYOUT.decode_request(frame).map(|(slave, _)| (slave, ReadFloat))
+    fn to_data(&self) -> [u8; 4] {
+        f32_to_wire(ByteOrder4::Dcba, self.0)
     }
 
-    fn encode_response(response: &f32, slave: u8, out: &mut [u8]) -> Result<usize, EncodeError> {
-        Self::LAYOUT.encode_response(slave, &f32_to_wire(ByteOrder4::Dcba, *response), out)
-    }
-
-    fn decode_response(slave: u8, frame: &[u8]) -> Result<f32, FrameError> {
-        let data = Self::LAYOUT.decode_response(slave, frame)?;
-        let bytes: [u8; 4] = data.try_into().map_err(|_| FrameError::Truncated { expected: 4, actual: data.len() })?;
-        Ok(f32_from_wire(ByteOrder4::Dcba, bytes))
+    fn field(&self, index: usize) -> Option<FieldValue<'_>> {
+        (index == 0).then_some(FieldValue::F32(self.0))
     }
 }
 
 /// Conductivity start_measurement: a write of zero registers at 0x1C00.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct StartMeasurement;
+
+impl NoData for StartMeasurement {}
 
 impl Command for StartMeasurement {
     type Response = ();
     const NAME: &'static str = "start_measurement";
     const LAYOUT: Layout<'static> = Layout { trigger: true, ..Layout::write(0x1C00, 0) };
-
-    fn encode_request(&self, slave: u8, out: &mut [u8]) -> Result<usize, EncodeError> {
-        Self::LAYOUT.encode_request(slave, &[], out)
-    }
-
-    fn decode_request(frame: &[u8]) -> Result<(u8, Self), FrameError> {
-        Self::LAYOUT.decode_request(frame).map(|(slave, _)| (slave, StartMeasurement))
-    }
-
-    fn encode_response(_: &(), slave: u8, out: &mut [u8]) -> Result<usize, EncodeError> {
-        Self::LAYOUT.encode_response(slave, &[], out)
-    }
-
-    fn decode_response(slave: u8, frame: &[u8]) -> Result<(), FrameError> {
-        Self::LAYOUT.decode_response(slave, frame).map(drop)
-    }
 }
 
 /// get_slave_id with the fixed address 0xFF: read 1 register at 0x3000, the address in the first byte.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct ReadAtFixedSlave;
 
+impl NoData for ReadAtFixedSlave {}
+
 impl Command for ReadAtFixedSlave {
-    type Response = u8;
+    type Response = SlaveAddress;
     const NAME: &'static str = "read_at_fixed_slave";
     const LAYOUT: Layout<'static> = Layout { fixed_slave: Some(0xFF), ..Layout::read(0x3000, 1) };
+}
 
-    fn encode_request(&self, slave: u8, out: &mut [u8]) -> Result<usize, EncodeError> {
-        Self::LAYOUT.encode_request(slave, &[], out)
+/// [`ReadAtFixedSlave`]'s reply: the address, its second byte reserved.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SlaveAddress(pub u8);
+
+impl PartialEq<u8> for SlaveAddress {
+    fn eq(&self, other: &u8) -> bool {
+        self.0 == *other
+    }
+}
+
+impl Message for SlaveAddress {
+    type Data = [u8; 2];
+    const FIELDS: &'static [FieldInfo] = &[FieldInfo::new("slave_address", None)];
+
+    fn from_data(data: &[u8; 2]) -> Self {
+        Self(data[0])
     }
 
-    fn decode_request(frame: &[u8]) -> Result<(u8, Self), FrameError> {
-        Self::LAYOUT.decode_request(frame).map(|(slave, _)| (slave, ReadAtFixedSlave))
+    fn to_data(&self) -> [u8; 2] {
+        [self.0, 0x00]
     }
 
-    fn encode_response(response: &u8, slave: u8, out: &mut [u8]) -> Result<usize, EncodeError> {
-        Self::LAYOUT.encode_response(slave, &[*response, 0x00], out)
-    }
-
-    fn decode_response(slave: u8, frame: &[u8]) -> Result<u8, FrameError> {
-        let data = Self::LAYOUT.decode_response(slave, frame)?;
-        data.first().copied().ok_or(FrameError::Truncated { expected: 2, actual: 0 })
+    fn field(&self, index: usize) -> Option<FieldValue<'_>> {
+        (index == 0).then_some(FieldValue::Int(i64::from(self.0)))
     }
 }
 
@@ -101,9 +110,9 @@ pub fn float_probe(address: u8, ph: f32, request: &[u8], reply: &mut Vec<u8>) {
         if slave != address {
             return;
         }
-        ReadFloat::encode_response(&ph, slave, &mut out)
+        ReadFloat::encode_response(&Ph(ph), slave, &mut out)
     } else if let Ok((slave, ReadAtFixedSlave)) = ReadAtFixedSlave::decode_request(request) {
-        ReadAtFixedSlave::encode_response(&address, slave, &mut out)
+        ReadAtFixedSlave::encode_response(&SlaveAddress(address), slave, &mut out)
     } else if let Ok((slave, StartMeasurement)) = StartMeasurement::decode_request(request) {
         if slave != address {
             return;

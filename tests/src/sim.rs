@@ -202,7 +202,7 @@ pub fn read_requests(module: &yosemitech_rtu::SensorModule) -> Vec<ReadRequest> 
     module
         .commands
         .iter()
-        .filter_map(|&name| (module.layout)(name).map(|layout| (name, layout)))
+        .map(|entry| (entry.name, entry.layout))
         .filter(|(_, layout)| layout.function == Function::Read)
         .map(|(name, layout)| {
             let slave = layout.fixed_slave.unwrap_or(module.info.default_address);

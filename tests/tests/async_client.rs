@@ -108,7 +108,7 @@ async fn read_every_command<L: yosemitech_rtu::AsyncLink>(
     for ReadRequest { name, layout, slave, frame: req } in read_requests(module) {
         let reply = client.call_raw(&req, &layout).await.unwrap_or_else(|e| panic!("{}.{name}: {e}", module.info.name));
         assert_eq!(
-            (module.visit_response)(name, slave, reply, &mut |_, _| {}),
+            module.visit_response(name, slave, reply, &mut |_, _| {}),
             Some(Ok(())),
             "{}.{name}",
             module.info.name
@@ -140,9 +140,11 @@ fn the_async_client_reads_every_sensor_over_modbus_tcp() {
             let done = read_every_command(&mut client, module, &mut reference).await;
             // A unit nobody answers for: the gateway's exception 0x0B, typed.
             // Any read to the probe's own address will do (a sensor may have none).
-            let read = module.commands.iter().find_map(|n| {
-                (module.layout)(n).filter(|l| l.function == Function::Read && l.fixed_slave.is_none()).map(|l| (n, l))
-            });
+            let read = module
+                .commands
+                .iter()
+                .map(|c| (c.name, c.layout))
+                .find(|(_, l)| l.function == Function::Read && l.fixed_slave.is_none());
             let Some((name, layout)) = read else {
                 yosemitech_tests::report!("{}: no read to its own address, no gateway exception", module.info.name);
                 return (done, 0);
@@ -338,7 +340,7 @@ fn one_runtime_reads_eight_probes_on_eight_ptys_concurrently() {
                 for _ in 0..READS {
                     let reply = client.call_raw(&req, &read.layout()).await.unwrap();
                     assert_eq!(reply, &truth[..], "{}.{}", module.info.name, read.name);
-                    let decoded = (module.visit_response)(&read.name, slave, reply, &mut |_, _| {});
+                    let decoded = module.visit_response(&read.name, slave, reply, &mut |_, _| {});
                     assert_eq!(decoded, Some(Ok(())));
                 }
                 READS

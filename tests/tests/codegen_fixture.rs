@@ -10,7 +10,7 @@
 
 use std::path::PathBuf;
 
-use yosemitech::{Client, Command, EncodeError, ResponderTransport};
+use yosemitech::{Client, Command, EncodeError, Message, ResponderTransport};
 use yosemitech_tests::do_probe::{self, GetModel, GetOxygenSample, Mode, SetOffsets, State};
 
 fn fixture_dir() -> PathBuf {

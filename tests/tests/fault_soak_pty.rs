@@ -272,15 +272,15 @@ fn call(probe: &mut Probe, op: &Op, k: f32, b: f32) -> Outcome {
     let values: Vec<(&str, Value)> = values.iter().map(|(n, v)| (n.as_str(), v.clone())).collect();
     let frame = request(command, probe.address, &values);
     let mut typed = [0u8; 256];
-    let n = (probe.module.reencode_request)(name, &frame, &mut typed).expect("a generated command").expect("typed");
+    let n = probe.module.reencode_request(name, &frame, &mut typed).expect("a generated command").expect("typed");
     assert_eq!(typed[..n], frame[..], "{name}: the typed request is the interpreter's");
-    let layout = (probe.module.layout)(name).expect("the command's layout");
+    let layout = probe.module.layout(name).expect("the command's layout");
     let reply = probe.client.call_raw(&frame, &layout)?;
     if !command.is_read() {
         return Ok(None);
     }
     let mut fields = Vec::new();
-    let decoded = (probe.module.visit_response)(name, probe.address, reply, &mut |info, value| {
+    let decoded = probe.module.visit_response(name, probe.address, reply, &mut |info, value| {
         fields.push((info.name.to_owned(), owned(&value)));
     });
     decoded.expect("a generated command").expect("the typed decoder takes the checked reply");

@@ -300,9 +300,9 @@ fn generated_name_cases() -> Vec<Case> {
             "MODULE",
         ),
         case(
-            "constant-command-names",
-            format!("{BASE}constants:\n  - {{name: command_names, type: u32, value: 1, doc: Clashes.}}\n"),
-            "COMMAND_NAMES",
+            "constant-commands",
+            format!("{BASE}constants:\n  - {{name: commands, type: u32, value: 1, doc: Clashes.}}\n"),
+            "COMMANDS",
         ),
         case(
             "constant-derived",
@@ -500,7 +500,8 @@ fn hostile_fixture_keeps_its_text_verbatim() {
         let spec_units: Vec<Option<&str>> = c.named_fields().map(|f| f.unit.as_deref()).collect();
         assert_eq!(units, spec_units, "{id}");
     }
-    let units: Vec<_> = hostile::GetMaxReadResponse::FIELDS.iter().map(|f| (f.name, f.unit)).collect();
+    let units: Vec<_> =
+        <hostile::GetMaxReadResponse as yosemitech::Message>::FIELDS.iter().map(|f| (f.name, f.unit)).collect();
     assert_eq!(
         units[1..8],
         [

@@ -14,7 +14,7 @@ use yosemitech::procedures::ph::{CalibrationConfig, CalibrationGuide, calibrate}
 use yosemitech::procedures::{NoSleep, ProcedureError, Sleep};
 use yosemitech::rtu::transport::Responder;
 use yosemitech::yosemitech_common::{GetSn, SetSlaveId};
-use yosemitech::{Client, ClientConfig, Command, ResponderTransport, RetryPolicy, conductivity, ph_orp};
+use yosemitech::{Client, ClientConfig, Command, Message, ResponderTransport, RetryPolicy, conductivity, ph_orp};
 use yosemitech_sim::{Bus, Simulator};
 use yosemitech_spec::Sensor;
 

@@ -46,7 +46,7 @@ async fn read_every_command(ctx: &mut Context, module: &SensorModule, reference:
         reference.handle(request, &mut expected);
         assert_eq!(&*frame, &expected[..], "{}.{name}: the simulator's reply", module.info.name);
         let mut fields = 0;
-        let decoded = (module.visit_response)(name, slave, &frame, &mut |_, _| fields += 1);
+        let decoded = module.visit_response(name, slave, &frame, &mut |_, _| fields += 1);
         assert_eq!(decoded, Some(Ok(())), "{}.{name}", module.info.name);
         // Every named field, and nothing for reserved bytes (a read may carry only those).
         let named = spec().sensor(module.info.name).and_then(|s| s.command(name)).map(|c| c.named_fields().count());
@@ -146,15 +146,12 @@ fn typed_calls_write_read_back_and_report_exceptions() {
         // Registers the probe lacks: its exception, through the same decoder.
         let lacking = yosemitech::SENSORS
             .iter()
-            .flat_map(|m| m.commands.iter().filter_map(|c| (m.layout)(c)))
+            .flat_map(|m| m.commands.iter().map(|c| c.layout))
             .find(|l| {
                 l.function == Function::Read
                     && !l.trigger
                     && l.fixed_slave.is_none()
-                    && do_probe::MODULE
-                        .commands
-                        .iter()
-                        .all(|c| (do_probe::MODULE.layout)(c).unwrap().address != l.address)
+                    && do_probe::MODULE.commands.iter().all(|c| c.layout.address != l.address)
             })
             .expect("a read of registers the fixture lacks");
         let mut request = [0u8; MAX_ADU];
@@ -183,18 +180,19 @@ fn fixed_slave_and_trigger_writes_go_through() {
     let module = yosemitech::SENSORS.iter().find(|m| m.info.name == wildcard.name).unwrap();
     block_on(async {
         let mut ctx = tcp::connect(addr).await.unwrap();
-        let layout = (module.layout)(&get_id.name).unwrap();
+        let layout = module.layout(&get_id.name).unwrap();
         let fixed = layout.fixed_slave.unwrap();
         let mut request = [0u8; MAX_ADU];
         let len = layout.encode_request(fixed, &[], &mut request).unwrap();
         let frame = call_raw(&mut ctx, &request[..len], &layout).await.unwrap();
         // The address is the command's first named field.
         let mut address = None;
-        (module.visit_response)(&get_id.name, fixed, &frame, &mut |_, value| {
-            address.get_or_insert(value.to_string());
-        })
-        .unwrap()
-        .unwrap();
+        module
+            .visit_response(&get_id.name, fixed, &frame, &mut |_, value| {
+                address.get_or_insert(value.to_string());
+            })
+            .unwrap()
+            .unwrap();
         assert_eq!(address, Some(wildcard.default_address.to_string()), "the probe's own address");
         // The same command at another address is refused before sending.
         let other = (1..=247).find(|&a| a != fixed).unwrap();
@@ -206,22 +204,23 @@ fn fixed_slave_and_trigger_writes_go_through() {
     let (trigger_module, trigger_sensor, trigger) = yosemitech::SENSORS
         .iter()
         .find_map(|m| {
-            let name = m.commands.iter().find(|c| {
-                (m.layout)(c).is_some_and(|l| l.function == Function::Write && l.trigger && l.fixed_slave.is_none())
+            let command = m.commands.iter().find(|c| {
+                let l = c.layout;
+                l.function == Function::Write && l.trigger && l.fixed_slave.is_none()
             })?;
-            Some((m, spec.sensor(m.info.name)?.clone(), *name))
+            Some((m, spec.sensor(m.info.name)?.clone(), command.name))
         })
         .expect("a zero-register trigger write");
     let server = serve_mbap(Simulator::new(trigger_sensor), "127.0.0.1:0", ServeConfig::default()).unwrap();
     let addr = server.local_addr().unwrap();
     block_on(async {
         let mut ctx = tcp::connect(addr).await.unwrap();
-        let layout = (trigger_module.layout)(trigger).unwrap();
+        let layout = trigger_module.layout(trigger).unwrap();
         let slave = trigger_module.info.default_address;
         let mut request = [0u8; MAX_ADU];
         let len = layout.encode_request(slave, &[], &mut request).unwrap();
         let frame = call_raw(&mut ctx, &request[..len], &layout).await.unwrap();
-        assert_eq!((trigger_module.visit_response)(trigger, slave, &frame, &mut |_, _| {}), Some(Ok(())));
+        assert_eq!(trigger_module.visit_response(trigger, slave, &frame, &mut |_, _| {}), Some(Ok(())));
     });
     assert_eq!(server.device().stats().replies, 1);
 }

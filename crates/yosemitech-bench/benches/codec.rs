@@ -77,13 +77,12 @@ fn decode_every_example(c: &mut Criterion) {
             let Some(reply) = example.true_response().map(<[u8]>::to_vec) else { continue };
             let slave = example.slave();
             let name = command.name.clone();
-            let decoded = (module.visit_response)(&name, slave, &reply, &mut |_, _| {});
+            let decoded = module.visit_response(&name, slave, &reply, &mut |_, _| {});
             assert_eq!(decoded, Some(Ok(())), "{}.{name}", module.info.name);
             group.bench_function(format!("{}/{name}", module.info.name), |b| {
                 b.iter(|| {
                     let mut fields = 0usize;
-                    let _ =
-                        (module.visit_response)(&name, black_box(slave), black_box(&reply), &mut |_, _| fields += 1);
+                    let _ = module.visit_response(&name, black_box(slave), black_box(&reply), &mut |_, _| fields += 1);
                     fields
                 })
             });

@@ -90,15 +90,15 @@ fn every_command_through_the_dispatch_does_not_allocate() {
             let slave = request[0];
             let n = allocations_in(|| {
                 for _ in 0..ROUNDS {
-                    assert_eq!((module.identify_request)(request), Some(name.as_str()), "{name}");
-                    let len = (module.reencode_request)(name, black_box(request), &mut out).unwrap().unwrap();
+                    assert_eq!(module.identify_request(request), Some(name.as_str()), "{name}");
+                    let len = module.reencode_request(name, black_box(request), &mut out).unwrap().unwrap();
                     assert_eq!(&out[..len], &request[..], "{name}: request re-encodes");
-                    let len = (module.reencode_response)(name, slave, black_box(reply), &mut out).unwrap().unwrap();
+                    let len = module.reencode_response(name, slave, black_box(reply), &mut out).unwrap().unwrap();
                     if !trigger {
                         assert_eq!(&out[..len], &reply[..], "{name}: reply re-encodes");
                     }
                     let mut fields = 0usize;
-                    (module.visit_response)(name, slave, black_box(reply), &mut |_, _| fields += 1).unwrap().unwrap();
+                    module.visit_response(name, slave, black_box(reply), &mut |_, _| fields += 1).unwrap().unwrap();
                     black_box(fields);
                 }
             });

@@ -178,7 +178,8 @@ impl Config {
             let names = Names::plan(s)?;
             let tokens = sensor::module(s, &names, &options, &shared)?;
             let source = format_tokens(&s.name, tokens, &header(&s.file))?;
-            modules.extend(sensor::module_declaration(s, &format!("{}.rs", s.name)));
+            let device = options.device_handles.then_some(&names);
+            modules.extend(sensor::module_declaration(s, device, &format!("{}.rs", s.name)));
             sensors.push(GeneratedSensor { name: s.name.clone(), file_name: format!("{}.rs", s.name), source });
         }
         let module_refs: Vec<TokenStream> = spec

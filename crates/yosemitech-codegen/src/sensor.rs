@@ -35,8 +35,10 @@ fn unsupported(sensor: &Sensor, detail: String) -> Error {
     Error::Unsupported { sensor: sensor.name.clone(), detail }
 }
 
-/// `pub mod <sensor> { include!("<file>"); }` with the sensor's documentation.
-pub fn module_declaration(s: &Sensor, file: &str) -> TokenStream {
+/// `pub mod <sensor> { include!("<file>"); }` with the sensor's
+/// documentation; with `device`, its command table names each command's
+/// `Device` method.
+pub fn module_declaration(s: &Sensor, device: Option<&Names>, file: &str) -> TokenStream {
     let name = ident(&s.name);
     let file = lit(file);
     let mut d = format!("{}\n\n{}\n\n", one_line(&s.title), text::clean(&s.doc).trim_end());
@@ -74,16 +76,23 @@ pub fn module_declaration(s: &Sensor, file: &str) -> TokenStream {
             let _ = writeln!(d, "- {line}");
         }
     }
-    d.push_str("\n| Command | Function | Address | Registers | Request | Reply |\n|---|---|---|---|---|---|\n");
-    for c in &s.commands {
+    let method_column = if device.is_some() { " `Device` method |" } else { "" };
+    let _ = write!(
+        d,
+        "\n| Command | Function | Address | Registers | Request | Reply |{method_column}\n|---|---|---|---|---|---|{}\n",
+        if device.is_some() { "---|" } else { "" }
+    );
+    for (ci, c) in s.commands.iter().enumerate() {
         let ty = heck::ToUpperCamelCase::to_upper_camel_case(c.name.as_str());
         let (function, reply) = match c.function {
             Function::Read => ("read (0x03)", format!("[`{ty}Response`]({}::{ty}Response)", s.name)),
             Function::Write => ("write (0x10)", "`()`".to_owned()),
         };
+        let method =
+            device.and_then(|names| names.commands.get(ci)).map(|n| format!(" `{}()` |", n.method)).unwrap_or_default();
         let _ = writeln!(
             d,
-            "| {} | {function} | 0x{:04X} | {} | [`{ty}`]({}::{ty}) | {reply} |",
+            "| {} | {function} | 0x{:04X} | {} | [`{ty}`]({}::{ty}) | {reply} |{method}",
             one_line(&c.title).replace('|', "\\|"),
             c.address,
             c.count,
@@ -536,15 +545,40 @@ fn order2(o: ByteOrder2) -> TokenStream {
     quote!(rtu::ByteOrder2::#variant)
 }
 
-/// `[data[3], data[4], data[5], data[6]]`.
-fn data_bytes(offset: usize, len: usize) -> TokenStream {
+/// The encoding of a field that fills the message's data alone, when its
+/// encoder already returns the whole array.
+fn whole_data_encoding(g: &FieldGen<'_>) -> Option<TokenStream> {
+    let name = &g.name;
+    match &g.field.kind {
+        FieldKind::F32 { order } => {
+            let o = order4(*order);
+            Some(quote!(rtu::codec::f32_to_wire(#o, self.#name)))
+        }
+        FieldKind::U16 { order } | FieldKind::Flags { repr: EnumRepr::U16(order), .. } => {
+            let o = order2(*order);
+            Some(quote!(rtu::codec::u16_to_wire(#o, self.#name)))
+        }
+        FieldKind::U32 { order } => {
+            let o = order4(*order);
+            Some(quote!(rtu::codec::u32_to_wire(#o, self.#name)))
+        }
+        FieldKind::Ascii { .. } | FieldKind::Version => Some(quote!(self.#name.to_wire())),
+        _ => None,
+    }
+}
+
+/// `[data[3], data[4], data[5], data[6]]`, or `*data` for all of it.
+fn data_bytes(offset: usize, len: usize, data_len: usize) -> TokenStream {
+    if offset == 0 && len == data_len {
+        return quote!(*data);
+    }
     let idx = (offset..offset + len).map(Literal::usize_unsuffixed);
     quote!([#(data[#idx]),*])
 }
 
-fn decode_expr(g: &FieldGen<'_>) -> TokenStream {
+fn decode_expr(g: &FieldGen<'_>, data_len: usize) -> TokenStream {
     let f = g.field;
-    let b = data_bytes(f.offset, f.size());
+    let b = data_bytes(f.offset, f.size(), data_len);
     let at = Literal::usize_unsuffixed(f.offset);
     let ty = &g.ty;
     match &f.kind {
@@ -761,13 +795,11 @@ fn message_impl(
     write_request: bool,
 ) -> TokenStream {
     let validated = with_data && has_validate(gens, write_request);
-    let n = Literal::usize_unsuffixed(gens.len());
     let infos = gens.iter().map(|g| {
         let name = lit(g.field.display_name());
         let unit = opt_lit(g.field.unit.as_deref());
-        quote!(rtu::FieldInfo { name: #name, unit: #unit })
+        quote!(rtu::FieldInfo::new(#name, #unit))
     });
-    let values = gens.iter().map(field_value);
     let mut extras = TokenStream::new();
     for g in gens {
         let name = &g.name;
@@ -832,80 +864,90 @@ fn message_impl(
             });
         }
     }
-    let mut items = quote! {
-        #extras
-        /// Name and unit of each field, in wire order.
-        pub const FIELDS: [rtu::FieldInfo; #n] = [#(#infos),*];
-
-        /// Each field's value, in the order of [`Self::FIELDS`].
-        pub fn fields(&self) -> [rtu::FieldValue<'_>; #n] {
-            [#(#values),*]
+    let inherent = if extras.is_empty() {
+        TokenStream::new()
+    } else {
+        quote! {
+            impl #ty {
+                #extras
+            }
         }
     };
-    if with_data {
-        let len = 2 * usize::from(c.count);
-        let len_lit = Literal::usize_unsuffixed(len);
-        let is_unit = gens.is_empty();
-        let from = if is_unit {
-            quote! {
-                /// Decodes register data (nothing in it is kept).
-                pub const fn from_data(_data: &[u8; #len_lit]) -> Self {
-                    Self
-                }
-            }
-        } else {
-            let inits = gens.iter().map(|g| {
-                let name = &g.name;
-                let e = decode_expr(g);
-                quote!(#name: #e)
-            });
-            quote! {
-                /// Decodes register data; reserved bytes are ignored.
-                pub const fn from_data(data: &[u8; #len_lit]) -> Self {
-                    Self { #(#inits),* }
-                }
-            }
+    let len = if with_data { 2 * usize::from(c.count) } else { 0 };
+    if gens.is_empty() && len == 0 {
+        return quote! {
+            #inherent
+            impl rtu::NoData for #ty {}
         };
-        // Every byte: a field's byte, a reserved byte's fill, or 0 for gaps.
-        let mut slots: Vec<TokenStream> = (0..len).map(|_| quote!(0x00)).collect();
-        for f in &c.fields {
-            if let FieldKind::Reserved { len: rl, fill } = f.kind {
-                for slot in slots.iter_mut().skip(f.offset).take(rl) {
-                    *slot = hex(u32::from(fill), 2);
-                }
-            }
-        }
-        let mut binds = Vec::new();
-        for g in gens {
-            let (bind, bytes) = encode_field(g);
-            binds.push(bind);
-            for (slot, b) in slots.iter_mut().skip(g.field.offset).zip(bytes) {
-                *slot = b;
-            }
-        }
-        let to_doc = if validated {
-            quote!(
-                /// Encodes register data, reserved bytes with their fill. Does not
-                /// check ranges: see [`Self::validate`].
-            )
-        } else {
-            quote!(
-                /// Encodes register data, reserved bytes with their fill.
-            )
-        };
-        items.extend(quote! {
-            /// Bytes of register data: two per register.
-            pub const DATA_LEN: usize = #len_lit;
-
-            #from
-
-            #to_doc
-            pub const fn to_data(&self) -> [u8; #len_lit] {
-                #(#binds)*
-                [#(#slots),*]
-            }
-        });
     }
+    let len_lit = Literal::usize_unsuffixed(len);
+    let from = if gens.is_empty() {
+        quote! {
+            fn from_data(_data: &[u8; #len_lit]) -> Self {
+                Self
+            }
+        }
+    } else {
+        let inits = gens.iter().map(|g| {
+            let name = &g.name;
+            let e = decode_expr(g, len);
+            quote!(#name: #e)
+        });
+        quote! {
+            fn from_data(data: &[u8; #len_lit]) -> Self {
+                Self { #(#inits),* }
+            }
+        }
+    };
+    // Every byte: a field's byte, a reserved byte's fill, or 0 for gaps.
+    let mut slots: Vec<TokenStream> = (0..len).map(|_| quote!(0x00)).collect();
+    for f in &c.fields {
+        if let FieldKind::Reserved { len: rl, fill } = f.kind {
+            for slot in slots.iter_mut().skip(f.offset).take(rl) {
+                *slot = hex(u32::from(fill), 2);
+            }
+        }
+    }
+    let mut binds = Vec::new();
+    let whole = match gens {
+        [g] if g.field.offset == 0 && g.field.size() == len => whole_data_encoding(g),
+        _ => None,
+    };
+    for g in gens {
+        let (bind, bytes) = encode_field(g);
+        binds.push(bind);
+        for (slot, b) in slots.iter_mut().skip(g.field.offset).zip(bytes) {
+            *slot = b;
+        }
+    }
+    let to_body = whole.unwrap_or_else(|| {
+        quote! {
+            #(#binds)*
+            [#(#slots),*]
+        }
+    });
+    let arms = gens.iter().enumerate().map(|(i, g)| {
+        let i = Literal::usize_unsuffixed(i);
+        let value = field_value(g);
+        quote!(#i => Some(#value),)
+    });
+    let field = if gens.is_empty() {
+        quote! {
+            fn field(&self, _index: usize) -> Option<rtu::FieldValue<'_>> {
+                None
+            }
+        }
+    } else {
+        quote! {
+            fn field(&self, index: usize) -> Option<rtu::FieldValue<'_>> {
+                match index {
+                    #(#arms)*
+                    _ => None,
+                }
+            }
+        }
+    };
+    let mut validate = TokenStream::new();
     if validated {
         let mut checks: Vec<TokenStream> = gens.iter().filter_map(range_check).collect();
         for g in gens.iter().filter(|g| matches!(g.field.kind, FieldKind::Bcd) && g.field.range.is_none()) {
@@ -917,25 +959,30 @@ fn message_impl(
                 }
             });
         }
-        let body = if checks.is_empty() {
-            quote!(Ok(()))
-        } else {
-            quote! {
-                #(#checks)*
-                Ok(())
-            }
-        };
-        items.extend(quote! {
-            /// Checks every field against the range the spec allows
-            /// ([`rtu::EncodeError::OutOfRange`] names the first that is not).
-            pub fn validate(&self) -> Result<(), rtu::EncodeError> {
-                #body
-            }
-        });
+        if !checks.is_empty() {
+            validate = quote! {
+                fn validate(&self) -> Result<(), rtu::EncodeError> {
+                    #(#checks)*
+                    Ok(())
+                }
+            };
+        }
     }
     quote! {
-        impl #ty {
-            #items
+        #inherent
+
+        impl rtu::Message for #ty {
+            type Data = [u8; #len_lit];
+            const FIELDS: &'static [rtu::FieldInfo] = &[#(#infos),*];
+
+            #from
+
+            fn to_data(&self) -> [u8; #len_lit] {
+                #to_body
+            }
+
+            #field
+            #validate
         }
     }
 }
@@ -1047,12 +1094,18 @@ fn command_doc(c: &CommandSpec) -> String {
 }
 
 fn layout_expr(c: &CommandSpec) -> TokenStream {
+    let address = hex(u32::from(c.address), 4);
+    let count = Literal::u16_unsuffixed(c.count);
+    if c.fixed_slave.is_none() && c.extra_byte_counts.is_empty() && !c.trigger {
+        return match c.function {
+            Function::Read => quote!(rtu::Layout::read(#address, #count)),
+            Function::Write => quote!(rtu::Layout::write(#address, #count)),
+        };
+    }
     let function = match c.function {
         Function::Read => quote!(rtu::Function::Read),
         Function::Write => quote!(rtu::Function::Write),
     };
-    let address = hex(u32::from(c.address), 4);
-    let count = Literal::u16_unsuffixed(c.count);
     let fixed = match c.fixed_slave {
         Some(s) => {
             let s = hex(u32::from(s), 2);
@@ -1080,125 +1133,38 @@ fn command(names: &Names, ci: usize, c: &CommandSpec) -> TokenStream {
     let gens = field_gens(names, ci, c);
     let name = lit(&c.name);
     let layout = layout_expr(c);
-    let len = 2 * usize::from(c.count);
-    let len_lit = Literal::usize_unsuffixed(len);
     let docs = doc(&command_doc(c));
     let mut out = TokenStream::new();
-    match c.function {
+    let response = match c.function {
         Function::Read => {
             let resp = ident(&n.response);
             // A trigger read (a read used as a command) ignores its reply's data.
-            let (resp_gens, resp_docs, encode_body, decode_body) = if c.trigger {
-                (
-                    &[][..],
-                    doc(&format!("Reply to [`{}`]: an acknowledgement that carries no value.", n.ty)),
-                    quote!(Self::LAYOUT.encode_response(slave, &[], out)),
-                    quote! {
-                        Self::LAYOUT.decode_response(slave, frame)?;
-                        Ok(#resp)
-                    },
-                )
+            let (resp_gens, resp_docs) = if c.trigger {
+                (&[][..], doc(&format!("Reply to [`{}`]: an acknowledgement that carries no value.", n.ty)))
             } else {
-                let validate_response =
-                    if has_validate(&gens, false) { quote!(response.validate()?;) } else { TokenStream::new() };
-                (
-                    &gens[..],
-                    doc(&format!(
-                        "Reply to [`{}`]. {}",
-                        n.ty,
-                        one_line(&c.doc).split(". ").next().unwrap_or_default().trim_end_matches('.').to_owned() + "."
-                    )),
-                    quote! {
-                        #validate_response
-                        Self::LAYOUT.encode_response(slave, &response.to_data(), out)
-                    },
-                    quote! {
-                        let data = Self::LAYOUT.decode_response(slave, frame)?;
-                        let data = <&[u8; #len_lit]>::try_from(data)
-                            .map_err(|_| rtu::FrameError::Truncated { expected: Self::RESPONSE_LEN, actual: frame.len() })?;
-                        Ok(#resp::from_data(data))
-                    },
-                )
+                let first_sentence =
+                    one_line(&c.doc).split(". ").next().unwrap_or_default().trim_end_matches('.').to_owned();
+                (&gens[..], doc(&format!("Reply to [`{}`]. {first_sentence}.", n.ty)))
             };
-            let response_param = if c.trigger { format_ident!("_response") } else { format_ident!("response") };
             out.extend(struct_def(&ty, &[], docs));
             out.extend(message_impl(&ty, &[], c, false, false));
             out.extend(struct_def(&resp, resp_gens, resp_docs));
             out.extend(message_impl(&resp, resp_gens, c, !c.trigger, false));
-            out.extend(quote! {
-                impl rtu::Command for #ty {
-                    type Response = #resp;
-                    const NAME: &'static str = #name;
-                    const LAYOUT: rtu::Layout<'static> = #layout;
-
-                    fn encode_request(&self, slave: u8, out: &mut [u8]) -> Result<usize, rtu::EncodeError> {
-                        Self::LAYOUT.encode_request(slave, &[], out)
-                    }
-
-                    fn decode_request(frame: &[u8]) -> Result<(u8, Self), rtu::FrameError> {
-                        let (slave, _) = Self::LAYOUT.decode_request(frame)?;
-                        Ok((slave, Self))
-                    }
-
-                    fn encode_response(#response_param: &#resp, slave: u8, out: &mut [u8]) -> Result<usize, rtu::EncodeError> {
-                        #encode_body
-                    }
-
-                    fn decode_response(slave: u8, frame: &[u8]) -> Result<#resp, rtu::FrameError> {
-                        #decode_body
-                    }
-                }
-            });
+            quote!(#resp)
         }
         Function::Write => {
             out.extend(struct_def(&ty, &gens, docs));
             out.extend(message_impl(&ty, &gens, c, true, true));
-            let (encode_data, decode) = if len == 0 {
-                (
-                    quote!(&[]),
-                    quote! {
-                        let (slave, _) = Self::LAYOUT.decode_request(frame)?;
-                        Ok((slave, Self))
-                    },
-                )
-            } else {
-                (
-                    quote!(&self.to_data()),
-                    quote! {
-                        let (slave, data) = Self::LAYOUT.decode_request(frame)?;
-                        let data = <&[u8; #len_lit]>::try_from(data)
-                            .map_err(|_| rtu::FrameError::Truncated { expected: Self::REQUEST_LEN, actual: frame.len() })?;
-                        Ok((slave, Self::from_data(data)))
-                    },
-                )
-            };
-            out.extend(quote! {
-                impl rtu::Command for #ty {
-                    type Response = ();
-                    const NAME: &'static str = #name;
-                    const LAYOUT: rtu::Layout<'static> = #layout;
-
-                    fn encode_request(&self, slave: u8, out: &mut [u8]) -> Result<usize, rtu::EncodeError> {
-                        self.validate()?;
-                        Self::LAYOUT.encode_request(slave, #encode_data, out)
-                    }
-
-                    fn decode_request(frame: &[u8]) -> Result<(u8, Self), rtu::FrameError> {
-                        #decode
-                    }
-
-                    fn encode_response(_response: &(), slave: u8, out: &mut [u8]) -> Result<usize, rtu::EncodeError> {
-                        Self::LAYOUT.encode_response(slave, &[], out)
-                    }
-
-                    fn decode_response(slave: u8, frame: &[u8]) -> Result<(), rtu::FrameError> {
-                        Self::LAYOUT.decode_response(slave, frame)?;
-                        Ok(())
-                    }
-                }
-            });
+            quote!(())
         }
-    }
+    };
+    out.extend(quote! {
+        impl rtu::Command for #ty {
+            type Response = #response;
+            const NAME: &'static str = #name;
+            const LAYOUT: rtu::Layout<'static> = #layout;
+        }
+    });
     out
 }
 
@@ -1206,13 +1172,11 @@ fn dispatch(s: &Sensor, names: &Names) -> TokenStream {
     let derived_table = derived_table(s);
     let n = Literal::usize_unsuffixed(s.commands.len());
     let variants: Vec<Ident> = names.commands.iter().map(|c| ident(&c.ty)).collect();
-    let spec_names: Vec<Literal> = s.commands.iter().map(|c| lit(&c.name)).collect();
     let titles: Vec<Literal> = s.commands.iter().map(|c| lit(&one_line(&c.title))).collect();
     let id_docs: Vec<TokenStream> =
         s.commands.iter().zip(&variants).map(|(c, v)| doc(&format!("`{}`: [`{v}`].", c.name))).collect();
 
     let mut response_variants = Vec::new();
-    let mut response_fields = Vec::new();
     let mut decode_response_arms = Vec::new();
     let mut response_command_arms = Vec::new();
     let mut response_encode_arms = Vec::new();
@@ -1223,12 +1187,11 @@ fn dispatch(s: &Sensor, names: &Names) -> TokenStream {
         if c.is_read() {
             let resp = format_ident!("{}Response", v);
             response_variants.push(quote!(#d #v(#resp)));
-            response_fields.push(quote!(Self::#v => &#resp::FIELDS));
             decode_response_arms
                 .push(quote!(Self::#v => <#v as rtu::Command>::decode_response(slave, frame).map(Response::#v)));
             response_command_arms.push(quote!(Self::#v(_) => CommandId::#v));
             response_encode_arms.push(quote!(Self::#v(r) => <#v as rtu::Command>::encode_response(r, slave, out)));
-            response_field_arms.push(quote!(Self::#v(r) => r.fields().get(index).copied()));
+            response_field_arms.push(quote!(Self::#v(r) => r.field(index)));
             froms.push(quote! {
                 impl From<#resp> for Response {
                     fn from(response: #resp) -> Self {
@@ -1238,7 +1201,6 @@ fn dispatch(s: &Sensor, names: &Names) -> TokenStream {
             });
         } else {
             response_variants.push(quote!(#d #v));
-            response_fields.push(quote!(Self::#v => &[]));
             decode_response_arms
                 .push(quote!(Self::#v => <#v as rtu::Command>::decode_response(slave, frame).map(|()| Response::#v)));
             response_command_arms.push(quote!(Self::#v => CommandId::#v));
@@ -1259,6 +1221,12 @@ fn dispatch(s: &Sensor, names: &Names) -> TokenStream {
     });
 
     quote! {
+        /// Every command of this sensor as data, in spec order: name, title,
+        /// layout, fields and codecs ([`CommandId`] indexes it).
+        pub const COMMANDS: [rtu::CommandEntry; #n] = [
+            #(rtu::CommandEntry::of::<#variants>(#titles),)*
+        ];
+
         /// Every command of this sensor, for code that picks commands at run
         /// time (CLIs, simulators, tests).
         #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -1270,47 +1238,41 @@ fn dispatch(s: &Sensor, names: &Names) -> TokenStream {
             /// Every command, in spec order.
             pub const ALL: [Self; #n] = [#(Self::#variants),*];
 
+            /// The command's row of [`COMMANDS`].
+            // Variants are declared in table order, so every discriminant is an index.
+            #[allow(clippy::indexing_slicing)]
+            pub const fn entry(self) -> &'static rtu::CommandEntry {
+                &COMMANDS[self as usize]
+            }
+
             /// The command's snake_case name in the spec.
             pub const fn name(self) -> &'static str {
-                match self {
-                    #(Self::#variants => #spec_names,)*
-                }
+                self.entry().name
             }
 
             /// The command called `name` in the spec.
             pub fn from_name(name: &str) -> Option<Self> {
-                match name {
-                    #(#spec_names => Some(Self::#variants),)*
-                    _ => None,
-                }
+                Self::ALL.into_iter().find(|id| id.name() == name)
             }
 
             /// The command's title in the manual.
             pub const fn title(self) -> &'static str {
-                match self {
-                    #(Self::#variants => #titles,)*
-                }
+                self.entry().title
             }
 
             /// Function, start address, register count and addressing quirks.
             pub const fn layout(self) -> rtu::Layout<'static> {
-                match self {
-                    #(Self::#variants => <#variants as rtu::Command>::LAYOUT,)*
-                }
+                self.entry().layout
             }
 
             /// Name and unit of each field of the request (empty for reads).
             pub const fn request_fields(self) -> &'static [rtu::FieldInfo] {
-                match self {
-                    #(Self::#variants => &#variants::FIELDS,)*
-                }
+                self.entry().request_fields
             }
 
             /// Name and unit of each field of the reply (empty for writes).
             pub const fn response_fields(self) -> &'static [rtu::FieldInfo] {
-                match self {
-                    #(#response_fields,)*
-                }
+                self.entry().response_fields
             }
 
             /// Checks a request frame for this command and decodes it.
@@ -1360,7 +1322,7 @@ fn dispatch(s: &Sensor, names: &Names) -> TokenStream {
             /// The value of field `index` of [`CommandId::request_fields`].
             pub fn field(&self, index: usize) -> Option<rtu::FieldValue<'_>> {
                 match self {
-                    #(Self::#variants(r) => r.fields().get(index).copied(),)*
+                    #(Self::#variants(r) => rtu::Message::field(r, index),)*
                 }
             }
 
@@ -1393,6 +1355,7 @@ fn dispatch(s: &Sensor, names: &Names) -> TokenStream {
 
             /// The value of field `index` of [`CommandId::response_fields`].
             pub fn field(&self, index: usize) -> Option<rtu::FieldValue<'_>> {
+                use rtu::Message as _;
                 match self {
                     #(#response_field_arms,)*
                 }
@@ -1415,58 +1378,14 @@ fn dispatch(s: &Sensor, names: &Names) -> TokenStream {
         /// and register count (the first in spec order if several match). Does
         /// not check the frame: decode it with [`CommandId::decode_request`].
         pub fn identify_request(frame: &[u8]) -> Option<CommandId> {
-            let [_, function, address_hi, address_lo, count_hi, count_lo] = *frame.first_chunk::<6>()?;
-            let address = u16::from_be_bytes([address_hi, address_lo]);
-            let count = u16::from_be_bytes([count_hi, count_lo]);
-            CommandId::ALL.into_iter().find(|id| {
-                let layout = id.layout();
-                layout.function.code() == function && layout.address == address && layout.count == count
-            })
+            rtu::identify_request(&COMMANDS, frame).and_then(|i| CommandId::ALL.get(i).copied())
         }
-
-        /// Every command's spec name, in spec order.
-        pub const COMMAND_NAMES: [&str; #n] = [#(#spec_names),*];
 
         #derived_table
 
         /// This module as data, for code that serves every sensor without naming one
         /// (`crate::SENSORS` lists them all).
-        pub const MODULE: rtu::SensorModule = rtu::SensorModule {
-            info: SENSOR,
-            derived: &DERIVED,
-            commands: &COMMAND_NAMES,
-            layout: |name| CommandId::from_name(name).map(CommandId::layout),
-            identify_request: |frame| identify_request(frame).map(CommandId::name),
-            visit_request: |name, frame, visit| {
-                let id = CommandId::from_name(name)?;
-                Some(id.decode_request(frame).map(|(slave, request)| {
-                    for (info, value) in request.fields() {
-                        visit(info, value);
-                    }
-                    slave
-                }))
-            },
-            reencode_request: |name, frame, out| {
-                let id = CommandId::from_name(name)?;
-                Some(id.decode_request(frame).map_err(rtu::RoundTripError::Frame).and_then(|(slave, request)| {
-                    request.encode(slave, out).map_err(rtu::RoundTripError::Encode)
-                }))
-            },
-            reencode_response: |name, slave, frame, out| {
-                let id = CommandId::from_name(name)?;
-                Some(id.decode_response(slave, frame).map_err(rtu::RoundTripError::Frame).and_then(|response| {
-                    response.encode(slave, out).map_err(rtu::RoundTripError::Encode)
-                }))
-            },
-            visit_response: |name, slave, frame, visit| {
-                let id = CommandId::from_name(name)?;
-                Some(id.decode_response(slave, frame).map(|response| {
-                    for (info, value) in response.fields() {
-                        visit(info, value);
-                    }
-                }))
-            },
-        };
+        pub const MODULE: rtu::SensorModule = rtu::SensorModule { info: SENSOR, commands: &COMMANDS, derived: &DERIVED };
     }
 }
 

@@ -2,15 +2,18 @@
 
 use crate::error::{EncodeError, FrameError};
 use crate::frame::{Frame, Function, Layout};
+use crate::message::Message;
 
 /// One Modbus command of a sensor: a typed request that knows its reply.
 ///
-/// Generated for every command in the spec. `Self` is the request (a unit
-/// struct for reads, the written values for writes); [`Command::Response`] the
-/// decoded reply. All methods are allocation-free and never panic.
-pub trait Command: Sized {
-    /// The decoded reply: `()` for triggers and writes without data.
-    type Response;
+/// Generated for every command in the spec, as declarations only: the
+/// command's name and layout, and its request and reply as [`Message`]s.
+/// `Self` is the request (a unit struct for reads, the written values for
+/// writes); [`Command::Response`] the decoded reply. The framing is the
+/// runtime's: every method is provided, allocation-free and never panics.
+pub trait Command: Message {
+    /// The decoded reply: `()` for writes, which carry no data back.
+    type Response: Message;
 
     /// The command's name in the spec.
     const NAME: &'static str;
@@ -29,17 +32,38 @@ pub trait Command: Sized {
     /// Bytes in a normal reply frame.
     const RESPONSE_LEN: usize = Self::LAYOUT.response_len();
 
-    /// Writes the request frame for `slave` into `out` and returns its length.
-    fn encode_request(&self, slave: u8, out: &mut [u8]) -> Result<usize, EncodeError>;
+    /// Writes the request frame for `slave` into `out` and returns its
+    /// length. A write's values are checked against their ranges first.
+    fn encode_request(&self, slave: u8, out: &mut [u8]) -> Result<usize, EncodeError> {
+        self.validate()?;
+        Self::LAYOUT.encode_request(slave, self.to_data().as_ref(), out)
+    }
 
     /// Checks a request frame and returns its slave address and the request.
-    fn decode_request(frame: &[u8]) -> Result<(u8, Self), FrameError>;
+    fn decode_request(frame: &[u8]) -> Result<(u8, Self), FrameError> {
+        let (slave, data) = Self::LAYOUT.decode_request(frame)?;
+        let data = Self::Data::try_from(data)
+            .map_err(|_| FrameError::Truncated { expected: Self::REQUEST_LEN, actual: frame.len() })?;
+        Ok((slave, Self::from_data(&data)))
+    }
 
-    /// Writes the reply `response` from `slave` into `out` and returns its length.
-    fn encode_response(response: &Self::Response, slave: u8, out: &mut [u8]) -> Result<usize, EncodeError>;
+    /// Writes the reply `response` from `slave` into `out` and returns its
+    /// length. A reply is not range-checked: a probe may report values
+    /// outside its measuring range.
+    fn encode_response(response: &Self::Response, slave: u8, out: &mut [u8]) -> Result<usize, EncodeError> {
+        Self::LAYOUT.encode_response(slave, response.to_data().as_ref(), out)
+    }
 
     /// Checks a reply to a request sent to `slave` and decodes it.
-    fn decode_response(slave: u8, frame: &[u8]) -> Result<Self::Response, FrameError>;
+    fn decode_response(slave: u8, frame: &[u8]) -> Result<Self::Response, FrameError> {
+        let data = Self::LAYOUT.decode_response(slave, frame)?;
+        // A trigger's reply is an acknowledgement: whatever registers it
+        // carries mean nothing.
+        let data = if Self::LAYOUT.trigger { &[][..] } else { data };
+        let data = <Self::Response as Message>::Data::try_from(data)
+            .map_err(|_| FrameError::Truncated { expected: Self::RESPONSE_LEN, actual: frame.len() })?;
+        Ok(Self::Response::from_data(&data))
+    }
 
     /// The request frame for `slave`, on the stack.
     fn request_frame(&self, slave: u8) -> Result<Frame, EncodeError> {

@@ -22,6 +22,7 @@ pub mod derived;
 mod error;
 pub mod frame;
 pub mod mbap;
+mod message;
 mod sensor;
 pub mod timing;
 #[cfg(feature = "tokio-modbus")]
@@ -37,7 +38,8 @@ pub use derived::{DerivedInfo, DerivedInput, InputSource, NotComputable};
 pub use error::{EchoField, EncodeError, ExceptionCode, FrameError};
 pub use frame::{Frame, Function, Layout};
 pub use mbap::MbapError;
-pub use sensor::{RoundTripError, SensorInfo, SensorModule};
+pub use message::{Message, NoData};
+pub use sensor::{CommandEntry, RoundTripError, SensorInfo, SensorModule, identify_request};
 pub use timing::{CharFormat, DataBits, LineSettings, LineTiming, Parity, StopBits};
 pub use value::{FieldInfo, FieldValue};
 

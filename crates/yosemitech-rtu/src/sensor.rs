@@ -1,8 +1,10 @@
 //! [`SensorInfo`]: what generated sensor modules say about their sensor.
 
+use crate::command::Command;
 use crate::error::{EncodeError, FrameError};
 use crate::frame::Layout;
-use crate::timing::{CharFormat, LineTiming};
+use crate::message::Message;
+use crate::timing::{CharFormat, LineSettings, LineTiming};
 use crate::value::{FieldInfo, FieldValue};
 
 /// Static facts about one sensor model, from its spec: generated code
@@ -34,6 +36,11 @@ pub struct SensorInfo {
 }
 
 impl SensorInfo {
+    /// The factory serial settings: baud rate and character format.
+    pub const fn line_settings(&self) -> LineSettings {
+        LineSettings { baud: self.baud, format: self.format }
+    }
+
     /// The timing of a line at the factory serial settings.
     pub const fn line_timing(&self) -> LineTiming {
         LineTiming::new(self.baud, self.format)
@@ -66,57 +73,185 @@ impl core::fmt::Display for RoundTripError {
 /// A visitor of decoded fields: each field's name and unit, and its value.
 pub type FieldVisitor<'v> = &'v mut dyn FnMut(FieldInfo, FieldValue<'_>);
 
-/// `(command name, frame, visitor)`: decodes a request and visits its fields.
-pub type VisitRequestFn = fn(&str, &[u8], FieldVisitor<'_>) -> Option<Result<u8, FrameError>>;
+/// One command of a sensor as data: a row of the generated `COMMANDS` table.
+/// [`CommandEntry::of`] builds it from the typed command, so its codecs
+/// are the typed ones; code that picks commands at run time (the CLI, the
+/// simulator, tests, fuzzing) goes through it without naming a type.
+#[derive(Clone, Copy)]
+pub struct CommandEntry {
+    /// The command's snake_case name in the spec.
+    pub name: &'static str,
+    /// The command's title in the manual.
+    pub title: &'static str,
+    /// Function, start address, register count and addressing quirks.
+    pub layout: Layout<'static>,
+    /// Name and unit of each field of the request (empty for reads).
+    pub request_fields: &'static [FieldInfo],
+    /// Name and unit of each field of the reply (empty for writes).
+    pub response_fields: &'static [FieldInfo],
+    visit_request_fn: fn(&[u8], FieldVisitor<'_>) -> Result<u8, FrameError>,
+    visit_response_fn: fn(u8, &[u8], FieldVisitor<'_>) -> Result<(), FrameError>,
+    reencode_request_fn: fn(&[u8], &mut [u8]) -> Result<usize, RoundTripError>,
+    reencode_response_fn: ReencodeResponseFn,
+}
 
-/// `(command name, slave, frame, visitor)`: decodes a reply and visits its fields.
-pub type VisitResponseFn = fn(&str, u8, &[u8], FieldVisitor<'_>) -> Option<Result<(), FrameError>>;
+/// Re-encodes a reply to a request sent to the given slave address.
+type ReencodeResponseFn = fn(u8, &[u8], &mut [u8]) -> Result<usize, RoundTripError>;
 
-/// `(command name, frame, out)`: decodes a request and encodes it again.
-pub type ReencodeRequestFn = fn(&str, &[u8], &mut [u8]) -> Option<Result<usize, RoundTripError>>;
+impl CommandEntry {
+    /// The entry of command `C`, titled as the manual titles it.
+    pub const fn of<C: Command>(title: &'static str) -> Self {
+        Self {
+            name: C::NAME,
+            title,
+            layout: C::LAYOUT,
+            request_fields: C::FIELDS,
+            response_fields: <C::Response as Message>::FIELDS,
+            visit_request_fn: visit_request::<C>,
+            visit_response_fn: visit_response::<C>,
+            reencode_request_fn: reencode_request::<C>,
+            reencode_response_fn: reencode_response::<C>,
+        }
+    }
 
-/// `(command name, slave, frame, out)`: decodes a reply and encodes it again.
-pub type ReencodeResponseFn = fn(&str, u8, &[u8], &mut [u8]) -> Option<Result<usize, RoundTripError>>;
+    /// Decodes a request, passes each field of a write's data (in wire
+    /// order) to the visitor, and returns the slave address it is for.
+    pub fn visit_request(&self, frame: &[u8], visit: FieldVisitor<'_>) -> Result<u8, FrameError> {
+        (self.visit_request_fn)(frame, visit)
+    }
+
+    /// Decodes a reply to a request sent to `slave` and passes each field,
+    /// in wire order, to the visitor.
+    pub fn visit_response(&self, slave: u8, frame: &[u8], visit: FieldVisitor<'_>) -> Result<(), FrameError> {
+        (self.visit_response_fn)(slave, frame, visit)
+    }
+
+    /// Decodes a request and encodes the typed request again into `out`:
+    /// the length written.
+    pub fn reencode_request(&self, frame: &[u8], out: &mut [u8]) -> Result<usize, RoundTripError> {
+        (self.reencode_request_fn)(frame, out)
+    }
+
+    /// Decodes a reply (to a request sent to `slave`) and encodes the typed
+    /// reply again into `out`: the length written.
+    pub fn reencode_response(&self, slave: u8, frame: &[u8], out: &mut [u8]) -> Result<usize, RoundTripError> {
+        (self.reencode_response_fn)(slave, frame, out)
+    }
+}
+
+impl core::fmt::Debug for CommandEntry {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.debug_struct("CommandEntry").field("name", &self.name).field("layout", &self.layout).finish_non_exhaustive()
+    }
+}
+
+fn visit_request<C: Command>(frame: &[u8], visit: FieldVisitor<'_>) -> Result<u8, FrameError> {
+    let (slave, request) = C::decode_request(frame)?;
+    request.fields().for_each(|(info, value)| visit(info, value));
+    Ok(slave)
+}
+
+fn visit_response<C: Command>(slave: u8, frame: &[u8], visit: FieldVisitor<'_>) -> Result<(), FrameError> {
+    C::decode_response(slave, frame)?.fields().for_each(|(info, value)| visit(info, value));
+    Ok(())
+}
+
+fn reencode_request<C: Command>(frame: &[u8], out: &mut [u8]) -> Result<usize, RoundTripError> {
+    let (slave, request) = C::decode_request(frame).map_err(RoundTripError::Frame)?;
+    request.encode_request(slave, out).map_err(RoundTripError::Encode)
+}
+
+fn reencode_response<C: Command>(slave: u8, frame: &[u8], out: &mut [u8]) -> Result<usize, RoundTripError> {
+    let response = C::decode_response(slave, frame).map_err(RoundTripError::Frame)?;
+    C::encode_response(&response, slave, out).map_err(RoundTripError::Encode)
+}
 
 /// A generated sensor module as data: what code that serves every sensor
 /// (loggers, tests, the CLI) needs without naming one. Each generated module
 /// declares one `MODULE`; the generated crate lists them in `SENSORS`. Every
-/// function goes through the module's typed codecs, never allocates, and
+/// method goes through the module's typed codecs, never allocates, and
 /// returns `None` for a command name the sensor does not have.
-#[derive(Clone, Copy)]
+#[derive(Debug, Clone, Copy)]
 pub struct SensorModule {
     /// The sensor's facts: name, manual, serial settings, address range.
     pub info: SensorInfo,
-    /// Every command's spec name, in spec order.
-    pub commands: &'static [&'static str],
-    /// The wire layout of the named command.
-    pub layout: fn(&str) -> Option<Layout<'static>>,
-    /// The command a request frame is for, by function, start address and count.
-    pub identify_request: fn(&[u8]) -> Option<&'static str>,
-    /// Decodes a request to the named command, passes each field of a
-    /// write's data (in wire order) to the visitor, and returns the slave
-    /// address the request is for.
-    pub visit_request: VisitRequestFn,
-    /// Decodes a request to the named command and encodes the typed request
-    /// again into `out`: the length written.
-    pub reencode_request: ReencodeRequestFn,
-    /// Decodes a reply (from a request sent to the slave given) to the named
-    /// command and encodes the typed reply again into `out`.
-    pub reencode_response: ReencodeResponseFn,
-    /// Decodes a reply to the named command and passes each field, in wire
-    /// order, to the visitor.
-    pub visit_response: VisitResponseFn,
+    /// Every command, in spec order.
+    pub commands: &'static [CommandEntry],
     /// The derived quantities the spec declares (`DERIVED` of the module):
     /// each with its inputs and its generated function.
     pub derived: &'static [crate::derived::DerivedInfo],
 }
 
-impl core::fmt::Debug for SensorModule {
-    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
-        f.debug_struct("SensorModule")
-            .field("info", &self.info)
-            .field("commands", &self.commands)
-            .field("derived", &self.derived)
-            .finish_non_exhaustive()
+impl SensorModule {
+    /// The command called `name` in the spec.
+    pub fn command(&self, name: &str) -> Option<&'static CommandEntry> {
+        self.commands.iter().find(|c| c.name == name)
     }
+
+    /// Every command's spec name, in spec order.
+    pub fn command_names(&self) -> impl Iterator<Item = &'static str> + use<> {
+        self.commands.iter().map(|c| c.name)
+    }
+
+    /// The wire layout of the named command.
+    pub fn layout(&self, name: &str) -> Option<Layout<'static>> {
+        self.command(name).map(|c| c.layout)
+    }
+
+    /// The command a request frame is for, by its function, start address
+    /// and register count (the first in spec order if several match). Does
+    /// not check the frame.
+    pub fn identify_request(&self, frame: &[u8]) -> Option<&'static str> {
+        let index = identify_request(self.commands, frame)?;
+        self.commands.get(index).map(|c| c.name)
+    }
+
+    /// Decodes a request to the named command, passes each field of a
+    /// write's data (in wire order) to the visitor, and returns the slave
+    /// address the request is for.
+    pub fn visit_request(&self, name: &str, frame: &[u8], visit: FieldVisitor<'_>) -> Option<Result<u8, FrameError>> {
+        Some(self.command(name)?.visit_request(frame, visit))
+    }
+
+    /// Decodes a reply (from a request sent to `slave`) to the named command
+    /// and passes each field, in wire order, to the visitor.
+    pub fn visit_response(
+        &self,
+        name: &str,
+        slave: u8,
+        frame: &[u8],
+        visit: FieldVisitor<'_>,
+    ) -> Option<Result<(), FrameError>> {
+        Some(self.command(name)?.visit_response(slave, frame, visit))
+    }
+
+    /// Decodes a request to the named command and encodes the typed request
+    /// again into `out`: the length written.
+    pub fn reencode_request(&self, name: &str, frame: &[u8], out: &mut [u8]) -> Option<Result<usize, RoundTripError>> {
+        Some(self.command(name)?.reencode_request(frame, out))
+    }
+
+    /// Decodes a reply (from a request sent to `slave`) to the named command
+    /// and encodes the typed reply again into `out`.
+    pub fn reencode_response(
+        &self,
+        name: &str,
+        slave: u8,
+        frame: &[u8],
+        out: &mut [u8],
+    ) -> Option<Result<usize, RoundTripError>> {
+        Some(self.command(name)?.reencode_response(slave, frame, out))
+    }
+}
+
+/// The index of the first command of `commands` whose function, start
+/// address and register count a request frame carries. Does not check the
+/// frame.
+pub fn identify_request(commands: &[CommandEntry], frame: &[u8]) -> Option<usize> {
+    let [_, function, address_hi, address_lo, count_hi, count_lo] = *frame.first_chunk::<6>()?;
+    let address = u16::from_be_bytes([address_hi, address_lo]);
+    let count = u16::from_be_bytes([count_hi, count_lo]);
+    commands
+        .iter()
+        .position(|c| c.layout.function.code() == function && c.layout.address == address && c.layout.count == count)
 }

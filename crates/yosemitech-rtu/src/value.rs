@@ -69,3 +69,10 @@ pub struct FieldInfo {
     /// Unit, if any.
     pub unit: Option<&'static str>,
 }
+
+impl FieldInfo {
+    /// The field called `name`, measured in `unit`.
+    pub const fn new(name: &'static str, unit: Option<&'static str>) -> Self {
+        Self { name, unit }
+    }
+}

@@ -12,7 +12,7 @@ use yosemitech_rtu::{
 use yosemitech_tests::behaviour;
 use yosemitech_tests::driver::{AnyClient, Driver};
 use yosemitech_tests::rtu::{
-    READ_FLOAT_REPLY, READ_FLOAT_REQUEST, ReadAtFixedSlave, ReadFloat, StartMeasurement, float_probe,
+    Ph, READ_FLOAT_REPLY, READ_FLOAT_REQUEST, ReadAtFixedSlave, ReadFloat, StartMeasurement, float_probe,
 };
 use yosemitech_tests::with_crc;
 
@@ -377,9 +377,9 @@ proptest! {
         let config = ClientConfig { timeout: Duration::from_millis(2), ..config(0) };
         let (mut client, _) = client_with(driver, config, move |_, _, out| out.extend_from_slice(&sent));
         match client.call(1, &ReadFloat) {
-            Ok(value) => {
+            Ok(Ph(value)) => {
                 let found = reply.windows(READ_FLOAT_REPLY.len()).any(|candidate| {
-                    ReadFloat::decode_response(1, candidate).is_ok_and(|v| v.to_bits() == value.to_bits())
+                    ReadFloat::decode_response(1, candidate).is_ok_and(|v| v.0.to_bits() == value.to_bits())
                 });
                 prop_assert!(found, "value {value} from {reply:02X?} without a valid frame in it");
             }
@@ -396,7 +396,7 @@ proptest! {
             Err(other) => prop_assert!(false, "unexpected error {other}"),
         }
         if reply == READ_FLOAT_REPLY {
-            prop_assert_eq!(client.call(1, &ReadFloat).ok(), Some(7.6));
+            prop_assert_eq!(client.call(1, &ReadFloat).ok(), Some(Ph(7.6)));
         }
     }
 }

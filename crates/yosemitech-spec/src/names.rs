@@ -22,7 +22,7 @@ const CONTEXTUAL_KEYWORDS: &[&str] = &["union", "raw", "safe", "macro_rules"];
 pub const MODULE_TYPES: &[&str] = &["CommandId", "Request", "Response", "Device", "AsyncDevice"];
 
 /// Constants every generated sensor module declares itself.
-pub const MODULE_CONSTS: &[&str] = &["SENSOR", "MODULE", "COMMAND_NAMES", "DERIVED"];
+pub const MODULE_CONSTS: &[&str] = &["SENSOR", "MODULE", "COMMANDS", "DERIVED"];
 
 /// Functions every generated sensor module declares itself, besides one per
 /// derived quantity (whose names must avoid these), and `rtu`, the module's

@@ -227,31 +227,7 @@ pub use super::yosemitech_common::{GetSn, GetSnResponse};
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub struct StartMeasurement;
 
-impl StartMeasurement {
-    /// Name and unit of each field, in wire order.
-    pub const FIELDS: [rtu::FieldInfo; 0] = [];
-    /// Each field's value, in the order of [`Self::FIELDS`].
-    pub fn fields(&self) -> [rtu::FieldValue<'_>; 0] {
-        []
-    }
-    /// Bytes of register data: two per register.
-    pub const DATA_LEN: usize = 0;
-    /// Decodes register data (nothing in it is kept).
-    pub const fn from_data(_data: &[u8; 0]) -> Self {
-        Self
-    }
-    /// Encodes register data, reserved bytes with their fill. Does not
-    /// check ranges: see [`Self::validate`].
-    pub const fn to_data(&self) -> [u8; 0] {
-        []
-    }
-    /// Checks every field against the range the spec allows
-    /// ([`rtu::EncodeError::OutOfRange`] names the first that is not).
-    pub fn validate(&self) -> Result<(), rtu::EncodeError> {
-        Ok(())
-    }
-}
-
+impl rtu::NoData for StartMeasurement {}
 impl rtu::Command for StartMeasurement {
     type Response = ();
     const NAME: &'static str = "start_measurement";
@@ -263,29 +239,6 @@ impl rtu::Command for StartMeasurement {
         extra_byte_counts: &[],
         trigger: true,
     };
-    fn encode_request(
-        &self,
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        self.validate()?;
-        Self::LAYOUT.encode_request(slave, &[], out)
-    }
-    fn decode_request(frame: &[u8]) -> Result<(u8, Self), rtu::FrameError> {
-        let (slave, _) = Self::LAYOUT.decode_request(frame)?;
-        Ok((slave, Self))
-    }
-    fn encode_response(
-        _response: &(),
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        Self::LAYOUT.encode_response(slave, &[], out)
-    }
-    fn decode_response(slave: u8, frame: &[u8]) -> Result<(), rtu::FrameError> {
-        Self::LAYOUT.decode_response(slave, frame)?;
-        Ok(())
-    }
 }
 
 /// Get Temperature and Conductivity values.
@@ -315,15 +268,7 @@ impl rtu::Command for StartMeasurement {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub struct GetTemperatureAndConductivity;
 
-impl GetTemperatureAndConductivity {
-    /// Name and unit of each field, in wire order.
-    pub const FIELDS: [rtu::FieldInfo; 0] = [];
-    /// Each field's value, in the order of [`Self::FIELDS`].
-    pub fn fields(&self) -> [rtu::FieldValue<'_>; 0] {
-        []
-    }
-}
-
+impl rtu::NoData for GetTemperatureAndConductivity {}
 /// Reply to [`GetTemperatureAndConductivity`]. Temperature, conductivity (user calibration applied) and the range-switching error flag.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GetTemperatureAndConductivityResponse {
@@ -341,37 +286,14 @@ pub struct GetTemperatureAndConductivityResponse {
     pub range_status: RangeStatus,
 }
 
-impl GetTemperatureAndConductivityResponse {
-    /// Name and unit of each field, in wire order.
-    pub const FIELDS: [rtu::FieldInfo; 3] = [
-        rtu::FieldInfo {
-            name: "temperature_c",
-            unit: Some("degC"),
-        },
-        rtu::FieldInfo {
-            name: "conductivity_ms_cm",
-            unit: Some("mS/cm"),
-        },
-        rtu::FieldInfo {
-            name: "range_status",
-            unit: None,
-        },
+impl rtu::Message for GetTemperatureAndConductivityResponse {
+    type Data = [u8; 10];
+    const FIELDS: &'static [rtu::FieldInfo] = &[
+        rtu::FieldInfo::new("temperature_c", Some("degC")),
+        rtu::FieldInfo::new("conductivity_ms_cm", Some("mS/cm")),
+        rtu::FieldInfo::new("range_status", None),
     ];
-    /// Each field's value, in the order of [`Self::FIELDS`].
-    pub fn fields(&self) -> [rtu::FieldValue<'_>; 3] {
-        [
-            rtu::FieldValue::F32(self.temperature_c),
-            rtu::FieldValue::F32(self.conductivity_ms_cm),
-            rtu::FieldValue::Enum {
-                raw: u16::from(self.range_status.raw()),
-                name: self.range_status.name(),
-            },
-        ]
-    }
-    /// Bytes of register data: two per register.
-    pub const DATA_LEN: usize = 10;
-    /// Decodes register data; reserved bytes are ignored.
-    pub const fn from_data(data: &[u8; 10]) -> Self {
+    fn from_data(data: &[u8; 10]) -> Self {
         Self {
             temperature_c: rtu::codec::f32_from_wire(
                 rtu::ByteOrder4::Dcba,
@@ -384,8 +306,7 @@ impl GetTemperatureAndConductivityResponse {
             range_status: RangeStatus::from_raw(data[8]),
         }
     }
-    /// Encodes register data, reserved bytes with their fill.
-    pub const fn to_data(&self) -> [u8; 10] {
+    fn to_data(&self) -> [u8; 10] {
         let [b0, b1, b2, b3] = rtu::codec::f32_to_wire(
             rtu::ByteOrder4::Dcba,
             self.temperature_c,
@@ -396,49 +317,25 @@ impl GetTemperatureAndConductivityResponse {
         );
         [b0, b1, b2, b3, b4, b5, b6, b7, self.range_status.raw(), 0x00]
     }
+    fn field(&self, index: usize) -> Option<rtu::FieldValue<'_>> {
+        match index {
+            0 => Some(rtu::FieldValue::F32(self.temperature_c)),
+            1 => Some(rtu::FieldValue::F32(self.conductivity_ms_cm)),
+            2 => {
+                Some(rtu::FieldValue::Enum {
+                    raw: u16::from(self.range_status.raw()),
+                    name: self.range_status.name(),
+                })
+            }
+            _ => None,
+        }
+    }
 }
 
 impl rtu::Command for GetTemperatureAndConductivity {
     type Response = GetTemperatureAndConductivityResponse;
     const NAME: &'static str = "get_temperature_and_conductivity";
-    const LAYOUT: rtu::Layout<'static> = rtu::Layout {
-        function: rtu::Function::Read,
-        address: 0x2600,
-        count: 5,
-        fixed_slave: None,
-        extra_byte_counts: &[],
-        trigger: false,
-    };
-    fn encode_request(
-        &self,
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        Self::LAYOUT.encode_request(slave, &[], out)
-    }
-    fn decode_request(frame: &[u8]) -> Result<(u8, Self), rtu::FrameError> {
-        let (slave, _) = Self::LAYOUT.decode_request(frame)?;
-        Ok((slave, Self))
-    }
-    fn encode_response(
-        response: &GetTemperatureAndConductivityResponse,
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        Self::LAYOUT.encode_response(slave, &response.to_data(), out)
-    }
-    fn decode_response(
-        slave: u8,
-        frame: &[u8],
-    ) -> Result<GetTemperatureAndConductivityResponse, rtu::FrameError> {
-        let data = Self::LAYOUT.decode_response(slave, frame)?;
-        let data = <&[u8; 10]>::try_from(data)
-            .map_err(|_| rtu::FrameError::Truncated {
-                expected: Self::RESPONSE_LEN,
-                actual: frame.len(),
-            })?;
-        Ok(GetTemperatureAndConductivityResponse::from_data(data))
-    }
+    const LAYOUT: rtu::Layout<'static> = rtu::Layout::read(0x2600, 5);
 }
 
 /// Get Software and Hardware Rev.
@@ -509,15 +406,7 @@ pub use super::yosemitech_optical::{StopMeasurement, StopMeasurementResponse};
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub struct GetUserCalibration;
 
-impl GetUserCalibration {
-    /// Name and unit of each field, in wire order.
-    pub const FIELDS: [rtu::FieldInfo; 0] = [];
-    /// Each field's value, in the order of [`Self::FIELDS`].
-    pub fn fields(&self) -> [rtu::FieldValue<'_>; 0] {
-        []
-    }
-}
-
+impl rtu::NoData for GetUserCalibration {}
 /// Reply to [`GetUserCalibration`]. Reads the user calibration K and B, applied as Cond_final = K·Cond + B (defaults K = 1, B = 0).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GetUserCalibrationResponse {
@@ -531,26 +420,13 @@ pub struct GetUserCalibrationResponse {
     pub b_offset: f32,
 }
 
-impl GetUserCalibrationResponse {
-    /// Name and unit of each field, in wire order.
-    pub const FIELDS: [rtu::FieldInfo; 2] = [
-        rtu::FieldInfo {
-            name: "k_slope",
-            unit: None,
-        },
-        rtu::FieldInfo {
-            name: "b_offset",
-            unit: Some("mS/cm"),
-        },
+impl rtu::Message for GetUserCalibrationResponse {
+    type Data = [u8; 8];
+    const FIELDS: &'static [rtu::FieldInfo] = &[
+        rtu::FieldInfo::new("k_slope", None),
+        rtu::FieldInfo::new("b_offset", Some("mS/cm")),
     ];
-    /// Each field's value, in the order of [`Self::FIELDS`].
-    pub fn fields(&self) -> [rtu::FieldValue<'_>; 2] {
-        [rtu::FieldValue::F32(self.k_slope), rtu::FieldValue::F32(self.b_offset)]
-    }
-    /// Bytes of register data: two per register.
-    pub const DATA_LEN: usize = 8;
-    /// Decodes register data; reserved bytes are ignored.
-    pub const fn from_data(data: &[u8; 8]) -> Self {
+    fn from_data(data: &[u8; 8]) -> Self {
         Self {
             k_slope: rtu::codec::f32_from_wire(
                 rtu::ByteOrder4::Dcba,
@@ -562,8 +438,7 @@ impl GetUserCalibrationResponse {
             ),
         }
     }
-    /// Encodes register data, reserved bytes with their fill.
-    pub const fn to_data(&self) -> [u8; 8] {
+    fn to_data(&self) -> [u8; 8] {
         let [b0, b1, b2, b3] = rtu::codec::f32_to_wire(
             rtu::ByteOrder4::Dcba,
             self.k_slope,
@@ -574,49 +449,19 @@ impl GetUserCalibrationResponse {
         );
         [b0, b1, b2, b3, b4, b5, b6, b7]
     }
+    fn field(&self, index: usize) -> Option<rtu::FieldValue<'_>> {
+        match index {
+            0 => Some(rtu::FieldValue::F32(self.k_slope)),
+            1 => Some(rtu::FieldValue::F32(self.b_offset)),
+            _ => None,
+        }
+    }
 }
 
 impl rtu::Command for GetUserCalibration {
     type Response = GetUserCalibrationResponse;
     const NAME: &'static str = "get_user_calibration";
-    const LAYOUT: rtu::Layout<'static> = rtu::Layout {
-        function: rtu::Function::Read,
-        address: 0x1100,
-        count: 4,
-        fixed_slave: None,
-        extra_byte_counts: &[],
-        trigger: false,
-    };
-    fn encode_request(
-        &self,
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        Self::LAYOUT.encode_request(slave, &[], out)
-    }
-    fn decode_request(frame: &[u8]) -> Result<(u8, Self), rtu::FrameError> {
-        let (slave, _) = Self::LAYOUT.decode_request(frame)?;
-        Ok((slave, Self))
-    }
-    fn encode_response(
-        response: &GetUserCalibrationResponse,
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        Self::LAYOUT.encode_response(slave, &response.to_data(), out)
-    }
-    fn decode_response(
-        slave: u8,
-        frame: &[u8],
-    ) -> Result<GetUserCalibrationResponse, rtu::FrameError> {
-        let data = Self::LAYOUT.decode_response(slave, frame)?;
-        let data = <&[u8; 8]>::try_from(data)
-            .map_err(|_| rtu::FrameError::Truncated {
-                expected: Self::RESPONSE_LEN,
-                actual: frame.len(),
-            })?;
-        Ok(GetUserCalibrationResponse::from_data(data))
-    }
+    const LAYOUT: rtu::Layout<'static> = rtu::Layout::read(0x1100, 4);
 }
 
 /// Set Customer Calibration Coefficients.
@@ -652,26 +497,13 @@ pub struct SetUserCalibration {
     pub b_offset: f32,
 }
 
-impl SetUserCalibration {
-    /// Name and unit of each field, in wire order.
-    pub const FIELDS: [rtu::FieldInfo; 2] = [
-        rtu::FieldInfo {
-            name: "k_slope",
-            unit: None,
-        },
-        rtu::FieldInfo {
-            name: "b_offset",
-            unit: Some("mS/cm"),
-        },
+impl rtu::Message for SetUserCalibration {
+    type Data = [u8; 8];
+    const FIELDS: &'static [rtu::FieldInfo] = &[
+        rtu::FieldInfo::new("k_slope", None),
+        rtu::FieldInfo::new("b_offset", Some("mS/cm")),
     ];
-    /// Each field's value, in the order of [`Self::FIELDS`].
-    pub fn fields(&self) -> [rtu::FieldValue<'_>; 2] {
-        [rtu::FieldValue::F32(self.k_slope), rtu::FieldValue::F32(self.b_offset)]
-    }
-    /// Bytes of register data: two per register.
-    pub const DATA_LEN: usize = 8;
-    /// Decodes register data; reserved bytes are ignored.
-    pub const fn from_data(data: &[u8; 8]) -> Self {
+    fn from_data(data: &[u8; 8]) -> Self {
         Self {
             k_slope: rtu::codec::f32_from_wire(
                 rtu::ByteOrder4::Dcba,
@@ -683,9 +515,7 @@ impl SetUserCalibration {
             ),
         }
     }
-    /// Encodes register data, reserved bytes with their fill. Does not
-    /// check ranges: see [`Self::validate`].
-    pub const fn to_data(&self) -> [u8; 8] {
+    fn to_data(&self) -> [u8; 8] {
         let [b0, b1, b2, b3] = rtu::codec::f32_to_wire(
             rtu::ByteOrder4::Dcba,
             self.k_slope,
@@ -696,52 +526,19 @@ impl SetUserCalibration {
         );
         [b0, b1, b2, b3, b4, b5, b6, b7]
     }
-    /// Checks every field against the range the spec allows
-    /// ([`rtu::EncodeError::OutOfRange`] names the first that is not).
-    pub fn validate(&self) -> Result<(), rtu::EncodeError> {
-        Ok(())
+    fn field(&self, index: usize) -> Option<rtu::FieldValue<'_>> {
+        match index {
+            0 => Some(rtu::FieldValue::F32(self.k_slope)),
+            1 => Some(rtu::FieldValue::F32(self.b_offset)),
+            _ => None,
+        }
     }
 }
 
 impl rtu::Command for SetUserCalibration {
     type Response = ();
     const NAME: &'static str = "set_user_calibration";
-    const LAYOUT: rtu::Layout<'static> = rtu::Layout {
-        function: rtu::Function::Write,
-        address: 0x1100,
-        count: 4,
-        fixed_slave: None,
-        extra_byte_counts: &[],
-        trigger: false,
-    };
-    fn encode_request(
-        &self,
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        self.validate()?;
-        Self::LAYOUT.encode_request(slave, &self.to_data(), out)
-    }
-    fn decode_request(frame: &[u8]) -> Result<(u8, Self), rtu::FrameError> {
-        let (slave, data) = Self::LAYOUT.decode_request(frame)?;
-        let data = <&[u8; 8]>::try_from(data)
-            .map_err(|_| rtu::FrameError::Truncated {
-                expected: Self::REQUEST_LEN,
-                actual: frame.len(),
-            })?;
-        Ok((slave, Self::from_data(data)))
-    }
-    fn encode_response(
-        _response: &(),
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        Self::LAYOUT.encode_response(slave, &[], out)
-    }
-    fn decode_response(slave: u8, frame: &[u8]) -> Result<(), rtu::FrameError> {
-        Self::LAYOUT.decode_response(slave, frame)?;
-        Ok(())
-    }
+    const LAYOUT: rtu::Layout<'static> = rtu::Layout::write(0x1100, 4);
 }
 
 /// Get Slave Device ID.
@@ -767,6 +564,22 @@ impl rtu::Command for SetUserCalibration {
 ///
 /// - **Y520-1** (figure 43): the table gives function 0x10. As in the pH manual (Fig 72, erratum E2), the table lists function 0x10, but this is a read with no data and the CRC-valid example (Fig 44) uses 0x03.
 pub use super::yosemitech_common::{GetSlaveId, GetSlaveIdResponse};
+
+/// Every command of this sensor as data, in spec order: name, title,
+/// layout, fields and codecs ([`CommandId`] indexes it).
+pub const COMMANDS: [rtu::CommandEntry; 9] = [
+    rtu::CommandEntry::of::<SetSlaveId>("Set Slave Device ID"),
+    rtu::CommandEntry::of::<GetSn>("Get SN"),
+    rtu::CommandEntry::of::<StartMeasurement>("Start Measurement"),
+    rtu::CommandEntry::of::<
+        GetTemperatureAndConductivity,
+    >("Get Temperature and Conductivity values"),
+    rtu::CommandEntry::of::<GetVersion>("Get Software and Hardware Rev"),
+    rtu::CommandEntry::of::<StopMeasurement>("Stop Measurement"),
+    rtu::CommandEntry::of::<GetUserCalibration>("Get User Calibration Coefficients"),
+    rtu::CommandEntry::of::<SetUserCalibration>("Set Customer Calibration Coefficients"),
+    rtu::CommandEntry::of::<GetSlaveId>("Get Slave Device ID"),
+];
 
 /// Every command of this sensor, for code that picks commands at run
 /// time (CLIs, simulators, tests).
@@ -805,98 +618,34 @@ impl CommandId {
         Self::SetUserCalibration,
         Self::GetSlaveId,
     ];
+    /// The command's row of [`COMMANDS`].
+    #[allow(clippy::indexing_slicing)]
+    pub const fn entry(self) -> &'static rtu::CommandEntry {
+        &COMMANDS[self as usize]
+    }
     /// The command's snake_case name in the spec.
     pub const fn name(self) -> &'static str {
-        match self {
-            Self::SetSlaveId => "set_slave_id",
-            Self::GetSn => "get_sn",
-            Self::StartMeasurement => "start_measurement",
-            Self::GetTemperatureAndConductivity => "get_temperature_and_conductivity",
-            Self::GetVersion => "get_version",
-            Self::StopMeasurement => "stop_measurement",
-            Self::GetUserCalibration => "get_user_calibration",
-            Self::SetUserCalibration => "set_user_calibration",
-            Self::GetSlaveId => "get_slave_id",
-        }
+        self.entry().name
     }
     /// The command called `name` in the spec.
     pub fn from_name(name: &str) -> Option<Self> {
-        match name {
-            "set_slave_id" => Some(Self::SetSlaveId),
-            "get_sn" => Some(Self::GetSn),
-            "start_measurement" => Some(Self::StartMeasurement),
-            "get_temperature_and_conductivity" => {
-                Some(Self::GetTemperatureAndConductivity)
-            }
-            "get_version" => Some(Self::GetVersion),
-            "stop_measurement" => Some(Self::StopMeasurement),
-            "get_user_calibration" => Some(Self::GetUserCalibration),
-            "set_user_calibration" => Some(Self::SetUserCalibration),
-            "get_slave_id" => Some(Self::GetSlaveId),
-            _ => None,
-        }
+        Self::ALL.into_iter().find(|id| id.name() == name)
     }
     /// The command's title in the manual.
     pub const fn title(self) -> &'static str {
-        match self {
-            Self::SetSlaveId => "Set Slave Device ID",
-            Self::GetSn => "Get SN",
-            Self::StartMeasurement => "Start Measurement",
-            Self::GetTemperatureAndConductivity => {
-                "Get Temperature and Conductivity values"
-            }
-            Self::GetVersion => "Get Software and Hardware Rev",
-            Self::StopMeasurement => "Stop Measurement",
-            Self::GetUserCalibration => "Get User Calibration Coefficients",
-            Self::SetUserCalibration => "Set Customer Calibration Coefficients",
-            Self::GetSlaveId => "Get Slave Device ID",
-        }
+        self.entry().title
     }
     /// Function, start address, register count and addressing quirks.
     pub const fn layout(self) -> rtu::Layout<'static> {
-        match self {
-            Self::SetSlaveId => <SetSlaveId as rtu::Command>::LAYOUT,
-            Self::GetSn => <GetSn as rtu::Command>::LAYOUT,
-            Self::StartMeasurement => <StartMeasurement as rtu::Command>::LAYOUT,
-            Self::GetTemperatureAndConductivity => {
-                <GetTemperatureAndConductivity as rtu::Command>::LAYOUT
-            }
-            Self::GetVersion => <GetVersion as rtu::Command>::LAYOUT,
-            Self::StopMeasurement => <StopMeasurement as rtu::Command>::LAYOUT,
-            Self::GetUserCalibration => <GetUserCalibration as rtu::Command>::LAYOUT,
-            Self::SetUserCalibration => <SetUserCalibration as rtu::Command>::LAYOUT,
-            Self::GetSlaveId => <GetSlaveId as rtu::Command>::LAYOUT,
-        }
+        self.entry().layout
     }
     /// Name and unit of each field of the request (empty for reads).
     pub const fn request_fields(self) -> &'static [rtu::FieldInfo] {
-        match self {
-            Self::SetSlaveId => &SetSlaveId::FIELDS,
-            Self::GetSn => &GetSn::FIELDS,
-            Self::StartMeasurement => &StartMeasurement::FIELDS,
-            Self::GetTemperatureAndConductivity => &GetTemperatureAndConductivity::FIELDS,
-            Self::GetVersion => &GetVersion::FIELDS,
-            Self::StopMeasurement => &StopMeasurement::FIELDS,
-            Self::GetUserCalibration => &GetUserCalibration::FIELDS,
-            Self::SetUserCalibration => &SetUserCalibration::FIELDS,
-            Self::GetSlaveId => &GetSlaveId::FIELDS,
-        }
+        self.entry().request_fields
     }
     /// Name and unit of each field of the reply (empty for writes).
     pub const fn response_fields(self) -> &'static [rtu::FieldInfo] {
-        match self {
-            Self::SetSlaveId => &[],
-            Self::GetSn => &GetSnResponse::FIELDS,
-            Self::StartMeasurement => &[],
-            Self::GetTemperatureAndConductivity => {
-                &GetTemperatureAndConductivityResponse::FIELDS
-            }
-            Self::GetVersion => &GetVersionResponse::FIELDS,
-            Self::StopMeasurement => &StopMeasurementResponse::FIELDS,
-            Self::GetUserCalibration => &GetUserCalibrationResponse::FIELDS,
-            Self::SetUserCalibration => &[],
-            Self::GetSlaveId => &GetSlaveIdResponse::FIELDS,
-        }
+        self.entry().response_fields
     }
     /// Checks a request frame for this command and decodes it.
     pub fn decode_request(self, frame: &[u8]) -> Result<(u8, Request), rtu::FrameError> {
@@ -1054,15 +803,15 @@ impl Request {
     /// The value of field `index` of [`CommandId::request_fields`].
     pub fn field(&self, index: usize) -> Option<rtu::FieldValue<'_>> {
         match self {
-            Self::SetSlaveId(r) => r.fields().get(index).copied(),
-            Self::GetSn(r) => r.fields().get(index).copied(),
-            Self::StartMeasurement(r) => r.fields().get(index).copied(),
-            Self::GetTemperatureAndConductivity(r) => r.fields().get(index).copied(),
-            Self::GetVersion(r) => r.fields().get(index).copied(),
-            Self::StopMeasurement(r) => r.fields().get(index).copied(),
-            Self::GetUserCalibration(r) => r.fields().get(index).copied(),
-            Self::SetUserCalibration(r) => r.fields().get(index).copied(),
-            Self::GetSlaveId(r) => r.fields().get(index).copied(),
+            Self::SetSlaveId(r) => rtu::Message::field(r, index),
+            Self::GetSn(r) => rtu::Message::field(r, index),
+            Self::StartMeasurement(r) => rtu::Message::field(r, index),
+            Self::GetTemperatureAndConductivity(r) => rtu::Message::field(r, index),
+            Self::GetVersion(r) => rtu::Message::field(r, index),
+            Self::StopMeasurement(r) => rtu::Message::field(r, index),
+            Self::GetUserCalibration(r) => rtu::Message::field(r, index),
+            Self::SetUserCalibration(r) => rtu::Message::field(r, index),
+            Self::GetSlaveId(r) => rtu::Message::field(r, index),
         }
     }
     /// Every field with its name and unit, in wire order.
@@ -1153,16 +902,17 @@ impl Response {
     }
     /// The value of field `index` of [`CommandId::response_fields`].
     pub fn field(&self, index: usize) -> Option<rtu::FieldValue<'_>> {
+        use rtu::Message as _;
         match self {
             Self::SetSlaveId => None,
-            Self::GetSn(r) => r.fields().get(index).copied(),
+            Self::GetSn(r) => r.field(index),
             Self::StartMeasurement => None,
-            Self::GetTemperatureAndConductivity(r) => r.fields().get(index).copied(),
-            Self::GetVersion(r) => r.fields().get(index).copied(),
-            Self::StopMeasurement(r) => r.fields().get(index).copied(),
-            Self::GetUserCalibration(r) => r.fields().get(index).copied(),
+            Self::GetTemperatureAndConductivity(r) => r.field(index),
+            Self::GetVersion(r) => r.field(index),
+            Self::StopMeasurement(r) => r.field(index),
+            Self::GetUserCalibration(r) => r.field(index),
             Self::SetUserCalibration => None,
-            Self::GetSlaveId(r) => r.fields().get(index).copied(),
+            Self::GetSlaveId(r) => r.field(index),
         }
     }
     /// Every field with its name and unit, in wire order.
@@ -1280,31 +1030,8 @@ pub fn decode_response(
 /// and register count (the first in spec order if several match). Does
 /// not check the frame: decode it with [`CommandId::decode_request`].
 pub fn identify_request(frame: &[u8]) -> Option<CommandId> {
-    let [_, function, address_hi, address_lo, count_hi, count_lo] = *frame
-        .first_chunk::<6>()?;
-    let address = u16::from_be_bytes([address_hi, address_lo]);
-    let count = u16::from_be_bytes([count_hi, count_lo]);
-    CommandId::ALL
-        .into_iter()
-        .find(|id| {
-            let layout = id.layout();
-            layout.function.code() == function && layout.address == address
-                && layout.count == count
-        })
+    rtu::identify_request(&COMMANDS, frame).and_then(|i| CommandId::ALL.get(i).copied())
 }
-
-/// Every command's spec name, in spec order.
-pub const COMMAND_NAMES: [&str; 9] = [
-    "set_slave_id",
-    "get_sn",
-    "start_measurement",
-    "get_temperature_and_conductivity",
-    "get_version",
-    "stop_measurement",
-    "get_user_calibration",
-    "set_user_calibration",
-    "get_slave_id",
-];
 
 /// Every derived quantity of the sensor as data, in spec order: its
 /// inputs, and its function (`compute` takes the inputs in parameter order).
@@ -1369,57 +1096,8 @@ pub const DERIVED: [rtu::DerivedInfo; 2] = [
 /// (`crate::SENSORS` lists them all).
 pub const MODULE: rtu::SensorModule = rtu::SensorModule {
     info: SENSOR,
+    commands: &COMMANDS,
     derived: &DERIVED,
-    commands: &COMMAND_NAMES,
-    layout: |name| CommandId::from_name(name).map(CommandId::layout),
-    identify_request: |frame| identify_request(frame).map(CommandId::name),
-    visit_request: |name, frame, visit| {
-        let id = CommandId::from_name(name)?;
-        Some(
-            id
-                .decode_request(frame)
-                .map(|(slave, request)| {
-                    for (info, value) in request.fields() {
-                        visit(info, value);
-                    }
-                    slave
-                }),
-        )
-    },
-    reencode_request: |name, frame, out| {
-        let id = CommandId::from_name(name)?;
-        Some(
-            id
-                .decode_request(frame)
-                .map_err(rtu::RoundTripError::Frame)
-                .and_then(|(slave, request)| {
-                    request.encode(slave, out).map_err(rtu::RoundTripError::Encode)
-                }),
-        )
-    },
-    reencode_response: |name, slave, frame, out| {
-        let id = CommandId::from_name(name)?;
-        Some(
-            id
-                .decode_response(slave, frame)
-                .map_err(rtu::RoundTripError::Frame)
-                .and_then(|response| {
-                    response.encode(slave, out).map_err(rtu::RoundTripError::Encode)
-                }),
-        )
-    },
-    visit_response: |name, slave, frame, visit| {
-        let id = CommandId::from_name(name)?;
-        Some(
-            id
-                .decode_response(slave, frame)
-                .map(|response| {
-                    for (info, value) in response.fields() {
-                        visit(info, value);
-                    }
-                }),
-        )
-    },
 };
 
 #[cfg(feature = "std")]

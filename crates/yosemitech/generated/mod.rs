@@ -47,18 +47,18 @@ pub mod yosemitech_wiper {
 ///
 /// Generated from a spec of facts without a Modbus manual (no manual: from EnviroDIY YosemitechModbus 0.5.x (the field's C++ driver); EnviroDIY ModularSensors pull request 476 (the Y513 in the logger framework)). Serial: 9600 baud, 8N1; slave addresses 1..=247, factory address 1.
 ///
-/// | Command | Function | Address | Registers | Request | Reply |
-/// |---|---|---|---|---|---|
-/// | Set Slave Device ID | write (0x10) | 0x3000 | 1 | [`SetSlaveId`](blue_green_algae::SetSlaveId) | `()` |
-/// | Get SN | read (0x03) | 0x0900 | 7 | [`GetSn`](blue_green_algae::GetSn) | [`GetSnResponse`](blue_green_algae::GetSnResponse) |
-/// | Get Software and Hardware Rev | read (0x03) | 0x0700 | 2 | [`GetVersion`](blue_green_algae::GetVersion) | [`GetVersionResponse`](blue_green_algae::GetVersionResponse) |
-/// | Get Slave Device ID | read (0x03) | 0x3000 | 1 | [`GetSlaveId`](blue_green_algae::GetSlaveId) | [`GetSlaveIdResponse`](blue_green_algae::GetSlaveIdResponse) |
-/// | Active Brush | write (0x10) | 0x3100 | 0 | [`ActiveBrush`](blue_green_algae::ActiveBrush) | `()` |
-/// | Set Brush Interval of time | write (0x10) | 0x3200 | 1 | [`SetBrushInterval`](blue_green_algae::SetBrushInterval) | `()` |
-/// | Get Brush Interval of time | read (0x03) | 0x3200 | 1 | [`GetBrushInterval`](blue_green_algae::GetBrushInterval) | [`GetBrushIntervalResponse`](blue_green_algae::GetBrushIntervalResponse) |
-/// | Set Customer Calibration Coefficients | write (0x10) | 0x1100 | 4 | [`SetUserCalibration`](blue_green_algae::SetUserCalibration) | `()` |
-/// | Get User Calibration Coefficients | read (0x03) | 0x1100 | 4 | [`GetUserCalibration`](blue_green_algae::GetUserCalibration) | [`GetUserCalibrationResponse`](blue_green_algae::GetUserCalibrationResponse) |
-/// | Get temperature and blue-green algae | read (0x03) | 0x2600 | 4 | [`GetTemperatureAndBga`](blue_green_algae::GetTemperatureAndBga) | [`GetTemperatureAndBgaResponse`](blue_green_algae::GetTemperatureAndBgaResponse) |
+/// | Command | Function | Address | Registers | Request | Reply | `Device` method |
+/// |---|---|---|---|---|---|---|
+/// | Set Slave Device ID | write (0x10) | 0x3000 | 1 | [`SetSlaveId`](blue_green_algae::SetSlaveId) | `()` | `set_slave_id()` |
+/// | Get SN | read (0x03) | 0x0900 | 7 | [`GetSn`](blue_green_algae::GetSn) | [`GetSnResponse`](blue_green_algae::GetSnResponse) | `sn()` |
+/// | Get Software and Hardware Rev | read (0x03) | 0x0700 | 2 | [`GetVersion`](blue_green_algae::GetVersion) | [`GetVersionResponse`](blue_green_algae::GetVersionResponse) | `version()` |
+/// | Get Slave Device ID | read (0x03) | 0x3000 | 1 | [`GetSlaveId`](blue_green_algae::GetSlaveId) | [`GetSlaveIdResponse`](blue_green_algae::GetSlaveIdResponse) | `slave_id()` |
+/// | Active Brush | write (0x10) | 0x3100 | 0 | [`ActiveBrush`](blue_green_algae::ActiveBrush) | `()` | `active_brush()` |
+/// | Set Brush Interval of time | write (0x10) | 0x3200 | 1 | [`SetBrushInterval`](blue_green_algae::SetBrushInterval) | `()` | `set_brush_interval()` |
+/// | Get Brush Interval of time | read (0x03) | 0x3200 | 1 | [`GetBrushInterval`](blue_green_algae::GetBrushInterval) | [`GetBrushIntervalResponse`](blue_green_algae::GetBrushIntervalResponse) | `brush_interval()` |
+/// | Set Customer Calibration Coefficients | write (0x10) | 0x1100 | 4 | [`SetUserCalibration`](blue_green_algae::SetUserCalibration) | `()` | `set_user_calibration()` |
+/// | Get User Calibration Coefficients | read (0x03) | 0x1100 | 4 | [`GetUserCalibration`](blue_green_algae::GetUserCalibration) | [`GetUserCalibrationResponse`](blue_green_algae::GetUserCalibrationResponse) | `user_calibration()` |
+/// | Get temperature and blue-green algae | read (0x03) | 0x2600 | 4 | [`GetTemperatureAndBga`](blue_green_algae::GetTemperatureAndBga) | [`GetTemperatureAndBgaResponse`](blue_green_algae::GetTemperatureAndBgaResponse) | `temperature_and_bga()` |
 pub mod blue_green_algae {
     include!("blue_green_algae.rs");
 }
@@ -76,20 +76,20 @@ pub mod blue_green_algae {
 ///
 /// Generated from the spec of the manual "Optical Chlorophyll Sensor, MODBUS RTU Programmer Manuel" (HW Rev1.0 / SW Rev1.6 or later). Serial: 9600 baud, 8N1; slave addresses 1..=247, factory address 1.
 ///
-/// | Command | Function | Address | Registers | Request | Reply |
-/// |---|---|---|---|---|---|
-/// | Set Slave Device ID | write (0x10) | 0x3000 | 1 | [`SetSlaveId`](chlorophyll::SetSlaveId) | `()` |
-/// | Get SN | read (0x03) | 0x0900 | 7 | [`GetSn`](chlorophyll::GetSn) | [`GetSnResponse`](chlorophyll::GetSnResponse) |
-/// | Start Measurement | read (0x03) | 0x2500 | 1 | [`StartMeasurement`](chlorophyll::StartMeasurement) | [`StartMeasurementResponse`](chlorophyll::StartMeasurementResponse) |
-/// | Get Temperature and Chlorophyll values | read (0x03) | 0x2600 | 5 | [`GetTemperatureAndChlorophyll`](chlorophyll::GetTemperatureAndChlorophyll) | [`GetTemperatureAndChlorophyllResponse`](chlorophyll::GetTemperatureAndChlorophyllResponse) |
-/// | Get Software and Hardware Rev | read (0x03) | 0x0700 | 2 | [`GetVersion`](chlorophyll::GetVersion) | [`GetVersionResponse`](chlorophyll::GetVersionResponse) |
-/// | Stop Measurement | read (0x03) | 0x2E00 | 1 | [`StopMeasurement`](chlorophyll::StopMeasurement) | [`StopMeasurementResponse`](chlorophyll::StopMeasurementResponse) |
-/// | Get User Calibration Coefficients | read (0x03) | 0x1100 | 4 | [`GetUserCalibration`](chlorophyll::GetUserCalibration) | [`GetUserCalibrationResponse`](chlorophyll::GetUserCalibrationResponse) |
-/// | Set Customer Calibration Coefficients | write (0x10) | 0x1100 | 4 | [`SetUserCalibration`](chlorophyll::SetUserCalibration) | `()` |
-/// | Active Brush | write (0x10) | 0x3100 | 0 | [`ActiveBrush`](chlorophyll::ActiveBrush) | `()` |
-/// | Set Brush Interval of time | write (0x10) | 0x3200 | 1 | [`SetBrushInterval`](chlorophyll::SetBrushInterval) | `()` |
-/// | Get Brush Interval of time | read (0x03) | 0x3200 | 1 | [`GetBrushInterval`](chlorophyll::GetBrushInterval) | [`GetBrushIntervalResponse`](chlorophyll::GetBrushIntervalResponse) |
-/// | Get Slave Device ID | read (0x03) | 0x3000 | 1 | [`GetSlaveId`](chlorophyll::GetSlaveId) | [`GetSlaveIdResponse`](chlorophyll::GetSlaveIdResponse) |
+/// | Command | Function | Address | Registers | Request | Reply | `Device` method |
+/// |---|---|---|---|---|---|---|
+/// | Set Slave Device ID | write (0x10) | 0x3000 | 1 | [`SetSlaveId`](chlorophyll::SetSlaveId) | `()` | `set_slave_id()` |
+/// | Get SN | read (0x03) | 0x0900 | 7 | [`GetSn`](chlorophyll::GetSn) | [`GetSnResponse`](chlorophyll::GetSnResponse) | `sn()` |
+/// | Start Measurement | read (0x03) | 0x2500 | 1 | [`StartMeasurement`](chlorophyll::StartMeasurement) | [`StartMeasurementResponse`](chlorophyll::StartMeasurementResponse) | `start_measurement()` |
+/// | Get Temperature and Chlorophyll values | read (0x03) | 0x2600 | 5 | [`GetTemperatureAndChlorophyll`](chlorophyll::GetTemperatureAndChlorophyll) | [`GetTemperatureAndChlorophyllResponse`](chlorophyll::GetTemperatureAndChlorophyllResponse) | `temperature_and_chlorophyll()` |
+/// | Get Software and Hardware Rev | read (0x03) | 0x0700 | 2 | [`GetVersion`](chlorophyll::GetVersion) | [`GetVersionResponse`](chlorophyll::GetVersionResponse) | `version()` |
+/// | Stop Measurement | read (0x03) | 0x2E00 | 1 | [`StopMeasurement`](chlorophyll::StopMeasurement) | [`StopMeasurementResponse`](chlorophyll::StopMeasurementResponse) | `stop_measurement()` |
+/// | Get User Calibration Coefficients | read (0x03) | 0x1100 | 4 | [`GetUserCalibration`](chlorophyll::GetUserCalibration) | [`GetUserCalibrationResponse`](chlorophyll::GetUserCalibrationResponse) | `user_calibration()` |
+/// | Set Customer Calibration Coefficients | write (0x10) | 0x1100 | 4 | [`SetUserCalibration`](chlorophyll::SetUserCalibration) | `()` | `set_user_calibration()` |
+/// | Active Brush | write (0x10) | 0x3100 | 0 | [`ActiveBrush`](chlorophyll::ActiveBrush) | `()` | `active_brush()` |
+/// | Set Brush Interval of time | write (0x10) | 0x3200 | 1 | [`SetBrushInterval`](chlorophyll::SetBrushInterval) | `()` | `set_brush_interval()` |
+/// | Get Brush Interval of time | read (0x03) | 0x3200 | 1 | [`GetBrushInterval`](chlorophyll::GetBrushInterval) | [`GetBrushIntervalResponse`](chlorophyll::GetBrushIntervalResponse) | `brush_interval()` |
+/// | Get Slave Device ID | read (0x03) | 0x3000 | 1 | [`GetSlaveId`](chlorophyll::GetSlaveId) | [`GetSlaveIdResponse`](chlorophyll::GetSlaveIdResponse) | `slave_id()` |
 ///
 /// # Manual errata
 ///
@@ -128,17 +128,17 @@ pub mod chlorophyll {
 /// - SW 1.0: "MODBUS RTU for conductivity probes" (HW Rev1.0 / SW Rev1.0 or later), 9600 baud, 8N1.
 /// - SW 1.8: "MODBUS RTU for conductivity probes" (HW Rev1.0 / SW Rev1.8 or later), 9600 baud, 8N1. Adds Stop Measurement (a read of 0x2E00 used as a trigger) and Get Slave Device ID (0x3000 at the wildcard address 0xFF). The probe measures from power-on by default, and the procedure starts with the power-on wait instead of Start Measurement. Sections from 2.2.6 and figures from 32 on are renumbered; every other command and frame is unchanged.
 ///
-/// | Command | Function | Address | Registers | Request | Reply |
-/// |---|---|---|---|---|---|
-/// | Set Slave Device ID | write (0x10) | 0x3000 | 1 | [`SetSlaveId`](conductivity::SetSlaveId) | `()` |
-/// | Get SN | read (0x03) | 0x0900 | 7 | [`GetSn`](conductivity::GetSn) | [`GetSnResponse`](conductivity::GetSnResponse) |
-/// | Start Measurement | write (0x10) | 0x1C00 | 0 | [`StartMeasurement`](conductivity::StartMeasurement) | `()` |
-/// | Get Temperature and Conductivity values | read (0x03) | 0x2600 | 5 | [`GetTemperatureAndConductivity`](conductivity::GetTemperatureAndConductivity) | [`GetTemperatureAndConductivityResponse`](conductivity::GetTemperatureAndConductivityResponse) |
-/// | Get Software and Hardware Rev | read (0x03) | 0x0700 | 2 | [`GetVersion`](conductivity::GetVersion) | [`GetVersionResponse`](conductivity::GetVersionResponse) |
-/// | Stop Measurement | read (0x03) | 0x2E00 | 1 | [`StopMeasurement`](conductivity::StopMeasurement) | [`StopMeasurementResponse`](conductivity::StopMeasurementResponse) |
-/// | Get User Calibration Coefficients | read (0x03) | 0x1100 | 4 | [`GetUserCalibration`](conductivity::GetUserCalibration) | [`GetUserCalibrationResponse`](conductivity::GetUserCalibrationResponse) |
-/// | Set Customer Calibration Coefficients | write (0x10) | 0x1100 | 4 | [`SetUserCalibration`](conductivity::SetUserCalibration) | `()` |
-/// | Get Slave Device ID | read (0x03) | 0x3000 | 1 | [`GetSlaveId`](conductivity::GetSlaveId) | [`GetSlaveIdResponse`](conductivity::GetSlaveIdResponse) |
+/// | Command | Function | Address | Registers | Request | Reply | `Device` method |
+/// |---|---|---|---|---|---|---|
+/// | Set Slave Device ID | write (0x10) | 0x3000 | 1 | [`SetSlaveId`](conductivity::SetSlaveId) | `()` | `set_slave_id()` |
+/// | Get SN | read (0x03) | 0x0900 | 7 | [`GetSn`](conductivity::GetSn) | [`GetSnResponse`](conductivity::GetSnResponse) | `sn()` |
+/// | Start Measurement | write (0x10) | 0x1C00 | 0 | [`StartMeasurement`](conductivity::StartMeasurement) | `()` | `start_measurement()` |
+/// | Get Temperature and Conductivity values | read (0x03) | 0x2600 | 5 | [`GetTemperatureAndConductivity`](conductivity::GetTemperatureAndConductivity) | [`GetTemperatureAndConductivityResponse`](conductivity::GetTemperatureAndConductivityResponse) | `temperature_and_conductivity()` |
+/// | Get Software and Hardware Rev | read (0x03) | 0x0700 | 2 | [`GetVersion`](conductivity::GetVersion) | [`GetVersionResponse`](conductivity::GetVersionResponse) | `version()` |
+/// | Stop Measurement | read (0x03) | 0x2E00 | 1 | [`StopMeasurement`](conductivity::StopMeasurement) | [`StopMeasurementResponse`](conductivity::StopMeasurementResponse) | `stop_measurement()` |
+/// | Get User Calibration Coefficients | read (0x03) | 0x1100 | 4 | [`GetUserCalibration`](conductivity::GetUserCalibration) | [`GetUserCalibrationResponse`](conductivity::GetUserCalibrationResponse) | `user_calibration()` |
+/// | Set Customer Calibration Coefficients | write (0x10) | 0x1100 | 4 | [`SetUserCalibration`](conductivity::SetUserCalibration) | `()` | `set_user_calibration()` |
+/// | Get Slave Device ID | read (0x03) | 0x3000 | 1 | [`GetSlaveId`](conductivity::GetSlaveId) | [`GetSlaveIdResponse`](conductivity::GetSlaveIdResponse) | `slave_id()` |
 ///
 /// # Manual errata
 ///
@@ -182,18 +182,18 @@ pub mod conductivity {
 ///
 /// Generated from the spec of the manual "Optical Dissolved Oxygen Sensor, MODBUS RTU Programmer Manuel" (HW Rev2.0 / SW Rev6.2 or later). Serial: 9600 baud, 8N1; slave addresses 1..=247, factory address 1.
 ///
-/// | Command | Function | Address | Registers | Request | Reply |
-/// |---|---|---|---|---|---|
-/// | Set Slave Device ID | write (0x10) | 0x3000 | 1 | [`SetSlaveId`](dissolved_oxygen::SetSlaveId) | `()` |
-/// | Get SN | read (0x03) | 0x0900 | 7 | [`GetSn`](dissolved_oxygen::GetSn) | [`GetSnResponse`](dissolved_oxygen::GetSnResponse) |
-/// | Start Measurement | read (0x03) | 0x2500 | 1 | [`StartMeasurement`](dissolved_oxygen::StartMeasurement) | [`StartMeasurementResponse`](dissolved_oxygen::StartMeasurementResponse) |
-/// | Get Temperature and DO values | read (0x03) | 0x2600 | 4 | [`GetTemperatureAndDo`](dissolved_oxygen::GetTemperatureAndDo) | [`GetTemperatureAndDoResponse`](dissolved_oxygen::GetTemperatureAndDoResponse) |
-/// | Get Software and Hardware Rev | read (0x03) | 0x0700 | 2 | [`GetVersion`](dissolved_oxygen::GetVersion) | [`GetVersionResponse`](dissolved_oxygen::GetVersionResponse) |
-/// | Stop Measurement | read (0x03) | 0x2E00 | 1 | [`StopMeasurement`](dissolved_oxygen::StopMeasurement) | [`StopMeasurementResponse`](dissolved_oxygen::StopMeasurementResponse) |
-/// | Get User Calibration Coefficients | read (0x03) | 0x1100 | 4 | [`GetUserCalibration`](dissolved_oxygen::GetUserCalibration) | [`GetUserCalibrationResponse`](dissolved_oxygen::GetUserCalibrationResponse) |
-/// | Set Customer Calibration Coefficients | write (0x10) | 0x1100 | 4 | [`SetUserCalibration`](dissolved_oxygen::SetUserCalibration) | `()` |
-/// | Set Optical Sensor Cap Coefficients | write (0x10) | 0x2700 | 16 | [`SetCapCoefficients`](dissolved_oxygen::SetCapCoefficients) | `()` |
-/// | Get Slave Device ID | read (0x03) | 0x3000 | 1 | [`GetSlaveId`](dissolved_oxygen::GetSlaveId) | [`GetSlaveIdResponse`](dissolved_oxygen::GetSlaveIdResponse) |
+/// | Command | Function | Address | Registers | Request | Reply | `Device` method |
+/// |---|---|---|---|---|---|---|
+/// | Set Slave Device ID | write (0x10) | 0x3000 | 1 | [`SetSlaveId`](dissolved_oxygen::SetSlaveId) | `()` | `set_slave_id()` |
+/// | Get SN | read (0x03) | 0x0900 | 7 | [`GetSn`](dissolved_oxygen::GetSn) | [`GetSnResponse`](dissolved_oxygen::GetSnResponse) | `sn()` |
+/// | Start Measurement | read (0x03) | 0x2500 | 1 | [`StartMeasurement`](dissolved_oxygen::StartMeasurement) | [`StartMeasurementResponse`](dissolved_oxygen::StartMeasurementResponse) | `start_measurement()` |
+/// | Get Temperature and DO values | read (0x03) | 0x2600 | 4 | [`GetTemperatureAndDo`](dissolved_oxygen::GetTemperatureAndDo) | [`GetTemperatureAndDoResponse`](dissolved_oxygen::GetTemperatureAndDoResponse) | `temperature_and_do()` |
+/// | Get Software and Hardware Rev | read (0x03) | 0x0700 | 2 | [`GetVersion`](dissolved_oxygen::GetVersion) | [`GetVersionResponse`](dissolved_oxygen::GetVersionResponse) | `version()` |
+/// | Stop Measurement | read (0x03) | 0x2E00 | 1 | [`StopMeasurement`](dissolved_oxygen::StopMeasurement) | [`StopMeasurementResponse`](dissolved_oxygen::StopMeasurementResponse) | `stop_measurement()` |
+/// | Get User Calibration Coefficients | read (0x03) | 0x1100 | 4 | [`GetUserCalibration`](dissolved_oxygen::GetUserCalibration) | [`GetUserCalibrationResponse`](dissolved_oxygen::GetUserCalibrationResponse) | `user_calibration()` |
+/// | Set Customer Calibration Coefficients | write (0x10) | 0x1100 | 4 | [`SetUserCalibration`](dissolved_oxygen::SetUserCalibration) | `()` | `set_user_calibration()` |
+/// | Set Optical Sensor Cap Coefficients | write (0x10) | 0x2700 | 16 | [`SetCapCoefficients`](dissolved_oxygen::SetCapCoefficients) | `()` | `set_cap_coefficients()` |
+/// | Get Slave Device ID | read (0x03) | 0x3000 | 1 | [`GetSlaveId`](dissolved_oxygen::GetSlaveId) | [`GetSlaveIdResponse`](dissolved_oxygen::GetSlaveIdResponse) | `slave_id()` |
 ///
 /// # Manual errata
 ///
@@ -229,18 +229,18 @@ pub mod dissolved_oxygen {
 ///
 /// Generated from the spec of the manual "MODBUS RTU for the multi-parameter sensor" (SW Rev1.6 or later). Serial: 9600 baud, 8N1; slave addresses 1..=247, factory address 1.
 ///
-/// | Command | Function | Address | Registers | Request | Reply |
-/// |---|---|---|---|---|---|
-/// | Get measurement data | read (0x03) | 0x2601 | 16 | [`GetMeasurementData`](sonde::GetMeasurementData) | [`GetMeasurementDataResponse`](sonde::GetMeasurementDataResponse) |
-/// | Get SN | read (0x03) | 0x1400 | 6 | [`GetSn`](sonde::GetSn) | [`GetSnResponse`](sonde::GetSnResponse) |
-/// | Error Flag | read (0x03) | 0x0800 | 1 | [`GetErrorFlag`](sonde::GetErrorFlag) | [`GetErrorFlagResponse`](sonde::GetErrorFlagResponse) |
-/// | Get Brush Interval of time | read (0x03) | 0x0E00 | 1 | [`GetBrushInterval`](sonde::GetBrushInterval) | [`GetBrushIntervalResponse`](sonde::GetBrushIntervalResponse) |
-/// | Set Brush Interval of time | write (0x10) | 0x0E00 | 1 | [`SetBrushInterval`](sonde::SetBrushInterval) | `()` |
-/// | Set the time | write (0x10) | 0x1300 | 4 | [`SetTime`](sonde::SetTime) | `()` |
-/// | Get the time | read (0x03) | 0x1300 | 4 | [`GetTime`](sonde::GetTime) | [`GetTimeResponse`](sonde::GetTimeResponse) |
-/// | Set Slave Device ID | write (0x10) | 0x3000 | 1 | [`SetSlaveId`](sonde::SetSlaveId) | `()` |
-/// | Get the supply voltage | read (0x03) | 0x1E00 | 2 | [`GetSupplyVoltage`](sonde::GetSupplyVoltage) | [`GetSupplyVoltageResponse`](sonde::GetSupplyVoltageResponse) |
-/// | Active Brush | write (0x10) | 0x2F00 | 0 | [`ActiveBrush`](sonde::ActiveBrush) | `()` |
+/// | Command | Function | Address | Registers | Request | Reply | `Device` method |
+/// |---|---|---|---|---|---|---|
+/// | Get measurement data | read (0x03) | 0x2601 | 16 | [`GetMeasurementData`](sonde::GetMeasurementData) | [`GetMeasurementDataResponse`](sonde::GetMeasurementDataResponse) | `measurement_data()` |
+/// | Get SN | read (0x03) | 0x1400 | 6 | [`GetSn`](sonde::GetSn) | [`GetSnResponse`](sonde::GetSnResponse) | `sn()` |
+/// | Error Flag | read (0x03) | 0x0800 | 1 | [`GetErrorFlag`](sonde::GetErrorFlag) | [`GetErrorFlagResponse`](sonde::GetErrorFlagResponse) | `error_flag()` |
+/// | Get Brush Interval of time | read (0x03) | 0x0E00 | 1 | [`GetBrushInterval`](sonde::GetBrushInterval) | [`GetBrushIntervalResponse`](sonde::GetBrushIntervalResponse) | `brush_interval()` |
+/// | Set Brush Interval of time | write (0x10) | 0x0E00 | 1 | [`SetBrushInterval`](sonde::SetBrushInterval) | `()` | `set_brush_interval()` |
+/// | Set the time | write (0x10) | 0x1300 | 4 | [`SetTime`](sonde::SetTime) | `()` | `set_time()` |
+/// | Get the time | read (0x03) | 0x1300 | 4 | [`GetTime`](sonde::GetTime) | [`GetTimeResponse`](sonde::GetTimeResponse) | `time()` |
+/// | Set Slave Device ID | write (0x10) | 0x3000 | 1 | [`SetSlaveId`](sonde::SetSlaveId) | `()` | `set_slave_id()` |
+/// | Get the supply voltage | read (0x03) | 0x1E00 | 2 | [`GetSupplyVoltage`](sonde::GetSupplyVoltage) | [`GetSupplyVoltageResponse`](sonde::GetSupplyVoltageResponse) | `supply_voltage()` |
+/// | Active Brush | write (0x10) | 0x2F00 | 0 | [`ActiveBrush`](sonde::ActiveBrush) | `()` | `active_brush()` |
 ///
 /// # Manual errata
 ///
@@ -272,15 +272,15 @@ pub mod sonde {
 ///
 /// Generated from a spec of facts without a Modbus manual (no manual: from EnviroDIY YosemitechModbus 0.5.x header (the model is in the driver's list, untested there)). Serial: 9600 baud, 8N1; slave addresses 1..=247, factory address 1.
 ///
-/// | Command | Function | Address | Registers | Request | Reply |
-/// |---|---|---|---|---|---|
-/// | Set Slave Device ID | write (0x10) | 0x3000 | 1 | [`SetSlaveId`](oil_in_water::SetSlaveId) | `()` |
-/// | Get SN | read (0x03) | 0x0900 | 7 | [`GetSn`](oil_in_water::GetSn) | [`GetSnResponse`](oil_in_water::GetSnResponse) |
-/// | Get Software and Hardware Rev | read (0x03) | 0x0700 | 2 | [`GetVersion`](oil_in_water::GetVersion) | [`GetVersionResponse`](oil_in_water::GetVersionResponse) |
-/// | Get Slave Device ID | read (0x03) | 0x3000 | 1 | [`GetSlaveId`](oil_in_water::GetSlaveId) | [`GetSlaveIdResponse`](oil_in_water::GetSlaveIdResponse) |
-/// | Set Customer Calibration Coefficients | write (0x10) | 0x1100 | 4 | [`SetUserCalibration`](oil_in_water::SetUserCalibration) | `()` |
-/// | Get User Calibration Coefficients | read (0x03) | 0x1100 | 4 | [`GetUserCalibration`](oil_in_water::GetUserCalibration) | [`GetUserCalibrationResponse`](oil_in_water::GetUserCalibrationResponse) |
-/// | Get temperature and oil in water | read (0x03) | 0x2600 | 5 | [`GetTemperatureAndOil`](oil_in_water::GetTemperatureAndOil) | [`GetTemperatureAndOilResponse`](oil_in_water::GetTemperatureAndOilResponse) |
+/// | Command | Function | Address | Registers | Request | Reply | `Device` method |
+/// |---|---|---|---|---|---|---|
+/// | Set Slave Device ID | write (0x10) | 0x3000 | 1 | [`SetSlaveId`](oil_in_water::SetSlaveId) | `()` | `set_slave_id()` |
+/// | Get SN | read (0x03) | 0x0900 | 7 | [`GetSn`](oil_in_water::GetSn) | [`GetSnResponse`](oil_in_water::GetSnResponse) | `sn()` |
+/// | Get Software and Hardware Rev | read (0x03) | 0x0700 | 2 | [`GetVersion`](oil_in_water::GetVersion) | [`GetVersionResponse`](oil_in_water::GetVersionResponse) | `version()` |
+/// | Get Slave Device ID | read (0x03) | 0x3000 | 1 | [`GetSlaveId`](oil_in_water::GetSlaveId) | [`GetSlaveIdResponse`](oil_in_water::GetSlaveIdResponse) | `slave_id()` |
+/// | Set Customer Calibration Coefficients | write (0x10) | 0x1100 | 4 | [`SetUserCalibration`](oil_in_water::SetUserCalibration) | `()` | `set_user_calibration()` |
+/// | Get User Calibration Coefficients | read (0x03) | 0x1100 | 4 | [`GetUserCalibration`](oil_in_water::GetUserCalibration) | [`GetUserCalibrationResponse`](oil_in_water::GetUserCalibrationResponse) | `user_calibration()` |
+/// | Get temperature and oil in water | read (0x03) | 0x2600 | 5 | [`GetTemperatureAndOil`](oil_in_water::GetTemperatureAndOil) | [`GetTemperatureAndOilResponse`](oil_in_water::GetTemperatureAndOilResponse) | `temperature_and_oil()` |
 pub mod oil_in_water {
     include!("oil_in_water.rs");
 }
@@ -297,17 +297,17 @@ pub mod oil_in_water {
 ///
 /// Generated from a spec of facts without a Modbus manual (no manual: from EnviroDIY YosemitechModbus 0.5.x (the field's C++ driver); YosemitechModbus issue 19 (Start Measurement fails on a real Y533)). Serial: 9600 baud, 8N1; slave addresses 1..=247, factory address 1.
 ///
-/// | Command | Function | Address | Registers | Request | Reply |
-/// |---|---|---|---|---|---|
-/// | Set Slave Device ID | write (0x10) | 0x3000 | 1 | [`SetSlaveId`](orp::SetSlaveId) | `()` |
-/// | Get SN | read (0x03) | 0x0900 | 7 | [`GetSn`](orp::GetSn) | [`GetSnResponse`](orp::GetSnResponse) |
-/// | Get Software and Hardware Rev | read (0x03) | 0x0700 | 2 | [`GetVersion`](orp::GetVersion) | [`GetVersionResponse`](orp::GetVersionResponse) |
-/// | Get Slave Device ID | read (0x03) | 0x3000 | 1 | [`GetSlaveId`](orp::GetSlaveId) | [`GetSlaveIdResponse`](orp::GetSlaveIdResponse) |
-/// | Start Measurement | read (0x03) | 0x2500 | 1 | [`StartMeasurement`](orp::StartMeasurement) | [`StartMeasurementResponse`](orp::StartMeasurementResponse) |
-/// | Get ORP value | read (0x03) | 0x1200 | 2 | [`GetOrp`](orp::GetOrp) | [`GetOrpResponse`](orp::GetOrpResponse) |
-/// | Get temperature | read (0x03) | 0x2400 | 2 | [`GetTemperature`](orp::GetTemperature) | [`GetTemperatureResponse`](orp::GetTemperatureResponse) |
-/// | Get user calibration coefficients | read (0x03) | 0x3400 | 4 | [`GetUserCalibration`](orp::GetUserCalibration) | [`GetUserCalibrationResponse`](orp::GetUserCalibrationResponse) |
-/// | Set user calibration coefficients | write (0x10) | 0x3400 | 4 | [`SetUserCalibration`](orp::SetUserCalibration) | `()` |
+/// | Command | Function | Address | Registers | Request | Reply | `Device` method |
+/// |---|---|---|---|---|---|---|
+/// | Set Slave Device ID | write (0x10) | 0x3000 | 1 | [`SetSlaveId`](orp::SetSlaveId) | `()` | `set_slave_id()` |
+/// | Get SN | read (0x03) | 0x0900 | 7 | [`GetSn`](orp::GetSn) | [`GetSnResponse`](orp::GetSnResponse) | `sn()` |
+/// | Get Software and Hardware Rev | read (0x03) | 0x0700 | 2 | [`GetVersion`](orp::GetVersion) | [`GetVersionResponse`](orp::GetVersionResponse) | `version()` |
+/// | Get Slave Device ID | read (0x03) | 0x3000 | 1 | [`GetSlaveId`](orp::GetSlaveId) | [`GetSlaveIdResponse`](orp::GetSlaveIdResponse) | `slave_id()` |
+/// | Start Measurement | read (0x03) | 0x2500 | 1 | [`StartMeasurement`](orp::StartMeasurement) | [`StartMeasurementResponse`](orp::StartMeasurementResponse) | `start_measurement()` |
+/// | Get ORP value | read (0x03) | 0x1200 | 2 | [`GetOrp`](orp::GetOrp) | [`GetOrpResponse`](orp::GetOrpResponse) | `orp()` |
+/// | Get temperature | read (0x03) | 0x2400 | 2 | [`GetTemperature`](orp::GetTemperature) | [`GetTemperatureResponse`](orp::GetTemperatureResponse) | `temperature()` |
+/// | Get user calibration coefficients | read (0x03) | 0x3400 | 4 | [`GetUserCalibration`](orp::GetUserCalibration) | [`GetUserCalibrationResponse`](orp::GetUserCalibrationResponse) | `user_calibration()` |
+/// | Set user calibration coefficients | write (0x10) | 0x3400 | 4 | [`SetUserCalibration`](orp::SetUserCalibration) | `()` | `set_user_calibration()` |
 pub mod orp {
     include!("orp.rs");
 }
@@ -325,24 +325,24 @@ pub mod orp {
 /// - SW 1.1: "MODBUS RTU for optical pH probes" (HW Rev1.1 / SW Rev1.1 or later), 9600 baud, 8N1 (the manual states 9600 baud, 8N2). The older manual. It documents pH, potential, temperature, the revisions, the three-point pH calibration and the write of the electrode coefficients K1..K6 (titled "Set Customer Calibration Coefficients" there). SW 1.7 adds the potential-and-pH block, the read of K1..K6, the ORP and pH K/B calibrations and Get Slave Device ID; no command was removed and no layout changed. Its text states two stop bits (see `serial_claims`).
 /// - SW 1.7: "MODBUS RTU for optical pH (or ORP) probes" (HW Rev1.2 / SW Rev1.7 or later), 9600 baud, 8N1.
 ///
-/// | Command | Function | Address | Registers | Request | Reply |
-/// |---|---|---|---|---|---|
-/// | Set Slave Device ID | write (0x10) | 0x3000 | 1 | [`SetSlaveId`](ph_orp::SetSlaveId) | `()` |
-/// | Get SN | read (0x03) | 0x0900 | 7 | [`GetSn`](ph_orp::GetSn) | [`GetSnResponse`](ph_orp::GetSnResponse) |
-/// | Get pH value | read (0x03) | 0x2800 | 2 | [`GetPh`](ph_orp::GetPh) | [`GetPhResponse`](ph_orp::GetPhResponse) |
-/// | Get pH and potential value (ORP) | read (0x03) | 0x2600 | 4 | [`GetOrpAndPh`](ph_orp::GetOrpAndPh) | [`GetOrpAndPhResponse`](ph_orp::GetOrpAndPhResponse) |
-/// | Get potential value (ORP) | read (0x03) | 0x1200 | 2 | [`GetOrp`](ph_orp::GetOrp) | [`GetOrpResponse`](ph_orp::GetOrpResponse) |
-/// | Get Software and Hardware Rev | read (0x03) | 0x0700 | 2 | [`GetVersion`](ph_orp::GetVersion) | [`GetVersionResponse`](ph_orp::GetVersionResponse) |
-/// | Start pH calibration | write (0x10) | 0x2300 | 2 | [`StartPhCalibration`](ph_orp::StartPhCalibration) | `()` |
-/// | Get Calibration Status | read (0x03) | 0x0E00 | 1 | [`GetCalibrationStatus`](ph_orp::GetCalibrationStatus) | [`GetCalibrationStatusResponse`](ph_orp::GetCalibrationStatusResponse) |
-/// | Get Temperature Value | read (0x03) | 0x2400 | 2 | [`GetTemperature`](ph_orp::GetTemperature) | [`GetTemperatureResponse`](ph_orp::GetTemperatureResponse) |
-/// | Set pH Electrode Coefficients | write (0x10) | 0x2900 | 12 | [`SetPhElectrodeCoefficients`](ph_orp::SetPhElectrodeCoefficients) | `()` |
-/// | Get pH Electrode Coefficients | read (0x03) | 0x2900 | 12 | [`GetPhElectrodeCoefficients`](ph_orp::GetPhElectrodeCoefficients) | [`GetPhElectrodeCoefficientsResponse`](ph_orp::GetPhElectrodeCoefficientsResponse) |
-/// | Set ORP Calibration Coefficients | write (0x10) | 0x3400 | 4 | [`SetOrpCalibration`](ph_orp::SetOrpCalibration) | `()` |
-/// | Get ORP Calibration Coefficients | read (0x03) | 0x3400 | 4 | [`GetOrpCalibration`](ph_orp::GetOrpCalibration) | [`GetOrpCalibrationResponse`](ph_orp::GetOrpCalibrationResponse) |
-/// | Set pH Customer Calibration Coefficients | write (0x10) | 0x1100 | 4 | [`SetPhCalibration`](ph_orp::SetPhCalibration) | `()` |
-/// | Get pH Customer Calibration Coefficients | read (0x03) | 0x1100 | 4 | [`GetPhCalibration`](ph_orp::GetPhCalibration) | [`GetPhCalibrationResponse`](ph_orp::GetPhCalibrationResponse) |
-/// | Get Slave Device ID | read (0x03) | 0x3000 | 1 | [`GetSlaveId`](ph_orp::GetSlaveId) | [`GetSlaveIdResponse`](ph_orp::GetSlaveIdResponse) |
+/// | Command | Function | Address | Registers | Request | Reply | `Device` method |
+/// |---|---|---|---|---|---|---|
+/// | Set Slave Device ID | write (0x10) | 0x3000 | 1 | [`SetSlaveId`](ph_orp::SetSlaveId) | `()` | `set_slave_id()` |
+/// | Get SN | read (0x03) | 0x0900 | 7 | [`GetSn`](ph_orp::GetSn) | [`GetSnResponse`](ph_orp::GetSnResponse) | `sn()` |
+/// | Get pH value | read (0x03) | 0x2800 | 2 | [`GetPh`](ph_orp::GetPh) | [`GetPhResponse`](ph_orp::GetPhResponse) | `ph()` |
+/// | Get pH and potential value (ORP) | read (0x03) | 0x2600 | 4 | [`GetOrpAndPh`](ph_orp::GetOrpAndPh) | [`GetOrpAndPhResponse`](ph_orp::GetOrpAndPhResponse) | `orp_and_ph()` |
+/// | Get potential value (ORP) | read (0x03) | 0x1200 | 2 | [`GetOrp`](ph_orp::GetOrp) | [`GetOrpResponse`](ph_orp::GetOrpResponse) | `orp()` |
+/// | Get Software and Hardware Rev | read (0x03) | 0x0700 | 2 | [`GetVersion`](ph_orp::GetVersion) | [`GetVersionResponse`](ph_orp::GetVersionResponse) | `version()` |
+/// | Start pH calibration | write (0x10) | 0x2300 | 2 | [`StartPhCalibration`](ph_orp::StartPhCalibration) | `()` | `start_ph_calibration()` |
+/// | Get Calibration Status | read (0x03) | 0x0E00 | 1 | [`GetCalibrationStatus`](ph_orp::GetCalibrationStatus) | [`GetCalibrationStatusResponse`](ph_orp::GetCalibrationStatusResponse) | `calibration_status()` |
+/// | Get Temperature Value | read (0x03) | 0x2400 | 2 | [`GetTemperature`](ph_orp::GetTemperature) | [`GetTemperatureResponse`](ph_orp::GetTemperatureResponse) | `temperature()` |
+/// | Set pH Electrode Coefficients | write (0x10) | 0x2900 | 12 | [`SetPhElectrodeCoefficients`](ph_orp::SetPhElectrodeCoefficients) | `()` | `set_ph_electrode_coefficients()` |
+/// | Get pH Electrode Coefficients | read (0x03) | 0x2900 | 12 | [`GetPhElectrodeCoefficients`](ph_orp::GetPhElectrodeCoefficients) | [`GetPhElectrodeCoefficientsResponse`](ph_orp::GetPhElectrodeCoefficientsResponse) | `ph_electrode_coefficients()` |
+/// | Set ORP Calibration Coefficients | write (0x10) | 0x3400 | 4 | [`SetOrpCalibration`](ph_orp::SetOrpCalibration) | `()` | `set_orp_calibration()` |
+/// | Get ORP Calibration Coefficients | read (0x03) | 0x3400 | 4 | [`GetOrpCalibration`](ph_orp::GetOrpCalibration) | [`GetOrpCalibrationResponse`](ph_orp::GetOrpCalibrationResponse) | `orp_calibration()` |
+/// | Set pH Customer Calibration Coefficients | write (0x10) | 0x1100 | 4 | [`SetPhCalibration`](ph_orp::SetPhCalibration) | `()` | `set_ph_calibration()` |
+/// | Get pH Customer Calibration Coefficients | read (0x03) | 0x1100 | 4 | [`GetPhCalibration`](ph_orp::GetPhCalibration) | [`GetPhCalibrationResponse`](ph_orp::GetPhCalibrationResponse) | `ph_calibration()` |
+/// | Get Slave Device ID | read (0x03) | 0x3000 | 1 | [`GetSlaveId`](ph_orp::GetSlaveId) | [`GetSlaveIdResponse`](ph_orp::GetSlaveIdResponse) | `slave_id()` |
 ///
 /// # Manual errata
 ///
@@ -376,22 +376,22 @@ pub mod ph_orp {
 ///
 /// Generated from a spec of facts without a Modbus manual (no manual: from EnviroDIY YosemitechModbus pull request 41 (2024, open); an independent Python Y4000 driver (2022)). Serial: 9600 baud, 8N1; slave addresses 1..=247, factory address 1.
 ///
-/// | Command | Function | Address | Registers | Request | Reply |
-/// |---|---|---|---|---|---|
-/// | Set Slave Device ID | write (0x10) | 0x3000 | 1 | [`SetSlaveId`](sonde_per_parameter::SetSlaveId) | `()` |
-/// | Get SN | read (0x03) | 0x1400 | 6 | [`GetSn`](sonde_per_parameter::GetSn) | [`GetSnResponse`](sonde_per_parameter::GetSnResponse) |
-/// | Get dissolved oxygen | read (0x03) | 0x2601 | 2 | [`GetDoMgL`](sonde_per_parameter::GetDoMgL) | [`GetDoMgLResponse`](sonde_per_parameter::GetDoMgLResponse) |
-/// | Get turbidity | read (0x03) | 0x2602 | 2 | [`GetTurbidityNtu`](sonde_per_parameter::GetTurbidityNtu) | [`GetTurbidityNtuResponse`](sonde_per_parameter::GetTurbidityNtuResponse) |
-/// | Get conductivity | read (0x03) | 0x2603 | 2 | [`GetConductivityMsCm`](sonde_per_parameter::GetConductivityMsCm) | [`GetConductivityMsCmResponse`](sonde_per_parameter::GetConductivityMsCmResponse) |
-/// | Get pH | read (0x03) | 0x2604 | 2 | [`GetPh`](sonde_per_parameter::GetPh) | [`GetPhResponse`](sonde_per_parameter::GetPhResponse) |
-/// | Get temperature | read (0x03) | 0x2606 | 2 | [`GetTemperatureC`](sonde_per_parameter::GetTemperatureC) | [`GetTemperatureCResponse`](sonde_per_parameter::GetTemperatureCResponse) |
-/// | Get salinity | read (0x03) | 0x2608 | 2 | [`GetSalinity`](sonde_per_parameter::GetSalinity) | [`GetSalinityResponse`](sonde_per_parameter::GetSalinityResponse) |
-/// | Get dissolved oxygen saturation | read (0x03) | 0x260A | 2 | [`GetDoSaturation`](sonde_per_parameter::GetDoSaturation) | [`GetDoSaturationResponse`](sonde_per_parameter::GetDoSaturationResponse) |
-/// | Get ORP | read (0x03) | 0x260B | 2 | [`GetOrpMv`](sonde_per_parameter::GetOrpMv) | [`GetOrpMvResponse`](sonde_per_parameter::GetOrpMvResponse) |
-/// | Get chlorophyll | read (0x03) | 0x260C | 2 | [`GetChlorophyll`](sonde_per_parameter::GetChlorophyll) | [`GetChlorophyllResponse`](sonde_per_parameter::GetChlorophyllResponse) |
-/// | Get oil in water | read (0x03) | 0x260D | 2 | [`GetOilInWater`](sonde_per_parameter::GetOilInWater) | [`GetOilInWaterResponse`](sonde_per_parameter::GetOilInWaterResponse) |
-/// | Get blue-green algae | read (0x03) | 0x260E | 2 | [`GetBga`](sonde_per_parameter::GetBga) | [`GetBgaResponse`](sonde_per_parameter::GetBgaResponse) |
-/// | Get total dissolved solids | read (0x03) | 0x260F | 2 | [`GetTds`](sonde_per_parameter::GetTds) | [`GetTdsResponse`](sonde_per_parameter::GetTdsResponse) |
+/// | Command | Function | Address | Registers | Request | Reply | `Device` method |
+/// |---|---|---|---|---|---|---|
+/// | Set Slave Device ID | write (0x10) | 0x3000 | 1 | [`SetSlaveId`](sonde_per_parameter::SetSlaveId) | `()` | `set_slave_id()` |
+/// | Get SN | read (0x03) | 0x1400 | 6 | [`GetSn`](sonde_per_parameter::GetSn) | [`GetSnResponse`](sonde_per_parameter::GetSnResponse) | `sn()` |
+/// | Get dissolved oxygen | read (0x03) | 0x2601 | 2 | [`GetDoMgL`](sonde_per_parameter::GetDoMgL) | [`GetDoMgLResponse`](sonde_per_parameter::GetDoMgLResponse) | `do_mg_l()` |
+/// | Get turbidity | read (0x03) | 0x2602 | 2 | [`GetTurbidityNtu`](sonde_per_parameter::GetTurbidityNtu) | [`GetTurbidityNtuResponse`](sonde_per_parameter::GetTurbidityNtuResponse) | `turbidity_ntu()` |
+/// | Get conductivity | read (0x03) | 0x2603 | 2 | [`GetConductivityMsCm`](sonde_per_parameter::GetConductivityMsCm) | [`GetConductivityMsCmResponse`](sonde_per_parameter::GetConductivityMsCmResponse) | `conductivity_ms_cm()` |
+/// | Get pH | read (0x03) | 0x2604 | 2 | [`GetPh`](sonde_per_parameter::GetPh) | [`GetPhResponse`](sonde_per_parameter::GetPhResponse) | `ph()` |
+/// | Get temperature | read (0x03) | 0x2606 | 2 | [`GetTemperatureC`](sonde_per_parameter::GetTemperatureC) | [`GetTemperatureCResponse`](sonde_per_parameter::GetTemperatureCResponse) | `temperature_c()` |
+/// | Get salinity | read (0x03) | 0x2608 | 2 | [`GetSalinity`](sonde_per_parameter::GetSalinity) | [`GetSalinityResponse`](sonde_per_parameter::GetSalinityResponse) | `salinity()` |
+/// | Get dissolved oxygen saturation | read (0x03) | 0x260A | 2 | [`GetDoSaturation`](sonde_per_parameter::GetDoSaturation) | [`GetDoSaturationResponse`](sonde_per_parameter::GetDoSaturationResponse) | `do_saturation()` |
+/// | Get ORP | read (0x03) | 0x260B | 2 | [`GetOrpMv`](sonde_per_parameter::GetOrpMv) | [`GetOrpMvResponse`](sonde_per_parameter::GetOrpMvResponse) | `orp_mv()` |
+/// | Get chlorophyll | read (0x03) | 0x260C | 2 | [`GetChlorophyll`](sonde_per_parameter::GetChlorophyll) | [`GetChlorophyllResponse`](sonde_per_parameter::GetChlorophyllResponse) | `chlorophyll()` |
+/// | Get oil in water | read (0x03) | 0x260D | 2 | [`GetOilInWater`](sonde_per_parameter::GetOilInWater) | [`GetOilInWaterResponse`](sonde_per_parameter::GetOilInWaterResponse) | `oil_in_water()` |
+/// | Get blue-green algae | read (0x03) | 0x260E | 2 | [`GetBga`](sonde_per_parameter::GetBga) | [`GetBgaResponse`](sonde_per_parameter::GetBgaResponse) | `bga()` |
+/// | Get total dissolved solids | read (0x03) | 0x260F | 2 | [`GetTds`](sonde_per_parameter::GetTds) | [`GetTdsResponse`](sonde_per_parameter::GetTdsResponse) | `tds()` |
 pub mod sonde_per_parameter {
     include!("sonde_per_parameter.rs");
 }
@@ -406,16 +406,16 @@ pub mod sonde_per_parameter {
 ///
 /// Generated from a spec of facts without a Modbus manual (no manual: from EnviroDIY YosemitechModbus commit history (the Y700 support); YosemitechModbus issue 29 (the Y700's reply layout)). Serial: 9600 baud, 8N1; slave addresses 1..=247, factory address 1.
 ///
-/// | Command | Function | Address | Registers | Request | Reply |
-/// |---|---|---|---|---|---|
-/// | Set Slave Device ID | write (0x10) | 0x3000 | 1 | [`SetSlaveId`](submersible_level::SetSlaveId) | `()` |
-/// | Get SN | read (0x03) | 0x0900 | 7 | [`GetSn`](submersible_level::GetSn) | [`GetSnResponse`](submersible_level::GetSnResponse) |
-/// | Get Software and Hardware Rev | read (0x03) | 0x0700 | 2 | [`GetVersion`](submersible_level::GetVersion) | [`GetVersionResponse`](submersible_level::GetVersionResponse) |
-/// | Get Slave Device ID | read (0x03) | 0x3000 | 1 | [`GetSlaveId`](submersible_level::GetSlaveId) | [`GetSlaveIdResponse`](submersible_level::GetSlaveIdResponse) |
-/// | Set Customer Calibration Coefficients | write (0x10) | 0x1100 | 4 | [`SetUserCalibration`](submersible_level::SetUserCalibration) | `()` |
-/// | Get User Calibration Coefficients | read (0x03) | 0x1100 | 4 | [`GetUserCalibration`](submersible_level::GetUserCalibration) | [`GetUserCalibrationResponse`](submersible_level::GetUserCalibrationResponse) |
-/// | Get water level | read (0x03) | 0x2600 | 6 | [`GetWaterLevel`](submersible_level::GetWaterLevel) | [`GetWaterLevelResponse`](submersible_level::GetWaterLevelResponse) |
-/// | Get temperature | read (0x03) | 0x2400 | 2 | [`GetTemperature`](submersible_level::GetTemperature) | [`GetTemperatureResponse`](submersible_level::GetTemperatureResponse) |
+/// | Command | Function | Address | Registers | Request | Reply | `Device` method |
+/// |---|---|---|---|---|---|---|
+/// | Set Slave Device ID | write (0x10) | 0x3000 | 1 | [`SetSlaveId`](submersible_level::SetSlaveId) | `()` | `set_slave_id()` |
+/// | Get SN | read (0x03) | 0x0900 | 7 | [`GetSn`](submersible_level::GetSn) | [`GetSnResponse`](submersible_level::GetSnResponse) | `sn()` |
+/// | Get Software and Hardware Rev | read (0x03) | 0x0700 | 2 | [`GetVersion`](submersible_level::GetVersion) | [`GetVersionResponse`](submersible_level::GetVersionResponse) | `version()` |
+/// | Get Slave Device ID | read (0x03) | 0x3000 | 1 | [`GetSlaveId`](submersible_level::GetSlaveId) | [`GetSlaveIdResponse`](submersible_level::GetSlaveIdResponse) | `slave_id()` |
+/// | Set Customer Calibration Coefficients | write (0x10) | 0x1100 | 4 | [`SetUserCalibration`](submersible_level::SetUserCalibration) | `()` | `set_user_calibration()` |
+/// | Get User Calibration Coefficients | read (0x03) | 0x1100 | 4 | [`GetUserCalibration`](submersible_level::GetUserCalibration) | [`GetUserCalibrationResponse`](submersible_level::GetUserCalibrationResponse) | `user_calibration()` |
+/// | Get water level | read (0x03) | 0x2600 | 6 | [`GetWaterLevel`](submersible_level::GetWaterLevel) | [`GetWaterLevelResponse`](submersible_level::GetWaterLevelResponse) | `water_level()` |
+/// | Get temperature | read (0x03) | 0x2400 | 2 | [`GetTemperature`](submersible_level::GetTemperature) | [`GetTemperatureResponse`](submersible_level::GetTemperatureResponse) | `temperature()` |
 pub mod submersible_level {
     include!("submersible_level.rs");
 }
@@ -436,20 +436,20 @@ pub mod submersible_level {
 ///
 /// Generated from the spec of the manual "Optical Turbidity Sensor, MODBUS RTU Programmer Manuel" (HW Rev1.0 / SW Rev1.7 or later). Serial: 9600 baud, 8N1; slave addresses 1..=247, factory address 1.
 ///
-/// | Command | Function | Address | Registers | Request | Reply |
-/// |---|---|---|---|---|---|
-/// | Set Slave Device ID | write (0x10) | 0x3000 | 1 | [`SetSlaveId`](turbidity_brush::SetSlaveId) | `()` |
-/// | Get SN | read (0x03) | 0x0900 | 7 | [`GetSn`](turbidity_brush::GetSn) | [`GetSnResponse`](turbidity_brush::GetSnResponse) |
-/// | Start Measurement | read (0x03) | 0x2500 | 1 | [`StartMeasurement`](turbidity_brush::StartMeasurement) | [`StartMeasurementResponse`](turbidity_brush::StartMeasurementResponse) |
-/// | Get Temperature and Turbidity values | read (0x03) | 0x2600 | 5 | [`GetTemperatureAndTurbidity`](turbidity_brush::GetTemperatureAndTurbidity) | [`GetTemperatureAndTurbidityResponse`](turbidity_brush::GetTemperatureAndTurbidityResponse) |
-/// | Get Software and Hardware Rev | read (0x03) | 0x0700 | 2 | [`GetVersion`](turbidity_brush::GetVersion) | [`GetVersionResponse`](turbidity_brush::GetVersionResponse) |
-/// | Stop Measurement | read (0x03) | 0x2E00 | 1 | [`StopMeasurement`](turbidity_brush::StopMeasurement) | [`StopMeasurementResponse`](turbidity_brush::StopMeasurementResponse) |
-/// | Get User Calibration Coefficients | read (0x03) | 0x1100 | 4 | [`GetUserCalibration`](turbidity_brush::GetUserCalibration) | [`GetUserCalibrationResponse`](turbidity_brush::GetUserCalibrationResponse) |
-/// | Set Customer Calibration Coefficients | write (0x10) | 0x1100 | 4 | [`SetUserCalibration`](turbidity_brush::SetUserCalibration) | `()` |
-/// | Active Brush | write (0x10) | 0x3100 | 0 | [`ActiveBrush`](turbidity_brush::ActiveBrush) | `()` |
-/// | Set Brush Interval of time | write (0x10) | 0x3200 | 1 | [`SetBrushInterval`](turbidity_brush::SetBrushInterval) | `()` |
-/// | Get Brush Interval of time | read (0x03) | 0x3200 | 1 | [`GetBrushInterval`](turbidity_brush::GetBrushInterval) | [`GetBrushIntervalResponse`](turbidity_brush::GetBrushIntervalResponse) |
-/// | Get Slave Device ID | read (0x03) | 0x3000 | 1 | [`GetSlaveId`](turbidity_brush::GetSlaveId) | [`GetSlaveIdResponse`](turbidity_brush::GetSlaveIdResponse) |
+/// | Command | Function | Address | Registers | Request | Reply | `Device` method |
+/// |---|---|---|---|---|---|---|
+/// | Set Slave Device ID | write (0x10) | 0x3000 | 1 | [`SetSlaveId`](turbidity_brush::SetSlaveId) | `()` | `set_slave_id()` |
+/// | Get SN | read (0x03) | 0x0900 | 7 | [`GetSn`](turbidity_brush::GetSn) | [`GetSnResponse`](turbidity_brush::GetSnResponse) | `sn()` |
+/// | Start Measurement | read (0x03) | 0x2500 | 1 | [`StartMeasurement`](turbidity_brush::StartMeasurement) | [`StartMeasurementResponse`](turbidity_brush::StartMeasurementResponse) | `start_measurement()` |
+/// | Get Temperature and Turbidity values | read (0x03) | 0x2600 | 5 | [`GetTemperatureAndTurbidity`](turbidity_brush::GetTemperatureAndTurbidity) | [`GetTemperatureAndTurbidityResponse`](turbidity_brush::GetTemperatureAndTurbidityResponse) | `temperature_and_turbidity()` |
+/// | Get Software and Hardware Rev | read (0x03) | 0x0700 | 2 | [`GetVersion`](turbidity_brush::GetVersion) | [`GetVersionResponse`](turbidity_brush::GetVersionResponse) | `version()` |
+/// | Stop Measurement | read (0x03) | 0x2E00 | 1 | [`StopMeasurement`](turbidity_brush::StopMeasurement) | [`StopMeasurementResponse`](turbidity_brush::StopMeasurementResponse) | `stop_measurement()` |
+/// | Get User Calibration Coefficients | read (0x03) | 0x1100 | 4 | [`GetUserCalibration`](turbidity_brush::GetUserCalibration) | [`GetUserCalibrationResponse`](turbidity_brush::GetUserCalibrationResponse) | `user_calibration()` |
+/// | Set Customer Calibration Coefficients | write (0x10) | 0x1100 | 4 | [`SetUserCalibration`](turbidity_brush::SetUserCalibration) | `()` | `set_user_calibration()` |
+/// | Active Brush | write (0x10) | 0x3100 | 0 | [`ActiveBrush`](turbidity_brush::ActiveBrush) | `()` | `active_brush()` |
+/// | Set Brush Interval of time | write (0x10) | 0x3200 | 1 | [`SetBrushInterval`](turbidity_brush::SetBrushInterval) | `()` | `set_brush_interval()` |
+/// | Get Brush Interval of time | read (0x03) | 0x3200 | 1 | [`GetBrushInterval`](turbidity_brush::GetBrushInterval) | [`GetBrushIntervalResponse`](turbidity_brush::GetBrushIntervalResponse) | `brush_interval()` |
+/// | Get Slave Device ID | read (0x03) | 0x3000 | 1 | [`GetSlaveId`](turbidity_brush::GetSlaveId) | [`GetSlaveIdResponse`](turbidity_brush::GetSlaveIdResponse) | `slave_id()` |
 ///
 /// # Manual errata
 ///
@@ -484,17 +484,17 @@ pub mod turbidity_brush {
 ///
 /// Generated from the spec of the manual "Optical Turbidity Sensor, MODBUS RTU Programmer Manuel" (HW Rev1.0 / SW Rev1.7 or later). Serial: 9600 baud, 8N1; slave addresses 1..=247, factory address 1.
 ///
-/// | Command | Function | Address | Registers | Request | Reply |
-/// |---|---|---|---|---|---|
-/// | Set Slave Device ID | write (0x10) | 0x3000 | 1 | [`SetSlaveId`](turbidity::SetSlaveId) | `()` |
-/// | Get SN | read (0x03) | 0x0900 | 7 | [`GetSn`](turbidity::GetSn) | [`GetSnResponse`](turbidity::GetSnResponse) |
-/// | Start Measurement | read (0x03) | 0x2500 | 1 | [`StartMeasurement`](turbidity::StartMeasurement) | [`StartMeasurementResponse`](turbidity::StartMeasurementResponse) |
-/// | Get Temperature and Turbidity values | read (0x03) | 0x2600 | 4 | [`GetTemperatureAndTurbidity`](turbidity::GetTemperatureAndTurbidity) | [`GetTemperatureAndTurbidityResponse`](turbidity::GetTemperatureAndTurbidityResponse) |
-/// | Get Software and Hardware Rev | read (0x03) | 0x0700 | 2 | [`GetVersion`](turbidity::GetVersion) | [`GetVersionResponse`](turbidity::GetVersionResponse) |
-/// | Stop Measurement | read (0x03) | 0x2E00 | 1 | [`StopMeasurement`](turbidity::StopMeasurement) | [`StopMeasurementResponse`](turbidity::StopMeasurementResponse) |
-/// | Get User Calibration Coefficients | read (0x03) | 0x1100 | 4 | [`GetUserCalibration`](turbidity::GetUserCalibration) | [`GetUserCalibrationResponse`](turbidity::GetUserCalibrationResponse) |
-/// | Set Customer Calibration Coefficients | write (0x10) | 0x1100 | 4 | [`SetUserCalibration`](turbidity::SetUserCalibration) | `()` |
-/// | Get Slave Device ID | read (0x03) | 0x3000 | 1 | [`GetSlaveId`](turbidity::GetSlaveId) | [`GetSlaveIdResponse`](turbidity::GetSlaveIdResponse) |
+/// | Command | Function | Address | Registers | Request | Reply | `Device` method |
+/// |---|---|---|---|---|---|---|
+/// | Set Slave Device ID | write (0x10) | 0x3000 | 1 | [`SetSlaveId`](turbidity::SetSlaveId) | `()` | `set_slave_id()` |
+/// | Get SN | read (0x03) | 0x0900 | 7 | [`GetSn`](turbidity::GetSn) | [`GetSnResponse`](turbidity::GetSnResponse) | `sn()` |
+/// | Start Measurement | read (0x03) | 0x2500 | 1 | [`StartMeasurement`](turbidity::StartMeasurement) | [`StartMeasurementResponse`](turbidity::StartMeasurementResponse) | `start_measurement()` |
+/// | Get Temperature and Turbidity values | read (0x03) | 0x2600 | 4 | [`GetTemperatureAndTurbidity`](turbidity::GetTemperatureAndTurbidity) | [`GetTemperatureAndTurbidityResponse`](turbidity::GetTemperatureAndTurbidityResponse) | `temperature_and_turbidity()` |
+/// | Get Software and Hardware Rev | read (0x03) | 0x0700 | 2 | [`GetVersion`](turbidity::GetVersion) | [`GetVersionResponse`](turbidity::GetVersionResponse) | `version()` |
+/// | Stop Measurement | read (0x03) | 0x2E00 | 1 | [`StopMeasurement`](turbidity::StopMeasurement) | [`StopMeasurementResponse`](turbidity::StopMeasurementResponse) | `stop_measurement()` |
+/// | Get User Calibration Coefficients | read (0x03) | 0x1100 | 4 | [`GetUserCalibration`](turbidity::GetUserCalibration) | [`GetUserCalibrationResponse`](turbidity::GetUserCalibrationResponse) | `user_calibration()` |
+/// | Set Customer Calibration Coefficients | write (0x10) | 0x1100 | 4 | [`SetUserCalibration`](turbidity::SetUserCalibration) | `()` | `set_user_calibration()` |
+/// | Get Slave Device ID | read (0x03) | 0x3000 | 1 | [`GetSlaveId`](turbidity::GetSlaveId) | [`GetSlaveIdResponse`](turbidity::GetSlaveIdResponse) | `slave_id()` |
 ///
 /// # Manual errata
 ///
@@ -532,21 +532,21 @@ pub mod turbidity {
 ///
 /// Generated from the spec of the manual "Optical COD Sensor, MODBUS RTU Programmer Manuel" (HW Rev1.0 / SW Rev1.5 or later). Serial: 9600 baud, 8N1; slave addresses 1..=247, factory address 1.
 ///
-/// | Command | Function | Address | Registers | Request | Reply |
-/// |---|---|---|---|---|---|
-/// | Set Slave Device ID | write (0x10) | 0x3000 | 1 | [`SetSlaveId`](cod::SetSlaveId) | `()` |
-/// | Get SN | read (0x03) | 0x0900 | 7 | [`GetSn`](cod::GetSn) | [`GetSnResponse`](cod::GetSnResponse) |
-/// | Start Measurement | read (0x03) | 0x2500 | 1 | [`StartMeasurement`](cod::StartMeasurement) | [`StartMeasurementResponse`](cod::StartMeasurementResponse) |
-/// | Get Temperature and COD values | read (0x03) | 0x2600 | 5 | [`GetTemperatureAndCod`](cod::GetTemperatureAndCod) | [`GetTemperatureAndCodResponse`](cod::GetTemperatureAndCodResponse) |
-/// | Get Software and Hardware Rev | read (0x03) | 0x0700 | 2 | [`GetVersion`](cod::GetVersion) | [`GetVersionResponse`](cod::GetVersionResponse) |
-/// | Stop Measurement | read (0x03) | 0x2E00 | 1 | [`StopMeasurement`](cod::StopMeasurement) | [`StopMeasurementResponse`](cod::StopMeasurementResponse) |
-/// | Get User Calibration Coefficients | read (0x03) | 0x1100 | 4 | [`GetUserCalibration`](cod::GetUserCalibration) | [`GetUserCalibrationResponse`](cod::GetUserCalibrationResponse) |
-/// | Set Customer Calibration Coefficients | write (0x10) | 0x1100 | 4 | [`SetUserCalibration`](cod::SetUserCalibration) | `()` |
-/// | Active Brush | write (0x10) | 0x3100 | 0 | [`ActiveBrush`](cod::ActiveBrush) | `()` |
-/// | Set Brush Interval of time | write (0x10) | 0x3200 | 1 | [`SetBrushInterval`](cod::SetBrushInterval) | `()` |
-/// | Get Brush Interval of time | read (0x03) | 0x3200 | 1 | [`GetBrushInterval`](cod::GetBrushInterval) | [`GetBrushIntervalResponse`](cod::GetBrushIntervalResponse) |
-/// | Get Slave Device ID | read (0x03) | 0x3000 | 1 | [`GetSlaveId`](cod::GetSlaveId) | [`GetSlaveIdResponse`](cod::GetSlaveIdResponse) |
-/// | Get Turbidity values | read (0x03) | 0x1200 | 2 | [`GetTurbidity`](cod::GetTurbidity) | [`GetTurbidityResponse`](cod::GetTurbidityResponse) |
+/// | Command | Function | Address | Registers | Request | Reply | `Device` method |
+/// |---|---|---|---|---|---|---|
+/// | Set Slave Device ID | write (0x10) | 0x3000 | 1 | [`SetSlaveId`](cod::SetSlaveId) | `()` | `set_slave_id()` |
+/// | Get SN | read (0x03) | 0x0900 | 7 | [`GetSn`](cod::GetSn) | [`GetSnResponse`](cod::GetSnResponse) | `sn()` |
+/// | Start Measurement | read (0x03) | 0x2500 | 1 | [`StartMeasurement`](cod::StartMeasurement) | [`StartMeasurementResponse`](cod::StartMeasurementResponse) | `start_measurement()` |
+/// | Get Temperature and COD values | read (0x03) | 0x2600 | 5 | [`GetTemperatureAndCod`](cod::GetTemperatureAndCod) | [`GetTemperatureAndCodResponse`](cod::GetTemperatureAndCodResponse) | `temperature_and_cod()` |
+/// | Get Software and Hardware Rev | read (0x03) | 0x0700 | 2 | [`GetVersion`](cod::GetVersion) | [`GetVersionResponse`](cod::GetVersionResponse) | `version()` |
+/// | Stop Measurement | read (0x03) | 0x2E00 | 1 | [`StopMeasurement`](cod::StopMeasurement) | [`StopMeasurementResponse`](cod::StopMeasurementResponse) | `stop_measurement()` |
+/// | Get User Calibration Coefficients | read (0x03) | 0x1100 | 4 | [`GetUserCalibration`](cod::GetUserCalibration) | [`GetUserCalibrationResponse`](cod::GetUserCalibrationResponse) | `user_calibration()` |
+/// | Set Customer Calibration Coefficients | write (0x10) | 0x1100 | 4 | [`SetUserCalibration`](cod::SetUserCalibration) | `()` | `set_user_calibration()` |
+/// | Active Brush | write (0x10) | 0x3100 | 0 | [`ActiveBrush`](cod::ActiveBrush) | `()` | `active_brush()` |
+/// | Set Brush Interval of time | write (0x10) | 0x3200 | 1 | [`SetBrushInterval`](cod::SetBrushInterval) | `()` | `set_brush_interval()` |
+/// | Get Brush Interval of time | read (0x03) | 0x3200 | 1 | [`GetBrushInterval`](cod::GetBrushInterval) | [`GetBrushIntervalResponse`](cod::GetBrushIntervalResponse) | `brush_interval()` |
+/// | Get Slave Device ID | read (0x03) | 0x3000 | 1 | [`GetSlaveId`](cod::GetSlaveId) | [`GetSlaveIdResponse`](cod::GetSlaveIdResponse) | `slave_id()` |
+/// | Get Turbidity values | read (0x03) | 0x1200 | 2 | [`GetTurbidity`](cod::GetTurbidity) | [`GetTurbidityResponse`](cod::GetTurbidityResponse) | `turbidity()` |
 ///
 /// # Manual errata
 ///

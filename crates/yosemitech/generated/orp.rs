@@ -77,15 +77,7 @@ pub use super::yosemitech_optical::{StartMeasurement, StartMeasurementResponse};
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub struct GetOrp;
 
-impl GetOrp {
-    /// Name and unit of each field, in wire order.
-    pub const FIELDS: [rtu::FieldInfo; 0] = [];
-    /// Each field's value, in the order of [`Self::FIELDS`].
-    pub fn fields(&self) -> [rtu::FieldValue<'_>; 0] {
-        []
-    }
-}
-
+impl rtu::NoData for GetOrp {}
 /// Reply to [`GetOrp`]. The oxidation-reduction potential in millivolts, with the user calibration applied.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GetOrpResponse {
@@ -95,80 +87,31 @@ pub struct GetOrpResponse {
     pub orp_mv: f32,
 }
 
-impl GetOrpResponse {
-    /// Name and unit of each field, in wire order.
-    pub const FIELDS: [rtu::FieldInfo; 1] = [
-        rtu::FieldInfo {
-            name: "orp_mv",
-            unit: Some("mV"),
-        },
+impl rtu::Message for GetOrpResponse {
+    type Data = [u8; 4];
+    const FIELDS: &'static [rtu::FieldInfo] = &[
+        rtu::FieldInfo::new("orp_mv", Some("mV")),
     ];
-    /// Each field's value, in the order of [`Self::FIELDS`].
-    pub fn fields(&self) -> [rtu::FieldValue<'_>; 1] {
-        [rtu::FieldValue::F32(self.orp_mv)]
-    }
-    /// Bytes of register data: two per register.
-    pub const DATA_LEN: usize = 4;
-    /// Decodes register data; reserved bytes are ignored.
-    pub const fn from_data(data: &[u8; 4]) -> Self {
+    fn from_data(data: &[u8; 4]) -> Self {
         Self {
-            orp_mv: rtu::codec::f32_from_wire(
-                rtu::ByteOrder4::Dcba,
-                [data[0], data[1], data[2], data[3]],
-            ),
+            orp_mv: rtu::codec::f32_from_wire(rtu::ByteOrder4::Dcba, *data),
         }
     }
-    /// Encodes register data, reserved bytes with their fill.
-    pub const fn to_data(&self) -> [u8; 4] {
-        let [b0, b1, b2, b3] = rtu::codec::f32_to_wire(
-            rtu::ByteOrder4::Dcba,
-            self.orp_mv,
-        );
-        [b0, b1, b2, b3]
+    fn to_data(&self) -> [u8; 4] {
+        rtu::codec::f32_to_wire(rtu::ByteOrder4::Dcba, self.orp_mv)
+    }
+    fn field(&self, index: usize) -> Option<rtu::FieldValue<'_>> {
+        match index {
+            0 => Some(rtu::FieldValue::F32(self.orp_mv)),
+            _ => None,
+        }
     }
 }
 
 impl rtu::Command for GetOrp {
     type Response = GetOrpResponse;
     const NAME: &'static str = "get_orp";
-    const LAYOUT: rtu::Layout<'static> = rtu::Layout {
-        function: rtu::Function::Read,
-        address: 0x1200,
-        count: 2,
-        fixed_slave: None,
-        extra_byte_counts: &[],
-        trigger: false,
-    };
-    fn encode_request(
-        &self,
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        Self::LAYOUT.encode_request(slave, &[], out)
-    }
-    fn decode_request(frame: &[u8]) -> Result<(u8, Self), rtu::FrameError> {
-        let (slave, _) = Self::LAYOUT.decode_request(frame)?;
-        Ok((slave, Self))
-    }
-    fn encode_response(
-        response: &GetOrpResponse,
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        Self::LAYOUT.encode_response(slave, &response.to_data(), out)
-    }
-    fn decode_response(
-        slave: u8,
-        frame: &[u8],
-    ) -> Result<GetOrpResponse, rtu::FrameError> {
-        let data = Self::LAYOUT.decode_response(slave, frame)?;
-        let data = <&[u8; 4]>::try_from(data)
-            .map_err(|_| rtu::FrameError::Truncated {
-                expected: Self::RESPONSE_LEN,
-                actual: frame.len(),
-            })?;
-        Ok(GetOrpResponse::from_data(data))
-    }
+    const LAYOUT: rtu::Layout<'static> = rtu::Layout::read(0x1200, 2);
 }
 
 /// Get temperature.
@@ -179,15 +122,7 @@ impl rtu::Command for GetOrp {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub struct GetTemperature;
 
-impl GetTemperature {
-    /// Name and unit of each field, in wire order.
-    pub const FIELDS: [rtu::FieldInfo; 0] = [];
-    /// Each field's value, in the order of [`Self::FIELDS`].
-    pub fn fields(&self) -> [rtu::FieldValue<'_>; 0] {
-        []
-    }
-}
-
+impl rtu::NoData for GetTemperature {}
 /// Reply to [`GetTemperature`]. The water temperature from the probe's built-in sensor.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GetTemperatureResponse {
@@ -197,80 +132,31 @@ pub struct GetTemperatureResponse {
     pub temperature_c: f32,
 }
 
-impl GetTemperatureResponse {
-    /// Name and unit of each field, in wire order.
-    pub const FIELDS: [rtu::FieldInfo; 1] = [
-        rtu::FieldInfo {
-            name: "temperature_c",
-            unit: Some("degC"),
-        },
+impl rtu::Message for GetTemperatureResponse {
+    type Data = [u8; 4];
+    const FIELDS: &'static [rtu::FieldInfo] = &[
+        rtu::FieldInfo::new("temperature_c", Some("degC")),
     ];
-    /// Each field's value, in the order of [`Self::FIELDS`].
-    pub fn fields(&self) -> [rtu::FieldValue<'_>; 1] {
-        [rtu::FieldValue::F32(self.temperature_c)]
-    }
-    /// Bytes of register data: two per register.
-    pub const DATA_LEN: usize = 4;
-    /// Decodes register data; reserved bytes are ignored.
-    pub const fn from_data(data: &[u8; 4]) -> Self {
+    fn from_data(data: &[u8; 4]) -> Self {
         Self {
-            temperature_c: rtu::codec::f32_from_wire(
-                rtu::ByteOrder4::Dcba,
-                [data[0], data[1], data[2], data[3]],
-            ),
+            temperature_c: rtu::codec::f32_from_wire(rtu::ByteOrder4::Dcba, *data),
         }
     }
-    /// Encodes register data, reserved bytes with their fill.
-    pub const fn to_data(&self) -> [u8; 4] {
-        let [b0, b1, b2, b3] = rtu::codec::f32_to_wire(
-            rtu::ByteOrder4::Dcba,
-            self.temperature_c,
-        );
-        [b0, b1, b2, b3]
+    fn to_data(&self) -> [u8; 4] {
+        rtu::codec::f32_to_wire(rtu::ByteOrder4::Dcba, self.temperature_c)
+    }
+    fn field(&self, index: usize) -> Option<rtu::FieldValue<'_>> {
+        match index {
+            0 => Some(rtu::FieldValue::F32(self.temperature_c)),
+            _ => None,
+        }
     }
 }
 
 impl rtu::Command for GetTemperature {
     type Response = GetTemperatureResponse;
     const NAME: &'static str = "get_temperature";
-    const LAYOUT: rtu::Layout<'static> = rtu::Layout {
-        function: rtu::Function::Read,
-        address: 0x2400,
-        count: 2,
-        fixed_slave: None,
-        extra_byte_counts: &[],
-        trigger: false,
-    };
-    fn encode_request(
-        &self,
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        Self::LAYOUT.encode_request(slave, &[], out)
-    }
-    fn decode_request(frame: &[u8]) -> Result<(u8, Self), rtu::FrameError> {
-        let (slave, _) = Self::LAYOUT.decode_request(frame)?;
-        Ok((slave, Self))
-    }
-    fn encode_response(
-        response: &GetTemperatureResponse,
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        Self::LAYOUT.encode_response(slave, &response.to_data(), out)
-    }
-    fn decode_response(
-        slave: u8,
-        frame: &[u8],
-    ) -> Result<GetTemperatureResponse, rtu::FrameError> {
-        let data = Self::LAYOUT.decode_response(slave, frame)?;
-        let data = <&[u8; 4]>::try_from(data)
-            .map_err(|_| rtu::FrameError::Truncated {
-                expected: Self::RESPONSE_LEN,
-                actual: frame.len(),
-            })?;
-        Ok(GetTemperatureResponse::from_data(data))
-    }
+    const LAYOUT: rtu::Layout<'static> = rtu::Layout::read(0x2400, 2);
 }
 
 /// Get user calibration coefficients.
@@ -282,15 +168,7 @@ impl rtu::Command for GetTemperature {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub struct GetUserCalibration;
 
-impl GetUserCalibration {
-    /// Name and unit of each field, in wire order.
-    pub const FIELDS: [rtu::FieldInfo; 0] = [];
-    /// Each field's value, in the order of [`Self::FIELDS`].
-    pub fn fields(&self) -> [rtu::FieldValue<'_>; 0] {
-        []
-    }
-}
-
+impl rtu::NoData for GetUserCalibration {}
 /// Reply to [`GetUserCalibration`]. Reads the user calibration of the ORP: slope K and offset B (final = K x raw + B; defaults K = 1, B = 0), at 0x3400 on this model.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GetUserCalibrationResponse {
@@ -304,26 +182,13 @@ pub struct GetUserCalibrationResponse {
     pub b_offset: f32,
 }
 
-impl GetUserCalibrationResponse {
-    /// Name and unit of each field, in wire order.
-    pub const FIELDS: [rtu::FieldInfo; 2] = [
-        rtu::FieldInfo {
-            name: "k_slope",
-            unit: None,
-        },
-        rtu::FieldInfo {
-            name: "b_offset",
-            unit: Some("mV"),
-        },
+impl rtu::Message for GetUserCalibrationResponse {
+    type Data = [u8; 8];
+    const FIELDS: &'static [rtu::FieldInfo] = &[
+        rtu::FieldInfo::new("k_slope", None),
+        rtu::FieldInfo::new("b_offset", Some("mV")),
     ];
-    /// Each field's value, in the order of [`Self::FIELDS`].
-    pub fn fields(&self) -> [rtu::FieldValue<'_>; 2] {
-        [rtu::FieldValue::F32(self.k_slope), rtu::FieldValue::F32(self.b_offset)]
-    }
-    /// Bytes of register data: two per register.
-    pub const DATA_LEN: usize = 8;
-    /// Decodes register data; reserved bytes are ignored.
-    pub const fn from_data(data: &[u8; 8]) -> Self {
+    fn from_data(data: &[u8; 8]) -> Self {
         Self {
             k_slope: rtu::codec::f32_from_wire(
                 rtu::ByteOrder4::Dcba,
@@ -335,8 +200,7 @@ impl GetUserCalibrationResponse {
             ),
         }
     }
-    /// Encodes register data, reserved bytes with their fill.
-    pub const fn to_data(&self) -> [u8; 8] {
+    fn to_data(&self) -> [u8; 8] {
         let [b0, b1, b2, b3] = rtu::codec::f32_to_wire(
             rtu::ByteOrder4::Dcba,
             self.k_slope,
@@ -347,49 +211,19 @@ impl GetUserCalibrationResponse {
         );
         [b0, b1, b2, b3, b4, b5, b6, b7]
     }
+    fn field(&self, index: usize) -> Option<rtu::FieldValue<'_>> {
+        match index {
+            0 => Some(rtu::FieldValue::F32(self.k_slope)),
+            1 => Some(rtu::FieldValue::F32(self.b_offset)),
+            _ => None,
+        }
+    }
 }
 
 impl rtu::Command for GetUserCalibration {
     type Response = GetUserCalibrationResponse;
     const NAME: &'static str = "get_user_calibration";
-    const LAYOUT: rtu::Layout<'static> = rtu::Layout {
-        function: rtu::Function::Read,
-        address: 0x3400,
-        count: 4,
-        fixed_slave: None,
-        extra_byte_counts: &[],
-        trigger: false,
-    };
-    fn encode_request(
-        &self,
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        Self::LAYOUT.encode_request(slave, &[], out)
-    }
-    fn decode_request(frame: &[u8]) -> Result<(u8, Self), rtu::FrameError> {
-        let (slave, _) = Self::LAYOUT.decode_request(frame)?;
-        Ok((slave, Self))
-    }
-    fn encode_response(
-        response: &GetUserCalibrationResponse,
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        Self::LAYOUT.encode_response(slave, &response.to_data(), out)
-    }
-    fn decode_response(
-        slave: u8,
-        frame: &[u8],
-    ) -> Result<GetUserCalibrationResponse, rtu::FrameError> {
-        let data = Self::LAYOUT.decode_response(slave, frame)?;
-        let data = <&[u8; 8]>::try_from(data)
-            .map_err(|_| rtu::FrameError::Truncated {
-                expected: Self::RESPONSE_LEN,
-                actual: frame.len(),
-            })?;
-        Ok(GetUserCalibrationResponse::from_data(data))
-    }
+    const LAYOUT: rtu::Layout<'static> = rtu::Layout::read(0x3400, 4);
 }
 
 /// Set user calibration coefficients.
@@ -409,26 +243,13 @@ pub struct SetUserCalibration {
     pub b_offset: f32,
 }
 
-impl SetUserCalibration {
-    /// Name and unit of each field, in wire order.
-    pub const FIELDS: [rtu::FieldInfo; 2] = [
-        rtu::FieldInfo {
-            name: "k_slope",
-            unit: None,
-        },
-        rtu::FieldInfo {
-            name: "b_offset",
-            unit: Some("mV"),
-        },
+impl rtu::Message for SetUserCalibration {
+    type Data = [u8; 8];
+    const FIELDS: &'static [rtu::FieldInfo] = &[
+        rtu::FieldInfo::new("k_slope", None),
+        rtu::FieldInfo::new("b_offset", Some("mV")),
     ];
-    /// Each field's value, in the order of [`Self::FIELDS`].
-    pub fn fields(&self) -> [rtu::FieldValue<'_>; 2] {
-        [rtu::FieldValue::F32(self.k_slope), rtu::FieldValue::F32(self.b_offset)]
-    }
-    /// Bytes of register data: two per register.
-    pub const DATA_LEN: usize = 8;
-    /// Decodes register data; reserved bytes are ignored.
-    pub const fn from_data(data: &[u8; 8]) -> Self {
+    fn from_data(data: &[u8; 8]) -> Self {
         Self {
             k_slope: rtu::codec::f32_from_wire(
                 rtu::ByteOrder4::Dcba,
@@ -440,9 +261,7 @@ impl SetUserCalibration {
             ),
         }
     }
-    /// Encodes register data, reserved bytes with their fill. Does not
-    /// check ranges: see [`Self::validate`].
-    pub const fn to_data(&self) -> [u8; 8] {
+    fn to_data(&self) -> [u8; 8] {
         let [b0, b1, b2, b3] = rtu::codec::f32_to_wire(
             rtu::ByteOrder4::Dcba,
             self.k_slope,
@@ -453,53 +272,34 @@ impl SetUserCalibration {
         );
         [b0, b1, b2, b3, b4, b5, b6, b7]
     }
-    /// Checks every field against the range the spec allows
-    /// ([`rtu::EncodeError::OutOfRange`] names the first that is not).
-    pub fn validate(&self) -> Result<(), rtu::EncodeError> {
-        Ok(())
+    fn field(&self, index: usize) -> Option<rtu::FieldValue<'_>> {
+        match index {
+            0 => Some(rtu::FieldValue::F32(self.k_slope)),
+            1 => Some(rtu::FieldValue::F32(self.b_offset)),
+            _ => None,
+        }
     }
 }
 
 impl rtu::Command for SetUserCalibration {
     type Response = ();
     const NAME: &'static str = "set_user_calibration";
-    const LAYOUT: rtu::Layout<'static> = rtu::Layout {
-        function: rtu::Function::Write,
-        address: 0x3400,
-        count: 4,
-        fixed_slave: None,
-        extra_byte_counts: &[],
-        trigger: false,
-    };
-    fn encode_request(
-        &self,
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        self.validate()?;
-        Self::LAYOUT.encode_request(slave, &self.to_data(), out)
-    }
-    fn decode_request(frame: &[u8]) -> Result<(u8, Self), rtu::FrameError> {
-        let (slave, data) = Self::LAYOUT.decode_request(frame)?;
-        let data = <&[u8; 8]>::try_from(data)
-            .map_err(|_| rtu::FrameError::Truncated {
-                expected: Self::REQUEST_LEN,
-                actual: frame.len(),
-            })?;
-        Ok((slave, Self::from_data(data)))
-    }
-    fn encode_response(
-        _response: &(),
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        Self::LAYOUT.encode_response(slave, &[], out)
-    }
-    fn decode_response(slave: u8, frame: &[u8]) -> Result<(), rtu::FrameError> {
-        Self::LAYOUT.decode_response(slave, frame)?;
-        Ok(())
-    }
+    const LAYOUT: rtu::Layout<'static> = rtu::Layout::write(0x3400, 4);
 }
+
+/// Every command of this sensor as data, in spec order: name, title,
+/// layout, fields and codecs ([`CommandId`] indexes it).
+pub const COMMANDS: [rtu::CommandEntry; 9] = [
+    rtu::CommandEntry::of::<SetSlaveId>("Set Slave Device ID"),
+    rtu::CommandEntry::of::<GetSn>("Get SN"),
+    rtu::CommandEntry::of::<GetVersion>("Get Software and Hardware Rev"),
+    rtu::CommandEntry::of::<GetSlaveId>("Get Slave Device ID"),
+    rtu::CommandEntry::of::<StartMeasurement>("Start Measurement"),
+    rtu::CommandEntry::of::<GetOrp>("Get ORP value"),
+    rtu::CommandEntry::of::<GetTemperature>("Get temperature"),
+    rtu::CommandEntry::of::<GetUserCalibration>("Get user calibration coefficients"),
+    rtu::CommandEntry::of::<SetUserCalibration>("Set user calibration coefficients"),
+];
 
 /// Every command of this sensor, for code that picks commands at run
 /// time (CLIs, simulators, tests).
@@ -538,90 +338,34 @@ impl CommandId {
         Self::GetUserCalibration,
         Self::SetUserCalibration,
     ];
+    /// The command's row of [`COMMANDS`].
+    #[allow(clippy::indexing_slicing)]
+    pub const fn entry(self) -> &'static rtu::CommandEntry {
+        &COMMANDS[self as usize]
+    }
     /// The command's snake_case name in the spec.
     pub const fn name(self) -> &'static str {
-        match self {
-            Self::SetSlaveId => "set_slave_id",
-            Self::GetSn => "get_sn",
-            Self::GetVersion => "get_version",
-            Self::GetSlaveId => "get_slave_id",
-            Self::StartMeasurement => "start_measurement",
-            Self::GetOrp => "get_orp",
-            Self::GetTemperature => "get_temperature",
-            Self::GetUserCalibration => "get_user_calibration",
-            Self::SetUserCalibration => "set_user_calibration",
-        }
+        self.entry().name
     }
     /// The command called `name` in the spec.
     pub fn from_name(name: &str) -> Option<Self> {
-        match name {
-            "set_slave_id" => Some(Self::SetSlaveId),
-            "get_sn" => Some(Self::GetSn),
-            "get_version" => Some(Self::GetVersion),
-            "get_slave_id" => Some(Self::GetSlaveId),
-            "start_measurement" => Some(Self::StartMeasurement),
-            "get_orp" => Some(Self::GetOrp),
-            "get_temperature" => Some(Self::GetTemperature),
-            "get_user_calibration" => Some(Self::GetUserCalibration),
-            "set_user_calibration" => Some(Self::SetUserCalibration),
-            _ => None,
-        }
+        Self::ALL.into_iter().find(|id| id.name() == name)
     }
     /// The command's title in the manual.
     pub const fn title(self) -> &'static str {
-        match self {
-            Self::SetSlaveId => "Set Slave Device ID",
-            Self::GetSn => "Get SN",
-            Self::GetVersion => "Get Software and Hardware Rev",
-            Self::GetSlaveId => "Get Slave Device ID",
-            Self::StartMeasurement => "Start Measurement",
-            Self::GetOrp => "Get ORP value",
-            Self::GetTemperature => "Get temperature",
-            Self::GetUserCalibration => "Get user calibration coefficients",
-            Self::SetUserCalibration => "Set user calibration coefficients",
-        }
+        self.entry().title
     }
     /// Function, start address, register count and addressing quirks.
     pub const fn layout(self) -> rtu::Layout<'static> {
-        match self {
-            Self::SetSlaveId => <SetSlaveId as rtu::Command>::LAYOUT,
-            Self::GetSn => <GetSn as rtu::Command>::LAYOUT,
-            Self::GetVersion => <GetVersion as rtu::Command>::LAYOUT,
-            Self::GetSlaveId => <GetSlaveId as rtu::Command>::LAYOUT,
-            Self::StartMeasurement => <StartMeasurement as rtu::Command>::LAYOUT,
-            Self::GetOrp => <GetOrp as rtu::Command>::LAYOUT,
-            Self::GetTemperature => <GetTemperature as rtu::Command>::LAYOUT,
-            Self::GetUserCalibration => <GetUserCalibration as rtu::Command>::LAYOUT,
-            Self::SetUserCalibration => <SetUserCalibration as rtu::Command>::LAYOUT,
-        }
+        self.entry().layout
     }
     /// Name and unit of each field of the request (empty for reads).
     pub const fn request_fields(self) -> &'static [rtu::FieldInfo] {
-        match self {
-            Self::SetSlaveId => &SetSlaveId::FIELDS,
-            Self::GetSn => &GetSn::FIELDS,
-            Self::GetVersion => &GetVersion::FIELDS,
-            Self::GetSlaveId => &GetSlaveId::FIELDS,
-            Self::StartMeasurement => &StartMeasurement::FIELDS,
-            Self::GetOrp => &GetOrp::FIELDS,
-            Self::GetTemperature => &GetTemperature::FIELDS,
-            Self::GetUserCalibration => &GetUserCalibration::FIELDS,
-            Self::SetUserCalibration => &SetUserCalibration::FIELDS,
-        }
+        self.entry().request_fields
     }
     /// Name and unit of each field of the reply (empty for writes).
     pub const fn response_fields(self) -> &'static [rtu::FieldInfo] {
-        match self {
-            Self::SetSlaveId => &[],
-            Self::GetSn => &GetSnResponse::FIELDS,
-            Self::GetVersion => &GetVersionResponse::FIELDS,
-            Self::GetSlaveId => &GetSlaveIdResponse::FIELDS,
-            Self::StartMeasurement => &StartMeasurementResponse::FIELDS,
-            Self::GetOrp => &GetOrpResponse::FIELDS,
-            Self::GetTemperature => &GetTemperatureResponse::FIELDS,
-            Self::GetUserCalibration => &GetUserCalibrationResponse::FIELDS,
-            Self::SetUserCalibration => &[],
-        }
+        self.entry().response_fields
     }
     /// Checks a request frame for this command and decodes it.
     pub fn decode_request(self, frame: &[u8]) -> Result<(u8, Request), rtu::FrameError> {
@@ -772,15 +516,15 @@ impl Request {
     /// The value of field `index` of [`CommandId::request_fields`].
     pub fn field(&self, index: usize) -> Option<rtu::FieldValue<'_>> {
         match self {
-            Self::SetSlaveId(r) => r.fields().get(index).copied(),
-            Self::GetSn(r) => r.fields().get(index).copied(),
-            Self::GetVersion(r) => r.fields().get(index).copied(),
-            Self::GetSlaveId(r) => r.fields().get(index).copied(),
-            Self::StartMeasurement(r) => r.fields().get(index).copied(),
-            Self::GetOrp(r) => r.fields().get(index).copied(),
-            Self::GetTemperature(r) => r.fields().get(index).copied(),
-            Self::GetUserCalibration(r) => r.fields().get(index).copied(),
-            Self::SetUserCalibration(r) => r.fields().get(index).copied(),
+            Self::SetSlaveId(r) => rtu::Message::field(r, index),
+            Self::GetSn(r) => rtu::Message::field(r, index),
+            Self::GetVersion(r) => rtu::Message::field(r, index),
+            Self::GetSlaveId(r) => rtu::Message::field(r, index),
+            Self::StartMeasurement(r) => rtu::Message::field(r, index),
+            Self::GetOrp(r) => rtu::Message::field(r, index),
+            Self::GetTemperature(r) => rtu::Message::field(r, index),
+            Self::GetUserCalibration(r) => rtu::Message::field(r, index),
+            Self::SetUserCalibration(r) => rtu::Message::field(r, index),
         }
     }
     /// Every field with its name and unit, in wire order.
@@ -863,15 +607,16 @@ impl Response {
     }
     /// The value of field `index` of [`CommandId::response_fields`].
     pub fn field(&self, index: usize) -> Option<rtu::FieldValue<'_>> {
+        use rtu::Message as _;
         match self {
             Self::SetSlaveId => None,
-            Self::GetSn(r) => r.fields().get(index).copied(),
-            Self::GetVersion(r) => r.fields().get(index).copied(),
-            Self::GetSlaveId(r) => r.fields().get(index).copied(),
-            Self::StartMeasurement(r) => r.fields().get(index).copied(),
-            Self::GetOrp(r) => r.fields().get(index).copied(),
-            Self::GetTemperature(r) => r.fields().get(index).copied(),
-            Self::GetUserCalibration(r) => r.fields().get(index).copied(),
+            Self::GetSn(r) => r.field(index),
+            Self::GetVersion(r) => r.field(index),
+            Self::GetSlaveId(r) => r.field(index),
+            Self::StartMeasurement(r) => r.field(index),
+            Self::GetOrp(r) => r.field(index),
+            Self::GetTemperature(r) => r.field(index),
+            Self::GetUserCalibration(r) => r.field(index),
             Self::SetUserCalibration => None,
         }
     }
@@ -996,31 +741,8 @@ pub fn decode_response(
 /// and register count (the first in spec order if several match). Does
 /// not check the frame: decode it with [`CommandId::decode_request`].
 pub fn identify_request(frame: &[u8]) -> Option<CommandId> {
-    let [_, function, address_hi, address_lo, count_hi, count_lo] = *frame
-        .first_chunk::<6>()?;
-    let address = u16::from_be_bytes([address_hi, address_lo]);
-    let count = u16::from_be_bytes([count_hi, count_lo]);
-    CommandId::ALL
-        .into_iter()
-        .find(|id| {
-            let layout = id.layout();
-            layout.function.code() == function && layout.address == address
-                && layout.count == count
-        })
+    rtu::identify_request(&COMMANDS, frame).and_then(|i| CommandId::ALL.get(i).copied())
 }
-
-/// Every command's spec name, in spec order.
-pub const COMMAND_NAMES: [&str; 9] = [
-    "set_slave_id",
-    "get_sn",
-    "get_version",
-    "get_slave_id",
-    "start_measurement",
-    "get_orp",
-    "get_temperature",
-    "get_user_calibration",
-    "set_user_calibration",
-];
 
 /// Every derived quantity of the sensor as data, in spec order: its
 /// inputs, and its function (`compute` takes the inputs in parameter order).
@@ -1030,57 +752,8 @@ pub const DERIVED: [rtu::DerivedInfo; 0] = [];
 /// (`crate::SENSORS` lists them all).
 pub const MODULE: rtu::SensorModule = rtu::SensorModule {
     info: SENSOR,
+    commands: &COMMANDS,
     derived: &DERIVED,
-    commands: &COMMAND_NAMES,
-    layout: |name| CommandId::from_name(name).map(CommandId::layout),
-    identify_request: |frame| identify_request(frame).map(CommandId::name),
-    visit_request: |name, frame, visit| {
-        let id = CommandId::from_name(name)?;
-        Some(
-            id
-                .decode_request(frame)
-                .map(|(slave, request)| {
-                    for (info, value) in request.fields() {
-                        visit(info, value);
-                    }
-                    slave
-                }),
-        )
-    },
-    reencode_request: |name, frame, out| {
-        let id = CommandId::from_name(name)?;
-        Some(
-            id
-                .decode_request(frame)
-                .map_err(rtu::RoundTripError::Frame)
-                .and_then(|(slave, request)| {
-                    request.encode(slave, out).map_err(rtu::RoundTripError::Encode)
-                }),
-        )
-    },
-    reencode_response: |name, slave, frame, out| {
-        let id = CommandId::from_name(name)?;
-        Some(
-            id
-                .decode_response(slave, frame)
-                .map_err(rtu::RoundTripError::Frame)
-                .and_then(|response| {
-                    response.encode(slave, out).map_err(rtu::RoundTripError::Encode)
-                }),
-        )
-    },
-    visit_response: |name, slave, frame, visit| {
-        let id = CommandId::from_name(name)?;
-        Some(
-            id
-                .decode_response(slave, frame)
-                .map(|response| {
-                    for (info, value) in response.fields() {
-                        visit(info, value);
-                    }
-                }),
-        )
-    },
 };
 
 #[cfg(feature = "std")]

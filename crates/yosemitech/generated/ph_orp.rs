@@ -242,15 +242,7 @@ pub use super::yosemitech_common::{GetSn, GetSnResponse};
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub struct GetPh;
 
-impl GetPh {
-    /// Name and unit of each field, in wire order.
-    pub const FIELDS: [rtu::FieldInfo; 0] = [];
-    /// Each field's value, in the order of [`Self::FIELDS`].
-    pub fn fields(&self) -> [rtu::FieldValue<'_>; 0] {
-        []
-    }
-}
-
+impl rtu::NoData for GetPh {}
 /// Reply to [`GetPh`]. The pH, temperature-compensated by the probe.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GetPhResponse {
@@ -260,77 +252,29 @@ pub struct GetPhResponse {
     pub ph: f32,
 }
 
-impl GetPhResponse {
-    /// Name and unit of each field, in wire order.
-    pub const FIELDS: [rtu::FieldInfo; 1] = [
-        rtu::FieldInfo {
-            name: "ph",
-            unit: Some("pH"),
-        },
-    ];
-    /// Each field's value, in the order of [`Self::FIELDS`].
-    pub fn fields(&self) -> [rtu::FieldValue<'_>; 1] {
-        [rtu::FieldValue::F32(self.ph)]
-    }
-    /// Bytes of register data: two per register.
-    pub const DATA_LEN: usize = 4;
-    /// Decodes register data; reserved bytes are ignored.
-    pub const fn from_data(data: &[u8; 4]) -> Self {
+impl rtu::Message for GetPhResponse {
+    type Data = [u8; 4];
+    const FIELDS: &'static [rtu::FieldInfo] = &[rtu::FieldInfo::new("ph", Some("pH"))];
+    fn from_data(data: &[u8; 4]) -> Self {
         Self {
-            ph: rtu::codec::f32_from_wire(
-                rtu::ByteOrder4::Dcba,
-                [data[0], data[1], data[2], data[3]],
-            ),
+            ph: rtu::codec::f32_from_wire(rtu::ByteOrder4::Dcba, *data),
         }
     }
-    /// Encodes register data, reserved bytes with their fill.
-    pub const fn to_data(&self) -> [u8; 4] {
-        let [b0, b1, b2, b3] = rtu::codec::f32_to_wire(rtu::ByteOrder4::Dcba, self.ph);
-        [b0, b1, b2, b3]
+    fn to_data(&self) -> [u8; 4] {
+        rtu::codec::f32_to_wire(rtu::ByteOrder4::Dcba, self.ph)
+    }
+    fn field(&self, index: usize) -> Option<rtu::FieldValue<'_>> {
+        match index {
+            0 => Some(rtu::FieldValue::F32(self.ph)),
+            _ => None,
+        }
     }
 }
 
 impl rtu::Command for GetPh {
     type Response = GetPhResponse;
     const NAME: &'static str = "get_ph";
-    const LAYOUT: rtu::Layout<'static> = rtu::Layout {
-        function: rtu::Function::Read,
-        address: 0x2800,
-        count: 2,
-        fixed_slave: None,
-        extra_byte_counts: &[],
-        trigger: false,
-    };
-    fn encode_request(
-        &self,
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        Self::LAYOUT.encode_request(slave, &[], out)
-    }
-    fn decode_request(frame: &[u8]) -> Result<(u8, Self), rtu::FrameError> {
-        let (slave, _) = Self::LAYOUT.decode_request(frame)?;
-        Ok((slave, Self))
-    }
-    fn encode_response(
-        response: &GetPhResponse,
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        Self::LAYOUT.encode_response(slave, &response.to_data(), out)
-    }
-    fn decode_response(
-        slave: u8,
-        frame: &[u8],
-    ) -> Result<GetPhResponse, rtu::FrameError> {
-        let data = Self::LAYOUT.decode_response(slave, frame)?;
-        let data = <&[u8; 4]>::try_from(data)
-            .map_err(|_| rtu::FrameError::Truncated {
-                expected: Self::RESPONSE_LEN,
-                actual: frame.len(),
-            })?;
-        Ok(GetPhResponse::from_data(data))
-    }
+    const LAYOUT: rtu::Layout<'static> = rtu::Layout::read(0x2800, 2);
 }
 
 /// Get pH and potential value (ORP).
@@ -350,15 +294,7 @@ impl rtu::Command for GetPh {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub struct GetOrpAndPh;
 
-impl GetOrpAndPh {
-    /// Name and unit of each field, in wire order.
-    pub const FIELDS: [rtu::FieldInfo; 0] = [];
-    /// Each field's value, in the order of [`Self::FIELDS`].
-    pub fn fields(&self) -> [rtu::FieldValue<'_>; 0] {
-        []
-    }
-}
-
+impl rtu::NoData for GetOrpAndPh {}
 /// Reply to [`GetOrpAndPh`]. The potential (ORP) and the pH in one read.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GetOrpAndPhResponse {
@@ -372,26 +308,13 @@ pub struct GetOrpAndPhResponse {
     pub ph: f32,
 }
 
-impl GetOrpAndPhResponse {
-    /// Name and unit of each field, in wire order.
-    pub const FIELDS: [rtu::FieldInfo; 2] = [
-        rtu::FieldInfo {
-            name: "orp_mv",
-            unit: Some("mV"),
-        },
-        rtu::FieldInfo {
-            name: "ph",
-            unit: Some("pH"),
-        },
+impl rtu::Message for GetOrpAndPhResponse {
+    type Data = [u8; 8];
+    const FIELDS: &'static [rtu::FieldInfo] = &[
+        rtu::FieldInfo::new("orp_mv", Some("mV")),
+        rtu::FieldInfo::new("ph", Some("pH")),
     ];
-    /// Each field's value, in the order of [`Self::FIELDS`].
-    pub fn fields(&self) -> [rtu::FieldValue<'_>; 2] {
-        [rtu::FieldValue::F32(self.orp_mv), rtu::FieldValue::F32(self.ph)]
-    }
-    /// Bytes of register data: two per register.
-    pub const DATA_LEN: usize = 8;
-    /// Decodes register data; reserved bytes are ignored.
-    pub const fn from_data(data: &[u8; 8]) -> Self {
+    fn from_data(data: &[u8; 8]) -> Self {
         Self {
             orp_mv: rtu::codec::f32_from_wire(
                 rtu::ByteOrder4::Dcba,
@@ -403,8 +326,7 @@ impl GetOrpAndPhResponse {
             ),
         }
     }
-    /// Encodes register data, reserved bytes with their fill.
-    pub const fn to_data(&self) -> [u8; 8] {
+    fn to_data(&self) -> [u8; 8] {
         let [b0, b1, b2, b3] = rtu::codec::f32_to_wire(
             rtu::ByteOrder4::Dcba,
             self.orp_mv,
@@ -412,49 +334,19 @@ impl GetOrpAndPhResponse {
         let [b4, b5, b6, b7] = rtu::codec::f32_to_wire(rtu::ByteOrder4::Dcba, self.ph);
         [b0, b1, b2, b3, b4, b5, b6, b7]
     }
+    fn field(&self, index: usize) -> Option<rtu::FieldValue<'_>> {
+        match index {
+            0 => Some(rtu::FieldValue::F32(self.orp_mv)),
+            1 => Some(rtu::FieldValue::F32(self.ph)),
+            _ => None,
+        }
+    }
 }
 
 impl rtu::Command for GetOrpAndPh {
     type Response = GetOrpAndPhResponse;
     const NAME: &'static str = "get_orp_and_ph";
-    const LAYOUT: rtu::Layout<'static> = rtu::Layout {
-        function: rtu::Function::Read,
-        address: 0x2600,
-        count: 4,
-        fixed_slave: None,
-        extra_byte_counts: &[],
-        trigger: false,
-    };
-    fn encode_request(
-        &self,
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        Self::LAYOUT.encode_request(slave, &[], out)
-    }
-    fn decode_request(frame: &[u8]) -> Result<(u8, Self), rtu::FrameError> {
-        let (slave, _) = Self::LAYOUT.decode_request(frame)?;
-        Ok((slave, Self))
-    }
-    fn encode_response(
-        response: &GetOrpAndPhResponse,
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        Self::LAYOUT.encode_response(slave, &response.to_data(), out)
-    }
-    fn decode_response(
-        slave: u8,
-        frame: &[u8],
-    ) -> Result<GetOrpAndPhResponse, rtu::FrameError> {
-        let data = Self::LAYOUT.decode_response(slave, frame)?;
-        let data = <&[u8; 8]>::try_from(data)
-            .map_err(|_| rtu::FrameError::Truncated {
-                expected: Self::RESPONSE_LEN,
-                actual: frame.len(),
-            })?;
-        Ok(GetOrpAndPhResponse::from_data(data))
-    }
+    const LAYOUT: rtu::Layout<'static> = rtu::Layout::read(0x2600, 4);
 }
 
 /// Get potential value (ORP).
@@ -481,15 +373,7 @@ impl rtu::Command for GetOrpAndPh {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub struct GetOrp;
 
-impl GetOrp {
-    /// Name and unit of each field, in wire order.
-    pub const FIELDS: [rtu::FieldInfo; 0] = [];
-    /// Each field's value, in the order of [`Self::FIELDS`].
-    pub fn fields(&self) -> [rtu::FieldValue<'_>; 0] {
-        []
-    }
-}
-
+impl rtu::NoData for GetOrp {}
 /// Reply to [`GetOrp`]. The oxidation-reduction potential.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GetOrpResponse {
@@ -499,80 +383,31 @@ pub struct GetOrpResponse {
     pub orp_mv: f32,
 }
 
-impl GetOrpResponse {
-    /// Name and unit of each field, in wire order.
-    pub const FIELDS: [rtu::FieldInfo; 1] = [
-        rtu::FieldInfo {
-            name: "orp_mv",
-            unit: Some("mV"),
-        },
+impl rtu::Message for GetOrpResponse {
+    type Data = [u8; 4];
+    const FIELDS: &'static [rtu::FieldInfo] = &[
+        rtu::FieldInfo::new("orp_mv", Some("mV")),
     ];
-    /// Each field's value, in the order of [`Self::FIELDS`].
-    pub fn fields(&self) -> [rtu::FieldValue<'_>; 1] {
-        [rtu::FieldValue::F32(self.orp_mv)]
-    }
-    /// Bytes of register data: two per register.
-    pub const DATA_LEN: usize = 4;
-    /// Decodes register data; reserved bytes are ignored.
-    pub const fn from_data(data: &[u8; 4]) -> Self {
+    fn from_data(data: &[u8; 4]) -> Self {
         Self {
-            orp_mv: rtu::codec::f32_from_wire(
-                rtu::ByteOrder4::Dcba,
-                [data[0], data[1], data[2], data[3]],
-            ),
+            orp_mv: rtu::codec::f32_from_wire(rtu::ByteOrder4::Dcba, *data),
         }
     }
-    /// Encodes register data, reserved bytes with their fill.
-    pub const fn to_data(&self) -> [u8; 4] {
-        let [b0, b1, b2, b3] = rtu::codec::f32_to_wire(
-            rtu::ByteOrder4::Dcba,
-            self.orp_mv,
-        );
-        [b0, b1, b2, b3]
+    fn to_data(&self) -> [u8; 4] {
+        rtu::codec::f32_to_wire(rtu::ByteOrder4::Dcba, self.orp_mv)
+    }
+    fn field(&self, index: usize) -> Option<rtu::FieldValue<'_>> {
+        match index {
+            0 => Some(rtu::FieldValue::F32(self.orp_mv)),
+            _ => None,
+        }
     }
 }
 
 impl rtu::Command for GetOrp {
     type Response = GetOrpResponse;
     const NAME: &'static str = "get_orp";
-    const LAYOUT: rtu::Layout<'static> = rtu::Layout {
-        function: rtu::Function::Read,
-        address: 0x1200,
-        count: 2,
-        fixed_slave: None,
-        extra_byte_counts: &[],
-        trigger: false,
-    };
-    fn encode_request(
-        &self,
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        Self::LAYOUT.encode_request(slave, &[], out)
-    }
-    fn decode_request(frame: &[u8]) -> Result<(u8, Self), rtu::FrameError> {
-        let (slave, _) = Self::LAYOUT.decode_request(frame)?;
-        Ok((slave, Self))
-    }
-    fn encode_response(
-        response: &GetOrpResponse,
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        Self::LAYOUT.encode_response(slave, &response.to_data(), out)
-    }
-    fn decode_response(
-        slave: u8,
-        frame: &[u8],
-    ) -> Result<GetOrpResponse, rtu::FrameError> {
-        let data = Self::LAYOUT.decode_response(slave, frame)?;
-        let data = <&[u8; 4]>::try_from(data)
-            .map_err(|_| rtu::FrameError::Truncated {
-                expected: Self::RESPONSE_LEN,
-                actual: frame.len(),
-            })?;
-        Ok(GetOrpResponse::from_data(data))
-    }
+    const LAYOUT: rtu::Layout<'static> = rtu::Layout::read(0x1200, 2);
 }
 
 /// Get Software and Hardware Rev.
@@ -640,41 +475,26 @@ pub struct StartPhCalibration {
     pub standard_ph: f32,
 }
 
-impl StartPhCalibration {
-    /// Name and unit of each field, in wire order.
-    pub const FIELDS: [rtu::FieldInfo; 1] = [
-        rtu::FieldInfo {
-            name: "standard_ph",
-            unit: Some("pH"),
-        },
+impl rtu::Message for StartPhCalibration {
+    type Data = [u8; 4];
+    const FIELDS: &'static [rtu::FieldInfo] = &[
+        rtu::FieldInfo::new("standard_ph", Some("pH")),
     ];
-    /// Each field's value, in the order of [`Self::FIELDS`].
-    pub fn fields(&self) -> [rtu::FieldValue<'_>; 1] {
-        [rtu::FieldValue::F32(self.standard_ph)]
-    }
-    /// Bytes of register data: two per register.
-    pub const DATA_LEN: usize = 4;
-    /// Decodes register data; reserved bytes are ignored.
-    pub const fn from_data(data: &[u8; 4]) -> Self {
+    fn from_data(data: &[u8; 4]) -> Self {
         Self {
-            standard_ph: rtu::codec::f32_from_wire(
-                rtu::ByteOrder4::Dcba,
-                [data[0], data[1], data[2], data[3]],
-            ),
+            standard_ph: rtu::codec::f32_from_wire(rtu::ByteOrder4::Dcba, *data),
         }
     }
-    /// Encodes register data, reserved bytes with their fill. Does not
-    /// check ranges: see [`Self::validate`].
-    pub const fn to_data(&self) -> [u8; 4] {
-        let [b0, b1, b2, b3] = rtu::codec::f32_to_wire(
-            rtu::ByteOrder4::Dcba,
-            self.standard_ph,
-        );
-        [b0, b1, b2, b3]
+    fn to_data(&self) -> [u8; 4] {
+        rtu::codec::f32_to_wire(rtu::ByteOrder4::Dcba, self.standard_ph)
     }
-    /// Checks every field against the range the spec allows
-    /// ([`rtu::EncodeError::OutOfRange`] names the first that is not).
-    pub fn validate(&self) -> Result<(), rtu::EncodeError> {
+    fn field(&self, index: usize) -> Option<rtu::FieldValue<'_>> {
+        match index {
+            0 => Some(rtu::FieldValue::F32(self.standard_ph)),
+            _ => None,
+        }
+    }
+    fn validate(&self) -> Result<(), rtu::EncodeError> {
         if !self.standard_ph.is_nan()
             && !(0.0..=14.0).contains(&f64::from(self.standard_ph))
         {
@@ -689,42 +509,7 @@ impl StartPhCalibration {
 impl rtu::Command for StartPhCalibration {
     type Response = ();
     const NAME: &'static str = "start_ph_calibration";
-    const LAYOUT: rtu::Layout<'static> = rtu::Layout {
-        function: rtu::Function::Write,
-        address: 0x2300,
-        count: 2,
-        fixed_slave: None,
-        extra_byte_counts: &[],
-        trigger: false,
-    };
-    fn encode_request(
-        &self,
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        self.validate()?;
-        Self::LAYOUT.encode_request(slave, &self.to_data(), out)
-    }
-    fn decode_request(frame: &[u8]) -> Result<(u8, Self), rtu::FrameError> {
-        let (slave, data) = Self::LAYOUT.decode_request(frame)?;
-        let data = <&[u8; 4]>::try_from(data)
-            .map_err(|_| rtu::FrameError::Truncated {
-                expected: Self::REQUEST_LEN,
-                actual: frame.len(),
-            })?;
-        Ok((slave, Self::from_data(data)))
-    }
-    fn encode_response(
-        _response: &(),
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        Self::LAYOUT.encode_response(slave, &[], out)
-    }
-    fn decode_response(slave: u8, frame: &[u8]) -> Result<(), rtu::FrameError> {
-        Self::LAYOUT.decode_response(slave, frame)?;
-        Ok(())
-    }
+    const LAYOUT: rtu::Layout<'static> = rtu::Layout::write(0x2300, 2);
 }
 
 /// Get Calibration Status.
@@ -760,15 +545,7 @@ impl rtu::Command for StartPhCalibration {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub struct GetCalibrationStatus;
 
-impl GetCalibrationStatus {
-    /// Name and unit of each field, in wire order.
-    pub const FIELDS: [rtu::FieldInfo; 0] = [];
-    /// Each field's value, in the order of [`Self::FIELDS`].
-    pub fn fields(&self) -> [rtu::FieldValue<'_>; 0] {
-        []
-    }
-}
-
+impl rtu::NoData for GetCalibrationStatus {}
 /// Reply to [`GetCalibrationStatus`]. The outcome of the last calibration.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub struct GetCalibrationStatusResponse {
@@ -778,78 +555,34 @@ pub struct GetCalibrationStatusResponse {
     pub status: CalibrationStatus,
 }
 
-impl GetCalibrationStatusResponse {
-    /// Name and unit of each field, in wire order.
-    pub const FIELDS: [rtu::FieldInfo; 1] = [
-        rtu::FieldInfo {
-            name: "status",
-            unit: None,
-        },
-    ];
-    /// Each field's value, in the order of [`Self::FIELDS`].
-    pub fn fields(&self) -> [rtu::FieldValue<'_>; 1] {
-        [
-            rtu::FieldValue::Enum {
-                raw: u16::from(self.status.raw()),
-                name: self.status.name(),
-            },
-        ]
-    }
-    /// Bytes of register data: two per register.
-    pub const DATA_LEN: usize = 2;
-    /// Decodes register data; reserved bytes are ignored.
-    pub const fn from_data(data: &[u8; 2]) -> Self {
+impl rtu::Message for GetCalibrationStatusResponse {
+    type Data = [u8; 2];
+    const FIELDS: &'static [rtu::FieldInfo] = &[rtu::FieldInfo::new("status", None)];
+    fn from_data(data: &[u8; 2]) -> Self {
         Self {
             status: CalibrationStatus::from_raw(data[0]),
         }
     }
-    /// Encodes register data, reserved bytes with their fill.
-    pub const fn to_data(&self) -> [u8; 2] {
+    fn to_data(&self) -> [u8; 2] {
         [self.status.raw(), 0x00]
+    }
+    fn field(&self, index: usize) -> Option<rtu::FieldValue<'_>> {
+        match index {
+            0 => {
+                Some(rtu::FieldValue::Enum {
+                    raw: u16::from(self.status.raw()),
+                    name: self.status.name(),
+                })
+            }
+            _ => None,
+        }
     }
 }
 
 impl rtu::Command for GetCalibrationStatus {
     type Response = GetCalibrationStatusResponse;
     const NAME: &'static str = "get_calibration_status";
-    const LAYOUT: rtu::Layout<'static> = rtu::Layout {
-        function: rtu::Function::Read,
-        address: 0x0E00,
-        count: 1,
-        fixed_slave: None,
-        extra_byte_counts: &[],
-        trigger: false,
-    };
-    fn encode_request(
-        &self,
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        Self::LAYOUT.encode_request(slave, &[], out)
-    }
-    fn decode_request(frame: &[u8]) -> Result<(u8, Self), rtu::FrameError> {
-        let (slave, _) = Self::LAYOUT.decode_request(frame)?;
-        Ok((slave, Self))
-    }
-    fn encode_response(
-        response: &GetCalibrationStatusResponse,
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        Self::LAYOUT.encode_response(slave, &response.to_data(), out)
-    }
-    fn decode_response(
-        slave: u8,
-        frame: &[u8],
-    ) -> Result<GetCalibrationStatusResponse, rtu::FrameError> {
-        let data = Self::LAYOUT.decode_response(slave, frame)?;
-        let data = <&[u8; 2]>::try_from(data)
-            .map_err(|_| rtu::FrameError::Truncated {
-                expected: Self::RESPONSE_LEN,
-                actual: frame.len(),
-            })?;
-        Ok(GetCalibrationStatusResponse::from_data(data))
-    }
+    const LAYOUT: rtu::Layout<'static> = rtu::Layout::read(0x0E00, 1);
 }
 
 /// Get Temperature Value.
@@ -876,15 +609,7 @@ impl rtu::Command for GetCalibrationStatus {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub struct GetTemperature;
 
-impl GetTemperature {
-    /// Name and unit of each field, in wire order.
-    pub const FIELDS: [rtu::FieldInfo; 0] = [];
-    /// Each field's value, in the order of [`Self::FIELDS`].
-    pub fn fields(&self) -> [rtu::FieldValue<'_>; 0] {
-        []
-    }
-}
-
+impl rtu::NoData for GetTemperature {}
 /// Reply to [`GetTemperature`]. The temperature of the solution.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GetTemperatureResponse {
@@ -894,80 +619,31 @@ pub struct GetTemperatureResponse {
     pub temperature_c: f32,
 }
 
-impl GetTemperatureResponse {
-    /// Name and unit of each field, in wire order.
-    pub const FIELDS: [rtu::FieldInfo; 1] = [
-        rtu::FieldInfo {
-            name: "temperature_c",
-            unit: Some("degC"),
-        },
+impl rtu::Message for GetTemperatureResponse {
+    type Data = [u8; 4];
+    const FIELDS: &'static [rtu::FieldInfo] = &[
+        rtu::FieldInfo::new("temperature_c", Some("degC")),
     ];
-    /// Each field's value, in the order of [`Self::FIELDS`].
-    pub fn fields(&self) -> [rtu::FieldValue<'_>; 1] {
-        [rtu::FieldValue::F32(self.temperature_c)]
-    }
-    /// Bytes of register data: two per register.
-    pub const DATA_LEN: usize = 4;
-    /// Decodes register data; reserved bytes are ignored.
-    pub const fn from_data(data: &[u8; 4]) -> Self {
+    fn from_data(data: &[u8; 4]) -> Self {
         Self {
-            temperature_c: rtu::codec::f32_from_wire(
-                rtu::ByteOrder4::Dcba,
-                [data[0], data[1], data[2], data[3]],
-            ),
+            temperature_c: rtu::codec::f32_from_wire(rtu::ByteOrder4::Dcba, *data),
         }
     }
-    /// Encodes register data, reserved bytes with their fill.
-    pub const fn to_data(&self) -> [u8; 4] {
-        let [b0, b1, b2, b3] = rtu::codec::f32_to_wire(
-            rtu::ByteOrder4::Dcba,
-            self.temperature_c,
-        );
-        [b0, b1, b2, b3]
+    fn to_data(&self) -> [u8; 4] {
+        rtu::codec::f32_to_wire(rtu::ByteOrder4::Dcba, self.temperature_c)
+    }
+    fn field(&self, index: usize) -> Option<rtu::FieldValue<'_>> {
+        match index {
+            0 => Some(rtu::FieldValue::F32(self.temperature_c)),
+            _ => None,
+        }
     }
 }
 
 impl rtu::Command for GetTemperature {
     type Response = GetTemperatureResponse;
     const NAME: &'static str = "get_temperature";
-    const LAYOUT: rtu::Layout<'static> = rtu::Layout {
-        function: rtu::Function::Read,
-        address: 0x2400,
-        count: 2,
-        fixed_slave: None,
-        extra_byte_counts: &[],
-        trigger: false,
-    };
-    fn encode_request(
-        &self,
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        Self::LAYOUT.encode_request(slave, &[], out)
-    }
-    fn decode_request(frame: &[u8]) -> Result<(u8, Self), rtu::FrameError> {
-        let (slave, _) = Self::LAYOUT.decode_request(frame)?;
-        Ok((slave, Self))
-    }
-    fn encode_response(
-        response: &GetTemperatureResponse,
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        Self::LAYOUT.encode_response(slave, &response.to_data(), out)
-    }
-    fn decode_response(
-        slave: u8,
-        frame: &[u8],
-    ) -> Result<GetTemperatureResponse, rtu::FrameError> {
-        let data = Self::LAYOUT.decode_response(slave, frame)?;
-        let data = <&[u8; 4]>::try_from(data)
-            .map_err(|_| rtu::FrameError::Truncated {
-                expected: Self::RESPONSE_LEN,
-                actual: frame.len(),
-            })?;
-        Ok(GetTemperatureResponse::from_data(data))
-    }
+    const LAYOUT: rtu::Layout<'static> = rtu::Layout::read(0x2400, 2);
 }
 
 /// Set pH Electrode Coefficients.
@@ -1024,49 +700,17 @@ pub struct SetPhElectrodeCoefficients {
     pub k6: f32,
 }
 
-impl SetPhElectrodeCoefficients {
-    /// Name and unit of each field, in wire order.
-    pub const FIELDS: [rtu::FieldInfo; 6] = [
-        rtu::FieldInfo {
-            name: "k1",
-            unit: None,
-        },
-        rtu::FieldInfo {
-            name: "k2",
-            unit: None,
-        },
-        rtu::FieldInfo {
-            name: "k3",
-            unit: None,
-        },
-        rtu::FieldInfo {
-            name: "k4",
-            unit: None,
-        },
-        rtu::FieldInfo {
-            name: "k5",
-            unit: None,
-        },
-        rtu::FieldInfo {
-            name: "k6",
-            unit: None,
-        },
+impl rtu::Message for SetPhElectrodeCoefficients {
+    type Data = [u8; 24];
+    const FIELDS: &'static [rtu::FieldInfo] = &[
+        rtu::FieldInfo::new("k1", None),
+        rtu::FieldInfo::new("k2", None),
+        rtu::FieldInfo::new("k3", None),
+        rtu::FieldInfo::new("k4", None),
+        rtu::FieldInfo::new("k5", None),
+        rtu::FieldInfo::new("k6", None),
     ];
-    /// Each field's value, in the order of [`Self::FIELDS`].
-    pub fn fields(&self) -> [rtu::FieldValue<'_>; 6] {
-        [
-            rtu::FieldValue::F32(self.k1),
-            rtu::FieldValue::F32(self.k2),
-            rtu::FieldValue::F32(self.k3),
-            rtu::FieldValue::F32(self.k4),
-            rtu::FieldValue::F32(self.k5),
-            rtu::FieldValue::F32(self.k6),
-        ]
-    }
-    /// Bytes of register data: two per register.
-    pub const DATA_LEN: usize = 24;
-    /// Decodes register data; reserved bytes are ignored.
-    pub const fn from_data(data: &[u8; 24]) -> Self {
+    fn from_data(data: &[u8; 24]) -> Self {
         Self {
             k1: rtu::codec::f32_from_wire(
                 rtu::ByteOrder4::Dcba,
@@ -1094,9 +738,7 @@ impl SetPhElectrodeCoefficients {
             ),
         }
     }
-    /// Encodes register data, reserved bytes with their fill. Does not
-    /// check ranges: see [`Self::validate`].
-    pub const fn to_data(&self) -> [u8; 24] {
+    fn to_data(&self) -> [u8; 24] {
         let [b0, b1, b2, b3] = rtu::codec::f32_to_wire(rtu::ByteOrder4::Dcba, self.k1);
         let [b4, b5, b6, b7] = rtu::codec::f32_to_wire(rtu::ByteOrder4::Dcba, self.k2);
         let [b8, b9, b10, b11] = rtu::codec::f32_to_wire(rtu::ByteOrder4::Dcba, self.k3);
@@ -1139,52 +781,23 @@ impl SetPhElectrodeCoefficients {
             b23,
         ]
     }
-    /// Checks every field against the range the spec allows
-    /// ([`rtu::EncodeError::OutOfRange`] names the first that is not).
-    pub fn validate(&self) -> Result<(), rtu::EncodeError> {
-        Ok(())
+    fn field(&self, index: usize) -> Option<rtu::FieldValue<'_>> {
+        match index {
+            0 => Some(rtu::FieldValue::F32(self.k1)),
+            1 => Some(rtu::FieldValue::F32(self.k2)),
+            2 => Some(rtu::FieldValue::F32(self.k3)),
+            3 => Some(rtu::FieldValue::F32(self.k4)),
+            4 => Some(rtu::FieldValue::F32(self.k5)),
+            5 => Some(rtu::FieldValue::F32(self.k6)),
+            _ => None,
+        }
     }
 }
 
 impl rtu::Command for SetPhElectrodeCoefficients {
     type Response = ();
     const NAME: &'static str = "set_ph_electrode_coefficients";
-    const LAYOUT: rtu::Layout<'static> = rtu::Layout {
-        function: rtu::Function::Write,
-        address: 0x2900,
-        count: 12,
-        fixed_slave: None,
-        extra_byte_counts: &[],
-        trigger: false,
-    };
-    fn encode_request(
-        &self,
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        self.validate()?;
-        Self::LAYOUT.encode_request(slave, &self.to_data(), out)
-    }
-    fn decode_request(frame: &[u8]) -> Result<(u8, Self), rtu::FrameError> {
-        let (slave, data) = Self::LAYOUT.decode_request(frame)?;
-        let data = <&[u8; 24]>::try_from(data)
-            .map_err(|_| rtu::FrameError::Truncated {
-                expected: Self::REQUEST_LEN,
-                actual: frame.len(),
-            })?;
-        Ok((slave, Self::from_data(data)))
-    }
-    fn encode_response(
-        _response: &(),
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        Self::LAYOUT.encode_response(slave, &[], out)
-    }
-    fn decode_response(slave: u8, frame: &[u8]) -> Result<(), rtu::FrameError> {
-        Self::LAYOUT.decode_response(slave, frame)?;
-        Ok(())
-    }
+    const LAYOUT: rtu::Layout<'static> = rtu::Layout::write(0x2900, 12);
 }
 
 /// Get pH Electrode Coefficients.
@@ -1209,15 +822,7 @@ impl rtu::Command for SetPhElectrodeCoefficients {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub struct GetPhElectrodeCoefficients;
 
-impl GetPhElectrodeCoefficients {
-    /// Name and unit of each field, in wire order.
-    pub const FIELDS: [rtu::FieldInfo; 0] = [];
-    /// Each field's value, in the order of [`Self::FIELDS`].
-    pub fn fields(&self) -> [rtu::FieldValue<'_>; 0] {
-        []
-    }
-}
-
+impl rtu::NoData for GetPhElectrodeCoefficients {}
 /// Reply to [`GetPhElectrodeCoefficients`]. Reads the electrode coefficients K1..K6.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GetPhElectrodeCoefficientsResponse {
@@ -1247,49 +852,17 @@ pub struct GetPhElectrodeCoefficientsResponse {
     pub k6: f32,
 }
 
-impl GetPhElectrodeCoefficientsResponse {
-    /// Name and unit of each field, in wire order.
-    pub const FIELDS: [rtu::FieldInfo; 6] = [
-        rtu::FieldInfo {
-            name: "k1",
-            unit: None,
-        },
-        rtu::FieldInfo {
-            name: "k2",
-            unit: None,
-        },
-        rtu::FieldInfo {
-            name: "k3",
-            unit: None,
-        },
-        rtu::FieldInfo {
-            name: "k4",
-            unit: None,
-        },
-        rtu::FieldInfo {
-            name: "k5",
-            unit: None,
-        },
-        rtu::FieldInfo {
-            name: "k6",
-            unit: None,
-        },
+impl rtu::Message for GetPhElectrodeCoefficientsResponse {
+    type Data = [u8; 24];
+    const FIELDS: &'static [rtu::FieldInfo] = &[
+        rtu::FieldInfo::new("k1", None),
+        rtu::FieldInfo::new("k2", None),
+        rtu::FieldInfo::new("k3", None),
+        rtu::FieldInfo::new("k4", None),
+        rtu::FieldInfo::new("k5", None),
+        rtu::FieldInfo::new("k6", None),
     ];
-    /// Each field's value, in the order of [`Self::FIELDS`].
-    pub fn fields(&self) -> [rtu::FieldValue<'_>; 6] {
-        [
-            rtu::FieldValue::F32(self.k1),
-            rtu::FieldValue::F32(self.k2),
-            rtu::FieldValue::F32(self.k3),
-            rtu::FieldValue::F32(self.k4),
-            rtu::FieldValue::F32(self.k5),
-            rtu::FieldValue::F32(self.k6),
-        ]
-    }
-    /// Bytes of register data: two per register.
-    pub const DATA_LEN: usize = 24;
-    /// Decodes register data; reserved bytes are ignored.
-    pub const fn from_data(data: &[u8; 24]) -> Self {
+    fn from_data(data: &[u8; 24]) -> Self {
         Self {
             k1: rtu::codec::f32_from_wire(
                 rtu::ByteOrder4::Dcba,
@@ -1317,8 +890,7 @@ impl GetPhElectrodeCoefficientsResponse {
             ),
         }
     }
-    /// Encodes register data, reserved bytes with their fill.
-    pub const fn to_data(&self) -> [u8; 24] {
+    fn to_data(&self) -> [u8; 24] {
         let [b0, b1, b2, b3] = rtu::codec::f32_to_wire(rtu::ByteOrder4::Dcba, self.k1);
         let [b4, b5, b6, b7] = rtu::codec::f32_to_wire(rtu::ByteOrder4::Dcba, self.k2);
         let [b8, b9, b10, b11] = rtu::codec::f32_to_wire(rtu::ByteOrder4::Dcba, self.k3);
@@ -1361,6 +933,17 @@ impl GetPhElectrodeCoefficientsResponse {
             b23,
         ]
     }
+    fn field(&self, index: usize) -> Option<rtu::FieldValue<'_>> {
+        match index {
+            0 => Some(rtu::FieldValue::F32(self.k1)),
+            1 => Some(rtu::FieldValue::F32(self.k2)),
+            2 => Some(rtu::FieldValue::F32(self.k3)),
+            3 => Some(rtu::FieldValue::F32(self.k4)),
+            4 => Some(rtu::FieldValue::F32(self.k5)),
+            5 => Some(rtu::FieldValue::F32(self.k6)),
+            _ => None,
+        }
+    }
 }
 
 impl rtu::Command for GetPhElectrodeCoefficients {
@@ -1374,36 +957,6 @@ impl rtu::Command for GetPhElectrodeCoefficients {
         extra_byte_counts: &[0x0C],
         trigger: false,
     };
-    fn encode_request(
-        &self,
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        Self::LAYOUT.encode_request(slave, &[], out)
-    }
-    fn decode_request(frame: &[u8]) -> Result<(u8, Self), rtu::FrameError> {
-        let (slave, _) = Self::LAYOUT.decode_request(frame)?;
-        Ok((slave, Self))
-    }
-    fn encode_response(
-        response: &GetPhElectrodeCoefficientsResponse,
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        Self::LAYOUT.encode_response(slave, &response.to_data(), out)
-    }
-    fn decode_response(
-        slave: u8,
-        frame: &[u8],
-    ) -> Result<GetPhElectrodeCoefficientsResponse, rtu::FrameError> {
-        let data = Self::LAYOUT.decode_response(slave, frame)?;
-        let data = <&[u8; 24]>::try_from(data)
-            .map_err(|_| rtu::FrameError::Truncated {
-                expected: Self::RESPONSE_LEN,
-                actual: frame.len(),
-            })?;
-        Ok(GetPhElectrodeCoefficientsResponse::from_data(data))
-    }
 }
 
 /// Set ORP Calibration Coefficients.
@@ -1431,26 +984,13 @@ pub struct SetOrpCalibration {
     pub b_offset: f32,
 }
 
-impl SetOrpCalibration {
-    /// Name and unit of each field, in wire order.
-    pub const FIELDS: [rtu::FieldInfo; 2] = [
-        rtu::FieldInfo {
-            name: "k_slope",
-            unit: None,
-        },
-        rtu::FieldInfo {
-            name: "b_offset",
-            unit: None,
-        },
+impl rtu::Message for SetOrpCalibration {
+    type Data = [u8; 8];
+    const FIELDS: &'static [rtu::FieldInfo] = &[
+        rtu::FieldInfo::new("k_slope", None),
+        rtu::FieldInfo::new("b_offset", None),
     ];
-    /// Each field's value, in the order of [`Self::FIELDS`].
-    pub fn fields(&self) -> [rtu::FieldValue<'_>; 2] {
-        [rtu::FieldValue::F32(self.k_slope), rtu::FieldValue::F32(self.b_offset)]
-    }
-    /// Bytes of register data: two per register.
-    pub const DATA_LEN: usize = 8;
-    /// Decodes register data; reserved bytes are ignored.
-    pub const fn from_data(data: &[u8; 8]) -> Self {
+    fn from_data(data: &[u8; 8]) -> Self {
         Self {
             k_slope: rtu::codec::f32_from_wire(
                 rtu::ByteOrder4::Dcba,
@@ -1462,9 +1002,7 @@ impl SetOrpCalibration {
             ),
         }
     }
-    /// Encodes register data, reserved bytes with their fill. Does not
-    /// check ranges: see [`Self::validate`].
-    pub const fn to_data(&self) -> [u8; 8] {
+    fn to_data(&self) -> [u8; 8] {
         let [b0, b1, b2, b3] = rtu::codec::f32_to_wire(
             rtu::ByteOrder4::Dcba,
             self.k_slope,
@@ -1475,52 +1013,19 @@ impl SetOrpCalibration {
         );
         [b0, b1, b2, b3, b4, b5, b6, b7]
     }
-    /// Checks every field against the range the spec allows
-    /// ([`rtu::EncodeError::OutOfRange`] names the first that is not).
-    pub fn validate(&self) -> Result<(), rtu::EncodeError> {
-        Ok(())
+    fn field(&self, index: usize) -> Option<rtu::FieldValue<'_>> {
+        match index {
+            0 => Some(rtu::FieldValue::F32(self.k_slope)),
+            1 => Some(rtu::FieldValue::F32(self.b_offset)),
+            _ => None,
+        }
     }
 }
 
 impl rtu::Command for SetOrpCalibration {
     type Response = ();
     const NAME: &'static str = "set_orp_calibration";
-    const LAYOUT: rtu::Layout<'static> = rtu::Layout {
-        function: rtu::Function::Write,
-        address: 0x3400,
-        count: 4,
-        fixed_slave: None,
-        extra_byte_counts: &[],
-        trigger: false,
-    };
-    fn encode_request(
-        &self,
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        self.validate()?;
-        Self::LAYOUT.encode_request(slave, &self.to_data(), out)
-    }
-    fn decode_request(frame: &[u8]) -> Result<(u8, Self), rtu::FrameError> {
-        let (slave, data) = Self::LAYOUT.decode_request(frame)?;
-        let data = <&[u8; 8]>::try_from(data)
-            .map_err(|_| rtu::FrameError::Truncated {
-                expected: Self::REQUEST_LEN,
-                actual: frame.len(),
-            })?;
-        Ok((slave, Self::from_data(data)))
-    }
-    fn encode_response(
-        _response: &(),
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        Self::LAYOUT.encode_response(slave, &[], out)
-    }
-    fn decode_response(slave: u8, frame: &[u8]) -> Result<(), rtu::FrameError> {
-        Self::LAYOUT.decode_response(slave, frame)?;
-        Ok(())
-    }
+    const LAYOUT: rtu::Layout<'static> = rtu::Layout::write(0x3400, 4);
 }
 
 /// Get ORP Calibration Coefficients.
@@ -1543,15 +1048,7 @@ impl rtu::Command for SetOrpCalibration {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub struct GetOrpCalibration;
 
-impl GetOrpCalibration {
-    /// Name and unit of each field, in wire order.
-    pub const FIELDS: [rtu::FieldInfo; 0] = [];
-    /// Each field's value, in the order of [`Self::FIELDS`].
-    pub fn fields(&self) -> [rtu::FieldValue<'_>; 0] {
-        []
-    }
-}
-
+impl rtu::NoData for GetOrpCalibration {}
 /// Reply to [`GetOrpCalibration`]. Reads the ORP calibration coefficients K and B.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GetOrpCalibrationResponse {
@@ -1565,26 +1062,13 @@ pub struct GetOrpCalibrationResponse {
     pub b_offset: f32,
 }
 
-impl GetOrpCalibrationResponse {
-    /// Name and unit of each field, in wire order.
-    pub const FIELDS: [rtu::FieldInfo; 2] = [
-        rtu::FieldInfo {
-            name: "k_slope",
-            unit: None,
-        },
-        rtu::FieldInfo {
-            name: "b_offset",
-            unit: None,
-        },
+impl rtu::Message for GetOrpCalibrationResponse {
+    type Data = [u8; 8];
+    const FIELDS: &'static [rtu::FieldInfo] = &[
+        rtu::FieldInfo::new("k_slope", None),
+        rtu::FieldInfo::new("b_offset", None),
     ];
-    /// Each field's value, in the order of [`Self::FIELDS`].
-    pub fn fields(&self) -> [rtu::FieldValue<'_>; 2] {
-        [rtu::FieldValue::F32(self.k_slope), rtu::FieldValue::F32(self.b_offset)]
-    }
-    /// Bytes of register data: two per register.
-    pub const DATA_LEN: usize = 8;
-    /// Decodes register data; reserved bytes are ignored.
-    pub const fn from_data(data: &[u8; 8]) -> Self {
+    fn from_data(data: &[u8; 8]) -> Self {
         Self {
             k_slope: rtu::codec::f32_from_wire(
                 rtu::ByteOrder4::Dcba,
@@ -1596,8 +1080,7 @@ impl GetOrpCalibrationResponse {
             ),
         }
     }
-    /// Encodes register data, reserved bytes with their fill.
-    pub const fn to_data(&self) -> [u8; 8] {
+    fn to_data(&self) -> [u8; 8] {
         let [b0, b1, b2, b3] = rtu::codec::f32_to_wire(
             rtu::ByteOrder4::Dcba,
             self.k_slope,
@@ -1608,49 +1091,19 @@ impl GetOrpCalibrationResponse {
         );
         [b0, b1, b2, b3, b4, b5, b6, b7]
     }
+    fn field(&self, index: usize) -> Option<rtu::FieldValue<'_>> {
+        match index {
+            0 => Some(rtu::FieldValue::F32(self.k_slope)),
+            1 => Some(rtu::FieldValue::F32(self.b_offset)),
+            _ => None,
+        }
+    }
 }
 
 impl rtu::Command for GetOrpCalibration {
     type Response = GetOrpCalibrationResponse;
     const NAME: &'static str = "get_orp_calibration";
-    const LAYOUT: rtu::Layout<'static> = rtu::Layout {
-        function: rtu::Function::Read,
-        address: 0x3400,
-        count: 4,
-        fixed_slave: None,
-        extra_byte_counts: &[],
-        trigger: false,
-    };
-    fn encode_request(
-        &self,
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        Self::LAYOUT.encode_request(slave, &[], out)
-    }
-    fn decode_request(frame: &[u8]) -> Result<(u8, Self), rtu::FrameError> {
-        let (slave, _) = Self::LAYOUT.decode_request(frame)?;
-        Ok((slave, Self))
-    }
-    fn encode_response(
-        response: &GetOrpCalibrationResponse,
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        Self::LAYOUT.encode_response(slave, &response.to_data(), out)
-    }
-    fn decode_response(
-        slave: u8,
-        frame: &[u8],
-    ) -> Result<GetOrpCalibrationResponse, rtu::FrameError> {
-        let data = Self::LAYOUT.decode_response(slave, frame)?;
-        let data = <&[u8; 8]>::try_from(data)
-            .map_err(|_| rtu::FrameError::Truncated {
-                expected: Self::RESPONSE_LEN,
-                actual: frame.len(),
-            })?;
-        Ok(GetOrpCalibrationResponse::from_data(data))
-    }
+    const LAYOUT: rtu::Layout<'static> = rtu::Layout::read(0x3400, 4);
 }
 
 /// Set pH Customer Calibration Coefficients.
@@ -1678,26 +1131,13 @@ pub struct SetPhCalibration {
     pub b_offset: f32,
 }
 
-impl SetPhCalibration {
-    /// Name and unit of each field, in wire order.
-    pub const FIELDS: [rtu::FieldInfo; 2] = [
-        rtu::FieldInfo {
-            name: "k_slope",
-            unit: None,
-        },
-        rtu::FieldInfo {
-            name: "b_offset",
-            unit: None,
-        },
+impl rtu::Message for SetPhCalibration {
+    type Data = [u8; 8];
+    const FIELDS: &'static [rtu::FieldInfo] = &[
+        rtu::FieldInfo::new("k_slope", None),
+        rtu::FieldInfo::new("b_offset", None),
     ];
-    /// Each field's value, in the order of [`Self::FIELDS`].
-    pub fn fields(&self) -> [rtu::FieldValue<'_>; 2] {
-        [rtu::FieldValue::F32(self.k_slope), rtu::FieldValue::F32(self.b_offset)]
-    }
-    /// Bytes of register data: two per register.
-    pub const DATA_LEN: usize = 8;
-    /// Decodes register data; reserved bytes are ignored.
-    pub const fn from_data(data: &[u8; 8]) -> Self {
+    fn from_data(data: &[u8; 8]) -> Self {
         Self {
             k_slope: rtu::codec::f32_from_wire(
                 rtu::ByteOrder4::Dcba,
@@ -1709,9 +1149,7 @@ impl SetPhCalibration {
             ),
         }
     }
-    /// Encodes register data, reserved bytes with their fill. Does not
-    /// check ranges: see [`Self::validate`].
-    pub const fn to_data(&self) -> [u8; 8] {
+    fn to_data(&self) -> [u8; 8] {
         let [b0, b1, b2, b3] = rtu::codec::f32_to_wire(
             rtu::ByteOrder4::Dcba,
             self.k_slope,
@@ -1722,52 +1160,19 @@ impl SetPhCalibration {
         );
         [b0, b1, b2, b3, b4, b5, b6, b7]
     }
-    /// Checks every field against the range the spec allows
-    /// ([`rtu::EncodeError::OutOfRange`] names the first that is not).
-    pub fn validate(&self) -> Result<(), rtu::EncodeError> {
-        Ok(())
+    fn field(&self, index: usize) -> Option<rtu::FieldValue<'_>> {
+        match index {
+            0 => Some(rtu::FieldValue::F32(self.k_slope)),
+            1 => Some(rtu::FieldValue::F32(self.b_offset)),
+            _ => None,
+        }
     }
 }
 
 impl rtu::Command for SetPhCalibration {
     type Response = ();
     const NAME: &'static str = "set_ph_calibration";
-    const LAYOUT: rtu::Layout<'static> = rtu::Layout {
-        function: rtu::Function::Write,
-        address: 0x1100,
-        count: 4,
-        fixed_slave: None,
-        extra_byte_counts: &[],
-        trigger: false,
-    };
-    fn encode_request(
-        &self,
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        self.validate()?;
-        Self::LAYOUT.encode_request(slave, &self.to_data(), out)
-    }
-    fn decode_request(frame: &[u8]) -> Result<(u8, Self), rtu::FrameError> {
-        let (slave, data) = Self::LAYOUT.decode_request(frame)?;
-        let data = <&[u8; 8]>::try_from(data)
-            .map_err(|_| rtu::FrameError::Truncated {
-                expected: Self::REQUEST_LEN,
-                actual: frame.len(),
-            })?;
-        Ok((slave, Self::from_data(data)))
-    }
-    fn encode_response(
-        _response: &(),
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        Self::LAYOUT.encode_response(slave, &[], out)
-    }
-    fn decode_response(slave: u8, frame: &[u8]) -> Result<(), rtu::FrameError> {
-        Self::LAYOUT.decode_response(slave, frame)?;
-        Ok(())
-    }
+    const LAYOUT: rtu::Layout<'static> = rtu::Layout::write(0x1100, 4);
 }
 
 /// Get pH Customer Calibration Coefficients.
@@ -1786,15 +1191,7 @@ impl rtu::Command for SetPhCalibration {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub struct GetPhCalibration;
 
-impl GetPhCalibration {
-    /// Name and unit of each field, in wire order.
-    pub const FIELDS: [rtu::FieldInfo; 0] = [];
-    /// Each field's value, in the order of [`Self::FIELDS`].
-    pub fn fields(&self) -> [rtu::FieldValue<'_>; 0] {
-        []
-    }
-}
-
+impl rtu::NoData for GetPhCalibration {}
 /// Reply to [`GetPhCalibration`]. Reads the pH customer calibration coefficients K and B.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GetPhCalibrationResponse {
@@ -1808,26 +1205,13 @@ pub struct GetPhCalibrationResponse {
     pub b_offset: f32,
 }
 
-impl GetPhCalibrationResponse {
-    /// Name and unit of each field, in wire order.
-    pub const FIELDS: [rtu::FieldInfo; 2] = [
-        rtu::FieldInfo {
-            name: "k_slope",
-            unit: None,
-        },
-        rtu::FieldInfo {
-            name: "b_offset",
-            unit: None,
-        },
+impl rtu::Message for GetPhCalibrationResponse {
+    type Data = [u8; 8];
+    const FIELDS: &'static [rtu::FieldInfo] = &[
+        rtu::FieldInfo::new("k_slope", None),
+        rtu::FieldInfo::new("b_offset", None),
     ];
-    /// Each field's value, in the order of [`Self::FIELDS`].
-    pub fn fields(&self) -> [rtu::FieldValue<'_>; 2] {
-        [rtu::FieldValue::F32(self.k_slope), rtu::FieldValue::F32(self.b_offset)]
-    }
-    /// Bytes of register data: two per register.
-    pub const DATA_LEN: usize = 8;
-    /// Decodes register data; reserved bytes are ignored.
-    pub const fn from_data(data: &[u8; 8]) -> Self {
+    fn from_data(data: &[u8; 8]) -> Self {
         Self {
             k_slope: rtu::codec::f32_from_wire(
                 rtu::ByteOrder4::Dcba,
@@ -1839,8 +1223,7 @@ impl GetPhCalibrationResponse {
             ),
         }
     }
-    /// Encodes register data, reserved bytes with their fill.
-    pub const fn to_data(&self) -> [u8; 8] {
+    fn to_data(&self) -> [u8; 8] {
         let [b0, b1, b2, b3] = rtu::codec::f32_to_wire(
             rtu::ByteOrder4::Dcba,
             self.k_slope,
@@ -1851,49 +1234,19 @@ impl GetPhCalibrationResponse {
         );
         [b0, b1, b2, b3, b4, b5, b6, b7]
     }
+    fn field(&self, index: usize) -> Option<rtu::FieldValue<'_>> {
+        match index {
+            0 => Some(rtu::FieldValue::F32(self.k_slope)),
+            1 => Some(rtu::FieldValue::F32(self.b_offset)),
+            _ => None,
+        }
+    }
 }
 
 impl rtu::Command for GetPhCalibration {
     type Response = GetPhCalibrationResponse;
     const NAME: &'static str = "get_ph_calibration";
-    const LAYOUT: rtu::Layout<'static> = rtu::Layout {
-        function: rtu::Function::Read,
-        address: 0x1100,
-        count: 4,
-        fixed_slave: None,
-        extra_byte_counts: &[],
-        trigger: false,
-    };
-    fn encode_request(
-        &self,
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        Self::LAYOUT.encode_request(slave, &[], out)
-    }
-    fn decode_request(frame: &[u8]) -> Result<(u8, Self), rtu::FrameError> {
-        let (slave, _) = Self::LAYOUT.decode_request(frame)?;
-        Ok((slave, Self))
-    }
-    fn encode_response(
-        response: &GetPhCalibrationResponse,
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        Self::LAYOUT.encode_response(slave, &response.to_data(), out)
-    }
-    fn decode_response(
-        slave: u8,
-        frame: &[u8],
-    ) -> Result<GetPhCalibrationResponse, rtu::FrameError> {
-        let data = Self::LAYOUT.decode_response(slave, frame)?;
-        let data = <&[u8; 8]>::try_from(data)
-            .map_err(|_| rtu::FrameError::Truncated {
-                expected: Self::RESPONSE_LEN,
-                actual: frame.len(),
-            })?;
-        Ok(GetPhCalibrationResponse::from_data(data))
-    }
+    const LAYOUT: rtu::Layout<'static> = rtu::Layout::read(0x1100, 4);
 }
 
 /// Get Slave Device ID.
@@ -1919,6 +1272,31 @@ impl rtu::Command for GetPhCalibration {
 ///
 /// - **E2** (figure 72): the table gives function 0x10. The table lists function 0x10, but this is a read with no data and the CRC-valid example (Fig 73) uses 0x03.
 pub use super::yosemitech_common::{GetSlaveId, GetSlaveIdResponse};
+
+/// Every command of this sensor as data, in spec order: name, title,
+/// layout, fields and codecs ([`CommandId`] indexes it).
+pub const COMMANDS: [rtu::CommandEntry; 16] = [
+    rtu::CommandEntry::of::<SetSlaveId>("Set Slave Device ID"),
+    rtu::CommandEntry::of::<GetSn>("Get SN"),
+    rtu::CommandEntry::of::<GetPh>("Get pH value"),
+    rtu::CommandEntry::of::<GetOrpAndPh>("Get pH and potential value (ORP)"),
+    rtu::CommandEntry::of::<GetOrp>("Get potential value (ORP)"),
+    rtu::CommandEntry::of::<GetVersion>("Get Software and Hardware Rev"),
+    rtu::CommandEntry::of::<StartPhCalibration>("Start pH calibration"),
+    rtu::CommandEntry::of::<GetCalibrationStatus>("Get Calibration Status"),
+    rtu::CommandEntry::of::<GetTemperature>("Get Temperature Value"),
+    rtu::CommandEntry::of::<SetPhElectrodeCoefficients>("Set pH Electrode Coefficients"),
+    rtu::CommandEntry::of::<GetPhElectrodeCoefficients>("Get pH Electrode Coefficients"),
+    rtu::CommandEntry::of::<SetOrpCalibration>("Set ORP Calibration Coefficients"),
+    rtu::CommandEntry::of::<GetOrpCalibration>("Get ORP Calibration Coefficients"),
+    rtu::CommandEntry::of::<
+        SetPhCalibration,
+    >("Set pH Customer Calibration Coefficients"),
+    rtu::CommandEntry::of::<
+        GetPhCalibration,
+    >("Get pH Customer Calibration Coefficients"),
+    rtu::CommandEntry::of::<GetSlaveId>("Get Slave Device ID"),
+];
 
 /// Every command of this sensor, for code that picks commands at run
 /// time (CLIs, simulators, tests).
@@ -1978,138 +1356,34 @@ impl CommandId {
         Self::GetPhCalibration,
         Self::GetSlaveId,
     ];
+    /// The command's row of [`COMMANDS`].
+    #[allow(clippy::indexing_slicing)]
+    pub const fn entry(self) -> &'static rtu::CommandEntry {
+        &COMMANDS[self as usize]
+    }
     /// The command's snake_case name in the spec.
     pub const fn name(self) -> &'static str {
-        match self {
-            Self::SetSlaveId => "set_slave_id",
-            Self::GetSn => "get_sn",
-            Self::GetPh => "get_ph",
-            Self::GetOrpAndPh => "get_orp_and_ph",
-            Self::GetOrp => "get_orp",
-            Self::GetVersion => "get_version",
-            Self::StartPhCalibration => "start_ph_calibration",
-            Self::GetCalibrationStatus => "get_calibration_status",
-            Self::GetTemperature => "get_temperature",
-            Self::SetPhElectrodeCoefficients => "set_ph_electrode_coefficients",
-            Self::GetPhElectrodeCoefficients => "get_ph_electrode_coefficients",
-            Self::SetOrpCalibration => "set_orp_calibration",
-            Self::GetOrpCalibration => "get_orp_calibration",
-            Self::SetPhCalibration => "set_ph_calibration",
-            Self::GetPhCalibration => "get_ph_calibration",
-            Self::GetSlaveId => "get_slave_id",
-        }
+        self.entry().name
     }
     /// The command called `name` in the spec.
     pub fn from_name(name: &str) -> Option<Self> {
-        match name {
-            "set_slave_id" => Some(Self::SetSlaveId),
-            "get_sn" => Some(Self::GetSn),
-            "get_ph" => Some(Self::GetPh),
-            "get_orp_and_ph" => Some(Self::GetOrpAndPh),
-            "get_orp" => Some(Self::GetOrp),
-            "get_version" => Some(Self::GetVersion),
-            "start_ph_calibration" => Some(Self::StartPhCalibration),
-            "get_calibration_status" => Some(Self::GetCalibrationStatus),
-            "get_temperature" => Some(Self::GetTemperature),
-            "set_ph_electrode_coefficients" => Some(Self::SetPhElectrodeCoefficients),
-            "get_ph_electrode_coefficients" => Some(Self::GetPhElectrodeCoefficients),
-            "set_orp_calibration" => Some(Self::SetOrpCalibration),
-            "get_orp_calibration" => Some(Self::GetOrpCalibration),
-            "set_ph_calibration" => Some(Self::SetPhCalibration),
-            "get_ph_calibration" => Some(Self::GetPhCalibration),
-            "get_slave_id" => Some(Self::GetSlaveId),
-            _ => None,
-        }
+        Self::ALL.into_iter().find(|id| id.name() == name)
     }
     /// The command's title in the manual.
     pub const fn title(self) -> &'static str {
-        match self {
-            Self::SetSlaveId => "Set Slave Device ID",
-            Self::GetSn => "Get SN",
-            Self::GetPh => "Get pH value",
-            Self::GetOrpAndPh => "Get pH and potential value (ORP)",
-            Self::GetOrp => "Get potential value (ORP)",
-            Self::GetVersion => "Get Software and Hardware Rev",
-            Self::StartPhCalibration => "Start pH calibration",
-            Self::GetCalibrationStatus => "Get Calibration Status",
-            Self::GetTemperature => "Get Temperature Value",
-            Self::SetPhElectrodeCoefficients => "Set pH Electrode Coefficients",
-            Self::GetPhElectrodeCoefficients => "Get pH Electrode Coefficients",
-            Self::SetOrpCalibration => "Set ORP Calibration Coefficients",
-            Self::GetOrpCalibration => "Get ORP Calibration Coefficients",
-            Self::SetPhCalibration => "Set pH Customer Calibration Coefficients",
-            Self::GetPhCalibration => "Get pH Customer Calibration Coefficients",
-            Self::GetSlaveId => "Get Slave Device ID",
-        }
+        self.entry().title
     }
     /// Function, start address, register count and addressing quirks.
     pub const fn layout(self) -> rtu::Layout<'static> {
-        match self {
-            Self::SetSlaveId => <SetSlaveId as rtu::Command>::LAYOUT,
-            Self::GetSn => <GetSn as rtu::Command>::LAYOUT,
-            Self::GetPh => <GetPh as rtu::Command>::LAYOUT,
-            Self::GetOrpAndPh => <GetOrpAndPh as rtu::Command>::LAYOUT,
-            Self::GetOrp => <GetOrp as rtu::Command>::LAYOUT,
-            Self::GetVersion => <GetVersion as rtu::Command>::LAYOUT,
-            Self::StartPhCalibration => <StartPhCalibration as rtu::Command>::LAYOUT,
-            Self::GetCalibrationStatus => <GetCalibrationStatus as rtu::Command>::LAYOUT,
-            Self::GetTemperature => <GetTemperature as rtu::Command>::LAYOUT,
-            Self::SetPhElectrodeCoefficients => {
-                <SetPhElectrodeCoefficients as rtu::Command>::LAYOUT
-            }
-            Self::GetPhElectrodeCoefficients => {
-                <GetPhElectrodeCoefficients as rtu::Command>::LAYOUT
-            }
-            Self::SetOrpCalibration => <SetOrpCalibration as rtu::Command>::LAYOUT,
-            Self::GetOrpCalibration => <GetOrpCalibration as rtu::Command>::LAYOUT,
-            Self::SetPhCalibration => <SetPhCalibration as rtu::Command>::LAYOUT,
-            Self::GetPhCalibration => <GetPhCalibration as rtu::Command>::LAYOUT,
-            Self::GetSlaveId => <GetSlaveId as rtu::Command>::LAYOUT,
-        }
+        self.entry().layout
     }
     /// Name and unit of each field of the request (empty for reads).
     pub const fn request_fields(self) -> &'static [rtu::FieldInfo] {
-        match self {
-            Self::SetSlaveId => &SetSlaveId::FIELDS,
-            Self::GetSn => &GetSn::FIELDS,
-            Self::GetPh => &GetPh::FIELDS,
-            Self::GetOrpAndPh => &GetOrpAndPh::FIELDS,
-            Self::GetOrp => &GetOrp::FIELDS,
-            Self::GetVersion => &GetVersion::FIELDS,
-            Self::StartPhCalibration => &StartPhCalibration::FIELDS,
-            Self::GetCalibrationStatus => &GetCalibrationStatus::FIELDS,
-            Self::GetTemperature => &GetTemperature::FIELDS,
-            Self::SetPhElectrodeCoefficients => &SetPhElectrodeCoefficients::FIELDS,
-            Self::GetPhElectrodeCoefficients => &GetPhElectrodeCoefficients::FIELDS,
-            Self::SetOrpCalibration => &SetOrpCalibration::FIELDS,
-            Self::GetOrpCalibration => &GetOrpCalibration::FIELDS,
-            Self::SetPhCalibration => &SetPhCalibration::FIELDS,
-            Self::GetPhCalibration => &GetPhCalibration::FIELDS,
-            Self::GetSlaveId => &GetSlaveId::FIELDS,
-        }
+        self.entry().request_fields
     }
     /// Name and unit of each field of the reply (empty for writes).
     pub const fn response_fields(self) -> &'static [rtu::FieldInfo] {
-        match self {
-            Self::SetSlaveId => &[],
-            Self::GetSn => &GetSnResponse::FIELDS,
-            Self::GetPh => &GetPhResponse::FIELDS,
-            Self::GetOrpAndPh => &GetOrpAndPhResponse::FIELDS,
-            Self::GetOrp => &GetOrpResponse::FIELDS,
-            Self::GetVersion => &GetVersionResponse::FIELDS,
-            Self::StartPhCalibration => &[],
-            Self::GetCalibrationStatus => &GetCalibrationStatusResponse::FIELDS,
-            Self::GetTemperature => &GetTemperatureResponse::FIELDS,
-            Self::SetPhElectrodeCoefficients => &[],
-            Self::GetPhElectrodeCoefficients => {
-                &GetPhElectrodeCoefficientsResponse::FIELDS
-            }
-            Self::SetOrpCalibration => &[],
-            Self::GetOrpCalibration => &GetOrpCalibrationResponse::FIELDS,
-            Self::SetPhCalibration => &[],
-            Self::GetPhCalibration => &GetPhCalibrationResponse::FIELDS,
-            Self::GetSlaveId => &GetSlaveIdResponse::FIELDS,
-        }
+        self.entry().response_fields
     }
     /// Checks a request frame for this command and decodes it.
     pub fn decode_request(self, frame: &[u8]) -> Result<(u8, Request), rtu::FrameError> {
@@ -2354,22 +1628,22 @@ impl Request {
     /// The value of field `index` of [`CommandId::request_fields`].
     pub fn field(&self, index: usize) -> Option<rtu::FieldValue<'_>> {
         match self {
-            Self::SetSlaveId(r) => r.fields().get(index).copied(),
-            Self::GetSn(r) => r.fields().get(index).copied(),
-            Self::GetPh(r) => r.fields().get(index).copied(),
-            Self::GetOrpAndPh(r) => r.fields().get(index).copied(),
-            Self::GetOrp(r) => r.fields().get(index).copied(),
-            Self::GetVersion(r) => r.fields().get(index).copied(),
-            Self::StartPhCalibration(r) => r.fields().get(index).copied(),
-            Self::GetCalibrationStatus(r) => r.fields().get(index).copied(),
-            Self::GetTemperature(r) => r.fields().get(index).copied(),
-            Self::SetPhElectrodeCoefficients(r) => r.fields().get(index).copied(),
-            Self::GetPhElectrodeCoefficients(r) => r.fields().get(index).copied(),
-            Self::SetOrpCalibration(r) => r.fields().get(index).copied(),
-            Self::GetOrpCalibration(r) => r.fields().get(index).copied(),
-            Self::SetPhCalibration(r) => r.fields().get(index).copied(),
-            Self::GetPhCalibration(r) => r.fields().get(index).copied(),
-            Self::GetSlaveId(r) => r.fields().get(index).copied(),
+            Self::SetSlaveId(r) => rtu::Message::field(r, index),
+            Self::GetSn(r) => rtu::Message::field(r, index),
+            Self::GetPh(r) => rtu::Message::field(r, index),
+            Self::GetOrpAndPh(r) => rtu::Message::field(r, index),
+            Self::GetOrp(r) => rtu::Message::field(r, index),
+            Self::GetVersion(r) => rtu::Message::field(r, index),
+            Self::StartPhCalibration(r) => rtu::Message::field(r, index),
+            Self::GetCalibrationStatus(r) => rtu::Message::field(r, index),
+            Self::GetTemperature(r) => rtu::Message::field(r, index),
+            Self::SetPhElectrodeCoefficients(r) => rtu::Message::field(r, index),
+            Self::GetPhElectrodeCoefficients(r) => rtu::Message::field(r, index),
+            Self::SetOrpCalibration(r) => rtu::Message::field(r, index),
+            Self::GetOrpCalibration(r) => rtu::Message::field(r, index),
+            Self::SetPhCalibration(r) => rtu::Message::field(r, index),
+            Self::GetPhCalibration(r) => rtu::Message::field(r, index),
+            Self::GetSlaveId(r) => rtu::Message::field(r, index),
         }
     }
     /// Every field with its name and unit, in wire order.
@@ -2500,23 +1774,24 @@ impl Response {
     }
     /// The value of field `index` of [`CommandId::response_fields`].
     pub fn field(&self, index: usize) -> Option<rtu::FieldValue<'_>> {
+        use rtu::Message as _;
         match self {
             Self::SetSlaveId => None,
-            Self::GetSn(r) => r.fields().get(index).copied(),
-            Self::GetPh(r) => r.fields().get(index).copied(),
-            Self::GetOrpAndPh(r) => r.fields().get(index).copied(),
-            Self::GetOrp(r) => r.fields().get(index).copied(),
-            Self::GetVersion(r) => r.fields().get(index).copied(),
+            Self::GetSn(r) => r.field(index),
+            Self::GetPh(r) => r.field(index),
+            Self::GetOrpAndPh(r) => r.field(index),
+            Self::GetOrp(r) => r.field(index),
+            Self::GetVersion(r) => r.field(index),
             Self::StartPhCalibration => None,
-            Self::GetCalibrationStatus(r) => r.fields().get(index).copied(),
-            Self::GetTemperature(r) => r.fields().get(index).copied(),
+            Self::GetCalibrationStatus(r) => r.field(index),
+            Self::GetTemperature(r) => r.field(index),
             Self::SetPhElectrodeCoefficients => None,
-            Self::GetPhElectrodeCoefficients(r) => r.fields().get(index).copied(),
+            Self::GetPhElectrodeCoefficients(r) => r.field(index),
             Self::SetOrpCalibration => None,
-            Self::GetOrpCalibration(r) => r.fields().get(index).copied(),
+            Self::GetOrpCalibration(r) => r.field(index),
             Self::SetPhCalibration => None,
-            Self::GetPhCalibration(r) => r.fields().get(index).copied(),
-            Self::GetSlaveId(r) => r.fields().get(index).copied(),
+            Self::GetPhCalibration(r) => r.field(index),
+            Self::GetSlaveId(r) => r.field(index),
         }
     }
     /// Every field with its name and unit, in wire order.
@@ -2706,38 +1981,8 @@ pub fn decode_response(
 /// and register count (the first in spec order if several match). Does
 /// not check the frame: decode it with [`CommandId::decode_request`].
 pub fn identify_request(frame: &[u8]) -> Option<CommandId> {
-    let [_, function, address_hi, address_lo, count_hi, count_lo] = *frame
-        .first_chunk::<6>()?;
-    let address = u16::from_be_bytes([address_hi, address_lo]);
-    let count = u16::from_be_bytes([count_hi, count_lo]);
-    CommandId::ALL
-        .into_iter()
-        .find(|id| {
-            let layout = id.layout();
-            layout.function.code() == function && layout.address == address
-                && layout.count == count
-        })
+    rtu::identify_request(&COMMANDS, frame).and_then(|i| CommandId::ALL.get(i).copied())
 }
-
-/// Every command's spec name, in spec order.
-pub const COMMAND_NAMES: [&str; 16] = [
-    "set_slave_id",
-    "get_sn",
-    "get_ph",
-    "get_orp_and_ph",
-    "get_orp",
-    "get_version",
-    "start_ph_calibration",
-    "get_calibration_status",
-    "get_temperature",
-    "set_ph_electrode_coefficients",
-    "get_ph_electrode_coefficients",
-    "set_orp_calibration",
-    "get_orp_calibration",
-    "set_ph_calibration",
-    "get_ph_calibration",
-    "get_slave_id",
-];
 
 /// Every derived quantity of the sensor as data, in spec order: its
 /// inputs, and its function (`compute` takes the inputs in parameter order).
@@ -2785,57 +2030,8 @@ pub const DERIVED: [rtu::DerivedInfo; 1] = [
 /// (`crate::SENSORS` lists them all).
 pub const MODULE: rtu::SensorModule = rtu::SensorModule {
     info: SENSOR,
+    commands: &COMMANDS,
     derived: &DERIVED,
-    commands: &COMMAND_NAMES,
-    layout: |name| CommandId::from_name(name).map(CommandId::layout),
-    identify_request: |frame| identify_request(frame).map(CommandId::name),
-    visit_request: |name, frame, visit| {
-        let id = CommandId::from_name(name)?;
-        Some(
-            id
-                .decode_request(frame)
-                .map(|(slave, request)| {
-                    for (info, value) in request.fields() {
-                        visit(info, value);
-                    }
-                    slave
-                }),
-        )
-    },
-    reencode_request: |name, frame, out| {
-        let id = CommandId::from_name(name)?;
-        Some(
-            id
-                .decode_request(frame)
-                .map_err(rtu::RoundTripError::Frame)
-                .and_then(|(slave, request)| {
-                    request.encode(slave, out).map_err(rtu::RoundTripError::Encode)
-                }),
-        )
-    },
-    reencode_response: |name, slave, frame, out| {
-        let id = CommandId::from_name(name)?;
-        Some(
-            id
-                .decode_response(slave, frame)
-                .map_err(rtu::RoundTripError::Frame)
-                .and_then(|response| {
-                    response.encode(slave, out).map_err(rtu::RoundTripError::Encode)
-                }),
-        )
-    },
-    visit_response: |name, slave, frame, visit| {
-        let id = CommandId::from_name(name)?;
-        Some(
-            id
-                .decode_response(slave, frame)
-                .map(|response| {
-                    for (info, value) in response.fields() {
-                        visit(info, value);
-                    }
-                }),
-        )
-    },
 };
 
 #[cfg(feature = "std")]

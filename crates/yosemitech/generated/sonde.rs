@@ -51,15 +51,7 @@ pub const DEFAULT_BRUSH_INTERVAL_MIN: u16 = 30;
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub struct GetMeasurementData;
 
-impl GetMeasurementData {
-    /// Name and unit of each field, in wire order.
-    pub const FIELDS: [rtu::FieldInfo; 0] = [];
-    /// Each field's value, in the order of [`Self::FIELDS`].
-    pub fn fields(&self) -> [rtu::FieldValue<'_>; 0] {
-        []
-    }
-}
-
+impl rtu::NoData for GetMeasurementData {}
 /// Reply to [`GetMeasurementData`]. Every measured value in one read: eight floats in a fixed order.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GetMeasurementDataResponse {
@@ -130,58 +122,21 @@ impl GetMeasurementDataResponse {
     pub fn bga_present(&self) -> Option<f32> {
         if self.bga == 0.0 { None } else { Some(self.bga) }
     }
-    /// Name and unit of each field, in wire order.
-    pub const FIELDS: [rtu::FieldInfo; 8] = [
-        rtu::FieldInfo {
-            name: "do_mg_l",
-            unit: Some("mg/L"),
-        },
-        rtu::FieldInfo {
-            name: "turbidity_ntu",
-            unit: Some("NTU"),
-        },
-        rtu::FieldInfo {
-            name: "conductivity",
-            unit: None,
-        },
-        rtu::FieldInfo {
-            name: "ph",
-            unit: Some("pH"),
-        },
-        rtu::FieldInfo {
-            name: "temperature_c",
-            unit: Some("degC"),
-        },
-        rtu::FieldInfo {
-            name: "orp_mv",
-            unit: Some("mV"),
-        },
-        rtu::FieldInfo {
-            name: "chlorophyll",
-            unit: None,
-        },
-        rtu::FieldInfo {
-            name: "bga",
-            unit: None,
-        },
+}
+
+impl rtu::Message for GetMeasurementDataResponse {
+    type Data = [u8; 32];
+    const FIELDS: &'static [rtu::FieldInfo] = &[
+        rtu::FieldInfo::new("do_mg_l", Some("mg/L")),
+        rtu::FieldInfo::new("turbidity_ntu", Some("NTU")),
+        rtu::FieldInfo::new("conductivity", None),
+        rtu::FieldInfo::new("ph", Some("pH")),
+        rtu::FieldInfo::new("temperature_c", Some("degC")),
+        rtu::FieldInfo::new("orp_mv", Some("mV")),
+        rtu::FieldInfo::new("chlorophyll", None),
+        rtu::FieldInfo::new("bga", None),
     ];
-    /// Each field's value, in the order of [`Self::FIELDS`].
-    pub fn fields(&self) -> [rtu::FieldValue<'_>; 8] {
-        [
-            rtu::FieldValue::F32(self.do_mg_l),
-            rtu::FieldValue::F32(self.turbidity_ntu),
-            rtu::FieldValue::F32(self.conductivity),
-            rtu::FieldValue::F32(self.ph),
-            rtu::FieldValue::F32(self.temperature_c),
-            rtu::FieldValue::F32(self.orp_mv),
-            rtu::FieldValue::F32(self.chlorophyll),
-            rtu::FieldValue::F32(self.bga),
-        ]
-    }
-    /// Bytes of register data: two per register.
-    pub const DATA_LEN: usize = 32;
-    /// Decodes register data; reserved bytes are ignored.
-    pub const fn from_data(data: &[u8; 32]) -> Self {
+    fn from_data(data: &[u8; 32]) -> Self {
         Self {
             do_mg_l: rtu::codec::f32_from_wire(
                 rtu::ByteOrder4::Dcba,
@@ -217,8 +172,7 @@ impl GetMeasurementDataResponse {
             ),
         }
     }
-    /// Encodes register data, reserved bytes with their fill.
-    pub const fn to_data(&self) -> [u8; 32] {
+    fn to_data(&self) -> [u8; 32] {
         let [b0, b1, b2, b3] = rtu::codec::f32_to_wire(
             rtu::ByteOrder4::Dcba,
             self.do_mg_l,
@@ -286,49 +240,25 @@ impl GetMeasurementDataResponse {
             b31,
         ]
     }
+    fn field(&self, index: usize) -> Option<rtu::FieldValue<'_>> {
+        match index {
+            0 => Some(rtu::FieldValue::F32(self.do_mg_l)),
+            1 => Some(rtu::FieldValue::F32(self.turbidity_ntu)),
+            2 => Some(rtu::FieldValue::F32(self.conductivity)),
+            3 => Some(rtu::FieldValue::F32(self.ph)),
+            4 => Some(rtu::FieldValue::F32(self.temperature_c)),
+            5 => Some(rtu::FieldValue::F32(self.orp_mv)),
+            6 => Some(rtu::FieldValue::F32(self.chlorophyll)),
+            7 => Some(rtu::FieldValue::F32(self.bga)),
+            _ => None,
+        }
+    }
 }
 
 impl rtu::Command for GetMeasurementData {
     type Response = GetMeasurementDataResponse;
     const NAME: &'static str = "get_measurement_data";
-    const LAYOUT: rtu::Layout<'static> = rtu::Layout {
-        function: rtu::Function::Read,
-        address: 0x2601,
-        count: 16,
-        fixed_slave: None,
-        extra_byte_counts: &[],
-        trigger: false,
-    };
-    fn encode_request(
-        &self,
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        Self::LAYOUT.encode_request(slave, &[], out)
-    }
-    fn decode_request(frame: &[u8]) -> Result<(u8, Self), rtu::FrameError> {
-        let (slave, _) = Self::LAYOUT.decode_request(frame)?;
-        Ok((slave, Self))
-    }
-    fn encode_response(
-        response: &GetMeasurementDataResponse,
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        Self::LAYOUT.encode_response(slave, &response.to_data(), out)
-    }
-    fn decode_response(
-        slave: u8,
-        frame: &[u8],
-    ) -> Result<GetMeasurementDataResponse, rtu::FrameError> {
-        let data = Self::LAYOUT.decode_response(slave, frame)?;
-        let data = <&[u8; 32]>::try_from(data)
-            .map_err(|_| rtu::FrameError::Truncated {
-                expected: Self::RESPONSE_LEN,
-                actual: frame.len(),
-            })?;
-        Ok(GetMeasurementDataResponse::from_data(data))
-    }
+    const LAYOUT: rtu::Layout<'static> = rtu::Layout::read(0x2601, 16);
 }
 
 /// Get SN.
@@ -368,15 +298,7 @@ pub use super::yosemitech_sonde::{GetSn, GetSnResponse};
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub struct GetErrorFlag;
 
-impl GetErrorFlag {
-    /// Name and unit of each field, in wire order.
-    pub const FIELDS: [rtu::FieldInfo; 0] = [];
-    /// Each field's value, in the order of [`Self::FIELDS`].
-    pub fn fields(&self) -> [rtu::FieldValue<'_>; 0] {
-        []
-    }
-}
-
+impl rtu::NoData for GetErrorFlag {}
 /// Reply to [`GetErrorFlag`]. The sonde's error flags; 0 means no error.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub struct GetErrorFlagResponse {
@@ -408,70 +330,31 @@ impl GetErrorFlagResponse {
             .filter(move |(mask, _)| self.error_flags & mask != 0)
             .map(|(_, name)| name)
     }
-    /// Name and unit of each field, in wire order.
-    pub const FIELDS: [rtu::FieldInfo; 1] = [
-        rtu::FieldInfo {
-            name: "error_flags",
-            unit: None,
-        },
+}
+
+impl rtu::Message for GetErrorFlagResponse {
+    type Data = [u8; 2];
+    const FIELDS: &'static [rtu::FieldInfo] = &[
+        rtu::FieldInfo::new("error_flags", None),
     ];
-    /// Each field's value, in the order of [`Self::FIELDS`].
-    pub fn fields(&self) -> [rtu::FieldValue<'_>; 1] {
-        [rtu::FieldValue::Int(i64::from(self.error_flags))]
-    }
-    /// Bytes of register data: two per register.
-    pub const DATA_LEN: usize = 2;
-    /// Decodes register data; reserved bytes are ignored.
-    pub const fn from_data(data: &[u8; 2]) -> Self {
+    fn from_data(data: &[u8; 2]) -> Self {
         Self { error_flags: data[0] }
     }
-    /// Encodes register data, reserved bytes with their fill.
-    pub const fn to_data(&self) -> [u8; 2] {
+    fn to_data(&self) -> [u8; 2] {
         [self.error_flags, 0x00]
+    }
+    fn field(&self, index: usize) -> Option<rtu::FieldValue<'_>> {
+        match index {
+            0 => Some(rtu::FieldValue::Int(i64::from(self.error_flags))),
+            _ => None,
+        }
     }
 }
 
 impl rtu::Command for GetErrorFlag {
     type Response = GetErrorFlagResponse;
     const NAME: &'static str = "get_error_flag";
-    const LAYOUT: rtu::Layout<'static> = rtu::Layout {
-        function: rtu::Function::Read,
-        address: 0x0800,
-        count: 1,
-        fixed_slave: None,
-        extra_byte_counts: &[],
-        trigger: false,
-    };
-    fn encode_request(
-        &self,
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        Self::LAYOUT.encode_request(slave, &[], out)
-    }
-    fn decode_request(frame: &[u8]) -> Result<(u8, Self), rtu::FrameError> {
-        let (slave, _) = Self::LAYOUT.decode_request(frame)?;
-        Ok((slave, Self))
-    }
-    fn encode_response(
-        response: &GetErrorFlagResponse,
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        Self::LAYOUT.encode_response(slave, &response.to_data(), out)
-    }
-    fn decode_response(
-        slave: u8,
-        frame: &[u8],
-    ) -> Result<GetErrorFlagResponse, rtu::FrameError> {
-        let data = Self::LAYOUT.decode_response(slave, frame)?;
-        let data = <&[u8; 2]>::try_from(data)
-            .map_err(|_| rtu::FrameError::Truncated {
-                expected: Self::RESPONSE_LEN,
-                actual: frame.len(),
-            })?;
-        Ok(GetErrorFlagResponse::from_data(data))
-    }
+    const LAYOUT: rtu::Layout<'static> = rtu::Layout::read(0x0800, 1);
 }
 
 /// Get Brush Interval of time.
@@ -490,15 +373,7 @@ impl rtu::Command for GetErrorFlag {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub struct GetBrushInterval;
 
-impl GetBrushInterval {
-    /// Name and unit of each field, in wire order.
-    pub const FIELDS: [rtu::FieldInfo; 0] = [];
-    /// Each field's value, in the order of [`Self::FIELDS`].
-    pub fn fields(&self) -> [rtu::FieldValue<'_>; 0] {
-        []
-    }
-}
-
+impl rtu::NoData for GetBrushInterval {}
 /// Reply to [`GetBrushInterval`]. The time between two rotations of the brush, in minutes (default 30), a little-endian 16-bit integer.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub struct GetBrushIntervalResponse {
@@ -508,77 +383,31 @@ pub struct GetBrushIntervalResponse {
     pub interval_min: u16,
 }
 
-impl GetBrushIntervalResponse {
-    /// Name and unit of each field, in wire order.
-    pub const FIELDS: [rtu::FieldInfo; 1] = [
-        rtu::FieldInfo {
-            name: "interval_min",
-            unit: Some("min"),
-        },
+impl rtu::Message for GetBrushIntervalResponse {
+    type Data = [u8; 2];
+    const FIELDS: &'static [rtu::FieldInfo] = &[
+        rtu::FieldInfo::new("interval_min", Some("min")),
     ];
-    /// Each field's value, in the order of [`Self::FIELDS`].
-    pub fn fields(&self) -> [rtu::FieldValue<'_>; 1] {
-        [rtu::FieldValue::Int(i64::from(self.interval_min))]
-    }
-    /// Bytes of register data: two per register.
-    pub const DATA_LEN: usize = 2;
-    /// Decodes register data; reserved bytes are ignored.
-    pub const fn from_data(data: &[u8; 2]) -> Self {
+    fn from_data(data: &[u8; 2]) -> Self {
         Self {
-            interval_min: rtu::codec::u16_from_wire(
-                rtu::ByteOrder2::Ba,
-                [data[0], data[1]],
-            ),
+            interval_min: rtu::codec::u16_from_wire(rtu::ByteOrder2::Ba, *data),
         }
     }
-    /// Encodes register data, reserved bytes with their fill.
-    pub const fn to_data(&self) -> [u8; 2] {
-        let [b0, b1] = rtu::codec::u16_to_wire(rtu::ByteOrder2::Ba, self.interval_min);
-        [b0, b1]
+    fn to_data(&self) -> [u8; 2] {
+        rtu::codec::u16_to_wire(rtu::ByteOrder2::Ba, self.interval_min)
+    }
+    fn field(&self, index: usize) -> Option<rtu::FieldValue<'_>> {
+        match index {
+            0 => Some(rtu::FieldValue::Int(i64::from(self.interval_min))),
+            _ => None,
+        }
     }
 }
 
 impl rtu::Command for GetBrushInterval {
     type Response = GetBrushIntervalResponse;
     const NAME: &'static str = "get_brush_interval";
-    const LAYOUT: rtu::Layout<'static> = rtu::Layout {
-        function: rtu::Function::Read,
-        address: 0x0E00,
-        count: 1,
-        fixed_slave: None,
-        extra_byte_counts: &[],
-        trigger: false,
-    };
-    fn encode_request(
-        &self,
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        Self::LAYOUT.encode_request(slave, &[], out)
-    }
-    fn decode_request(frame: &[u8]) -> Result<(u8, Self), rtu::FrameError> {
-        let (slave, _) = Self::LAYOUT.decode_request(frame)?;
-        Ok((slave, Self))
-    }
-    fn encode_response(
-        response: &GetBrushIntervalResponse,
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        Self::LAYOUT.encode_response(slave, &response.to_data(), out)
-    }
-    fn decode_response(
-        slave: u8,
-        frame: &[u8],
-    ) -> Result<GetBrushIntervalResponse, rtu::FrameError> {
-        let data = Self::LAYOUT.decode_response(slave, frame)?;
-        let data = <&[u8; 2]>::try_from(data)
-            .map_err(|_| rtu::FrameError::Truncated {
-                expected: Self::RESPONSE_LEN,
-                actual: frame.len(),
-            })?;
-        Ok(GetBrushIntervalResponse::from_data(data))
-    }
+    const LAYOUT: rtu::Layout<'static> = rtu::Layout::read(0x0E00, 1);
 }
 
 /// Set Brush Interval of time.
@@ -602,81 +431,31 @@ pub struct SetBrushInterval {
     pub interval_min: u16,
 }
 
-impl SetBrushInterval {
-    /// Name and unit of each field, in wire order.
-    pub const FIELDS: [rtu::FieldInfo; 1] = [
-        rtu::FieldInfo {
-            name: "interval_min",
-            unit: Some("min"),
-        },
+impl rtu::Message for SetBrushInterval {
+    type Data = [u8; 2];
+    const FIELDS: &'static [rtu::FieldInfo] = &[
+        rtu::FieldInfo::new("interval_min", Some("min")),
     ];
-    /// Each field's value, in the order of [`Self::FIELDS`].
-    pub fn fields(&self) -> [rtu::FieldValue<'_>; 1] {
-        [rtu::FieldValue::Int(i64::from(self.interval_min))]
-    }
-    /// Bytes of register data: two per register.
-    pub const DATA_LEN: usize = 2;
-    /// Decodes register data; reserved bytes are ignored.
-    pub const fn from_data(data: &[u8; 2]) -> Self {
+    fn from_data(data: &[u8; 2]) -> Self {
         Self {
-            interval_min: rtu::codec::u16_from_wire(
-                rtu::ByteOrder2::Ba,
-                [data[0], data[1]],
-            ),
+            interval_min: rtu::codec::u16_from_wire(rtu::ByteOrder2::Ba, *data),
         }
     }
-    /// Encodes register data, reserved bytes with their fill. Does not
-    /// check ranges: see [`Self::validate`].
-    pub const fn to_data(&self) -> [u8; 2] {
-        let [b0, b1] = rtu::codec::u16_to_wire(rtu::ByteOrder2::Ba, self.interval_min);
-        [b0, b1]
+    fn to_data(&self) -> [u8; 2] {
+        rtu::codec::u16_to_wire(rtu::ByteOrder2::Ba, self.interval_min)
     }
-    /// Checks every field against the range the spec allows
-    /// ([`rtu::EncodeError::OutOfRange`] names the first that is not).
-    pub fn validate(&self) -> Result<(), rtu::EncodeError> {
-        Ok(())
+    fn field(&self, index: usize) -> Option<rtu::FieldValue<'_>> {
+        match index {
+            0 => Some(rtu::FieldValue::Int(i64::from(self.interval_min))),
+            _ => None,
+        }
     }
 }
 
 impl rtu::Command for SetBrushInterval {
     type Response = ();
     const NAME: &'static str = "set_brush_interval";
-    const LAYOUT: rtu::Layout<'static> = rtu::Layout {
-        function: rtu::Function::Write,
-        address: 0x0E00,
-        count: 1,
-        fixed_slave: None,
-        extra_byte_counts: &[],
-        trigger: false,
-    };
-    fn encode_request(
-        &self,
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        self.validate()?;
-        Self::LAYOUT.encode_request(slave, &self.to_data(), out)
-    }
-    fn decode_request(frame: &[u8]) -> Result<(u8, Self), rtu::FrameError> {
-        let (slave, data) = Self::LAYOUT.decode_request(frame)?;
-        let data = <&[u8; 2]>::try_from(data)
-            .map_err(|_| rtu::FrameError::Truncated {
-                expected: Self::REQUEST_LEN,
-                actual: frame.len(),
-            })?;
-        Ok((slave, Self::from_data(data)))
-    }
-    fn encode_response(
-        _response: &(),
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        Self::LAYOUT.encode_response(slave, &[], out)
-    }
-    fn decode_response(slave: u8, frame: &[u8]) -> Result<(), rtu::FrameError> {
-        Self::LAYOUT.decode_response(slave, frame)?;
-        Ok(())
-    }
+    const LAYOUT: rtu::Layout<'static> = rtu::Layout::write(0x0E00, 1);
 }
 
 /// Set the time.
@@ -723,49 +502,17 @@ pub struct SetTime {
     pub year: rtu::Bcd,
 }
 
-impl SetTime {
-    /// Name and unit of each field, in wire order.
-    pub const FIELDS: [rtu::FieldInfo; 6] = [
-        rtu::FieldInfo {
-            name: "second",
-            unit: None,
-        },
-        rtu::FieldInfo {
-            name: "minute",
-            unit: None,
-        },
-        rtu::FieldInfo {
-            name: "hour",
-            unit: None,
-        },
-        rtu::FieldInfo {
-            name: "day",
-            unit: None,
-        },
-        rtu::FieldInfo {
-            name: "month",
-            unit: None,
-        },
-        rtu::FieldInfo {
-            name: "year",
-            unit: None,
-        },
+impl rtu::Message for SetTime {
+    type Data = [u8; 8];
+    const FIELDS: &'static [rtu::FieldInfo] = &[
+        rtu::FieldInfo::new("second", None),
+        rtu::FieldInfo::new("minute", None),
+        rtu::FieldInfo::new("hour", None),
+        rtu::FieldInfo::new("day", None),
+        rtu::FieldInfo::new("month", None),
+        rtu::FieldInfo::new("year", None),
     ];
-    /// Each field's value, in the order of [`Self::FIELDS`].
-    pub fn fields(&self) -> [rtu::FieldValue<'_>; 6] {
-        [
-            rtu::FieldValue::Bcd(self.second),
-            rtu::FieldValue::Bcd(self.minute),
-            rtu::FieldValue::Bcd(self.hour),
-            rtu::FieldValue::Bcd(self.day),
-            rtu::FieldValue::Bcd(self.month),
-            rtu::FieldValue::Bcd(self.year),
-        ]
-    }
-    /// Bytes of register data: two per register.
-    pub const DATA_LEN: usize = 8;
-    /// Decodes register data; reserved bytes are ignored.
-    pub const fn from_data(data: &[u8; 8]) -> Self {
+    fn from_data(data: &[u8; 8]) -> Self {
         Self {
             second: rtu::Bcd(data[0]),
             minute: rtu::Bcd(data[1]),
@@ -775,9 +522,7 @@ impl SetTime {
             year: rtu::Bcd(data[6]),
         }
     }
-    /// Encodes register data, reserved bytes with their fill. Does not
-    /// check ranges: see [`Self::validate`].
-    pub const fn to_data(&self) -> [u8; 8] {
+    fn to_data(&self) -> [u8; 8] {
         [
             self.second.0,
             self.minute.0,
@@ -789,9 +534,18 @@ impl SetTime {
             0x00,
         ]
     }
-    /// Checks every field against the range the spec allows
-    /// ([`rtu::EncodeError::OutOfRange`] names the first that is not).
-    pub fn validate(&self) -> Result<(), rtu::EncodeError> {
+    fn field(&self, index: usize) -> Option<rtu::FieldValue<'_>> {
+        match index {
+            0 => Some(rtu::FieldValue::Bcd(self.second)),
+            1 => Some(rtu::FieldValue::Bcd(self.minute)),
+            2 => Some(rtu::FieldValue::Bcd(self.hour)),
+            3 => Some(rtu::FieldValue::Bcd(self.day)),
+            4 => Some(rtu::FieldValue::Bcd(self.month)),
+            5 => Some(rtu::FieldValue::Bcd(self.year)),
+            _ => None,
+        }
+    }
+    fn validate(&self) -> Result<(), rtu::EncodeError> {
         match self.second.value() {
             Some(v) if (0..=59).contains(&v) => {}
             _ => {
@@ -847,42 +601,7 @@ impl SetTime {
 impl rtu::Command for SetTime {
     type Response = ();
     const NAME: &'static str = "set_time";
-    const LAYOUT: rtu::Layout<'static> = rtu::Layout {
-        function: rtu::Function::Write,
-        address: 0x1300,
-        count: 4,
-        fixed_slave: None,
-        extra_byte_counts: &[],
-        trigger: false,
-    };
-    fn encode_request(
-        &self,
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        self.validate()?;
-        Self::LAYOUT.encode_request(slave, &self.to_data(), out)
-    }
-    fn decode_request(frame: &[u8]) -> Result<(u8, Self), rtu::FrameError> {
-        let (slave, data) = Self::LAYOUT.decode_request(frame)?;
-        let data = <&[u8; 8]>::try_from(data)
-            .map_err(|_| rtu::FrameError::Truncated {
-                expected: Self::REQUEST_LEN,
-                actual: frame.len(),
-            })?;
-        Ok((slave, Self::from_data(data)))
-    }
-    fn encode_response(
-        _response: &(),
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        Self::LAYOUT.encode_response(slave, &[], out)
-    }
-    fn decode_response(slave: u8, frame: &[u8]) -> Result<(), rtu::FrameError> {
-        Self::LAYOUT.decode_response(slave, frame)?;
-        Ok(())
-    }
+    const LAYOUT: rtu::Layout<'static> = rtu::Layout::write(0x1300, 4);
 }
 
 /// Get the time.
@@ -903,15 +622,7 @@ impl rtu::Command for SetTime {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub struct GetTime;
 
-impl GetTime {
-    /// Name and unit of each field, in wire order.
-    pub const FIELDS: [rtu::FieldInfo; 0] = [];
-    /// Each field's value, in the order of [`Self::FIELDS`].
-    pub fn fields(&self) -> [rtu::FieldValue<'_>; 0] {
-        []
-    }
-}
-
+impl rtu::NoData for GetTime {}
 /// Reply to [`GetTime`]. Reads the sonde's real-time clock, laid out as in Set the time.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub struct GetTimeResponse {
@@ -941,49 +652,17 @@ pub struct GetTimeResponse {
     pub year: rtu::Bcd,
 }
 
-impl GetTimeResponse {
-    /// Name and unit of each field, in wire order.
-    pub const FIELDS: [rtu::FieldInfo; 6] = [
-        rtu::FieldInfo {
-            name: "second",
-            unit: None,
-        },
-        rtu::FieldInfo {
-            name: "minute",
-            unit: None,
-        },
-        rtu::FieldInfo {
-            name: "hour",
-            unit: None,
-        },
-        rtu::FieldInfo {
-            name: "day",
-            unit: None,
-        },
-        rtu::FieldInfo {
-            name: "month",
-            unit: None,
-        },
-        rtu::FieldInfo {
-            name: "year",
-            unit: None,
-        },
+impl rtu::Message for GetTimeResponse {
+    type Data = [u8; 8];
+    const FIELDS: &'static [rtu::FieldInfo] = &[
+        rtu::FieldInfo::new("second", None),
+        rtu::FieldInfo::new("minute", None),
+        rtu::FieldInfo::new("hour", None),
+        rtu::FieldInfo::new("day", None),
+        rtu::FieldInfo::new("month", None),
+        rtu::FieldInfo::new("year", None),
     ];
-    /// Each field's value, in the order of [`Self::FIELDS`].
-    pub fn fields(&self) -> [rtu::FieldValue<'_>; 6] {
-        [
-            rtu::FieldValue::Bcd(self.second),
-            rtu::FieldValue::Bcd(self.minute),
-            rtu::FieldValue::Bcd(self.hour),
-            rtu::FieldValue::Bcd(self.day),
-            rtu::FieldValue::Bcd(self.month),
-            rtu::FieldValue::Bcd(self.year),
-        ]
-    }
-    /// Bytes of register data: two per register.
-    pub const DATA_LEN: usize = 8;
-    /// Decodes register data; reserved bytes are ignored.
-    pub const fn from_data(data: &[u8; 8]) -> Self {
+    fn from_data(data: &[u8; 8]) -> Self {
         Self {
             second: rtu::Bcd(data[0]),
             minute: rtu::Bcd(data[1]),
@@ -993,8 +672,7 @@ impl GetTimeResponse {
             year: rtu::Bcd(data[6]),
         }
     }
-    /// Encodes register data, reserved bytes with their fill.
-    pub const fn to_data(&self) -> [u8; 8] {
+    fn to_data(&self) -> [u8; 8] {
         [
             self.second.0,
             self.minute.0,
@@ -1006,49 +684,23 @@ impl GetTimeResponse {
             0x00,
         ]
     }
+    fn field(&self, index: usize) -> Option<rtu::FieldValue<'_>> {
+        match index {
+            0 => Some(rtu::FieldValue::Bcd(self.second)),
+            1 => Some(rtu::FieldValue::Bcd(self.minute)),
+            2 => Some(rtu::FieldValue::Bcd(self.hour)),
+            3 => Some(rtu::FieldValue::Bcd(self.day)),
+            4 => Some(rtu::FieldValue::Bcd(self.month)),
+            5 => Some(rtu::FieldValue::Bcd(self.year)),
+            _ => None,
+        }
+    }
 }
 
 impl rtu::Command for GetTime {
     type Response = GetTimeResponse;
     const NAME: &'static str = "get_time";
-    const LAYOUT: rtu::Layout<'static> = rtu::Layout {
-        function: rtu::Function::Read,
-        address: 0x1300,
-        count: 4,
-        fixed_slave: None,
-        extra_byte_counts: &[],
-        trigger: false,
-    };
-    fn encode_request(
-        &self,
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        Self::LAYOUT.encode_request(slave, &[], out)
-    }
-    fn decode_request(frame: &[u8]) -> Result<(u8, Self), rtu::FrameError> {
-        let (slave, _) = Self::LAYOUT.decode_request(frame)?;
-        Ok((slave, Self))
-    }
-    fn encode_response(
-        response: &GetTimeResponse,
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        Self::LAYOUT.encode_response(slave, &response.to_data(), out)
-    }
-    fn decode_response(
-        slave: u8,
-        frame: &[u8],
-    ) -> Result<GetTimeResponse, rtu::FrameError> {
-        let data = Self::LAYOUT.decode_response(slave, frame)?;
-        let data = <&[u8; 8]>::try_from(data)
-            .map_err(|_| rtu::FrameError::Truncated {
-                expected: Self::RESPONSE_LEN,
-                actual: frame.len(),
-            })?;
-        Ok(GetTimeResponse::from_data(data))
-    }
+    const LAYOUT: rtu::Layout<'static> = rtu::Layout::read(0x1300, 4);
 }
 
 /// Set Slave Device ID.
@@ -1091,15 +743,7 @@ pub use super::yosemitech_common::SetSlaveId;
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub struct GetSupplyVoltage;
 
-impl GetSupplyVoltage {
-    /// Name and unit of each field, in wire order.
-    pub const FIELDS: [rtu::FieldInfo; 0] = [];
-    /// Each field's value, in the order of [`Self::FIELDS`].
-    pub fn fields(&self) -> [rtu::FieldValue<'_>; 0] {
-        []
-    }
-}
-
+impl rtu::NoData for GetSupplyVoltage {}
 /// Reply to [`GetSupplyVoltage`]. The supply voltage the sonde measures, in volts.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GetSupplyVoltageResponse {
@@ -1109,80 +753,31 @@ pub struct GetSupplyVoltageResponse {
     pub supply_voltage_v: f32,
 }
 
-impl GetSupplyVoltageResponse {
-    /// Name and unit of each field, in wire order.
-    pub const FIELDS: [rtu::FieldInfo; 1] = [
-        rtu::FieldInfo {
-            name: "supply_voltage_v",
-            unit: Some("V"),
-        },
+impl rtu::Message for GetSupplyVoltageResponse {
+    type Data = [u8; 4];
+    const FIELDS: &'static [rtu::FieldInfo] = &[
+        rtu::FieldInfo::new("supply_voltage_v", Some("V")),
     ];
-    /// Each field's value, in the order of [`Self::FIELDS`].
-    pub fn fields(&self) -> [rtu::FieldValue<'_>; 1] {
-        [rtu::FieldValue::F32(self.supply_voltage_v)]
-    }
-    /// Bytes of register data: two per register.
-    pub const DATA_LEN: usize = 4;
-    /// Decodes register data; reserved bytes are ignored.
-    pub const fn from_data(data: &[u8; 4]) -> Self {
+    fn from_data(data: &[u8; 4]) -> Self {
         Self {
-            supply_voltage_v: rtu::codec::f32_from_wire(
-                rtu::ByteOrder4::Dcba,
-                [data[0], data[1], data[2], data[3]],
-            ),
+            supply_voltage_v: rtu::codec::f32_from_wire(rtu::ByteOrder4::Dcba, *data),
         }
     }
-    /// Encodes register data, reserved bytes with their fill.
-    pub const fn to_data(&self) -> [u8; 4] {
-        let [b0, b1, b2, b3] = rtu::codec::f32_to_wire(
-            rtu::ByteOrder4::Dcba,
-            self.supply_voltage_v,
-        );
-        [b0, b1, b2, b3]
+    fn to_data(&self) -> [u8; 4] {
+        rtu::codec::f32_to_wire(rtu::ByteOrder4::Dcba, self.supply_voltage_v)
+    }
+    fn field(&self, index: usize) -> Option<rtu::FieldValue<'_>> {
+        match index {
+            0 => Some(rtu::FieldValue::F32(self.supply_voltage_v)),
+            _ => None,
+        }
     }
 }
 
 impl rtu::Command for GetSupplyVoltage {
     type Response = GetSupplyVoltageResponse;
     const NAME: &'static str = "get_supply_voltage";
-    const LAYOUT: rtu::Layout<'static> = rtu::Layout {
-        function: rtu::Function::Read,
-        address: 0x1E00,
-        count: 2,
-        fixed_slave: None,
-        extra_byte_counts: &[],
-        trigger: false,
-    };
-    fn encode_request(
-        &self,
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        Self::LAYOUT.encode_request(slave, &[], out)
-    }
-    fn decode_request(frame: &[u8]) -> Result<(u8, Self), rtu::FrameError> {
-        let (slave, _) = Self::LAYOUT.decode_request(frame)?;
-        Ok((slave, Self))
-    }
-    fn encode_response(
-        response: &GetSupplyVoltageResponse,
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        Self::LAYOUT.encode_response(slave, &response.to_data(), out)
-    }
-    fn decode_response(
-        slave: u8,
-        frame: &[u8],
-    ) -> Result<GetSupplyVoltageResponse, rtu::FrameError> {
-        let data = Self::LAYOUT.decode_response(slave, frame)?;
-        let data = <&[u8; 4]>::try_from(data)
-            .map_err(|_| rtu::FrameError::Truncated {
-                expected: Self::RESPONSE_LEN,
-                actual: frame.len(),
-            })?;
-        Ok(GetSupplyVoltageResponse::from_data(data))
-    }
+    const LAYOUT: rtu::Layout<'static> = rtu::Layout::read(0x1E00, 2);
 }
 
 /// Active Brush.
@@ -1201,31 +796,7 @@ impl rtu::Command for GetSupplyVoltage {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub struct ActiveBrush;
 
-impl ActiveBrush {
-    /// Name and unit of each field, in wire order.
-    pub const FIELDS: [rtu::FieldInfo; 0] = [];
-    /// Each field's value, in the order of [`Self::FIELDS`].
-    pub fn fields(&self) -> [rtu::FieldValue<'_>; 0] {
-        []
-    }
-    /// Bytes of register data: two per register.
-    pub const DATA_LEN: usize = 0;
-    /// Decodes register data (nothing in it is kept).
-    pub const fn from_data(_data: &[u8; 0]) -> Self {
-        Self
-    }
-    /// Encodes register data, reserved bytes with their fill. Does not
-    /// check ranges: see [`Self::validate`].
-    pub const fn to_data(&self) -> [u8; 0] {
-        []
-    }
-    /// Checks every field against the range the spec allows
-    /// ([`rtu::EncodeError::OutOfRange`] names the first that is not).
-    pub fn validate(&self) -> Result<(), rtu::EncodeError> {
-        Ok(())
-    }
-}
-
+impl rtu::NoData for ActiveBrush {}
 impl rtu::Command for ActiveBrush {
     type Response = ();
     const NAME: &'static str = "active_brush";
@@ -1237,30 +808,22 @@ impl rtu::Command for ActiveBrush {
         extra_byte_counts: &[],
         trigger: true,
     };
-    fn encode_request(
-        &self,
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        self.validate()?;
-        Self::LAYOUT.encode_request(slave, &[], out)
-    }
-    fn decode_request(frame: &[u8]) -> Result<(u8, Self), rtu::FrameError> {
-        let (slave, _) = Self::LAYOUT.decode_request(frame)?;
-        Ok((slave, Self))
-    }
-    fn encode_response(
-        _response: &(),
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        Self::LAYOUT.encode_response(slave, &[], out)
-    }
-    fn decode_response(slave: u8, frame: &[u8]) -> Result<(), rtu::FrameError> {
-        Self::LAYOUT.decode_response(slave, frame)?;
-        Ok(())
-    }
 }
+
+/// Every command of this sensor as data, in spec order: name, title,
+/// layout, fields and codecs ([`CommandId`] indexes it).
+pub const COMMANDS: [rtu::CommandEntry; 10] = [
+    rtu::CommandEntry::of::<GetMeasurementData>("Get measurement data"),
+    rtu::CommandEntry::of::<GetSn>("Get SN"),
+    rtu::CommandEntry::of::<GetErrorFlag>("Error Flag"),
+    rtu::CommandEntry::of::<GetBrushInterval>("Get Brush Interval of time"),
+    rtu::CommandEntry::of::<SetBrushInterval>("Set Brush Interval of time"),
+    rtu::CommandEntry::of::<SetTime>("Set the time"),
+    rtu::CommandEntry::of::<GetTime>("Get the time"),
+    rtu::CommandEntry::of::<SetSlaveId>("Set Slave Device ID"),
+    rtu::CommandEntry::of::<GetSupplyVoltage>("Get the supply voltage"),
+    rtu::CommandEntry::of::<ActiveBrush>("Active Brush"),
+];
 
 /// Every command of this sensor, for code that picks commands at run
 /// time (CLIs, simulators, tests).
@@ -1302,96 +865,34 @@ impl CommandId {
         Self::GetSupplyVoltage,
         Self::ActiveBrush,
     ];
+    /// The command's row of [`COMMANDS`].
+    #[allow(clippy::indexing_slicing)]
+    pub const fn entry(self) -> &'static rtu::CommandEntry {
+        &COMMANDS[self as usize]
+    }
     /// The command's snake_case name in the spec.
     pub const fn name(self) -> &'static str {
-        match self {
-            Self::GetMeasurementData => "get_measurement_data",
-            Self::GetSn => "get_sn",
-            Self::GetErrorFlag => "get_error_flag",
-            Self::GetBrushInterval => "get_brush_interval",
-            Self::SetBrushInterval => "set_brush_interval",
-            Self::SetTime => "set_time",
-            Self::GetTime => "get_time",
-            Self::SetSlaveId => "set_slave_id",
-            Self::GetSupplyVoltage => "get_supply_voltage",
-            Self::ActiveBrush => "active_brush",
-        }
+        self.entry().name
     }
     /// The command called `name` in the spec.
     pub fn from_name(name: &str) -> Option<Self> {
-        match name {
-            "get_measurement_data" => Some(Self::GetMeasurementData),
-            "get_sn" => Some(Self::GetSn),
-            "get_error_flag" => Some(Self::GetErrorFlag),
-            "get_brush_interval" => Some(Self::GetBrushInterval),
-            "set_brush_interval" => Some(Self::SetBrushInterval),
-            "set_time" => Some(Self::SetTime),
-            "get_time" => Some(Self::GetTime),
-            "set_slave_id" => Some(Self::SetSlaveId),
-            "get_supply_voltage" => Some(Self::GetSupplyVoltage),
-            "active_brush" => Some(Self::ActiveBrush),
-            _ => None,
-        }
+        Self::ALL.into_iter().find(|id| id.name() == name)
     }
     /// The command's title in the manual.
     pub const fn title(self) -> &'static str {
-        match self {
-            Self::GetMeasurementData => "Get measurement data",
-            Self::GetSn => "Get SN",
-            Self::GetErrorFlag => "Error Flag",
-            Self::GetBrushInterval => "Get Brush Interval of time",
-            Self::SetBrushInterval => "Set Brush Interval of time",
-            Self::SetTime => "Set the time",
-            Self::GetTime => "Get the time",
-            Self::SetSlaveId => "Set Slave Device ID",
-            Self::GetSupplyVoltage => "Get the supply voltage",
-            Self::ActiveBrush => "Active Brush",
-        }
+        self.entry().title
     }
     /// Function, start address, register count and addressing quirks.
     pub const fn layout(self) -> rtu::Layout<'static> {
-        match self {
-            Self::GetMeasurementData => <GetMeasurementData as rtu::Command>::LAYOUT,
-            Self::GetSn => <GetSn as rtu::Command>::LAYOUT,
-            Self::GetErrorFlag => <GetErrorFlag as rtu::Command>::LAYOUT,
-            Self::GetBrushInterval => <GetBrushInterval as rtu::Command>::LAYOUT,
-            Self::SetBrushInterval => <SetBrushInterval as rtu::Command>::LAYOUT,
-            Self::SetTime => <SetTime as rtu::Command>::LAYOUT,
-            Self::GetTime => <GetTime as rtu::Command>::LAYOUT,
-            Self::SetSlaveId => <SetSlaveId as rtu::Command>::LAYOUT,
-            Self::GetSupplyVoltage => <GetSupplyVoltage as rtu::Command>::LAYOUT,
-            Self::ActiveBrush => <ActiveBrush as rtu::Command>::LAYOUT,
-        }
+        self.entry().layout
     }
     /// Name and unit of each field of the request (empty for reads).
     pub const fn request_fields(self) -> &'static [rtu::FieldInfo] {
-        match self {
-            Self::GetMeasurementData => &GetMeasurementData::FIELDS,
-            Self::GetSn => &GetSn::FIELDS,
-            Self::GetErrorFlag => &GetErrorFlag::FIELDS,
-            Self::GetBrushInterval => &GetBrushInterval::FIELDS,
-            Self::SetBrushInterval => &SetBrushInterval::FIELDS,
-            Self::SetTime => &SetTime::FIELDS,
-            Self::GetTime => &GetTime::FIELDS,
-            Self::SetSlaveId => &SetSlaveId::FIELDS,
-            Self::GetSupplyVoltage => &GetSupplyVoltage::FIELDS,
-            Self::ActiveBrush => &ActiveBrush::FIELDS,
-        }
+        self.entry().request_fields
     }
     /// Name and unit of each field of the reply (empty for writes).
     pub const fn response_fields(self) -> &'static [rtu::FieldInfo] {
-        match self {
-            Self::GetMeasurementData => &GetMeasurementDataResponse::FIELDS,
-            Self::GetSn => &GetSnResponse::FIELDS,
-            Self::GetErrorFlag => &GetErrorFlagResponse::FIELDS,
-            Self::GetBrushInterval => &GetBrushIntervalResponse::FIELDS,
-            Self::SetBrushInterval => &[],
-            Self::SetTime => &[],
-            Self::GetTime => &GetTimeResponse::FIELDS,
-            Self::SetSlaveId => &[],
-            Self::GetSupplyVoltage => &GetSupplyVoltageResponse::FIELDS,
-            Self::ActiveBrush => &[],
-        }
+        self.entry().response_fields
     }
     /// Checks a request frame for this command and decodes it.
     pub fn decode_request(self, frame: &[u8]) -> Result<(u8, Request), rtu::FrameError> {
@@ -1554,16 +1055,16 @@ impl Request {
     /// The value of field `index` of [`CommandId::request_fields`].
     pub fn field(&self, index: usize) -> Option<rtu::FieldValue<'_>> {
         match self {
-            Self::GetMeasurementData(r) => r.fields().get(index).copied(),
-            Self::GetSn(r) => r.fields().get(index).copied(),
-            Self::GetErrorFlag(r) => r.fields().get(index).copied(),
-            Self::GetBrushInterval(r) => r.fields().get(index).copied(),
-            Self::SetBrushInterval(r) => r.fields().get(index).copied(),
-            Self::SetTime(r) => r.fields().get(index).copied(),
-            Self::GetTime(r) => r.fields().get(index).copied(),
-            Self::SetSlaveId(r) => r.fields().get(index).copied(),
-            Self::GetSupplyVoltage(r) => r.fields().get(index).copied(),
-            Self::ActiveBrush(r) => r.fields().get(index).copied(),
+            Self::GetMeasurementData(r) => rtu::Message::field(r, index),
+            Self::GetSn(r) => rtu::Message::field(r, index),
+            Self::GetErrorFlag(r) => rtu::Message::field(r, index),
+            Self::GetBrushInterval(r) => rtu::Message::field(r, index),
+            Self::SetBrushInterval(r) => rtu::Message::field(r, index),
+            Self::SetTime(r) => rtu::Message::field(r, index),
+            Self::GetTime(r) => rtu::Message::field(r, index),
+            Self::SetSlaveId(r) => rtu::Message::field(r, index),
+            Self::GetSupplyVoltage(r) => rtu::Message::field(r, index),
+            Self::ActiveBrush(r) => rtu::Message::field(r, index),
         }
     }
     /// Every field with its name and unit, in wire order.
@@ -1650,16 +1151,17 @@ impl Response {
     }
     /// The value of field `index` of [`CommandId::response_fields`].
     pub fn field(&self, index: usize) -> Option<rtu::FieldValue<'_>> {
+        use rtu::Message as _;
         match self {
-            Self::GetMeasurementData(r) => r.fields().get(index).copied(),
-            Self::GetSn(r) => r.fields().get(index).copied(),
-            Self::GetErrorFlag(r) => r.fields().get(index).copied(),
-            Self::GetBrushInterval(r) => r.fields().get(index).copied(),
+            Self::GetMeasurementData(r) => r.field(index),
+            Self::GetSn(r) => r.field(index),
+            Self::GetErrorFlag(r) => r.field(index),
+            Self::GetBrushInterval(r) => r.field(index),
             Self::SetBrushInterval => None,
             Self::SetTime => None,
-            Self::GetTime(r) => r.fields().get(index).copied(),
+            Self::GetTime(r) => r.field(index),
             Self::SetSlaveId => None,
-            Self::GetSupplyVoltage(r) => r.fields().get(index).copied(),
+            Self::GetSupplyVoltage(r) => r.field(index),
             Self::ActiveBrush => None,
         }
     }
@@ -1784,32 +1286,8 @@ pub fn decode_response(
 /// and register count (the first in spec order if several match). Does
 /// not check the frame: decode it with [`CommandId::decode_request`].
 pub fn identify_request(frame: &[u8]) -> Option<CommandId> {
-    let [_, function, address_hi, address_lo, count_hi, count_lo] = *frame
-        .first_chunk::<6>()?;
-    let address = u16::from_be_bytes([address_hi, address_lo]);
-    let count = u16::from_be_bytes([count_hi, count_lo]);
-    CommandId::ALL
-        .into_iter()
-        .find(|id| {
-            let layout = id.layout();
-            layout.function.code() == function && layout.address == address
-                && layout.count == count
-        })
+    rtu::identify_request(&COMMANDS, frame).and_then(|i| CommandId::ALL.get(i).copied())
 }
-
-/// Every command's spec name, in spec order.
-pub const COMMAND_NAMES: [&str; 10] = [
-    "get_measurement_data",
-    "get_sn",
-    "get_error_flag",
-    "get_brush_interval",
-    "set_brush_interval",
-    "set_time",
-    "get_time",
-    "set_slave_id",
-    "get_supply_voltage",
-    "active_brush",
-];
 
 /// Every derived quantity of the sensor as data, in spec order: its
 /// inputs, and its function (`compute` takes the inputs in parameter order).
@@ -1819,57 +1297,8 @@ pub const DERIVED: [rtu::DerivedInfo; 0] = [];
 /// (`crate::SENSORS` lists them all).
 pub const MODULE: rtu::SensorModule = rtu::SensorModule {
     info: SENSOR,
+    commands: &COMMANDS,
     derived: &DERIVED,
-    commands: &COMMAND_NAMES,
-    layout: |name| CommandId::from_name(name).map(CommandId::layout),
-    identify_request: |frame| identify_request(frame).map(CommandId::name),
-    visit_request: |name, frame, visit| {
-        let id = CommandId::from_name(name)?;
-        Some(
-            id
-                .decode_request(frame)
-                .map(|(slave, request)| {
-                    for (info, value) in request.fields() {
-                        visit(info, value);
-                    }
-                    slave
-                }),
-        )
-    },
-    reencode_request: |name, frame, out| {
-        let id = CommandId::from_name(name)?;
-        Some(
-            id
-                .decode_request(frame)
-                .map_err(rtu::RoundTripError::Frame)
-                .and_then(|(slave, request)| {
-                    request.encode(slave, out).map_err(rtu::RoundTripError::Encode)
-                }),
-        )
-    },
-    reencode_response: |name, slave, frame, out| {
-        let id = CommandId::from_name(name)?;
-        Some(
-            id
-                .decode_response(slave, frame)
-                .map_err(rtu::RoundTripError::Frame)
-                .and_then(|response| {
-                    response.encode(slave, out).map_err(rtu::RoundTripError::Encode)
-                }),
-        )
-    },
-    visit_response: |name, slave, frame, visit| {
-        let id = CommandId::from_name(name)?;
-        Some(
-            id
-                .decode_response(slave, frame)
-                .map(|response| {
-                    for (info, value) in response.fields() {
-                        visit(info, value);
-                    }
-                }),
-        )
-    },
 };
 
 #[cfg(feature = "std")]

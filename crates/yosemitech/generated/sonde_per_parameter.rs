@@ -48,15 +48,7 @@ pub use super::yosemitech_sonde::{GetSn, GetSnResponse};
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub struct GetDoMgL;
 
-impl GetDoMgL {
-    /// Name and unit of each field, in wire order.
-    pub const FIELDS: [rtu::FieldInfo; 0] = [];
-    /// Each field's value, in the order of [`Self::FIELDS`].
-    pub fn fields(&self) -> [rtu::FieldValue<'_>; 0] {
-        []
-    }
-}
-
+impl rtu::NoData for GetDoMgL {}
 /// Reply to [`GetDoMgL`]. Reads the dissolved oxygen, parameter 0x01.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GetDoMgLResponse {
@@ -66,80 +58,31 @@ pub struct GetDoMgLResponse {
     pub do_mg_l: f32,
 }
 
-impl GetDoMgLResponse {
-    /// Name and unit of each field, in wire order.
-    pub const FIELDS: [rtu::FieldInfo; 1] = [
-        rtu::FieldInfo {
-            name: "do_mg_l",
-            unit: Some("mg/L"),
-        },
+impl rtu::Message for GetDoMgLResponse {
+    type Data = [u8; 4];
+    const FIELDS: &'static [rtu::FieldInfo] = &[
+        rtu::FieldInfo::new("do_mg_l", Some("mg/L")),
     ];
-    /// Each field's value, in the order of [`Self::FIELDS`].
-    pub fn fields(&self) -> [rtu::FieldValue<'_>; 1] {
-        [rtu::FieldValue::F32(self.do_mg_l)]
-    }
-    /// Bytes of register data: two per register.
-    pub const DATA_LEN: usize = 4;
-    /// Decodes register data; reserved bytes are ignored.
-    pub const fn from_data(data: &[u8; 4]) -> Self {
+    fn from_data(data: &[u8; 4]) -> Self {
         Self {
-            do_mg_l: rtu::codec::f32_from_wire(
-                rtu::ByteOrder4::Dcba,
-                [data[0], data[1], data[2], data[3]],
-            ),
+            do_mg_l: rtu::codec::f32_from_wire(rtu::ByteOrder4::Dcba, *data),
         }
     }
-    /// Encodes register data, reserved bytes with their fill.
-    pub const fn to_data(&self) -> [u8; 4] {
-        let [b0, b1, b2, b3] = rtu::codec::f32_to_wire(
-            rtu::ByteOrder4::Dcba,
-            self.do_mg_l,
-        );
-        [b0, b1, b2, b3]
+    fn to_data(&self) -> [u8; 4] {
+        rtu::codec::f32_to_wire(rtu::ByteOrder4::Dcba, self.do_mg_l)
+    }
+    fn field(&self, index: usize) -> Option<rtu::FieldValue<'_>> {
+        match index {
+            0 => Some(rtu::FieldValue::F32(self.do_mg_l)),
+            _ => None,
+        }
     }
 }
 
 impl rtu::Command for GetDoMgL {
     type Response = GetDoMgLResponse;
     const NAME: &'static str = "get_do_mg_l";
-    const LAYOUT: rtu::Layout<'static> = rtu::Layout {
-        function: rtu::Function::Read,
-        address: 0x2601,
-        count: 2,
-        fixed_slave: None,
-        extra_byte_counts: &[],
-        trigger: false,
-    };
-    fn encode_request(
-        &self,
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        Self::LAYOUT.encode_request(slave, &[], out)
-    }
-    fn decode_request(frame: &[u8]) -> Result<(u8, Self), rtu::FrameError> {
-        let (slave, _) = Self::LAYOUT.decode_request(frame)?;
-        Ok((slave, Self))
-    }
-    fn encode_response(
-        response: &GetDoMgLResponse,
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        Self::LAYOUT.encode_response(slave, &response.to_data(), out)
-    }
-    fn decode_response(
-        slave: u8,
-        frame: &[u8],
-    ) -> Result<GetDoMgLResponse, rtu::FrameError> {
-        let data = Self::LAYOUT.decode_response(slave, frame)?;
-        let data = <&[u8; 4]>::try_from(data)
-            .map_err(|_| rtu::FrameError::Truncated {
-                expected: Self::RESPONSE_LEN,
-                actual: frame.len(),
-            })?;
-        Ok(GetDoMgLResponse::from_data(data))
-    }
+    const LAYOUT: rtu::Layout<'static> = rtu::Layout::read(0x2601, 2);
 }
 
 /// Get turbidity.
@@ -150,15 +93,7 @@ impl rtu::Command for GetDoMgL {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub struct GetTurbidityNtu;
 
-impl GetTurbidityNtu {
-    /// Name and unit of each field, in wire order.
-    pub const FIELDS: [rtu::FieldInfo; 0] = [];
-    /// Each field's value, in the order of [`Self::FIELDS`].
-    pub fn fields(&self) -> [rtu::FieldValue<'_>; 0] {
-        []
-    }
-}
-
+impl rtu::NoData for GetTurbidityNtu {}
 /// Reply to [`GetTurbidityNtu`]. Reads the turbidity, parameter 0x02.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GetTurbidityNtuResponse {
@@ -168,80 +103,31 @@ pub struct GetTurbidityNtuResponse {
     pub turbidity_ntu: f32,
 }
 
-impl GetTurbidityNtuResponse {
-    /// Name and unit of each field, in wire order.
-    pub const FIELDS: [rtu::FieldInfo; 1] = [
-        rtu::FieldInfo {
-            name: "turbidity_ntu",
-            unit: Some("NTU"),
-        },
+impl rtu::Message for GetTurbidityNtuResponse {
+    type Data = [u8; 4];
+    const FIELDS: &'static [rtu::FieldInfo] = &[
+        rtu::FieldInfo::new("turbidity_ntu", Some("NTU")),
     ];
-    /// Each field's value, in the order of [`Self::FIELDS`].
-    pub fn fields(&self) -> [rtu::FieldValue<'_>; 1] {
-        [rtu::FieldValue::F32(self.turbidity_ntu)]
-    }
-    /// Bytes of register data: two per register.
-    pub const DATA_LEN: usize = 4;
-    /// Decodes register data; reserved bytes are ignored.
-    pub const fn from_data(data: &[u8; 4]) -> Self {
+    fn from_data(data: &[u8; 4]) -> Self {
         Self {
-            turbidity_ntu: rtu::codec::f32_from_wire(
-                rtu::ByteOrder4::Dcba,
-                [data[0], data[1], data[2], data[3]],
-            ),
+            turbidity_ntu: rtu::codec::f32_from_wire(rtu::ByteOrder4::Dcba, *data),
         }
     }
-    /// Encodes register data, reserved bytes with their fill.
-    pub const fn to_data(&self) -> [u8; 4] {
-        let [b0, b1, b2, b3] = rtu::codec::f32_to_wire(
-            rtu::ByteOrder4::Dcba,
-            self.turbidity_ntu,
-        );
-        [b0, b1, b2, b3]
+    fn to_data(&self) -> [u8; 4] {
+        rtu::codec::f32_to_wire(rtu::ByteOrder4::Dcba, self.turbidity_ntu)
+    }
+    fn field(&self, index: usize) -> Option<rtu::FieldValue<'_>> {
+        match index {
+            0 => Some(rtu::FieldValue::F32(self.turbidity_ntu)),
+            _ => None,
+        }
     }
 }
 
 impl rtu::Command for GetTurbidityNtu {
     type Response = GetTurbidityNtuResponse;
     const NAME: &'static str = "get_turbidity_ntu";
-    const LAYOUT: rtu::Layout<'static> = rtu::Layout {
-        function: rtu::Function::Read,
-        address: 0x2602,
-        count: 2,
-        fixed_slave: None,
-        extra_byte_counts: &[],
-        trigger: false,
-    };
-    fn encode_request(
-        &self,
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        Self::LAYOUT.encode_request(slave, &[], out)
-    }
-    fn decode_request(frame: &[u8]) -> Result<(u8, Self), rtu::FrameError> {
-        let (slave, _) = Self::LAYOUT.decode_request(frame)?;
-        Ok((slave, Self))
-    }
-    fn encode_response(
-        response: &GetTurbidityNtuResponse,
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        Self::LAYOUT.encode_response(slave, &response.to_data(), out)
-    }
-    fn decode_response(
-        slave: u8,
-        frame: &[u8],
-    ) -> Result<GetTurbidityNtuResponse, rtu::FrameError> {
-        let data = Self::LAYOUT.decode_response(slave, frame)?;
-        let data = <&[u8; 4]>::try_from(data)
-            .map_err(|_| rtu::FrameError::Truncated {
-                expected: Self::RESPONSE_LEN,
-                actual: frame.len(),
-            })?;
-        Ok(GetTurbidityNtuResponse::from_data(data))
-    }
+    const LAYOUT: rtu::Layout<'static> = rtu::Layout::read(0x2602, 2);
 }
 
 /// Get conductivity.
@@ -252,15 +138,7 @@ impl rtu::Command for GetTurbidityNtu {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub struct GetConductivityMsCm;
 
-impl GetConductivityMsCm {
-    /// Name and unit of each field, in wire order.
-    pub const FIELDS: [rtu::FieldInfo; 0] = [];
-    /// Each field's value, in the order of [`Self::FIELDS`].
-    pub fn fields(&self) -> [rtu::FieldValue<'_>; 0] {
-        []
-    }
-}
-
+impl rtu::NoData for GetConductivityMsCm {}
 /// Reply to [`GetConductivityMsCm`]. Reads the conductivity, parameter 0x03.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GetConductivityMsCmResponse {
@@ -270,80 +148,31 @@ pub struct GetConductivityMsCmResponse {
     pub conductivity_ms_cm: f32,
 }
 
-impl GetConductivityMsCmResponse {
-    /// Name and unit of each field, in wire order.
-    pub const FIELDS: [rtu::FieldInfo; 1] = [
-        rtu::FieldInfo {
-            name: "conductivity_ms_cm",
-            unit: Some("mS/cm"),
-        },
+impl rtu::Message for GetConductivityMsCmResponse {
+    type Data = [u8; 4];
+    const FIELDS: &'static [rtu::FieldInfo] = &[
+        rtu::FieldInfo::new("conductivity_ms_cm", Some("mS/cm")),
     ];
-    /// Each field's value, in the order of [`Self::FIELDS`].
-    pub fn fields(&self) -> [rtu::FieldValue<'_>; 1] {
-        [rtu::FieldValue::F32(self.conductivity_ms_cm)]
-    }
-    /// Bytes of register data: two per register.
-    pub const DATA_LEN: usize = 4;
-    /// Decodes register data; reserved bytes are ignored.
-    pub const fn from_data(data: &[u8; 4]) -> Self {
+    fn from_data(data: &[u8; 4]) -> Self {
         Self {
-            conductivity_ms_cm: rtu::codec::f32_from_wire(
-                rtu::ByteOrder4::Dcba,
-                [data[0], data[1], data[2], data[3]],
-            ),
+            conductivity_ms_cm: rtu::codec::f32_from_wire(rtu::ByteOrder4::Dcba, *data),
         }
     }
-    /// Encodes register data, reserved bytes with their fill.
-    pub const fn to_data(&self) -> [u8; 4] {
-        let [b0, b1, b2, b3] = rtu::codec::f32_to_wire(
-            rtu::ByteOrder4::Dcba,
-            self.conductivity_ms_cm,
-        );
-        [b0, b1, b2, b3]
+    fn to_data(&self) -> [u8; 4] {
+        rtu::codec::f32_to_wire(rtu::ByteOrder4::Dcba, self.conductivity_ms_cm)
+    }
+    fn field(&self, index: usize) -> Option<rtu::FieldValue<'_>> {
+        match index {
+            0 => Some(rtu::FieldValue::F32(self.conductivity_ms_cm)),
+            _ => None,
+        }
     }
 }
 
 impl rtu::Command for GetConductivityMsCm {
     type Response = GetConductivityMsCmResponse;
     const NAME: &'static str = "get_conductivity_ms_cm";
-    const LAYOUT: rtu::Layout<'static> = rtu::Layout {
-        function: rtu::Function::Read,
-        address: 0x2603,
-        count: 2,
-        fixed_slave: None,
-        extra_byte_counts: &[],
-        trigger: false,
-    };
-    fn encode_request(
-        &self,
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        Self::LAYOUT.encode_request(slave, &[], out)
-    }
-    fn decode_request(frame: &[u8]) -> Result<(u8, Self), rtu::FrameError> {
-        let (slave, _) = Self::LAYOUT.decode_request(frame)?;
-        Ok((slave, Self))
-    }
-    fn encode_response(
-        response: &GetConductivityMsCmResponse,
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        Self::LAYOUT.encode_response(slave, &response.to_data(), out)
-    }
-    fn decode_response(
-        slave: u8,
-        frame: &[u8],
-    ) -> Result<GetConductivityMsCmResponse, rtu::FrameError> {
-        let data = Self::LAYOUT.decode_response(slave, frame)?;
-        let data = <&[u8; 4]>::try_from(data)
-            .map_err(|_| rtu::FrameError::Truncated {
-                expected: Self::RESPONSE_LEN,
-                actual: frame.len(),
-            })?;
-        Ok(GetConductivityMsCmResponse::from_data(data))
-    }
+    const LAYOUT: rtu::Layout<'static> = rtu::Layout::read(0x2603, 2);
 }
 
 /// Get pH.
@@ -354,15 +183,7 @@ impl rtu::Command for GetConductivityMsCm {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub struct GetPh;
 
-impl GetPh {
-    /// Name and unit of each field, in wire order.
-    pub const FIELDS: [rtu::FieldInfo; 0] = [];
-    /// Each field's value, in the order of [`Self::FIELDS`].
-    pub fn fields(&self) -> [rtu::FieldValue<'_>; 0] {
-        []
-    }
-}
-
+impl rtu::NoData for GetPh {}
 /// Reply to [`GetPh`]. Reads the pH, parameter 0x04.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GetPhResponse {
@@ -372,77 +193,29 @@ pub struct GetPhResponse {
     pub ph: f32,
 }
 
-impl GetPhResponse {
-    /// Name and unit of each field, in wire order.
-    pub const FIELDS: [rtu::FieldInfo; 1] = [
-        rtu::FieldInfo {
-            name: "ph",
-            unit: Some("pH"),
-        },
-    ];
-    /// Each field's value, in the order of [`Self::FIELDS`].
-    pub fn fields(&self) -> [rtu::FieldValue<'_>; 1] {
-        [rtu::FieldValue::F32(self.ph)]
-    }
-    /// Bytes of register data: two per register.
-    pub const DATA_LEN: usize = 4;
-    /// Decodes register data; reserved bytes are ignored.
-    pub const fn from_data(data: &[u8; 4]) -> Self {
+impl rtu::Message for GetPhResponse {
+    type Data = [u8; 4];
+    const FIELDS: &'static [rtu::FieldInfo] = &[rtu::FieldInfo::new("ph", Some("pH"))];
+    fn from_data(data: &[u8; 4]) -> Self {
         Self {
-            ph: rtu::codec::f32_from_wire(
-                rtu::ByteOrder4::Dcba,
-                [data[0], data[1], data[2], data[3]],
-            ),
+            ph: rtu::codec::f32_from_wire(rtu::ByteOrder4::Dcba, *data),
         }
     }
-    /// Encodes register data, reserved bytes with their fill.
-    pub const fn to_data(&self) -> [u8; 4] {
-        let [b0, b1, b2, b3] = rtu::codec::f32_to_wire(rtu::ByteOrder4::Dcba, self.ph);
-        [b0, b1, b2, b3]
+    fn to_data(&self) -> [u8; 4] {
+        rtu::codec::f32_to_wire(rtu::ByteOrder4::Dcba, self.ph)
+    }
+    fn field(&self, index: usize) -> Option<rtu::FieldValue<'_>> {
+        match index {
+            0 => Some(rtu::FieldValue::F32(self.ph)),
+            _ => None,
+        }
     }
 }
 
 impl rtu::Command for GetPh {
     type Response = GetPhResponse;
     const NAME: &'static str = "get_ph";
-    const LAYOUT: rtu::Layout<'static> = rtu::Layout {
-        function: rtu::Function::Read,
-        address: 0x2604,
-        count: 2,
-        fixed_slave: None,
-        extra_byte_counts: &[],
-        trigger: false,
-    };
-    fn encode_request(
-        &self,
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        Self::LAYOUT.encode_request(slave, &[], out)
-    }
-    fn decode_request(frame: &[u8]) -> Result<(u8, Self), rtu::FrameError> {
-        let (slave, _) = Self::LAYOUT.decode_request(frame)?;
-        Ok((slave, Self))
-    }
-    fn encode_response(
-        response: &GetPhResponse,
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        Self::LAYOUT.encode_response(slave, &response.to_data(), out)
-    }
-    fn decode_response(
-        slave: u8,
-        frame: &[u8],
-    ) -> Result<GetPhResponse, rtu::FrameError> {
-        let data = Self::LAYOUT.decode_response(slave, frame)?;
-        let data = <&[u8; 4]>::try_from(data)
-            .map_err(|_| rtu::FrameError::Truncated {
-                expected: Self::RESPONSE_LEN,
-                actual: frame.len(),
-            })?;
-        Ok(GetPhResponse::from_data(data))
-    }
+    const LAYOUT: rtu::Layout<'static> = rtu::Layout::read(0x2604, 2);
 }
 
 /// Get temperature.
@@ -453,15 +226,7 @@ impl rtu::Command for GetPh {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub struct GetTemperatureC;
 
-impl GetTemperatureC {
-    /// Name and unit of each field, in wire order.
-    pub const FIELDS: [rtu::FieldInfo; 0] = [];
-    /// Each field's value, in the order of [`Self::FIELDS`].
-    pub fn fields(&self) -> [rtu::FieldValue<'_>; 0] {
-        []
-    }
-}
-
+impl rtu::NoData for GetTemperatureC {}
 /// Reply to [`GetTemperatureC`]. Reads the temperature, parameter 0x06.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GetTemperatureCResponse {
@@ -471,80 +236,31 @@ pub struct GetTemperatureCResponse {
     pub temperature_c: f32,
 }
 
-impl GetTemperatureCResponse {
-    /// Name and unit of each field, in wire order.
-    pub const FIELDS: [rtu::FieldInfo; 1] = [
-        rtu::FieldInfo {
-            name: "temperature_c",
-            unit: Some("degC"),
-        },
+impl rtu::Message for GetTemperatureCResponse {
+    type Data = [u8; 4];
+    const FIELDS: &'static [rtu::FieldInfo] = &[
+        rtu::FieldInfo::new("temperature_c", Some("degC")),
     ];
-    /// Each field's value, in the order of [`Self::FIELDS`].
-    pub fn fields(&self) -> [rtu::FieldValue<'_>; 1] {
-        [rtu::FieldValue::F32(self.temperature_c)]
-    }
-    /// Bytes of register data: two per register.
-    pub const DATA_LEN: usize = 4;
-    /// Decodes register data; reserved bytes are ignored.
-    pub const fn from_data(data: &[u8; 4]) -> Self {
+    fn from_data(data: &[u8; 4]) -> Self {
         Self {
-            temperature_c: rtu::codec::f32_from_wire(
-                rtu::ByteOrder4::Dcba,
-                [data[0], data[1], data[2], data[3]],
-            ),
+            temperature_c: rtu::codec::f32_from_wire(rtu::ByteOrder4::Dcba, *data),
         }
     }
-    /// Encodes register data, reserved bytes with their fill.
-    pub const fn to_data(&self) -> [u8; 4] {
-        let [b0, b1, b2, b3] = rtu::codec::f32_to_wire(
-            rtu::ByteOrder4::Dcba,
-            self.temperature_c,
-        );
-        [b0, b1, b2, b3]
+    fn to_data(&self) -> [u8; 4] {
+        rtu::codec::f32_to_wire(rtu::ByteOrder4::Dcba, self.temperature_c)
+    }
+    fn field(&self, index: usize) -> Option<rtu::FieldValue<'_>> {
+        match index {
+            0 => Some(rtu::FieldValue::F32(self.temperature_c)),
+            _ => None,
+        }
     }
 }
 
 impl rtu::Command for GetTemperatureC {
     type Response = GetTemperatureCResponse;
     const NAME: &'static str = "get_temperature_c";
-    const LAYOUT: rtu::Layout<'static> = rtu::Layout {
-        function: rtu::Function::Read,
-        address: 0x2606,
-        count: 2,
-        fixed_slave: None,
-        extra_byte_counts: &[],
-        trigger: false,
-    };
-    fn encode_request(
-        &self,
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        Self::LAYOUT.encode_request(slave, &[], out)
-    }
-    fn decode_request(frame: &[u8]) -> Result<(u8, Self), rtu::FrameError> {
-        let (slave, _) = Self::LAYOUT.decode_request(frame)?;
-        Ok((slave, Self))
-    }
-    fn encode_response(
-        response: &GetTemperatureCResponse,
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        Self::LAYOUT.encode_response(slave, &response.to_data(), out)
-    }
-    fn decode_response(
-        slave: u8,
-        frame: &[u8],
-    ) -> Result<GetTemperatureCResponse, rtu::FrameError> {
-        let data = Self::LAYOUT.decode_response(slave, frame)?;
-        let data = <&[u8; 4]>::try_from(data)
-            .map_err(|_| rtu::FrameError::Truncated {
-                expected: Self::RESPONSE_LEN,
-                actual: frame.len(),
-            })?;
-        Ok(GetTemperatureCResponse::from_data(data))
-    }
+    const LAYOUT: rtu::Layout<'static> = rtu::Layout::read(0x2606, 2);
 }
 
 /// Get salinity.
@@ -555,15 +271,7 @@ impl rtu::Command for GetTemperatureC {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub struct GetSalinity;
 
-impl GetSalinity {
-    /// Name and unit of each field, in wire order.
-    pub const FIELDS: [rtu::FieldInfo; 0] = [];
-    /// Each field's value, in the order of [`Self::FIELDS`].
-    pub fn fields(&self) -> [rtu::FieldValue<'_>; 0] {
-        []
-    }
-}
-
+impl rtu::NoData for GetSalinity {}
 /// Reply to [`GetSalinity`]. Reads the salinity, parameter 0x08.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GetSalinityResponse {
@@ -573,80 +281,29 @@ pub struct GetSalinityResponse {
     pub salinity: f32,
 }
 
-impl GetSalinityResponse {
-    /// Name and unit of each field, in wire order.
-    pub const FIELDS: [rtu::FieldInfo; 1] = [
-        rtu::FieldInfo {
-            name: "salinity",
-            unit: None,
-        },
-    ];
-    /// Each field's value, in the order of [`Self::FIELDS`].
-    pub fn fields(&self) -> [rtu::FieldValue<'_>; 1] {
-        [rtu::FieldValue::F32(self.salinity)]
-    }
-    /// Bytes of register data: two per register.
-    pub const DATA_LEN: usize = 4;
-    /// Decodes register data; reserved bytes are ignored.
-    pub const fn from_data(data: &[u8; 4]) -> Self {
+impl rtu::Message for GetSalinityResponse {
+    type Data = [u8; 4];
+    const FIELDS: &'static [rtu::FieldInfo] = &[rtu::FieldInfo::new("salinity", None)];
+    fn from_data(data: &[u8; 4]) -> Self {
         Self {
-            salinity: rtu::codec::f32_from_wire(
-                rtu::ByteOrder4::Dcba,
-                [data[0], data[1], data[2], data[3]],
-            ),
+            salinity: rtu::codec::f32_from_wire(rtu::ByteOrder4::Dcba, *data),
         }
     }
-    /// Encodes register data, reserved bytes with their fill.
-    pub const fn to_data(&self) -> [u8; 4] {
-        let [b0, b1, b2, b3] = rtu::codec::f32_to_wire(
-            rtu::ByteOrder4::Dcba,
-            self.salinity,
-        );
-        [b0, b1, b2, b3]
+    fn to_data(&self) -> [u8; 4] {
+        rtu::codec::f32_to_wire(rtu::ByteOrder4::Dcba, self.salinity)
+    }
+    fn field(&self, index: usize) -> Option<rtu::FieldValue<'_>> {
+        match index {
+            0 => Some(rtu::FieldValue::F32(self.salinity)),
+            _ => None,
+        }
     }
 }
 
 impl rtu::Command for GetSalinity {
     type Response = GetSalinityResponse;
     const NAME: &'static str = "get_salinity";
-    const LAYOUT: rtu::Layout<'static> = rtu::Layout {
-        function: rtu::Function::Read,
-        address: 0x2608,
-        count: 2,
-        fixed_slave: None,
-        extra_byte_counts: &[],
-        trigger: false,
-    };
-    fn encode_request(
-        &self,
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        Self::LAYOUT.encode_request(slave, &[], out)
-    }
-    fn decode_request(frame: &[u8]) -> Result<(u8, Self), rtu::FrameError> {
-        let (slave, _) = Self::LAYOUT.decode_request(frame)?;
-        Ok((slave, Self))
-    }
-    fn encode_response(
-        response: &GetSalinityResponse,
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        Self::LAYOUT.encode_response(slave, &response.to_data(), out)
-    }
-    fn decode_response(
-        slave: u8,
-        frame: &[u8],
-    ) -> Result<GetSalinityResponse, rtu::FrameError> {
-        let data = Self::LAYOUT.decode_response(slave, frame)?;
-        let data = <&[u8; 4]>::try_from(data)
-            .map_err(|_| rtu::FrameError::Truncated {
-                expected: Self::RESPONSE_LEN,
-                actual: frame.len(),
-            })?;
-        Ok(GetSalinityResponse::from_data(data))
-    }
+    const LAYOUT: rtu::Layout<'static> = rtu::Layout::read(0x2608, 2);
 }
 
 /// Get dissolved oxygen saturation.
@@ -657,15 +314,7 @@ impl rtu::Command for GetSalinity {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub struct GetDoSaturation;
 
-impl GetDoSaturation {
-    /// Name and unit of each field, in wire order.
-    pub const FIELDS: [rtu::FieldInfo; 0] = [];
-    /// Each field's value, in the order of [`Self::FIELDS`].
-    pub fn fields(&self) -> [rtu::FieldValue<'_>; 0] {
-        []
-    }
-}
-
+impl rtu::NoData for GetDoSaturation {}
 /// Reply to [`GetDoSaturation`]. Reads the dissolved oxygen saturation, parameter 0x0A.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GetDoSaturationResponse {
@@ -675,80 +324,31 @@ pub struct GetDoSaturationResponse {
     pub do_saturation: f32,
 }
 
-impl GetDoSaturationResponse {
-    /// Name and unit of each field, in wire order.
-    pub const FIELDS: [rtu::FieldInfo; 1] = [
-        rtu::FieldInfo {
-            name: "do_saturation",
-            unit: Some("%"),
-        },
+impl rtu::Message for GetDoSaturationResponse {
+    type Data = [u8; 4];
+    const FIELDS: &'static [rtu::FieldInfo] = &[
+        rtu::FieldInfo::new("do_saturation", Some("%")),
     ];
-    /// Each field's value, in the order of [`Self::FIELDS`].
-    pub fn fields(&self) -> [rtu::FieldValue<'_>; 1] {
-        [rtu::FieldValue::F32(self.do_saturation)]
-    }
-    /// Bytes of register data: two per register.
-    pub const DATA_LEN: usize = 4;
-    /// Decodes register data; reserved bytes are ignored.
-    pub const fn from_data(data: &[u8; 4]) -> Self {
+    fn from_data(data: &[u8; 4]) -> Self {
         Self {
-            do_saturation: rtu::codec::f32_from_wire(
-                rtu::ByteOrder4::Dcba,
-                [data[0], data[1], data[2], data[3]],
-            ),
+            do_saturation: rtu::codec::f32_from_wire(rtu::ByteOrder4::Dcba, *data),
         }
     }
-    /// Encodes register data, reserved bytes with their fill.
-    pub const fn to_data(&self) -> [u8; 4] {
-        let [b0, b1, b2, b3] = rtu::codec::f32_to_wire(
-            rtu::ByteOrder4::Dcba,
-            self.do_saturation,
-        );
-        [b0, b1, b2, b3]
+    fn to_data(&self) -> [u8; 4] {
+        rtu::codec::f32_to_wire(rtu::ByteOrder4::Dcba, self.do_saturation)
+    }
+    fn field(&self, index: usize) -> Option<rtu::FieldValue<'_>> {
+        match index {
+            0 => Some(rtu::FieldValue::F32(self.do_saturation)),
+            _ => None,
+        }
     }
 }
 
 impl rtu::Command for GetDoSaturation {
     type Response = GetDoSaturationResponse;
     const NAME: &'static str = "get_do_saturation";
-    const LAYOUT: rtu::Layout<'static> = rtu::Layout {
-        function: rtu::Function::Read,
-        address: 0x260A,
-        count: 2,
-        fixed_slave: None,
-        extra_byte_counts: &[],
-        trigger: false,
-    };
-    fn encode_request(
-        &self,
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        Self::LAYOUT.encode_request(slave, &[], out)
-    }
-    fn decode_request(frame: &[u8]) -> Result<(u8, Self), rtu::FrameError> {
-        let (slave, _) = Self::LAYOUT.decode_request(frame)?;
-        Ok((slave, Self))
-    }
-    fn encode_response(
-        response: &GetDoSaturationResponse,
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        Self::LAYOUT.encode_response(slave, &response.to_data(), out)
-    }
-    fn decode_response(
-        slave: u8,
-        frame: &[u8],
-    ) -> Result<GetDoSaturationResponse, rtu::FrameError> {
-        let data = Self::LAYOUT.decode_response(slave, frame)?;
-        let data = <&[u8; 4]>::try_from(data)
-            .map_err(|_| rtu::FrameError::Truncated {
-                expected: Self::RESPONSE_LEN,
-                actual: frame.len(),
-            })?;
-        Ok(GetDoSaturationResponse::from_data(data))
-    }
+    const LAYOUT: rtu::Layout<'static> = rtu::Layout::read(0x260A, 2);
 }
 
 /// Get ORP.
@@ -759,15 +359,7 @@ impl rtu::Command for GetDoSaturation {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub struct GetOrpMv;
 
-impl GetOrpMv {
-    /// Name and unit of each field, in wire order.
-    pub const FIELDS: [rtu::FieldInfo; 0] = [];
-    /// Each field's value, in the order of [`Self::FIELDS`].
-    pub fn fields(&self) -> [rtu::FieldValue<'_>; 0] {
-        []
-    }
-}
-
+impl rtu::NoData for GetOrpMv {}
 /// Reply to [`GetOrpMv`]. Reads the ORP, parameter 0x0B.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GetOrpMvResponse {
@@ -777,80 +369,31 @@ pub struct GetOrpMvResponse {
     pub orp_mv: f32,
 }
 
-impl GetOrpMvResponse {
-    /// Name and unit of each field, in wire order.
-    pub const FIELDS: [rtu::FieldInfo; 1] = [
-        rtu::FieldInfo {
-            name: "orp_mv",
-            unit: Some("mV"),
-        },
+impl rtu::Message for GetOrpMvResponse {
+    type Data = [u8; 4];
+    const FIELDS: &'static [rtu::FieldInfo] = &[
+        rtu::FieldInfo::new("orp_mv", Some("mV")),
     ];
-    /// Each field's value, in the order of [`Self::FIELDS`].
-    pub fn fields(&self) -> [rtu::FieldValue<'_>; 1] {
-        [rtu::FieldValue::F32(self.orp_mv)]
-    }
-    /// Bytes of register data: two per register.
-    pub const DATA_LEN: usize = 4;
-    /// Decodes register data; reserved bytes are ignored.
-    pub const fn from_data(data: &[u8; 4]) -> Self {
+    fn from_data(data: &[u8; 4]) -> Self {
         Self {
-            orp_mv: rtu::codec::f32_from_wire(
-                rtu::ByteOrder4::Dcba,
-                [data[0], data[1], data[2], data[3]],
-            ),
+            orp_mv: rtu::codec::f32_from_wire(rtu::ByteOrder4::Dcba, *data),
         }
     }
-    /// Encodes register data, reserved bytes with their fill.
-    pub const fn to_data(&self) -> [u8; 4] {
-        let [b0, b1, b2, b3] = rtu::codec::f32_to_wire(
-            rtu::ByteOrder4::Dcba,
-            self.orp_mv,
-        );
-        [b0, b1, b2, b3]
+    fn to_data(&self) -> [u8; 4] {
+        rtu::codec::f32_to_wire(rtu::ByteOrder4::Dcba, self.orp_mv)
+    }
+    fn field(&self, index: usize) -> Option<rtu::FieldValue<'_>> {
+        match index {
+            0 => Some(rtu::FieldValue::F32(self.orp_mv)),
+            _ => None,
+        }
     }
 }
 
 impl rtu::Command for GetOrpMv {
     type Response = GetOrpMvResponse;
     const NAME: &'static str = "get_orp_mv";
-    const LAYOUT: rtu::Layout<'static> = rtu::Layout {
-        function: rtu::Function::Read,
-        address: 0x260B,
-        count: 2,
-        fixed_slave: None,
-        extra_byte_counts: &[],
-        trigger: false,
-    };
-    fn encode_request(
-        &self,
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        Self::LAYOUT.encode_request(slave, &[], out)
-    }
-    fn decode_request(frame: &[u8]) -> Result<(u8, Self), rtu::FrameError> {
-        let (slave, _) = Self::LAYOUT.decode_request(frame)?;
-        Ok((slave, Self))
-    }
-    fn encode_response(
-        response: &GetOrpMvResponse,
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        Self::LAYOUT.encode_response(slave, &response.to_data(), out)
-    }
-    fn decode_response(
-        slave: u8,
-        frame: &[u8],
-    ) -> Result<GetOrpMvResponse, rtu::FrameError> {
-        let data = Self::LAYOUT.decode_response(slave, frame)?;
-        let data = <&[u8; 4]>::try_from(data)
-            .map_err(|_| rtu::FrameError::Truncated {
-                expected: Self::RESPONSE_LEN,
-                actual: frame.len(),
-            })?;
-        Ok(GetOrpMvResponse::from_data(data))
-    }
+    const LAYOUT: rtu::Layout<'static> = rtu::Layout::read(0x260B, 2);
 }
 
 /// Get chlorophyll.
@@ -861,15 +404,7 @@ impl rtu::Command for GetOrpMv {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub struct GetChlorophyll;
 
-impl GetChlorophyll {
-    /// Name and unit of each field, in wire order.
-    pub const FIELDS: [rtu::FieldInfo; 0] = [];
-    /// Each field's value, in the order of [`Self::FIELDS`].
-    pub fn fields(&self) -> [rtu::FieldValue<'_>; 0] {
-        []
-    }
-}
-
+impl rtu::NoData for GetChlorophyll {}
 /// Reply to [`GetChlorophyll`]. Reads the chlorophyll, parameter 0x0C.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GetChlorophyllResponse {
@@ -879,80 +414,31 @@ pub struct GetChlorophyllResponse {
     pub chlorophyll: f32,
 }
 
-impl GetChlorophyllResponse {
-    /// Name and unit of each field, in wire order.
-    pub const FIELDS: [rtu::FieldInfo; 1] = [
-        rtu::FieldInfo {
-            name: "chlorophyll",
-            unit: None,
-        },
+impl rtu::Message for GetChlorophyllResponse {
+    type Data = [u8; 4];
+    const FIELDS: &'static [rtu::FieldInfo] = &[
+        rtu::FieldInfo::new("chlorophyll", None),
     ];
-    /// Each field's value, in the order of [`Self::FIELDS`].
-    pub fn fields(&self) -> [rtu::FieldValue<'_>; 1] {
-        [rtu::FieldValue::F32(self.chlorophyll)]
-    }
-    /// Bytes of register data: two per register.
-    pub const DATA_LEN: usize = 4;
-    /// Decodes register data; reserved bytes are ignored.
-    pub const fn from_data(data: &[u8; 4]) -> Self {
+    fn from_data(data: &[u8; 4]) -> Self {
         Self {
-            chlorophyll: rtu::codec::f32_from_wire(
-                rtu::ByteOrder4::Dcba,
-                [data[0], data[1], data[2], data[3]],
-            ),
+            chlorophyll: rtu::codec::f32_from_wire(rtu::ByteOrder4::Dcba, *data),
         }
     }
-    /// Encodes register data, reserved bytes with their fill.
-    pub const fn to_data(&self) -> [u8; 4] {
-        let [b0, b1, b2, b3] = rtu::codec::f32_to_wire(
-            rtu::ByteOrder4::Dcba,
-            self.chlorophyll,
-        );
-        [b0, b1, b2, b3]
+    fn to_data(&self) -> [u8; 4] {
+        rtu::codec::f32_to_wire(rtu::ByteOrder4::Dcba, self.chlorophyll)
+    }
+    fn field(&self, index: usize) -> Option<rtu::FieldValue<'_>> {
+        match index {
+            0 => Some(rtu::FieldValue::F32(self.chlorophyll)),
+            _ => None,
+        }
     }
 }
 
 impl rtu::Command for GetChlorophyll {
     type Response = GetChlorophyllResponse;
     const NAME: &'static str = "get_chlorophyll";
-    const LAYOUT: rtu::Layout<'static> = rtu::Layout {
-        function: rtu::Function::Read,
-        address: 0x260C,
-        count: 2,
-        fixed_slave: None,
-        extra_byte_counts: &[],
-        trigger: false,
-    };
-    fn encode_request(
-        &self,
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        Self::LAYOUT.encode_request(slave, &[], out)
-    }
-    fn decode_request(frame: &[u8]) -> Result<(u8, Self), rtu::FrameError> {
-        let (slave, _) = Self::LAYOUT.decode_request(frame)?;
-        Ok((slave, Self))
-    }
-    fn encode_response(
-        response: &GetChlorophyllResponse,
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        Self::LAYOUT.encode_response(slave, &response.to_data(), out)
-    }
-    fn decode_response(
-        slave: u8,
-        frame: &[u8],
-    ) -> Result<GetChlorophyllResponse, rtu::FrameError> {
-        let data = Self::LAYOUT.decode_response(slave, frame)?;
-        let data = <&[u8; 4]>::try_from(data)
-            .map_err(|_| rtu::FrameError::Truncated {
-                expected: Self::RESPONSE_LEN,
-                actual: frame.len(),
-            })?;
-        Ok(GetChlorophyllResponse::from_data(data))
-    }
+    const LAYOUT: rtu::Layout<'static> = rtu::Layout::read(0x260C, 2);
 }
 
 /// Get oil in water.
@@ -963,15 +449,7 @@ impl rtu::Command for GetChlorophyll {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub struct GetOilInWater;
 
-impl GetOilInWater {
-    /// Name and unit of each field, in wire order.
-    pub const FIELDS: [rtu::FieldInfo; 0] = [];
-    /// Each field's value, in the order of [`Self::FIELDS`].
-    pub fn fields(&self) -> [rtu::FieldValue<'_>; 0] {
-        []
-    }
-}
-
+impl rtu::NoData for GetOilInWater {}
 /// Reply to [`GetOilInWater`]. Reads the oil in water, parameter 0x0D.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GetOilInWaterResponse {
@@ -981,80 +459,31 @@ pub struct GetOilInWaterResponse {
     pub oil_in_water: f32,
 }
 
-impl GetOilInWaterResponse {
-    /// Name and unit of each field, in wire order.
-    pub const FIELDS: [rtu::FieldInfo; 1] = [
-        rtu::FieldInfo {
-            name: "oil_in_water",
-            unit: None,
-        },
+impl rtu::Message for GetOilInWaterResponse {
+    type Data = [u8; 4];
+    const FIELDS: &'static [rtu::FieldInfo] = &[
+        rtu::FieldInfo::new("oil_in_water", None),
     ];
-    /// Each field's value, in the order of [`Self::FIELDS`].
-    pub fn fields(&self) -> [rtu::FieldValue<'_>; 1] {
-        [rtu::FieldValue::F32(self.oil_in_water)]
-    }
-    /// Bytes of register data: two per register.
-    pub const DATA_LEN: usize = 4;
-    /// Decodes register data; reserved bytes are ignored.
-    pub const fn from_data(data: &[u8; 4]) -> Self {
+    fn from_data(data: &[u8; 4]) -> Self {
         Self {
-            oil_in_water: rtu::codec::f32_from_wire(
-                rtu::ByteOrder4::Dcba,
-                [data[0], data[1], data[2], data[3]],
-            ),
+            oil_in_water: rtu::codec::f32_from_wire(rtu::ByteOrder4::Dcba, *data),
         }
     }
-    /// Encodes register data, reserved bytes with their fill.
-    pub const fn to_data(&self) -> [u8; 4] {
-        let [b0, b1, b2, b3] = rtu::codec::f32_to_wire(
-            rtu::ByteOrder4::Dcba,
-            self.oil_in_water,
-        );
-        [b0, b1, b2, b3]
+    fn to_data(&self) -> [u8; 4] {
+        rtu::codec::f32_to_wire(rtu::ByteOrder4::Dcba, self.oil_in_water)
+    }
+    fn field(&self, index: usize) -> Option<rtu::FieldValue<'_>> {
+        match index {
+            0 => Some(rtu::FieldValue::F32(self.oil_in_water)),
+            _ => None,
+        }
     }
 }
 
 impl rtu::Command for GetOilInWater {
     type Response = GetOilInWaterResponse;
     const NAME: &'static str = "get_oil_in_water";
-    const LAYOUT: rtu::Layout<'static> = rtu::Layout {
-        function: rtu::Function::Read,
-        address: 0x260D,
-        count: 2,
-        fixed_slave: None,
-        extra_byte_counts: &[],
-        trigger: false,
-    };
-    fn encode_request(
-        &self,
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        Self::LAYOUT.encode_request(slave, &[], out)
-    }
-    fn decode_request(frame: &[u8]) -> Result<(u8, Self), rtu::FrameError> {
-        let (slave, _) = Self::LAYOUT.decode_request(frame)?;
-        Ok((slave, Self))
-    }
-    fn encode_response(
-        response: &GetOilInWaterResponse,
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        Self::LAYOUT.encode_response(slave, &response.to_data(), out)
-    }
-    fn decode_response(
-        slave: u8,
-        frame: &[u8],
-    ) -> Result<GetOilInWaterResponse, rtu::FrameError> {
-        let data = Self::LAYOUT.decode_response(slave, frame)?;
-        let data = <&[u8; 4]>::try_from(data)
-            .map_err(|_| rtu::FrameError::Truncated {
-                expected: Self::RESPONSE_LEN,
-                actual: frame.len(),
-            })?;
-        Ok(GetOilInWaterResponse::from_data(data))
-    }
+    const LAYOUT: rtu::Layout<'static> = rtu::Layout::read(0x260D, 2);
 }
 
 /// Get blue-green algae.
@@ -1065,15 +494,7 @@ impl rtu::Command for GetOilInWater {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub struct GetBga;
 
-impl GetBga {
-    /// Name and unit of each field, in wire order.
-    pub const FIELDS: [rtu::FieldInfo; 0] = [];
-    /// Each field's value, in the order of [`Self::FIELDS`].
-    pub fn fields(&self) -> [rtu::FieldValue<'_>; 0] {
-        []
-    }
-}
-
+impl rtu::NoData for GetBga {}
 /// Reply to [`GetBga`]. Reads the blue-green algae, parameter 0x0E.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GetBgaResponse {
@@ -1083,77 +504,29 @@ pub struct GetBgaResponse {
     pub bga: f32,
 }
 
-impl GetBgaResponse {
-    /// Name and unit of each field, in wire order.
-    pub const FIELDS: [rtu::FieldInfo; 1] = [
-        rtu::FieldInfo {
-            name: "bga",
-            unit: None,
-        },
-    ];
-    /// Each field's value, in the order of [`Self::FIELDS`].
-    pub fn fields(&self) -> [rtu::FieldValue<'_>; 1] {
-        [rtu::FieldValue::F32(self.bga)]
-    }
-    /// Bytes of register data: two per register.
-    pub const DATA_LEN: usize = 4;
-    /// Decodes register data; reserved bytes are ignored.
-    pub const fn from_data(data: &[u8; 4]) -> Self {
+impl rtu::Message for GetBgaResponse {
+    type Data = [u8; 4];
+    const FIELDS: &'static [rtu::FieldInfo] = &[rtu::FieldInfo::new("bga", None)];
+    fn from_data(data: &[u8; 4]) -> Self {
         Self {
-            bga: rtu::codec::f32_from_wire(
-                rtu::ByteOrder4::Dcba,
-                [data[0], data[1], data[2], data[3]],
-            ),
+            bga: rtu::codec::f32_from_wire(rtu::ByteOrder4::Dcba, *data),
         }
     }
-    /// Encodes register data, reserved bytes with their fill.
-    pub const fn to_data(&self) -> [u8; 4] {
-        let [b0, b1, b2, b3] = rtu::codec::f32_to_wire(rtu::ByteOrder4::Dcba, self.bga);
-        [b0, b1, b2, b3]
+    fn to_data(&self) -> [u8; 4] {
+        rtu::codec::f32_to_wire(rtu::ByteOrder4::Dcba, self.bga)
+    }
+    fn field(&self, index: usize) -> Option<rtu::FieldValue<'_>> {
+        match index {
+            0 => Some(rtu::FieldValue::F32(self.bga)),
+            _ => None,
+        }
     }
 }
 
 impl rtu::Command for GetBga {
     type Response = GetBgaResponse;
     const NAME: &'static str = "get_bga";
-    const LAYOUT: rtu::Layout<'static> = rtu::Layout {
-        function: rtu::Function::Read,
-        address: 0x260E,
-        count: 2,
-        fixed_slave: None,
-        extra_byte_counts: &[],
-        trigger: false,
-    };
-    fn encode_request(
-        &self,
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        Self::LAYOUT.encode_request(slave, &[], out)
-    }
-    fn decode_request(frame: &[u8]) -> Result<(u8, Self), rtu::FrameError> {
-        let (slave, _) = Self::LAYOUT.decode_request(frame)?;
-        Ok((slave, Self))
-    }
-    fn encode_response(
-        response: &GetBgaResponse,
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        Self::LAYOUT.encode_response(slave, &response.to_data(), out)
-    }
-    fn decode_response(
-        slave: u8,
-        frame: &[u8],
-    ) -> Result<GetBgaResponse, rtu::FrameError> {
-        let data = Self::LAYOUT.decode_response(slave, frame)?;
-        let data = <&[u8; 4]>::try_from(data)
-            .map_err(|_| rtu::FrameError::Truncated {
-                expected: Self::RESPONSE_LEN,
-                actual: frame.len(),
-            })?;
-        Ok(GetBgaResponse::from_data(data))
-    }
+    const LAYOUT: rtu::Layout<'static> = rtu::Layout::read(0x260E, 2);
 }
 
 /// Get total dissolved solids.
@@ -1164,15 +537,7 @@ impl rtu::Command for GetBga {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub struct GetTds;
 
-impl GetTds {
-    /// Name and unit of each field, in wire order.
-    pub const FIELDS: [rtu::FieldInfo; 0] = [];
-    /// Each field's value, in the order of [`Self::FIELDS`].
-    pub fn fields(&self) -> [rtu::FieldValue<'_>; 0] {
-        []
-    }
-}
-
+impl rtu::NoData for GetTds {}
 /// Reply to [`GetTds`]. Reads the total dissolved solids, parameter 0x0F.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GetTdsResponse {
@@ -1182,78 +547,49 @@ pub struct GetTdsResponse {
     pub tds: f32,
 }
 
-impl GetTdsResponse {
-    /// Name and unit of each field, in wire order.
-    pub const FIELDS: [rtu::FieldInfo; 1] = [
-        rtu::FieldInfo {
-            name: "tds",
-            unit: None,
-        },
-    ];
-    /// Each field's value, in the order of [`Self::FIELDS`].
-    pub fn fields(&self) -> [rtu::FieldValue<'_>; 1] {
-        [rtu::FieldValue::F32(self.tds)]
-    }
-    /// Bytes of register data: two per register.
-    pub const DATA_LEN: usize = 4;
-    /// Decodes register data; reserved bytes are ignored.
-    pub const fn from_data(data: &[u8; 4]) -> Self {
+impl rtu::Message for GetTdsResponse {
+    type Data = [u8; 4];
+    const FIELDS: &'static [rtu::FieldInfo] = &[rtu::FieldInfo::new("tds", None)];
+    fn from_data(data: &[u8; 4]) -> Self {
         Self {
-            tds: rtu::codec::f32_from_wire(
-                rtu::ByteOrder4::Dcba,
-                [data[0], data[1], data[2], data[3]],
-            ),
+            tds: rtu::codec::f32_from_wire(rtu::ByteOrder4::Dcba, *data),
         }
     }
-    /// Encodes register data, reserved bytes with their fill.
-    pub const fn to_data(&self) -> [u8; 4] {
-        let [b0, b1, b2, b3] = rtu::codec::f32_to_wire(rtu::ByteOrder4::Dcba, self.tds);
-        [b0, b1, b2, b3]
+    fn to_data(&self) -> [u8; 4] {
+        rtu::codec::f32_to_wire(rtu::ByteOrder4::Dcba, self.tds)
+    }
+    fn field(&self, index: usize) -> Option<rtu::FieldValue<'_>> {
+        match index {
+            0 => Some(rtu::FieldValue::F32(self.tds)),
+            _ => None,
+        }
     }
 }
 
 impl rtu::Command for GetTds {
     type Response = GetTdsResponse;
     const NAME: &'static str = "get_tds";
-    const LAYOUT: rtu::Layout<'static> = rtu::Layout {
-        function: rtu::Function::Read,
-        address: 0x260F,
-        count: 2,
-        fixed_slave: None,
-        extra_byte_counts: &[],
-        trigger: false,
-    };
-    fn encode_request(
-        &self,
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        Self::LAYOUT.encode_request(slave, &[], out)
-    }
-    fn decode_request(frame: &[u8]) -> Result<(u8, Self), rtu::FrameError> {
-        let (slave, _) = Self::LAYOUT.decode_request(frame)?;
-        Ok((slave, Self))
-    }
-    fn encode_response(
-        response: &GetTdsResponse,
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        Self::LAYOUT.encode_response(slave, &response.to_data(), out)
-    }
-    fn decode_response(
-        slave: u8,
-        frame: &[u8],
-    ) -> Result<GetTdsResponse, rtu::FrameError> {
-        let data = Self::LAYOUT.decode_response(slave, frame)?;
-        let data = <&[u8; 4]>::try_from(data)
-            .map_err(|_| rtu::FrameError::Truncated {
-                expected: Self::RESPONSE_LEN,
-                actual: frame.len(),
-            })?;
-        Ok(GetTdsResponse::from_data(data))
-    }
+    const LAYOUT: rtu::Layout<'static> = rtu::Layout::read(0x260F, 2);
 }
+
+/// Every command of this sensor as data, in spec order: name, title,
+/// layout, fields and codecs ([`CommandId`] indexes it).
+pub const COMMANDS: [rtu::CommandEntry; 14] = [
+    rtu::CommandEntry::of::<SetSlaveId>("Set Slave Device ID"),
+    rtu::CommandEntry::of::<GetSn>("Get SN"),
+    rtu::CommandEntry::of::<GetDoMgL>("Get dissolved oxygen"),
+    rtu::CommandEntry::of::<GetTurbidityNtu>("Get turbidity"),
+    rtu::CommandEntry::of::<GetConductivityMsCm>("Get conductivity"),
+    rtu::CommandEntry::of::<GetPh>("Get pH"),
+    rtu::CommandEntry::of::<GetTemperatureC>("Get temperature"),
+    rtu::CommandEntry::of::<GetSalinity>("Get salinity"),
+    rtu::CommandEntry::of::<GetDoSaturation>("Get dissolved oxygen saturation"),
+    rtu::CommandEntry::of::<GetOrpMv>("Get ORP"),
+    rtu::CommandEntry::of::<GetChlorophyll>("Get chlorophyll"),
+    rtu::CommandEntry::of::<GetOilInWater>("Get oil in water"),
+    rtu::CommandEntry::of::<GetBga>("Get blue-green algae"),
+    rtu::CommandEntry::of::<GetTds>("Get total dissolved solids"),
+];
 
 /// Every command of this sensor, for code that picks commands at run
 /// time (CLIs, simulators, tests).
@@ -1307,120 +643,34 @@ impl CommandId {
         Self::GetBga,
         Self::GetTds,
     ];
+    /// The command's row of [`COMMANDS`].
+    #[allow(clippy::indexing_slicing)]
+    pub const fn entry(self) -> &'static rtu::CommandEntry {
+        &COMMANDS[self as usize]
+    }
     /// The command's snake_case name in the spec.
     pub const fn name(self) -> &'static str {
-        match self {
-            Self::SetSlaveId => "set_slave_id",
-            Self::GetSn => "get_sn",
-            Self::GetDoMgL => "get_do_mg_l",
-            Self::GetTurbidityNtu => "get_turbidity_ntu",
-            Self::GetConductivityMsCm => "get_conductivity_ms_cm",
-            Self::GetPh => "get_ph",
-            Self::GetTemperatureC => "get_temperature_c",
-            Self::GetSalinity => "get_salinity",
-            Self::GetDoSaturation => "get_do_saturation",
-            Self::GetOrpMv => "get_orp_mv",
-            Self::GetChlorophyll => "get_chlorophyll",
-            Self::GetOilInWater => "get_oil_in_water",
-            Self::GetBga => "get_bga",
-            Self::GetTds => "get_tds",
-        }
+        self.entry().name
     }
     /// The command called `name` in the spec.
     pub fn from_name(name: &str) -> Option<Self> {
-        match name {
-            "set_slave_id" => Some(Self::SetSlaveId),
-            "get_sn" => Some(Self::GetSn),
-            "get_do_mg_l" => Some(Self::GetDoMgL),
-            "get_turbidity_ntu" => Some(Self::GetTurbidityNtu),
-            "get_conductivity_ms_cm" => Some(Self::GetConductivityMsCm),
-            "get_ph" => Some(Self::GetPh),
-            "get_temperature_c" => Some(Self::GetTemperatureC),
-            "get_salinity" => Some(Self::GetSalinity),
-            "get_do_saturation" => Some(Self::GetDoSaturation),
-            "get_orp_mv" => Some(Self::GetOrpMv),
-            "get_chlorophyll" => Some(Self::GetChlorophyll),
-            "get_oil_in_water" => Some(Self::GetOilInWater),
-            "get_bga" => Some(Self::GetBga),
-            "get_tds" => Some(Self::GetTds),
-            _ => None,
-        }
+        Self::ALL.into_iter().find(|id| id.name() == name)
     }
     /// The command's title in the manual.
     pub const fn title(self) -> &'static str {
-        match self {
-            Self::SetSlaveId => "Set Slave Device ID",
-            Self::GetSn => "Get SN",
-            Self::GetDoMgL => "Get dissolved oxygen",
-            Self::GetTurbidityNtu => "Get turbidity",
-            Self::GetConductivityMsCm => "Get conductivity",
-            Self::GetPh => "Get pH",
-            Self::GetTemperatureC => "Get temperature",
-            Self::GetSalinity => "Get salinity",
-            Self::GetDoSaturation => "Get dissolved oxygen saturation",
-            Self::GetOrpMv => "Get ORP",
-            Self::GetChlorophyll => "Get chlorophyll",
-            Self::GetOilInWater => "Get oil in water",
-            Self::GetBga => "Get blue-green algae",
-            Self::GetTds => "Get total dissolved solids",
-        }
+        self.entry().title
     }
     /// Function, start address, register count and addressing quirks.
     pub const fn layout(self) -> rtu::Layout<'static> {
-        match self {
-            Self::SetSlaveId => <SetSlaveId as rtu::Command>::LAYOUT,
-            Self::GetSn => <GetSn as rtu::Command>::LAYOUT,
-            Self::GetDoMgL => <GetDoMgL as rtu::Command>::LAYOUT,
-            Self::GetTurbidityNtu => <GetTurbidityNtu as rtu::Command>::LAYOUT,
-            Self::GetConductivityMsCm => <GetConductivityMsCm as rtu::Command>::LAYOUT,
-            Self::GetPh => <GetPh as rtu::Command>::LAYOUT,
-            Self::GetTemperatureC => <GetTemperatureC as rtu::Command>::LAYOUT,
-            Self::GetSalinity => <GetSalinity as rtu::Command>::LAYOUT,
-            Self::GetDoSaturation => <GetDoSaturation as rtu::Command>::LAYOUT,
-            Self::GetOrpMv => <GetOrpMv as rtu::Command>::LAYOUT,
-            Self::GetChlorophyll => <GetChlorophyll as rtu::Command>::LAYOUT,
-            Self::GetOilInWater => <GetOilInWater as rtu::Command>::LAYOUT,
-            Self::GetBga => <GetBga as rtu::Command>::LAYOUT,
-            Self::GetTds => <GetTds as rtu::Command>::LAYOUT,
-        }
+        self.entry().layout
     }
     /// Name and unit of each field of the request (empty for reads).
     pub const fn request_fields(self) -> &'static [rtu::FieldInfo] {
-        match self {
-            Self::SetSlaveId => &SetSlaveId::FIELDS,
-            Self::GetSn => &GetSn::FIELDS,
-            Self::GetDoMgL => &GetDoMgL::FIELDS,
-            Self::GetTurbidityNtu => &GetTurbidityNtu::FIELDS,
-            Self::GetConductivityMsCm => &GetConductivityMsCm::FIELDS,
-            Self::GetPh => &GetPh::FIELDS,
-            Self::GetTemperatureC => &GetTemperatureC::FIELDS,
-            Self::GetSalinity => &GetSalinity::FIELDS,
-            Self::GetDoSaturation => &GetDoSaturation::FIELDS,
-            Self::GetOrpMv => &GetOrpMv::FIELDS,
-            Self::GetChlorophyll => &GetChlorophyll::FIELDS,
-            Self::GetOilInWater => &GetOilInWater::FIELDS,
-            Self::GetBga => &GetBga::FIELDS,
-            Self::GetTds => &GetTds::FIELDS,
-        }
+        self.entry().request_fields
     }
     /// Name and unit of each field of the reply (empty for writes).
     pub const fn response_fields(self) -> &'static [rtu::FieldInfo] {
-        match self {
-            Self::SetSlaveId => &[],
-            Self::GetSn => &GetSnResponse::FIELDS,
-            Self::GetDoMgL => &GetDoMgLResponse::FIELDS,
-            Self::GetTurbidityNtu => &GetTurbidityNtuResponse::FIELDS,
-            Self::GetConductivityMsCm => &GetConductivityMsCmResponse::FIELDS,
-            Self::GetPh => &GetPhResponse::FIELDS,
-            Self::GetTemperatureC => &GetTemperatureCResponse::FIELDS,
-            Self::GetSalinity => &GetSalinityResponse::FIELDS,
-            Self::GetDoSaturation => &GetDoSaturationResponse::FIELDS,
-            Self::GetOrpMv => &GetOrpMvResponse::FIELDS,
-            Self::GetChlorophyll => &GetChlorophyllResponse::FIELDS,
-            Self::GetOilInWater => &GetOilInWaterResponse::FIELDS,
-            Self::GetBga => &GetBgaResponse::FIELDS,
-            Self::GetTds => &GetTdsResponse::FIELDS,
-        }
+        self.entry().response_fields
     }
     /// Checks a request frame for this command and decodes it.
     pub fn decode_request(self, frame: &[u8]) -> Result<(u8, Request), rtu::FrameError> {
@@ -1631,20 +881,20 @@ impl Request {
     /// The value of field `index` of [`CommandId::request_fields`].
     pub fn field(&self, index: usize) -> Option<rtu::FieldValue<'_>> {
         match self {
-            Self::SetSlaveId(r) => r.fields().get(index).copied(),
-            Self::GetSn(r) => r.fields().get(index).copied(),
-            Self::GetDoMgL(r) => r.fields().get(index).copied(),
-            Self::GetTurbidityNtu(r) => r.fields().get(index).copied(),
-            Self::GetConductivityMsCm(r) => r.fields().get(index).copied(),
-            Self::GetPh(r) => r.fields().get(index).copied(),
-            Self::GetTemperatureC(r) => r.fields().get(index).copied(),
-            Self::GetSalinity(r) => r.fields().get(index).copied(),
-            Self::GetDoSaturation(r) => r.fields().get(index).copied(),
-            Self::GetOrpMv(r) => r.fields().get(index).copied(),
-            Self::GetChlorophyll(r) => r.fields().get(index).copied(),
-            Self::GetOilInWater(r) => r.fields().get(index).copied(),
-            Self::GetBga(r) => r.fields().get(index).copied(),
-            Self::GetTds(r) => r.fields().get(index).copied(),
+            Self::SetSlaveId(r) => rtu::Message::field(r, index),
+            Self::GetSn(r) => rtu::Message::field(r, index),
+            Self::GetDoMgL(r) => rtu::Message::field(r, index),
+            Self::GetTurbidityNtu(r) => rtu::Message::field(r, index),
+            Self::GetConductivityMsCm(r) => rtu::Message::field(r, index),
+            Self::GetPh(r) => rtu::Message::field(r, index),
+            Self::GetTemperatureC(r) => rtu::Message::field(r, index),
+            Self::GetSalinity(r) => rtu::Message::field(r, index),
+            Self::GetDoSaturation(r) => rtu::Message::field(r, index),
+            Self::GetOrpMv(r) => rtu::Message::field(r, index),
+            Self::GetChlorophyll(r) => rtu::Message::field(r, index),
+            Self::GetOilInWater(r) => rtu::Message::field(r, index),
+            Self::GetBga(r) => rtu::Message::field(r, index),
+            Self::GetTds(r) => rtu::Message::field(r, index),
         }
     }
     /// Every field with its name and unit, in wire order.
@@ -1753,21 +1003,22 @@ impl Response {
     }
     /// The value of field `index` of [`CommandId::response_fields`].
     pub fn field(&self, index: usize) -> Option<rtu::FieldValue<'_>> {
+        use rtu::Message as _;
         match self {
             Self::SetSlaveId => None,
-            Self::GetSn(r) => r.fields().get(index).copied(),
-            Self::GetDoMgL(r) => r.fields().get(index).copied(),
-            Self::GetTurbidityNtu(r) => r.fields().get(index).copied(),
-            Self::GetConductivityMsCm(r) => r.fields().get(index).copied(),
-            Self::GetPh(r) => r.fields().get(index).copied(),
-            Self::GetTemperatureC(r) => r.fields().get(index).copied(),
-            Self::GetSalinity(r) => r.fields().get(index).copied(),
-            Self::GetDoSaturation(r) => r.fields().get(index).copied(),
-            Self::GetOrpMv(r) => r.fields().get(index).copied(),
-            Self::GetChlorophyll(r) => r.fields().get(index).copied(),
-            Self::GetOilInWater(r) => r.fields().get(index).copied(),
-            Self::GetBga(r) => r.fields().get(index).copied(),
-            Self::GetTds(r) => r.fields().get(index).copied(),
+            Self::GetSn(r) => r.field(index),
+            Self::GetDoMgL(r) => r.field(index),
+            Self::GetTurbidityNtu(r) => r.field(index),
+            Self::GetConductivityMsCm(r) => r.field(index),
+            Self::GetPh(r) => r.field(index),
+            Self::GetTemperatureC(r) => r.field(index),
+            Self::GetSalinity(r) => r.field(index),
+            Self::GetDoSaturation(r) => r.field(index),
+            Self::GetOrpMv(r) => r.field(index),
+            Self::GetChlorophyll(r) => r.field(index),
+            Self::GetOilInWater(r) => r.field(index),
+            Self::GetBga(r) => r.field(index),
+            Self::GetTds(r) => r.field(index),
         }
     }
     /// Every field with its name and unit, in wire order.
@@ -1957,36 +1208,8 @@ pub fn decode_response(
 /// and register count (the first in spec order if several match). Does
 /// not check the frame: decode it with [`CommandId::decode_request`].
 pub fn identify_request(frame: &[u8]) -> Option<CommandId> {
-    let [_, function, address_hi, address_lo, count_hi, count_lo] = *frame
-        .first_chunk::<6>()?;
-    let address = u16::from_be_bytes([address_hi, address_lo]);
-    let count = u16::from_be_bytes([count_hi, count_lo]);
-    CommandId::ALL
-        .into_iter()
-        .find(|id| {
-            let layout = id.layout();
-            layout.function.code() == function && layout.address == address
-                && layout.count == count
-        })
+    rtu::identify_request(&COMMANDS, frame).and_then(|i| CommandId::ALL.get(i).copied())
 }
-
-/// Every command's spec name, in spec order.
-pub const COMMAND_NAMES: [&str; 14] = [
-    "set_slave_id",
-    "get_sn",
-    "get_do_mg_l",
-    "get_turbidity_ntu",
-    "get_conductivity_ms_cm",
-    "get_ph",
-    "get_temperature_c",
-    "get_salinity",
-    "get_do_saturation",
-    "get_orp_mv",
-    "get_chlorophyll",
-    "get_oil_in_water",
-    "get_bga",
-    "get_tds",
-];
 
 /// Every derived quantity of the sensor as data, in spec order: its
 /// inputs, and its function (`compute` takes the inputs in parameter order).
@@ -1996,57 +1219,8 @@ pub const DERIVED: [rtu::DerivedInfo; 0] = [];
 /// (`crate::SENSORS` lists them all).
 pub const MODULE: rtu::SensorModule = rtu::SensorModule {
     info: SENSOR,
+    commands: &COMMANDS,
     derived: &DERIVED,
-    commands: &COMMAND_NAMES,
-    layout: |name| CommandId::from_name(name).map(CommandId::layout),
-    identify_request: |frame| identify_request(frame).map(CommandId::name),
-    visit_request: |name, frame, visit| {
-        let id = CommandId::from_name(name)?;
-        Some(
-            id
-                .decode_request(frame)
-                .map(|(slave, request)| {
-                    for (info, value) in request.fields() {
-                        visit(info, value);
-                    }
-                    slave
-                }),
-        )
-    },
-    reencode_request: |name, frame, out| {
-        let id = CommandId::from_name(name)?;
-        Some(
-            id
-                .decode_request(frame)
-                .map_err(rtu::RoundTripError::Frame)
-                .and_then(|(slave, request)| {
-                    request.encode(slave, out).map_err(rtu::RoundTripError::Encode)
-                }),
-        )
-    },
-    reencode_response: |name, slave, frame, out| {
-        let id = CommandId::from_name(name)?;
-        Some(
-            id
-                .decode_response(slave, frame)
-                .map_err(rtu::RoundTripError::Frame)
-                .and_then(|response| {
-                    response.encode(slave, out).map_err(rtu::RoundTripError::Encode)
-                }),
-        )
-    },
-    visit_response: |name, slave, frame, visit| {
-        let id = CommandId::from_name(name)?;
-        Some(
-            id
-                .decode_response(slave, frame)
-                .map(|response| {
-                    for (info, value) in response.fields() {
-                        visit(info, value);
-                    }
-                }),
-        )
-    },
 };
 
 #[cfg(feature = "std")]

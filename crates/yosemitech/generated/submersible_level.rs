@@ -79,26 +79,13 @@ pub struct SetUserCalibration {
     pub b_offset: f32,
 }
 
-impl SetUserCalibration {
-    /// Name and unit of each field, in wire order.
-    pub const FIELDS: [rtu::FieldInfo; 2] = [
-        rtu::FieldInfo {
-            name: "k_slope",
-            unit: None,
-        },
-        rtu::FieldInfo {
-            name: "b_offset",
-            unit: Some("mmH2O"),
-        },
+impl rtu::Message for SetUserCalibration {
+    type Data = [u8; 8];
+    const FIELDS: &'static [rtu::FieldInfo] = &[
+        rtu::FieldInfo::new("k_slope", None),
+        rtu::FieldInfo::new("b_offset", Some("mmH2O")),
     ];
-    /// Each field's value, in the order of [`Self::FIELDS`].
-    pub fn fields(&self) -> [rtu::FieldValue<'_>; 2] {
-        [rtu::FieldValue::F32(self.k_slope), rtu::FieldValue::F32(self.b_offset)]
-    }
-    /// Bytes of register data: two per register.
-    pub const DATA_LEN: usize = 8;
-    /// Decodes register data; reserved bytes are ignored.
-    pub const fn from_data(data: &[u8; 8]) -> Self {
+    fn from_data(data: &[u8; 8]) -> Self {
         Self {
             k_slope: rtu::codec::f32_from_wire(
                 rtu::ByteOrder4::Dcba,
@@ -110,9 +97,7 @@ impl SetUserCalibration {
             ),
         }
     }
-    /// Encodes register data, reserved bytes with their fill. Does not
-    /// check ranges: see [`Self::validate`].
-    pub const fn to_data(&self) -> [u8; 8] {
+    fn to_data(&self) -> [u8; 8] {
         let [b0, b1, b2, b3] = rtu::codec::f32_to_wire(
             rtu::ByteOrder4::Dcba,
             self.k_slope,
@@ -123,52 +108,19 @@ impl SetUserCalibration {
         );
         [b0, b1, b2, b3, b4, b5, b6, b7]
     }
-    /// Checks every field against the range the spec allows
-    /// ([`rtu::EncodeError::OutOfRange`] names the first that is not).
-    pub fn validate(&self) -> Result<(), rtu::EncodeError> {
-        Ok(())
+    fn field(&self, index: usize) -> Option<rtu::FieldValue<'_>> {
+        match index {
+            0 => Some(rtu::FieldValue::F32(self.k_slope)),
+            1 => Some(rtu::FieldValue::F32(self.b_offset)),
+            _ => None,
+        }
     }
 }
 
 impl rtu::Command for SetUserCalibration {
     type Response = ();
     const NAME: &'static str = "set_user_calibration";
-    const LAYOUT: rtu::Layout<'static> = rtu::Layout {
-        function: rtu::Function::Write,
-        address: 0x1100,
-        count: 4,
-        fixed_slave: None,
-        extra_byte_counts: &[],
-        trigger: false,
-    };
-    fn encode_request(
-        &self,
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        self.validate()?;
-        Self::LAYOUT.encode_request(slave, &self.to_data(), out)
-    }
-    fn decode_request(frame: &[u8]) -> Result<(u8, Self), rtu::FrameError> {
-        let (slave, data) = Self::LAYOUT.decode_request(frame)?;
-        let data = <&[u8; 8]>::try_from(data)
-            .map_err(|_| rtu::FrameError::Truncated {
-                expected: Self::REQUEST_LEN,
-                actual: frame.len(),
-            })?;
-        Ok((slave, Self::from_data(data)))
-    }
-    fn encode_response(
-        _response: &(),
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        Self::LAYOUT.encode_response(slave, &[], out)
-    }
-    fn decode_response(slave: u8, frame: &[u8]) -> Result<(), rtu::FrameError> {
-        Self::LAYOUT.decode_response(slave, frame)?;
-        Ok(())
-    }
+    const LAYOUT: rtu::Layout<'static> = rtu::Layout::write(0x1100, 4);
 }
 
 /// Get User Calibration Coefficients.
@@ -180,15 +132,7 @@ impl rtu::Command for SetUserCalibration {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub struct GetUserCalibration;
 
-impl GetUserCalibration {
-    /// Name and unit of each field, in wire order.
-    pub const FIELDS: [rtu::FieldInfo; 0] = [];
-    /// Each field's value, in the order of [`Self::FIELDS`].
-    pub fn fields(&self) -> [rtu::FieldValue<'_>; 0] {
-        []
-    }
-}
-
+impl rtu::NoData for GetUserCalibration {}
 /// Reply to [`GetUserCalibration`]. Reads the user calibration: slope K and offset B, which the probe applies to its main value as final = K x raw + B (defaults K = 1, B = 0).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GetUserCalibrationResponse {
@@ -202,26 +146,13 @@ pub struct GetUserCalibrationResponse {
     pub b_offset: f32,
 }
 
-impl GetUserCalibrationResponse {
-    /// Name and unit of each field, in wire order.
-    pub const FIELDS: [rtu::FieldInfo; 2] = [
-        rtu::FieldInfo {
-            name: "k_slope",
-            unit: None,
-        },
-        rtu::FieldInfo {
-            name: "b_offset",
-            unit: Some("mmH2O"),
-        },
+impl rtu::Message for GetUserCalibrationResponse {
+    type Data = [u8; 8];
+    const FIELDS: &'static [rtu::FieldInfo] = &[
+        rtu::FieldInfo::new("k_slope", None),
+        rtu::FieldInfo::new("b_offset", Some("mmH2O")),
     ];
-    /// Each field's value, in the order of [`Self::FIELDS`].
-    pub fn fields(&self) -> [rtu::FieldValue<'_>; 2] {
-        [rtu::FieldValue::F32(self.k_slope), rtu::FieldValue::F32(self.b_offset)]
-    }
-    /// Bytes of register data: two per register.
-    pub const DATA_LEN: usize = 8;
-    /// Decodes register data; reserved bytes are ignored.
-    pub const fn from_data(data: &[u8; 8]) -> Self {
+    fn from_data(data: &[u8; 8]) -> Self {
         Self {
             k_slope: rtu::codec::f32_from_wire(
                 rtu::ByteOrder4::Dcba,
@@ -233,8 +164,7 @@ impl GetUserCalibrationResponse {
             ),
         }
     }
-    /// Encodes register data, reserved bytes with their fill.
-    pub const fn to_data(&self) -> [u8; 8] {
+    fn to_data(&self) -> [u8; 8] {
         let [b0, b1, b2, b3] = rtu::codec::f32_to_wire(
             rtu::ByteOrder4::Dcba,
             self.k_slope,
@@ -245,49 +175,19 @@ impl GetUserCalibrationResponse {
         );
         [b0, b1, b2, b3, b4, b5, b6, b7]
     }
+    fn field(&self, index: usize) -> Option<rtu::FieldValue<'_>> {
+        match index {
+            0 => Some(rtu::FieldValue::F32(self.k_slope)),
+            1 => Some(rtu::FieldValue::F32(self.b_offset)),
+            _ => None,
+        }
+    }
 }
 
 impl rtu::Command for GetUserCalibration {
     type Response = GetUserCalibrationResponse;
     const NAME: &'static str = "get_user_calibration";
-    const LAYOUT: rtu::Layout<'static> = rtu::Layout {
-        function: rtu::Function::Read,
-        address: 0x1100,
-        count: 4,
-        fixed_slave: None,
-        extra_byte_counts: &[],
-        trigger: false,
-    };
-    fn encode_request(
-        &self,
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        Self::LAYOUT.encode_request(slave, &[], out)
-    }
-    fn decode_request(frame: &[u8]) -> Result<(u8, Self), rtu::FrameError> {
-        let (slave, _) = Self::LAYOUT.decode_request(frame)?;
-        Ok((slave, Self))
-    }
-    fn encode_response(
-        response: &GetUserCalibrationResponse,
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        Self::LAYOUT.encode_response(slave, &response.to_data(), out)
-    }
-    fn decode_response(
-        slave: u8,
-        frame: &[u8],
-    ) -> Result<GetUserCalibrationResponse, rtu::FrameError> {
-        let data = Self::LAYOUT.decode_response(slave, frame)?;
-        let data = <&[u8; 8]>::try_from(data)
-            .map_err(|_| rtu::FrameError::Truncated {
-                expected: Self::RESPONSE_LEN,
-                actual: frame.len(),
-            })?;
-        Ok(GetUserCalibrationResponse::from_data(data))
-    }
+    const LAYOUT: rtu::Layout<'static> = rtu::Layout::read(0x1100, 4);
 }
 
 /// Get water level.
@@ -298,15 +198,7 @@ impl rtu::Command for GetUserCalibration {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub struct GetWaterLevel;
 
-impl GetWaterLevel {
-    /// Name and unit of each field, in wire order.
-    pub const FIELDS: [rtu::FieldInfo; 0] = [];
-    /// Each field's value, in the order of [`Self::FIELDS`].
-    pub fn fields(&self) -> [rtu::FieldValue<'_>; 0] {
-        []
-    }
-}
-
+impl rtu::NoData for GetWaterLevel {}
 /// Reply to [`GetWaterLevel`]. The water level and its status byte, in a six-register block.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GetWaterLevelResponse {
@@ -320,29 +212,13 @@ pub struct GetWaterLevelResponse {
     pub status: u8,
 }
 
-impl GetWaterLevelResponse {
-    /// Name and unit of each field, in wire order.
-    pub const FIELDS: [rtu::FieldInfo; 2] = [
-        rtu::FieldInfo {
-            name: "level_mm",
-            unit: Some("mmH2O"),
-        },
-        rtu::FieldInfo {
-            name: "status",
-            unit: None,
-        },
+impl rtu::Message for GetWaterLevelResponse {
+    type Data = [u8; 12];
+    const FIELDS: &'static [rtu::FieldInfo] = &[
+        rtu::FieldInfo::new("level_mm", Some("mmH2O")),
+        rtu::FieldInfo::new("status", None),
     ];
-    /// Each field's value, in the order of [`Self::FIELDS`].
-    pub fn fields(&self) -> [rtu::FieldValue<'_>; 2] {
-        [
-            rtu::FieldValue::F32(self.level_mm),
-            rtu::FieldValue::Int(i64::from(self.status)),
-        ]
-    }
-    /// Bytes of register data: two per register.
-    pub const DATA_LEN: usize = 12;
-    /// Decodes register data; reserved bytes are ignored.
-    pub const fn from_data(data: &[u8; 12]) -> Self {
+    fn from_data(data: &[u8; 12]) -> Self {
         Self {
             level_mm: rtu::codec::f32_from_wire(
                 rtu::ByteOrder4::Dcba,
@@ -351,57 +227,26 @@ impl GetWaterLevelResponse {
             status: data[8],
         }
     }
-    /// Encodes register data, reserved bytes with their fill.
-    pub const fn to_data(&self) -> [u8; 12] {
+    fn to_data(&self) -> [u8; 12] {
         let [b4, b5, b6, b7] = rtu::codec::f32_to_wire(
             rtu::ByteOrder4::Dcba,
             self.level_mm,
         );
         [0x00, 0x00, 0x00, 0x00, b4, b5, b6, b7, self.status, 0x00, 0x00, 0x00]
     }
+    fn field(&self, index: usize) -> Option<rtu::FieldValue<'_>> {
+        match index {
+            0 => Some(rtu::FieldValue::F32(self.level_mm)),
+            1 => Some(rtu::FieldValue::Int(i64::from(self.status))),
+            _ => None,
+        }
+    }
 }
 
 impl rtu::Command for GetWaterLevel {
     type Response = GetWaterLevelResponse;
     const NAME: &'static str = "get_water_level";
-    const LAYOUT: rtu::Layout<'static> = rtu::Layout {
-        function: rtu::Function::Read,
-        address: 0x2600,
-        count: 6,
-        fixed_slave: None,
-        extra_byte_counts: &[],
-        trigger: false,
-    };
-    fn encode_request(
-        &self,
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        Self::LAYOUT.encode_request(slave, &[], out)
-    }
-    fn decode_request(frame: &[u8]) -> Result<(u8, Self), rtu::FrameError> {
-        let (slave, _) = Self::LAYOUT.decode_request(frame)?;
-        Ok((slave, Self))
-    }
-    fn encode_response(
-        response: &GetWaterLevelResponse,
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        Self::LAYOUT.encode_response(slave, &response.to_data(), out)
-    }
-    fn decode_response(
-        slave: u8,
-        frame: &[u8],
-    ) -> Result<GetWaterLevelResponse, rtu::FrameError> {
-        let data = Self::LAYOUT.decode_response(slave, frame)?;
-        let data = <&[u8; 12]>::try_from(data)
-            .map_err(|_| rtu::FrameError::Truncated {
-                expected: Self::RESPONSE_LEN,
-                actual: frame.len(),
-            })?;
-        Ok(GetWaterLevelResponse::from_data(data))
-    }
+    const LAYOUT: rtu::Layout<'static> = rtu::Layout::read(0x2600, 6);
 }
 
 /// Get temperature.
@@ -412,15 +257,7 @@ impl rtu::Command for GetWaterLevel {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub struct GetTemperature;
 
-impl GetTemperature {
-    /// Name and unit of each field, in wire order.
-    pub const FIELDS: [rtu::FieldInfo; 0] = [];
-    /// Each field's value, in the order of [`Self::FIELDS`].
-    pub fn fields(&self) -> [rtu::FieldValue<'_>; 0] {
-        []
-    }
-}
-
+impl rtu::NoData for GetTemperature {}
 /// Reply to [`GetTemperature`]. The water temperature.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GetTemperatureResponse {
@@ -430,81 +267,45 @@ pub struct GetTemperatureResponse {
     pub temperature_c: f32,
 }
 
-impl GetTemperatureResponse {
-    /// Name and unit of each field, in wire order.
-    pub const FIELDS: [rtu::FieldInfo; 1] = [
-        rtu::FieldInfo {
-            name: "temperature_c",
-            unit: Some("degC"),
-        },
+impl rtu::Message for GetTemperatureResponse {
+    type Data = [u8; 4];
+    const FIELDS: &'static [rtu::FieldInfo] = &[
+        rtu::FieldInfo::new("temperature_c", Some("degC")),
     ];
-    /// Each field's value, in the order of [`Self::FIELDS`].
-    pub fn fields(&self) -> [rtu::FieldValue<'_>; 1] {
-        [rtu::FieldValue::F32(self.temperature_c)]
-    }
-    /// Bytes of register data: two per register.
-    pub const DATA_LEN: usize = 4;
-    /// Decodes register data; reserved bytes are ignored.
-    pub const fn from_data(data: &[u8; 4]) -> Self {
+    fn from_data(data: &[u8; 4]) -> Self {
         Self {
-            temperature_c: rtu::codec::f32_from_wire(
-                rtu::ByteOrder4::Dcba,
-                [data[0], data[1], data[2], data[3]],
-            ),
+            temperature_c: rtu::codec::f32_from_wire(rtu::ByteOrder4::Dcba, *data),
         }
     }
-    /// Encodes register data, reserved bytes with their fill.
-    pub const fn to_data(&self) -> [u8; 4] {
-        let [b0, b1, b2, b3] = rtu::codec::f32_to_wire(
-            rtu::ByteOrder4::Dcba,
-            self.temperature_c,
-        );
-        [b0, b1, b2, b3]
+    fn to_data(&self) -> [u8; 4] {
+        rtu::codec::f32_to_wire(rtu::ByteOrder4::Dcba, self.temperature_c)
+    }
+    fn field(&self, index: usize) -> Option<rtu::FieldValue<'_>> {
+        match index {
+            0 => Some(rtu::FieldValue::F32(self.temperature_c)),
+            _ => None,
+        }
     }
 }
 
 impl rtu::Command for GetTemperature {
     type Response = GetTemperatureResponse;
     const NAME: &'static str = "get_temperature";
-    const LAYOUT: rtu::Layout<'static> = rtu::Layout {
-        function: rtu::Function::Read,
-        address: 0x2400,
-        count: 2,
-        fixed_slave: None,
-        extra_byte_counts: &[],
-        trigger: false,
-    };
-    fn encode_request(
-        &self,
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        Self::LAYOUT.encode_request(slave, &[], out)
-    }
-    fn decode_request(frame: &[u8]) -> Result<(u8, Self), rtu::FrameError> {
-        let (slave, _) = Self::LAYOUT.decode_request(frame)?;
-        Ok((slave, Self))
-    }
-    fn encode_response(
-        response: &GetTemperatureResponse,
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        Self::LAYOUT.encode_response(slave, &response.to_data(), out)
-    }
-    fn decode_response(
-        slave: u8,
-        frame: &[u8],
-    ) -> Result<GetTemperatureResponse, rtu::FrameError> {
-        let data = Self::LAYOUT.decode_response(slave, frame)?;
-        let data = <&[u8; 4]>::try_from(data)
-            .map_err(|_| rtu::FrameError::Truncated {
-                expected: Self::RESPONSE_LEN,
-                actual: frame.len(),
-            })?;
-        Ok(GetTemperatureResponse::from_data(data))
-    }
+    const LAYOUT: rtu::Layout<'static> = rtu::Layout::read(0x2400, 2);
 }
+
+/// Every command of this sensor as data, in spec order: name, title,
+/// layout, fields and codecs ([`CommandId`] indexes it).
+pub const COMMANDS: [rtu::CommandEntry; 8] = [
+    rtu::CommandEntry::of::<SetSlaveId>("Set Slave Device ID"),
+    rtu::CommandEntry::of::<GetSn>("Get SN"),
+    rtu::CommandEntry::of::<GetVersion>("Get Software and Hardware Rev"),
+    rtu::CommandEntry::of::<GetSlaveId>("Get Slave Device ID"),
+    rtu::CommandEntry::of::<SetUserCalibration>("Set Customer Calibration Coefficients"),
+    rtu::CommandEntry::of::<GetUserCalibration>("Get User Calibration Coefficients"),
+    rtu::CommandEntry::of::<GetWaterLevel>("Get water level"),
+    rtu::CommandEntry::of::<GetTemperature>("Get temperature"),
+];
 
 /// Every command of this sensor, for code that picks commands at run
 /// time (CLIs, simulators, tests).
@@ -540,84 +341,34 @@ impl CommandId {
         Self::GetWaterLevel,
         Self::GetTemperature,
     ];
+    /// The command's row of [`COMMANDS`].
+    #[allow(clippy::indexing_slicing)]
+    pub const fn entry(self) -> &'static rtu::CommandEntry {
+        &COMMANDS[self as usize]
+    }
     /// The command's snake_case name in the spec.
     pub const fn name(self) -> &'static str {
-        match self {
-            Self::SetSlaveId => "set_slave_id",
-            Self::GetSn => "get_sn",
-            Self::GetVersion => "get_version",
-            Self::GetSlaveId => "get_slave_id",
-            Self::SetUserCalibration => "set_user_calibration",
-            Self::GetUserCalibration => "get_user_calibration",
-            Self::GetWaterLevel => "get_water_level",
-            Self::GetTemperature => "get_temperature",
-        }
+        self.entry().name
     }
     /// The command called `name` in the spec.
     pub fn from_name(name: &str) -> Option<Self> {
-        match name {
-            "set_slave_id" => Some(Self::SetSlaveId),
-            "get_sn" => Some(Self::GetSn),
-            "get_version" => Some(Self::GetVersion),
-            "get_slave_id" => Some(Self::GetSlaveId),
-            "set_user_calibration" => Some(Self::SetUserCalibration),
-            "get_user_calibration" => Some(Self::GetUserCalibration),
-            "get_water_level" => Some(Self::GetWaterLevel),
-            "get_temperature" => Some(Self::GetTemperature),
-            _ => None,
-        }
+        Self::ALL.into_iter().find(|id| id.name() == name)
     }
     /// The command's title in the manual.
     pub const fn title(self) -> &'static str {
-        match self {
-            Self::SetSlaveId => "Set Slave Device ID",
-            Self::GetSn => "Get SN",
-            Self::GetVersion => "Get Software and Hardware Rev",
-            Self::GetSlaveId => "Get Slave Device ID",
-            Self::SetUserCalibration => "Set Customer Calibration Coefficients",
-            Self::GetUserCalibration => "Get User Calibration Coefficients",
-            Self::GetWaterLevel => "Get water level",
-            Self::GetTemperature => "Get temperature",
-        }
+        self.entry().title
     }
     /// Function, start address, register count and addressing quirks.
     pub const fn layout(self) -> rtu::Layout<'static> {
-        match self {
-            Self::SetSlaveId => <SetSlaveId as rtu::Command>::LAYOUT,
-            Self::GetSn => <GetSn as rtu::Command>::LAYOUT,
-            Self::GetVersion => <GetVersion as rtu::Command>::LAYOUT,
-            Self::GetSlaveId => <GetSlaveId as rtu::Command>::LAYOUT,
-            Self::SetUserCalibration => <SetUserCalibration as rtu::Command>::LAYOUT,
-            Self::GetUserCalibration => <GetUserCalibration as rtu::Command>::LAYOUT,
-            Self::GetWaterLevel => <GetWaterLevel as rtu::Command>::LAYOUT,
-            Self::GetTemperature => <GetTemperature as rtu::Command>::LAYOUT,
-        }
+        self.entry().layout
     }
     /// Name and unit of each field of the request (empty for reads).
     pub const fn request_fields(self) -> &'static [rtu::FieldInfo] {
-        match self {
-            Self::SetSlaveId => &SetSlaveId::FIELDS,
-            Self::GetSn => &GetSn::FIELDS,
-            Self::GetVersion => &GetVersion::FIELDS,
-            Self::GetSlaveId => &GetSlaveId::FIELDS,
-            Self::SetUserCalibration => &SetUserCalibration::FIELDS,
-            Self::GetUserCalibration => &GetUserCalibration::FIELDS,
-            Self::GetWaterLevel => &GetWaterLevel::FIELDS,
-            Self::GetTemperature => &GetTemperature::FIELDS,
-        }
+        self.entry().request_fields
     }
     /// Name and unit of each field of the reply (empty for writes).
     pub const fn response_fields(self) -> &'static [rtu::FieldInfo] {
-        match self {
-            Self::SetSlaveId => &[],
-            Self::GetSn => &GetSnResponse::FIELDS,
-            Self::GetVersion => &GetVersionResponse::FIELDS,
-            Self::GetSlaveId => &GetSlaveIdResponse::FIELDS,
-            Self::SetUserCalibration => &[],
-            Self::GetUserCalibration => &GetUserCalibrationResponse::FIELDS,
-            Self::GetWaterLevel => &GetWaterLevelResponse::FIELDS,
-            Self::GetTemperature => &GetTemperatureResponse::FIELDS,
-        }
+        self.entry().response_fields
     }
     /// Checks a request frame for this command and decodes it.
     pub fn decode_request(self, frame: &[u8]) -> Result<(u8, Request), rtu::FrameError> {
@@ -756,14 +507,14 @@ impl Request {
     /// The value of field `index` of [`CommandId::request_fields`].
     pub fn field(&self, index: usize) -> Option<rtu::FieldValue<'_>> {
         match self {
-            Self::SetSlaveId(r) => r.fields().get(index).copied(),
-            Self::GetSn(r) => r.fields().get(index).copied(),
-            Self::GetVersion(r) => r.fields().get(index).copied(),
-            Self::GetSlaveId(r) => r.fields().get(index).copied(),
-            Self::SetUserCalibration(r) => r.fields().get(index).copied(),
-            Self::GetUserCalibration(r) => r.fields().get(index).copied(),
-            Self::GetWaterLevel(r) => r.fields().get(index).copied(),
-            Self::GetTemperature(r) => r.fields().get(index).copied(),
+            Self::SetSlaveId(r) => rtu::Message::field(r, index),
+            Self::GetSn(r) => rtu::Message::field(r, index),
+            Self::GetVersion(r) => rtu::Message::field(r, index),
+            Self::GetSlaveId(r) => rtu::Message::field(r, index),
+            Self::SetUserCalibration(r) => rtu::Message::field(r, index),
+            Self::GetUserCalibration(r) => rtu::Message::field(r, index),
+            Self::GetWaterLevel(r) => rtu::Message::field(r, index),
+            Self::GetTemperature(r) => rtu::Message::field(r, index),
         }
     }
     /// Every field with its name and unit, in wire order.
@@ -842,15 +593,16 @@ impl Response {
     }
     /// The value of field `index` of [`CommandId::response_fields`].
     pub fn field(&self, index: usize) -> Option<rtu::FieldValue<'_>> {
+        use rtu::Message as _;
         match self {
             Self::SetSlaveId => None,
-            Self::GetSn(r) => r.fields().get(index).copied(),
-            Self::GetVersion(r) => r.fields().get(index).copied(),
-            Self::GetSlaveId(r) => r.fields().get(index).copied(),
+            Self::GetSn(r) => r.field(index),
+            Self::GetVersion(r) => r.field(index),
+            Self::GetSlaveId(r) => r.field(index),
             Self::SetUserCalibration => None,
-            Self::GetUserCalibration(r) => r.fields().get(index).copied(),
-            Self::GetWaterLevel(r) => r.fields().get(index).copied(),
-            Self::GetTemperature(r) => r.fields().get(index).copied(),
+            Self::GetUserCalibration(r) => r.field(index),
+            Self::GetWaterLevel(r) => r.field(index),
+            Self::GetTemperature(r) => r.field(index),
         }
     }
     /// Every field with its name and unit, in wire order.
@@ -962,30 +714,8 @@ pub fn decode_response(
 /// and register count (the first in spec order if several match). Does
 /// not check the frame: decode it with [`CommandId::decode_request`].
 pub fn identify_request(frame: &[u8]) -> Option<CommandId> {
-    let [_, function, address_hi, address_lo, count_hi, count_lo] = *frame
-        .first_chunk::<6>()?;
-    let address = u16::from_be_bytes([address_hi, address_lo]);
-    let count = u16::from_be_bytes([count_hi, count_lo]);
-    CommandId::ALL
-        .into_iter()
-        .find(|id| {
-            let layout = id.layout();
-            layout.function.code() == function && layout.address == address
-                && layout.count == count
-        })
+    rtu::identify_request(&COMMANDS, frame).and_then(|i| CommandId::ALL.get(i).copied())
 }
-
-/// Every command's spec name, in spec order.
-pub const COMMAND_NAMES: [&str; 8] = [
-    "set_slave_id",
-    "get_sn",
-    "get_version",
-    "get_slave_id",
-    "set_user_calibration",
-    "get_user_calibration",
-    "get_water_level",
-    "get_temperature",
-];
 
 /// Every derived quantity of the sensor as data, in spec order: its
 /// inputs, and its function (`compute` takes the inputs in parameter order).
@@ -995,57 +725,8 @@ pub const DERIVED: [rtu::DerivedInfo; 0] = [];
 /// (`crate::SENSORS` lists them all).
 pub const MODULE: rtu::SensorModule = rtu::SensorModule {
     info: SENSOR,
+    commands: &COMMANDS,
     derived: &DERIVED,
-    commands: &COMMAND_NAMES,
-    layout: |name| CommandId::from_name(name).map(CommandId::layout),
-    identify_request: |frame| identify_request(frame).map(CommandId::name),
-    visit_request: |name, frame, visit| {
-        let id = CommandId::from_name(name)?;
-        Some(
-            id
-                .decode_request(frame)
-                .map(|(slave, request)| {
-                    for (info, value) in request.fields() {
-                        visit(info, value);
-                    }
-                    slave
-                }),
-        )
-    },
-    reencode_request: |name, frame, out| {
-        let id = CommandId::from_name(name)?;
-        Some(
-            id
-                .decode_request(frame)
-                .map_err(rtu::RoundTripError::Frame)
-                .and_then(|(slave, request)| {
-                    request.encode(slave, out).map_err(rtu::RoundTripError::Encode)
-                }),
-        )
-    },
-    reencode_response: |name, slave, frame, out| {
-        let id = CommandId::from_name(name)?;
-        Some(
-            id
-                .decode_response(slave, frame)
-                .map_err(rtu::RoundTripError::Frame)
-                .and_then(|response| {
-                    response.encode(slave, out).map_err(rtu::RoundTripError::Encode)
-                }),
-        )
-    },
-    visit_response: |name, slave, frame, visit| {
-        let id = CommandId::from_name(name)?;
-        Some(
-            id
-                .decode_response(slave, frame)
-                .map(|response| {
-                    for (info, value) in response.fields() {
-                        visit(info, value);
-                    }
-                }),
-        )
-    },
 };
 
 #[cfg(feature = "std")]

@@ -11,15 +11,7 @@ use ::yosemitech_rtu as rtu;
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub struct GetUserCalibration;
 
-impl GetUserCalibration {
-    /// Name and unit of each field, in wire order.
-    pub const FIELDS: [rtu::FieldInfo; 0] = [];
-    /// Each field's value, in the order of [`Self::FIELDS`].
-    pub fn fields(&self) -> [rtu::FieldValue<'_>; 0] {
-        []
-    }
-}
-
+impl rtu::NoData for GetUserCalibration {}
 /// Reply to [`GetUserCalibration`]. Reads the user calibration: slope K and offset B, which the probe applies to its main value as final = K x raw + B (defaults K = 1, B = 0).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GetUserCalibrationResponse {
@@ -33,26 +25,13 @@ pub struct GetUserCalibrationResponse {
     pub b_offset: f32,
 }
 
-impl GetUserCalibrationResponse {
-    /// Name and unit of each field, in wire order.
-    pub const FIELDS: [rtu::FieldInfo; 2] = [
-        rtu::FieldInfo {
-            name: "k_slope",
-            unit: None,
-        },
-        rtu::FieldInfo {
-            name: "b_offset",
-            unit: None,
-        },
+impl rtu::Message for GetUserCalibrationResponse {
+    type Data = [u8; 8];
+    const FIELDS: &'static [rtu::FieldInfo] = &[
+        rtu::FieldInfo::new("k_slope", None),
+        rtu::FieldInfo::new("b_offset", None),
     ];
-    /// Each field's value, in the order of [`Self::FIELDS`].
-    pub fn fields(&self) -> [rtu::FieldValue<'_>; 2] {
-        [rtu::FieldValue::F32(self.k_slope), rtu::FieldValue::F32(self.b_offset)]
-    }
-    /// Bytes of register data: two per register.
-    pub const DATA_LEN: usize = 8;
-    /// Decodes register data; reserved bytes are ignored.
-    pub const fn from_data(data: &[u8; 8]) -> Self {
+    fn from_data(data: &[u8; 8]) -> Self {
         Self {
             k_slope: rtu::codec::f32_from_wire(
                 rtu::ByteOrder4::Dcba,
@@ -64,8 +43,7 @@ impl GetUserCalibrationResponse {
             ),
         }
     }
-    /// Encodes register data, reserved bytes with their fill.
-    pub const fn to_data(&self) -> [u8; 8] {
+    fn to_data(&self) -> [u8; 8] {
         let [b0, b1, b2, b3] = rtu::codec::f32_to_wire(
             rtu::ByteOrder4::Dcba,
             self.k_slope,
@@ -76,49 +54,19 @@ impl GetUserCalibrationResponse {
         );
         [b0, b1, b2, b3, b4, b5, b6, b7]
     }
+    fn field(&self, index: usize) -> Option<rtu::FieldValue<'_>> {
+        match index {
+            0 => Some(rtu::FieldValue::F32(self.k_slope)),
+            1 => Some(rtu::FieldValue::F32(self.b_offset)),
+            _ => None,
+        }
+    }
 }
 
 impl rtu::Command for GetUserCalibration {
     type Response = GetUserCalibrationResponse;
     const NAME: &'static str = "get_user_calibration";
-    const LAYOUT: rtu::Layout<'static> = rtu::Layout {
-        function: rtu::Function::Read,
-        address: 0x1100,
-        count: 4,
-        fixed_slave: None,
-        extra_byte_counts: &[],
-        trigger: false,
-    };
-    fn encode_request(
-        &self,
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        Self::LAYOUT.encode_request(slave, &[], out)
-    }
-    fn decode_request(frame: &[u8]) -> Result<(u8, Self), rtu::FrameError> {
-        let (slave, _) = Self::LAYOUT.decode_request(frame)?;
-        Ok((slave, Self))
-    }
-    fn encode_response(
-        response: &GetUserCalibrationResponse,
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        Self::LAYOUT.encode_response(slave, &response.to_data(), out)
-    }
-    fn decode_response(
-        slave: u8,
-        frame: &[u8],
-    ) -> Result<GetUserCalibrationResponse, rtu::FrameError> {
-        let data = Self::LAYOUT.decode_response(slave, frame)?;
-        let data = <&[u8; 8]>::try_from(data)
-            .map_err(|_| rtu::FrameError::Truncated {
-                expected: Self::RESPONSE_LEN,
-                actual: frame.len(),
-            })?;
-        Ok(GetUserCalibrationResponse::from_data(data))
-    }
+    const LAYOUT: rtu::Layout<'static> = rtu::Layout::read(0x1100, 4);
 }
 
 /// Set Customer Calibration Coefficients.
@@ -139,26 +87,13 @@ pub struct SetUserCalibration {
     pub b_offset: f32,
 }
 
-impl SetUserCalibration {
-    /// Name and unit of each field, in wire order.
-    pub const FIELDS: [rtu::FieldInfo; 2] = [
-        rtu::FieldInfo {
-            name: "k_slope",
-            unit: None,
-        },
-        rtu::FieldInfo {
-            name: "b_offset",
-            unit: None,
-        },
+impl rtu::Message for SetUserCalibration {
+    type Data = [u8; 8];
+    const FIELDS: &'static [rtu::FieldInfo] = &[
+        rtu::FieldInfo::new("k_slope", None),
+        rtu::FieldInfo::new("b_offset", None),
     ];
-    /// Each field's value, in the order of [`Self::FIELDS`].
-    pub fn fields(&self) -> [rtu::FieldValue<'_>; 2] {
-        [rtu::FieldValue::F32(self.k_slope), rtu::FieldValue::F32(self.b_offset)]
-    }
-    /// Bytes of register data: two per register.
-    pub const DATA_LEN: usize = 8;
-    /// Decodes register data; reserved bytes are ignored.
-    pub const fn from_data(data: &[u8; 8]) -> Self {
+    fn from_data(data: &[u8; 8]) -> Self {
         Self {
             k_slope: rtu::codec::f32_from_wire(
                 rtu::ByteOrder4::Dcba,
@@ -170,9 +105,7 @@ impl SetUserCalibration {
             ),
         }
     }
-    /// Encodes register data, reserved bytes with their fill. Does not
-    /// check ranges: see [`Self::validate`].
-    pub const fn to_data(&self) -> [u8; 8] {
+    fn to_data(&self) -> [u8; 8] {
         let [b0, b1, b2, b3] = rtu::codec::f32_to_wire(
             rtu::ByteOrder4::Dcba,
             self.k_slope,
@@ -183,50 +116,17 @@ impl SetUserCalibration {
         );
         [b0, b1, b2, b3, b4, b5, b6, b7]
     }
-    /// Checks every field against the range the spec allows
-    /// ([`rtu::EncodeError::OutOfRange`] names the first that is not).
-    pub fn validate(&self) -> Result<(), rtu::EncodeError> {
-        Ok(())
+    fn field(&self, index: usize) -> Option<rtu::FieldValue<'_>> {
+        match index {
+            0 => Some(rtu::FieldValue::F32(self.k_slope)),
+            1 => Some(rtu::FieldValue::F32(self.b_offset)),
+            _ => None,
+        }
     }
 }
 
 impl rtu::Command for SetUserCalibration {
     type Response = ();
     const NAME: &'static str = "set_user_calibration";
-    const LAYOUT: rtu::Layout<'static> = rtu::Layout {
-        function: rtu::Function::Write,
-        address: 0x1100,
-        count: 4,
-        fixed_slave: None,
-        extra_byte_counts: &[],
-        trigger: false,
-    };
-    fn encode_request(
-        &self,
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        self.validate()?;
-        Self::LAYOUT.encode_request(slave, &self.to_data(), out)
-    }
-    fn decode_request(frame: &[u8]) -> Result<(u8, Self), rtu::FrameError> {
-        let (slave, data) = Self::LAYOUT.decode_request(frame)?;
-        let data = <&[u8; 8]>::try_from(data)
-            .map_err(|_| rtu::FrameError::Truncated {
-                expected: Self::REQUEST_LEN,
-                actual: frame.len(),
-            })?;
-        Ok((slave, Self::from_data(data)))
-    }
-    fn encode_response(
-        _response: &(),
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        Self::LAYOUT.encode_response(slave, &[], out)
-    }
-    fn decode_response(slave: u8, frame: &[u8]) -> Result<(), rtu::FrameError> {
-        Self::LAYOUT.decode_response(slave, frame)?;
-        Ok(())
-    }
+    const LAYOUT: rtu::Layout<'static> = rtu::Layout::write(0x1100, 4);
 }

@@ -18,32 +18,24 @@ pub struct SetSlaveId {
     pub slave_address: u8,
 }
 
-impl SetSlaveId {
-    /// Name and unit of each field, in wire order.
-    pub const FIELDS: [rtu::FieldInfo; 1] = [
-        rtu::FieldInfo {
-            name: "slave_address",
-            unit: None,
-        },
+impl rtu::Message for SetSlaveId {
+    type Data = [u8; 2];
+    const FIELDS: &'static [rtu::FieldInfo] = &[
+        rtu::FieldInfo::new("slave_address", None),
     ];
-    /// Each field's value, in the order of [`Self::FIELDS`].
-    pub fn fields(&self) -> [rtu::FieldValue<'_>; 1] {
-        [rtu::FieldValue::Int(i64::from(self.slave_address))]
-    }
-    /// Bytes of register data: two per register.
-    pub const DATA_LEN: usize = 2;
-    /// Decodes register data; reserved bytes are ignored.
-    pub const fn from_data(data: &[u8; 2]) -> Self {
+    fn from_data(data: &[u8; 2]) -> Self {
         Self { slave_address: data[0] }
     }
-    /// Encodes register data, reserved bytes with their fill. Does not
-    /// check ranges: see [`Self::validate`].
-    pub const fn to_data(&self) -> [u8; 2] {
+    fn to_data(&self) -> [u8; 2] {
         [self.slave_address, 0x00]
     }
-    /// Checks every field against the range the spec allows
-    /// ([`rtu::EncodeError::OutOfRange`] names the first that is not).
-    pub fn validate(&self) -> Result<(), rtu::EncodeError> {
+    fn field(&self, index: usize) -> Option<rtu::FieldValue<'_>> {
+        match index {
+            0 => Some(rtu::FieldValue::Int(i64::from(self.slave_address))),
+            _ => None,
+        }
+    }
+    fn validate(&self) -> Result<(), rtu::EncodeError> {
         if !(1..=247).contains(&self.slave_address) {
             return Err(rtu::EncodeError::OutOfRange {
                 field: "slave_address",
@@ -56,42 +48,7 @@ impl SetSlaveId {
 impl rtu::Command for SetSlaveId {
     type Response = ();
     const NAME: &'static str = "set_slave_id";
-    const LAYOUT: rtu::Layout<'static> = rtu::Layout {
-        function: rtu::Function::Write,
-        address: 0x3000,
-        count: 1,
-        fixed_slave: None,
-        extra_byte_counts: &[],
-        trigger: false,
-    };
-    fn encode_request(
-        &self,
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        self.validate()?;
-        Self::LAYOUT.encode_request(slave, &self.to_data(), out)
-    }
-    fn decode_request(frame: &[u8]) -> Result<(u8, Self), rtu::FrameError> {
-        let (slave, data) = Self::LAYOUT.decode_request(frame)?;
-        let data = <&[u8; 2]>::try_from(data)
-            .map_err(|_| rtu::FrameError::Truncated {
-                expected: Self::REQUEST_LEN,
-                actual: frame.len(),
-            })?;
-        Ok((slave, Self::from_data(data)))
-    }
-    fn encode_response(
-        _response: &(),
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        Self::LAYOUT.encode_response(slave, &[], out)
-    }
-    fn decode_response(slave: u8, frame: &[u8]) -> Result<(), rtu::FrameError> {
-        Self::LAYOUT.decode_response(slave, frame)?;
-        Ok(())
-    }
+    const LAYOUT: rtu::Layout<'static> = rtu::Layout::write(0x3000, 1);
 }
 
 /// Get SN.
@@ -103,15 +60,7 @@ impl rtu::Command for SetSlaveId {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub struct GetSn;
 
-impl GetSn {
-    /// Name and unit of each field, in wire order.
-    pub const FIELDS: [rtu::FieldInfo; 0] = [];
-    /// Each field's value, in the order of [`Self::FIELDS`].
-    pub fn fields(&self) -> [rtu::FieldValue<'_>; 0] {
-        []
-    }
-}
-
+impl rtu::NoData for GetSn {}
 /// Reply to [`GetSn`]. Reads the probe's serial number: 14 bytes, a 0x00, twelve ASCII characters ("YL…") and a 0x00.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub struct GetSnResponse {
@@ -121,22 +70,12 @@ pub struct GetSnResponse {
     pub serial_number: rtu::Ascii<12>,
 }
 
-impl GetSnResponse {
-    /// Name and unit of each field, in wire order.
-    pub const FIELDS: [rtu::FieldInfo; 1] = [
-        rtu::FieldInfo {
-            name: "serial_number",
-            unit: None,
-        },
+impl rtu::Message for GetSnResponse {
+    type Data = [u8; 14];
+    const FIELDS: &'static [rtu::FieldInfo] = &[
+        rtu::FieldInfo::new("serial_number", None),
     ];
-    /// Each field's value, in the order of [`Self::FIELDS`].
-    pub fn fields(&self) -> [rtu::FieldValue<'_>; 1] {
-        [rtu::FieldValue::Text(self.serial_number.trimmed())]
-    }
-    /// Bytes of register data: two per register.
-    pub const DATA_LEN: usize = 14;
-    /// Decodes register data; reserved bytes are ignored.
-    pub const fn from_data(data: &[u8; 14]) -> Self {
+    fn from_data(data: &[u8; 14]) -> Self {
         Self {
             serial_number: rtu::Ascii::from_wire(
                 [
@@ -157,56 +96,24 @@ impl GetSnResponse {
             ),
         }
     }
-    /// Encodes register data, reserved bytes with their fill.
-    pub const fn to_data(&self) -> [u8; 14] {
+    fn to_data(&self) -> [u8; 14] {
         let [b1, b2, b3, b4, b5, b6, b7, b8, b9, b10, b11, b12] = self
             .serial_number
             .to_wire();
         [0x00, b1, b2, b3, b4, b5, b6, b7, b8, b9, b10, b11, b12, 0x00]
+    }
+    fn field(&self, index: usize) -> Option<rtu::FieldValue<'_>> {
+        match index {
+            0 => Some(rtu::FieldValue::Text(self.serial_number.trimmed())),
+            _ => None,
+        }
     }
 }
 
 impl rtu::Command for GetSn {
     type Response = GetSnResponse;
     const NAME: &'static str = "get_sn";
-    const LAYOUT: rtu::Layout<'static> = rtu::Layout {
-        function: rtu::Function::Read,
-        address: 0x0900,
-        count: 7,
-        fixed_slave: None,
-        extra_byte_counts: &[],
-        trigger: false,
-    };
-    fn encode_request(
-        &self,
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        Self::LAYOUT.encode_request(slave, &[], out)
-    }
-    fn decode_request(frame: &[u8]) -> Result<(u8, Self), rtu::FrameError> {
-        let (slave, _) = Self::LAYOUT.decode_request(frame)?;
-        Ok((slave, Self))
-    }
-    fn encode_response(
-        response: &GetSnResponse,
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        Self::LAYOUT.encode_response(slave, &response.to_data(), out)
-    }
-    fn decode_response(
-        slave: u8,
-        frame: &[u8],
-    ) -> Result<GetSnResponse, rtu::FrameError> {
-        let data = Self::LAYOUT.decode_response(slave, frame)?;
-        let data = <&[u8; 14]>::try_from(data)
-            .map_err(|_| rtu::FrameError::Truncated {
-                expected: Self::RESPONSE_LEN,
-                actual: frame.len(),
-            })?;
-        Ok(GetSnResponse::from_data(data))
-    }
+    const LAYOUT: rtu::Layout<'static> = rtu::Layout::read(0x0900, 7);
 }
 
 /// Get Software and Hardware Rev.
@@ -219,15 +126,7 @@ impl rtu::Command for GetSn {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub struct GetVersion;
 
-impl GetVersion {
-    /// Name and unit of each field, in wire order.
-    pub const FIELDS: [rtu::FieldInfo; 0] = [];
-    /// Each field's value, in the order of [`Self::FIELDS`].
-    pub fn fields(&self) -> [rtu::FieldValue<'_>; 0] {
-        []
-    }
-}
-
+impl rtu::NoData for GetVersion {}
 /// Reply to [`GetVersion`]. Reads the hardware and software revisions, one register each, read as major.minor byte pairs (a reading that fits every manual's example; the manuals do not define the encoding).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub struct GetVersionResponse {
@@ -241,83 +140,36 @@ pub struct GetVersionResponse {
     pub software: rtu::Version,
 }
 
-impl GetVersionResponse {
-    /// Name and unit of each field, in wire order.
-    pub const FIELDS: [rtu::FieldInfo; 2] = [
-        rtu::FieldInfo {
-            name: "hardware",
-            unit: None,
-        },
-        rtu::FieldInfo {
-            name: "software",
-            unit: None,
-        },
+impl rtu::Message for GetVersionResponse {
+    type Data = [u8; 4];
+    const FIELDS: &'static [rtu::FieldInfo] = &[
+        rtu::FieldInfo::new("hardware", None),
+        rtu::FieldInfo::new("software", None),
     ];
-    /// Each field's value, in the order of [`Self::FIELDS`].
-    pub fn fields(&self) -> [rtu::FieldValue<'_>; 2] {
-        [
-            rtu::FieldValue::Version(self.hardware),
-            rtu::FieldValue::Version(self.software),
-        ]
-    }
-    /// Bytes of register data: two per register.
-    pub const DATA_LEN: usize = 4;
-    /// Decodes register data; reserved bytes are ignored.
-    pub const fn from_data(data: &[u8; 4]) -> Self {
+    fn from_data(data: &[u8; 4]) -> Self {
         Self {
             hardware: rtu::Version::from_wire([data[0], data[1]]),
             software: rtu::Version::from_wire([data[2], data[3]]),
         }
     }
-    /// Encodes register data, reserved bytes with their fill.
-    pub const fn to_data(&self) -> [u8; 4] {
+    fn to_data(&self) -> [u8; 4] {
         let [b0, b1] = self.hardware.to_wire();
         let [b2, b3] = self.software.to_wire();
         [b0, b1, b2, b3]
+    }
+    fn field(&self, index: usize) -> Option<rtu::FieldValue<'_>> {
+        match index {
+            0 => Some(rtu::FieldValue::Version(self.hardware)),
+            1 => Some(rtu::FieldValue::Version(self.software)),
+            _ => None,
+        }
     }
 }
 
 impl rtu::Command for GetVersion {
     type Response = GetVersionResponse;
     const NAME: &'static str = "get_version";
-    const LAYOUT: rtu::Layout<'static> = rtu::Layout {
-        function: rtu::Function::Read,
-        address: 0x0700,
-        count: 2,
-        fixed_slave: None,
-        extra_byte_counts: &[],
-        trigger: false,
-    };
-    fn encode_request(
-        &self,
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        Self::LAYOUT.encode_request(slave, &[], out)
-    }
-    fn decode_request(frame: &[u8]) -> Result<(u8, Self), rtu::FrameError> {
-        let (slave, _) = Self::LAYOUT.decode_request(frame)?;
-        Ok((slave, Self))
-    }
-    fn encode_response(
-        response: &GetVersionResponse,
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        Self::LAYOUT.encode_response(slave, &response.to_data(), out)
-    }
-    fn decode_response(
-        slave: u8,
-        frame: &[u8],
-    ) -> Result<GetVersionResponse, rtu::FrameError> {
-        let data = Self::LAYOUT.decode_response(slave, frame)?;
-        let data = <&[u8; 4]>::try_from(data)
-            .map_err(|_| rtu::FrameError::Truncated {
-                expected: Self::RESPONSE_LEN,
-                actual: frame.len(),
-            })?;
-        Ok(GetVersionResponse::from_data(data))
-    }
+    const LAYOUT: rtu::Layout<'static> = rtu::Layout::read(0x0700, 2);
 }
 
 /// Get Slave Device ID.
@@ -333,15 +185,7 @@ impl rtu::Command for GetVersion {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub struct GetSlaveId;
 
-impl GetSlaveId {
-    /// Name and unit of each field, in wire order.
-    pub const FIELDS: [rtu::FieldInfo; 0] = [];
-    /// Each field's value, in the order of [`Self::FIELDS`].
-    pub fn fields(&self) -> [rtu::FieldValue<'_>; 0] {
-        []
-    }
-}
-
+impl rtu::NoData for GetSlaveId {}
 /// Reply to [`GetSlaveId`]. Reads the probe's slave address.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub struct GetSlaveIdResponse {
@@ -351,27 +195,22 @@ pub struct GetSlaveIdResponse {
     pub slave_address: u8,
 }
 
-impl GetSlaveIdResponse {
-    /// Name and unit of each field, in wire order.
-    pub const FIELDS: [rtu::FieldInfo; 1] = [
-        rtu::FieldInfo {
-            name: "slave_address",
-            unit: None,
-        },
+impl rtu::Message for GetSlaveIdResponse {
+    type Data = [u8; 2];
+    const FIELDS: &'static [rtu::FieldInfo] = &[
+        rtu::FieldInfo::new("slave_address", None),
     ];
-    /// Each field's value, in the order of [`Self::FIELDS`].
-    pub fn fields(&self) -> [rtu::FieldValue<'_>; 1] {
-        [rtu::FieldValue::Int(i64::from(self.slave_address))]
-    }
-    /// Bytes of register data: two per register.
-    pub const DATA_LEN: usize = 2;
-    /// Decodes register data; reserved bytes are ignored.
-    pub const fn from_data(data: &[u8; 2]) -> Self {
+    fn from_data(data: &[u8; 2]) -> Self {
         Self { slave_address: data[0] }
     }
-    /// Encodes register data, reserved bytes with their fill.
-    pub const fn to_data(&self) -> [u8; 2] {
+    fn to_data(&self) -> [u8; 2] {
         [self.slave_address, 0x00]
+    }
+    fn field(&self, index: usize) -> Option<rtu::FieldValue<'_>> {
+        match index {
+            0 => Some(rtu::FieldValue::Int(i64::from(self.slave_address))),
+            _ => None,
+        }
     }
 }
 
@@ -386,34 +225,4 @@ impl rtu::Command for GetSlaveId {
         extra_byte_counts: &[],
         trigger: false,
     };
-    fn encode_request(
-        &self,
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        Self::LAYOUT.encode_request(slave, &[], out)
-    }
-    fn decode_request(frame: &[u8]) -> Result<(u8, Self), rtu::FrameError> {
-        let (slave, _) = Self::LAYOUT.decode_request(frame)?;
-        Ok((slave, Self))
-    }
-    fn encode_response(
-        response: &GetSlaveIdResponse,
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        Self::LAYOUT.encode_response(slave, &response.to_data(), out)
-    }
-    fn decode_response(
-        slave: u8,
-        frame: &[u8],
-    ) -> Result<GetSlaveIdResponse, rtu::FrameError> {
-        let data = Self::LAYOUT.decode_response(slave, frame)?;
-        let data = <&[u8; 2]>::try_from(data)
-            .map_err(|_| rtu::FrameError::Truncated {
-                expected: Self::RESPONSE_LEN,
-                actual: frame.len(),
-            })?;
-        Ok(GetSlaveIdResponse::from_data(data))
-    }
 }

@@ -14,28 +14,12 @@ use ::yosemitech_rtu as rtu;
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub struct StartMeasurement;
 
-impl StartMeasurement {
-    /// Name and unit of each field, in wire order.
-    pub const FIELDS: [rtu::FieldInfo; 0] = [];
-    /// Each field's value, in the order of [`Self::FIELDS`].
-    pub fn fields(&self) -> [rtu::FieldValue<'_>; 0] {
-        []
-    }
-}
-
+impl rtu::NoData for StartMeasurement {}
 /// Reply to [`StartMeasurement`]: an acknowledgement that carries no value.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub struct StartMeasurementResponse;
 
-impl StartMeasurementResponse {
-    /// Name and unit of each field, in wire order.
-    pub const FIELDS: [rtu::FieldInfo; 0] = [];
-    /// Each field's value, in the order of [`Self::FIELDS`].
-    pub fn fields(&self) -> [rtu::FieldValue<'_>; 0] {
-        []
-    }
-}
-
+impl rtu::NoData for StartMeasurementResponse {}
 impl rtu::Command for StartMeasurement {
     type Response = StartMeasurementResponse;
     const NAME: &'static str = "start_measurement";
@@ -47,31 +31,6 @@ impl rtu::Command for StartMeasurement {
         extra_byte_counts: &[],
         trigger: true,
     };
-    fn encode_request(
-        &self,
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        Self::LAYOUT.encode_request(slave, &[], out)
-    }
-    fn decode_request(frame: &[u8]) -> Result<(u8, Self), rtu::FrameError> {
-        let (slave, _) = Self::LAYOUT.decode_request(frame)?;
-        Ok((slave, Self))
-    }
-    fn encode_response(
-        _response: &StartMeasurementResponse,
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        Self::LAYOUT.encode_response(slave, &[], out)
-    }
-    fn decode_response(
-        slave: u8,
-        frame: &[u8],
-    ) -> Result<StartMeasurementResponse, rtu::FrameError> {
-        Self::LAYOUT.decode_response(slave, frame)?;
-        Ok(StartMeasurementResponse)
-    }
 }
 
 /// Stop Measurement.
@@ -84,28 +43,12 @@ impl rtu::Command for StartMeasurement {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub struct StopMeasurement;
 
-impl StopMeasurement {
-    /// Name and unit of each field, in wire order.
-    pub const FIELDS: [rtu::FieldInfo; 0] = [];
-    /// Each field's value, in the order of [`Self::FIELDS`].
-    pub fn fields(&self) -> [rtu::FieldValue<'_>; 0] {
-        []
-    }
-}
-
+impl rtu::NoData for StopMeasurement {}
 /// Reply to [`StopMeasurement`]: an acknowledgement that carries no value.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub struct StopMeasurementResponse;
 
-impl StopMeasurementResponse {
-    /// Name and unit of each field, in wire order.
-    pub const FIELDS: [rtu::FieldInfo; 0] = [];
-    /// Each field's value, in the order of [`Self::FIELDS`].
-    pub fn fields(&self) -> [rtu::FieldValue<'_>; 0] {
-        []
-    }
-}
-
+impl rtu::NoData for StopMeasurementResponse {}
 impl rtu::Command for StopMeasurement {
     type Response = StopMeasurementResponse;
     const NAME: &'static str = "stop_measurement";
@@ -117,29 +60,4 @@ impl rtu::Command for StopMeasurement {
         extra_byte_counts: &[],
         trigger: true,
     };
-    fn encode_request(
-        &self,
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        Self::LAYOUT.encode_request(slave, &[], out)
-    }
-    fn decode_request(frame: &[u8]) -> Result<(u8, Self), rtu::FrameError> {
-        let (slave, _) = Self::LAYOUT.decode_request(frame)?;
-        Ok((slave, Self))
-    }
-    fn encode_response(
-        _response: &StopMeasurementResponse,
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        Self::LAYOUT.encode_response(slave, &[], out)
-    }
-    fn decode_response(
-        slave: u8,
-        frame: &[u8],
-    ) -> Result<StopMeasurementResponse, rtu::FrameError> {
-        Self::LAYOUT.decode_response(slave, frame)?;
-        Ok(StopMeasurementResponse)
-    }
 }

@@ -11,15 +11,7 @@ use ::yosemitech_rtu as rtu;
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub struct GetSn;
 
-impl GetSn {
-    /// Name and unit of each field, in wire order.
-    pub const FIELDS: [rtu::FieldInfo; 0] = [];
-    /// Each field's value, in the order of [`Self::FIELDS`].
-    pub fn fields(&self) -> [rtu::FieldValue<'_>; 0] {
-        []
-    }
-}
-
+impl rtu::NoData for GetSn {}
 /// Reply to [`GetSn`]. Reads the sonde's serial number: twelve ASCII characters ("YL..."), with no byte before or after them, unlike the probes' Get SN at 0x0900.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub struct GetSnResponse {
@@ -29,90 +21,29 @@ pub struct GetSnResponse {
     pub serial_number: rtu::Ascii<12>,
 }
 
-impl GetSnResponse {
-    /// Name and unit of each field, in wire order.
-    pub const FIELDS: [rtu::FieldInfo; 1] = [
-        rtu::FieldInfo {
-            name: "serial_number",
-            unit: None,
-        },
+impl rtu::Message for GetSnResponse {
+    type Data = [u8; 12];
+    const FIELDS: &'static [rtu::FieldInfo] = &[
+        rtu::FieldInfo::new("serial_number", None),
     ];
-    /// Each field's value, in the order of [`Self::FIELDS`].
-    pub fn fields(&self) -> [rtu::FieldValue<'_>; 1] {
-        [rtu::FieldValue::Text(self.serial_number.trimmed())]
-    }
-    /// Bytes of register data: two per register.
-    pub const DATA_LEN: usize = 12;
-    /// Decodes register data; reserved bytes are ignored.
-    pub const fn from_data(data: &[u8; 12]) -> Self {
+    fn from_data(data: &[u8; 12]) -> Self {
         Self {
-            serial_number: rtu::Ascii::from_wire(
-                [
-                    data[0],
-                    data[1],
-                    data[2],
-                    data[3],
-                    data[4],
-                    data[5],
-                    data[6],
-                    data[7],
-                    data[8],
-                    data[9],
-                    data[10],
-                    data[11],
-                ],
-                0x00,
-            ),
+            serial_number: rtu::Ascii::from_wire(*data, 0x00),
         }
     }
-    /// Encodes register data, reserved bytes with their fill.
-    pub const fn to_data(&self) -> [u8; 12] {
-        let [b0, b1, b2, b3, b4, b5, b6, b7, b8, b9, b10, b11] = self
-            .serial_number
-            .to_wire();
-        [b0, b1, b2, b3, b4, b5, b6, b7, b8, b9, b10, b11]
+    fn to_data(&self) -> [u8; 12] {
+        self.serial_number.to_wire()
+    }
+    fn field(&self, index: usize) -> Option<rtu::FieldValue<'_>> {
+        match index {
+            0 => Some(rtu::FieldValue::Text(self.serial_number.trimmed())),
+            _ => None,
+        }
     }
 }
 
 impl rtu::Command for GetSn {
     type Response = GetSnResponse;
     const NAME: &'static str = "get_sn";
-    const LAYOUT: rtu::Layout<'static> = rtu::Layout {
-        function: rtu::Function::Read,
-        address: 0x1400,
-        count: 6,
-        fixed_slave: None,
-        extra_byte_counts: &[],
-        trigger: false,
-    };
-    fn encode_request(
-        &self,
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        Self::LAYOUT.encode_request(slave, &[], out)
-    }
-    fn decode_request(frame: &[u8]) -> Result<(u8, Self), rtu::FrameError> {
-        let (slave, _) = Self::LAYOUT.decode_request(frame)?;
-        Ok((slave, Self))
-    }
-    fn encode_response(
-        response: &GetSnResponse,
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        Self::LAYOUT.encode_response(slave, &response.to_data(), out)
-    }
-    fn decode_response(
-        slave: u8,
-        frame: &[u8],
-    ) -> Result<GetSnResponse, rtu::FrameError> {
-        let data = Self::LAYOUT.decode_response(slave, frame)?;
-        let data = <&[u8; 12]>::try_from(data)
-            .map_err(|_| rtu::FrameError::Truncated {
-                expected: Self::RESPONSE_LEN,
-                actual: frame.len(),
-            })?;
-        Ok(GetSnResponse::from_data(data))
-    }
+    const LAYOUT: rtu::Layout<'static> = rtu::Layout::read(0x1400, 6);
 }

@@ -12,31 +12,7 @@ use ::yosemitech_rtu as rtu;
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub struct ActiveBrush;
 
-impl ActiveBrush {
-    /// Name and unit of each field, in wire order.
-    pub const FIELDS: [rtu::FieldInfo; 0] = [];
-    /// Each field's value, in the order of [`Self::FIELDS`].
-    pub fn fields(&self) -> [rtu::FieldValue<'_>; 0] {
-        []
-    }
-    /// Bytes of register data: two per register.
-    pub const DATA_LEN: usize = 0;
-    /// Decodes register data (nothing in it is kept).
-    pub const fn from_data(_data: &[u8; 0]) -> Self {
-        Self
-    }
-    /// Encodes register data, reserved bytes with their fill. Does not
-    /// check ranges: see [`Self::validate`].
-    pub const fn to_data(&self) -> [u8; 0] {
-        []
-    }
-    /// Checks every field against the range the spec allows
-    /// ([`rtu::EncodeError::OutOfRange`] names the first that is not).
-    pub fn validate(&self) -> Result<(), rtu::EncodeError> {
-        Ok(())
-    }
-}
-
+impl rtu::NoData for ActiveBrush {}
 impl rtu::Command for ActiveBrush {
     type Response = ();
     const NAME: &'static str = "active_brush";
@@ -48,29 +24,6 @@ impl rtu::Command for ActiveBrush {
         extra_byte_counts: &[],
         trigger: true,
     };
-    fn encode_request(
-        &self,
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        self.validate()?;
-        Self::LAYOUT.encode_request(slave, &[], out)
-    }
-    fn decode_request(frame: &[u8]) -> Result<(u8, Self), rtu::FrameError> {
-        let (slave, _) = Self::LAYOUT.decode_request(frame)?;
-        Ok((slave, Self))
-    }
-    fn encode_response(
-        _response: &(),
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        Self::LAYOUT.encode_response(slave, &[], out)
-    }
-    fn decode_response(slave: u8, frame: &[u8]) -> Result<(), rtu::FrameError> {
-        Self::LAYOUT.decode_response(slave, frame)?;
-        Ok(())
-    }
 }
 
 /// Set Brush Interval of time.
@@ -88,81 +41,31 @@ pub struct SetBrushInterval {
     pub interval_min: u16,
 }
 
-impl SetBrushInterval {
-    /// Name and unit of each field, in wire order.
-    pub const FIELDS: [rtu::FieldInfo; 1] = [
-        rtu::FieldInfo {
-            name: "interval_min",
-            unit: Some("min"),
-        },
+impl rtu::Message for SetBrushInterval {
+    type Data = [u8; 2];
+    const FIELDS: &'static [rtu::FieldInfo] = &[
+        rtu::FieldInfo::new("interval_min", Some("min")),
     ];
-    /// Each field's value, in the order of [`Self::FIELDS`].
-    pub fn fields(&self) -> [rtu::FieldValue<'_>; 1] {
-        [rtu::FieldValue::Int(i64::from(self.interval_min))]
-    }
-    /// Bytes of register data: two per register.
-    pub const DATA_LEN: usize = 2;
-    /// Decodes register data; reserved bytes are ignored.
-    pub const fn from_data(data: &[u8; 2]) -> Self {
+    fn from_data(data: &[u8; 2]) -> Self {
         Self {
-            interval_min: rtu::codec::u16_from_wire(
-                rtu::ByteOrder2::Ba,
-                [data[0], data[1]],
-            ),
+            interval_min: rtu::codec::u16_from_wire(rtu::ByteOrder2::Ba, *data),
         }
     }
-    /// Encodes register data, reserved bytes with their fill. Does not
-    /// check ranges: see [`Self::validate`].
-    pub const fn to_data(&self) -> [u8; 2] {
-        let [b0, b1] = rtu::codec::u16_to_wire(rtu::ByteOrder2::Ba, self.interval_min);
-        [b0, b1]
+    fn to_data(&self) -> [u8; 2] {
+        rtu::codec::u16_to_wire(rtu::ByteOrder2::Ba, self.interval_min)
     }
-    /// Checks every field against the range the spec allows
-    /// ([`rtu::EncodeError::OutOfRange`] names the first that is not).
-    pub fn validate(&self) -> Result<(), rtu::EncodeError> {
-        Ok(())
+    fn field(&self, index: usize) -> Option<rtu::FieldValue<'_>> {
+        match index {
+            0 => Some(rtu::FieldValue::Int(i64::from(self.interval_min))),
+            _ => None,
+        }
     }
 }
 
 impl rtu::Command for SetBrushInterval {
     type Response = ();
     const NAME: &'static str = "set_brush_interval";
-    const LAYOUT: rtu::Layout<'static> = rtu::Layout {
-        function: rtu::Function::Write,
-        address: 0x3200,
-        count: 1,
-        fixed_slave: None,
-        extra_byte_counts: &[],
-        trigger: false,
-    };
-    fn encode_request(
-        &self,
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        self.validate()?;
-        Self::LAYOUT.encode_request(slave, &self.to_data(), out)
-    }
-    fn decode_request(frame: &[u8]) -> Result<(u8, Self), rtu::FrameError> {
-        let (slave, data) = Self::LAYOUT.decode_request(frame)?;
-        let data = <&[u8; 2]>::try_from(data)
-            .map_err(|_| rtu::FrameError::Truncated {
-                expected: Self::REQUEST_LEN,
-                actual: frame.len(),
-            })?;
-        Ok((slave, Self::from_data(data)))
-    }
-    fn encode_response(
-        _response: &(),
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        Self::LAYOUT.encode_response(slave, &[], out)
-    }
-    fn decode_response(slave: u8, frame: &[u8]) -> Result<(), rtu::FrameError> {
-        Self::LAYOUT.decode_response(slave, frame)?;
-        Ok(())
-    }
+    const LAYOUT: rtu::Layout<'static> = rtu::Layout::write(0x3200, 1);
 }
 
 /// Get Brush Interval of time.
@@ -173,15 +76,7 @@ impl rtu::Command for SetBrushInterval {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub struct GetBrushInterval;
 
-impl GetBrushInterval {
-    /// Name and unit of each field, in wire order.
-    pub const FIELDS: [rtu::FieldInfo; 0] = [];
-    /// Each field's value, in the order of [`Self::FIELDS`].
-    pub fn fields(&self) -> [rtu::FieldValue<'_>; 0] {
-        []
-    }
-}
-
+impl rtu::NoData for GetBrushInterval {}
 /// Reply to [`GetBrushInterval`]. Reads the time between two automatic rotations of the brush, in minutes (default 30).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub struct GetBrushIntervalResponse {
@@ -191,75 +86,29 @@ pub struct GetBrushIntervalResponse {
     pub interval_min: u16,
 }
 
-impl GetBrushIntervalResponse {
-    /// Name and unit of each field, in wire order.
-    pub const FIELDS: [rtu::FieldInfo; 1] = [
-        rtu::FieldInfo {
-            name: "interval_min",
-            unit: Some("min"),
-        },
+impl rtu::Message for GetBrushIntervalResponse {
+    type Data = [u8; 2];
+    const FIELDS: &'static [rtu::FieldInfo] = &[
+        rtu::FieldInfo::new("interval_min", Some("min")),
     ];
-    /// Each field's value, in the order of [`Self::FIELDS`].
-    pub fn fields(&self) -> [rtu::FieldValue<'_>; 1] {
-        [rtu::FieldValue::Int(i64::from(self.interval_min))]
-    }
-    /// Bytes of register data: two per register.
-    pub const DATA_LEN: usize = 2;
-    /// Decodes register data; reserved bytes are ignored.
-    pub const fn from_data(data: &[u8; 2]) -> Self {
+    fn from_data(data: &[u8; 2]) -> Self {
         Self {
-            interval_min: rtu::codec::u16_from_wire(
-                rtu::ByteOrder2::Ba,
-                [data[0], data[1]],
-            ),
+            interval_min: rtu::codec::u16_from_wire(rtu::ByteOrder2::Ba, *data),
         }
     }
-    /// Encodes register data, reserved bytes with their fill.
-    pub const fn to_data(&self) -> [u8; 2] {
-        let [b0, b1] = rtu::codec::u16_to_wire(rtu::ByteOrder2::Ba, self.interval_min);
-        [b0, b1]
+    fn to_data(&self) -> [u8; 2] {
+        rtu::codec::u16_to_wire(rtu::ByteOrder2::Ba, self.interval_min)
+    }
+    fn field(&self, index: usize) -> Option<rtu::FieldValue<'_>> {
+        match index {
+            0 => Some(rtu::FieldValue::Int(i64::from(self.interval_min))),
+            _ => None,
+        }
     }
 }
 
 impl rtu::Command for GetBrushInterval {
     type Response = GetBrushIntervalResponse;
     const NAME: &'static str = "get_brush_interval";
-    const LAYOUT: rtu::Layout<'static> = rtu::Layout {
-        function: rtu::Function::Read,
-        address: 0x3200,
-        count: 1,
-        fixed_slave: None,
-        extra_byte_counts: &[],
-        trigger: false,
-    };
-    fn encode_request(
-        &self,
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        Self::LAYOUT.encode_request(slave, &[], out)
-    }
-    fn decode_request(frame: &[u8]) -> Result<(u8, Self), rtu::FrameError> {
-        let (slave, _) = Self::LAYOUT.decode_request(frame)?;
-        Ok((slave, Self))
-    }
-    fn encode_response(
-        response: &GetBrushIntervalResponse,
-        slave: u8,
-        out: &mut [u8],
-    ) -> Result<usize, rtu::EncodeError> {
-        Self::LAYOUT.encode_response(slave, &response.to_data(), out)
-    }
-    fn decode_response(
-        slave: u8,
-        frame: &[u8],
-    ) -> Result<GetBrushIntervalResponse, rtu::FrameError> {
-        let data = Self::LAYOUT.decode_response(slave, frame)?;
-        let data = <&[u8; 2]>::try_from(data)
-            .map_err(|_| rtu::FrameError::Truncated {
-                expected: Self::RESPONSE_LEN,
-                actual: frame.len(),
-            })?;
-        Ok(GetBrushIntervalResponse::from_data(data))
-    }
+    const LAYOUT: rtu::Layout<'static> = rtu::Layout::read(0x3200, 1);
 }

@@ -46,8 +46,26 @@
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 //!
-//! On hardware, use `SerialTransport` (feature `serial`) or `TcpTransport`
-//! (RTU over TCP) instead.
+//! On hardware, open the RS-485 adapter's serial port (feature `serial`, on
+//! by default) at the probe's factory settings, which each module's
+//! `SENSOR` states, or use `TcpTransport` (RTU over TCP):
+//!
+//! ```no_run
+//! # #[cfg(feature = "serial")] {
+//! use yosemitech::{Client, SerialConfig, SerialTransport, ph_orp};
+//!
+//! let settings = ph_orp::SENSOR.line_settings();
+//! // An error names the port and the settings tried.
+//! let port = SerialTransport::open(&SerialConfig::with_settings("/dev/ttyUSB0", settings))?;
+//! let mut client = Client::new(port);
+//! let mut probe = ph_orp::Device::new(&mut client, ph_orp::SENSOR.default_address);
+//! println!("pH {}", probe.ph()?);
+//! # }
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
+//!
+//! Each module's documentation lists its commands with the `Device` method
+//! that sends each.
 //!
 //! # Generic code
 //!
@@ -77,11 +95,18 @@
 //! - **Names** come from the spec: types are the command's name in
 //!   UpperCamelCase (`GetPh`), fields keep their snake_case names (`ph`,
 //!   `orp_mv`, `temperature_c`), constants are SHOUTY (`PH_CALIBRATION_STANDARDS`).
-//! - **Requests**: `GetPh` is the request and implements [`Command`]. Reads
-//!   are unit structs; writes are structs of typed fields
-//!   (`SetSlaveId { slave_address: 20 }`), and `encode_request` refuses values
-//!   outside the spec's `range` with [`EncodeError::OutOfRange`] (`validate()`
-//!   checks without encoding).
+//! - **Declarations, not code**: a generated module declares types and
+//!   tables; the runtime does the work. `GetPh` implements [`Command`] with
+//!   its name and [`Layout`] only: encoding and decoding frames are the
+//!   trait's provided methods. Requests and replies implement [`Message`]:
+//!   `FIELDS` (name, unit), `Data` (`[u8; 2 × registers]`), `from_data`,
+//!   `to_data`, `field(i)`, `fields()` and, for writes, `validate()`.
+//!   Messages without data (reads' requests, triggers' replies) say
+//!   [`rtu::NoData`]. Bring [`Message`] into scope to call its methods.
+//! - **Requests**: reads are unit structs; writes are structs of typed
+//!   fields (`SetSlaveId { slave_address: 20 }`), and `encode_request`
+//!   refuses values outside the spec's `range` with
+//!   [`EncodeError::OutOfRange`] (`validate()` checks without encoding).
 //! - **Replies**: a read replies with `GetPhResponse`, a struct of named
 //!   fields; a write replies with `()` (the runtime checks the echoed address
 //!   and count).
@@ -89,13 +114,14 @@
 //!   (raw bytes kept, padding trimmed on display), [`Version`], and a
 //!   generated enum per coded field with an `Unknown(raw)` arm
 //!   (`CalibrationStatus::from_raw(4)`, `.raw()`, `.name()`).
-//! - **Metadata**: every message type has `FIELDS: [FieldInfo; N]` (name,
-//!   unit) and `fields(&self) -> [FieldValue<'_>; N]`; messages with register
-//!   data have `DATA_LEN`, `from_data(&[u8; DATA_LEN])` and `to_data()`.
-//! - **Dispatch**: `CommandId` (`ALL`, `name()`, `from_name()`, `layout()`,
-//!   `decode_request()`, `decode_response()`), `Request`, `Response`,
-//!   `decode_response(id, slave, frame)` and `identify_request(frame)` (by
-//!   function, start address and register count).
+//! - **Dispatch**: `COMMANDS`, one [`rtu::CommandEntry`] per command (name,
+//!   title, layout, fields, codecs as function pointers), is the module's
+//!   command table; `CommandId` indexes it (`ALL`, `name()`, `from_name()`,
+//!   `layout()`, `entry()`, `decode_request()`, `decode_response()`), and
+//!   `MODULE` ([`rtu::SensorModule`]) carries it for code that serves every
+//!   sensor. `Request`, `Response`, `decode_response(id, slave, frame)` and
+//!   `identify_request(frame)` (by function, start address and register
+//!   count) complete it.
 //! - **Device handles** (`std`): `Device::new(&mut client, address)`; reads
 //!   are named after the command without `get_` and return the reply, or its
 //!   only field directly (`ph()`, `orp()` (the `orp_mv` field),
@@ -180,7 +206,7 @@ pub use yosemitech_rtu as rtu;
 
 pub use yosemitech_rtu::{
     Ascii, Command, EncodeError, ExceptionCode, FieldInfo, FieldValue, Frame, FrameError, Function, Hex, Layout,
-    SensorInfo, Version,
+    Message, SensorInfo, Version,
 };
 
 #[cfg(feature = "std")]

@@ -50,12 +50,12 @@ fn main() -> ! {
     loop {
         let request = core::hint::black_box(&[0x01, 0x03, 0x28, 0x00, 0x00, 0x02, 0xCD, 0xAB][..]);
         // Every command's request and reply codecs, through the module's dispatch.
-        if let Some(name) = (module.identify_request)(request) {
-            let n = (module.reencode_request)(name, request, &mut frame).and_then(Result::ok).unwrap_or(0);
-            let m = (module.reencode_response)(name, 1, request, &mut frame).and_then(Result::ok).unwrap_or(0);
+        if let Some(name) = module.identify_request(request) {
+            let n = module.reencode_request(name, request, &mut frame).and_then(Result::ok).unwrap_or(0);
+            let m = module.reencode_response(name, 1, request, &mut frame).and_then(Result::ok).unwrap_or(0);
             publish(0, (n + m) as f32);
-            let _ = (module.visit_request)(name, request, &mut |_, _| {});
-            let _ = (module.visit_response)(name, 1, request, &mut |_, _| {});
+            let _ = module.visit_request(name, request, &mut |_, _| {});
+            let _ = module.visit_response(name, 1, request, &mut |_, _| {});
         }
     }
 }
