@@ -415,7 +415,7 @@ pub fn frame_reader(data: &[u8]) {
             // The client keeps the bytes of the last attempt; the error says what was wrong with them.
             let received = client.last_reply();
             match &error {
-                Error::Timeout { received: count } => {
+                Error::Timeout { received: count, .. } => {
                     assert_eq!(*count, received.len(), "a timeout counts the bytes the client kept");
                     assert!(
                         received.is_empty() || stream.windows(received.len()).any(|w| w == received),

@@ -371,7 +371,7 @@ fn check(fault: Option<FaultKind>, address: u8, outcome: &Outcome, context: &str
     use FaultKind as F;
     let verdict = match (fault, outcome) {
         (None | Some(F::Garbage), Ok(_)) => Some(Verdict::AsSpecified),
-        (Some(F::Drop), Err(Error::Timeout { received: 0 })) => Some(Verdict::AsSpecified),
+        (Some(F::Drop), Err(Error::Timeout { received: 0, .. })) => Some(Verdict::AsSpecified),
         // Cut short or late: the client has at most the first bytes (none
         // when it gave up before they came).
         (Some(F::Truncate | F::Delay), Err(Error::Timeout { .. })) => Some(Verdict::AsSpecified),
@@ -468,7 +468,7 @@ fn soak(probe: &mut Probe, ops: &[Op], calls: usize, rng: &mut Rng, tally: &mut 
         }
         assert!(took <= timeout + HANG, "{context}: took {took:?} with a timeout of {timeout:?}");
         tally.slowest = tally.slowest.max(took);
-        if let Err(Error::Timeout { received }) = &outcome {
+        if let Err(Error::Timeout { received, .. }) = &outcome {
             match fault {
                 Some(FaultKind::Delay) => {
                     let received = probe.client.last_reply().to_vec();

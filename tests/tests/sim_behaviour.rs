@@ -252,7 +252,7 @@ fn a_client_asking_for_a_register_the_probe_lacks_times_out() {
     let slave = probe.default_address;
     let mut client = client(ResponderTransport::new(Simulator::new(probe.clone())), Duration::from_millis(20));
     match client.call_raw(&request(&foreign, slave, &[]), &foreign.layout()) {
-        Err(Error::Timeout { received }) => assert_eq!(received, 0),
+        Err(Error::Timeout { received, .. }) => assert_eq!(received, 0),
         other => panic!("expected a timeout, got {other:?}"),
     }
     let stats = *client.transport().responder().stats();

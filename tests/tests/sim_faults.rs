@@ -78,11 +78,11 @@ fn each_fault_kind_is_seen_by_the_client_as_the_right_error() {
     for (kind, driver) in FaultKind::ALL.into_iter().flat_map(|kind| DRIVERS.map(|driver| (kind, driver))) {
         let (result, bytes, sim, clean_reply) = one_fault(kind, driver);
         match (kind, &result) {
-            (FaultKind::Drop | FaultKind::Delay, Err(Error::Timeout { received })) => {
+            (FaultKind::Drop | FaultKind::Delay, Err(Error::Timeout { received, .. })) => {
                 assert_eq!(*received, 0, "{kind}: silence, got {bytes:02X?}");
             }
             (FaultKind::CorruptCrc, Err(Error::Frame { error: FrameError::Crc { .. }, .. })) => {}
-            (FaultKind::Truncate, Err(Error::Timeout { received })) => {
+            (FaultKind::Truncate, Err(Error::Timeout { received, .. })) => {
                 assert!(*received > 0 && clean_reply.starts_with(&bytes), "{kind}: {bytes:02X?}");
             }
             // The rtu client skips noise before a frame: the reply is accepted.
@@ -138,7 +138,7 @@ fn a_delayed_reply_arrives_after_the_deadline_when_served_in_a_thread() {
     let mut client = client(transport, Duration::from_millis(50));
     let start = Instant::now();
     match client.call_raw(&request(&read, slave, &[]), &read.layout()) {
-        Err(Error::Timeout { received }) => assert_eq!(received, 0),
+        Err(Error::Timeout { received, .. }) => assert_eq!(received, 0),
         other => panic!("expected a timeout, got {other:?}"),
     }
     assert!(start.elapsed() < delay, "the client gave up before the reply came");
@@ -195,7 +195,7 @@ struct Tally {
 
 fn failure_kind(e: &Error) -> String {
     match e {
-        Error::Timeout { received: 0 } => "timeout (silent)".into(),
+        Error::Timeout { received: 0, .. } => "timeout (silent)".into(),
         Error::Timeout { .. } => "timeout (partial)".into(),
         Error::Frame { error: FrameError::Exception { code, .. }, .. } => format!("exception {code}"),
         Error::Frame { error: FrameError::Crc { .. }, .. } => "crc".into(),

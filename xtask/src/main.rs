@@ -78,3 +78,20 @@ fn main() -> ExitCode {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use std::process::ExitCode;
+
+    /// What `.ci/run` checks, inside `cargo test` too: a spec edited without
+    /// `cargo xtask codegen`, `docs` or `schema` fails here, naming the task.
+    #[test]
+    fn generated_files_are_fresh() {
+        let tasks: [(&str, fn(&[String]) -> anyhow::Result<ExitCode>); 3] =
+            [("codegen", super::codegen::run), ("docs", super::docs::run), ("schema", super::schema::run)];
+        for (task, run) in tasks {
+            let code = run(&["--check".to_owned()]).map_err(|e| format!("cargo xtask {task} --check: {e:#}"));
+            assert_eq!(code, Ok(ExitCode::SUCCESS), "stale files: run `cargo xtask {task}` and commit the result");
+        }
+    }
+}

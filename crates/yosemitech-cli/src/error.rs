@@ -132,8 +132,8 @@ pub fn show_duration(d: Duration) -> String {
 /// what the client received (`Client::last_reply`).
 pub fn short(e: &RtuError, reply: &[u8]) -> String {
     match e {
-        RtuError::Timeout { received: 0 } => "no reply".into(),
-        RtuError::Timeout { received } => format!("incomplete reply ({received} bytes: {})", Hex(reply)),
+        RtuError::Timeout { received: 0, .. } => "no reply".into(),
+        RtuError::Timeout { received, .. } => format!("incomplete reply ({received} bytes: {})", Hex(reply)),
         RtuError::Frame { error: FrameError::Exception { code, .. } } => format!("exception {code}"),
         RtuError::Frame { error } => format!("{error} (reply {})", Hex(reply)),
         RtuError::Io(error) => format!("port error: {error}"),
@@ -148,14 +148,14 @@ pub fn request_failed(e: &RtuError, reply: &[u8], ctx: &Context) -> CliError {
     let scan = format!("`yosemitech scan --port {}` identifies the probes on the bus", crate::shell::quote(port));
     let raw = Hex(reply);
     match e {
-        RtuError::Timeout { received: 0 } => CliError::device(format!(
+        RtuError::Timeout { received: 0, .. } => CliError::device(format!(
             "no reply to {what} from address {slave} on {port} within {}",
             show_duration(*timeout)
         ))
         .hint(format!(
             "check power, wiring (A/B), the baud rate (--baud), the address (--address) and the sensor type (a probe does not answer a command it lacks); {scan}"
         )),
-        RtuError::Timeout { received } => CliError::device(format!(
+        RtuError::Timeout { received, .. } => CliError::device(format!(
             "incomplete reply to {what} from address {slave} on {port}: {received} bytes in {} ({raw})",
             show_duration(*timeout)
         ))

@@ -387,7 +387,8 @@ fn space_items(source: &str) -> String {
     let mut out = String::with_capacity(source.len() + source.len() / 20);
     let mut previous: Option<&str> = None;
     for line in source.lines() {
-        let ends_item = previous.is_some_and(|p| p == "}" || (!p.starts_with(' ') && p.ends_with(';')));
+        let ends_item =
+            previous.is_some_and(|p| p == "}" || (!p.starts_with(' ') && (p.ends_with(';') || p.ends_with("{}"))));
         if ends_item && !line.is_empty() && !line.starts_with(' ') && !line.starts_with('}') {
             out.push('\n');
         }

@@ -226,13 +226,43 @@ pub fn value(v: &Value) -> String {
     }
 }
 
-/// An example as a `text` block plus remarks, in Markdown.
-pub fn example(ex: &Example, field_order: &[&str]) -> String {
+/// The examples, each a `text` block plus remarks, in Markdown.
+pub fn examples(examples: &[Example], field_order: &[&str]) -> String {
+    // Manuals that print the same example again (a revision, a sibling
+    // model) are one example with every source named.
+    let mut groups: Vec<(Vec<String>, String)> = Vec::new();
+    for ex in examples {
+        let body = example_body(ex, field_order);
+        let source = example_source(ex);
+        match groups.iter_mut().find(|(_, b)| *b == body) {
+            Some((sources, _)) => sources.push(source),
+            None => groups.push((vec![source], body)),
+        }
+    }
     let mut s = String::new();
-    let figures = if ex.figures.is_empty() { String::new() } else { format!(" (figures {})", join(&ex.figures)) };
-    let manual = ex.manual.as_ref().map(|m| format!(", manual for software {}", one_line(m))).unwrap_or_default();
-    let _ = writeln!(s, "Example{figures}{manual}:");
-    s.push('\n');
+    for (sources, body) in groups {
+        let sources: Vec<String> = sources.into_iter().filter(|l| !l.is_empty()).collect();
+        s.push('\n');
+        if sources.is_empty() {
+            s.push_str("Example:\n\n");
+        } else {
+            let _ = writeln!(s, "Example ({}):\n", sources.join("; "));
+        }
+        s.push_str(&body);
+    }
+    s
+}
+
+/// Where a manual prints an example: its figures and, for a revision's
+/// manual, which one.
+fn example_source(ex: &Example) -> String {
+    let manual = ex.manual.as_ref().map(|m| format!("manual for software {}", one_line(m)));
+    let figures = (!ex.figures.is_empty()).then(|| format!("figures {}", join(&ex.figures)));
+    manual.into_iter().chain(figures).collect::<Vec<_>>().join(", ")
+}
+
+fn example_body(ex: &Example, field_order: &[&str]) -> String {
+    let mut s = String::new();
     s.push_str("```text\n");
     match &ex.request {
         Some(f) => {

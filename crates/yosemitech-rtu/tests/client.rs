@@ -128,7 +128,7 @@ behaviour! {
         let (mut client, log) = client_with(driver, config(0), |_, _, out| out.extend_from_slice(&READ_FLOAT_REPLY[..5]));
         let err = client.call(1, &ReadFloat).unwrap_err();
         match &err {
-            Error::Timeout { received } => assert_eq!((*received, client.last_reply()), (5, &READ_FLOAT_REPLY[..5])),
+            Error::Timeout { received, .. } => assert_eq!((*received, client.last_reply()), (5, &READ_FLOAT_REPLY[..5])),
             other => panic!("expected a timeout, got {other:?}"),
         }
         assert!(err.to_string().contains("5 bytes received"), "{err}");
@@ -178,7 +178,9 @@ behaviour! {
         let start = Instant::now();
         let err = client.call(1, &ReadFloat).unwrap_err();
         let elapsed = start.elapsed();
-        assert!(matches!(&err, Error::Timeout { received: 0 }), "{err:?}");
+        assert!(matches!(&err, Error::Timeout { received: 0, .. }), "{err:?}");
+        // The error names what went unanswered: the slave and the command.
+        assert_eq!(err.to_string(), format!("no reply from slave 1 to {} before the timeout", ReadFloat::NAME));
         assert!(elapsed >= timeout, "returned before the deadline: {elapsed:?}");
         assert!(elapsed < timeout + Duration::from_secs(2), "deadline overrun: {elapsed:?}");
         assert_eq!(requests(&log), 1);
@@ -383,7 +385,7 @@ proptest! {
                 });
                 prop_assert!(found, "value {value} from {reply:02X?} without a valid frame in it");
             }
-            Err(Error::Timeout { received }) => {
+            Err(Error::Timeout { received, .. }) => {
                 let bytes = client.last_reply();
                 prop_assert_eq!(bytes.len(), received);
                 prop_assert!(reply.starts_with(bytes), "{bytes:02X?} is not what was sent");

@@ -251,7 +251,7 @@ fn silent_device_times_out_at_the_deadline() {
     let w = world(|_, _, _| {});
     let mut client = client_on(&w, config(0), None);
     let err = block_on(client.call(1, &ReadFloat)).unwrap_err();
-    assert!(matches!(err, ClientError::Timeout { received: 0 }), "{err:?}");
+    assert!(matches!(err, ClientError::Timeout { received: 0, .. }), "{err:?}");
     assert_eq!(now(&w) - request_time(&w, 0), Duration::from_millis(50), "exactly the timeout, on the virtual clock");
 }
 
@@ -260,7 +260,7 @@ fn truncated_reply_times_out_with_the_partial_bytes() {
     let w = world(|_, _, out| out.push((Duration::from_millis(2), READ_FLOAT_REPLY[..5].to_vec())));
     let mut client = client_on(&w, config(0), None);
     let err = block_on(client.call(1, &ReadFloat)).unwrap_err();
-    assert!(matches!(err, ClientError::Timeout { received: 5 }), "{err:?}");
+    assert!(matches!(err, ClientError::Timeout { received: 5, .. }), "{err:?}");
     assert_eq!(client.last_reply(), &READ_FLOAT_REPLY[..5]);
 }
 

@@ -128,7 +128,7 @@ fn trickling_noise_does_not_extend_the_deadline() {
     let err = client.call(1, &ReadFloat).unwrap_err();
     let elapsed = start.elapsed();
     match &err {
-        Error::Timeout { received } => {
+        Error::Timeout { received, .. } => {
             assert!(
                 client.last_reply().iter().all(|&b| b == 0) && *received > 0 && client.last_reply().len() == *received
             )

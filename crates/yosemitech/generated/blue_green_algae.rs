@@ -158,6 +158,7 @@ impl rtu::Command for SetUserCalibration {
 pub struct GetUserCalibration;
 
 impl rtu::NoData for GetUserCalibration {}
+
 /// Reply to [`GetUserCalibration`]. Reads the user calibration: slope K and offset B, which the probe applies to its main value as final = K x raw + B (defaults K = 1, B = 0).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GetUserCalibrationResponse {
@@ -224,6 +225,7 @@ impl rtu::Command for GetUserCalibration {
 pub struct GetTemperatureAndBga;
 
 impl rtu::NoData for GetTemperatureAndBga {}
+
 /// Reply to [`GetTemperatureAndBga`]. Temperature and blue-green algae in one read, the user calibration applied to the algae.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GetTemperatureAndBgaResponse {

@@ -159,6 +159,7 @@ pub use super::yosemitech_optical::{StartMeasurement, StartMeasurementResponse};
 pub struct GetTemperatureAndChlorophyll;
 
 impl rtu::NoData for GetTemperatureAndChlorophyll {}
+
 /// Reply to [`GetTemperatureAndChlorophyll`]. Temperature, chlorophyll (user calibration applied) and the brush flag.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GetTemperatureAndChlorophyllResponse {
@@ -287,6 +288,7 @@ pub use super::yosemitech_optical::{StopMeasurement, StopMeasurementResponse};
 pub struct GetUserCalibration;
 
 impl rtu::NoData for GetUserCalibration {}
+
 /// Reply to [`GetUserCalibration`]. Reads the user calibration of the chlorophyll, meant to correct drift from ageing and similar causes: chlorophyll = K x measured chlorophyll + B, with K = 1 and B = 0 by default.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GetUserCalibrationResponse {

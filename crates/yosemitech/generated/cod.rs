@@ -170,6 +170,7 @@ pub use super::yosemitech_optical::{StartMeasurement, StartMeasurementResponse};
 pub struct GetTemperatureAndCod;
 
 impl rtu::NoData for GetTemperatureAndCod {}
+
 /// Reply to [`GetTemperatureAndCod`]. Temperature, COD (user calibration applied) and the wiper flag.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GetTemperatureAndCodResponse {
@@ -300,6 +301,7 @@ pub use super::yosemitech_optical::{StopMeasurement, StopMeasurementResponse};
 pub struct GetUserCalibration;
 
 impl rtu::NoData for GetUserCalibration {}
+
 /// Reply to [`GetUserCalibration`]. Reads the user calibration of the COD, meant to correct drift from ageing and similar causes: COD = K x measured COD + B, with K = 1 and B = 0 by default.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GetUserCalibrationResponse {
@@ -523,6 +525,7 @@ pub use super::yosemitech_common::{GetSlaveId, GetSlaveIdResponse};
 pub struct GetTurbidity;
 
 impl rtu::NoData for GetTurbidity {}
+
 /// Reply to [`GetTurbidity`]. The turbidity the probe also measures, with its user calibration applied (which calibration is not said; erratum Y551-4).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GetTurbidityResponse {

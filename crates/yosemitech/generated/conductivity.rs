@@ -160,15 +160,7 @@ impl ::core::fmt::Display for RangeStatus {
 ///
 /// Manual section 2.2.1, figures 15, 16, 17. Writes (function 0x10) 1 register at 0x3000. Role: `set_slave_address`. Shared by every Yosemitech probe (`yosemitech_common`).
 ///
-/// Example (figures 16, 17):
-///
-/// ```text
-/// request:  01 10 30 00 00 01 02 14 00 99 53
-/// response: 01 10 30 00 00 01 0E C9
-/// values:   slave_address = 20
-/// ```
-///
-/// Example (figures 16, 17), manual for software 1.8:
+/// Example (figures 16, 17; manual for software 1.8, figures 16, 17):
 ///
 /// ```text
 /// request:  01 10 30 00 00 01 02 14 00 99 53
@@ -184,15 +176,7 @@ pub use super::yosemitech_common::SetSlaveId;
 ///
 /// Manual section 2.2.2, figures 18, 19, 20, 21. Reads (function 0x03) 7 registers at 0x0900. Role: `serial_number`. Shared by every Yosemitech probe (`yosemitech_common`).
 ///
-/// Example (figures 19, 20, 21):
-///
-/// ```text
-/// request:  01 03 09 00 00 07 07 94
-/// response: 01 03 0E 00 59 4C 30 39 31 34 30 31 30 30 32 32 00 98 8C
-/// values:   serial_number = "YL0914010022"
-/// ```
-///
-/// Example (figures 19, 20, 21), manual for software 1.8:
+/// Example (figures 19, 20, 21; manual for software 1.8, figures 19, 20, 21):
 ///
 /// ```text
 /// request:  01 03 09 00 00 07 07 94
@@ -211,14 +195,7 @@ pub use super::yosemitech_common::{GetSn, GetSnResponse};
 ///
 /// Manual section 2.2.3, figures 22, 23, 24. Writes (function 0x10) 0 registers at 0x1C00. A trigger: the write carries no data (byte count 0). Role: `start_measurement`.
 ///
-/// Example (figures 23, 24):
-///
-/// ```text
-/// request:  01 10 1C 00 00 00 00 D8 92
-/// response: 01 10 1C 00 00 00 C7 99
-/// ```
-///
-/// Example (figures 23, 24), manual for software 1.8:
+/// Example (figures 23, 24; manual for software 1.8, figures 23, 24):
 ///
 /// ```text
 /// request:  01 10 1C 00 00 00 00 D8 92
@@ -228,6 +205,7 @@ pub use super::yosemitech_common::{GetSn, GetSnResponse};
 pub struct StartMeasurement;
 
 impl rtu::NoData for StartMeasurement {}
+
 impl rtu::Command for StartMeasurement {
     type Response = ();
     const NAME: &'static str = "start_measurement";
@@ -250,15 +228,7 @@ impl rtu::Command for StartMeasurement {
 ///
 /// Manual section 2.2.4, figures 25, 26, 27, 28. Reads (function 0x03) 5 registers at 0x2600.
 ///
-/// Example (figures 26, 27, 28):
-///
-/// ```text
-/// request:  01 03 26 00 00 05 8E 81
-/// response: 01 03 0A 00 00 8D 41 00 00 8D 41 00 00 C7 33
-/// values:   temperature_c = 17.625, conductivity_ms_cm = 17.625, range_status = ok
-/// ```
-///
-/// Example (figures 26, 27, 28), manual for software 1.8:
+/// Example (figures 26, 27, 28; manual for software 1.8, figures 26, 27, 28):
 ///
 /// ```text
 /// request:  01 03 26 00 00 05 8E 81
@@ -269,6 +239,7 @@ impl rtu::Command for StartMeasurement {
 pub struct GetTemperatureAndConductivity;
 
 impl rtu::NoData for GetTemperatureAndConductivity {}
+
 /// Reply to [`GetTemperatureAndConductivity`]. Temperature, conductivity (user calibration applied) and the range-switching error flag.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GetTemperatureAndConductivityResponse {
@@ -354,7 +325,7 @@ impl rtu::Command for GetTemperatureAndConductivity {
 /// values:   hardware = 1.0, software = 1.0
 /// ```
 ///
-/// Example (figures 30, 31), manual for software 1.8:
+/// Example (manual for software 1.8, figures 30, 31):
 ///
 /// ```text
 /// request:  01 03 07 00 00 02 C5 7F
@@ -374,7 +345,7 @@ pub use super::yosemitech_common::{GetVersion, GetVersionResponse};
 ///
 /// Manual section 2.2.6, figures 32, 33, 34. Reads (function 0x03) 1 register at 0x2E00. A trigger: a read used as a command. Its reply carries no value and is accepted with byte count 0 and no data, byte count 0 followed by the registers, or the registers with their byte count. Added in software revision 1.8. Role: `stop_measurement`. Shared by every Yosemitech probe (`yosemitech_optical`).
 ///
-/// Example (figures 33, 34), manual for software 1.8:
+/// Example (manual for software 1.8, figures 33, 34):
 ///
 /// ```text
 /// request:  01 03 2E 00 00 01 8D 22
@@ -388,15 +359,7 @@ pub use super::yosemitech_optical::{StopMeasurement, StopMeasurementResponse};
 ///
 /// Manual section 2.2.6, figures 32, 33, 34, 35. Reads (function 0x03) 4 registers at 0x1100.
 ///
-/// Example (figures 33, 34, 35):
-///
-/// ```text
-/// request:  01 03 11 00 00 04 41 35
-/// response: 01 03 08 00 00 80 3F 00 00 00 00 9E 12
-/// values:   k_slope = 1, b_offset = 0
-/// ```
-///
-/// Example (figures 36, 37, 38), manual for software 1.8:
+/// Example (figures 33, 34, 35; manual for software 1.8, figures 36, 37, 38):
 ///
 /// ```text
 /// request:  01 03 11 00 00 04 41 35
@@ -407,6 +370,7 @@ pub use super::yosemitech_optical::{StopMeasurement, StopMeasurementResponse};
 pub struct GetUserCalibration;
 
 impl rtu::NoData for GetUserCalibration {}
+
 /// Reply to [`GetUserCalibration`]. Reads the user calibration K and B, applied as Cond_final = K·Cond + B (defaults K = 1, B = 0).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GetUserCalibrationResponse {
@@ -470,15 +434,7 @@ impl rtu::Command for GetUserCalibration {
 ///
 /// Manual section 2.2.7, figures 36, 37, 38, 39. Writes (function 0x10) 4 registers at 0x1100. Role: `user_calibration`.
 ///
-/// Example (figures 37, 38, 39):
-///
-/// ```text
-/// request:  01 10 11 00 00 04 08 00 00 80 3F 00 00 00 00 81 AE
-/// response: 01 10 11 00 00 04 C4 F6
-/// values:   k_slope = 1, b_offset = 0
-/// ```
-///
-/// Example (figures 40, 41, 42), manual for software 1.8:
+/// Example (figures 37, 38, 39; manual for software 1.8, figures 40, 41, 42):
 ///
 /// ```text
 /// request:  01 10 11 00 00 04 08 00 00 80 3F 00 00 00 00 81 AE
@@ -552,7 +508,7 @@ impl rtu::Command for SetUserCalibration {
 ///
 /// Manual section 2.2.9, figures 43, 44, 45. Reads (function 0x03) 1 register at 0x3000. Added in software revision 1.8. Role: `get_slave_address`. Always sent to slave 0xFF, and the reply comes from 0xFF, whatever the probe's address. Shared by every Yosemitech probe (`yosemitech_common`).
 ///
-/// Example (figures 44, 45), manual for software 1.8:
+/// Example (manual for software 1.8, figures 44, 45):
 ///
 /// ```text
 /// request:  FF 03 30 00 00 01 9E D4

@@ -238,6 +238,7 @@ pub use super::yosemitech_optical::{StartMeasurement, StartMeasurementResponse};
 pub struct GetTemperatureAndDo;
 
 impl rtu::NoData for GetTemperatureAndDo {}
+
 /// Reply to [`GetTemperatureAndDo`]. Temperature and dissolved oxygen in one read.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GetTemperatureAndDoResponse {
@@ -354,6 +355,7 @@ pub use super::yosemitech_optical::{StopMeasurement, StopMeasurementResponse};
 pub struct GetUserCalibration;
 
 impl rtu::NoData for GetUserCalibration {}
+
 /// Reply to [`GetUserCalibration`]. Reads the user calibration of the dissolved oxygen, meant to correct drift from ageing and similar causes: DO = K x measured DO + B, with K = 1 and B = 0 by default.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GetUserCalibrationResponse {

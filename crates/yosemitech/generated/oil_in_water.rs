@@ -133,6 +133,7 @@ impl rtu::Command for SetUserCalibration {
 pub struct GetUserCalibration;
 
 impl rtu::NoData for GetUserCalibration {}
+
 /// Reply to [`GetUserCalibration`]. Reads the user calibration: slope K and offset B, which the probe applies to its main value as final = K x raw + B (defaults K = 1, B = 0).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GetUserCalibrationResponse {
@@ -199,6 +200,7 @@ impl rtu::Command for GetUserCalibration {
 pub struct GetTemperatureAndOil;
 
 impl rtu::NoData for GetTemperatureAndOil {}
+
 /// Reply to [`GetTemperatureAndOil`]. Temperature, oil in water and the status in one read.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GetTemperatureAndOilResponse {

@@ -78,6 +78,7 @@ pub use super::yosemitech_optical::{StartMeasurement, StartMeasurementResponse};
 pub struct GetOrp;
 
 impl rtu::NoData for GetOrp {}
+
 /// Reply to [`GetOrp`]. The oxidation-reduction potential in millivolts, with the user calibration applied.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GetOrpResponse {
@@ -123,6 +124,7 @@ impl rtu::Command for GetOrp {
 pub struct GetTemperature;
 
 impl rtu::NoData for GetTemperature {}
+
 /// Reply to [`GetTemperature`]. The water temperature from the probe's built-in sensor.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GetTemperatureResponse {
@@ -169,6 +171,7 @@ impl rtu::Command for GetTemperature {
 pub struct GetUserCalibration;
 
 impl rtu::NoData for GetUserCalibration {}
+
 /// Reply to [`GetUserCalibration`]. Reads the user calibration of the ORP: slope K and offset B (final = K x raw + B; defaults K = 1, B = 0), at 0x3400 on this model.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GetUserCalibrationResponse {

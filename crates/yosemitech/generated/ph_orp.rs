@@ -177,15 +177,7 @@ impl ::core::fmt::Display for CalibrationStatus {
 ///
 /// Manual section 2.2.1, figures 15, 16, 17. Writes (function 0x10) 1 register at 0x3000. Role: `set_slave_address`. Shared by every Yosemitech probe (`yosemitech_common`).
 ///
-/// Example (figures 16, 17):
-///
-/// ```text
-/// request:  01 10 30 00 00 01 02 14 00 99 53
-/// response: 01 10 30 00 00 01 0E C9
-/// values:   slave_address = 20
-/// ```
-///
-/// Example (figures 16, 17), manual for software 1.1:
+/// Example (figures 16, 17; manual for software 1.1, figures 16, 17):
 ///
 /// ```text
 /// request:  01 10 30 00 00 01 02 14 00 99 53
@@ -201,15 +193,7 @@ pub use super::yosemitech_common::SetSlaveId;
 ///
 /// Manual section 2.2.2, figures 18, 19, 20, 21. Reads (function 0x03) 7 registers at 0x0900. Role: `serial_number`. Shared by every Yosemitech probe (`yosemitech_common`).
 ///
-/// Example (figures 19, 20, 21):
-///
-/// ```text
-/// request:  01 03 09 00 00 07 07 94
-/// response: 01 03 0E 00 59 4C 34 33 31 34 30 31 30 30 32 32 00 AD 9C
-/// values:   serial_number = "YL4314010022"
-/// ```
-///
-/// Example (figures 19, 20, 21), manual for software 1.1:
+/// Example (figures 19, 20, 21; manual for software 1.1, figures 19, 20, 21):
 ///
 /// ```text
 /// request:  01 03 09 00 00 07 07 94
@@ -224,15 +208,7 @@ pub use super::yosemitech_common::{GetSn, GetSnResponse};
 ///
 /// Manual section 2.2.3, figures 22, 23, 24, 25. Reads (function 0x03) 2 registers at 0x2800.
 ///
-/// Example (figures 23, 24, 25):
-///
-/// ```text
-/// request:  01 03 28 00 00 02 CD AB
-/// response: 01 03 04 33 33 F3 40 40 78
-/// values:   ph = 7.6
-/// ```
-///
-/// Example (figures 23, 24, 25), manual for software 1.1:
+/// Example (figures 23, 24, 25; manual for software 1.1, figures 23, 24, 25):
 ///
 /// ```text
 /// request:  01 03 28 00 00 02 CD AB
@@ -243,6 +219,7 @@ pub use super::yosemitech_common::{GetSn, GetSnResponse};
 pub struct GetPh;
 
 impl rtu::NoData for GetPh {}
+
 /// Reply to [`GetPh`]. The pH, temperature-compensated by the probe.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GetPhResponse {
@@ -295,6 +272,7 @@ impl rtu::Command for GetPh {
 pub struct GetOrpAndPh;
 
 impl rtu::NoData for GetOrpAndPh {}
+
 /// Reply to [`GetOrpAndPh`]. The potential (ORP) and the pH in one read.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GetOrpAndPhResponse {
@@ -355,15 +333,7 @@ impl rtu::Command for GetOrpAndPh {
 ///
 /// Manual section 2.2.5, figures 30, 31, 32, 33. Reads (function 0x03) 2 registers at 0x1200.
 ///
-/// Example (figures 31, 32, 33):
-///
-/// ```text
-/// request:  01 03 12 00 00 02 C1 73
-/// response: 01 03 04 E1 7A 24 C1 37 46
-/// values:   orp_mv = -10.28
-/// ```
-///
-/// Example (figures 30, 31, 32), manual for software 1.1:
+/// Example (figures 31, 32, 33; manual for software 1.1, figures 30, 31, 32):
 ///
 /// ```text
 /// request:  01 03 12 00 00 02 C1 73
@@ -374,6 +344,7 @@ impl rtu::Command for GetOrpAndPh {
 pub struct GetOrp;
 
 impl rtu::NoData for GetOrp {}
+
 /// Reply to [`GetOrp`]. The oxidation-reduction potential.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GetOrpResponse {
@@ -428,7 +399,7 @@ impl rtu::Command for GetOrp {
 ///
 /// The scope says HW 1.2 / SW 1.7, the example 1.1 / 1.1 (erratum E13).
 ///
-/// Example (figures 27, 28), manual for software 1.1:
+/// Example (manual for software 1.1, figures 27, 28):
 ///
 /// ```text
 /// request:  01 03 07 00 00 02 C5 7F
@@ -458,7 +429,7 @@ pub use super::yosemitech_common::{GetVersion, GetVersionResponse};
 ///
 /// Fig 38 prints the value as "4.00"; the bytes 00 00 80 40 are the only ones the printed CRC verifies.
 ///
-/// Example (figures 34, 35), manual for software 1.1:
+/// Example (manual for software 1.1, figures 34, 35):
 ///
 /// ```text
 /// request:  01 10 23 00 00 02 04 00 00 80 40 1E AE
@@ -531,7 +502,7 @@ impl rtu::Command for StartPhCalibration {
 ///
 /// Erratum E5 (figure 42): The CRC cells are empty and the status is printed as the word "Status 0". Here the printed frame is rejected.
 ///
-/// Example (figures 37, 38, 39), manual for software 1.1:
+/// Example (manual for software 1.1, figures 37, 38, 39):
 ///
 /// ```text
 /// request:  01 03 0E 00 00 01 86 E2
@@ -546,6 +517,7 @@ impl rtu::Command for StartPhCalibration {
 pub struct GetCalibrationStatus;
 
 impl rtu::NoData for GetCalibrationStatus {}
+
 /// Reply to [`GetCalibrationStatus`]. The outcome of the last calibration.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub struct GetCalibrationStatusResponse {
@@ -591,15 +563,7 @@ impl rtu::Command for GetCalibrationStatus {
 ///
 /// Manual section 2.2.9, figures 44, 45, 46, 47. Reads (function 0x03) 2 registers at 0x2400.
 ///
-/// Example (figures 45, 46, 47):
-///
-/// ```text
-/// request:  01 03 24 00 00 02 CE FB
-/// response: 01 03 04 CD CC 7C 41 E4 50
-/// values:   temperature_c = 15.8
-/// ```
-///
-/// Example (figures 41, 42, 43), manual for software 1.1:
+/// Example (figures 45, 46, 47; manual for software 1.1, figures 41, 42, 43):
 ///
 /// ```text
 /// request:  01 03 24 00 00 02 CE FB
@@ -610,6 +574,7 @@ impl rtu::Command for GetCalibrationStatus {
 pub struct GetTemperature;
 
 impl rtu::NoData for GetTemperature {}
+
 /// Reply to [`GetTemperature`]. The temperature of the solution.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GetTemperatureResponse {
@@ -657,15 +622,7 @@ impl rtu::Command for GetTemperature {
 ///
 /// Manual section 2.2.10, figures 48, 49, 50, 51. Writes (function 0x10) 12 registers at 0x2900.
 ///
-/// Example (figures 49, 50, 51):
-///
-/// ```text
-/// request:  01 10 29 00 00 0C 18 1F 85 DB 40 3D 0A D7 C0 0A D7 23 3D 1F 85 DB 40 85 EB D1 C0 B8 1E 85 BF 94 59
-/// response: 01 10 29 00 00 0C C8 50
-/// values:   k1 = 6.86, k2 = -6.72, k3 = 0.04, k4 = 6.86, k5 = -6.56, k6 = -1.04
-/// ```
-///
-/// Example (figures 45, 46, 47), manual for software 1.1:
+/// Example (figures 49, 50, 51; manual for software 1.1, figures 45, 46, 47):
 ///
 /// ```text
 /// request:  01 10 29 00 00 0C 18 1F 85 DB 40 3D 0A D7 C0 0A D7 23 3D 1F 85 DB 40 85 EB D1 C0 B8 1E 85 BF 94 59
@@ -823,6 +780,7 @@ impl rtu::Command for SetPhElectrodeCoefficients {
 pub struct GetPhElectrodeCoefficients;
 
 impl rtu::NoData for GetPhElectrodeCoefficients {}
+
 /// Reply to [`GetPhElectrodeCoefficients`]. Reads the electrode coefficients K1..K6.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GetPhElectrodeCoefficientsResponse {
@@ -1049,6 +1007,7 @@ impl rtu::Command for SetOrpCalibration {
 pub struct GetOrpCalibration;
 
 impl rtu::NoData for GetOrpCalibration {}
+
 /// Reply to [`GetOrpCalibration`]. Reads the ORP calibration coefficients K and B.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GetOrpCalibrationResponse {
@@ -1192,6 +1151,7 @@ impl rtu::Command for SetPhCalibration {
 pub struct GetPhCalibration;
 
 impl rtu::NoData for GetPhCalibration {}
+
 /// Reply to [`GetPhCalibration`]. Reads the pH customer calibration coefficients K and B.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GetPhCalibrationResponse {

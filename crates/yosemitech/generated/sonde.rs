@@ -52,6 +52,7 @@ pub const DEFAULT_BRUSH_INTERVAL_MIN: u16 = 30;
 pub struct GetMeasurementData;
 
 impl rtu::NoData for GetMeasurementData {}
+
 /// Reply to [`GetMeasurementData`]. Every measured value in one read: eight floats in a fixed order.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GetMeasurementDataResponse {
@@ -299,6 +300,7 @@ pub use super::yosemitech_sonde::{GetSn, GetSnResponse};
 pub struct GetErrorFlag;
 
 impl rtu::NoData for GetErrorFlag {}
+
 /// Reply to [`GetErrorFlag`]. The sonde's error flags; 0 means no error.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub struct GetErrorFlagResponse {
@@ -374,6 +376,7 @@ impl rtu::Command for GetErrorFlag {
 pub struct GetBrushInterval;
 
 impl rtu::NoData for GetBrushInterval {}
+
 /// Reply to [`GetBrushInterval`]. The time between two rotations of the brush, in minutes (default 30), a little-endian 16-bit integer.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub struct GetBrushIntervalResponse {
@@ -623,6 +626,7 @@ impl rtu::Command for SetTime {
 pub struct GetTime;
 
 impl rtu::NoData for GetTime {}
+
 /// Reply to [`GetTime`]. Reads the sonde's real-time clock, laid out as in Set the time.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub struct GetTimeResponse {
@@ -744,6 +748,7 @@ pub use super::yosemitech_common::SetSlaveId;
 pub struct GetSupplyVoltage;
 
 impl rtu::NoData for GetSupplyVoltage {}
+
 /// Reply to [`GetSupplyVoltage`]. The supply voltage the sonde measures, in volts.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GetSupplyVoltageResponse {
@@ -797,6 +802,7 @@ impl rtu::Command for GetSupplyVoltage {
 pub struct ActiveBrush;
 
 impl rtu::NoData for ActiveBrush {}
+
 impl rtu::Command for ActiveBrush {
     type Response = ();
     const NAME: &'static str = "active_brush";

@@ -49,6 +49,7 @@ pub use super::yosemitech_sonde::{GetSn, GetSnResponse};
 pub struct GetDoMgL;
 
 impl rtu::NoData for GetDoMgL {}
+
 /// Reply to [`GetDoMgL`]. Reads the dissolved oxygen, parameter 0x01.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GetDoMgLResponse {
@@ -94,6 +95,7 @@ impl rtu::Command for GetDoMgL {
 pub struct GetTurbidityNtu;
 
 impl rtu::NoData for GetTurbidityNtu {}
+
 /// Reply to [`GetTurbidityNtu`]. Reads the turbidity, parameter 0x02.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GetTurbidityNtuResponse {
@@ -139,6 +141,7 @@ impl rtu::Command for GetTurbidityNtu {
 pub struct GetConductivityMsCm;
 
 impl rtu::NoData for GetConductivityMsCm {}
+
 /// Reply to [`GetConductivityMsCm`]. Reads the conductivity, parameter 0x03.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GetConductivityMsCmResponse {
@@ -184,6 +187,7 @@ impl rtu::Command for GetConductivityMsCm {
 pub struct GetPh;
 
 impl rtu::NoData for GetPh {}
+
 /// Reply to [`GetPh`]. Reads the pH, parameter 0x04.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GetPhResponse {
@@ -227,6 +231,7 @@ impl rtu::Command for GetPh {
 pub struct GetTemperatureC;
 
 impl rtu::NoData for GetTemperatureC {}
+
 /// Reply to [`GetTemperatureC`]. Reads the temperature, parameter 0x06.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GetTemperatureCResponse {
@@ -272,6 +277,7 @@ impl rtu::Command for GetTemperatureC {
 pub struct GetSalinity;
 
 impl rtu::NoData for GetSalinity {}
+
 /// Reply to [`GetSalinity`]. Reads the salinity, parameter 0x08.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GetSalinityResponse {
@@ -315,6 +321,7 @@ impl rtu::Command for GetSalinity {
 pub struct GetDoSaturation;
 
 impl rtu::NoData for GetDoSaturation {}
+
 /// Reply to [`GetDoSaturation`]. Reads the dissolved oxygen saturation, parameter 0x0A.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GetDoSaturationResponse {
@@ -360,6 +367,7 @@ impl rtu::Command for GetDoSaturation {
 pub struct GetOrpMv;
 
 impl rtu::NoData for GetOrpMv {}
+
 /// Reply to [`GetOrpMv`]. Reads the ORP, parameter 0x0B.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GetOrpMvResponse {
@@ -405,6 +413,7 @@ impl rtu::Command for GetOrpMv {
 pub struct GetChlorophyll;
 
 impl rtu::NoData for GetChlorophyll {}
+
 /// Reply to [`GetChlorophyll`]. Reads the chlorophyll, parameter 0x0C.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GetChlorophyllResponse {
@@ -450,6 +459,7 @@ impl rtu::Command for GetChlorophyll {
 pub struct GetOilInWater;
 
 impl rtu::NoData for GetOilInWater {}
+
 /// Reply to [`GetOilInWater`]. Reads the oil in water, parameter 0x0D.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GetOilInWaterResponse {
@@ -495,6 +505,7 @@ impl rtu::Command for GetOilInWater {
 pub struct GetBga;
 
 impl rtu::NoData for GetBga {}
+
 /// Reply to [`GetBga`]. Reads the blue-green algae, parameter 0x0E.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GetBgaResponse {
@@ -538,6 +549,7 @@ impl rtu::Command for GetBga {
 pub struct GetTds;
 
 impl rtu::NoData for GetTds {}
+
 /// Reply to [`GetTds`]. Reads the total dissolved solids, parameter 0x0F.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GetTdsResponse {

@@ -133,6 +133,7 @@ impl rtu::Command for SetUserCalibration {
 pub struct GetUserCalibration;
 
 impl rtu::NoData for GetUserCalibration {}
+
 /// Reply to [`GetUserCalibration`]. Reads the user calibration: slope K and offset B, which the probe applies to its main value as final = K x raw + B (defaults K = 1, B = 0).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GetUserCalibrationResponse {
@@ -199,6 +200,7 @@ impl rtu::Command for GetUserCalibration {
 pub struct GetWaterLevel;
 
 impl rtu::NoData for GetWaterLevel {}
+
 /// Reply to [`GetWaterLevel`]. The water level and its status byte, in a six-register block.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GetWaterLevelResponse {
@@ -258,6 +260,7 @@ impl rtu::Command for GetWaterLevel {
 pub struct GetTemperature;
 
 impl rtu::NoData for GetTemperature {}
+
 /// Reply to [`GetTemperature`]. The water temperature.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GetTemperatureResponse {

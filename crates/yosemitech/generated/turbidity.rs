@@ -97,6 +97,7 @@ pub use super::yosemitech_optical::{StartMeasurement, StartMeasurementResponse};
 pub struct GetTemperatureAndTurbidity;
 
 impl rtu::NoData for GetTemperatureAndTurbidity {}
+
 /// Reply to [`GetTemperatureAndTurbidity`]. Temperature and turbidity in one read; the user calibration (K, B) is already applied to the turbidity.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GetTemperatureAndTurbidityResponse {
@@ -212,6 +213,7 @@ pub use super::yosemitech_optical::{StopMeasurement, StopMeasurementResponse};
 pub struct GetUserCalibration;
 
 impl rtu::NoData for GetUserCalibration {}
+
 /// Reply to [`GetUserCalibration`]. Reads the user calibration of the turbidity, meant to correct drift from ageing and similar causes: turbidity = K x measured turbidity + B, with K = 1 and B = 0 by default.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GetUserCalibrationResponse {

@@ -61,6 +61,7 @@ impl rtu::Command for SetSlaveId {
 pub struct GetSn;
 
 impl rtu::NoData for GetSn {}
+
 /// Reply to [`GetSn`]. Reads the probe's serial number: 14 bytes, a 0x00, twelve ASCII characters ("YL…") and a 0x00.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub struct GetSnResponse {
@@ -127,6 +128,7 @@ impl rtu::Command for GetSn {
 pub struct GetVersion;
 
 impl rtu::NoData for GetVersion {}
+
 /// Reply to [`GetVersion`]. Reads the hardware and software revisions, one register each, read as major.minor byte pairs (a reading that fits every manual's example; the manuals do not define the encoding).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub struct GetVersionResponse {
@@ -186,6 +188,7 @@ impl rtu::Command for GetVersion {
 pub struct GetSlaveId;
 
 impl rtu::NoData for GetSlaveId {}
+
 /// Reply to [`GetSlaveId`]. Reads the probe's slave address.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub struct GetSlaveIdResponse {

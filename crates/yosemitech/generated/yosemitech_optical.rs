@@ -15,11 +15,13 @@ use ::yosemitech_rtu as rtu;
 pub struct StartMeasurement;
 
 impl rtu::NoData for StartMeasurement {}
+
 /// Reply to [`StartMeasurement`]: an acknowledgement that carries no value.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub struct StartMeasurementResponse;
 
 impl rtu::NoData for StartMeasurementResponse {}
+
 impl rtu::Command for StartMeasurement {
     type Response = StartMeasurementResponse;
     const NAME: &'static str = "start_measurement";
@@ -44,11 +46,13 @@ impl rtu::Command for StartMeasurement {
 pub struct StopMeasurement;
 
 impl rtu::NoData for StopMeasurement {}
+
 /// Reply to [`StopMeasurement`]: an acknowledgement that carries no value.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub struct StopMeasurementResponse;
 
 impl rtu::NoData for StopMeasurementResponse {}
+
 impl rtu::Command for StopMeasurement {
     type Response = StopMeasurementResponse;
     const NAME: &'static str = "stop_measurement";

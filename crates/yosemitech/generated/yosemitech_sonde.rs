@@ -12,6 +12,7 @@ use ::yosemitech_rtu as rtu;
 pub struct GetSn;
 
 impl rtu::NoData for GetSn {}
+
 /// Reply to [`GetSn`]. Reads the sonde's serial number: twelve ASCII characters ("YL..."), with no byte before or after them, unlike the probes' Get SN at 0x0900.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub struct GetSnResponse {

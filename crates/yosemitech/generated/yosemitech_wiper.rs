@@ -13,6 +13,7 @@ use ::yosemitech_rtu as rtu;
 pub struct ActiveBrush;
 
 impl rtu::NoData for ActiveBrush {}
+
 impl rtu::Command for ActiveBrush {
     type Response = ();
     const NAME: &'static str = "active_brush";
@@ -77,6 +78,7 @@ impl rtu::Command for SetBrushInterval {
 pub struct GetBrushInterval;
 
 impl rtu::NoData for GetBrushInterval {}
+
 /// Reply to [`GetBrushInterval`]. Reads the time between two automatic rotations of the brush, in minutes (default 30).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub struct GetBrushIntervalResponse {

@@ -236,7 +236,7 @@ fn probe(opened: &mut Opened, command: &CommandSpec, address: u8) -> Result<Answ
         Err(e @ RtuError::Io(_)) => {
             Err(request_failed(&e, opened.bus.last_reply(), &opened.context(address, &command.name)))
         }
-        Err(RtuError::Timeout { received: 0 }) => Ok(Answer::Silent),
+        Err(RtuError::Timeout { received: 0, .. }) => Ok(Answer::Silent),
         Err(e @ RtuError::Frame { error: FrameError::Exception { .. }, .. }) => {
             Ok(Answer::Other(format!("refuses {} ({})", command.name, short(&e, opened.bus.last_reply()))))
         }

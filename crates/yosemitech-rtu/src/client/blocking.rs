@@ -106,7 +106,7 @@ impl<T: Transport> Client<T> {
         let mut response = None;
         self.run(&mut |frame| C::decode_response(slave, frame).map(|decoded| response = Some(decoded)))?;
         // `run` succeeds only after the decoder accepted a frame.
-        response.ok_or(ClientError::Timeout { received: 0 })
+        response.ok_or(ClientError::Timeout { received: 0, sent: self.core.sent() })
     }
 
     /// Sends a write `command` to every slave (address 0) and returns

@@ -81,7 +81,7 @@ impl<L: Read + Write, D: DelayNs, K: Clock> FirmwareClient<L, D, K> {
         let mut response = None;
         self.run(&mut |frame| C::decode_response(slave, frame).map(|decoded| response = Some(decoded))).await?;
         // `run` succeeds only after the decoder accepted a frame.
-        response.ok_or(ClientError::Timeout { received: 0 })
+        response.ok_or(ClientError::Timeout { received: 0, sent: self.core.sent() })
     }
 
     /// Sends a write `command` to every slave; no reply is awaited.

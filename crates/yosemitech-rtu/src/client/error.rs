@@ -24,6 +24,9 @@ pub enum ClientError<E> {
     Timeout {
         /// How many bytes arrived before the deadline.
         received: usize,
+        /// The request that went unanswered, so the error says which probe
+        /// was silent to what.
+        sent: Sent,
     },
     /// A reply of the expected length failed a check: CRC, slave address,
     /// function, byte count, write echo, or a Modbus exception.
@@ -38,6 +41,29 @@ pub enum ClientError<E> {
     Request(FrameError),
     /// The link failed (port gone, connection closed, RS-485 echo mismatch).
     Io(E),
+}
+
+/// What a request asked of which slave: the part of it an error names.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct Sent {
+    /// The slave address the request went to.
+    pub slave: u8,
+    /// Its Modbus function code.
+    pub function: u8,
+    /// The first register it reads or writes.
+    pub register: u16,
+    /// The command's spec name, when it was sent as a typed command.
+    pub command: Option<&'static str>,
+}
+
+impl fmt::Display for Sent {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "slave {} ", self.slave)?;
+        match self.command {
+            Some(name) => write!(f, "to {name}"),
+            None => write!(f, "to function 0x{:02X} at register 0x{:04X}", self.function, self.register),
+        }
+    }
 }
 
 impl<E> ClientError<E> {
@@ -70,7 +96,7 @@ impl<E> ClientError<E> {
     /// The same error with its I/O error mapped by `f`.
     pub fn map_io<F>(self, f: impl FnOnce(E) -> F) -> ClientError<F> {
         match self {
-            Self::Timeout { received } => ClientError::Timeout { received },
+            Self::Timeout { received, sent } => ClientError::Timeout { received, sent },
             Self::Frame { error } => ClientError::Frame { error },
             Self::Encode(error) => ClientError::Encode(error),
             Self::Request(error) => ClientError::Request(error),
@@ -89,8 +115,10 @@ impl ClientError<Infallible> {
 impl<E: fmt::Display> fmt::Display for ClientError<E> {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
-            Self::Timeout { received: 0 } => f.write_str("no reply before the timeout"),
-            Self::Timeout { received } => write!(f, "incomplete reply before the timeout: {received} bytes received"),
+            Self::Timeout { received: 0, sent } => write!(f, "no reply from {sent} before the timeout"),
+            Self::Timeout { received, sent } => {
+                write!(f, "incomplete reply from {sent} before the timeout: {received} bytes received")
+            }
             Self::Frame { error } => write!(f, "bad reply: {error}"),
             Self::Encode(error) => write!(f, "cannot encode the request: {error}"),
             Self::Request(error) => write!(f, "invalid request frame: {error}"),
@@ -121,9 +149,13 @@ mod tests {
 
     #[test]
     fn displays_the_cause_and_stays_small() {
-        let e = ClientError::<Infallible>::Timeout { received: 2 };
-        assert_eq!(e.to_string(), "incomplete reply before the timeout: 2 bytes received");
-        assert_eq!(ClientError::<Infallible>::Timeout { received: 0 }.to_string(), "no reply before the timeout");
+        let sent = Sent { slave: 7, function: 3, register: 0x2601, command: Some("read_thing") };
+        let e = ClientError::<Infallible>::Timeout { received: 2, sent };
+        assert_eq!(e.to_string(), "incomplete reply from slave 7 to read_thing before the timeout: 2 bytes received");
+        let silent = ClientError::<Infallible>::Timeout { received: 0, sent };
+        assert_eq!(silent.to_string(), "no reply from slave 7 to read_thing before the timeout");
+        let raw = ClientError::<Infallible>::Timeout { received: 0, sent: Sent { command: None, ..sent } };
+        assert_eq!(raw.to_string(), "no reply from slave 7 to function 0x03 at register 0x2601 before the timeout");
         let exc = ClientError::<Infallible>::Frame {
             error: FrameError::Exception { function: 3, code: ExceptionCode::IllegalDataAddress },
         };
@@ -131,6 +163,6 @@ mod tests {
         assert_eq!(exc.exception(), Some(ExceptionCode::IllegalDataAddress));
         assert!(exc.to_string().contains("illegal data address"), "{exc}");
         // Well under clippy's threshold for large error types (128 bytes).
-        assert!(core::mem::size_of::<ClientError<std::io::Error>>() <= 32);
+        assert!(core::mem::size_of::<ClientError<std::io::Error>>() <= 48);
     }
 }

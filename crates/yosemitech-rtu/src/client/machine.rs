@@ -6,7 +6,7 @@ use core::ops::Range;
 use core::time::Duration;
 
 use super::config::ClientConfig;
-use super::error::ClientError;
+use super::error::{ClientError, Sent};
 use super::time::{Instant, micros_ceil};
 use crate::command::Command;
 use crate::crc::{CRC_INIT, crc_ok, crc16_update};
@@ -233,6 +233,8 @@ pub struct ClientCore {
     outcome: Result<(), ClientError<Infallible>>,
     /// The length to read for: 3 for the head, then the frame's (see `frame_input`).
     target: usize,
+    /// The current request's command name, when it was sent as a typed command.
+    command: Option<&'static str>,
 }
 
 impl ClientCore {
@@ -264,6 +266,7 @@ impl ClientCore {
             state: State::Idle,
             outcome: Ok(()),
             target: HEAD_LEN,
+            command: None,
         }
     }
 
@@ -331,7 +334,9 @@ impl ClientCore {
             return Err(EncodeError::InvalidSlave { slave }.into());
         }
         let len = command.encode_request(slave, &mut self.tx)?;
-        self.start_call(len, &C::LAYOUT)
+        self.start_call(len, &C::LAYOUT)?;
+        self.command = Some(C::NAME);
+        Ok(())
     }
 
     /// Encodes a write `command` for every slave (address 0) and starts its
@@ -342,7 +347,9 @@ impl ClientCore {
             return Err(EncodeError::InvalidSlave { slave: BROADCAST }.into());
         }
         let len = command.encode_request(BROADCAST, &mut self.tx)?;
-        self.start_broadcast(len, &C::LAYOUT)
+        self.start_broadcast(len, &C::LAYOUT)?;
+        self.command = Some(C::NAME);
+        Ok(())
     }
 
     /// Starts the transaction of a raw request frame built elsewhere (the
@@ -412,6 +419,7 @@ impl ClientCore {
         if request_len > MAX_ADU {
             return Err(EncodeError::FrameTooLong { len: request_len }.into());
         }
+        self.command = None;
         if matches!(self.state, State::Receive | State::Check(_)) {
             // The abandoned attempt's reply may still come: no request
             // before its deadline; draining then drops it.
@@ -728,6 +736,12 @@ impl ClientCore {
         }
     }
 
+    /// The request of the current or last transaction, as errors name it.
+    pub fn sent(&self) -> Sent {
+        let [slave, function, hi, lo, ..] = self.tx;
+        Sent { slave, function, register: u16::from_be_bytes([hi, lo]), command: self.command }
+    }
+
     /// The latest time a driver reported.
     #[inline]
     pub fn now(&self) -> Instant {
@@ -888,7 +902,7 @@ impl ClientCore {
             }
             None => {
                 self.reply = Reply::Rx(0..self.end);
-                ClientError::Timeout { received: self.end }
+                ClientError::Timeout { received: self.end, sent: self.sent() }
             }
         };
         self.finish_attempt(Err(result));

@@ -50,7 +50,7 @@ mod tokio;
 #[cfg(feature = "std")]
 pub use self::blocking::{Client, Error};
 pub use self::config::{ClientConfig, RetryPolicy};
-pub use self::error::ClientError;
+pub use self::error::{ClientError, Sent};
 pub use self::machine::{Action, ClientCore};
 pub use self::time::Instant;
 #[cfg(feature = "tokio")]

@@ -9,8 +9,8 @@ use tracing::{Instrument as _, debug_span};
 
 use super::{Action, ClientConfig, ClientCore, ClientError, Error, Instant};
 use crate::command::Command;
-use crate::error::{EncodeError, FrameError};
-use crate::frame::{BROADCAST, Function, Layout};
+use crate::error::FrameError;
+use crate::frame::{BROADCAST, Layout};
 use crate::transport::AsyncLink;
 
 /// A Modbus RTU master on one async link (one bus), for tokio: the same
@@ -110,15 +110,11 @@ impl<L: AsyncLink> AsyncClient<L> {
     pub async fn call<C: Command>(&mut self, slave: u8, command: &C) -> Result<C::Response, Error> {
         let span = debug_span!("modbus", command = C::NAME, slave);
         async {
-            if slave == BROADCAST {
-                return Err(EncodeError::InvalidSlave { slave }.into());
-            }
-            let len = command.encode_request(slave, self.core.request_buf())?;
-            self.core.start_call(len, &C::LAYOUT).map_err(ClientError::with_io)?;
+            self.core.start_command(slave, command).map_err(ClientError::with_io)?;
             let mut response = None;
             self.run(|frame| C::decode_response(slave, frame).map(|decoded| response = Some(decoded))).await?;
             // `run` succeeds only after the decoder accepted a frame.
-            response.ok_or(ClientError::Timeout { received: 0 })
+            response.ok_or(ClientError::Timeout { received: 0, sent: self.core.sent() })
         }
         .instrument(span)
         .await
@@ -126,11 +122,7 @@ impl<L: AsyncLink> AsyncClient<L> {
 
     /// Sends a write `command` to every slave; see [`Client::broadcast`](crate::Client::broadcast).
     pub async fn broadcast<C: Command>(&mut self, command: &C) -> Result<(), Error> {
-        if C::LAYOUT.function != Function::Write {
-            return Err(EncodeError::InvalidSlave { slave: BROADCAST }.into());
-        }
-        let len = command.encode_request(BROADCAST, self.core.request_buf())?;
-        self.core.start_broadcast(len, &C::LAYOUT).map_err(ClientError::with_io)?;
+        self.core.start_command_broadcast(command).map_err(ClientError::with_io)?;
         self.run(|_| Ok(())).instrument(debug_span!("modbus", command = C::NAME, slave = BROADCAST)).await
     }
 

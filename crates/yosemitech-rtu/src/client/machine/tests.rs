@@ -6,6 +6,7 @@ use std::collections::VecDeque;
 use std::vec::Vec;
 
 use super::*;
+use crate::client::Sent;
 use crate::crc::crc16;
 use crate::error::ExceptionCode;
 use crate::timing::CharFormat;
@@ -244,7 +245,11 @@ fn a_request_on_a_timed_line_is_busy_for_its_line_time() {
     // A device that never answers: the deadline runs from the request's end on the line.
     let mut h = Harness::new(no_retries(), |_, _| vec![]);
     h.core.set_line_timing(Some(line));
-    assert_eq!(h.call(1, &READ_FLOAT), Err(ClientError::Timeout { received: 0 }));
+    let Err(ClientError::Timeout { received: 0, sent: asked }) = h.call(1, &READ_FLOAT) else { panic!("answered") };
+    assert_eq!(
+        asked,
+        Sent { slave: 1, function: READ_FLOAT.function.code(), register: READ_FLOAT.address, command: None }
+    );
     let sent = h.sent[0].0;
     assert_eq!(h.now, sent + line.frame_time(8) + ms(100));
 }
@@ -347,19 +352,19 @@ fn retries_stop_at_the_policy_and_skip_classes_it_excludes() {
     let config =
         ClientConfig { retry: RetryPolicy { retries: 2, backoff: ms(1), ..RetryPolicy::default() }, ..no_retries() };
     let mut h = Harness::new(config, |_, _| vec![]);
-    assert_eq!(h.call(1, &READ_FLOAT), Err(ClientError::Timeout { received: 0 }));
+    assert_eq!(h.call(1, &READ_FLOAT), Err(ClientError::Timeout { received: 0, sent: h.core.sent() }));
     assert_eq!(h.sent.len(), 3, "one attempt and two retries");
     let config =
         ClientConfig { retry: RetryPolicy { retries: 2, on_timeout: false, ..RetryPolicy::default() }, ..no_retries() };
     let mut h = Harness::new(config, |_, _| vec![]);
-    assert_eq!(h.call(1, &READ_FLOAT), Err(ClientError::Timeout { received: 0 }));
+    assert_eq!(h.call(1, &READ_FLOAT), Err(ClientError::Timeout { received: 0, sent: h.core.sent() }));
     assert_eq!(h.sent.len(), 1);
 }
 
 #[test]
 fn a_partial_reply_times_out_at_the_deadline_with_its_bytes() {
     let mut h = Harness::new(no_retries(), |_, _| vec![(ms(5), READ_FLOAT_REPLY[..5].to_vec())]);
-    assert_eq!(h.call(1, &READ_FLOAT), Err(ClientError::Timeout { received: 5 }));
+    assert_eq!(h.call(1, &READ_FLOAT), Err(ClientError::Timeout { received: 5, sent: h.core.sent() }));
     assert_eq!(h.core.last_reply(), &READ_FLOAT_REPLY[..5]);
     assert_eq!(h.now, h.sent[0].0 + ms(100), "one deadline for the whole reply");
 }

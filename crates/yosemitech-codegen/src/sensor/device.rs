@@ -1,0 +1,218 @@
+//! `Device` and `AsyncDevice`: one method per command over a client.
+
+use proc_macro2::TokenStream;
+use quote::quote;
+use yosemitech_rtu::Function;
+use yosemitech_spec::{Role, Sensor};
+
+use super::fields::field_gens;
+use super::{Options, ident};
+use crate::naming::Names;
+use crate::text::{doc, one_line};
+
+const RANGE_NOTE: &str = " Values outside the spec's range are refused before sending.";
+
+/// `Device::set_slave_address` for a sensor with a write of role
+/// `set_slave_address` and a read of role `serial_number`, both sent to the
+/// device's own address: the verified change of `rtu::address`.
+fn set_slave_address(s: &Sensor, names: &Names) -> Option<TokenStream> {
+    let own = |role| {
+        s.commands.iter().position(|c| c.role == Some(role) && c.fixed_slave.is_none()).map(|i| (i, &s.commands[i]))
+    };
+    let ((wi, write), (pi, _)) = (own(Role::SetSlaveAddress)?, own(Role::SerialNumber)?);
+    // Validation gives the write exactly one named field, a `u8`.
+    let [field] = field_gens(names, wi, write).try_into().ok()?;
+    let field = field.name;
+    let write_ty = ident(&names.commands[wi].ty);
+    let probe_ty = ident(&names.commands[pi].ty);
+    let d = doc(&format!(
+        "Changes the probe's slave address to `new` (1..=247, not in use on the bus) with [`{}`], confirmed by the \
+         probe's reply and verified by reading [`{}`] at `new`; the handle then talks to `new`. On failure the error \
+         says where the probe answers (see `rtu::address::change_address`).",
+        names.commands[wi].ty, names.commands[pi].ty
+    ));
+    Some(quote! {
+        #d
+        pub fn set_slave_address(&mut self, new: u8) -> Result<(), rtu::address::AddressChangeError> {
+            rtu::address::change_address(self.client, self.address, new, &#write_ty { #field: new }, &#probe_ty)?;
+            self.address = new;
+            Ok(())
+        }
+    })
+}
+
+pub(super) fn device(s: &Sensor, names: &Names, o: &Options) -> TokenStream {
+    let cfg = match &o.std_feature {
+        Some(feature) => quote!(#[cfg(feature = #feature)]),
+        None => TokenStream::new(),
+    };
+    // One method per command, emitted twice from the same parts: blocking
+    // (`Device`) and, when asked for, async (`AsyncDevice`).
+    let mut methods = Vec::new();
+    let mut async_methods = Vec::new();
+    for (ci, c) in s.commands.iter().enumerate() {
+        let n = &names.commands[ci];
+        let ty = ident(&n.ty);
+        let method = ident(&n.method);
+        let gens = field_gens(names, ci, c);
+        let title = one_line(&c.title);
+        let title = title.trim_end_matches('.');
+        // (doc, parameters, return type, request expression, reply mapping)
+        let (d, params, ret, request, map) = match c.function {
+            Function::Read => {
+                let resp = ident(&n.response);
+                if let [only] = gens.as_slice() {
+                    let field = &only.name;
+                    let fty = &only.ty;
+                    let unit = only.field.unit.as_deref().map(|u| format!(" ({})", one_line(u))).unwrap_or_default();
+                    let d = doc(&format!(
+                        "{title}: sends [`{}`] and returns its `{}`{unit}.",
+                        n.ty,
+                        only.field.display_name()
+                    ));
+                    (d, quote!(), quote!(#fty), quote!(&#ty), quote!(.map(|reply| reply.#field)))
+                } else {
+                    let d = doc(&format!("{title}: sends [`{}`] and returns the reply.", n.ty));
+                    (d, quote!(), quote!(#resp), quote!(&#ty), quote!())
+                }
+            }
+            Function::Write => match gens.as_slice() {
+                [] => {
+                    let d = doc(&format!("{title}: sends [`{}`].", n.ty));
+                    (d, quote!(), quote!(()), quote!(&#ty), quote!())
+                }
+                [only] => {
+                    let field = &only.name;
+                    let fty = &only.ty;
+                    let d = doc(&format!(
+                        "{title}: sends [`{}`] with `{}`.{}",
+                        n.ty,
+                        only.field.display_name(),
+                        if only.field.range.is_some() { RANGE_NOTE } else { "" }
+                    ));
+                    (d, quote!(, #field: #fty), quote!(()), quote!(&#ty { #field }), quote!())
+                }
+                _ => {
+                    let ranged = gens.iter().any(|g| g.field.range.is_some());
+                    let d = doc(&format!(
+                        "{title}: sends `request` ([`{}`]).{}",
+                        n.ty,
+                        if ranged { RANGE_NOTE } else { "" }
+                    ));
+                    (d, quote!(, request: #ty), quote!(()), quote!(&request), quote!())
+                }
+            },
+        };
+        methods.push(quote! {
+            #d
+            pub fn #method(&mut self #params) -> Result<#ret, rtu::Error> {
+                self.call(#request) #map
+            }
+        });
+        async_methods.push(quote! {
+            #d
+            pub async fn #method(&mut self #params) -> Result<#ret, rtu::Error> {
+                self.call(#request).await #map
+            }
+        });
+    }
+    methods.extend(set_slave_address(s, names));
+    let title = one_line(&s.title);
+    let async_device = match &o.async_feature {
+        Some(feature) => {
+            let d = doc(&format!(
+                "One {title} on a bus, from async code: [`Device`]'s methods as `async fn`s over a borrowed \
+                 [`rtu::AsyncClient`] (tokio), with the same requests, checks and replies."
+            ));
+            quote! {
+                #[cfg(feature = #feature)]
+                #d
+                pub struct AsyncDevice<'c, L> {
+                    client: &'c mut rtu::AsyncClient<L>,
+                    address: u8,
+                }
+
+                #[cfg(feature = #feature)]
+                impl<'c, L: rtu::transport::AsyncLink> AsyncDevice<'c, L> {
+                    /// The probe at `address` on `client`'s bus.
+                    pub fn new(client: &'c mut rtu::AsyncClient<L>, address: u8) -> Self {
+                        Self { client, address }
+                    }
+
+                    /// The probe's slave address.
+                    pub fn address(&self) -> u8 {
+                        self.address
+                    }
+
+                    /// Points the handle at another address, after the probe's
+                    /// address was changed and verified.
+                    pub fn set_address(&mut self, address: u8) {
+                        self.address = address;
+                    }
+
+                    /// The client, for requests to other devices on the bus.
+                    pub fn client(&mut self) -> &mut rtu::AsyncClient<L> {
+                        self.client
+                    }
+
+                    /// Sends any command to this probe (or to the command's fixed
+                    /// slave address) and returns the decoded reply.
+                    pub async fn call<C: rtu::Command>(&mut self, command: &C) -> Result<C::Response, rtu::Error> {
+                        self.client.call(C::LAYOUT.request_slave(self.address), command).await
+                    }
+
+                    #(#async_methods)*
+                }
+            }
+        }
+        None => TokenStream::new(),
+    };
+    let d = doc(&format!(
+        "One {title} on a bus: a borrowed [`rtu::Client`] and the probe's slave address, with one method per command.\n\n\
+         Reads are named after the command without its `get_` prefix and return the reply, or its only field; writes \
+         keep the command's name and take the field (one field) or the request (several). Commands with a fixed slave \
+         address (a read at the wildcard address 0xFF) use it instead of the device's."
+    ));
+    quote! {
+        #cfg
+        #d
+        pub struct Device<'c, T> {
+            client: &'c mut rtu::Client<T>,
+            address: u8,
+        }
+
+        #cfg
+        impl<'c, T: rtu::Transport> Device<'c, T> {
+            /// The probe at `address` on `client`'s bus.
+            pub fn new(client: &'c mut rtu::Client<T>, address: u8) -> Self {
+                Self { client, address }
+            }
+
+            /// The probe's slave address.
+            pub fn address(&self) -> u8 {
+                self.address
+            }
+
+            /// Points the handle at another address, after the probe's
+            /// address was changed and verified (see `rtu::address`).
+            pub fn set_address(&mut self, address: u8) {
+                self.address = address;
+            }
+
+            /// The client, for requests to other devices on the bus.
+            pub fn client(&mut self) -> &mut rtu::Client<T> {
+                self.client
+            }
+
+            /// Sends any command to this probe (or to the command's fixed
+            /// slave address) and returns the decoded reply.
+            pub fn call<C: rtu::Command>(&mut self, command: &C) -> Result<C::Response, rtu::Error> {
+                self.client.call(C::LAYOUT.request_slave(self.address), command)
+            }
+
+            #(#methods)*
+        }
+
+        #async_device
+    }
+}
