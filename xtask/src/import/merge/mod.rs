@@ -1,7 +1,7 @@
 //! `--into`: a manual compared with the spec of its probe, command by
 //! command and frame by frame, and the merge planned.
 //!
-//! The draft of the manual (the importer's own, see `import.rs`) is matched
+//! The draft of the manual (the importer's own, see `draft.rs`) is matched
 //! with the spec's commands by function and start address. For each pair:
 //! a count or a confidently drafted field that differs is a change (left to
 //! a person); each printed frame identical to a recorded one is cited (the
