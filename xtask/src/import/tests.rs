@@ -1,6 +1,7 @@
 //! Unit tests of the importer. The accuracy test needs the vendor manuals in
 //! `../shared/` (never copied into the repository); it skips, loudly, without them.
 
+use super::accuracy::{accuracy_all, table};
 use super::*;
 
 mod into;

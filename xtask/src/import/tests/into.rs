@@ -11,9 +11,10 @@ use std::time::Instant;
 
 use yosemitech_spec::{CommandSpec, Example, Sensor, Spec, load_paths};
 
+use super::super::accuracy::shared_manuals;
 use super::super::edit::{self, Edits, Span};
 use super::super::into::merge_text;
-use super::super::{file_name, read_manual, shared_manuals};
+use super::super::{file_name, read_manual};
 
 /// Differences the round trip accepts, each with why.
 const TOLERATED: &[(&str, &str)] = &[

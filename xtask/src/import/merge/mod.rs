@@ -1,7 +1,7 @@
 //! `--into`: a manual compared with the spec of its probe, command by
 //! command and frame by frame, and the merge planned.
 //!
-//! The draft of the manual (the importer's own, see `import.rs`) is matched
+//! The draft of the manual (the importer's own, see `draft.rs`) is matched
 //! with the spec's commands by function and start address. For each pair:
 //! a count or a confidently drafted field that differs is a change (left to
 //! a person); each printed frame identical to a recorded one is cited (the
@@ -10,13 +10,23 @@
 //! fields. Commands only the manual has are added (`since:` when the
 //! manual is the newest); commands only the spec has get `since:` (an older
 //! manual) or a TODO. What the plan cannot decide is a TODO, never a guess.
+//!
+//! The plan is here; what the spec records (`recorded`), the review's rows
+//! (`compare`) and the YAML the merge adds (`render`) are its helpers.
 
 use std::collections::BTreeMap;
 
-use yosemitech_spec::{CommandErratum, CommandSpec, Example, Sensor, Spec, Value};
+use yosemitech_spec::{CommandSpec, Sensor, Spec};
 
-use super::review::{Changed, CommandRow, ErratumRow, FrameDiff, FrameRow, Renumbered, Review, SerialRow, SinceRow};
-use super::{DCommand, DExample, Draft, DraftFrame, fig_list, file_name, one_line_text, printed_key, q};
+use super::review::{Changed, ErratumRow, FrameDiff, FrameRow, Renumbered, Review, SerialRow, SinceRow};
+use super::{Draft, DraftFrame, file_name, one_line_text, printed_key, q};
+use compare::{differing_bytes, function_name, is_table_todo, row_of_draft, row_of_spec, todo_figure};
+use recorded::{figs, frames_of, id_generator, known_table_erratum, mapped_figures, same_table};
+use render::{example_item, revision_doc};
+
+mod compare;
+mod recorded;
+mod render;
 
 /// Serial settings, comparable and printable as `9600 8N1`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -163,251 +173,6 @@ pub(crate) fn place(sensor: &Sensor, software: &str) -> Result<Place, String> {
         Ok(Place::Older)
     } else {
         Ok(Place::Between)
-    }
-}
-
-/// The figures of a list, as the review shows them.
-fn figs(f: &[yosemitech_spec::Figure]) -> Vec<String> {
-    f.iter().map(ToString::to_string).collect()
-}
-
-/// The recorded example's frames, in the draft's form.
-fn frames_of(x: &Example) -> (Option<DraftFrame>, Option<DraftFrame>) {
-    (x.request.as_ref().map(printed_key), x.response.as_ref().map(printed_key))
-}
-
-/// A value as an example's `values:` writes it.
-fn value_yaml(v: &Value) -> Option<String> {
-    Some(match v {
-        Value::Float(f) if f.is_finite() => format!("{f:?}"),
-        Value::Float(_) => return None,
-        Value::Int(i) => i.to_string(),
-        Value::Text(t) => q(t),
-        Value::Version(v) => q(&v.to_string()),
-        Value::Bcd(b) => b.value()?.to_string(),
-        Value::Enum { name: Some(n), .. } => n.clone(),
-        Value::Enum { raw, name: None } => raw.to_string(),
-    })
-}
-
-/// The values a drafted example's frames give, decoded with the spec's fields.
-fn stated_values(c: &CommandSpec, e: &DExample) -> Vec<(String, String)> {
-    let (frame, start) = if c.is_read() { (&e.response, 3) } else { (&e.request, 7) };
-    let Some(frame) = frame else { return Vec::new() };
-    let mut out = Vec::new();
-    for f in c.named_fields() {
-        let bytes: Option<Vec<u8>> =
-            (start + f.offset..start + f.offset + f.size()).map(|i| frame.bytes.get(i).copied().flatten()).collect();
-        let Some(bytes) = bytes else { continue };
-        if let (Some(name), Some(v)) = (&f.name, value_yaml(&yosemitech_spec::interp::decode_field(f, &bytes))) {
-            out.push((name.clone(), v));
-        }
-    }
-    out
-}
-
-/// An example item (indent 0) for frames this manual prints.
-fn example_item(
-    c: Option<&CommandSpec>,
-    e: &DExample,
-    figures: &[String],
-    manual: &str,
-    next_id: &mut dyn FnMut() -> String,
-) -> String {
-    let mut y = String::new();
-    y.push_str(&format!("- figures: {}\n  manual: {}\n", fig_list(figures), q(manual)));
-    let mut erratum = None;
-    for (key, f) in [("request", &e.request), ("response", &e.response)] {
-        let Some(f) = f else { continue };
-        y.push_str(&format!("  {key}: {}\n", q(&f.text())));
-        if f.crc.is_none() {
-            y.push_str(&format!("  {key}_crc: missing\n"));
-        }
-        if f.crc_wrong() {
-            erratum = Some((key, f));
-        }
-    }
-    if let Some(c) = c {
-        let values = stated_values(c, e);
-        if !values.is_empty() {
-            let v: Vec<String> = values.iter().map(|(n, v)| format!("{n}: {v}")).collect();
-            y.push_str(&format!("  values: {{{}}}\n", v.join(", ")));
-        }
-    }
-    if let Some((key, f)) = erratum {
-        let fig = e
-            .figures
-            .get(if key == "request" { 0 } else { e.figures.len().saturating_sub(1) })
-            .cloned()
-            .unwrap_or_default();
-        let correct = f.computed_crc().unwrap_or([0, 0]);
-        let printed = f.crc.unwrap_or([0, 0]);
-        y.push_str(&format!(
-            "  erratum:\n    id: {}\n    figure: {}\n",
-            next_id(),
-            fig_list(&[fig]).trim_matches(['[', ']'])
-        ));
-        y.push_str(&format!(
-            "    printed: {}\n",
-            q(&format!(
-                "The printed CRC {:02X} {:02X} is wrong; the frame's CRC is {:02X} {:02X}.",
-                printed[0], printed[1], correct[0], correct[1]
-            ))
-        ));
-        y.push_str(&format!("    corrected_{key}: {}\n    printed_decodes: false\n", q(&f.spec_text(Some(correct)))));
-    }
-    y
-}
-
-/// What a command erratum's table prints, as the draft writes it.
-fn table_says(e: &CommandErratum) -> Vec<(&'static str, String)> {
-    let mut out = Vec::new();
-    if let Some(a) = e.table_address {
-        out.push(("address", format!("0x{a:04X}")));
-    }
-    if let Some(n) = e.table_count {
-        out.push(("count", n.to_string()));
-    }
-    if let Some(f) = e.table_function {
-        out.push(("function", if f == yosemitech_rtu::Function::Read { "read".into() } else { "write".into() }));
-    }
-    out
-}
-
-fn same_table(e: &CommandErratum, key: &str, val: &str) -> bool {
-    table_says(e).iter().any(|(k, v)| *k == key && v.eq_ignore_ascii_case(val))
-}
-
-/// A table erratum someone already recorded: on this command for another
-/// manual, or on the same shared command in another loaded sensor.
-fn known_table_erratum(
-    spec: &Spec,
-    sensor: &Sensor,
-    name: &str,
-    shared_from: Option<&str>,
-    key: &str,
-    val: &str,
-) -> Option<String> {
-    if let Some(c) = sensor.command(name)
-        && let Some(e) = c.errata.iter().find(|e| same_table(e, key, val))
-    {
-        let m =
-            e.manual.clone().or_else(|| sensor.manual.as_ref().and_then(|m| m.software.clone())).unwrap_or_default();
-        return Some(format!("{} (SW {m})", e.id));
-    }
-    let frag = shared_from?;
-    spec.sensors.iter().filter(|s| s.name != sensor.name).find_map(|s| {
-        let c = s.commands.iter().find(|c| c.name == name && c.shared_from.as_deref() == Some(frag))?;
-        let e = c.errata.iter().find(|e| same_table(e, key, val))?;
-        Some(format!("{}'s {}", s.name, e.id))
-    })
-}
-
-/// The figure a frame-level TODO of the draft names (`Fig 34: ...`).
-fn todo_figure(t: &str) -> Option<&str> {
-    t.strip_prefix("Fig ")?.split(':').next()
-}
-
-fn is_table_todo(t: &str) -> bool {
-    t.contains("contradicts the printed frames: check the drafted table errata")
-}
-
-/// The figures of this manual for a recorded example, through the
-/// command's section: the n-th figure of the spec's source for the
-/// command is the n-th figure of the manual's section, when both list as
-/// many; else the draft's own figures.
-fn mapped_figures(c: &CommandSpec, d: &DCommand, x: &Example, default_sw: &str, de: &DExample) -> Vec<String> {
-    let source_manual = c.source.manual.as_deref().unwrap_or(default_sw);
-    let x_manual = x.manual.as_deref().unwrap_or(default_sw);
-    let old = figs(&c.source.figures);
-    if x_manual == source_manual && old.len() == d.figures.len() && !old.is_empty() {
-        let mapped: Option<Vec<String>> = x
-            .figures
-            .iter()
-            .map(|f| old.iter().position(|o| *o == f.to_string()).map(|i| d.figures[i].clone()))
-            .collect();
-        if let Some(m) = mapped
-            && de.figures.iter().all(|f| m.contains(f))
-        {
-            return m;
-        }
-    }
-    de.figures.clone()
-}
-
-/// Byte positions where two frames differ (and a length difference).
-fn differing_bytes(a: &DraftFrame, b: &DraftFrame) -> String {
-    let mut at: Vec<String> = Vec::new();
-    let n = a.bytes.len().max(b.bytes.len());
-    for i in 0..n {
-        if a.bytes.get(i) != b.bytes.get(i) {
-            at.push(i.to_string());
-        }
-    }
-    let mut s = if at.is_empty() { String::new() } else { format!("bytes {}", at.join(", ")) };
-    if a.crc != b.crc {
-        s.push_str(if s.is_empty() { "CRC" } else { ", CRC" });
-    }
-    if a.open_ended != b.open_ended {
-        s.push_str(if s.is_empty() { "open end" } else { ", open end" });
-    }
-    s
-}
-
-/// The id generator for errata the merge drafts: `<model>-<n>` after the
-/// highest such id of the file (`docs/spec-language.md`), else `import-<n>`.
-fn id_generator(sensor: &Sensor) -> impl FnMut() -> String {
-    let prefix = sensor.model.clone().unwrap_or_else(|| "import".into());
-    let mut ids: Vec<String> = sensor.errata.iter().map(|e| e.id.clone()).collect();
-    for c in &sensor.commands {
-        ids.extend(c.errata.iter().map(|e| e.id.clone()));
-        ids.extend(c.examples.iter().filter_map(|e| e.erratum.as_ref().map(|x| x.id.clone())));
-    }
-    let mut n = ids
-        .iter()
-        .filter_map(|id| id.strip_prefix(&format!("{prefix}-")).and_then(|r| r.parse::<u32>().ok()))
-        .max()
-        .unwrap_or(0);
-    move || {
-        n += 1;
-        format!("{prefix}-{n}")
-    }
-}
-
-fn function_name(f: Option<u8>) -> String {
-    match f {
-        Some(0x03) => "read".into(),
-        Some(0x10) => "write".into(),
-        Some(f) => format!("0x{f:02X}"),
-        None => "?".into(),
-    }
-}
-
-fn row_of_draft(d: &DCommand, name: &str, note: Option<String>) -> CommandRow {
-    CommandRow {
-        name: name.to_string(),
-        function: function_name(d.function),
-        address: d.address.map(|a| format!("0x{a:04X}")).unwrap_or_else(|| "?".into()),
-        count: d.count.map(u32::from),
-        section: d.section.clone(),
-        title: d.title.clone(),
-        figures: d.figures.clone(),
-        page: d.page,
-        note,
-    }
-}
-
-fn row_of_spec(c: &CommandSpec, note: Option<String>) -> CommandRow {
-    CommandRow {
-        name: c.name.clone(),
-        function: function_name(Some(c.function.code())),
-        address: format!("0x{:04X}", c.address),
-        count: Some(u32::from(c.count)),
-        section: c.source.section.clone(),
-        title: c.title.clone(),
-        figures: figs(&c.source.figures),
-        page: None,
-        note,
     }
 }
 
@@ -954,51 +719,4 @@ pub(crate) fn plan(
         review.todos.push(one_line_text(t));
     }
     plan
-}
-
-/// The revision's `doc`: what changed, in a sentence or two of our own.
-fn revision_doc(review: &Review, software: &str, place: &Place, newest: &str, oldest: &str) -> String {
-    let list = |rows: &[CommandRow]| -> String {
-        rows.iter().map(|r| format!("{} ({})", r.title, r.section)).collect::<Vec<_>>().join(", ")
-    };
-    let mut parts = Vec::new();
-    match place {
-        Place::Newer => parts.push(format!("SW {software}, newer than SW {newest}.")),
-        Place::Older => parts.push(format!("SW {software}, older than SW {oldest}.")),
-        _ => parts.push(format!("SW {software}.")),
-    }
-    if !review.commands_added.is_empty() {
-        parts.push(format!("Adds {}.", list(&review.commands_added)));
-    }
-    if !review.since.is_empty() {
-        let names: Vec<&str> = review.since.iter().map(|s| s.name.as_str()).collect();
-        parts.push(format!("Lacks {}.", names.join(", ")));
-    }
-    if !review.commands_removed.is_empty() {
-        parts.push(format!("Does not document {}.", list(&review.commands_removed)));
-    }
-    match review.figures_renumbered.as_slice() {
-        [] => {}
-        [r] => parts.push(format!(
-            "Numbers {} otherwise (section {} -> {}, figures {} -> {}).",
-            r.command,
-            r.section_from,
-            r.section_to,
-            r.figures_from.join(", "),
-            r.figures_to.join(", ")
-        )),
-        [first, ..] => parts.push(format!(
-            "Numbers the sections or figures of {} commands otherwise, from {} (section {}) on.",
-            review.figures_renumbered.len(),
-            first.command,
-            first.section_to
-        )),
-    }
-    if review.frames_differ.is_empty() {
-        parts.push("Every frame both manuals print is identical.".into());
-    } else {
-        parts.push(format!("{} printed frames differ.", review.frames_differ.len()));
-    }
-    parts.push("Merged by `cargo xtask import --into`.".into());
-    parts.join(" ")
 }
