@@ -83,11 +83,13 @@ fn main() -> ExitCode {
 mod tests {
     use std::process::ExitCode;
 
+    type Task = fn(&[String]) -> anyhow::Result<ExitCode>;
+
     /// What `.ci/run` checks, inside `cargo test` too: a spec edited without
     /// `cargo xtask codegen`, `docs` or `schema` fails here, naming the task.
     #[test]
     fn generated_files_are_fresh() {
-        let tasks: [(&str, fn(&[String]) -> anyhow::Result<ExitCode>); 3] =
+        let tasks: [(&str, Task); 3] =
             [("codegen", super::codegen::run), ("docs", super::docs::run), ("schema", super::schema::run)];
         for (task, run) in tasks {
             let code = run(&["--check".to_owned()]).map_err(|e| format!("cargo xtask {task} --check: {e:#}"));

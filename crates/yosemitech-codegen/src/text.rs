@@ -61,14 +61,8 @@ pub fn opt_lit(text: Option<&str>) -> TokenStream {
 
 /// An integer literal in hex with the given digits: `0x2800`.
 pub fn hex(value: u32, digits: usize) -> TokenStream {
-    let text = format!("0x{value:0digits$X}");
-    match syn::parse_str::<syn::LitInt>(&text) {
-        Ok(lit) => quote!(#lit),
-        Err(_) => {
-            let lit = Literal::u32_unsuffixed(value);
-            quote!(#lit)
-        }
-    }
+    let lit = format!("0x{value:0digits$X}").parse().unwrap_or_else(|_| Literal::u32_unsuffixed(value));
+    quote!(#lit)
 }
 
 /// "Manual section 2.2.3, figures 22, 23, 24, 25."

@@ -7,16 +7,16 @@
 
 use std::collections::BTreeMap;
 
-use schemars::JsonSchema;
 use serde::Deserialize;
 use serde_saphyr::Spanned;
 use yosemitech_rtu::{ByteOrder2, ByteOrder4, Parity};
 
 /// One spec file: a sensor (one vendor manual) or a fragment of shared commands.
-#[derive(Debug, Deserialize, JsonSchema)]
+#[derive(Debug, Deserialize)]
+#[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[serde(deny_unknown_fields)]
-#[schemars(title = "Yosemitech Modbus sensor spec")]
-#[schemars(extend("oneOf" = [{"required": ["sensor"]}, {"required": ["fragment"]}]))]
+#[cfg_attr(feature = "schema", schemars(title = "Yosemitech Modbus sensor spec"))]
+#[cfg_attr(feature = "schema", schemars(extend("oneOf" = [{"required": ["sensor"]}, {"required": ["fragment"]}])))]
 pub struct SpecFile {
     /// The sensor this file describes. A file has `sensor` or `fragment`, not both.
     pub sensor: Option<SensorDoc>,
@@ -25,7 +25,7 @@ pub struct SpecFile {
     /// Fragment files whose commands this file includes, relative to this
     /// file: a file name (every command), or `{file, only: [names]}`.
     #[serde(default)]
-    #[schemars(with = "Vec<IncludeSchema>")]
+    #[cfg_attr(feature = "schema", schemars(with = "Vec<IncludeSchema>"))]
     pub include: Vec<Spanned<IncludeDoc>>,
     /// The commands: full definitions, or `use:` entries that add this
     /// manual's source and examples to an included command.
@@ -46,27 +46,28 @@ pub struct SpecFile {
 }
 
 /// The sensor a manual describes.
-#[derive(Debug, Deserialize, JsonSchema)]
+#[derive(Debug, Deserialize)]
+#[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[serde(deny_unknown_fields)]
 pub struct SensorDoc {
     /// snake_case name; becomes the Rust module name.
-    #[schemars(with = "String")]
+    #[cfg_attr(feature = "schema", schemars(with = "String"))]
     pub name: Spanned<String>,
     /// Human title.
-    #[schemars(with = "String")]
+    #[cfg_attr(feature = "schema", schemars(with = "String"))]
     pub title: Spanned<String>,
     /// What the sensor measures.
-    #[schemars(with = "String")]
+    #[cfg_attr(feature = "schema", schemars(with = "String"))]
     pub doc: Spanned<String>,
     /// The vendor's model name, like `Y520`.
-    #[schemars(with = "Option<String>")]
+    #[cfg_attr(feature = "schema", schemars(with = "Option<String>"))]
     pub model: Option<Spanned<String>>,
     /// The two-digit model code of the serial number (`"09"` in `YL0914010022`).
-    #[schemars(with = "Option<String>")]
+    #[cfg_attr(feature = "schema", schemars(with = "Option<String>"))]
     pub model_code: Option<Spanned<String>>,
     /// Other model codes this model's serial numbers have carried (over the years).
     #[serde(default)]
-    #[schemars(with = "Vec<String>")]
+    #[cfg_attr(feature = "schema", schemars(with = "Vec<String>"))]
     pub also_model_codes: Vec<Spanned<String>>,
     /// Other models that answer with exactly these commands.
     #[serde(default)]
@@ -84,55 +85,58 @@ pub struct SensorDoc {
     /// Valid slave addresses.
     pub addresses: AddressRangeDoc,
     /// The factory slave address.
-    #[schemars(with = "u32")]
+    #[cfg_attr(feature = "schema", schemars(with = "u32"))]
     pub default_address: Spanned<u32>,
 }
 
 /// Where facts come from when no Modbus manual states them: the field's
 /// drivers, loggers and issue trackers.
-#[derive(Debug, Deserialize, JsonSchema)]
+#[derive(Debug, Deserialize)]
+#[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[serde(deny_unknown_fields)]
 pub struct ProvenanceDoc {
     /// Each source, as a reader can find it (a driver and version, an issue).
-    #[schemars(with = "Vec<String>")]
+    #[cfg_attr(feature = "schema", schemars(with = "Vec<String>"))]
     pub sources: Vec<Spanned<String>>,
     /// What the sources say and do not say.
-    #[schemars(with = "Option<String>")]
+    #[cfg_attr(feature = "schema", schemars(with = "Option<String>"))]
     pub doc: Option<Spanned<String>>,
 }
 
 /// Another model that answers with the sensor's commands.
-#[derive(Debug, Deserialize, JsonSchema)]
+#[derive(Debug, Deserialize)]
+#[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[serde(deny_unknown_fields)]
 pub struct AliasDoc {
     /// The vendor's model name, like `Y521`.
-    #[schemars(with = "String")]
+    #[cfg_attr(feature = "schema", schemars(with = "String"))]
     pub model: Spanned<String>,
     /// Its serial numbers' model code, when it differs from the sensor's.
-    #[schemars(with = "Option<String>")]
+    #[cfg_attr(feature = "schema", schemars(with = "Option<String>"))]
     pub model_code: Option<Spanned<String>>,
     /// What sets it apart from the sensor's model.
-    #[schemars(with = "Option<String>")]
+    #[cfg_attr(feature = "schema", schemars(with = "Option<String>"))]
     pub doc: Option<Spanned<String>>,
     /// Where the fact that it shares the commands comes from.
     pub provenance: ProvenanceDoc,
 }
 
 /// The manual a spec transcribes.
-#[derive(Debug, Deserialize, JsonSchema)]
+#[derive(Debug, Deserialize)]
+#[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[serde(deny_unknown_fields)]
 pub struct ManualDoc {
     /// The manual's title.
-    #[schemars(with = "String")]
+    #[cfg_attr(feature = "schema", schemars(with = "String"))]
     pub title: Spanned<String>,
     /// Hardware and software revisions the manual covers.
-    #[schemars(with = "String")]
+    #[cfg_attr(feature = "schema", schemars(with = "String"))]
     pub revision: Spanned<String>,
     /// The software revision the manual documents, like `"1.7"`.
-    #[schemars(with = "Option<String>")]
+    #[cfg_attr(feature = "schema", schemars(with = "Option<String>"))]
     pub software: Option<Spanned<String>>,
     /// The text extraction the spec was written from.
-    #[schemars(with = "Option<String>")]
+    #[cfg_attr(feature = "schema", schemars(with = "Option<String>"))]
     pub file: Option<Spanned<String>>,
     /// The serial settings this manual (each build of it) states: a claim,
     /// recorded as printed. A client uses the sensor's (or the revision's)
@@ -143,27 +147,29 @@ pub struct ManualDoc {
 }
 
 /// Serial settings a manual states.
-#[derive(Debug, Deserialize, JsonSchema)]
+#[derive(Debug, Deserialize)]
+#[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[serde(deny_unknown_fields)]
 pub struct SerialClaimDoc {
     /// The settings as the manual prints them.
     pub serial: SerialDoc,
     /// The text extraction of the build that states them, when not the manual's `file`.
-    #[schemars(with = "Option<String>")]
+    #[cfg_attr(feature = "schema", schemars(with = "Option<String>"))]
     pub file: Option<Spanned<String>>,
     /// What is known about this build (its date, where it came from).
-    #[schemars(with = "Option<String>")]
+    #[cfg_attr(feature = "schema", schemars(with = "Option<String>"))]
     pub doc: Option<Spanned<String>>,
 }
 
 /// Another manual of the same probe.
-#[derive(Debug, Deserialize, JsonSchema)]
+#[derive(Debug, Deserialize)]
+#[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[serde(deny_unknown_fields)]
 pub struct RevisionDoc {
     /// The manual; `software` is required here.
     pub manual: ManualDoc,
     /// What changed against the file's `manual`.
-    #[schemars(with = "Option<String>")]
+    #[cfg_attr(feature = "schema", schemars(with = "Option<String>"))]
     pub doc: Option<Spanned<String>>,
     /// Serial settings of this firmware, when they differ.
     pub serial: Option<SerialDoc>,
@@ -179,7 +185,8 @@ pub struct IncludeDoc {
 }
 
 /// The JSON-schema shape of an `include` entry.
-#[derive(JsonSchema)]
+#[cfg(feature = "schema")]
+#[derive(schemars::JsonSchema)]
 #[serde(untagged)]
 #[allow(dead_code)]
 pub enum IncludeSchema {
@@ -226,24 +233,26 @@ impl<'de> Deserialize<'de> for IncludeDoc {
 }
 
 /// Serial line settings.
-#[derive(Debug, Deserialize, JsonSchema)]
+#[derive(Debug, Deserialize)]
+#[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[serde(deny_unknown_fields)]
 pub struct SerialDoc {
     /// Bits per second.
-    #[schemars(with = "u32")]
+    #[cfg_attr(feature = "schema", schemars(with = "u32"))]
     pub baud: Spanned<u32>,
     /// Data bits per character (7 or 8).
-    #[schemars(with = "u32")]
+    #[cfg_attr(feature = "schema", schemars(with = "u32"))]
     pub data_bits: Spanned<u32>,
     /// Parity.
     pub parity: ParityDoc,
     /// Stop bits (1 or 2).
-    #[schemars(with = "u32")]
+    #[cfg_attr(feature = "schema", schemars(with = "u32"))]
     pub stop_bits: Spanned<u32>,
 }
 
 /// Parity bit.
-#[derive(Debug, Clone, Copy, Deserialize, JsonSchema, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, Deserialize, PartialEq, Eq)]
+#[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[serde(rename_all = "snake_case")]
 pub enum ParityDoc {
     /// No parity bit.
@@ -266,46 +275,50 @@ impl ParityDoc {
 }
 
 /// An inclusive range of slave addresses.
-#[derive(Debug, Deserialize, JsonSchema)]
+#[derive(Debug, Deserialize)]
+#[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[serde(deny_unknown_fields)]
 pub struct AddressRangeDoc {
     /// Lowest address.
-    #[schemars(with = "u32")]
+    #[cfg_attr(feature = "schema", schemars(with = "u32"))]
     pub min: Spanned<u32>,
     /// Highest address.
-    #[schemars(with = "u32")]
+    #[cfg_attr(feature = "schema", schemars(with = "u32"))]
     pub max: Spanned<u32>,
 }
 
 /// A file of shared commands.
-#[derive(Debug, Deserialize, JsonSchema)]
+#[derive(Debug, Deserialize)]
+#[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[serde(deny_unknown_fields)]
 pub struct FragmentDoc {
     /// snake_case name.
-    #[schemars(with = "String")]
+    #[cfg_attr(feature = "schema", schemars(with = "String"))]
     pub name: Spanned<String>,
     /// What the fragment holds.
-    #[schemars(with = "String")]
+    #[cfg_attr(feature = "schema", schemars(with = "String"))]
     pub doc: Spanned<String>,
 }
 
 /// Where in the manual something is documented.
-#[derive(Debug, Clone, Deserialize, JsonSchema)]
+#[derive(Debug, Clone, Deserialize)]
+#[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[serde(deny_unknown_fields)]
 pub struct SourceDoc {
     /// Section number, e.g. "2.2.3".
-    #[schemars(with = "String")]
+    #[cfg_attr(feature = "schema", schemars(with = "String"))]
     pub section: Spanned<String>,
     /// Figures and tables.
     #[serde(default)]
     pub figures: Vec<FigureDoc>,
     /// The manual (its `software` revision) when not the file's `manual`.
-    #[schemars(with = "Option<String>")]
+    #[cfg_attr(feature = "schema", schemars(with = "Option<String>"))]
     pub manual: Option<Spanned<String>>,
 }
 
 /// A figure reference: `23` (Figure 23), `"T4"` (Table 4), `"43b"` (the second Figure 43).
-#[derive(Debug, Clone, Deserialize, JsonSchema, PartialEq, Eq)]
+#[derive(Debug, Clone, Deserialize, PartialEq, Eq)]
+#[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[serde(untagged)]
 pub enum FigureDoc {
     /// A figure number.
@@ -315,7 +328,8 @@ pub enum FigureDoc {
 }
 
 /// What a command is for, where the simulator or the CLI must know.
-#[derive(Debug, Clone, Copy, Deserialize, serde::Serialize, JsonSchema, PartialEq, Eq, Hash, PartialOrd, Ord)]
+#[derive(Debug, Clone, Copy, Deserialize, serde::Serialize, PartialEq, Eq, Hash, PartialOrd, Ord)]
+#[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[serde(rename_all = "snake_case")]
 pub enum RoleDoc {
     /// Writes the slave address.
@@ -343,23 +357,25 @@ pub enum RoleDoc {
 
 /// What a user calibration block (role `user_calibration`) calibrates,
 /// where the manual says it.
-#[derive(Debug, Deserialize, JsonSchema)]
+#[derive(Debug, Deserialize)]
+#[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[serde(deny_unknown_fields)]
 pub struct CalibratesDoc {
     /// The measured field K and B apply to: a named field of a measurement read.
-    #[schemars(with = "String")]
+    #[cfg_attr(feature = "schema", schemars(with = "String"))]
     pub field: Spanned<String>,
     /// The standards the manual recommends, in the field's unit.
     #[serde(default)]
-    #[schemars(with = "Vec<f64>")]
+    #[cfg_attr(feature = "schema", schemars(with = "Vec<f64>"))]
     pub standards: Vec<Spanned<f64>>,
     /// Milliseconds to let the probe settle in each standard.
-    #[schemars(with = "Option<u32>")]
+    #[cfg_attr(feature = "schema", schemars(with = "Option<u32>"))]
     pub settle_ms: Option<Spanned<u32>>,
 }
 
 /// The measuring procedure of a manual.
-#[derive(Debug, Deserialize, JsonSchema)]
+#[derive(Debug, Deserialize)]
+#[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[serde(deny_unknown_fields)]
 pub struct ProcedureDoc {
     /// Where the manual describes it.
@@ -367,33 +383,34 @@ pub struct ProcedureDoc {
     /// Where its steps and timings come from when no manual states them.
     pub provenance: Option<ProvenanceDoc>,
     /// The procedure in words.
-    #[schemars(with = "Option<String>")]
+    #[cfg_attr(feature = "schema", schemars(with = "Option<String>"))]
     pub doc: Option<Spanned<String>>,
     /// Commands sent first, in order (commands that take no values).
     #[serde(default)]
-    #[schemars(with = "Vec<String>")]
+    #[cfg_attr(feature = "schema", schemars(with = "Vec<String>"))]
     pub before: Vec<Spanned<String>>,
     /// Milliseconds to wait after `before`.
     #[serde(default)]
-    #[schemars(with = "Option<u32>")]
+    #[cfg_attr(feature = "schema", schemars(with = "Option<u32>"))]
     pub warm_up_ms: Option<Spanned<u32>>,
     /// The reads that give the measurements.
-    #[schemars(with = "Vec<String>")]
+    #[cfg_attr(feature = "schema", schemars(with = "Vec<String>"))]
     pub read: Spanned<Vec<Spanned<String>>>,
     /// Readings to average (default 1).
-    #[schemars(with = "Option<u32>")]
+    #[cfg_attr(feature = "schema", schemars(with = "Option<u32>"))]
     pub readings: Option<Spanned<u32>>,
     /// Milliseconds between readings.
-    #[schemars(with = "Option<u32>")]
+    #[cfg_attr(feature = "schema", schemars(with = "Option<u32>"))]
     pub interval_ms: Option<Spanned<u32>>,
     /// Commands sent at the end, in order.
     #[serde(default)]
-    #[schemars(with = "Vec<String>")]
+    #[cfg_attr(feature = "schema", schemars(with = "Vec<String>"))]
     pub after: Vec<Spanned<String>>,
 }
 
 /// Read or write.
-#[derive(Debug, Clone, Copy, Deserialize, JsonSchema, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, Deserialize, PartialEq, Eq)]
+#[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[serde(rename_all = "snake_case")]
 pub enum FunctionDoc {
     /// 0x03, read holding registers.
@@ -403,59 +420,60 @@ pub enum FunctionDoc {
 }
 
 /// A command: a full definition (`name`), or `use` of an included one.
-#[derive(Debug, Deserialize, JsonSchema)]
+#[derive(Debug, Deserialize)]
+#[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[serde(deny_unknown_fields)]
-#[schemars(extend("oneOf" = [{"required": ["name"]}, {"required": ["use"]}]))]
+#[cfg_attr(feature = "schema", schemars(extend("oneOf" = [{"required": ["name"]}, {"required": ["use"]}])))]
 pub struct CommandDoc {
     /// snake_case name of a new command.
-    #[schemars(with = "Option<String>")]
+    #[cfg_attr(feature = "schema", schemars(with = "Option<String>"))]
     pub name: Option<Spanned<String>>,
     /// Name of an included command this entry adds `source`, `examples` and `errata` to.
     #[serde(rename = "use")]
-    #[schemars(with = "Option<String>")]
+    #[cfg_attr(feature = "schema", schemars(with = "Option<String>"))]
     pub uses: Option<Spanned<String>>,
     /// Human title, as in the manual's section heading.
-    #[schemars(with = "Option<String>")]
+    #[cfg_attr(feature = "schema", schemars(with = "Option<String>"))]
     pub title: Option<Spanned<String>>,
     /// The software revision that introduced the command (a manual's `software`).
-    #[schemars(with = "Option<String>")]
+    #[cfg_attr(feature = "schema", schemars(with = "Option<String>"))]
     pub since: Option<Spanned<String>>,
     /// What the command is for, where the simulator or the CLI must know.
-    #[schemars(with = "Option<RoleDoc>")]
+    #[cfg_attr(feature = "schema", schemars(with = "Option<RoleDoc>"))]
     pub role: Option<Spanned<RoleDoc>>,
     /// Of a user calibration block: the field it calibrates, where the manual says it.
     pub calibrates: Option<CalibratesDoc>,
     /// In a `use` entry: the unit this manual states for a field.
-    #[schemars(with = "Option<BTreeMap<String, String>>")]
+    #[cfg_attr(feature = "schema", schemars(with = "Option<BTreeMap<String, String>>"))]
     pub units: Option<Spanned<BTreeMap<String, Spanned<String>>>>,
     /// What the command does; becomes the rustdoc.
-    #[schemars(with = "Option<String>")]
+    #[cfg_attr(feature = "schema", schemars(with = "Option<String>"))]
     pub doc: Option<Spanned<String>>,
     /// Where the manual documents it.
     pub source: Option<SourceDoc>,
     /// Where its facts come from when no manual states them.
     pub provenance: Option<ProvenanceDoc>,
     /// `read` (0x03) or `write` (0x10).
-    #[schemars(with = "Option<FunctionDoc>")]
+    #[cfg_attr(feature = "schema", schemars(with = "Option<FunctionDoc>"))]
     pub function: Option<Spanned<FunctionDoc>>,
     /// First register, as sent on the wire.
-    #[schemars(with = "Option<u32>")]
+    #[cfg_attr(feature = "schema", schemars(with = "Option<u32>"))]
     pub address: Option<Spanned<u32>>,
     /// Number of registers.
-    #[schemars(with = "Option<u32>")]
+    #[cfg_attr(feature = "schema", schemars(with = "Option<u32>"))]
     pub count: Option<Spanned<u32>>,
     /// A command that carries no value: a write of zero registers, or a read whose reply is ignored.
-    #[schemars(with = "Option<bool>")]
+    #[cfg_attr(feature = "schema", schemars(with = "Option<bool>"))]
     pub trigger: Option<Spanned<bool>>,
     /// A slave address the request and the reply always use (e.g. 0xFF).
-    #[schemars(with = "Option<u32>")]
+    #[cfg_attr(feature = "schema", schemars(with = "Option<u32>"))]
     pub fixed_slave: Option<Spanned<u32>>,
     /// Byte counts a read reply may carry besides `2 * count`, for firmware quirks.
     #[serde(default)]
-    #[schemars(with = "Vec<u32>")]
+    #[cfg_attr(feature = "schema", schemars(with = "Vec<u32>"))]
     pub extra_byte_counts: Vec<Spanned<u32>>,
     /// The register data, in wire order: the reply of a read, the request of a write.
-    #[schemars(with = "Option<Vec<FieldDoc>>")]
+    #[cfg_attr(feature = "schema", schemars(with = "Option<Vec<FieldDoc>>"))]
     pub fields: Option<Spanned<Vec<FieldDoc>>>,
     /// Frames printed in the manual.
     #[serde(default)]
@@ -466,7 +484,8 @@ pub struct CommandDoc {
 }
 
 /// The type of a field.
-#[derive(Debug, Clone, Copy, Deserialize, JsonSchema, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, Deserialize, PartialEq, Eq)]
+#[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[serde(rename_all = "snake_case")]
 pub enum FieldTypeDoc {
     /// IEEE 754 single, 4 bytes, needs `byte_order`.
@@ -498,7 +517,8 @@ pub enum FieldTypeDoc {
 }
 
 /// Byte order of a multi-byte value, as wire letters (A = most significant).
-#[derive(Debug, Clone, Copy, Deserialize, JsonSchema, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, Deserialize, PartialEq, Eq)]
+#[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[serde(rename_all = "snake_case")]
 pub enum ByteOrderDoc {
     /// Two bytes, big-endian.
@@ -547,7 +567,8 @@ impl ByteOrderDoc {
 }
 
 /// Text padding byte.
-#[derive(Debug, Clone, Copy, Deserialize, JsonSchema, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, Deserialize, PartialEq, Eq)]
+#[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[serde(rename_all = "snake_case")]
 pub enum PaddingDoc {
     /// 0x00.
@@ -557,7 +578,8 @@ pub enum PaddingDoc {
 }
 
 /// An inclusive range of valid values.
-#[derive(Debug, Deserialize, JsonSchema)]
+#[derive(Debug, Deserialize)]
+#[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[serde(deny_unknown_fields)]
 pub struct RangeDoc {
     /// Lowest valid value.
@@ -567,52 +589,53 @@ pub struct RangeDoc {
 }
 
 /// One field of register data.
-#[derive(Debug, Deserialize, JsonSchema)]
+#[derive(Debug, Deserialize)]
+#[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[serde(deny_unknown_fields)]
 pub struct FieldDoc {
     /// snake_case name; optional for `reserved`.
-    #[schemars(with = "Option<String>")]
+    #[cfg_attr(feature = "schema", schemars(with = "Option<String>"))]
     pub name: Option<Spanned<String>>,
     /// The value's type.
     #[serde(rename = "type")]
-    #[schemars(with = "FieldTypeDoc")]
+    #[cfg_attr(feature = "schema", schemars(with = "FieldTypeDoc"))]
     pub ty: Spanned<FieldTypeDoc>,
     /// Byte offset in the register data; defaults to right after the previous field.
-    #[schemars(with = "Option<u32>")]
+    #[cfg_attr(feature = "schema", schemars(with = "Option<u32>"))]
     pub offset: Option<Spanned<u32>>,
     /// Wire byte order, for 2- and 4-byte numbers.
-    #[schemars(with = "Option<ByteOrderDoc>")]
+    #[cfg_attr(feature = "schema", schemars(with = "Option<ByteOrderDoc>"))]
     pub byte_order: Option<Spanned<ByteOrderDoc>>,
     /// Bytes, for `ascii`, `enum` and `reserved`.
-    #[schemars(with = "Option<u32>")]
+    #[cfg_attr(feature = "schema", schemars(with = "Option<u32>"))]
     pub size: Option<Spanned<u32>>,
     /// Padding of `ascii` text.
-    #[schemars(with = "Option<PaddingDoc>")]
+    #[cfg_attr(feature = "schema", schemars(with = "Option<PaddingDoc>"))]
     pub padding: Option<Spanned<PaddingDoc>>,
     /// Byte written into `reserved` bytes (default 0).
-    #[schemars(with = "Option<u32>")]
+    #[cfg_attr(feature = "schema", schemars(with = "Option<u32>"))]
     pub fill: Option<Spanned<u32>>,
     /// Physical unit (pH, mV, degC, mS/cm).
-    #[schemars(with = "Option<String>")]
+    #[cfg_attr(feature = "schema", schemars(with = "Option<String>"))]
     pub unit: Option<Spanned<String>>,
     /// What the value means.
-    #[schemars(with = "Option<String>")]
+    #[cfg_attr(feature = "schema", schemars(with = "Option<String>"))]
     pub doc: Option<Spanned<String>>,
     /// Values a write may send.
-    #[schemars(with = "Option<RangeDoc>")]
+    #[cfg_attr(feature = "schema", schemars(with = "Option<RangeDoc>"))]
     pub range: Option<Spanned<RangeDoc>>,
     /// The value of natural water the simulator centres a reading on
     /// (default: the middle of `range`). Not a fact of the probe.
-    #[schemars(with = "Option<f64>")]
+    #[cfg_attr(feature = "schema", schemars(with = "Option<f64>"))]
     pub typical: Option<Spanned<f64>>,
     /// Named codes of an `enum`.
-    #[schemars(with = "Option<Vec<VariantDoc>>")]
+    #[cfg_attr(feature = "schema", schemars(with = "Option<Vec<VariantDoc>>"))]
     pub variants: Option<Spanned<Vec<VariantDoc>>>,
     /// Named bits of a `flags` field.
-    #[schemars(with = "Option<Vec<FlagDoc>>")]
+    #[cfg_attr(feature = "schema", schemars(with = "Option<Vec<FlagDoc>>"))]
     pub flags: Option<Spanned<Vec<FlagDoc>>>,
     /// The value read where a sub-probe is not fitted.
-    #[schemars(with = "Option<f64>")]
+    #[cfg_attr(feature = "schema", schemars(with = "Option<f64>"))]
     pub absent: Option<Spanned<f64>>,
     /// Values with their bytes, as the manual prints them outside a frame.
     #[serde(default)]
@@ -620,29 +643,31 @@ pub struct FieldDoc {
 }
 
 /// A named bit of a flags field.
-#[derive(Debug, Deserialize, JsonSchema)]
+#[derive(Debug, Deserialize)]
+#[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[serde(deny_unknown_fields)]
 pub struct FlagDoc {
     /// snake_case name.
-    #[schemars(with = "String")]
+    #[cfg_attr(feature = "schema", schemars(with = "String"))]
     pub name: Spanned<String>,
     /// The bit, as a mask with one bit set (`0x04`).
-    #[schemars(with = "u32")]
+    #[cfg_attr(feature = "schema", schemars(with = "u32"))]
     pub mask: Spanned<u32>,
     /// What the bit means.
-    #[schemars(with = "Option<String>")]
+    #[cfg_attr(feature = "schema", schemars(with = "Option<String>"))]
     pub doc: Option<Spanned<String>>,
 }
 
 /// A field's value and its bytes, printed outside a frame.
-#[derive(Debug, Deserialize, JsonSchema)]
+#[derive(Debug, Deserialize)]
+#[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[serde(deny_unknown_fields)]
 pub struct FieldExampleDoc {
     /// The bytes, hex separated by spaces.
-    #[schemars(with = "String")]
+    #[cfg_attr(feature = "schema", schemars(with = "String"))]
     pub bytes: Spanned<String>,
     /// The value the manual states.
-    #[schemars(with = "StatedValue")]
+    #[cfg_attr(feature = "schema", schemars(with = "StatedValue"))]
     pub value: Spanned<StatedValue>,
     /// Where the manual prints it.
     #[serde(default)]
@@ -650,22 +675,24 @@ pub struct FieldExampleDoc {
 }
 
 /// A named code of an enum field.
-#[derive(Debug, Deserialize, JsonSchema)]
+#[derive(Debug, Deserialize)]
+#[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[serde(deny_unknown_fields)]
 pub struct VariantDoc {
     /// snake_case name; becomes a CamelCase variant.
-    #[schemars(with = "String")]
+    #[cfg_attr(feature = "schema", schemars(with = "String"))]
     pub name: Spanned<String>,
     /// The code on the wire.
-    #[schemars(with = "u32")]
+    #[cfg_attr(feature = "schema", schemars(with = "u32"))]
     pub value: Spanned<u32>,
     /// What the code means.
-    #[schemars(with = "Option<String>")]
+    #[cfg_attr(feature = "schema", schemars(with = "Option<String>"))]
     pub doc: Option<Spanned<String>>,
 }
 
 /// A value stated by the manual for an example frame.
-#[derive(Debug, Clone, Deserialize, JsonSchema, PartialEq)]
+#[derive(Debug, Clone, Deserialize, PartialEq)]
+#[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[serde(untagged)]
 pub enum StatedValue {
     /// A number.
@@ -675,7 +702,8 @@ pub enum StatedValue {
 }
 
 /// Whether the manual prints a frame's CRC.
-#[derive(Debug, Clone, Copy, Deserialize, JsonSchema, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, Deserialize, PartialEq, Eq)]
+#[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[serde(rename_all = "snake_case")]
 pub enum CrcDoc {
     /// The CRC is printed (the default).
@@ -685,33 +713,34 @@ pub enum CrcDoc {
 }
 
 /// A frame pair printed in the manual.
-#[derive(Debug, Deserialize, JsonSchema)]
+#[derive(Debug, Deserialize)]
+#[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[serde(deny_unknown_fields)]
 pub struct ExampleDoc {
     /// The figures that print the frames (and their register tables).
     pub figures: Vec<FigureDoc>,
     /// The manual (its `software` revision) when not the file's `manual`.
-    #[schemars(with = "Option<String>")]
+    #[cfg_attr(feature = "schema", schemars(with = "Option<String>"))]
     pub manual: Option<Spanned<String>>,
     /// The request as printed, hex bytes separated by spaces; `??` for a
     /// placeholder byte, a final `...` for bytes of unknown number.
-    #[schemars(with = "Option<String>")]
+    #[cfg_attr(feature = "schema", schemars(with = "Option<String>"))]
     pub request: Option<Spanned<String>>,
     /// Whether the request's CRC is printed.
-    #[schemars(with = "Option<CrcDoc>")]
+    #[cfg_attr(feature = "schema", schemars(with = "Option<CrcDoc>"))]
     pub request_crc: Option<Spanned<CrcDoc>>,
     /// The reply as printed, like `request`.
-    #[schemars(with = "Option<String>")]
+    #[cfg_attr(feature = "schema", schemars(with = "Option<String>"))]
     pub response: Option<Spanned<String>>,
     /// Whether the reply's CRC is printed.
-    #[schemars(with = "Option<CrcDoc>")]
+    #[cfg_attr(feature = "schema", schemars(with = "Option<CrcDoc>"))]
     pub response_crc: Option<Spanned<CrcDoc>>,
     /// The values the manual states, by field name (none for an example
     /// whose frames carry no values).
-    #[schemars(with = "Option<BTreeMap<String, StatedValue>>")]
+    #[cfg_attr(feature = "schema", schemars(with = "Option<BTreeMap<String, StatedValue>>"))]
     pub values: Option<Spanned<BTreeMap<String, Spanned<StatedValue>>>>,
     /// Remarks on the example.
-    #[schemars(with = "Option<String>")]
+    #[cfg_attr(feature = "schema", schemars(with = "Option<String>"))]
     pub doc: Option<Spanned<String>>,
     /// Where a printed frame contradicts the truth.
     pub erratum: Option<ExampleErratumDoc>,
@@ -722,98 +751,104 @@ pub struct ExampleDoc {
 }
 
 /// Another manual's figures that print an example's frames identically.
-#[derive(Debug, Deserialize, JsonSchema)]
+#[derive(Debug, Deserialize)]
+#[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[serde(deny_unknown_fields)]
 pub struct CitationDoc {
     /// The manual (its `software` revision).
-    #[schemars(with = "String")]
+    #[cfg_attr(feature = "schema", schemars(with = "String"))]
     pub manual: Spanned<String>,
     /// Its figures and tables that print the frames.
     pub figures: Vec<FigureDoc>,
 }
 
 /// A printed frame that is wrong, and its correction.
-#[derive(Debug, Deserialize, JsonSchema)]
+#[derive(Debug, Deserialize)]
+#[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[serde(deny_unknown_fields)]
 pub struct ExampleErratumDoc {
     /// Identifier in datasheet-notes.md (E4, E5, …).
-    #[schemars(with = "String")]
+    #[cfg_attr(feature = "schema", schemars(with = "String"))]
     pub id: Spanned<String>,
     /// The figure that prints the wrong frame.
-    #[schemars(with = "FigureDoc")]
+    #[cfg_attr(feature = "schema", schemars(with = "FigureDoc"))]
     pub figure: Spanned<FigureDoc>,
     /// What is wrong with the printed frame.
-    #[schemars(with = "String")]
+    #[cfg_attr(feature = "schema", schemars(with = "String"))]
     pub printed: Spanned<String>,
     /// The true request, when the printed request is wrong.
-    #[schemars(with = "Option<String>")]
+    #[cfg_attr(feature = "schema", schemars(with = "Option<String>"))]
     pub corrected_request: Option<Spanned<String>>,
     /// The true reply, when the printed reply is wrong.
-    #[schemars(with = "Option<String>")]
+    #[cfg_attr(feature = "schema", schemars(with = "Option<String>"))]
     pub corrected_response: Option<Spanned<String>>,
     /// Whether our decoder accepts the printed frame as it is.
-    #[schemars(with = "bool")]
+    #[cfg_attr(feature = "schema", schemars(with = "bool"))]
     pub printed_decodes: Spanned<bool>,
 }
 
 /// What a manual's command table says where it contradicts the examples.
-#[derive(Debug, Deserialize, JsonSchema)]
+#[derive(Debug, Deserialize)]
+#[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[serde(deny_unknown_fields)]
 pub struct TableSaysDoc {
     /// The start address the table prints.
-    #[schemars(with = "Option<u32>")]
+    #[cfg_attr(feature = "schema", schemars(with = "Option<u32>"))]
     pub address: Option<Spanned<u32>>,
     /// The register count the table prints.
-    #[schemars(with = "Option<u32>")]
+    #[cfg_attr(feature = "schema", schemars(with = "Option<u32>"))]
     pub count: Option<Spanned<u32>>,
     /// The function the table prints.
-    #[schemars(with = "Option<FunctionDoc>")]
+    #[cfg_attr(feature = "schema", schemars(with = "Option<FunctionDoc>"))]
     pub function: Option<Spanned<FunctionDoc>>,
 }
 
 /// A command table that contradicts the command's examples.
-#[derive(Debug, Deserialize, JsonSchema)]
+#[derive(Debug, Deserialize)]
+#[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[serde(deny_unknown_fields)]
 pub struct CommandErratumDoc {
     /// Identifier in datasheet-notes.md (E1, E2, …).
-    #[schemars(with = "String")]
+    #[cfg_attr(feature = "schema", schemars(with = "String"))]
     pub id: Spanned<String>,
     /// The figure or table with the wrong table; none for a table the manual does not number.
-    #[schemars(with = "Option<FigureDoc>")]
+    #[cfg_attr(feature = "schema", schemars(with = "Option<FigureDoc>"))]
     pub figure: Option<Spanned<FigureDoc>>,
     /// The manual (its `software` revision) when not the file's `manual`.
-    #[schemars(with = "Option<String>")]
+    #[cfg_attr(feature = "schema", schemars(with = "Option<String>"))]
     pub manual: Option<Spanned<String>>,
     /// What the table prints instead of the truth.
     pub table: TableSaysDoc,
     /// Why the spec's value is the truth.
-    #[schemars(with = "String")]
+    #[cfg_attr(feature = "schema", schemars(with = "String"))]
     pub note: Spanned<String>,
 }
 
 /// A contradiction in the manual that no command carries.
-#[derive(Debug, Deserialize, JsonSchema)]
+#[derive(Debug, Deserialize)]
+#[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[serde(deny_unknown_fields)]
 pub struct ErratumDoc {
     /// Identifier in datasheet-notes.md.
-    #[schemars(with = "String")]
+    #[cfg_attr(feature = "schema", schemars(with = "String"))]
     pub id: Spanned<String>,
     /// Figures or tables concerned.
     #[serde(default)]
     pub figures: Vec<FigureDoc>,
     /// The manual (its `software` revision) when not the file's `manual`.
-    #[schemars(with = "Option<String>")]
+    #[cfg_attr(feature = "schema", schemars(with = "Option<String>"))]
     pub manual: Option<Spanned<String>>,
     /// Manual sections concerned.
     #[serde(default)]
     pub sections: Vec<String>,
     /// What the manual says and what the spec takes as the truth.
-    #[schemars(with = "String")]
+    #[cfg_attr(feature = "schema", schemars(with = "String"))]
     pub note: Spanned<String>,
 }
 
 /// The Rust type of a constant.
-#[derive(Debug, Clone, Copy, Deserialize, JsonSchema, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, Deserialize, PartialEq, Eq)]
+#[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[serde(rename_all = "snake_case")]
 pub enum ConstantTypeDoc {
     /// f32.
@@ -827,56 +862,58 @@ pub enum ConstantTypeDoc {
 }
 
 /// A number a procedure uses.
-#[derive(Debug, Deserialize, JsonSchema)]
+#[derive(Debug, Deserialize)]
+#[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[serde(deny_unknown_fields)]
 pub struct ConstantDoc {
     /// snake_case name; becomes an UPPER_CASE constant.
-    #[schemars(with = "String")]
+    #[cfg_attr(feature = "schema", schemars(with = "String"))]
     pub name: Spanned<String>,
     /// The Rust type.
     #[serde(rename = "type")]
-    #[schemars(with = "ConstantTypeDoc")]
+    #[cfg_attr(feature = "schema", schemars(with = "ConstantTypeDoc"))]
     pub ty: Spanned<ConstantTypeDoc>,
     /// A single value (exactly one of `value` and `values`).
-    #[schemars(with = "Option<f64>")]
+    #[cfg_attr(feature = "schema", schemars(with = "Option<f64>"))]
     pub value: Option<Spanned<f64>>,
     /// A list of values, in order.
-    #[schemars(with = "Option<Vec<f64>>")]
+    #[cfg_attr(feature = "schema", schemars(with = "Option<Vec<f64>>"))]
     pub values: Option<Spanned<Vec<f64>>>,
     /// Unit.
-    #[schemars(with = "Option<String>")]
+    #[cfg_attr(feature = "schema", schemars(with = "Option<String>"))]
     pub unit: Option<Spanned<String>>,
     /// What it is for.
-    #[schemars(with = "String")]
+    #[cfg_attr(feature = "schema", schemars(with = "String"))]
     pub doc: Spanned<String>,
     /// Where the manual states it.
     pub source: Option<SourceDoc>,
 }
 
 /// A derived quantity: a formula over fields, constants and station inputs.
-#[derive(Debug, Deserialize, JsonSchema)]
+#[derive(Debug, Deserialize)]
+#[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[serde(deny_unknown_fields)]
 pub struct DerivedDoc {
     /// snake_case name; becomes the generated function's name.
-    #[schemars(with = "String")]
+    #[cfg_attr(feature = "schema", schemars(with = "String"))]
     pub name: Spanned<String>,
     /// Human title.
-    #[schemars(with = "String")]
+    #[cfg_attr(feature = "schema", schemars(with = "String"))]
     pub title: Spanned<String>,
     /// The result's unit, checked against the formula's.
-    #[schemars(with = "Option<String>")]
+    #[cfg_attr(feature = "schema", schemars(with = "Option<String>"))]
     pub unit: Option<Spanned<String>>,
     /// What the quantity is.
-    #[schemars(with = "String")]
+    #[cfg_attr(feature = "schema", schemars(with = "String"))]
     pub doc: Spanned<String>,
     /// Where the manual gives the formula.
     pub source: Option<SourceDoc>,
     /// The formula's inputs, in parameter order.
-    #[schemars(with = "Vec<DerivedInputDoc>")]
+    #[cfg_attr(feature = "schema", schemars(with = "Vec<DerivedInputDoc>"))]
     pub inputs: Spanned<Vec<DerivedInputDoc>>,
     /// The formula: numbers, inputs and constants by name, `+ - * / ^`,
     /// parentheses, `exp()`, `ln()`, comparisons and `if(c, a, b)`.
-    #[schemars(with = "String")]
+    #[cfg_attr(feature = "schema", schemars(with = "String"))]
     pub expr: Spanned<String>,
     /// Values computed independently, each with its source.
     #[serde(default)]
@@ -884,44 +921,46 @@ pub struct DerivedDoc {
 }
 
 /// One input of a derived quantity: a field of a read, or a station value.
-#[derive(Debug, Deserialize, JsonSchema)]
+#[derive(Debug, Deserialize)]
+#[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[serde(deny_unknown_fields)]
-#[schemars(extend("oneOf" = [{"required": ["field"]}, {"required": ["station"]}]))]
+#[cfg_attr(feature = "schema", schemars(extend("oneOf" = [{"required": ["field"]}, {"required": ["station"]}])))]
 pub struct DerivedInputDoc {
     /// snake_case name the formula uses; the generated function's parameter.
-    #[schemars(with = "String")]
+    #[cfg_attr(feature = "schema", schemars(with = "String"))]
     pub name: Spanned<String>,
     /// `command.field` of a read of the sensor.
-    #[schemars(with = "Option<String>")]
+    #[cfg_attr(feature = "schema", schemars(with = "Option<String>"))]
     pub field: Option<Spanned<String>>,
     /// The station input's name (`salinity`, `barometric_pressure`).
-    #[schemars(with = "Option<String>")]
+    #[cfg_attr(feature = "schema", schemars(with = "Option<String>"))]
     pub station: Option<Spanned<String>>,
     /// The unit of a station input (a field input has its field's).
-    #[schemars(with = "Option<String>")]
+    #[cfg_attr(feature = "schema", schemars(with = "Option<String>"))]
     pub unit: Option<Spanned<String>>,
     /// The value used when a station gives none.
-    #[schemars(with = "Option<f64>")]
+    #[cfg_attr(feature = "schema", schemars(with = "Option<f64>"))]
     pub default: Option<Spanned<f64>>,
     /// The values the formula takes; others make the quantity not computable.
-    #[schemars(with = "Option<RangeDoc>")]
+    #[cfg_attr(feature = "schema", schemars(with = "Option<RangeDoc>"))]
     pub range: Option<Spanned<RangeDoc>>,
 }
 
 /// A value of a derived quantity computed independently of the formula.
-#[derive(Debug, Deserialize, JsonSchema)]
+#[derive(Debug, Deserialize)]
+#[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[serde(deny_unknown_fields)]
 pub struct DerivedExampleDoc {
     /// The inputs by name (station inputs left out take their `default`).
-    #[schemars(with = "BTreeMap<String, f64>")]
+    #[cfg_attr(feature = "schema", schemars(with = "BTreeMap<String, f64>"))]
     pub inputs: Spanned<BTreeMap<String, Spanned<f64>>>,
     /// The value the source gives.
-    #[schemars(with = "f64")]
+    #[cfg_attr(feature = "schema", schemars(with = "f64"))]
     pub value: Spanned<f64>,
     /// How far the formula's value may be from `value`.
-    #[schemars(with = "Option<f64>")]
+    #[cfg_attr(feature = "schema", schemars(with = "Option<f64>"))]
     pub tolerance: Option<Spanned<f64>>,
     /// Where the value comes from.
-    #[schemars(with = "String")]
+    #[cfg_attr(feature = "schema", schemars(with = "String"))]
     pub doc: Spanned<String>,
 }

@@ -53,7 +53,9 @@ pub use resolve::{
 };
 pub use yaml::{MAX_ALIAS_REPLAY, MAX_YAML_ALIASES, MAX_YAML_DEPTH, MAX_YAML_NODES};
 
-/// The JSON Schema of a spec file, for editors.
+/// The JSON Schema of a spec file, for editors (feature `schema`: the build
+/// scripts that generate code do not need it).
+#[cfg(feature = "schema")]
 pub fn json_schema() -> serde_json::Value {
     serde_json::to_value(schemars::schema_for!(document::SpecFile)).unwrap_or_default()
 }

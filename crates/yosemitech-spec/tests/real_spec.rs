@@ -104,6 +104,7 @@ fn every_printed_frame_is_kept_as_printed() {
     }
 }
 
+#[cfg(feature = "schema")]
 #[test]
 fn schema_describes_the_spec_files() {
     let schema = yosemitech_spec::json_schema();

@@ -469,11 +469,12 @@ impl rtu::Message for StartPhCalibration {
         if !self.standard_ph.is_nan()
             && !(0.0..=14.0).contains(&f64::from(self.standard_ph))
         {
-            return Err(rtu::EncodeError::OutOfRange {
+            Err(rtu::EncodeError::OutOfRange {
                 field: "standard_ph",
-            });
+            })
+        } else {
+            Ok(())
         }
-        Ok(())
     }
 }
 

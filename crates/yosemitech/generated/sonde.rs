@@ -549,55 +549,33 @@ impl rtu::Message for SetTime {
         }
     }
     fn validate(&self) -> Result<(), rtu::EncodeError> {
-        match self.second.value() {
-            Some(v) if (0..=59).contains(&v) => {}
-            _ => {
-                return Err(rtu::EncodeError::OutOfRange {
-                    field: "second",
-                });
-            }
+        if self.second.value().is_none_or(|v| !(0..=59).contains(&v)) {
+            Err(rtu::EncodeError::OutOfRange {
+                field: "second",
+            })
+        } else if self.minute.value().is_none_or(|v| !(0..=59).contains(&v)) {
+            Err(rtu::EncodeError::OutOfRange {
+                field: "minute",
+            })
+        } else if self.hour.value().is_none_or(|v| !(0..=23).contains(&v)) {
+            Err(rtu::EncodeError::OutOfRange {
+                field: "hour",
+            })
+        } else if self.day.value().is_none_or(|v| !(1..=31).contains(&v)) {
+            Err(rtu::EncodeError::OutOfRange {
+                field: "day",
+            })
+        } else if self.month.value().is_none_or(|v| !(1..=12).contains(&v)) {
+            Err(rtu::EncodeError::OutOfRange {
+                field: "month",
+            })
+        } else if self.year.value().is_none_or(|v| !(0..=99).contains(&v)) {
+            Err(rtu::EncodeError::OutOfRange {
+                field: "year",
+            })
+        } else {
+            Ok(())
         }
-        match self.minute.value() {
-            Some(v) if (0..=59).contains(&v) => {}
-            _ => {
-                return Err(rtu::EncodeError::OutOfRange {
-                    field: "minute",
-                });
-            }
-        }
-        match self.hour.value() {
-            Some(v) if (0..=23).contains(&v) => {}
-            _ => {
-                return Err(rtu::EncodeError::OutOfRange {
-                    field: "hour",
-                });
-            }
-        }
-        match self.day.value() {
-            Some(v) if (1..=31).contains(&v) => {}
-            _ => {
-                return Err(rtu::EncodeError::OutOfRange {
-                    field: "day",
-                });
-            }
-        }
-        match self.month.value() {
-            Some(v) if (1..=12).contains(&v) => {}
-            _ => {
-                return Err(rtu::EncodeError::OutOfRange {
-                    field: "month",
-                });
-            }
-        }
-        match self.year.value() {
-            Some(v) if (0..=99).contains(&v) => {}
-            _ => {
-                return Err(rtu::EncodeError::OutOfRange {
-                    field: "year",
-                });
-            }
-        }
-        Ok(())
     }
 }
 

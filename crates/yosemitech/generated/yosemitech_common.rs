@@ -37,11 +37,12 @@ impl rtu::Message for SetSlaveId {
     }
     fn validate(&self) -> Result<(), rtu::EncodeError> {
         if !(1..=247).contains(&self.slave_address) {
-            return Err(rtu::EncodeError::OutOfRange {
+            Err(rtu::EncodeError::OutOfRange {
                 field: "slave_address",
-            });
+            })
+        } else {
+            Ok(())
         }
-        Ok(())
     }
 }
 

@@ -11,7 +11,7 @@ use yosemitech_spec::{CommandSpec, EnumRepr, Field, FieldKind};
 use super::constants::f64_lit;
 use super::ident;
 use crate::naming::Names;
-use crate::text::{self, doc, hex, lit, one_line};
+use crate::text::{self, doc, hex, one_line};
 
 /// Per-field facts for code generation.
 pub(super) struct FieldGen<'a> {
@@ -217,12 +217,11 @@ pub(super) fn field_value(g: &FieldGen<'_>) -> TokenStream {
     }
 }
 
-/// The range check of a write field, if it has a range.
-pub(super) fn range_check(g: &FieldGen<'_>) -> Option<TokenStream> {
+/// The condition under which a write's field is out of its spec range
+/// (`None`: every value of the type is in range).
+pub(super) fn range_violation(g: &FieldGen<'_>) -> Option<TokenStream> {
     let (min, max) = g.field.range?;
     let name = &g.name;
-    let spec_name = lit(g.field.display_name());
-    let err = quote!(return Err(rtu::EncodeError::OutOfRange { field: #spec_name }););
     let int_bounds = |lo: f64, hi: f64| -> Option<(i64, i64)> {
         let (a, b) = (min.ceil().max(lo), max.floor().min(hi));
         (min.is_finite() && max.is_finite() && a <= b).then_some((a as i64, b as i64))
@@ -232,19 +231,11 @@ pub(super) fn range_check(g: &FieldGen<'_>) -> Option<TokenStream> {
             return None;
         }
         let (lo, hi) = (Literal::i64_unsuffixed(lo), Literal::i64_unsuffixed(hi));
-        Some(quote! {
-            if !(#lo..=#hi).contains(&self.#name) {
-                #err
-            }
-        })
+        Some(quote!(!(#lo..=#hi).contains(&self.#name)))
     };
     let float_check = || {
         let (lo, hi) = (f64_lit(min), f64_lit(max));
-        quote! {
-            if !(#lo..=#hi).contains(&f64::from(self.#name)) {
-                #err
-            }
-        }
+        quote!(!(#lo..=#hi).contains(&f64::from(self.#name)))
     };
     let (type_lo, type_hi): (i64, i64) = match &g.field.kind {
         FieldKind::Bcd => {
@@ -253,22 +244,13 @@ pub(super) fn range_check(g: &FieldGen<'_>) -> Option<TokenStream> {
                 Literal::u8_unsuffixed(min.ceil().clamp(0.0, 99.0) as u8),
                 Literal::u8_unsuffixed(max.floor().clamp(0.0, 99.0) as u8),
             );
-            return Some(quote! {
-                match self.#name.value() {
-                    Some(v) if (#lo..=#hi).contains(&v) => {}
-                    _ => { #err }
-                }
-            });
+            return Some(quote!(self.#name.value().is_none_or(|v| !(#lo..=#hi).contains(&v))));
         }
         FieldKind::F32 { .. } => {
             let (lo, hi) = (f64_lit(min), f64_lit(max));
             // NaN is not range-checked (the reference interpreter agrees): it is how
             // a logger writes "no value".
-            return Some(quote! {
-                if !self.#name.is_nan() && !(#lo..=#hi).contains(&f64::from(self.#name)) {
-                    #err
-                }
-            });
+            return Some(quote!(!self.#name.is_nan() && !(#lo..=#hi).contains(&f64::from(self.#name))));
         }
         FieldKind::U8 => (0, 255),
         FieldKind::I8 => (-128, 127),

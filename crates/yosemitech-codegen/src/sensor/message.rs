@@ -9,7 +9,7 @@ use yosemitech_spec::{CommandSpec, EnumRepr, FieldKind};
 
 use super::constants::f32_lit;
 use super::fields::{
-    FieldGen, decode_expr, encode_field, field_doc, field_gens, field_value, range_check, whole_data_encoding,
+    FieldGen, decode_expr, encode_field, field_doc, field_gens, field_value, range_violation, whole_data_encoding,
 };
 use super::ident;
 use crate::naming::Names;
@@ -185,21 +185,26 @@ fn message_impl(
     };
     let mut validate = TokenStream::new();
     if validated {
-        let mut checks: Vec<TokenStream> = gens.iter().filter_map(range_check).collect();
+        let mut violations: Vec<(TokenStream, &FieldGen<'_>)> =
+            gens.iter().filter_map(|g| Some((range_violation(g)?, g))).collect();
         for g in gens.iter().filter(|g| matches!(g.field.kind, FieldKind::Bcd) && g.field.range.is_none()) {
             let name = &g.name;
-            let spec_name = lit(g.field.display_name());
-            checks.push(quote! {
-                if self.#name.value().is_none() {
-                    return Err(rtu::EncodeError::OutOfRange { field: #spec_name });
-                }
-            });
+            violations.push((quote!(self.#name.value().is_none()), g));
         }
-        if !checks.is_empty() {
+        if !violations.is_empty() {
+            // One `if .. else if ..` chain: the first field out of range is named.
+            let mut chain = quote!({ Ok(()) });
+            for (violated, g) in violations.iter().rev() {
+                let spec_name = lit(g.field.display_name());
+                chain = quote! {
+                    if #violated {
+                        Err(rtu::EncodeError::OutOfRange { field: #spec_name })
+                    } else #chain
+                };
+            }
             validate = quote! {
                 fn validate(&self) -> Result<(), rtu::EncodeError> {
-                    #(#checks)*
-                    Ok(())
+                    #chain
                 }
             };
         }
