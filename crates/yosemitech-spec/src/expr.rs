@@ -596,7 +596,7 @@ impl Parser {
                             _ => None,
                         };
                         let help = match known.map(str::to_string).or_else(|| {
-                            crate::yaml::closest(other, FUNCTION_NAMES).map(|b| format!("did you mean `{b}`?"))
+                            crate::suggest::closest(other, FUNCTION_NAMES).map(|b| format!("did you mean `{b}`?"))
                         }) {
                             Some(best) => format!("{best} the functions are exp(x), ln(x) and if(c, a, b)"),
                             None => "the functions are exp(x), ln(x) and if(c, a, b)".to_string(),
@@ -768,7 +768,7 @@ fn check_node(e: &mut Expr, names: &[Name]) -> Result<Ty, ExprError> {
             let Some(found) = names.iter().find(|n| n.name == *name) else {
                 let all: Vec<&str> = names.iter().map(|n| n.name.as_str()).collect();
                 let list = if all.is_empty() { "none".to_string() } else { all.join(", ") };
-                let help = match crate::yaml::closest(name, &all) {
+                let help = match crate::suggest::closest(name, &all) {
                     Some(best) => format!("did you mean `{best}`? names: {list}"),
                     None => format!("a formula names the quantity's inputs and the sensor's constants: {list}"),
                 };
