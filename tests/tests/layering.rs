@@ -83,7 +83,6 @@ const LARGE_FILES: &[(&str, &str)] = &[
     ),
     ("crates/yosemitech-cli/src/commands/decode.rs", "two pipelines, to become one segmenter in the runtime"),
     ("crates/yosemitech-sim/src/simulator.rs", "variation and water, to split from the device"),
-    ("crates/yosemitech-spec/src/expr.rs", "the parser, to split from the evaluator and the unit check"),
     ("xtask/src/import/merge.rs", "revision merging and its rendering, to split"),
 ];
 
