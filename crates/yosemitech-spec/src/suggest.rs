@@ -1,5 +1,16 @@
-//! "Did you mean" suggestions: the spec's messages and the CLI's choose
-//! them alike.
+//! "Did you mean" suggestions, for the spec's messages and the CLI's alike.
+//!
+//! The distance counts a swap of neighbours (`dorp` for `drop`) as one
+//! edit, as a typist makes it. A candidate is suggested within a third of
+//! the longer word's length (rounded up, at least one edit), so that a
+//! short word unlike every candidate (`foo` beside the sensor `cod`) gets
+//! no suggestion.
+//!
+//! ```
+//! use yosemitech_spec::suggest::closest;
+//! assert_eq!(closest("dorp", &["drop", "delay", "busy"]), Some("drop"));
+//! assert_eq!(closest("zzzz", &["drop", "delay", "busy"]), None);
+//! ```
 
 /// The candidate closest to `word` by edit distance, if close enough to be a typo.
 pub fn closest<'a>(word: &str, candidates: &[&'a str]) -> Option<&'a str> {
@@ -47,5 +58,16 @@ mod tests {
         assert_eq!(closest("adress", &keys), Some("address"));
         assert_eq!(closest("cuont", &keys), Some("count"));
         assert_eq!(closest("banana", &keys), None);
+        assert_eq!(closest("probe_a", &["probe_ab", "other"]), Some("probe_ab"));
+        assert_eq!(closest("othr", &["probe_ab", "other"]), Some("other"));
+        assert_eq!(closest("zzzzzzzz", &["probe_ab", "other"]), None);
+    }
+
+    #[test]
+    fn a_swap_of_neighbours_is_one_edit() {
+        assert_eq!(edit_distance("kitten", "sitting"), 3);
+        assert_eq!(edit_distance("dorp", "drop"), 1);
+        assert_eq!(edit_distance("", "abc"), 3);
+        assert_eq!(edit_distance("µS/cm", "uS/cm"), 1);
     }
 }
