@@ -80,9 +80,6 @@ const LARGE_FILES: &[(&str, &str)] = &[
         "one binary's tests of every device subcommand, to split by subcommand",
     ),
     ("crates/yosemitech-cli/src/commands/decode.rs", "two pipelines, to become one segmenter in the runtime"),
-    ("crates/yosemitech-spec/src/yaml.rs", "limits, recovery, the line lexer and messages: one module each"),
-    ("crates/yosemitech-spec/src/model.rs", "the sensor's queries, to split from the types"),
-    ("crates/yosemitech-spec/src/expr.rs", "the parser, to split from the evaluator and the unit check"),
 ];
 
 /// The workspace root.

@@ -13,6 +13,7 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 use yosemitech_spec::sources::{FsSources, MemSources, Sources};
+use yosemitech_spec::suggest::closest;
 use yosemitech_spec::{CommandSpec, Sensor, load_with};
 
 use crate::error::{CliError, Result};
@@ -240,35 +241,6 @@ pub fn command<'s>(sensor: &'s Sensor, name: &str) -> Result<&'s CommandSpec> {
     })
 }
 
-/// The candidate closest to `wanted` by edit distance, if close enough to be a typo.
-pub fn closest<'a>(wanted: &str, candidates: &[&'a str]) -> Option<&'a str> {
-    let (best, distance) = candidates.iter().map(|c| (*c, edit_distance(wanted, c))).min_by_key(|(_, d)| *d)?;
-    let allowed = (wanted.chars().count().max(best.chars().count()) / 3).max(2);
-    (distance <= allowed || best.contains(wanted) || wanted.contains(best)).then_some(best)
-}
-
-/// Levenshtein distance over characters.
-fn edit_distance(a: &str, b: &str) -> usize {
-    let b: Vec<char> = b.chars().collect();
-    let mut row: Vec<usize> = (0..=b.len()).collect();
-    for (i, ca) in a.chars().enumerate() {
-        let mut previous = row.first().copied().unwrap_or(0);
-        if let Some(first) = row.first_mut() {
-            *first = i + 1;
-        }
-        for (j, cb) in b.iter().enumerate() {
-            let substitution = previous + usize::from(ca != *cb);
-            previous = row.get(j + 1).copied().unwrap_or(0);
-            let insertion = row.get(j).copied().unwrap_or(0) + 1;
-            let deletion = previous + 1;
-            if let Some(slot) = row.get_mut(j + 1) {
-                *slot = substitution.min(insertion).min(deletion);
-            }
-        }
-    }
-    row.last().copied().unwrap_or(0)
-}
-
 /// Reads a command `write` covers entirely (for read-back), if any: the
 /// smallest such read.
 pub fn read_back_for<'s>(sensor: &'s Sensor, write: &CommandSpec) -> Option<&'s CommandSpec> {
@@ -302,10 +274,6 @@ mod tests {
 
     #[test]
     fn suggests_close_names() {
-        assert_eq!(closest("probe_a", &["probe_ab", "other"]), Some("probe_ab"));
-        assert_eq!(closest("othr", &["probe_ab", "other"]), Some("other"));
-        assert_eq!(closest("zzzzzzzz", &["probe_ab", "other"]), None);
-        assert_eq!(edit_distance("kitten", "sitting"), 3);
         let catalog = Catalog::load(&[]).unwrap();
         for entry in catalog.entries() {
             let name = &entry.sensor.name;

@@ -192,7 +192,7 @@ pub fn parse_values(command: &CommandSpec, args: &[String]) -> Result<BTreeMap<S
             None => {
                 if let Some((k, _)) = arg.split_once('=').filter(|(k, _)| is_identifier(k)) {
                     let e = CliError::usage(format!("`{}` has no field `{k}`", command.name));
-                    return Err(match crate::catalog::closest(k, &names) {
+                    return Err(match yosemitech_spec::suggest::closest(k, &names) {
                         Some(best) => e.hint(format!("did you mean `{best}`? Its fields: {}", names.join(", "))),
                         None => e.hint(format!("its fields: {}", fields_hint(command))),
                     });

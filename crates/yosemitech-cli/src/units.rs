@@ -5,10 +5,10 @@
 
 use std::collections::BTreeMap;
 
+use yosemitech_spec::suggest::closest;
 use yosemitech_spec::units::{self, Choice, ChoiceError, Conversion, Quantity};
 use yosemitech_spec::{CommandSpec, Derived, Value};
 
-use crate::catalog::closest;
 use crate::error::{CliError, Result};
 
 /// The units chosen for the quantities of one command line, by name; a

@@ -41,6 +41,7 @@ pub mod model;
 pub mod names;
 mod resolve;
 pub mod sources;
+pub mod suggest;
 pub mod units;
 mod yaml;
 

@@ -14,9 +14,10 @@ use std::path::Path;
 use serde_json::{Value as Json, json};
 use yosemitech_rtu::{ExceptionCode, Function, crc_ok, crc16};
 use yosemitech_spec::interp::decode_fields;
+use yosemitech_spec::suggest::closest;
 use yosemitech_spec::{CommandSpec, Values};
 
-use crate::catalog::{Catalog, Entry, closest};
+use crate::catalog::{Catalog, Entry};
 use crate::cli::{DecodeArgs, DecodeCommandArgs};
 use crate::error::{CliError, Kind as ErrorKind, Result};
 use crate::format::{fields_json, hex, value_with_unit, values_json};

@@ -46,7 +46,7 @@ pub fn parse_faults(spec: &str, seed: u64) -> Result<FaultConfig> {
         }
         let Some(kind) = FaultKind::ALL.into_iter().find(|k| k.name() == key) else {
             let e = CliError::usage(format!("unknown fault kind `{key}`"));
-            return Err(match crate::catalog::closest(key, &kinds) {
+            return Err(match yosemitech_spec::suggest::closest(key, &kinds) {
                 Some(best) => e.hint(format!("did you mean `{best}`? {hint}")),
                 None => e.hint(hint),
             });

@@ -21,7 +21,7 @@ use crate::model::{
     CommandSpec, Constant, ConstantType, Derived, DerivedExample, DerivedInput, FieldKind, InputSource,
 };
 use crate::names::{check_derived_name, check_input_name, check_snake, escape};
-use crate::yaml::closest;
+use crate::suggest::closest;
 
 use super::sensor::resolve_source;
 

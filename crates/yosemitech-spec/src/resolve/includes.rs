@@ -150,7 +150,7 @@ pub(super) fn collect_includes<'d>(
         if let Some(only) = &inc.value.only {
             for (j, name) in only.iter().enumerate() {
                 if !defined.contains(&name.value.as_str()) {
-                    let help = match crate::yaml::closest(&name.value, &defined) {
+                    let help = match crate::suggest::closest(&name.value, &defined) {
                         Some(best) => {
                             format!("did you mean `{best}`? `{}` defines: {}", inc.value.file, defined.join(", "))
                         }

@@ -454,7 +454,7 @@ impl Loader<'_> {
                 let help = if names.is_empty() {
                     "this file includes no commands; add the fragment that defines it to `include`".to_string()
                 } else {
-                    match crate::yaml::closest(&u.value, &names) {
+                    match crate::suggest::closest(&u.value, &names) {
                         Some(best) => format!("did you mean `{best}`? included commands: {}", names.join(", ")),
                         None => format!("included commands: {}", names.join(", ")),
                     }

@@ -26,7 +26,7 @@ pub(super) fn resolve_procedure(p: &ProcedureDoc, commands: &[CommandSpec], r: &
             let key = format!("procedure.{what}[{i}]");
             match commands.iter().find(|c| c.name == name.value) {
                 None => {
-                    let help = match crate::yaml::closest(&name.value, &names) {
+                    let help = match crate::suggest::closest(&name.value, &names) {
                         Some(best) => format!("did you mean `{best}`?"),
                         None => format!(
                             "the sensor's commands are {}; name one of them, or add it to `commands`",
