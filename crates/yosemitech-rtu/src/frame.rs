@@ -9,6 +9,7 @@
 
 use core::ops::Deref;
 
+use crate::bytes::{byte, word};
 use crate::crc::{crc_ok, crc16};
 use crate::error::{EchoField, EncodeError, FrameError};
 
@@ -232,7 +233,7 @@ impl Layout<'_> {
     pub fn decode_request<'f>(&self, frame: &'f [u8]) -> Result<(u8, &'f [u8]), FrameError> {
         check_len(frame, self.request_len())?;
         check_crc(frame)?;
-        let slave = byte(frame, 0);
+        let slave = byte(frame, 0).unwrap_or(0);
         if let Some(fixed) = self.fixed_slave
             && slave != fixed
         {
@@ -244,7 +245,7 @@ impl Layout<'_> {
         match self.function {
             Function::Read => Ok((slave, &[])),
             Function::Write => {
-                check_byte_count(byte(frame, 6), self.data_len(), &[])?;
+                check_byte_count(byte(frame, 6).unwrap_or(0), self.data_len(), &[])?;
                 Ok((slave, frame.get(7..7 + self.data_len()).unwrap_or(&[])))
             }
         }
@@ -261,7 +262,10 @@ impl Layout<'_> {
             check_len(frame, EXCEPTION_LEN)?;
             check_crc(frame)?;
             check_slave(frame, expected_slave)?;
-            return Err(FrameError::Exception { function, code: crate::ExceptionCode::from_u8(byte(frame, 2)) });
+            return Err(FrameError::Exception {
+                function,
+                code: crate::ExceptionCode::from_u8(byte(frame, 2).unwrap_or(0)),
+            });
         }
         if let Some(short) = self.short_response_len()
             && frame.len() == short
@@ -269,7 +273,7 @@ impl Layout<'_> {
             check_crc(frame)?;
             check_slave(frame, expected_slave)?;
             check_function(frame, function)?;
-            check_byte_count(byte(frame, 2), 0, &[])?;
+            check_byte_count(byte(frame, 2).unwrap_or(0), 0, &[])?;
             return Ok(&[]);
         }
         check_len(frame, self.response_len())?;
@@ -278,7 +282,7 @@ impl Layout<'_> {
         check_function(frame, function)?;
         match self.function {
             Function::Read => {
-                let count = byte(frame, 2);
+                let count = byte(frame, 2).unwrap_or(0);
                 if !self.accepts_byte_count(count) {
                     let expected = u8::try_from(self.data_len()).unwrap_or(u8::MAX);
                     return Err(FrameError::ByteCount { expected, actual: count });
@@ -329,16 +333,6 @@ fn check_data_len(data: &[u8], expected: usize, frame_len: usize) -> Result<(), 
 }
 
 #[inline]
-fn byte(frame: &[u8], at: usize) -> u8 {
-    frame.get(at).copied().unwrap_or(0)
-}
-
-#[inline]
-fn word(frame: &[u8], at: usize) -> u16 {
-    u16::from_be_bytes([byte(frame, at), byte(frame, at + 1)])
-}
-
-#[inline]
 fn check_len(frame: &[u8], expected: usize) -> Result<(), FrameError> {
     let actual = frame.len();
     if actual < expected {
@@ -356,26 +350,26 @@ fn check_crc(frame: &[u8]) -> Result<(), FrameError> {
         return Ok(());
     }
     let n = frame.len().saturating_sub(2);
-    let received = u16::from_le_bytes([byte(frame, n), byte(frame, n + 1)]);
+    let received = word(frame, n).map_or(0, u16::swap_bytes);
     let computed = crc16(frame.get(..n).unwrap_or(&[]));
     Err(FrameError::Crc { received, computed })
 }
 
 #[inline]
 fn check_slave(frame: &[u8], expected: u8) -> Result<(), FrameError> {
-    let actual = byte(frame, 0);
+    let actual = byte(frame, 0).unwrap_or(0);
     if actual == expected { Ok(()) } else { Err(FrameError::WrongSlave { expected, actual }) }
 }
 
 #[inline]
 fn check_function(frame: &[u8], expected: u8) -> Result<(), FrameError> {
-    let actual = byte(frame, 1);
+    let actual = byte(frame, 1).unwrap_or(0);
     if actual == expected { Ok(()) } else { Err(FrameError::WrongFunction { expected, actual }) }
 }
 
 #[inline]
 fn check_echo(frame: &[u8], field: EchoField, at: usize, expected: u16) -> Result<(), FrameError> {
-    let actual = word(frame, at);
+    let actual = word(frame, at).unwrap_or(0);
     if actual == expected { Ok(()) } else { Err(FrameError::EchoMismatch { field, expected, actual }) }
 }
 

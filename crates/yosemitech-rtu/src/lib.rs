@@ -14,6 +14,7 @@
 
 #[cfg(feature = "std")]
 pub mod address;
+pub mod bytes;
 pub mod client;
 pub mod codec;
 mod command;

@@ -5,6 +5,7 @@ use std::fmt;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
+use yosemitech_rtu::bytes::{byte, word};
 use yosemitech_rtu::frame::{BROADCAST, encode_exception};
 use yosemitech_rtu::{EncodeError, ExceptionCode, Function, Layout, LineTiming, Responder, codec, crc_ok, crc16};
 use yosemitech_spec::interp::{EncodeValuesError, decode_field, decode_fields, encode_command_field};
@@ -662,17 +663,17 @@ impl Simulator {
 
     /// Finds the command a request is for, and the write's data.
     fn lookup<'r>(&self, request: &'r [u8], route: Route) -> Result<(usize, &'r [u8]), ExceptionCode> {
-        let code = byte(request, 1);
+        let code = byte(request, 1).unwrap_or(0);
         if !self.functions.contains(&code) {
             return Err(ExceptionCode::IllegalFunction);
         }
         let function = Function::from_code(code).ok_or(ExceptionCode::IllegalFunction)?;
-        let (address, count) = (word(request, 2), word(request, 4));
+        let (address, count) = (word(request, 2).unwrap_or(0), word(request, 4).unwrap_or(0));
         let data: &[u8] = match function {
             Function::Read if request.len() == 8 => &[],
             Function::Read => return Err(ExceptionCode::IllegalDataValue),
             Function::Write => {
-                let byte_count = usize::from(byte(request, 6));
+                let byte_count = usize::from(byte(request, 6).unwrap_or(0));
                 if request.len() != 9 + byte_count || byte_count != 2 * usize::from(count) {
                     return Err(ExceptionCode::IllegalDataValue);
                 }
@@ -715,7 +716,7 @@ impl Simulator {
             fixed_slave: if matches!(route, Route::Wildcard(_)) { command.fixed_slave } else { None },
             ..command.layout()
         };
-        let slave = byte(request, 0);
+        let slave = byte(request, 0).unwrap_or(0);
         if command.is_read() {
             if route == Route::Broadcast {
                 return Ok(None);
@@ -878,8 +879,8 @@ impl FrameHandler for Simulator {
             self.stats.ignored_bad_crc += 1;
             return Duration::ZERO;
         }
-        let slave = byte(request, 0);
-        let function = byte(request, 1);
+        let slave = byte(request, 0).unwrap_or(0);
+        let function = byte(request, 1).unwrap_or(0);
         let Some(route) = self.route(slave) else {
             self.stats.ignored_other_slave += 1;
             return Duration::ZERO;
@@ -1058,14 +1059,6 @@ fn shorten_to_empty(out: &mut Vec<u8>) {
     }
     let crc = crc16(out);
     out.extend_from_slice(&crc.to_le_bytes());
-}
-
-fn byte(frame: &[u8], at: usize) -> u8 {
-    frame.get(at).copied().unwrap_or(0)
-}
-
-fn word(frame: &[u8], at: usize) -> u16 {
-    u16::from_be_bytes([byte(frame, at), byte(frame, at + 1)])
 }
 
 #[cfg(test)]

@@ -12,6 +12,7 @@ use std::io::{Read as _, Write};
 use std::path::Path;
 
 use serde_json::{Value as Json, json};
+use yosemitech_rtu::bytes::{byte, word};
 use yosemitech_rtu::{ExceptionCode, Function, crc_ok, crc16};
 use yosemitech_spec::interp::decode_fields;
 use yosemitech_spec::{CommandSpec, Values};
@@ -82,14 +83,6 @@ impl Candidate<'_> {
             if self.command.count == 1 { "" } else { "s" }
         )
     }
-}
-
-fn byte(bytes: &[u8], at: usize) -> u8 {
-    bytes.get(at).copied().unwrap_or(0)
-}
-
-fn word(bytes: &[u8], at: usize) -> u16 {
-    u16::from_be_bytes([byte(bytes, at), byte(bytes, at + 1)])
 }
 
 /// The lengths a normal (non-exception) reply of `c` may have: the full
@@ -299,7 +292,7 @@ fn parse_hex(text: &str) -> Result<Vec<u8>> {
     if !nibbles.len().is_multiple_of(2) {
         return Err(bad(format!("{} hex digits is an odd number; each byte takes two", nibbles.len())));
     }
-    Ok(nibbles.chunks(2).map(|pair| (byte(pair, 0) << 4) | byte(pair, 1)).collect())
+    Ok(nibbles.chunks(2).map(|pair| (byte(pair, 0).unwrap_or(0) << 4) | byte(pair, 1).unwrap_or(0)).collect())
 }
 
 /// Which commands `--sensor` and `--command` leave to decode as.
@@ -650,7 +643,7 @@ impl<'a, 'c> Scanner<'a, 'c> {
                 continue;
             }
             match &mut self.noise {
-                Some(noise) => noise.bytes.push(byte(piece, p)),
+                Some(noise) => noise.bytes.push(byte(piece, p).unwrap_or(0)),
                 None => self.noise = Some(take(1)),
             }
             p += 1;
@@ -699,8 +692,12 @@ impl<'a, 'c> Scanner<'a, 'c> {
         if rest.len() < 8 {
             return None;
         }
-        let header =
-            Header { slave: byte(rest, 0), function: byte(rest, 1), address: word(rest, 2), count: word(rest, 4) };
+        let header = Header {
+            slave: byte(rest, 0).unwrap_or(0),
+            function: byte(rest, 1).unwrap_or(0),
+            address: word(rest, 2).unwrap_or(0),
+            count: word(rest, 4).unwrap_or(0),
+        };
         let cands: Vec<Cand<'c>> = self
             .all
             .iter()
@@ -721,7 +718,7 @@ impl<'a, 'c> Scanner<'a, 'c> {
             0x03 if (1..=125).contains(&header.count) && (1..=247).contains(&header.slave) => 8,
             0x10 if header.count <= 123
                 && header.slave <= 247
-                && usize::from(byte(rest, 6)) == 2 * usize::from(header.count) =>
+                && usize::from(byte(rest, 6).unwrap_or(0)) == 2 * usize::from(header.count) =>
             {
                 9 + 2 * usize::from(header.count)
             }
@@ -1048,7 +1045,7 @@ fn transaction<'c>(
             x.decodings = group(allowed.iter().map(|c| (*c, written(c))));
             x.status = Status::Undecodable;
             let bytes = &reply.bytes;
-            let expected = if byte(bytes, 1) & 0x80 != 0 {
+            let expected = if byte(bytes, 1).unwrap_or(0) & 0x80 != 0 {
                 5
             } else {
                 allowed.iter().filter_map(|c| reply_lens(c.command)[0]).max().unwrap_or(0)
@@ -1062,9 +1059,9 @@ fn transaction<'c>(
                 format!("the reply's CRC is wrong: it carries {}, its bytes give {}", hex(carried), hex(&computed))
             });
         }
-        (Some(reply), true) if byte(&reply.bytes, 1) & 0x80 != 0 => {
+        (Some(reply), true) if byte(&reply.bytes, 1).unwrap_or(0) & 0x80 != 0 => {
             x.status = Status::Exception;
-            x.exception = Some(ExceptionCode::from_u8(byte(&reply.bytes, 2)));
+            x.exception = Some(ExceptionCode::from_u8(byte(&reply.bytes, 2).unwrap_or(0)));
             x.decodings = group(allowed.iter().map(|c| (*c, written(c))));
         }
         (Some(reply), true) => {
@@ -1088,7 +1085,7 @@ fn transaction<'c>(
                 x.notes.extend(rejected);
             }
             if let Some(c) = x.chosen().and_then(Decoding::command) {
-                let n = byte(&reply.bytes, 2);
+                let n = byte(&reply.bytes, 2).unwrap_or(0);
                 if c.is_read() && !c.trigger && usize::from(n) != 2 * usize::from(c.count) {
                     x.notes.push(format!(
                         "byte count 0x{n:02X} over {} data bytes: a firmware quirk the spec documents, accepted",
@@ -1108,7 +1105,7 @@ fn transaction<'c>(
 
 /// A reply with no request: what it could be, for information.
 fn lone<'c>(filter: &Filter<'_>, all: &[Cand<'c>], reply: Framed) -> Exchange<'c> {
-    let (slave, function) = (byte(&reply.bytes, 0), byte(&reply.bytes, 1));
+    let (slave, function) = (byte(&reply.bytes, 0).unwrap_or(0), byte(&reply.bytes, 1).unwrap_or(0));
     let mut x = Exchange {
         request: None,
         reply: None,
@@ -1121,7 +1118,7 @@ fn lone<'c>(filter: &Filter<'_>, all: &[Cand<'c>], reply: Framed) -> Exchange<'c
         )],
     };
     if function & 0x80 != 0 {
-        x.exception = Some(ExceptionCode::from_u8(byte(&reply.bytes, 2)));
+        x.exception = Some(ExceptionCode::from_u8(byte(&reply.bytes, 2).unwrap_or(0)));
     } else {
         // A reply from 0xFF fits only a command with that fixed address.
         let decoded = all
@@ -1151,7 +1148,8 @@ fn framed_json(f: &Framed) -> Json {
 
 fn exchange_json(x: &Exchange<'_>) -> Json {
     let header = x.request.as_ref().map(|(_, h)| *h);
-    let function = header.map(|h| h.function).or_else(|| x.reply.as_ref().map(|r| byte(&r.bytes, 1) & 0x7F));
+    let function =
+        header.map(|h| h.function).or_else(|| x.reply.as_ref().map(|r| byte(&r.bytes, 1).unwrap_or(0) & 0x7F));
     let function_name = function.and_then(Function::from_code).map(|f| match f {
         Function::Read => "read",
         Function::Write => "write",
@@ -1256,7 +1254,7 @@ fn print_pair(x: &Exchange<'_>, json_out: bool, out: &mut dyn Write) -> Result<(
             writeln!(out, "request     {} ({}, {to})", hex(&request.bytes), describe(header))?;
         }
         if let Some(reply) = &x.reply {
-            let from = byte(&reply.bytes, 0);
+            let from = byte(&reply.bytes, 0).unwrap_or(0);
             writeln!(out, "reply       {} ({} bytes from address {from})", hex(&reply.bytes), reply.bytes.len())?;
         }
         let many = x.decodings.len() > 1;
@@ -1434,7 +1432,9 @@ fn decode_one(filter: &Filter<'_>, json_out: bool, frame: &[u8], out: &mut dyn W
         _ => Kind::Unknown,
     };
     let (address, count) = match kind {
-        Kind::ReadRequest | Kind::WriteRequest | Kind::WriteReply => (Some(word(frame, 2)), Some(word(frame, 4))),
+        Kind::ReadRequest | Kind::WriteRequest | Kind::WriteReply => {
+            (Some(word(frame, 2).unwrap_or(0)), Some(word(frame, 4).unwrap_or(0)))
+        }
         _ => (None, None),
     };
     let wanted = filter.command.clone();
