@@ -24,6 +24,7 @@ mod error;
 pub mod frame;
 pub mod mbap;
 mod message;
+pub mod segment;
 mod sensor;
 pub mod timing;
 #[cfg(feature = "tokio-modbus")]
