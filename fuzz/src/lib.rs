@@ -13,6 +13,7 @@
 //! | [`frame_reader`] | header + stale bytes + reply stream, split into chunks | the client's reader never panics or hangs, returns a value only for a valid frame it was sent, and accepts a clean reply |
 //! | [`spec_loader`] | two YAML files | the loader never panics; what it accepts generates code that parses |
 //! | [`cli_decode`] | hex text | the CLI's `decode` path: hex parsing, classification and interpretation against every spec command |
+//! | [`segmenter`] | chunk size + bytes | the frame segmenter's spans cover the bytes exactly, frames hold their CRC, and chunked reads find the same spans |
 
 use std::io;
 use std::path::PathBuf;
@@ -587,6 +588,49 @@ pub fn cli_decode(data: &[u8]) {
     }
     // The generated side must agree with the interpreter on this frame too.
     check_all_sensors(frame[0], &frame);
+}
+
+// ---------------------------------------------------------------------------
+// segmenter
+
+/// Input: `[chunk, bytes...]`. Splits the bytes into spans
+/// ([`yosemitech_rtu::segment::spans`]) and checks that they follow each
+/// other and cover the bytes exactly, that every frame span holds its CRC,
+/// and that feeding the bytes `chunk + 1` at a time to
+/// [`next_span`](yosemitech_rtu::segment::next_span), as a stream reader
+/// does, finds the same spans. A server's
+/// [`request_len`](yosemitech_rtu::segment::request_len) answers every head.
+pub fn segmenter(data: &[u8]) {
+    use yosemitech_rtu::segment::{Span, next_span, request_head_len, request_len, spans};
+    let Some((&chunk, bytes)) = data.split_first() else { return };
+    let whole: Vec<Span> = spans(bytes).collect();
+    let mut at = 0;
+    for span in &whole {
+        assert_eq!(span.start, at, "spans leave a gap or overlap in {}", Hex(bytes));
+        assert!(span.end > span.start, "an empty span in {}", Hex(bytes));
+        assert!(!span.kind.is_frame() || crc_ok(span.bytes(bytes)), "a frame span without its CRC: {span:?}");
+        at = span.end;
+    }
+    assert_eq!(at, bytes.len(), "spans do not reach the end of {}", Hex(bytes));
+    let step = usize::from(chunk) + 1;
+    let (mut have, mut done) = (0, 0);
+    let mut streamed = Vec::new();
+    while have < bytes.len() {
+        have = (have + step).min(bytes.len());
+        while let Ok(span) = next_span(bytes.get(done..have).unwrap_or(&[])) {
+            streamed.push(Span { start: span.start + done, end: span.end + done, ..span });
+            done += span.end;
+        }
+    }
+    let rest = bytes.get(done..).unwrap_or(&[]);
+    streamed.extend(spans(rest).map(|span| Span { start: span.start + done, end: span.end + done, ..span }));
+    assert_eq!(streamed, whole, "chunks of {step} find other spans in {}", Hex(bytes));
+    for head in 0..bytes.len().min(8) {
+        let head = bytes.get(..head).unwrap_or(&[]);
+        if let (Some(need), Some(len)) = (request_head_len(head), request_len(head)) {
+            assert!(need <= head.len() && len >= need, "head {} gives length {len}", Hex(head));
+        }
+    }
 }
 
 #[cfg(test)]

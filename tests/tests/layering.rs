@@ -81,7 +81,6 @@ const LARGE_FILES: &[(&str, &str)] = &[
         "crates/yosemitech-cli/tests/cli_device.rs",
         "one binary's tests of every device subcommand, to split by subcommand",
     ),
-    ("crates/yosemitech-cli/src/commands/decode.rs", "two pipelines, to become one segmenter in the runtime"),
     ("crates/yosemitech-spec/src/yaml.rs", "limits, recovery, the line lexer and messages: one module each"),
     ("crates/yosemitech-sim/src/simulator.rs", "variation and water, to split from the device"),
     ("crates/yosemitech-spec/src/model.rs", "the sensor's queries, to split from the types"),

@@ -6,8 +6,10 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use yosemitech_rtu::bytes::{byte, word};
-use yosemitech_rtu::frame::{BROADCAST, encode_exception};
-use yosemitech_rtu::{EncodeError, ExceptionCode, Function, Layout, LineTiming, Responder, codec, crc_ok, crc16};
+use yosemitech_rtu::frame::{BROADCAST, REQUEST_BYTE_COUNT_AT, encode_exception};
+use yosemitech_rtu::{
+    EncodeError, ExceptionCode, Function, Layout, LineTiming, Responder, codec, crc_ok, crc16, segment,
+};
 use yosemitech_spec::interp::{EncodeValuesError, decode_field, decode_fields, encode_command_field};
 use yosemitech_spec::{CommandSpec, EnumRepr, Field, FieldKind, Role, Sensor, Value, Values};
 
@@ -669,15 +671,18 @@ impl Simulator {
         }
         let function = Function::from_code(code).ok_or(ExceptionCode::IllegalFunction)?;
         let (address, count) = (word(request, 2).unwrap_or(0), word(request, 4).unwrap_or(0));
+        if segment::request_len(request) != Some(request.len()) {
+            return Err(ExceptionCode::IllegalDataValue);
+        }
         let data: &[u8] = match function {
-            Function::Read if request.len() == 8 => &[],
-            Function::Read => return Err(ExceptionCode::IllegalDataValue),
+            Function::Read => &[],
             Function::Write => {
-                let byte_count = usize::from(byte(request, 6).unwrap_or(0));
-                if request.len() != 9 + byte_count || byte_count != 2 * usize::from(count) {
+                let byte_count = usize::from(byte(request, REQUEST_BYTE_COUNT_AT).unwrap_or(0));
+                if byte_count != 2 * usize::from(count) {
                     return Err(ExceptionCode::IllegalDataValue);
                 }
-                request.get(7..7 + byte_count).ok_or(ExceptionCode::IllegalDataValue)?
+                let data = REQUEST_BYTE_COUNT_AT + 1;
+                request.get(data..data + byte_count).ok_or(ExceptionCode::IllegalDataValue)?
             }
         };
         let mut candidates = self.sensor.commands.iter().enumerate().filter(|(_, c)| {
