@@ -66,6 +66,46 @@ pub(super) struct Cand<'c> {
     pub(super) command: &'c CommandSpec,
 }
 
+/// A command that fits a frame, with every sensor that has it: [`Cand`]s
+/// grouped by [`shared`].
+pub(super) struct Candidate<'c> {
+    pub(super) sensors: Vec<&'c str>,
+    pub(super) command: &'c CommandSpec,
+}
+
+impl Candidate<'_> {
+    pub(super) fn label(&self) -> String {
+        format!(
+            "{} {} (0x{:04X}, {} register{})",
+            self.sensors.join("/"),
+            self.command.name,
+            self.command.address,
+            self.command.count,
+            if self.command.count == 1 { "" } else { "s" }
+        )
+    }
+}
+
+/// `cands` as [`Candidate`]s, in order: a command shared by every probe
+/// (a fragment's, such as yosemitech-common.yaml) is one candidate with all
+/// its sensors.
+pub(super) fn shared<'c>(cands: impl IntoIterator<Item = Cand<'c>>) -> Vec<Candidate<'c>> {
+    let mut candidates: Vec<Candidate<'c>> = Vec::new();
+    for Cand { sensor, command: c } in cands {
+        let same = candidates.iter_mut().find(|k| {
+            k.command.name == c.name
+                && k.command.shared_from.is_some()
+                && k.command.shared_from == c.shared_from
+                && k.command.layout() == c.layout()
+        });
+        match same {
+            Some(k) => k.sensors.push(sensor),
+            None => candidates.push(Candidate { sensors: vec![sensor], command: c }),
+        }
+    }
+    candidates
+}
+
 /// `get_sn of conductivity, ph_orp; get_x of y`: candidates by command name, in order.
 pub(super) fn label(cands: &[Cand<'_>]) -> String {
     let mut names: Vec<(&str, Vec<&str>)> = Vec::new();

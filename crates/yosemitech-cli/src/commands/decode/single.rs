@@ -13,7 +13,7 @@ use yosemitech_spec::{CommandSpec, Values};
 use crate::error::{CliError, Result};
 use crate::format::{fields_json, hex, value_with_unit, values_json};
 
-use super::candidates::{Filter, fits_slave, reply_lens};
+use super::candidates::{Cand, Candidate, Filter, fits_slave, reply_lens, shared};
 use super::{error_json, pretty};
 
 /// What a frame is, from its function code and length.
@@ -57,25 +57,6 @@ impl Kind {
     /// Whether the frame carries field values (so the command must be known to decode it).
     pub(super) fn has_values(self) -> bool {
         matches!(self, Kind::ReadReply | Kind::WriteRequest)
-    }
-}
-
-/// A command that fits the frame, and the sensors that have it.
-pub(super) struct Candidate<'c> {
-    pub(super) sensors: Vec<&'c str>,
-    pub(super) command: &'c CommandSpec,
-}
-
-impl Candidate<'_> {
-    pub(super) fn label(&self) -> String {
-        format!(
-            "{} {} (0x{:04X}, {} register{})",
-            self.sensors.join("/"),
-            self.command.name,
-            self.command.address,
-            self.command.count,
-            if self.command.count == 1 { "" } else { "s" }
-        )
     }
 }
 
@@ -124,25 +105,11 @@ pub(super) fn decode_one(filter: &Filter<'_>, json_out: bool, frame: &[u8], out:
                 Kind::Unknown => false,
             }
     };
-    let mut candidates: Vec<Candidate<'_>> = Vec::new();
-    for entry in entries {
-        for c in entry.sensor.commands.iter().filter(|c| fits(c)) {
-            if wanted.as_ref().is_some_and(|w| *w != c.name) {
-                continue;
-            }
-            // A command shared by every probe (yosemitech-common.yaml) is one candidate.
-            let same = candidates.iter_mut().find(|k| {
-                k.command.name == c.name
-                    && k.command.shared_from.is_some()
-                    && k.command.shared_from == c.shared_from
-                    && k.command.layout() == c.layout()
-            });
-            match same {
-                Some(k) => k.sensors.push(&entry.sensor.name),
-                None => candidates.push(Candidate { sensors: vec![&entry.sensor.name], command: c }),
-            }
-        }
-    }
+    let fitting = entries
+        .iter()
+        .flat_map(|e| e.sensor.commands.iter().map(|command| Cand { sensor: &e.sensor.name, command }))
+        .filter(|c| fits(c.command) && wanted.as_ref().is_none_or(|w| *w == c.command.name));
+    let mut candidates = shared(fitting);
     if kind == Kind::Exception && wanted.is_none() {
         candidates.clear();
     }
