@@ -557,7 +557,7 @@ mod tests {
     fn options() {
         let args = |s: &str| s.split_whitespace().map(String::from).collect::<Vec<_>>();
         let o = parse(&args("--seconds 5")).unwrap().unwrap();
-        assert_eq!((o.seconds, o.targets.len(), o.build), (5, 4, true));
+        assert_eq!((o.seconds, o.targets.len(), o.build), (5, TARGETS.len(), true));
         let o = parse(&args("--seconds 1 --target spec_loader --no-build --timeout 3")).unwrap().unwrap();
         assert_eq!((o.targets, o.build, o.timeout), (vec!["spec_loader".to_string()], false, 3));
         assert!(parse(&args("")).is_err());
