@@ -204,7 +204,7 @@ impl Candidates<'_> {
     }
 
     /// A byte of the head, or `Err` while it may still come.
-    fn byte(&self, at: usize) -> Result<Option<u8>, Incomplete> {
+    fn head_byte(&self, at: usize) -> Result<Option<u8>, Incomplete> {
         match byte(self.rest, at) {
             Some(b) => Ok(Some(b)),
             None if self.end => Ok(None),
@@ -253,14 +253,14 @@ impl Candidates<'_> {
 /// still come.
 fn frame_at(rest: &[u8], end: bool) -> Result<Option<(SpanKind, usize)>, Incomplete> {
     let c = Candidates { rest, end };
-    let Some(code) = c.byte(1)? else { return Ok(None) };
+    let Some(code) = c.head_byte(1)? else { return Ok(None) };
     if code & EXCEPTION_BIT != 0 {
         return Ok(c.holds(EXCEPTION_LEN)?.then_some((SpanKind::Exception, EXCEPTION_LEN)));
     }
     match Function::from_code(code) {
         Some(Function::Read) => {
             let request = Function::Read.request_len(0);
-            let reply = c.byte(REPLY_BYTE_COUNT_AT)?.map(|n| Function::Read.response_len(usize::from(n)));
+            let reply = c.head_byte(REPLY_BYTE_COUNT_AT)?.map(|n| Function::Read.response_len(usize::from(n)));
             if reply == Some(request) {
                 if c.holds(request)? {
                     return Ok(Some((SpanKind::RequestOrReply, request)));
@@ -276,7 +276,7 @@ fn frame_at(rest: &[u8], end: bool) -> Result<Option<(SpanKind, usize)>, Incompl
         }
         Some(Function::Write) => {
             let reply = Function::Write.response_len(0);
-            let by_count = c.byte(REQUEST_BYTE_COUNT_AT)?.map(|n| Function::Write.request_len(usize::from(n)));
+            let by_count = c.head_byte(REQUEST_BYTE_COUNT_AT)?.map(|n| Function::Write.request_len(usize::from(n)));
             let by_registers = match word(rest, 4) {
                 Some(count) => Some(Function::Write.request_len(2 * usize::from(count))),
                 None if end => None,

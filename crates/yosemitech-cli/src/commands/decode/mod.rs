@@ -4,9 +4,17 @@
 //! ([`single::decode_one`]). Several frames (a request and its reply, a hex stream,
 //! a `--capture` file) are split into frames by a [`scan::Scanner`]: requests are
 //! recognised by the commands' request layouts, replies by their CRC and the
-//! length the pending request's command expects. Each reply is paired with
-//! the request before it and decoded as the command(s) the request names;
-//! decodings that fail are dropped and equal ones reported together.
+//! length the pending request's command expects; what no loaded command
+//! frames (a request of an unknown command, a reply with no request before
+//! it) is framed by the runtime's segmenter ([`yosemitech_rtu::segment`]),
+//! on the same length rules. Each reply is paired with the request before
+//! it and decoded as the command(s) the request names; decodings that fail
+//! are dropped and equal ones reported together.
+//!
+//! The modules: [`input`] reads hex and captures, [`scan`] splits and
+//! pairs, [`report`] decodes what was found into values, [`print`] and
+//! [`single`] (one frame on its own) write them out; [`candidates`] is what
+//! a frame may be.
 
 mod candidates;
 mod input;

@@ -4,8 +4,8 @@
 use std::io::Write;
 
 use serde_json::{Value as Json, json};
-use yosemitech_rtu::bytes::word;
-use yosemitech_rtu::frame::EXCEPTION_BIT;
+use yosemitech_rtu::bytes::{byte, word};
+use yosemitech_rtu::frame::{EXCEPTION_BIT, REPLY_BYTE_COUNT_AT, REQUEST_BYTE_COUNT_AT};
 use yosemitech_rtu::{ExceptionCode, Function, crc16};
 use yosemitech_spec::interp::decode_fields;
 use yosemitech_spec::{CommandSpec, Values};
@@ -68,9 +68,9 @@ pub(super) fn decode_one(filter: &Filter<'_>, json_out: bool, frame: &[u8], out:
     }
     let entries = &filter.entries;
     let len = frame.len();
-    let (slave, function) = (frame.first().copied().unwrap_or(0), frame.get(1).copied().unwrap_or(0));
+    let (slave, function) = (byte(frame, 0).unwrap_or(0), byte(frame, 1).unwrap_or(0));
     let body = frame.get(..len - 2).unwrap_or(&[]);
-    let received = [frame.get(len - 2).copied().unwrap_or(0), frame.get(len - 1).copied().unwrap_or(0)];
+    let received = word(frame, len - 2).unwrap_or(0).to_be_bytes();
     let expected = crc16(body).to_le_bytes();
     let crc_ok = received == expected;
 
@@ -185,7 +185,7 @@ pub(super) fn decode_one(filter: &Filter<'_>, json_out: bool, frame: &[u8], out:
     let mut exception = None;
     match kind {
         Kind::ReadReply => {
-            let n = frame.get(2).copied().unwrap_or(0);
+            let n = byte(frame, REPLY_BYTE_COUNT_AT).unwrap_or(0);
             byte_count = Some(n);
             if let Some(c) = chosen.map(|c| c.command) {
                 let data = frame.get(3..len.saturating_sub(2)).unwrap_or(&[]);
@@ -205,7 +205,7 @@ pub(super) fn decode_one(filter: &Filter<'_>, json_out: bool, frame: &[u8], out:
             }
         }
         Kind::WriteRequest => {
-            let n = frame.get(6).copied().unwrap_or(0);
+            let n = byte(frame, REQUEST_BYTE_COUNT_AT).unwrap_or(0);
             byte_count = Some(n);
             if let Some(c) = chosen.map(|c| c.command) {
                 let want_len = c.layout().request_len();
@@ -220,7 +220,7 @@ pub(super) fn decode_one(filter: &Filter<'_>, json_out: bool, frame: &[u8], out:
             }
         }
         Kind::Exception => {
-            let code = ExceptionCode::from_u8(frame.get(2).copied().unwrap_or(0));
+            let code = ExceptionCode::from_u8(byte(frame, 2).unwrap_or(0));
             exception = Some(code);
             if len != 5 {
                 problems.push(format!("an exception reply has 5 bytes, this one {len}"));
