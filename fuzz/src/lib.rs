@@ -13,6 +13,7 @@
 //! | [`frame_reader`] | header + stale bytes + reply stream, split into chunks | the client's reader never panics or hangs, returns a value only for a valid frame it was sent, and accepts a clean reply |
 //! | [`spec_loader`] | two YAML files | the loader never panics; what it accepts generates code that parses |
 //! | [`cli_decode`] | hex text | the CLI's `decode` path: hex parsing, classification and interpretation against every spec command |
+//! | [`segmenter`] | chunk size + bytes | the frame segmenter's spans cover the bytes exactly, frames hold their CRC, and chunked reads find the same spans |
 
 use std::io;
 use std::path::PathBuf;
@@ -128,7 +129,7 @@ impl FieldCheck<'_> {
 
 fn check_sensor(module: &SensorModule, slave: u8, frame: &[u8]) {
     let sensor = module.info.name;
-    for &name in module.commands {
+    for name in module.commands.iter().map(|c| c.name) {
         let command = spec_command(sensor, name);
         let layout = module.layout(name).unwrap_or_else(|| panic!("{sensor}.{name}: listed but has no layout"));
         assert_eq!(layout, command.layout(), "{sensor}.{name}: generated and spec layouts differ");
@@ -136,7 +137,8 @@ fn check_sensor(module: &SensorModule, slave: u8, frame: &[u8]) {
         // As a reply.
         let interpreted = command.decode_response(slave, frame);
         let mut fields = FieldCheck { sensor, command: name, expected: interpreted.as_ref().ok(), seen: 0 };
-        let typed = module.visit_response(name, slave, frame, &mut |info, value| fields.visit(info, value))
+        let typed = module
+            .visit_response(name, slave, frame, &mut |info, value| fields.visit(info, value))
             .unwrap_or_else(|| panic!("{sensor}.{name}: listed but visit_response does not know it"));
         match (&typed, &interpreted) {
             (Ok(()), Ok(_)) => {
@@ -180,7 +182,8 @@ fn check_sensor(module: &SensorModule, slave: u8, frame: &[u8]) {
         let interpreted = command.decode_request(frame);
         let mut fields =
             FieldCheck { sensor, command: name, expected: interpreted.as_ref().ok().map(|(_, v)| v), seen: 0 };
-        let typed = module.visit_request(name, frame, &mut |info, value| fields.visit(info, value))
+        let typed = module
+            .visit_request(name, frame, &mut |info, value| fields.visit(info, value))
             .unwrap_or_else(|| panic!("{sensor}.{name}: listed but visit_request does not know it"));
         match (&typed, &interpreted) {
             (Ok(s), Ok((t, _))) => {
@@ -210,7 +213,10 @@ fn check_sensor(module: &SensorModule, slave: u8, frame: &[u8]) {
         }
     }
     if let Some(name) = module.identify_request(frame) {
-        assert!(module.commands.contains(&name), "{sensor}: identify_request names an unlisted command {name}");
+        assert!(
+            module.commands.iter().any(|c| c.name == name),
+            "{sensor}: identify_request names an unlisted command {name}"
+        );
         let layout = module.layout(name).unwrap_or_else(|| panic!("{sensor}.{name}: identified but has no layout"));
         assert_eq!(frame.get(1), Some(&layout.function.code()));
         assert_eq!(frame.get(2..4), Some(&layout.address.to_be_bytes()[..]));
@@ -450,7 +456,7 @@ fn holds_frame(bytes: &[u8]) -> bool {
 
 /// The generated decoder of `sensor` accepts a frame the client accepted.
 fn typed_accepts(sensor: &str, command: &str, slave: u8, frame: &[u8]) {
-    let ok = (module(sensor).visit_response)(command, slave, frame, &mut |_, _| {});
+    let ok = module(sensor).visit_response(command, slave, frame, &mut |_, _| {});
     if let Some(Err(e)) = ok {
         panic!("{sensor}.{command}: the generated decoder rejects {} ({e})", Hex(frame));
     }
@@ -589,6 +595,49 @@ pub fn cli_decode(data: &[u8]) {
     check_all_sensors(frame[0], &frame);
 }
 
+// ---------------------------------------------------------------------------
+// segmenter
+
+/// Input: `[chunk, bytes...]`. Splits the bytes into spans
+/// ([`yosemitech_rtu::segment::spans`]) and checks that they follow each
+/// other and cover the bytes exactly, that every frame span holds its CRC,
+/// and that feeding the bytes `chunk + 1` at a time to
+/// [`next_span`](yosemitech_rtu::segment::next_span), as a stream reader
+/// does, finds the same spans. A server's
+/// [`request_len`](yosemitech_rtu::segment::request_len) answers every head.
+pub fn segmenter(data: &[u8]) {
+    use yosemitech_rtu::segment::{Span, next_span, request_head_len, request_len, spans};
+    let Some((&chunk, bytes)) = data.split_first() else { return };
+    let whole: Vec<Span> = spans(bytes).collect();
+    let mut at = 0;
+    for span in &whole {
+        assert_eq!(span.start, at, "spans leave a gap or overlap in {}", Hex(bytes));
+        assert!(span.end > span.start, "an empty span in {}", Hex(bytes));
+        assert!(!span.kind.is_frame() || crc_ok(span.bytes(bytes)), "a frame span without its CRC: {span:?}");
+        at = span.end;
+    }
+    assert_eq!(at, bytes.len(), "spans do not reach the end of {}", Hex(bytes));
+    let step = usize::from(chunk) + 1;
+    let (mut have, mut done) = (0, 0);
+    let mut streamed = Vec::new();
+    while have < bytes.len() {
+        have = (have + step).min(bytes.len());
+        while let Ok(span) = next_span(bytes.get(done..have).unwrap_or(&[])) {
+            streamed.push(Span { start: span.start + done, end: span.end + done, ..span });
+            done += span.end;
+        }
+    }
+    let rest = bytes.get(done..).unwrap_or(&[]);
+    streamed.extend(spans(rest).map(|span| Span { start: span.start + done, end: span.end + done, ..span }));
+    assert_eq!(streamed, whole, "chunks of {step} find other spans in {}", Hex(bytes));
+    for head in 0..bytes.len().min(8) {
+        let head = bytes.get(..head).unwrap_or(&[]);
+        if let (Some(need), Some(len)) = (request_head_len(head), request_len(head)) {
+            assert!(need <= head.len() && len >= need, "head {} gives length {len}", Hex(head));
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -603,7 +652,8 @@ mod tests {
         assert_eq!(modules, sensors);
         for sensor in &spec().sensors {
             let names: Vec<&str> = sensor.commands.iter().map(|c| c.name.as_str()).collect();
-            assert_eq!(module(&sensor.name).commands, names, "{}", sensor.name);
+            let listed: Vec<&str> = module(&sensor.name).commands.iter().map(|c| c.name).collect();
+            assert_eq!(listed, names, "{}", sensor.name);
         }
     }
 

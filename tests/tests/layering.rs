@@ -79,7 +79,6 @@ const LARGE_FILES: &[(&str, &str)] = &[
         "crates/yosemitech-cli/tests/cli_device.rs",
         "one binary's tests of every device subcommand, to split by subcommand",
     ),
-    ("crates/yosemitech-cli/src/commands/decode.rs", "two pipelines, to become one segmenter in the runtime"),
 ];
 
 /// The workspace root.

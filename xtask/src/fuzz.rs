@@ -28,7 +28,7 @@ use anyhow::{Context, bail};
 use yosemitech_spec::{Spec, load_paths};
 
 /// The targets, in the order they run.
-pub const TARGETS: [&str; 4] = ["decode_response", "frame_reader", "spec_loader", "cli_decode"];
+pub const TARGETS: [&str; 5] = ["decode_response", "frame_reader", "spec_loader", "cli_decode", "segmenter"];
 
 /// The instrumentation `cargo fuzz build --sanitizer none` passes to rustc.
 const RUSTFLAGS: &[&str] = &[
@@ -52,7 +52,7 @@ and crashes. Exits non-zero on any crash, timeout or out-of-memory input.
 
   --seconds N        run time of each target (required)
   --target NAME      run only this target (repeatable): decode_response, frame_reader,
-                     spec_loader, cli_decode
+                     spec_loader, cli_decode, segmenter
   --timeout S        an input taking longer than S seconds is a finding (default 10)
   --rss-limit-mb M   memory limit of a target (default 2048)
   --no-build         use the targets already built";
@@ -208,6 +208,7 @@ fn write_seeds(target: &str, dir: &Path, spec: &Spec, root: &Path) -> anyhow::Re
         "frame_reader" => stream_seeds(spec),
         "spec_loader" => spec_seeds(root)?,
         "cli_decode" => hex_seeds(spec),
+        "segmenter" => exchange_seeds(spec),
         other => bail!("no seeds for `{other}`"),
     };
     for (i, seed) in seeds.iter().enumerate() {
@@ -283,6 +284,25 @@ fn stream_seeds(spec: &Spec) -> Vec<Vec<u8>> {
             index = index.wrapping_add(1);
         }
     }
+    seeds
+}
+
+/// segmenter: `[chunk, bytes...]`: each example's request and reply one
+/// after the other, whole (chunk 255) and three bytes at a time with noise
+/// in front.
+fn exchange_seeds(spec: &Spec) -> Vec<Vec<u8>> {
+    let mut seeds = Vec::new();
+    for sensor in &spec.sensors {
+        for c in &sensor.commands {
+            for e in &c.examples {
+                let Some((request, reply)) = e.true_pair() else { continue };
+                seeds.push([&[0xFF], request, reply].concat());
+                seeds.push([&[2, 0x00, 0xFF, 0xAA], request, reply].concat());
+            }
+        }
+    }
+    seeds.sort();
+    seeds.dedup();
     seeds
 }
 
@@ -537,7 +557,7 @@ mod tests {
     fn options() {
         let args = |s: &str| s.split_whitespace().map(String::from).collect::<Vec<_>>();
         let o = parse(&args("--seconds 5")).unwrap().unwrap();
-        assert_eq!((o.seconds, o.targets.len(), o.build), (5, 4, true));
+        assert_eq!((o.seconds, o.targets.len(), o.build), (5, TARGETS.len(), true));
         let o = parse(&args("--seconds 1 --target spec_loader --no-build --timeout 3")).unwrap().unwrap();
         assert_eq!((o.targets, o.build, o.timeout), (vec!["spec_loader".to_string()], false, 3));
         assert!(parse(&args("")).is_err());

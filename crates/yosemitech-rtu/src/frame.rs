@@ -9,6 +9,7 @@
 
 use core::ops::Deref;
 
+use crate::bytes::{byte, word};
 use crate::crc::{crc_ok, crc16};
 use crate::error::{EchoField, EncodeError, FrameError};
 
@@ -53,7 +54,43 @@ impl Function {
             _ => None,
         }
     }
+
+    /// Bytes of a request's head that give its length: a read's function
+    /// code says it all; a write's byte count is its seventh byte.
+    pub const fn request_head_len(self) -> usize {
+        match self {
+            Self::Read => 2,
+            Self::Write => REQUEST_BYTE_COUNT_AT + 1,
+        }
+    }
+
+    /// Bytes in a request carrying `data_len` bytes of register data (none
+    /// for a read): slave, function, address, count, [byte count, data], CRC.
+    /// The one length rule of requests: [`Layout::request_len`] and the
+    /// segmenter ([`crate::segment`]) both apply it.
+    pub const fn request_len(self, data_len: usize) -> usize {
+        match self {
+            Self::Read => 8,
+            Self::Write => 9 + data_len,
+        }
+    }
+
+    /// Bytes in a normal reply carrying `data_len` bytes of register data
+    /// (a read's; a write's echo has none): slave, function, byte count and
+    /// data, or address and count; CRC. The one length rule of replies.
+    pub const fn response_len(self, data_len: usize) -> usize {
+        match self {
+            Self::Read => 5 + data_len,
+            Self::Write => 8,
+        }
+    }
 }
+
+/// Where a write request carries its byte count.
+pub const REQUEST_BYTE_COUNT_AT: usize = 6;
+
+/// Where a read reply carries its byte count.
+pub const REPLY_BYTE_COUNT_AT: usize = 2;
 
 /// Where a command sits on the wire: everything framing needs to know.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -98,19 +135,17 @@ impl Layout<'_> {
 
     /// Bytes in a request frame.
     pub const fn request_len(&self) -> usize {
-        match self.function {
-            Function::Read => 8,
-            Function::Write => 9 + self.data_len(),
-        }
+        self.function.request_len(self.request_data_len())
     }
 
     /// Bytes in a normal (non-exception) reply frame: the longest form a
     /// trigger read may take.
     pub const fn response_len(&self) -> usize {
-        match self.function {
-            Function::Read => 5 + self.data_len(),
-            Function::Write => 8,
-        }
+        let data_len = match self.function {
+            Function::Read => self.data_len(),
+            Function::Write => 0,
+        };
+        self.function.response_len(data_len)
     }
 
     /// The length of the short reply a trigger read may also get (`slave 03
@@ -118,7 +153,7 @@ impl Layout<'_> {
     /// bytes with byte count 0 and a valid CRC has the whole reply.
     pub const fn short_response_len(&self) -> Option<usize> {
         match (self.function, self.trigger) {
-            (Function::Read, true) if self.count > 0 => Some(5),
+            (Function::Read, true) if self.count > 0 => Some(Function::Read.response_len(0)),
             _ => None,
         }
     }
@@ -232,7 +267,7 @@ impl Layout<'_> {
     pub fn decode_request<'f>(&self, frame: &'f [u8]) -> Result<(u8, &'f [u8]), FrameError> {
         check_len(frame, self.request_len())?;
         check_crc(frame)?;
-        let slave = byte(frame, 0);
+        let slave = byte(frame, 0).unwrap_or(0);
         if let Some(fixed) = self.fixed_slave
             && slave != fixed
         {
@@ -244,7 +279,7 @@ impl Layout<'_> {
         match self.function {
             Function::Read => Ok((slave, &[])),
             Function::Write => {
-                check_byte_count(byte(frame, 6), self.data_len(), &[])?;
+                check_byte_count(byte(frame, REQUEST_BYTE_COUNT_AT).unwrap_or(0), self.data_len(), &[])?;
                 Ok((slave, frame.get(7..7 + self.data_len()).unwrap_or(&[])))
             }
         }
@@ -261,7 +296,10 @@ impl Layout<'_> {
             check_len(frame, EXCEPTION_LEN)?;
             check_crc(frame)?;
             check_slave(frame, expected_slave)?;
-            return Err(FrameError::Exception { function, code: crate::ExceptionCode::from_u8(byte(frame, 2)) });
+            return Err(FrameError::Exception {
+                function,
+                code: crate::ExceptionCode::from_u8(byte(frame, 2).unwrap_or(0)),
+            });
         }
         if let Some(short) = self.short_response_len()
             && frame.len() == short
@@ -269,7 +307,7 @@ impl Layout<'_> {
             check_crc(frame)?;
             check_slave(frame, expected_slave)?;
             check_function(frame, function)?;
-            check_byte_count(byte(frame, 2), 0, &[])?;
+            check_byte_count(byte(frame, REPLY_BYTE_COUNT_AT).unwrap_or(0), 0, &[])?;
             return Ok(&[]);
         }
         check_len(frame, self.response_len())?;
@@ -278,7 +316,7 @@ impl Layout<'_> {
         check_function(frame, function)?;
         match self.function {
             Function::Read => {
-                let count = byte(frame, 2);
+                let count = byte(frame, REPLY_BYTE_COUNT_AT).unwrap_or(0);
                 if !self.accepts_byte_count(count) {
                     let expected = u8::try_from(self.data_len()).unwrap_or(u8::MAX);
                     return Err(FrameError::ByteCount { expected, actual: count });
@@ -329,16 +367,6 @@ fn check_data_len(data: &[u8], expected: usize, frame_len: usize) -> Result<(), 
 }
 
 #[inline]
-fn byte(frame: &[u8], at: usize) -> u8 {
-    frame.get(at).copied().unwrap_or(0)
-}
-
-#[inline]
-fn word(frame: &[u8], at: usize) -> u16 {
-    u16::from_be_bytes([byte(frame, at), byte(frame, at + 1)])
-}
-
-#[inline]
 fn check_len(frame: &[u8], expected: usize) -> Result<(), FrameError> {
     let actual = frame.len();
     if actual < expected {
@@ -356,26 +384,26 @@ fn check_crc(frame: &[u8]) -> Result<(), FrameError> {
         return Ok(());
     }
     let n = frame.len().saturating_sub(2);
-    let received = u16::from_le_bytes([byte(frame, n), byte(frame, n + 1)]);
+    let received = word(frame, n).map_or(0, u16::swap_bytes);
     let computed = crc16(frame.get(..n).unwrap_or(&[]));
     Err(FrameError::Crc { received, computed })
 }
 
 #[inline]
 fn check_slave(frame: &[u8], expected: u8) -> Result<(), FrameError> {
-    let actual = byte(frame, 0);
+    let actual = byte(frame, 0).unwrap_or(0);
     if actual == expected { Ok(()) } else { Err(FrameError::WrongSlave { expected, actual }) }
 }
 
 #[inline]
 fn check_function(frame: &[u8], expected: u8) -> Result<(), FrameError> {
-    let actual = byte(frame, 1);
+    let actual = byte(frame, 1).unwrap_or(0);
     if actual == expected { Ok(()) } else { Err(FrameError::WrongFunction { expected, actual }) }
 }
 
 #[inline]
 fn check_echo(frame: &[u8], field: EchoField, at: usize, expected: u16) -> Result<(), FrameError> {
-    let actual = word(frame, at);
+    let actual = word(frame, at).unwrap_or(0);
     if actual == expected { Ok(()) } else { Err(FrameError::EchoMismatch { field, expected, actual }) }
 }
 

@@ -14,6 +14,7 @@
 
 #[cfg(feature = "std")]
 pub mod address;
+pub mod bytes;
 pub mod client;
 pub mod codec;
 mod command;
@@ -23,6 +24,7 @@ mod error;
 pub mod frame;
 pub mod mbap;
 mod message;
+pub mod segment;
 mod sensor;
 pub mod timing;
 #[cfg(feature = "tokio-modbus")]

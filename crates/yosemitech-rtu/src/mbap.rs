@@ -17,6 +17,7 @@
 
 use core::fmt;
 
+use crate::bytes::{byte, word};
 use crate::crc::{crc_ok, crc16};
 use crate::error::FrameError;
 use crate::frame::MAX_ADU;
@@ -139,16 +140,16 @@ impl Header {
         let Some(header) = bytes.get(..HEADER_LEN) else {
             return Err(MbapError::Truncated { expected: HEADER_LEN, actual: bytes.len() });
         };
-        let protocol = word(header, field::PROTOCOL.start);
+        let protocol = word(header, field::PROTOCOL.start).unwrap_or(0);
         if protocol != PROTOCOL_MODBUS {
             return Err(MbapError::Protocol { actual: protocol });
         }
-        let length = word(header, field::LENGTH.start);
+        let length = word(header, field::LENGTH.start).unwrap_or(0);
         if !(MIN_LENGTH..=MAX_LENGTH).contains(&length) {
             return Err(MbapError::Length { actual: length });
         }
         let unit = header.get(field::UNIT).copied().unwrap_or(0);
-        Ok(Self { transaction: word(header, field::TRANSACTION.start), unit, length })
+        Ok(Self { transaction: word(header, field::TRANSACTION.start).unwrap_or(0), unit, length })
     }
 
     /// Writes the header to `out[..HEADER_LEN]`.
@@ -206,12 +207,12 @@ pub fn rtu_to_adu(rtu: &[u8], transaction: u16, out: &mut [u8]) -> Result<usize,
     }
     if !crc_ok(rtu) {
         let n = rtu.len() - 2;
-        let received = u16::from_le_bytes([byte(rtu, n), byte(rtu, n + 1)]);
+        let received = word(rtu, n).map_or(0, u16::swap_bytes);
         let computed = crc16(rtu.get(..n).unwrap_or(&[]));
         return Err(MbapError::Rtu(FrameError::Crc { received, computed }));
     }
     let pdu = rtu.get(1..rtu.len() - 2).unwrap_or(&[]);
-    let header = Header::new(transaction, byte(rtu, 0), pdu.len())?;
+    let header = Header::new(transaction, byte(rtu, 0).unwrap_or(0), pdu.len())?;
     let len = header.adu_len();
     let out = out.get_mut(..len).ok_or(MbapError::BufferTooSmall { needed: len })?;
     header.emit(out)?;
@@ -235,16 +236,6 @@ pub fn adu_to_rtu(adu: &[u8], out: &mut [u8]) -> Result<(Header, usize), MbapErr
     }
     crc.copy_from_slice(&crc16(body).to_le_bytes());
     Ok((header, len))
-}
-
-#[inline]
-fn byte(bytes: &[u8], at: usize) -> u8 {
-    bytes.get(at).copied().unwrap_or(0)
-}
-
-#[inline]
-fn word(bytes: &[u8], at: usize) -> u16 {
-    u16::from_be_bytes([byte(bytes, at), byte(bytes, at + 1)])
 }
 
 #[cfg(test)]

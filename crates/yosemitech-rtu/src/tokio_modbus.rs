@@ -51,6 +51,7 @@ use std::fmt;
 use ::tokio_modbus::client::Client as ModbusClient;
 use ::tokio_modbus::{Request, Response, Slave};
 
+use crate::bytes::word;
 use crate::command::Command;
 use crate::crc::crc16;
 use crate::error::{EncodeError, FrameError};
@@ -178,7 +179,7 @@ where
     let modbus_request = match layout.function {
         Function::Read => Request::ReadHoldingRegisters(layout.address, layout.count),
         Function::Write => {
-            let words = data.chunks_exact(2).map(|w| u16::from_be_bytes([byte(w, 0), byte(w, 1)])).collect();
+            let words = data.chunks_exact(2).map(|w| word(w, 0).unwrap_or(0)).collect();
             Request::WriteMultipleRegisters(layout.address, Cow::Owned(words))
         }
     };
@@ -194,10 +195,6 @@ where
         Err(code) => Frame::fill(|out| encode_exception(reply_slave, layout.function.code(), u8::from(code), out)),
     };
     Ok(frame?)
-}
-
-fn byte(bytes: &[u8], at: usize) -> u8 {
-    bytes.get(at).copied().unwrap_or(0)
 }
 
 /// Writes the read reply carrying `words`: slave, 0x03, byte count, data, CRC.

@@ -933,7 +933,7 @@ impl ClientCore {
 /// The CRC error of a frame whose CRC fails (computed on the error path only).
 fn crc_error(frame: &[u8]) -> FrameError {
     let n = frame.len().saturating_sub(2);
-    let received = u16::from_le_bytes([frame.get(n).copied().unwrap_or(0), frame.get(n + 1).copied().unwrap_or(0)]);
+    let received = crate::bytes::word(frame, n).map_or(0, u16::swap_bytes);
     FrameError::Crc { received, computed: crc16_update(CRC_INIT, frame.get(..n).unwrap_or(&[])) }
 }
 

@@ -114,7 +114,7 @@ fn serve_connection<D: FrameHandler>(
 
 /// Writes exception 0x0B for `request` into `out` as an MBAP ADU.
 fn target_failed(header: &Header, request: &[u8], out: &mut [u8]) -> io::Result<usize> {
-    let function = request.get(1).copied().unwrap_or(0);
+    let function = yosemitech_rtu::bytes::byte(request, 1).unwrap_or(0);
     let mut frame = [0u8; yosemitech_rtu::frame::EXCEPTION_LEN];
     encode_exception(header.unit, function, ExceptionCode::GatewayTargetFailedToRespond.to_u8(), &mut frame)
         .map_err(|e| io::Error::other(e.to_string()))?;

@@ -7,11 +7,10 @@
 //!
 //! A slave on a serial line has no length prefix to go by; it frames
 //! requests the way a Yosemitech probe must: read the slave address and the
-//! function code, then
-//!
-//! * 0x03 (read): 8 bytes in all;
-//! * 0x10 (write): 7 bytes, then `9 + byte count` in all;
-//! * any other code: everything until [`ServeConfig::silence`] passes
+//! function code, then the rest of the head and the request's length by
+//! the runtime's length rules ([`yosemitech_rtu::segment::request_len`]:
+//! a read is 8 bytes, a write `9 + byte count`);
+//! for any other code, everything until [`ServeConfig::silence`] passes
 //!   without a byte (t3.5); the device ignores it, as a real probe, or
 //!   answers exception 01 under
 //!   [`UnknownRequestPolicy::Exception`](crate::UnknownRequestPolicy) if
@@ -50,7 +49,7 @@ use std::thread::{self, JoinHandle};
 use std::time::{Duration, Instant};
 
 use yosemitech_rtu::frame::MAX_ADU;
-use yosemitech_rtu::{Function, LineSettings, LineTiming, MemoryTransport, TcpTransport, Transport, crc_ok};
+use yosemitech_rtu::{LineSettings, LineTiming, MemoryTransport, TcpTransport, Transport, crc_ok, segment};
 
 use crate::FrameHandler;
 use crate::fault::Rng;
@@ -60,8 +59,8 @@ mod mbap;
 
 pub use mbap::serve_mbap;
 
-/// The longest request: a write of 255 data bytes.
-const MAX_REQUEST: usize = 9 + 255;
+/// The longest request a head can announce: a write of 255 data bytes.
+const MAX_REQUEST: usize = yosemitech_rtu::Function::Write.request_len(255);
 
 /// How a served device reads requests and paces replies.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -439,12 +438,14 @@ fn read_request<T: Transport>(
     if !fill(link, frame, &mut len, 2, gap)? {
         return Ok(None);
     }
-    let complete = match Function::from_code(frame.get(1).copied().unwrap_or(0)) {
-        Some(Function::Read) => fill(link, frame, &mut len, 8, gap)?,
-        Some(Function::Write) => {
-            fill(link, frame, &mut len, 7, gap)? && {
-                let total = 9 + usize::from(frame.get(6).copied().unwrap_or(0));
-                fill(link, frame, &mut len, total, gap)?
+    let complete = match segment::request_head_len(frame) {
+        Some(head) => {
+            fill(link, frame, &mut len, head, gap)? && {
+                let head = frame.get(..head).unwrap_or_default();
+                match segment::request_len(head) {
+                    Some(total) => fill(link, frame, &mut len, total, gap)?,
+                    None => false,
+                }
             }
         }
         None => {

@@ -99,14 +99,6 @@ pub(super) fn shorten_to_empty(out: &mut Vec<u8>) {
     out.extend_from_slice(&crc.to_le_bytes());
 }
 
-pub(super) fn byte(frame: &[u8], at: usize) -> u8 {
-    frame.get(at).copied().unwrap_or(0)
-}
-
-pub(super) fn word(frame: &[u8], at: usize) -> u16 {
-    u16::from_be_bytes([byte(frame, at), byte(frame, at + 1)])
-}
-
 #[cfg(test)]
 mod tests {
     use yosemitech_tests::with_crc;

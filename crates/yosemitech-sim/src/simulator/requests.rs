@@ -3,8 +3,9 @@
 use std::sync::Arc;
 use std::time::Duration;
 
-use yosemitech_rtu::frame::BROADCAST;
-use yosemitech_rtu::{ExceptionCode, Function, Layout, Responder, crc_ok};
+use yosemitech_rtu::bytes::{byte, word};
+use yosemitech_rtu::frame::{BROADCAST, REQUEST_BYTE_COUNT_AT};
+use yosemitech_rtu::{ExceptionCode, Function, Layout, Responder, crc_ok, segment};
 use yosemitech_spec::interp::decode_field;
 use yosemitech_spec::{Role, Value};
 
@@ -13,9 +14,7 @@ use crate::behaviour::{MeasurementState, WarmUpPolicy};
 use crate::fault::FaultKind;
 
 use super::Simulator;
-use super::frames::{
-    byte, check_ranges, prints_empty_reply, push_exception, push_frame, requirk, shorten_to_empty, word,
-};
+use super::frames::{check_ranges, prints_empty_reply, push_exception, push_frame, requirk, shorten_to_empty};
 
 /// What the device does with a request that matches no command of its
 /// sensor: an unknown function code, an address no command uses, a known
@@ -62,21 +61,24 @@ impl Simulator {
 
     /// Finds the command a request is for, and the write's data.
     fn lookup<'r>(&self, request: &'r [u8], route: Route) -> Result<(usize, &'r [u8]), ExceptionCode> {
-        let code = byte(request, 1);
+        let code = byte(request, 1).unwrap_or(0);
         if !self.functions.contains(&code) {
             return Err(ExceptionCode::IllegalFunction);
         }
         let function = Function::from_code(code).ok_or(ExceptionCode::IllegalFunction)?;
-        let (address, count) = (word(request, 2), word(request, 4));
+        let (address, count) = (word(request, 2).unwrap_or(0), word(request, 4).unwrap_or(0));
+        if segment::request_len(request) != Some(request.len()) {
+            return Err(ExceptionCode::IllegalDataValue);
+        }
         let data: &[u8] = match function {
-            Function::Read if request.len() == 8 => &[],
-            Function::Read => return Err(ExceptionCode::IllegalDataValue),
+            Function::Read => &[],
             Function::Write => {
-                let byte_count = usize::from(byte(request, 6));
-                if request.len() != 9 + byte_count || byte_count != 2 * usize::from(count) {
+                let byte_count = usize::from(byte(request, REQUEST_BYTE_COUNT_AT).unwrap_or(0));
+                if byte_count != 2 * usize::from(count) {
                     return Err(ExceptionCode::IllegalDataValue);
                 }
-                request.get(7..7 + byte_count).ok_or(ExceptionCode::IllegalDataValue)?
+                let data = REQUEST_BYTE_COUNT_AT + 1;
+                request.get(data..data + byte_count).ok_or(ExceptionCode::IllegalDataValue)?
             }
         };
         let mut candidates = self.sensor.commands.iter().enumerate().filter(|(_, c)| {
@@ -115,7 +117,7 @@ impl Simulator {
             fixed_slave: if matches!(route, Route::Wildcard(_)) { command.fixed_slave } else { None },
             ..command.layout()
         };
-        let slave = byte(request, 0);
+        let slave = byte(request, 0).unwrap_or(0);
         if command.is_read() {
             if route == Route::Broadcast {
                 return Ok(None);
@@ -188,8 +190,8 @@ impl FrameHandler for Simulator {
             self.stats.ignored_bad_crc += 1;
             return Duration::ZERO;
         }
-        let slave = byte(request, 0);
-        let function = byte(request, 1);
+        let slave = byte(request, 0).unwrap_or(0);
+        let function = byte(request, 1).unwrap_or(0);
         let Some(route) = self.route(slave) else {
             self.stats.ignored_other_slave += 1;
             return Duration::ZERO;
