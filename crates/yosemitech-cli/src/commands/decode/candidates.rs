@@ -2,6 +2,7 @@
 //! what `--sensor` and `--command` leave of them.
 
 use yosemitech_spec::CommandSpec;
+use yosemitech_spec::suggest::closest;
 
 use crate::catalog::{Catalog, Entry};
 use crate::cli::DecodeArgs;
