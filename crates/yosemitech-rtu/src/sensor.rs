@@ -89,14 +89,20 @@ pub struct CommandEntry {
     pub request_fields: &'static [FieldInfo],
     /// Name and unit of each field of the reply (empty for writes).
     pub response_fields: &'static [FieldInfo],
-    visit_request_fn: fn(&[u8], FieldVisitor<'_>) -> Result<u8, FrameError>,
-    visit_response_fn: fn(u8, &[u8], FieldVisitor<'_>) -> Result<(), FrameError>,
-    reencode_request_fn: fn(&[u8], &mut [u8]) -> Result<usize, RoundTripError>,
+    // Generic over the message type alone, with the layout passed in: the
+    // entries of messages of one shape (every read's empty request) share code.
+    visit_request_fn: VisitRequestFn,
+    visit_response_fn: VisitResponseFn,
+    reencode_request_fn: ReencodeRequestFn,
     reencode_response_fn: ReencodeResponseFn,
 }
 
+type VisitRequestFn = fn(&Layout<'static>, &[u8], FieldVisitor<'_>) -> Result<u8, FrameError>;
+type VisitResponseFn = fn(&Layout<'static>, u8, &[u8], FieldVisitor<'_>) -> Result<(), FrameError>;
+type ReencodeRequestFn = fn(&Layout<'static>, &[u8], &mut [u8]) -> Result<usize, RoundTripError>;
+
 /// Re-encodes a reply to a request sent to the given slave address.
-type ReencodeResponseFn = fn(u8, &[u8], &mut [u8]) -> Result<usize, RoundTripError>;
+type ReencodeResponseFn = fn(&Layout<'static>, u8, &[u8], &mut [u8]) -> Result<usize, RoundTripError>;
 
 impl CommandEntry {
     /// The entry of command `C`, titled as the manual titles it.
@@ -108,34 +114,34 @@ impl CommandEntry {
             request_fields: C::FIELDS,
             response_fields: <C::Response as Message>::FIELDS,
             visit_request_fn: visit_request::<C>,
-            visit_response_fn: visit_response::<C>,
+            visit_response_fn: visit_response::<C::Response>,
             reencode_request_fn: reencode_request::<C>,
-            reencode_response_fn: reencode_response::<C>,
+            reencode_response_fn: reencode_response::<C::Response>,
         }
     }
 
     /// Decodes a request, passes each field of a write's data (in wire
     /// order) to the visitor, and returns the slave address it is for.
     pub fn visit_request(&self, frame: &[u8], visit: FieldVisitor<'_>) -> Result<u8, FrameError> {
-        (self.visit_request_fn)(frame, visit)
+        (self.visit_request_fn)(&self.layout, frame, visit)
     }
 
     /// Decodes a reply to a request sent to `slave` and passes each field,
     /// in wire order, to the visitor.
     pub fn visit_response(&self, slave: u8, frame: &[u8], visit: FieldVisitor<'_>) -> Result<(), FrameError> {
-        (self.visit_response_fn)(slave, frame, visit)
+        (self.visit_response_fn)(&self.layout, slave, frame, visit)
     }
 
     /// Decodes a request and encodes the typed request again into `out`:
     /// the length written.
     pub fn reencode_request(&self, frame: &[u8], out: &mut [u8]) -> Result<usize, RoundTripError> {
-        (self.reencode_request_fn)(frame, out)
+        (self.reencode_request_fn)(&self.layout, frame, out)
     }
 
     /// Decodes a reply (to a request sent to `slave`) and encodes the typed
     /// reply again into `out`: the length written.
     pub fn reencode_response(&self, slave: u8, frame: &[u8], out: &mut [u8]) -> Result<usize, RoundTripError> {
-        (self.reencode_response_fn)(slave, frame, out)
+        (self.reencode_response_fn)(&self.layout, slave, frame, out)
     }
 }
 
@@ -145,25 +151,96 @@ impl core::fmt::Debug for CommandEntry {
     }
 }
 
-fn visit_request<C: Command>(frame: &[u8], visit: FieldVisitor<'_>) -> Result<u8, FrameError> {
-    let (slave, request) = C::decode_request(frame)?;
+// The table's codecs are generic over the command only where the command's
+// types are: the frame checks and framing go through the non-generic
+// functions below, kept out of line so a firmware that links every entry
+// links them once (the typed `Command` methods inline them for speed).
+
+fn visit_request<M: Message>(
+    layout: &Layout<'static>,
+    frame: &[u8],
+    visit: FieldVisitor<'_>,
+) -> Result<u8, FrameError> {
+    let (slave, request) = typed_request::<M>(layout, frame)?;
     request.fields().for_each(|(info, value)| visit(info, value));
     Ok(slave)
 }
 
-fn visit_response<C: Command>(slave: u8, frame: &[u8], visit: FieldVisitor<'_>) -> Result<(), FrameError> {
-    C::decode_response(slave, frame)?.fields().for_each(|(info, value)| visit(info, value));
+fn visit_response<M: Message>(
+    layout: &Layout<'static>,
+    slave: u8,
+    frame: &[u8],
+    visit: FieldVisitor<'_>,
+) -> Result<(), FrameError> {
+    typed_response::<M>(layout, slave, frame)?.fields().for_each(|(info, value)| visit(info, value));
     Ok(())
 }
 
-fn reencode_request<C: Command>(frame: &[u8], out: &mut [u8]) -> Result<usize, RoundTripError> {
-    let (slave, request) = C::decode_request(frame).map_err(RoundTripError::Frame)?;
-    request.encode_request(slave, out).map_err(RoundTripError::Encode)
+fn reencode_request<M: Message>(
+    layout: &Layout<'static>,
+    frame: &[u8],
+    out: &mut [u8],
+) -> Result<usize, RoundTripError> {
+    let (slave, request) = typed_request::<M>(layout, frame).map_err(RoundTripError::Frame)?;
+    request.validate().map_err(RoundTripError::Encode)?;
+    frame_out(layout, Direction::Request, slave, request.to_data().as_ref(), out)
 }
 
-fn reencode_response<C: Command>(slave: u8, frame: &[u8], out: &mut [u8]) -> Result<usize, RoundTripError> {
-    let response = C::decode_response(slave, frame).map_err(RoundTripError::Frame)?;
-    C::encode_response(&response, slave, out).map_err(RoundTripError::Encode)
+fn reencode_response<M: Message>(
+    layout: &Layout<'static>,
+    slave: u8,
+    frame: &[u8],
+    out: &mut [u8],
+) -> Result<usize, RoundTripError> {
+    let response = typed_response::<M>(layout, slave, frame).map_err(RoundTripError::Frame)?;
+    frame_out(layout, Direction::Response, slave, response.to_data().as_ref(), out)
+}
+
+fn typed_request<M: Message>(layout: &Layout<'_>, frame: &[u8]) -> Result<(u8, M), FrameError> {
+    let (slave, data) = request_data(layout, frame)?;
+    let data = M::Data::try_from(data)
+        .map_err(|_| FrameError::Truncated { expected: layout.request_len(), actual: frame.len() })?;
+    Ok((slave, M::from_data(&data)))
+}
+
+fn typed_response<M: Message>(layout: &Layout<'_>, slave: u8, frame: &[u8]) -> Result<M, FrameError> {
+    let data = response_data(layout, slave, frame)?;
+    let data = M::Data::try_from(data)
+        .map_err(|_| FrameError::Truncated { expected: layout.response_len(), actual: frame.len() })?;
+    Ok(M::from_data(&data))
+}
+
+#[inline(never)]
+fn request_data<'f>(layout: &Layout<'_>, frame: &'f [u8]) -> Result<(u8, &'f [u8]), FrameError> {
+    layout.decode_request(frame)
+}
+
+#[inline(never)]
+fn response_data<'f>(layout: &Layout<'_>, slave: u8, frame: &'f [u8]) -> Result<&'f [u8], FrameError> {
+    let data = layout.decode_response(slave, frame)?;
+    // A trigger's reply is an acknowledgement: whatever registers it carries mean nothing.
+    Ok(if layout.trigger { &[] } else { data })
+}
+
+#[derive(Clone, Copy)]
+enum Direction {
+    Request,
+    Response,
+}
+
+#[inline(never)]
+fn frame_out(
+    layout: &Layout<'_>,
+    direction: Direction,
+    slave: u8,
+    data: &[u8],
+    out: &mut [u8],
+) -> Result<usize, RoundTripError> {
+    match direction {
+        Direction::Request => layout.encode_request(slave, data, out),
+        Direction::Response => layout.encode_response(slave, data, out),
+    }
+    .map_err(RoundTripError::Encode)
 }
 
 /// A generated sensor module as data: what code that serves every sensor
