@@ -34,12 +34,14 @@ pub trait Command: Message {
 
     /// Writes the request frame for `slave` into `out` and returns its
     /// length. A write's values are checked against their ranges first.
+    #[inline]
     fn encode_request(&self, slave: u8, out: &mut [u8]) -> Result<usize, EncodeError> {
         self.validate()?;
         Self::LAYOUT.encode_request(slave, self.to_data().as_ref(), out)
     }
 
     /// Checks a request frame and returns its slave address and the request.
+    #[inline]
     fn decode_request(frame: &[u8]) -> Result<(u8, Self), FrameError> {
         let (slave, data) = Self::LAYOUT.decode_request(frame)?;
         let data = Self::Data::try_from(data)
@@ -50,11 +52,13 @@ pub trait Command: Message {
     /// Writes the reply `response` from `slave` into `out` and returns its
     /// length. A reply is not range-checked: a probe may report values
     /// outside its measuring range.
+    #[inline]
     fn encode_response(response: &Self::Response, slave: u8, out: &mut [u8]) -> Result<usize, EncodeError> {
         Self::LAYOUT.encode_response(slave, response.to_data().as_ref(), out)
     }
 
     /// Checks a reply to a request sent to `slave` and decodes it.
+    #[inline]
     fn decode_response(slave: u8, frame: &[u8]) -> Result<Self::Response, FrameError> {
         let data = Self::LAYOUT.decode_response(slave, frame)?;
         // A trigger's reply is an acknowledgement: whatever registers it
