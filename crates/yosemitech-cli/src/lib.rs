@@ -43,6 +43,7 @@ mod service;
 mod shell;
 mod stored;
 mod time;
+mod timer_slack;
 mod units;
 
 use std::io::{IsTerminal as _, Write as _};
@@ -91,6 +92,7 @@ fn install_panic_hook() {
 /// Runs the tool on the process's arguments: the binary's `main`.
 pub fn main() -> ExitCode {
     install_panic_hook();
+    timer_slack::tighten();
     let cli = cli::Cli::try_parse().unwrap_or_else(|e| help::exit(e));
     init_logging(cli.global.verbose);
     match commands::run(&cli) {
