@@ -221,6 +221,8 @@ fn decode_text(bytes: &[u8]) -> Result<String, BadInput> {
 }
 
 mod accuracy;
+mod annotate;
+mod document;
 mod draft;
 mod edit;
 mod frames;
