@@ -279,7 +279,7 @@ fn example_doc(
     let wrong = [("request", &e.request), ("response", &e.response)]
         .into_iter()
         .filter_map(|(key, f)| Some((key, f.as_ref().filter(|f| f.crc_wrong())?)))
-        .last();
+        .next_back();
     let erratum = wrong.map(|(key, f)| {
         let at = if key == "request" { 0 } else { e.figures.len().saturating_sub(1) };
         let correct = f.computed_crc().unwrap_or([0, 0]);
