@@ -790,7 +790,6 @@ pub struct VariantDoc {
 
 /// A value stated by the manual for an example frame.
 #[derive(Debug, Clone, Deserialize, PartialEq)]
-#[cfg_attr(feature = "serialize", derive(serde::Serialize))]
 #[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[serde(untagged)]
 pub enum StatedValue {
@@ -798,6 +797,21 @@ pub enum StatedValue {
     Number(f64),
     /// Text, a version ("1.1") or an enum variant name.
     Text(String),
+}
+
+/// A whole number is written without a fraction (`20`, not `20.0`), as a
+/// manual prints an address or a count; it reads back as the same number.
+#[cfg(feature = "serialize")]
+impl serde::Serialize for StatedValue {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        // Past 2^53 an f64 no longer holds every integer: keep its own spelling.
+        const EXACT: f64 = 9_007_199_254_740_992.0;
+        match self {
+            Self::Number(n) if n.fract() == 0.0 && n.abs() < EXACT => s.serialize_i64(*n as i64),
+            Self::Number(n) => s.serialize_f64(*n),
+            Self::Text(t) => s.serialize_str(t),
+        }
+    }
 }
 
 /// Whether the manual prints a frame's CRC.

@@ -74,3 +74,14 @@ fn annotate_keeps_every_todo_and_writes_addresses_in_hex() {
     assert!(out.contains("    address: 0x2600\n"), "{out}");
     assert!(out.contains("          address: 12\n"), "a stated value stays decimal: {out}");
 }
+
+#[test]
+fn stated_numbers_read_back_as_written() {
+    use super::super::annotate::yaml_of;
+    for n in [20.0, 17.625, -3.0, 0.1] {
+        let yaml = yaml_of(&StatedValue::Number(n)).expect("serializes");
+        let back: StatedValue = serde_saphyr::from_str(&yaml).expect("reads back");
+        assert_eq!(back, StatedValue::Number(n), "{yaml}");
+        assert_eq!(yaml.trim().contains('.'), n.fract() != 0.0, "a whole number has no fraction: {yaml}");
+    }
+}
