@@ -18,7 +18,9 @@
 //! A draft is made in steps of one module each: `tokens` (a line's cells,
 //! hex bytes and values), `header` (the cover and scope), `frames` (frame
 //! tables), `tables` (register and code tables), `parse` (the command
-//! chapter into `draft`'s types), `render` (the draft as YAML);
+//! chapter into `draft`'s types), `document` (the draft as the spec crate's
+//! document types, with its TODOs at key paths), `annotate` (their YAML with
+//! the TODO comments), `render` (the file);
 //! `accuracy` compares drafts with the reviewed specs.
 //!
 //! `cargo xtask import MANUAL --into spec/NAME.yaml [--out FILE] [--json]`:
@@ -221,6 +223,8 @@ fn decode_text(bytes: &[u8]) -> Result<String, BadInput> {
 }
 
 mod accuracy;
+mod annotate;
+mod document;
 mod draft;
 mod edit;
 mod frames;

@@ -118,7 +118,7 @@ fn a_new_revision_is_merged_reviewed_and_refused_where_it_must_be() {
         "also_in:\n          - {manual: \"3.4\", figures: [9, 10]}",
         "since: \"3.4\"",
         "stop_bits: 2}",
-        "values: {value: 21.5}",
+        "values:\n          value: 21.5",
     ] {
         assert!(merged.contains(want), "the merged spec lacks `{want}`:\n{merged}");
     }

@@ -13,40 +13,45 @@ use yosemitech_rtu::{ByteOrder2, ByteOrder4, Parity};
 
 /// One spec file: a sensor (one vendor manual) or a fragment of shared commands.
 #[derive(Debug, Deserialize)]
+#[cfg_attr(feature = "serialize", derive(serde::Serialize))]
 #[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[serde(deny_unknown_fields)]
 #[cfg_attr(feature = "schema", schemars(title = "Yosemitech Modbus sensor spec"))]
 #[cfg_attr(feature = "schema", schemars(extend("oneOf" = [{"required": ["sensor"]}, {"required": ["fragment"]}])))]
 pub struct SpecFile {
     /// The sensor this file describes. A file has `sensor` or `fragment`, not both.
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub sensor: Option<SensorDoc>,
     /// A file of commands shared by several sensors, included by sensor files.
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub fragment: Option<FragmentDoc>,
     /// Fragment files whose commands this file includes, relative to this
     /// file: a file name (every command), or `{file, only: [names]}`.
-    #[serde(default)]
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
     #[cfg_attr(feature = "schema", schemars(with = "Vec<IncludeSchema>"))]
     pub include: Vec<Spanned<IncludeDoc>>,
     /// The commands: full definitions, or `use:` entries that add this
     /// manual's source and examples to an included command.
-    #[serde(default)]
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub commands: Vec<CommandDoc>,
     /// The manual's measuring procedure, as data.
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub procedure: Option<ProcedureDoc>,
     /// Numbers the manual's procedures use.
-    #[serde(default)]
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub constants: Vec<ConstantDoc>,
     /// Contradictions in the manual that no single command or frame carries.
-    #[serde(default)]
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub errata: Vec<ErratumDoc>,
     /// Measurements the probe does not send, computed from its fields, the
     /// constants and per-station inputs.
-    #[serde(default)]
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub derived: Vec<DerivedDoc>,
 }
 
 /// The sensor a manual describes.
 #[derive(Debug, Deserialize)]
+#[cfg_attr(feature = "serialize", derive(serde::Serialize))]
 #[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[serde(deny_unknown_fields)]
 pub struct SensorDoc {
@@ -61,24 +66,28 @@ pub struct SensorDoc {
     pub doc: Spanned<String>,
     /// The vendor's model name, like `Y520`.
     #[cfg_attr(feature = "schema", schemars(with = "Option<String>"))]
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub model: Option<Spanned<String>>,
     /// The two-digit model code of the serial number (`"09"` in `YL0914010022`).
     #[cfg_attr(feature = "schema", schemars(with = "Option<String>"))]
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub model_code: Option<Spanned<String>>,
     /// Other model codes this model's serial numbers have carried (over the years).
-    #[serde(default)]
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
     #[cfg_attr(feature = "schema", schemars(with = "Vec<String>"))]
     pub also_model_codes: Vec<Spanned<String>>,
     /// Other models that answer with exactly these commands.
-    #[serde(default)]
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub aliases: Vec<AliasDoc>,
     /// The manual whose figure numbers this file cites by default; absent
     /// for a sensor whose facts come from other sources (`provenance`).
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub manual: Option<ManualDoc>,
     /// Where the facts come from when no Modbus manual covers the model.
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub provenance: Option<ProvenanceDoc>,
     /// Other manuals (older or newer firmware) of the same probe.
-    #[serde(default)]
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub revisions: Vec<RevisionDoc>,
     /// Serial line settings (of the newest firmware).
     pub serial: SerialDoc,
@@ -92,6 +101,7 @@ pub struct SensorDoc {
 /// Where facts come from when no Modbus manual states them: the field's
 /// drivers, loggers and issue trackers.
 #[derive(Debug, Deserialize)]
+#[cfg_attr(feature = "serialize", derive(serde::Serialize))]
 #[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[serde(deny_unknown_fields)]
 pub struct ProvenanceDoc {
@@ -100,11 +110,13 @@ pub struct ProvenanceDoc {
     pub sources: Vec<Spanned<String>>,
     /// What the sources say and do not say.
     #[cfg_attr(feature = "schema", schemars(with = "Option<String>"))]
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub doc: Option<Spanned<String>>,
 }
 
 /// Another model that answers with the sensor's commands.
 #[derive(Debug, Deserialize)]
+#[cfg_attr(feature = "serialize", derive(serde::Serialize))]
 #[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[serde(deny_unknown_fields)]
 pub struct AliasDoc {
@@ -113,9 +125,11 @@ pub struct AliasDoc {
     pub model: Spanned<String>,
     /// Its serial numbers' model code, when it differs from the sensor's.
     #[cfg_attr(feature = "schema", schemars(with = "Option<String>"))]
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub model_code: Option<Spanned<String>>,
     /// What sets it apart from the sensor's model.
     #[cfg_attr(feature = "schema", schemars(with = "Option<String>"))]
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub doc: Option<Spanned<String>>,
     /// Where the fact that it shares the commands comes from.
     pub provenance: ProvenanceDoc,
@@ -123,6 +137,7 @@ pub struct AliasDoc {
 
 /// The manual a spec transcribes.
 #[derive(Debug, Deserialize)]
+#[cfg_attr(feature = "serialize", derive(serde::Serialize))]
 #[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[serde(deny_unknown_fields)]
 pub struct ManualDoc {
@@ -134,20 +149,23 @@ pub struct ManualDoc {
     pub revision: Spanned<String>,
     /// The software revision the manual documents, like `"1.7"`.
     #[cfg_attr(feature = "schema", schemars(with = "Option<String>"))]
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub software: Option<Spanned<String>>,
     /// The text extraction the spec was written from.
     #[cfg_attr(feature = "schema", schemars(with = "Option<String>"))]
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub file: Option<Spanned<String>>,
     /// The serial settings this manual (each build of it) states: a claim,
     /// recorded as printed. A client uses the sensor's (or the revision's)
     /// `serial`, not these; two builds of one revision that disagree are two
     /// claims.
-    #[serde(default)]
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub serial_claims: Vec<SerialClaimDoc>,
 }
 
 /// Serial settings a manual states.
 #[derive(Debug, Deserialize)]
+#[cfg_attr(feature = "serialize", derive(serde::Serialize))]
 #[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[serde(deny_unknown_fields)]
 pub struct SerialClaimDoc {
@@ -155,14 +173,17 @@ pub struct SerialClaimDoc {
     pub serial: SerialDoc,
     /// The text extraction of the build that states them, when not the manual's `file`.
     #[cfg_attr(feature = "schema", schemars(with = "Option<String>"))]
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub file: Option<Spanned<String>>,
     /// What is known about this build (its date, where it came from).
     #[cfg_attr(feature = "schema", schemars(with = "Option<String>"))]
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub doc: Option<Spanned<String>>,
 }
 
 /// Another manual of the same probe.
 #[derive(Debug, Deserialize)]
+#[cfg_attr(feature = "serialize", derive(serde::Serialize))]
 #[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[serde(deny_unknown_fields)]
 pub struct RevisionDoc {
@@ -170,8 +191,10 @@ pub struct RevisionDoc {
     pub manual: ManualDoc,
     /// What changed against the file's `manual`.
     #[cfg_attr(feature = "schema", schemars(with = "Option<String>"))]
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub doc: Option<Spanned<String>>,
     /// Serial settings of this firmware, when they differ.
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub serial: Option<SerialDoc>,
 }
 
@@ -232,8 +255,27 @@ impl<'de> Deserialize<'de> for IncludeDoc {
     }
 }
 
+/// An entry that takes every command is written as the bare file name, the
+/// shorter of the two spellings the loader reads.
+#[cfg(feature = "serialize")]
+impl serde::Serialize for IncludeDoc {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        use serde::ser::SerializeMap as _;
+        match &self.only {
+            None => s.serialize_str(&self.file),
+            Some(only) => {
+                let mut map = s.serialize_map(Some(2))?;
+                map.serialize_entry("file", &self.file)?;
+                map.serialize_entry("only", only)?;
+                map.end()
+            }
+        }
+    }
+}
+
 /// Serial line settings.
 #[derive(Debug, Deserialize)]
+#[cfg_attr(feature = "serialize", derive(serde::Serialize))]
 #[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[serde(deny_unknown_fields)]
 pub struct SerialDoc {
@@ -252,6 +294,7 @@ pub struct SerialDoc {
 
 /// Parity bit.
 #[derive(Debug, Clone, Copy, Deserialize, PartialEq, Eq)]
+#[cfg_attr(feature = "serialize", derive(serde::Serialize))]
 #[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[serde(rename_all = "snake_case")]
 pub enum ParityDoc {
@@ -276,6 +319,7 @@ impl ParityDoc {
 
 /// An inclusive range of slave addresses.
 #[derive(Debug, Deserialize)]
+#[cfg_attr(feature = "serialize", derive(serde::Serialize))]
 #[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[serde(deny_unknown_fields)]
 pub struct AddressRangeDoc {
@@ -289,6 +333,7 @@ pub struct AddressRangeDoc {
 
 /// A file of shared commands.
 #[derive(Debug, Deserialize)]
+#[cfg_attr(feature = "serialize", derive(serde::Serialize))]
 #[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[serde(deny_unknown_fields)]
 pub struct FragmentDoc {
@@ -302,6 +347,7 @@ pub struct FragmentDoc {
 
 /// Where in the manual something is documented.
 #[derive(Debug, Clone, Deserialize)]
+#[cfg_attr(feature = "serialize", derive(serde::Serialize))]
 #[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[serde(deny_unknown_fields)]
 pub struct SourceDoc {
@@ -309,15 +355,17 @@ pub struct SourceDoc {
     #[cfg_attr(feature = "schema", schemars(with = "String"))]
     pub section: Spanned<String>,
     /// Figures and tables.
-    #[serde(default)]
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub figures: Vec<FigureDoc>,
     /// The manual (its `software` revision) when not the file's `manual`.
     #[cfg_attr(feature = "schema", schemars(with = "Option<String>"))]
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub manual: Option<Spanned<String>>,
 }
 
 /// A figure reference: `23` (Figure 23), `"T4"` (Table 4), `"43b"` (the second Figure 43).
 #[derive(Debug, Clone, Deserialize, PartialEq, Eq)]
+#[cfg_attr(feature = "serialize", derive(serde::Serialize))]
 #[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[serde(untagged)]
 pub enum FigureDoc {
@@ -358,6 +406,7 @@ pub enum RoleDoc {
 /// What a user calibration block (role `user_calibration`) calibrates,
 /// where the manual says it.
 #[derive(Debug, Deserialize)]
+#[cfg_attr(feature = "serialize", derive(serde::Serialize))]
 #[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[serde(deny_unknown_fields)]
 pub struct CalibratesDoc {
@@ -365,51 +414,60 @@ pub struct CalibratesDoc {
     #[cfg_attr(feature = "schema", schemars(with = "String"))]
     pub field: Spanned<String>,
     /// The standards the manual recommends, in the field's unit.
-    #[serde(default)]
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
     #[cfg_attr(feature = "schema", schemars(with = "Vec<f64>"))]
     pub standards: Vec<Spanned<f64>>,
     /// Milliseconds to let the probe settle in each standard.
     #[cfg_attr(feature = "schema", schemars(with = "Option<u32>"))]
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub settle_ms: Option<Spanned<u32>>,
 }
 
 /// The measuring procedure of a manual.
 #[derive(Debug, Deserialize)]
+#[cfg_attr(feature = "serialize", derive(serde::Serialize))]
 #[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[serde(deny_unknown_fields)]
 pub struct ProcedureDoc {
     /// Where the manual describes it.
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub source: Option<SourceDoc>,
     /// Where its steps and timings come from when no manual states them.
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub provenance: Option<ProvenanceDoc>,
     /// The procedure in words.
     #[cfg_attr(feature = "schema", schemars(with = "Option<String>"))]
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub doc: Option<Spanned<String>>,
     /// Commands sent first, in order (commands that take no values).
-    #[serde(default)]
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
     #[cfg_attr(feature = "schema", schemars(with = "Vec<String>"))]
     pub before: Vec<Spanned<String>>,
     /// Milliseconds to wait after `before`.
     #[serde(default)]
     #[cfg_attr(feature = "schema", schemars(with = "Option<u32>"))]
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub warm_up_ms: Option<Spanned<u32>>,
     /// The reads that give the measurements.
     #[cfg_attr(feature = "schema", schemars(with = "Vec<String>"))]
     pub read: Spanned<Vec<Spanned<String>>>,
     /// Readings to average (default 1).
     #[cfg_attr(feature = "schema", schemars(with = "Option<u32>"))]
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub readings: Option<Spanned<u32>>,
     /// Milliseconds between readings.
     #[cfg_attr(feature = "schema", schemars(with = "Option<u32>"))]
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub interval_ms: Option<Spanned<u32>>,
     /// Commands sent at the end, in order.
-    #[serde(default)]
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
     #[cfg_attr(feature = "schema", schemars(with = "Vec<String>"))]
     pub after: Vec<Spanned<String>>,
 }
 
 /// Read or write.
 #[derive(Debug, Clone, Copy, Deserialize, PartialEq, Eq)]
+#[cfg_attr(feature = "serialize", derive(serde::Serialize))]
 #[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[serde(rename_all = "snake_case")]
 pub enum FunctionDoc {
@@ -421,70 +479,88 @@ pub enum FunctionDoc {
 
 /// A command: a full definition (`name`), or `use` of an included one.
 #[derive(Debug, Deserialize)]
+#[cfg_attr(feature = "serialize", derive(serde::Serialize))]
 #[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[serde(deny_unknown_fields)]
 #[cfg_attr(feature = "schema", schemars(extend("oneOf" = [{"required": ["name"]}, {"required": ["use"]}])))]
 pub struct CommandDoc {
     /// snake_case name of a new command.
     #[cfg_attr(feature = "schema", schemars(with = "Option<String>"))]
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub name: Option<Spanned<String>>,
     /// Name of an included command this entry adds `source`, `examples` and `errata` to.
     #[serde(rename = "use")]
     #[cfg_attr(feature = "schema", schemars(with = "Option<String>"))]
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub uses: Option<Spanned<String>>,
     /// Human title, as in the manual's section heading.
     #[cfg_attr(feature = "schema", schemars(with = "Option<String>"))]
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub title: Option<Spanned<String>>,
     /// The software revision that introduced the command (a manual's `software`).
     #[cfg_attr(feature = "schema", schemars(with = "Option<String>"))]
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub since: Option<Spanned<String>>,
     /// What the command is for, where the simulator or the CLI must know.
     #[cfg_attr(feature = "schema", schemars(with = "Option<RoleDoc>"))]
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub role: Option<Spanned<RoleDoc>>,
     /// Of a user calibration block: the field it calibrates, where the manual says it.
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub calibrates: Option<CalibratesDoc>,
     /// In a `use` entry: the unit this manual states for a field.
     #[cfg_attr(feature = "schema", schemars(with = "Option<BTreeMap<String, String>>"))]
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub units: Option<Spanned<BTreeMap<String, Spanned<String>>>>,
     /// What the command does; becomes the rustdoc.
     #[cfg_attr(feature = "schema", schemars(with = "Option<String>"))]
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub doc: Option<Spanned<String>>,
     /// Where the manual documents it.
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub source: Option<SourceDoc>,
     /// Where its facts come from when no manual states them.
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub provenance: Option<ProvenanceDoc>,
     /// `read` (0x03) or `write` (0x10).
     #[cfg_attr(feature = "schema", schemars(with = "Option<FunctionDoc>"))]
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub function: Option<Spanned<FunctionDoc>>,
     /// First register, as sent on the wire.
     #[cfg_attr(feature = "schema", schemars(with = "Option<u32>"))]
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub address: Option<Spanned<u32>>,
     /// Number of registers.
     #[cfg_attr(feature = "schema", schemars(with = "Option<u32>"))]
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub count: Option<Spanned<u32>>,
     /// A command that carries no value: a write of zero registers, or a read whose reply is ignored.
     #[cfg_attr(feature = "schema", schemars(with = "Option<bool>"))]
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub trigger: Option<Spanned<bool>>,
     /// A slave address the request and the reply always use (e.g. 0xFF).
     #[cfg_attr(feature = "schema", schemars(with = "Option<u32>"))]
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub fixed_slave: Option<Spanned<u32>>,
     /// Byte counts a read reply may carry besides `2 * count`, for firmware quirks.
-    #[serde(default)]
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
     #[cfg_attr(feature = "schema", schemars(with = "Vec<u32>"))]
     pub extra_byte_counts: Vec<Spanned<u32>>,
     /// The register data, in wire order: the reply of a read, the request of a write.
     #[cfg_attr(feature = "schema", schemars(with = "Option<Vec<FieldDoc>>"))]
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub fields: Option<Spanned<Vec<FieldDoc>>>,
     /// Frames printed in the manual.
-    #[serde(default)]
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub examples: Vec<ExampleDoc>,
     /// Places where the manual's command table contradicts its examples.
-    #[serde(default)]
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub errata: Vec<CommandErratumDoc>,
 }
 
 /// The type of a field.
 #[derive(Debug, Clone, Copy, Deserialize, PartialEq, Eq)]
+#[cfg_attr(feature = "serialize", derive(serde::Serialize))]
 #[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[serde(rename_all = "snake_case")]
 pub enum FieldTypeDoc {
@@ -518,6 +594,7 @@ pub enum FieldTypeDoc {
 
 /// Byte order of a multi-byte value, as wire letters (A = most significant).
 #[derive(Debug, Clone, Copy, Deserialize, PartialEq, Eq)]
+#[cfg_attr(feature = "serialize", derive(serde::Serialize))]
 #[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[serde(rename_all = "snake_case")]
 pub enum ByteOrderDoc {
@@ -568,6 +645,7 @@ impl ByteOrderDoc {
 
 /// Text padding byte.
 #[derive(Debug, Clone, Copy, Deserialize, PartialEq, Eq)]
+#[cfg_attr(feature = "serialize", derive(serde::Serialize))]
 #[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[serde(rename_all = "snake_case")]
 pub enum PaddingDoc {
@@ -579,6 +657,7 @@ pub enum PaddingDoc {
 
 /// An inclusive range of valid values.
 #[derive(Debug, Deserialize)]
+#[cfg_attr(feature = "serialize", derive(serde::Serialize))]
 #[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[serde(deny_unknown_fields)]
 pub struct RangeDoc {
@@ -590,11 +669,13 @@ pub struct RangeDoc {
 
 /// One field of register data.
 #[derive(Debug, Deserialize)]
+#[cfg_attr(feature = "serialize", derive(serde::Serialize))]
 #[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[serde(deny_unknown_fields)]
 pub struct FieldDoc {
     /// snake_case name; optional for `reserved`.
     #[cfg_attr(feature = "schema", schemars(with = "Option<String>"))]
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub name: Option<Spanned<String>>,
     /// The value's type.
     #[serde(rename = "type")]
@@ -602,48 +683,61 @@ pub struct FieldDoc {
     pub ty: Spanned<FieldTypeDoc>,
     /// Byte offset in the register data; defaults to right after the previous field.
     #[cfg_attr(feature = "schema", schemars(with = "Option<u32>"))]
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub offset: Option<Spanned<u32>>,
     /// Wire byte order, for 2- and 4-byte numbers.
     #[cfg_attr(feature = "schema", schemars(with = "Option<ByteOrderDoc>"))]
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub byte_order: Option<Spanned<ByteOrderDoc>>,
     /// Bytes, for `ascii`, `enum` and `reserved`.
     #[cfg_attr(feature = "schema", schemars(with = "Option<u32>"))]
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub size: Option<Spanned<u32>>,
     /// Padding of `ascii` text.
     #[cfg_attr(feature = "schema", schemars(with = "Option<PaddingDoc>"))]
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub padding: Option<Spanned<PaddingDoc>>,
     /// Byte written into `reserved` bytes (default 0).
     #[cfg_attr(feature = "schema", schemars(with = "Option<u32>"))]
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub fill: Option<Spanned<u32>>,
     /// Physical unit (pH, mV, degC, mS/cm).
     #[cfg_attr(feature = "schema", schemars(with = "Option<String>"))]
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub unit: Option<Spanned<String>>,
     /// What the value means.
     #[cfg_attr(feature = "schema", schemars(with = "Option<String>"))]
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub doc: Option<Spanned<String>>,
     /// Values a write may send.
     #[cfg_attr(feature = "schema", schemars(with = "Option<RangeDoc>"))]
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub range: Option<Spanned<RangeDoc>>,
     /// The value of natural water the simulator centres a reading on
     /// (default: the middle of `range`). Not a fact of the probe.
     #[cfg_attr(feature = "schema", schemars(with = "Option<f64>"))]
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub typical: Option<Spanned<f64>>,
     /// Named codes of an `enum`.
     #[cfg_attr(feature = "schema", schemars(with = "Option<Vec<VariantDoc>>"))]
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub variants: Option<Spanned<Vec<VariantDoc>>>,
     /// Named bits of a `flags` field.
     #[cfg_attr(feature = "schema", schemars(with = "Option<Vec<FlagDoc>>"))]
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub flags: Option<Spanned<Vec<FlagDoc>>>,
     /// The value read where a sub-probe is not fitted.
     #[cfg_attr(feature = "schema", schemars(with = "Option<f64>"))]
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub absent: Option<Spanned<f64>>,
     /// Values with their bytes, as the manual prints them outside a frame.
-    #[serde(default)]
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub examples: Vec<FieldExampleDoc>,
 }
 
 /// A named bit of a flags field.
 #[derive(Debug, Deserialize)]
+#[cfg_attr(feature = "serialize", derive(serde::Serialize))]
 #[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[serde(deny_unknown_fields)]
 pub struct FlagDoc {
@@ -655,11 +749,13 @@ pub struct FlagDoc {
     pub mask: Spanned<u32>,
     /// What the bit means.
     #[cfg_attr(feature = "schema", schemars(with = "Option<String>"))]
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub doc: Option<Spanned<String>>,
 }
 
 /// A field's value and its bytes, printed outside a frame.
 #[derive(Debug, Deserialize)]
+#[cfg_attr(feature = "serialize", derive(serde::Serialize))]
 #[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[serde(deny_unknown_fields)]
 pub struct FieldExampleDoc {
@@ -670,12 +766,13 @@ pub struct FieldExampleDoc {
     #[cfg_attr(feature = "schema", schemars(with = "StatedValue"))]
     pub value: Spanned<StatedValue>,
     /// Where the manual prints it.
-    #[serde(default)]
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub figures: Vec<FigureDoc>,
 }
 
 /// A named code of an enum field.
 #[derive(Debug, Deserialize)]
+#[cfg_attr(feature = "serialize", derive(serde::Serialize))]
 #[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[serde(deny_unknown_fields)]
 pub struct VariantDoc {
@@ -687,6 +784,7 @@ pub struct VariantDoc {
     pub value: Spanned<u32>,
     /// What the code means.
     #[cfg_attr(feature = "schema", schemars(with = "Option<String>"))]
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub doc: Option<Spanned<String>>,
 }
 
@@ -701,8 +799,24 @@ pub enum StatedValue {
     Text(String),
 }
 
+/// A whole number is written without a fraction (`20`, not `20.0`), as a
+/// manual prints an address or a count; it reads back as the same number.
+#[cfg(feature = "serialize")]
+impl serde::Serialize for StatedValue {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        // Past 2^53 an f64 no longer holds every integer: keep its own spelling.
+        const EXACT: f64 = 9_007_199_254_740_992.0;
+        match self {
+            Self::Number(n) if n.fract() == 0.0 && n.abs() < EXACT => s.serialize_i64(*n as i64),
+            Self::Number(n) => s.serialize_f64(*n),
+            Self::Text(t) => s.serialize_str(t),
+        }
+    }
+}
+
 /// Whether the manual prints a frame's CRC.
 #[derive(Debug, Clone, Copy, Deserialize, PartialEq, Eq)]
+#[cfg_attr(feature = "serialize", derive(serde::Serialize))]
 #[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[serde(rename_all = "snake_case")]
 pub enum CrcDoc {
@@ -714,6 +828,7 @@ pub enum CrcDoc {
 
 /// A frame pair printed in the manual.
 #[derive(Debug, Deserialize)]
+#[cfg_attr(feature = "serialize", derive(serde::Serialize))]
 #[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[serde(deny_unknown_fields)]
 pub struct ExampleDoc {
@@ -721,37 +836,46 @@ pub struct ExampleDoc {
     pub figures: Vec<FigureDoc>,
     /// The manual (its `software` revision) when not the file's `manual`.
     #[cfg_attr(feature = "schema", schemars(with = "Option<String>"))]
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub manual: Option<Spanned<String>>,
     /// The request as printed, hex bytes separated by spaces; `??` for a
     /// placeholder byte, a final `...` for bytes of unknown number.
     #[cfg_attr(feature = "schema", schemars(with = "Option<String>"))]
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub request: Option<Spanned<String>>,
     /// Whether the request's CRC is printed.
     #[cfg_attr(feature = "schema", schemars(with = "Option<CrcDoc>"))]
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub request_crc: Option<Spanned<CrcDoc>>,
     /// The reply as printed, like `request`.
     #[cfg_attr(feature = "schema", schemars(with = "Option<String>"))]
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub response: Option<Spanned<String>>,
     /// Whether the reply's CRC is printed.
     #[cfg_attr(feature = "schema", schemars(with = "Option<CrcDoc>"))]
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub response_crc: Option<Spanned<CrcDoc>>,
     /// The values the manual states, by field name (none for an example
     /// whose frames carry no values).
     #[cfg_attr(feature = "schema", schemars(with = "Option<BTreeMap<String, StatedValue>>"))]
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub values: Option<Spanned<BTreeMap<String, Spanned<StatedValue>>>>,
     /// Remarks on the example.
     #[cfg_attr(feature = "schema", schemars(with = "Option<String>"))]
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub doc: Option<Spanned<String>>,
     /// Where a printed frame contradicts the truth.
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub erratum: Option<ExampleErratumDoc>,
     /// Other manuals that print the same frames, byte for byte: cited with
     /// their own figure numbers instead of copied.
-    #[serde(default)]
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub also_in: Vec<CitationDoc>,
 }
 
 /// Another manual's figures that print an example's frames identically.
 #[derive(Debug, Deserialize)]
+#[cfg_attr(feature = "serialize", derive(serde::Serialize))]
 #[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[serde(deny_unknown_fields)]
 pub struct CitationDoc {
@@ -764,6 +888,7 @@ pub struct CitationDoc {
 
 /// A printed frame that is wrong, and its correction.
 #[derive(Debug, Deserialize)]
+#[cfg_attr(feature = "serialize", derive(serde::Serialize))]
 #[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[serde(deny_unknown_fields)]
 pub struct ExampleErratumDoc {
@@ -778,9 +903,11 @@ pub struct ExampleErratumDoc {
     pub printed: Spanned<String>,
     /// The true request, when the printed request is wrong.
     #[cfg_attr(feature = "schema", schemars(with = "Option<String>"))]
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub corrected_request: Option<Spanned<String>>,
     /// The true reply, when the printed reply is wrong.
     #[cfg_attr(feature = "schema", schemars(with = "Option<String>"))]
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub corrected_response: Option<Spanned<String>>,
     /// Whether our decoder accepts the printed frame as it is.
     #[cfg_attr(feature = "schema", schemars(with = "bool"))]
@@ -789,22 +916,27 @@ pub struct ExampleErratumDoc {
 
 /// What a manual's command table says where it contradicts the examples.
 #[derive(Debug, Deserialize)]
+#[cfg_attr(feature = "serialize", derive(serde::Serialize))]
 #[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[serde(deny_unknown_fields)]
 pub struct TableSaysDoc {
     /// The start address the table prints.
     #[cfg_attr(feature = "schema", schemars(with = "Option<u32>"))]
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub address: Option<Spanned<u32>>,
     /// The register count the table prints.
     #[cfg_attr(feature = "schema", schemars(with = "Option<u32>"))]
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub count: Option<Spanned<u32>>,
     /// The function the table prints.
     #[cfg_attr(feature = "schema", schemars(with = "Option<FunctionDoc>"))]
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub function: Option<Spanned<FunctionDoc>>,
 }
 
 /// A command table that contradicts the command's examples.
 #[derive(Debug, Deserialize)]
+#[cfg_attr(feature = "serialize", derive(serde::Serialize))]
 #[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[serde(deny_unknown_fields)]
 pub struct CommandErratumDoc {
@@ -813,9 +945,11 @@ pub struct CommandErratumDoc {
     pub id: Spanned<String>,
     /// The figure or table with the wrong table; none for a table the manual does not number.
     #[cfg_attr(feature = "schema", schemars(with = "Option<FigureDoc>"))]
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub figure: Option<Spanned<FigureDoc>>,
     /// The manual (its `software` revision) when not the file's `manual`.
     #[cfg_attr(feature = "schema", schemars(with = "Option<String>"))]
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub manual: Option<Spanned<String>>,
     /// What the table prints instead of the truth.
     pub table: TableSaysDoc,
@@ -826,6 +960,7 @@ pub struct CommandErratumDoc {
 
 /// A contradiction in the manual that no command carries.
 #[derive(Debug, Deserialize)]
+#[cfg_attr(feature = "serialize", derive(serde::Serialize))]
 #[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[serde(deny_unknown_fields)]
 pub struct ErratumDoc {
@@ -833,13 +968,14 @@ pub struct ErratumDoc {
     #[cfg_attr(feature = "schema", schemars(with = "String"))]
     pub id: Spanned<String>,
     /// Figures or tables concerned.
-    #[serde(default)]
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub figures: Vec<FigureDoc>,
     /// The manual (its `software` revision) when not the file's `manual`.
     #[cfg_attr(feature = "schema", schemars(with = "Option<String>"))]
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub manual: Option<Spanned<String>>,
     /// Manual sections concerned.
-    #[serde(default)]
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub sections: Vec<String>,
     /// What the manual says and what the spec takes as the truth.
     #[cfg_attr(feature = "schema", schemars(with = "String"))]
@@ -848,6 +984,7 @@ pub struct ErratumDoc {
 
 /// The Rust type of a constant.
 #[derive(Debug, Clone, Copy, Deserialize, PartialEq, Eq)]
+#[cfg_attr(feature = "serialize", derive(serde::Serialize))]
 #[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[serde(rename_all = "snake_case")]
 pub enum ConstantTypeDoc {
@@ -863,6 +1000,7 @@ pub enum ConstantTypeDoc {
 
 /// A number a procedure uses.
 #[derive(Debug, Deserialize)]
+#[cfg_attr(feature = "serialize", derive(serde::Serialize))]
 #[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[serde(deny_unknown_fields)]
 pub struct ConstantDoc {
@@ -875,22 +1013,27 @@ pub struct ConstantDoc {
     pub ty: Spanned<ConstantTypeDoc>,
     /// A single value (exactly one of `value` and `values`).
     #[cfg_attr(feature = "schema", schemars(with = "Option<f64>"))]
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub value: Option<Spanned<f64>>,
     /// A list of values, in order.
     #[cfg_attr(feature = "schema", schemars(with = "Option<Vec<f64>>"))]
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub values: Option<Spanned<Vec<f64>>>,
     /// Unit.
     #[cfg_attr(feature = "schema", schemars(with = "Option<String>"))]
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub unit: Option<Spanned<String>>,
     /// What it is for.
     #[cfg_attr(feature = "schema", schemars(with = "String"))]
     pub doc: Spanned<String>,
     /// Where the manual states it.
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub source: Option<SourceDoc>,
 }
 
 /// A derived quantity: a formula over fields, constants and station inputs.
 #[derive(Debug, Deserialize)]
+#[cfg_attr(feature = "serialize", derive(serde::Serialize))]
 #[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[serde(deny_unknown_fields)]
 pub struct DerivedDoc {
@@ -902,11 +1045,13 @@ pub struct DerivedDoc {
     pub title: Spanned<String>,
     /// The result's unit, checked against the formula's.
     #[cfg_attr(feature = "schema", schemars(with = "Option<String>"))]
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub unit: Option<Spanned<String>>,
     /// What the quantity is.
     #[cfg_attr(feature = "schema", schemars(with = "String"))]
     pub doc: Spanned<String>,
     /// Where the manual gives the formula.
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub source: Option<SourceDoc>,
     /// The formula's inputs, in parameter order.
     #[cfg_attr(feature = "schema", schemars(with = "Vec<DerivedInputDoc>"))]
@@ -916,12 +1061,13 @@ pub struct DerivedDoc {
     #[cfg_attr(feature = "schema", schemars(with = "String"))]
     pub expr: Spanned<String>,
     /// Values computed independently, each with its source.
-    #[serde(default)]
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub examples: Vec<DerivedExampleDoc>,
 }
 
 /// One input of a derived quantity: a field of a read, or a station value.
 #[derive(Debug, Deserialize)]
+#[cfg_attr(feature = "serialize", derive(serde::Serialize))]
 #[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[serde(deny_unknown_fields)]
 #[cfg_attr(feature = "schema", schemars(extend("oneOf" = [{"required": ["field"]}, {"required": ["station"]}])))]
@@ -931,23 +1077,29 @@ pub struct DerivedInputDoc {
     pub name: Spanned<String>,
     /// `command.field` of a read of the sensor.
     #[cfg_attr(feature = "schema", schemars(with = "Option<String>"))]
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub field: Option<Spanned<String>>,
     /// The station input's name (`salinity`, `barometric_pressure`).
     #[cfg_attr(feature = "schema", schemars(with = "Option<String>"))]
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub station: Option<Spanned<String>>,
     /// The unit of a station input (a field input has its field's).
     #[cfg_attr(feature = "schema", schemars(with = "Option<String>"))]
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub unit: Option<Spanned<String>>,
     /// The value used when a station gives none.
     #[cfg_attr(feature = "schema", schemars(with = "Option<f64>"))]
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub default: Option<Spanned<f64>>,
     /// The values the formula takes; others make the quantity not computable.
     #[cfg_attr(feature = "schema", schemars(with = "Option<RangeDoc>"))]
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub range: Option<Spanned<RangeDoc>>,
 }
 
 /// A value of a derived quantity computed independently of the formula.
 #[derive(Debug, Deserialize)]
+#[cfg_attr(feature = "serialize", derive(serde::Serialize))]
 #[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[serde(deny_unknown_fields)]
 pub struct DerivedExampleDoc {
@@ -959,6 +1111,7 @@ pub struct DerivedExampleDoc {
     pub value: Spanned<f64>,
     /// How far the formula's value may be from `value`.
     #[cfg_attr(feature = "schema", schemars(with = "Option<f64>"))]
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub tolerance: Option<Spanned<f64>>,
     /// Where the value comes from.
     #[cfg_attr(feature = "schema", schemars(with = "String"))]

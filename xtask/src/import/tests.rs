@@ -3,7 +3,9 @@
 
 use super::accuracy::{accuracy_all, table};
 use super::*;
+use yosemitech_spec::document::{CrcDoc, ParityDoc, SpecFile, StatedValue};
 
+mod annotate;
 mod into;
 
 /// A made-up manual in the template's shape (no vendor text).
@@ -20,6 +22,11 @@ fn import(text: &str) -> Result<Draft, BadInput> {
     import_with(text, "probe", "test.txt", &[])
 }
 
+/// The draft read back as the spec's document types.
+fn document(d: &Draft) -> SpecFile {
+    serde_saphyr::from_str(&d.yaml).unwrap_or_else(|e| panic!("the draft parses back: {e}\n{}", d.yaml))
+}
+
 #[test]
 fn synthetic_manual_is_drafted() {
     let crc = yosemitech_rtu::crc16(&[0x01, 0x03, 0x26, 0x00, 0x00, 0x02]).to_le_bytes();
@@ -33,10 +40,19 @@ fn synthetic_manual_is_drafted() {
     let e = &c.examples[0];
     assert!(e.request.as_ref().is_some_and(DraftFrame::crc_verified));
     assert_eq!(e.response.as_ref().map(DraftFrame::text).as_deref(), Some("01 03 04 00 00 8D 41"));
-    assert!(d.yaml.contains("response_crc: missing"), "{}", d.yaml);
-    assert!(d.yaml.contains("revision: \"HW Rev2.0 / SW Rev3.4 or later\""), "{}", d.yaml);
-    assert!(d.yaml.contains("serial: {baud: 19200, data_bits: 8, parity: none, stop_bits: 1}"), "{}", d.yaml);
-    assert!(d.yaml.contains("values: {level: 17.625}"), "{}", d.yaml);
+    let doc = document(&d);
+    let sensor = doc.sensor.as_ref().expect("a sensor file");
+    let manual = sensor.manual.as_ref().expect("the manual is cited");
+    assert_eq!(manual.revision.value, "HW Rev2.0 / SW Rev3.4 or later");
+    let serial = &sensor.serial;
+    assert_eq!(
+        (serial.baud.value, serial.data_bits.value, serial.parity, serial.stop_bits.value),
+        (19200, 8, ParityDoc::None, 1)
+    );
+    let example = &doc.commands[0].examples[0];
+    assert_eq!(example.response_crc.as_ref().map(|c| c.value), Some(CrcDoc::Missing));
+    let values = example.values.as_ref().expect("the stated values");
+    assert_eq!(values.value.get("level").map(|v| &v.value), Some(&StatedValue::Number(17.625)));
     let r = d.report();
     assert!(r.contains("frames found: 2; CRC verified: 1; CRC wrong: 0 (drafted as errata); without CRC: 1"), "{r}");
 }
@@ -45,10 +61,13 @@ fn synthetic_manual_is_drafted() {
 fn wrong_crc_becomes_an_erratum_with_the_right_crc() {
     let d = import(&synthetic("0x12  0x34")).expect("imports");
     let crc = yosemitech_rtu::crc16(&[0x01, 0x03, 0x26, 0x00, 0x00, 0x02]).to_le_bytes();
-    assert!(d.yaml.contains("request: \"01 03 26 00 00 02 12 34\""), "{}", d.yaml);
-    let corrected = format!("corrected_request: \"01 03 26 00 00 02 {:02X} {:02X}\"", crc[0], crc[1]);
-    assert!(d.yaml.contains(&corrected), "{}", d.yaml);
-    assert!(d.yaml.contains("printed_decodes: false"));
+    let doc = document(&d);
+    let example = &doc.commands[0].examples[0];
+    assert_eq!(example.request.as_ref().map(|r| r.value.as_str()), Some("01 03 26 00 00 02 12 34"));
+    let erratum = example.erratum.as_ref().expect("the wrong CRC is an erratum");
+    let corrected = format!("01 03 26 00 00 02 {:02X} {:02X}", crc[0], crc[1]);
+    assert_eq!(erratum.corrected_request.as_ref().map(|r| r.value.as_str()), Some(corrected.as_str()));
+    assert!(!erratum.printed_decodes.value);
     assert!(d.report().contains("CRC wrong: 1"), "{}", d.report());
 }
 
