@@ -101,3 +101,67 @@ pub fn explain_capture<'c>(commands: &Commands<'c>, lines: &[Line<'_>]) -> (Vec<
     };
     (found.into_iter().map(|f| exchange::report(commands, f)).collect(), mode)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::catalog::Catalog;
+
+    /// Where each piece of an explanation lies: (offset, length).
+    fn pieces(explanation: &Explanation<'_>, len: usize) -> Vec<(usize, usize)> {
+        let mut pieces: Vec<(usize, usize)> = match explanation {
+            Explanation::TooShort(_) | Explanation::Frame(_) => {
+                vec![(0, len)].into_iter().filter(|&(_, n)| n > 0).collect()
+            }
+            Explanation::Exchange(x) => {
+                x.request.iter().map(|(f, _)| f).chain(&x.reply).map(|f| (f.place.offset, f.bytes.len())).collect()
+            }
+            Explanation::Stream(reports) => reports
+                .iter()
+                .flat_map(|r| match r {
+                    Report::Exchange(x) => x.request.iter().map(|(f, _)| f).chain(&x.reply).collect::<Vec<_>>(),
+                    Report::Noise(f) => vec![f],
+                    Report::Unreadable { .. } => Vec::new(),
+                })
+                .map(|f| (f.place.offset, f.bytes.len()))
+                .collect(),
+        };
+        pieces.sort_unstable();
+        pieces
+    }
+
+    /// Every sensor's printed frames in one stream, with a byte of noise
+    /// after each: the entries cover every byte exactly once, and each
+    /// frame is an entry's request or reply.
+    #[test]
+    fn a_stream_of_every_printed_frame_is_covered_exactly() {
+        let catalog = Catalog::load(&[]).unwrap();
+        let commands = Commands::new(catalog.entries().iter().map(|e| &*e.sensor));
+        for entry in catalog.entries() {
+            let mut bytes = Vec::new();
+            let mut starts = Vec::new();
+            for c in &entry.sensor.commands {
+                for e in &c.examples {
+                    for frame in [e.true_request(), e.true_response()].into_iter().flatten() {
+                        starts.push(bytes.len());
+                        bytes.extend_from_slice(frame);
+                        bytes.push(0xEE);
+                    }
+                }
+            }
+            let explanation = explain(&commands, &bytes);
+            let mut at = 0;
+            for (offset, len) in pieces(&explanation, bytes.len()) {
+                assert_eq!((offset, len > 0), (at, true), "{}: a gap or an overlap at byte {at}", entry.sensor.name);
+                at += len;
+            }
+            assert_eq!(at, bytes.len(), "{}: the entries stop short", entry.sensor.name);
+            if let Explanation::Stream(_) = explanation {
+                let framed: Vec<usize> = pieces(&explanation, bytes.len()).iter().map(|&(offset, _)| offset).collect();
+                for start in &starts {
+                    assert!(framed.contains(start), "{}: no entry starts at the frame at {start}", entry.sensor.name);
+                }
+            }
+        }
+    }
+}
