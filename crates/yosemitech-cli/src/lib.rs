@@ -1,6 +1,8 @@
 //! `yosemitech`: the field tool for Yosemitech water-quality probes on Modbus RTU.
 //!
-//! Every subcommand is in the `commands` module; the command line is in `cli`. The
+//! Every subcommand is in the `commands` module with its arguments; the top
+//! of the command line (the global options, the list of subcommands) is in
+//! `cli`, the argument groups several subcommands share in `args`. The
 //! spec files of the workspace's `spec/` directory are compiled in
 //! (the `catalog` module); `--spec DIR` adds more at run time. Generic commands go
 //! through the spec's reference interpreter and `Client::call_raw`: `scan`
@@ -23,6 +25,7 @@
 //! nothing the user, a device or a file supplies can make it panic.
 #![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used, clippy::panic))]
 
+mod args;
 mod backup;
 mod catalog;
 mod chart;

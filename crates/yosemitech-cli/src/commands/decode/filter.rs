@@ -4,7 +4,7 @@
 use yosemitech_spec::suggest::closest;
 
 use crate::catalog::Catalog;
-use crate::cli::DecodeArgs;
+use crate::commands::decode::DecodeArgs;
 use crate::error::{CliError, Result};
 use crate::explain::Commands;
 

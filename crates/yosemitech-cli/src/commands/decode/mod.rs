@@ -17,7 +17,6 @@ use std::path::Path;
 use serde_json::{Value as Json, json};
 
 use crate::catalog::Catalog;
-use crate::cli::{DecodeArgs, DecodeCommandArgs};
 use crate::error::{CliError, Kind as ErrorKind, Result};
 
 use crate::explain::{CaptureMode, Explanation, explain, explain_capture};
@@ -26,6 +25,36 @@ use self::filter::commands;
 use self::input::{Input, parse_hex, read_capture, read_lines};
 use self::print::{print_pair, print_reports};
 use self::single::print_frame;
+use clap::Args;
+use std::path::PathBuf;
+
+/// `decode`: the frames and how to read them.
+#[derive(Args, Debug)]
+pub struct DecodeArgs {
+    /// Frames in hex: one frame, a request and its reply, or a stream (arguments are joined).
+    #[arg(value_name = "HEX", required_unless_present = "capture", conflicts_with = "capture", num_args = 1..)]
+    pub hex: Vec<String>,
+    /// Only consider this sensor's commands.
+    #[arg(long, value_name = "SENSOR")]
+    pub sensor: Option<String>,
+    /// Decode as this command.
+    #[arg(long, value_name = "COMMAND")]
+    pub command: Option<String>,
+    /// Print JSON (one document; JSON lines for several transactions and captures).
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// `decode` on the command line: [`DecodeArgs`] and a capture file.
+#[derive(Args, Debug)]
+pub struct DecodeCommandArgs {
+    /// The frames and options.
+    #[command(flatten)]
+    pub frames: DecodeArgs,
+    /// Read a capture from FILE (`-`: stdin): one frame per line, or a hex stream.
+    #[arg(long, value_name = "FILE")]
+    pub capture: Option<PathBuf>,
+}
 
 /// The error as JSON: what `--json` prints instead of (and besides) the `error:` line.
 fn error_json(e: &CliError) -> Json {
