@@ -602,15 +602,19 @@ fn check_explanation(bytes: &[u8]) {
         Explanation::Frame(frame) => assert_eq!(frame.bytes, bytes, "a frame on its own is not the bytes"),
         Explanation::Exchange(x) => {
             let parts = x.request.iter().map(|(f, _)| f).chain(&x.reply);
-            assert_eq!(parts.flat_map(|f| f.bytes.iter().copied()).collect::<Vec<u8>>(), bytes, "an exchange is not the bytes");
+            assert_eq!(
+                parts.flat_map(|f| f.bytes.iter().copied()).collect::<Vec<u8>>(),
+                bytes,
+                "an exchange is not the bytes"
+            );
         }
         Explanation::Stream(reports) => {
             let mut pieces: Vec<(usize, usize)> = Vec::new();
             for r in &reports {
                 match r {
-                    Report::Exchange(x) => {
-                        pieces.extend(x.request.iter().map(|(f, _)| f).chain(&x.reply).map(|f| (f.place.offset, f.bytes.len())))
-                    }
+                    Report::Exchange(x) => pieces.extend(
+                        x.request.iter().map(|(f, _)| f).chain(&x.reply).map(|f| (f.place.offset, f.bytes.len())),
+                    ),
                     Report::Noise(f) => pieces.push((f.place.offset, f.bytes.len())),
                     Report::Unreadable { .. } => panic!("bytes read as an unreadable line"),
                 }
