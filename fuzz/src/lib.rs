@@ -12,7 +12,7 @@
 //! | [`decode_response`] | slave byte + frame | typed decoding of every command of every sensor agrees with the reference interpreter; anything accepted re-encodes to the same frame |
 //! | [`frame_reader`] | header + stale bytes + reply stream, split into chunks | the client's reader never panics or hangs, returns a value only for a valid frame it was sent, and accepts a clean reply |
 //! | [`spec_loader`] | two YAML files | the loader never panics; what it accepts generates code that parses |
-//! | [`cli_decode`] | hex text | the CLI's `decode` path: hex parsing, classification and interpretation against every spec command |
+//! | [`cli_decode`] | hex text | the decode library's explanation (`yosemitech_cli::explain`): segmenting, pairing, classification and interpretation against every spec command; its entries cover the bytes exactly |
 //! | [`segmenter`] | chunk size + bytes | the frame segmenter's spans cover the bytes exactly, frames hold their CRC, and chunked reads find the same spans |
 
 use std::io;
@@ -551,10 +551,11 @@ pub fn spec_loader(data: &[u8]) {
 // ---------------------------------------------------------------------------
 // cli_decode
 
-/// Input: text, as typed after `yosemitech decode`. Runs the CLI's own
-/// decode path ([`yosemitech_cli::decode_text`]: its hex parser, frame
-/// classification, interpretation against every spec command and output, as
-/// text and as JSON), then the generated decoders on the same frame
+/// Input: text, as typed after `yosemitech decode`. Explains the bytes
+/// with the decode library ([`yosemitech_cli::explain`]: segmenting,
+/// pairing, classification and interpretation against every spec command,
+/// and a frame on its own) and checks that the explanation covers every
+/// byte exactly once, then runs the generated decoders on the same frame
 /// ([`decode_response`]) and the interpreter on every command.
 pub fn cli_decode(data: &[u8]) {
     let text = String::from_utf8_lossy(data);
@@ -563,15 +564,10 @@ pub fn cli_decode(data: &[u8]) {
         assert!(!bytes.is_empty() && bytes.len() <= MAX_ADU);
         assert_eq!(parse_hex(&Hex(&bytes).to_string()).as_deref(), Ok(&bytes[..]), "hex does not round-trip");
     }
-    let mut shown = Vec::new();
-    let outcome = yosemitech_cli::decode_text(&text, false, &mut shown);
-    let mut json = Vec::new();
-    let json_outcome = yosemitech_cli::decode_text(&text, true, &mut json);
-    assert_eq!(outcome.is_ok(), json_outcome.is_ok(), "text and JSON output disagree on {text:?}");
-    let Ok(frame) = yosemitech_cli::parse_frame(&text) else {
-        assert!(outcome.is_err(), "decode accepted text its parser refuses: {text:?}");
-        return;
-    };
+    // Text the parser refuses is explained as its raw bytes.
+    let parsed = yosemitech_cli::parse_frame(&text);
+    check_explanation(parsed.as_deref().unwrap_or(data));
+    let Ok(frame) = parsed else { return };
     assert!(!frame.is_empty() && frame.len() <= MAX_ADU);
     if frame.len() < 4 {
         return; // The CLI refuses these before looking at them.
@@ -593,6 +589,45 @@ pub fn cli_decode(data: &[u8]) {
     }
     // The generated side must agree with the interpreter on this frame too.
     check_all_sensors(frame[0], &frame);
+}
+
+/// Explains `bytes` against every spec command and checks what the
+/// explanation says about them: a frame on its own is all the bytes, and a
+/// stream's entries cover every byte exactly once.
+fn check_explanation(bytes: &[u8]) {
+    use yosemitech_cli::explain::{Commands, Explanation, Report, explain};
+    let commands = Commands::new(&spec().sensors);
+    match explain(&commands, bytes) {
+        Explanation::TooShort(len) => assert!(len == bytes.len() && len < 4, "too short at {len} bytes"),
+        Explanation::Frame(frame) => assert_eq!(frame.bytes, bytes, "a frame on its own is not the bytes"),
+        Explanation::Exchange(x) => {
+            let parts = x.request.iter().map(|(f, _)| f).chain(&x.reply);
+            assert_eq!(
+                parts.flat_map(|f| f.bytes.iter().copied()).collect::<Vec<u8>>(),
+                bytes,
+                "an exchange is not the bytes"
+            );
+        }
+        Explanation::Stream(reports) => {
+            let mut pieces: Vec<(usize, usize)> = Vec::new();
+            for r in &reports {
+                match r {
+                    Report::Exchange(x) => pieces.extend(
+                        x.request.iter().map(|(f, _)| f).chain(&x.reply).map(|f| (f.place.offset, f.bytes.len())),
+                    ),
+                    Report::Noise(f) => pieces.push((f.place.offset, f.bytes.len())),
+                    Report::Unreadable { .. } => panic!("bytes read as an unreadable line"),
+                }
+            }
+            pieces.sort_unstable();
+            let mut at = 0;
+            for (offset, len) in pieces {
+                assert!(offset == at && len > 0, "entries leave a gap or overlap at byte {at} of {}", Hex(bytes));
+                at += len;
+            }
+            assert_eq!(at, bytes.len(), "entries do not reach the end of {}", Hex(bytes));
+        }
+    }
 }
 
 // ---------------------------------------------------------------------------

@@ -17,9 +17,9 @@ use yosemitech_spec::{Role, Value};
 use yosemitech_station::config::{self, ConfigErrors};
 use yosemitech_station::{Calibration, Store};
 
+use crate::args::HistoryArgs;
 use crate::backup::Blocks;
 use crate::catalog::{Catalog, Entry};
-use crate::cli::HistoryArgs;
 use crate::device;
 use crate::error::{CliError, Result};
 use crate::format::f32_json;

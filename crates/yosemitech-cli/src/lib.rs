@@ -1,6 +1,8 @@
 //! `yosemitech`: the field tool for Yosemitech water-quality probes on Modbus RTU.
 //!
-//! Every subcommand is in the `commands` module; the command line is in `cli`. The
+//! Every subcommand is in the `commands` module with its arguments; the top
+//! of the command line (the global options, the list of subcommands) is in
+//! `cli`, the argument groups several subcommands share in `args`. The
 //! spec files of the workspace's `spec/` directory are compiled in
 //! (the `catalog` module); `--spec DIR` adds more at run time. Generic commands go
 //! through the spec's reference interpreter and `Client::call_raw`: `scan`
@@ -14,14 +16,16 @@
 //! data (`readings`), which `dashboard` draws on a terminal and `chart` into
 //! a PNG or SVG file.
 //!
-//! The binary is a thin `main` over [`main`]; [`decode_text`] exposes the
-//! `decode` subcommand's path to the fuzzer.
+//! The binary is a thin `main` over [`main`]. What `decode` prints is the
+//! [`explain`] module's value for the bytes, a library of its own: the
+//! fuzzer drives it.
 //!
 //! Errors are one `error:` line and one `hint:` line on stderr (the `error` module),
 //! with exit code 1 for device and protocol errors and 2 for usage errors;
 //! nothing the user, a device or a file supplies can make it panic.
 #![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used, clippy::panic))]
 
+mod args;
 mod backup;
 mod catalog;
 mod chart;
@@ -33,6 +37,7 @@ mod derived;
 mod device;
 mod doctor;
 mod error;
+pub mod explain;
 mod format;
 mod help;
 mod history;
@@ -48,8 +53,6 @@ mod units;
 
 use std::io::{IsTerminal as _, Write as _};
 use std::process::ExitCode;
-
-use std::sync::OnceLock;
 
 use clap::Parser;
 use tracing_subscriber::EnvFilter;
@@ -109,18 +112,6 @@ pub fn main() -> ExitCode {
 /// serves without `--spec`, and what the fuzz targets load.
 pub fn embedded_spec() -> &'static [(&'static str, &'static str)] {
     catalog::EMBEDDED_SPEC
-}
-
-/// Runs `yosemitech decode TEXT [--json]` against the built-in spec, writing
-/// what the tool prints to `out`, and returns the message the tool would put
-/// on stderr, if any. The fuzz target `cli_decode` drives the CLI's own
-/// hex decode path through this.
-pub fn decode_text(text: &str, json: bool, out: &mut dyn std::io::Write) -> Result<(), String> {
-    static CATALOG: OnceLock<Result<catalog::Catalog, String>> = OnceLock::new();
-    let catalog = CATALOG.get_or_init(|| catalog::Catalog::load(&[]).map_err(|e| e.to_string()));
-    let catalog = catalog.as_ref().map_err(Clone::clone)?;
-    let args = cli::DecodeArgs { hex: vec![text.to_owned()], sensor: None, command: None, json };
-    commands::decode::run(catalog, &args, out).map_err(|e| e.to_string())
 }
 
 /// The name of the sensor `yosemitech calibrate ph` drives: the built-in

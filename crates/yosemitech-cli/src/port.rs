@@ -10,7 +10,7 @@ use yosemitech_rtu::{
     Client, ClientConfig, LineSettings, RetryPolicy, SerialConfig, SerialTransport, TcpTransport, Transport,
 };
 
-use crate::cli::Global;
+use crate::args::Global;
 use crate::error::{CliError, Context, Result};
 
 /// A client on any transport.

@@ -19,8 +19,9 @@ use yosemitech_spec::{CommandSpec, Sensor};
 
 use super::scan::{self, Identification};
 use super::set_address::{ChangeFrames, address_commands, explain, pick_commands};
+use crate::args::Global;
 use crate::catalog::Catalog;
-use crate::cli::{Global, SetAddressArgs};
+use crate::commands::set_address::SetAddressArgs;
 use crate::confirm::{confirm, ensure_can_ask};
 use crate::error::{CliError, Result};
 use crate::port::{self, check_address};

@@ -15,15 +15,97 @@ use yosemitech::procedures::coefficients::PhOrpCoefficients;
 use yosemitech::procedures::ph::{CalibrationConfig, CalibrationGuide, calibrate, explain};
 use yosemitech::procedures::{ProcedureError, RealSleep, Sleep};
 
+use crate::args::Global;
+use crate::args::HistoryArgs;
 use crate::backup::{self, Backup};
 use crate::catalog::{Catalog, Entry};
-use crate::cli::{CalibratePhArgs, Global};
+use crate::commands::calibrate_linear::CalibrateLinearArgs;
+use crate::commands::calibration_history::CalibrateHistoryArgs;
+use crate::commands::calibration_history::CalibrateRestoreArgs;
 use crate::confirm::{confirm, ensure_can_ask};
 use crate::device::{is_typed, procedure_failed};
 use crate::error::{CliError, Result, show_duration};
 use crate::history::{self, Probe};
+use crate::port::AddressArg;
 use crate::port::Opened;
+use crate::port::PortArgs;
 use crate::{port, progress};
+use clap::Args;
+use std::path::PathBuf;
+
+/// `calibrate`: a subcommand, or the K/B calibration of a sensor.
+#[derive(Args, Debug)]
+#[command(args_conflicts_with_subcommands = true, subcommand_negates_reqs = true)]
+pub struct CalibrateArgs {
+    /// A calibration of its own.
+    #[command(subcommand)]
+    pub command: Option<CalibrateSubcommand>,
+    /// The K/B calibration.
+    #[command(flatten)]
+    pub linear: CalibrateLinearArgs,
+}
+
+/// `calibrate`'s own calibrations.
+#[derive(clap::Subcommand, Debug)]
+pub enum CalibrateSubcommand {
+    /// Guided three-point pH calibration (buffers 4.00, 6.86, 9.18).
+    #[command(long_about = "\
+The pH manual's three-point calibration. Every coefficient is first saved to a JSON file
+(the calibration stops if it cannot be saved) and the command that restores it is printed.
+Then, for each buffer in order (4.00, 6.86, 9.18 at 25 °C): put the probe in it and press
+Enter (q quits), wait for it to settle (a minute; a progress bar shows it; Enter on a
+terminal or --skip-wait skips), and the buffer's pH is written. Finally the probe's
+calibration status is read and explained.")]
+    Ph(CalibratePhArgs),
+    /// List the calibrations recorded (every `calibrate` records its own).
+    #[command(long_about = "\
+List the calibrations recorded: id, time, sensor, serial number, kind, the coefficients
+written and the note. --json prints everything kept, every reading taken and the fit
+included. The history is the station's store with --config, the file --history names, or
+calibrations.sqlite in the user's data directory.")]
+    History(CalibrateHistoryArgs),
+    /// Write the coefficients of an earlier calibration back to its probe.
+    #[command(long_about = "\
+Write the coefficients an earlier calibration wrote (`calibrate history` lists the ids) back
+to the probe: the probe's serial number must be the calibration's, every coefficient is saved
+to a JSON file first, the write is confirmed (--yes), read back bit for bit, and recorded
+in the history as a calibration of kind `restore`.")]
+    Restore(CalibrateRestoreArgs),
+}
+
+/// `calibrate ph`.
+#[derive(Args, Debug)]
+pub struct CalibratePhArgs {
+    #[command(flatten)]
+    pub port: PortArgs,
+    #[command(flatten)]
+    pub address: AddressArg,
+    /// Do not wait for the probe to settle in each buffer.
+    #[arg(long)]
+    pub skip_wait: bool,
+    /// Start without asking (the buffer prompts still read stdin).
+    #[arg(short, long)]
+    pub yes: bool,
+    /// Where to save the coefficient backup [default: the current directory].
+    #[arg(long, value_name = "DIR")]
+    pub backup_dir: Option<PathBuf>,
+    /// Compute the electrode coefficients K1..K6 here, by the vendor's
+    /// model, from the potential and temperature read in each buffer,
+    /// instead of the probe's own calibration; show them against the
+    /// probe's and write them after a confirmation.
+    #[arg(long)]
+    pub compute: bool,
+    /// With --compute: the readings of each buffer from a CSV file
+    /// (`buffer,mv,temperature_c`, one line per buffer, 4.00, 6.86, 9.18),
+    /// taken with another tool. Without --port nothing is written.
+    #[arg(long, value_name = "FILE")]
+    pub readings: Option<PathBuf>,
+    /// With --compute: print the readings and the coefficients as JSON.
+    #[arg(long)]
+    pub json: bool,
+    #[command(flatten)]
+    pub history: HistoryArgs,
+}
 
 /// The sensor `calibrate ph` drives: the pH manual's, whose typed device the
 /// procedure takes.

@@ -17,8 +17,9 @@ use yosemitech::procedures::{RealSleep, Sleep, same_bits};
 use yosemitech::{Command, ph_orp};
 
 use super::calibrate::{SENSOR, save_backup, stdin_lines};
+use crate::args::Global;
 use crate::catalog::Catalog;
-use crate::cli::{CalibratePhArgs, Global};
+use crate::commands::calibrate::CalibratePhArgs;
 use crate::confirm::ensure_can_ask;
 use crate::device::is_typed;
 use crate::error::{CliError, Result, request_failed, show_duration};

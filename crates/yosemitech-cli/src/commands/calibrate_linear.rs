@@ -25,15 +25,70 @@ use serde_json::{Map, json};
 use yosemitech_station::Calibration;
 
 use super::calibrate::stdin_lines;
+use crate::args::Global;
+use crate::args::HistoryArgs;
 use crate::backup::{self, Backup};
 use crate::catalog::Catalog;
-use crate::cli::{CalibrateLinearArgs, Global};
 use crate::confirm::{confirm, ensure_can_ask};
 use crate::device;
 use crate::error::{CliError, Result, show_duration};
 use crate::format::f32_json;
+use crate::format::parse_duration;
 use crate::history::{self, Probe};
+use crate::port::AddressArg;
+use crate::port::PortArgs;
 use crate::port::{self, Opened};
+use clap::Args;
+use std::path::PathBuf;
+
+/// `calibrate SENSOR`: the K/B calibration.
+#[derive(Args, Debug, Default)]
+pub struct CalibrateLinearArgs {
+    /// Sensor whose user calibration block to calibrate.
+    pub sensor: Option<String>,
+    #[command(flatten)]
+    pub port: PortArgs,
+    #[command(flatten)]
+    pub address: AddressArg,
+    /// A standard's value, in the calibrated field's unit, in the order the
+    /// probe goes into them; repeatable (one: an offset; two or more: a line).
+    #[arg(long = "standard", value_name = "VALUE", allow_negative_numbers = true)]
+    pub standards: Vec<f64>,
+    /// The measured field the block calibrates, where the spec does not say,
+    /// or to pick one of several blocks.
+    #[arg(long, value_name = "FIELD")]
+    pub quantity: Option<String>,
+    /// Readings averaged in each standard.
+    #[arg(long, value_name = "N", default_value_t = 5)]
+    pub readings: u32,
+    /// Time between two readings.
+    #[arg(long, value_name = "DURATION", default_value = "1s", value_parser = parse_duration)]
+    pub interval: Duration,
+    /// Readings the stability is judged over.
+    #[arg(long, value_name = "N", default_value_t = 10)]
+    pub window: u32,
+    /// Stable when the coefficient of variation over the window is below this, in percent.
+    #[arg(long, value_name = "PERCENT", default_value_t = 0.5)]
+    pub cv_threshold: f64,
+    /// Stable also when the standard deviation over the window is below this, in
+    /// the field's unit (a standard near zero, where a CV means little).
+    #[arg(long, value_name = "VALUE")]
+    pub sd_threshold: Option<f64>,
+    /// Give up when the readings are not stable after this long (the calibration stops).
+    #[arg(long, value_name = "DURATION", default_value = "10m", value_parser = parse_duration)]
+    pub max_wait: Duration,
+    /// Do not wait for stable readings (nor the spec's settling time).
+    #[arg(long)]
+    pub skip_wait: bool,
+    /// Start and write without asking (the standard prompts still read stdin).
+    #[arg(short, long)]
+    pub yes: bool,
+    /// Where to save the coefficient backup [default: the current directory].
+    #[arg(long, value_name = "DIR")]
+    pub backup_dir: Option<PathBuf>,
+    #[command(flatten)]
+    pub history: HistoryArgs,
+}
 
 /// The block a calibration writes and the measured field it applies to.
 pub(crate) struct Target<'s> {

@@ -8,14 +8,51 @@ use serde_json::Value as Json;
 use yosemitech_spec::Value;
 use yosemitech_station::StoredCalibration;
 
+use crate::args::Global;
+use crate::args::HistoryArgs;
 use crate::backup::{self, Backup};
 use crate::catalog::Catalog;
-use crate::cli::{CalibrateHistoryArgs, CalibrateRestoreArgs, Global};
 use crate::confirm::{confirm, ensure_can_ask};
 use crate::error::{CliError, Result};
 use crate::format::json_f32;
 use crate::history::{self, Probe};
+use crate::port::AddressArg;
+use crate::port::PortArgs;
 use crate::{port, time};
+use clap::Args;
+use std::path::PathBuf;
+
+/// `calibrate history`.
+#[derive(Args, Debug)]
+pub struct CalibrateHistoryArgs {
+    /// Only the calibrations of the probe with this serial number.
+    #[arg(long, value_name = "SN")]
+    pub sn: Option<String>,
+    /// Print every calibration, with all its readings, as one JSON array.
+    #[arg(long)]
+    pub json: bool,
+    #[command(flatten)]
+    pub history: HistoryArgs,
+}
+
+/// `calibrate restore`.
+#[derive(Args, Debug)]
+pub struct CalibrateRestoreArgs {
+    /// The calibration to write back (`calibrate history` lists the ids).
+    pub id: i64,
+    #[command(flatten)]
+    pub port: PortArgs,
+    #[command(flatten)]
+    pub address: AddressArg,
+    /// Write without asking.
+    #[arg(short, long)]
+    pub yes: bool,
+    /// Where to save the coefficient backup [default: the current directory].
+    #[arg(long, value_name = "DIR")]
+    pub backup_dir: Option<PathBuf>,
+    #[command(flatten)]
+    pub history: HistoryArgs,
+}
 
 /// The coefficients a record holds as `{field=value ...}` per block, on one line.
 fn shown(blocks: &Json) -> String {

@@ -3,12 +3,56 @@
 
 use std::io::Write;
 
+use crate::args::Global;
 use crate::backup::{self, Backup};
 use crate::catalog::Catalog;
-use crate::cli::{CoefficientsBackupArgs, CoefficientsRestoreArgs, Global};
 use crate::confirm::{confirm, ensure_can_ask};
 use crate::error::{CliError, Result};
 use crate::port;
+use crate::port::AddressArg;
+use crate::port::PortArgs;
+use clap::Args;
+use std::path::PathBuf;
+
+/// `coefficients`.
+#[derive(clap::Subcommand, Debug)]
+pub enum CoefficientsSubcommand {
+    /// Save every calibration coefficient to a JSON file.
+    Backup(CoefficientsBackupArgs),
+    /// Write every calibration coefficient from a JSON file, then read it back.
+    Restore(CoefficientsRestoreArgs),
+}
+
+/// `coefficients backup`.
+#[derive(Args, Debug)]
+pub struct CoefficientsBackupArgs {
+    /// Sensor.
+    pub sensor: String,
+    #[command(flatten)]
+    pub port: PortArgs,
+    #[command(flatten)]
+    pub address: AddressArg,
+    /// The JSON file to write (not overwritten) [default: a timestamped file here].
+    #[arg(short, long, value_name = "FILE")]
+    pub file: Option<PathBuf>,
+}
+
+/// `coefficients restore`.
+#[derive(Args, Debug)]
+pub struct CoefficientsRestoreArgs {
+    /// Sensor.
+    pub sensor: String,
+    #[command(flatten)]
+    pub port: PortArgs,
+    #[command(flatten)]
+    pub address: AddressArg,
+    /// The JSON file written by `coefficients backup` (or by a calibration).
+    #[arg(short, long, value_name = "FILE")]
+    pub file: PathBuf,
+    /// Write without asking.
+    #[arg(short, long)]
+    pub yes: bool,
+}
 
 /// Runs `coefficients backup`.
 pub fn backup(catalog: &Catalog, global: &Global, args: &CoefficientsBackupArgs, out: &mut dyn Write) -> Result<()> {

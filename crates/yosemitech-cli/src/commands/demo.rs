@@ -15,13 +15,21 @@ use yosemitech_spec::beside;
 use yosemitech_spec::{CommandSpec, FieldKind, Role, Sensor, Value, Values};
 
 use crate::catalog::Catalog;
-use crate::cli::DemoArgs;
 use crate::commands::list::software_key;
 use crate::commands::{measure, scan};
 use crate::device;
 use crate::error::{CliError, Result};
 use crate::format::{derived_text, field_value_text, unit};
 use crate::port::Opened;
+use clap::Args;
+
+/// `demo`.
+#[derive(Args, Debug, Default)]
+pub struct DemoArgs {
+    /// Emulate the serial line's timing at 9600 baud (slower, like real probes).
+    #[arg(long)]
+    pub line_timing: bool,
+}
 
 /// How long the waits of every measuring procedure may take together:
 /// each wait is shortened by the same factor so that their sum fits.

@@ -9,13 +9,31 @@ use std::time::Duration;
 use indicatif::ProgressBar;
 use yosemitech_spec::Sensor;
 
+use crate::args::Global;
 use crate::catalog::Catalog;
-use crate::cli::{DoctorArgs, Global};
 use crate::commands::scan::common_serial;
 use crate::doctor::{self, Plan, Probes, Progress, Report, SerialLine, VerdictCode, hex};
 use crate::error::{CliError, Result, show_duration};
+use crate::port::AddressArg;
+use crate::port::PortArgs;
 use crate::port::{self, open_failed};
 use crate::progress;
+use clap::Args;
+
+/// `doctor`.
+#[derive(Args, Debug)]
+pub struct DoctorArgs {
+    #[command(flatten)]
+    pub port: PortArgs,
+    #[command(flatten)]
+    pub address: AddressArg,
+    /// The sensor [default: any; the frames most sensors share].
+    #[arg(long, value_name = "SENSOR")]
+    pub sensor: Option<String>,
+    /// Print the report as JSON.
+    #[arg(long)]
+    pub json: bool,
+}
 
 /// Progress on stderr: a bar per phase on a terminal, a line per phase otherwise.
 struct Shown {

@@ -4,9 +4,27 @@ use std::collections::BTreeMap;
 use std::io::Write;
 
 use crate::catalog::{self, Catalog};
-use crate::cli::EncodeArgs;
 use crate::error::{CliError, Result};
 use crate::format::{hex, parse_values};
+use crate::port::AddressArg;
+use clap::Args;
+
+/// `encode`.
+#[derive(Args, Debug)]
+pub struct EncodeArgs {
+    /// Sensor.
+    pub sensor: String,
+    /// Command.
+    pub command: String,
+    /// Values: field=value pairs, or values in field order.
+    #[arg(value_name = "VALUES", allow_negative_numbers = true)]
+    pub values: Vec<String>,
+    #[command(flatten)]
+    pub address: AddressArg,
+    /// Encode the reply instead of the request.
+    #[arg(long)]
+    pub response: bool,
+}
 
 /// Runs `encode`: prints the frame as hex on stdout.
 pub fn run(catalog: &Catalog, args: &EncodeArgs, out: &mut dyn Write) -> Result<()> {

@@ -5,8 +5,31 @@ use std::time::{Duration, UNIX_EPOCH};
 
 use yosemitech_station::{Store, export};
 
-use crate::cli::{ExportArgs, ExportFormat};
+use crate::args::StoredRange;
 use crate::error::{CliError, Result};
+use clap::Args;
+use clap::ValueEnum;
+
+/// Output formats of `export`.
+#[derive(ValueEnum, Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum ExportFormat {
+    /// Comma-separated values, one row per value, with a header row.
+    #[default]
+    Csv,
+    /// One JSON object per reading.
+    Jsonl,
+}
+
+/// `export`.
+#[derive(Args, Debug)]
+pub struct ExportArgs {
+    /// The store and the time range.
+    #[command(flatten)]
+    pub range: StoredRange,
+    /// Output format.
+    #[arg(short, long, value_enum, default_value_t = ExportFormat::Csv)]
+    pub format: ExportFormat,
+}
 
 /// Runs `export`.
 pub fn run(args: &ExportArgs, out: &mut dyn Write) -> Result<()> {

@@ -7,9 +7,19 @@ use yosemitech_rtu::{LineSettings, StopBits};
 use yosemitech_spec::{CommandSpec, Field, LineSettingsJson, Manual, Sensor};
 
 use crate::catalog::{Catalog, Entry, Origin};
-use crate::cli::ListArgs;
 use crate::error::Result;
 use crate::format::unit;
+use clap::Args;
+
+/// `list`.
+#[derive(Args, Debug)]
+pub struct ListArgs {
+    /// Only this sensor.
+    pub sensor: Option<String>,
+    /// Print JSON.
+    #[arg(long)]
+    pub json: bool,
+}
 
 /// Runs `list`.
 pub fn run(catalog: &Catalog, args: &ListArgs, out: &mut dyn Write) -> Result<()> {

@@ -15,9 +15,21 @@ use yosemitech_station::recovery::{RunMarker, UncleanStop};
 use yosemitech_station::{Store, StoredReading, logger, plan};
 
 use crate::catalog::Catalog;
-use crate::cli::LogArgs;
 use crate::error::{CliError, Result};
 use crate::service;
+use clap::Args;
+use std::path::PathBuf;
+
+/// `log`.
+#[derive(Args, Debug)]
+pub struct LogArgs {
+    /// The station file (TOML).
+    #[arg(long, value_name = "FILE")]
+    pub config: PathBuf,
+    /// Validate the file against the spec, print a summary and exit.
+    #[arg(long)]
+    pub check: bool,
+}
 
 /// The station file, validated against the loaded spec.
 fn load(catalog: &Catalog, args: &LogArgs) -> Result<StationConfig> {

@@ -13,13 +13,46 @@ use yosemitech_spec::{CommandSpec, Field, FieldKind, Procedure, Role, Sensor, Va
 
 use yosemitech_spec::beside::{self, DerivedValue};
 
+use crate::args::Global;
+use crate::args::InputArgs;
 use crate::catalog::Catalog;
-use crate::cli::{Global, MeasureArgs};
 use crate::commands::read::derived_json;
 use crate::error::{CliError, Result};
+use crate::format::parse_duration;
 use crate::format::{derived_text, f32_json, field_value_text, unit, value_json};
+use crate::port::AddressArg;
+use crate::port::PortArgs;
 use crate::port::{self, Opened};
 use crate::{derived, device, progress, time};
+use clap::Args;
+
+/// `measure`.
+#[derive(Args, Debug)]
+pub struct MeasureArgs {
+    /// Sensor (`yosemitech list` shows which have a procedure).
+    pub sensor: String,
+    #[command(flatten)]
+    pub port: PortArgs,
+    #[command(flatten)]
+    pub address: AddressArg,
+    /// Print JSON.
+    #[arg(long)]
+    pub json: bool,
+    /// Override the warm-up (tests, demos).
+    #[arg(long, hide = true, value_parser = parse_duration)]
+    pub warm_up: Option<Duration>,
+    /// Override the reading interval (tests, demos).
+    #[arg(long, hide = true, value_parser = parse_duration)]
+    pub interval: Option<Duration>,
+    /// Override the number of readings averaged (tests, demos).
+    #[arg(long, hide = true)]
+    pub readings: Option<u32>,
+    /// Shorthand for --warm-up 0 --interval 0 (tests, demos).
+    #[arg(long, hide = true)]
+    pub fast: bool,
+    #[command(flatten)]
+    pub inputs: InputArgs,
+}
 
 /// The waits and the number of readings of one run.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -28,7 +28,10 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 
 use crate::catalog::Catalog;
-use crate::cli::{CalibrateSubcommand, Cli, CoefficientsSubcommand, Subcommand};
+use crate::cli::Cli;
+use crate::cli::Subcommand;
+use crate::commands::calibrate::CalibrateSubcommand;
+use crate::commands::coefficients::CoefficientsSubcommand;
 use crate::error::Result;
 
 /// A flag set by Ctrl-C (SIGINT, SIGTERM, SIGHUP), for the commands that

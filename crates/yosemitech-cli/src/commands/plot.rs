@@ -7,13 +7,36 @@ use std::time::{SystemTime, UNIX_EPOCH};
 
 use plotters::prelude::{BitMapBackend, IntoDrawingArea as _, SVGBackend};
 
+use crate::args::StoredRange;
 use crate::chart::{self, MIN_PANEL_HEIGHT};
-use crate::cli::PlotArgs;
 use crate::error::{CliError, Result};
 use crate::format::MAX_SIDE;
+use crate::format::parse_size;
 use crate::readings::{self, Reading, SeriesFilter};
 use crate::stored::StoredReadings;
 use crate::time;
+use clap::Args;
+use std::path::PathBuf;
+
+/// `plot`.
+#[derive(Args, Debug)]
+pub struct PlotArgs {
+    /// The store and the time range.
+    #[command(flatten)]
+    pub range: StoredRange,
+    /// Only this probe (its label in the station's configuration).
+    #[arg(long, value_name = "LABEL")]
+    pub probe: Option<String>,
+    /// Only this measurement (the spec's field name).
+    #[arg(long, value_name = "NAME")]
+    pub measurement: Option<String>,
+    /// The chart file: .png or .svg.
+    #[arg(short, long, value_name = "FILE")]
+    pub out: PathBuf,
+    /// Width and height in pixels, e.g. 1200x800 [default: 1200 wide, 300 high per measurement].
+    #[arg(long, value_name = "WxH", value_parser = parse_size)]
+    pub size: Option<(u32, u32)>,
+}
 
 /// Default chart width, in pixels.
 const DEFAULT_WIDTH: u32 = 1200;

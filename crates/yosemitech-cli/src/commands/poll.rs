@@ -13,15 +13,63 @@ use yosemitech_spec::{CommandSpec, Derived, Sensor, Value};
 
 use yosemitech_station::plan;
 
+use crate::args::Global;
+use crate::args::InputArgs;
 use crate::catalog::Catalog;
-use crate::cli::{Global, PollArgs, PollFormat};
 use crate::commands::read::derived_json;
 use crate::derived;
 use crate::error::{CliError, Result, short};
+use crate::format::parse_duration;
 use crate::format::{unit, value_json, value_text};
+use crate::port::AddressArg;
+use crate::port::PortArgs;
 use crate::units::Chosen;
 use crate::{device, port, time};
+use clap::Args;
+use clap::ValueEnum;
 use yosemitech_spec::beside::{self, DerivedValue};
+
+/// Output formats of `poll`.
+#[derive(ValueEnum, Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum PollFormat {
+    /// Aligned columns with units.
+    #[default]
+    Table,
+    /// Comma-separated values with a header row.
+    Csv,
+    /// One JSON object per line.
+    Json,
+}
+
+/// `poll`.
+#[derive(Args, Debug)]
+pub struct PollArgs {
+    /// Sensor.
+    pub sensor: String,
+    /// Measurements to read: field names or measurement reads (`yosemitech list SENSOR`) [default: every one].
+    #[arg(value_name = "MEASUREMENT")]
+    pub measurements: Vec<String>,
+    #[command(flatten)]
+    pub port: PortArgs,
+    #[command(flatten)]
+    pub address: AddressArg,
+    /// Time between the starts of two polls; 0 polls back to back.
+    #[arg(short, long, value_name = "DURATION", default_value = "3s", value_parser = parse_duration)]
+    pub interval: Duration,
+    /// Stop after N polls [default: until Ctrl-C].
+    #[arg(short = 'n', long, value_name = "N")]
+    pub count: Option<u64>,
+    /// Output format.
+    #[arg(short, long, value_enum, default_value_t = PollFormat::Table)]
+    pub format: PollFormat,
+    #[command(flatten)]
+    pub inputs: InputArgs,
+    /// Show values in another unit of the same dimension: `UNIT` for every
+    /// value of its dimension (`degF`, `uS/cm`), `NAME=UNIT` for one field
+    /// or derived quantity; repeatable.
+    #[arg(long = "unit", value_name = "[NAME=]UNIT")]
+    pub units: Vec<String>,
+}
 
 /// One output column: a chosen measurement and the planned read it comes from.
 struct Column<'s> {

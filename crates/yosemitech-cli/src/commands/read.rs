@@ -6,15 +6,42 @@ use std::time::SystemTime;
 use serde_json::json;
 use yosemitech_spec::{CommandSpec, Derived, Values};
 
+use crate::args::Global;
+use crate::args::InputArgs;
 use crate::catalog::{self, Catalog};
-use crate::cli::{Global, ReadArgs};
 use crate::derived;
 use crate::device;
 use crate::error::{CliError, Result};
 use crate::format::{derived_text, f32_json, fields_json, value_with_unit, values_json};
+use crate::port::AddressArg;
+use crate::port::PortArgs;
 use crate::units::{self, Chosen};
 use crate::{port, time};
+use clap::Args;
 use yosemitech_spec::beside::{self, DerivedValue};
+
+/// `read`.
+#[derive(Args, Debug)]
+pub struct ReadArgs {
+    /// Sensor (`yosemitech list` shows them).
+    pub sensor: String,
+    /// Read command (`yosemitech list SENSOR` shows them).
+    pub command: String,
+    #[command(flatten)]
+    pub port: PortArgs,
+    #[command(flatten)]
+    pub address: AddressArg,
+    /// Print JSON.
+    #[arg(long)]
+    pub json: bool,
+    #[command(flatten)]
+    pub inputs: InputArgs,
+    /// Show values in another unit of the same dimension: `UNIT` for every
+    /// value of its dimension (`degF`, `uS/cm`), `NAME=UNIT` for one field
+    /// or derived quantity; repeatable.
+    #[arg(long = "unit", value_name = "[NAME=]UNIT")]
+    pub units: Vec<String>,
+}
 
 /// Runs `read`.
 pub fn run(catalog: &Catalog, global: &Global, args: &ReadArgs, out: &mut dyn Write) -> Result<()> {

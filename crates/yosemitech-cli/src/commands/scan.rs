@@ -9,12 +9,27 @@ use yosemitech_rtu::{Error as RtuError, FrameError, LineSettings, Version};
 use yosemitech_spec::interp::{decode_field, decode_fields};
 use yosemitech_spec::{CommandSpec, FieldKind, Manual, Role, Sensor, Value};
 
+use crate::args::Global;
 use crate::catalog::Catalog;
-use crate::cli::{Global, ScanArgs};
 use crate::commands::list::software_key;
 use crate::error::{CliError, Result, request_failed, short};
+use crate::port::PortArgs;
 use crate::port::{self, Opened};
 use crate::progress;
+use clap::Args;
+
+/// `scan`.
+#[derive(Args, Debug)]
+pub struct ScanArgs {
+    #[command(flatten)]
+    pub port: PortArgs,
+    /// Addresses to probe: 1-247, 1,5,10-20 or 3.
+    #[arg(long, value_name = "RANGES", default_value = "1-247")]
+    pub addresses: String,
+    /// Print JSON.
+    #[arg(long)]
+    pub json: bool,
+}
 
 /// Parses `1-247`, `1,5,10-20` or `3` into sorted, distinct addresses.
 pub fn parse_addresses(text: &str) -> Result<Vec<u8>> {

@@ -7,12 +7,54 @@ use yosemitech::procedures::address::{AddressChangeError, change_address_with};
 use yosemitech_rtu::LineSettings;
 use yosemitech_spec::{CommandSpec, Role, Sensor, Value};
 
+use crate::args::Global;
 use crate::catalog::Catalog;
-use crate::cli::{Global, SetAddressArgs};
 use crate::confirm::{confirm, ensure_can_ask};
 use crate::error::{CliError, Result, request_failed};
+use crate::port::PortArgs;
 use crate::port::{self, Opened, check_address};
 use crate::shell;
+use clap::Args;
+use std::path::PathBuf;
+
+/// `set-address`.
+#[derive(Args, Debug)]
+pub struct SetAddressArgs {
+    #[command(flatten)]
+    pub port: PortArgs,
+    /// The probe's current address [with --plan: the address every new probe arrives at, default 1].
+    #[arg(long, value_name = "A", required_unless_present = "plan")]
+    pub from: Option<u32>,
+    /// The new address, 1..=247.
+    #[arg(long, value_name = "B", required_unless_present = "plan", conflicts_with = "plan")]
+    pub to: Option<u32>,
+    /// The sensor [default: any; the address commands are shared by every probe].
+    #[arg(long, value_name = "SENSOR")]
+    pub sensor: Option<String>,
+    /// Address a bus of probes that all arrive at --from: connect them one at a time, each
+    /// gets the next address of the plan, verified there; ends with the bus table.
+    #[arg(long)]
+    pub plan: bool,
+    /// With --plan: the addresses to give, in order (1,5,10-20) [default: --first, then every --step].
+    #[arg(long, value_name = "RANGES", requires = "plan")]
+    pub addresses: Option<String>,
+    /// With --plan: the first address of the plan [default: --from + 2].
+    #[arg(long, value_name = "N", requires = "plan", conflicts_with = "addresses")]
+    pub first: Option<u32>,
+    /// With --plan: the spacing of the plan's addresses (probes at neighbouring addresses
+    /// have been seen to answer for each other).
+    #[arg(long, value_name = "N", default_value_t = 2, conflicts_with = "addresses")]
+    pub step: u32,
+    /// With --plan: stop after N probes [default: when you answer `d`, or at the plan's end].
+    #[arg(long, value_name = "N", requires = "plan")]
+    pub count: Option<u32>,
+    /// With --plan: write a draft station file (`yosemitech log --config`) for the bus table.
+    #[arg(long, value_name = "FILE", requires = "plan")]
+    pub station_toml: Option<PathBuf>,
+    /// Change without asking.
+    #[arg(short, long)]
+    pub yes: bool,
+}
 
 /// A sensor's address write (role `set_slave_address`) and the read that
 /// finds the probe (role `serial_number`), both sent to the probe's own address.

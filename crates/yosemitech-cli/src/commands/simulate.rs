@@ -13,9 +13,92 @@ use yosemitech_sim::{
 use yosemitech_spec::{FieldKind, Role};
 
 use crate::catalog::Catalog;
-use crate::cli::{SimulateArgs, SimulatedLineArgs, TcpProtocol};
 use crate::error::{CliError, Result};
 use crate::format::parse_duration;
+use crate::port::AddressArg;
+use clap::Args;
+use clap::ValueEnum;
+
+/// What `simulate --tcp` speaks.
+#[derive(ValueEnum, Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum TcpProtocol {
+    /// RTU frames (with CRC) over TCP, as a transparent serial gateway.
+    #[default]
+    Rtu,
+    /// Modbus TCP: MBAP header, no CRC; several connections at once.
+    Mbap,
+}
+
+/// `simulate`.
+#[derive(Args, Debug)]
+pub struct SimulateArgs {
+    /// Sensor to simulate.
+    pub sensor: String,
+    #[command(flatten)]
+    pub address: AddressArg,
+    /// Serve on a new pseudo-terminal (the default).
+    #[arg(long, conflicts_with = "tcp")]
+    pub pty: bool,
+    /// Serve over TCP on ADDR (127.0.0.1:5020; port 0 picks a free one).
+    #[arg(long, value_name = "ADDR")]
+    pub tcp: Option<String>,
+    /// What --tcp speaks: raw RTU frames, as a transparent serial gateway
+    /// (rtu), or Modbus TCP with MBAP headers, unit id = address (mbap).
+    #[arg(long, value_enum, default_value_t = TcpProtocol::Rtu, requires = "tcp")]
+    pub protocol: TcpProtocol,
+    /// Faults to inject: kind=probability,... (see the long help).
+    #[arg(long, value_name = "SPEC")]
+    pub faults: Option<String>,
+    /// Seed of the fault and noise generator.
+    #[arg(long, value_name = "N", default_value_t = 1)]
+    pub seed: u64,
+    /// Noise amplitude added to every measurement, in its unit.
+    #[arg(long, value_name = "X")]
+    pub noise: Option<f32>,
+    /// Serve plausible values of natural water (each quantity's typical
+    /// value or the middle of its range, the temperature of a river) that
+    /// follow a daily cycle, instead of the manual's example values.
+    #[arg(long)]
+    pub water: bool,
+    /// Emulate the serial line's timing at the sensor's baud rate (at 9600 baud, about 1 ms a byte).
+    #[arg(long)]
+    pub line_timing: bool,
+    /// Answer requests for registers the probe lacks with Modbus exceptions
+    /// (01/02/03), as a general Modbus stack does; a real probe stays silent.
+    #[arg(long)]
+    pub exceptions: bool,
+    /// Send the serial number exactly as the manual prints it (0x00 before
+    /// it, the manual's text), instead of with the model code, as real probes do.
+    #[arg(long)]
+    pub serial_as_printed: bool,
+    /// Line faults, to diagnose a link (`yosemitech doctor`).
+    #[command(flatten)]
+    pub line: SimulatedLineArgs,
+}
+
+/// `simulate`'s line faults: what a link to a probe can get wrong.
+#[derive(Args, Debug, Default)]
+pub struct SimulatedLineArgs {
+    /// Never answer (a probe without power, or a broken wire).
+    #[arg(long)]
+    pub mute: bool,
+    /// Write every request back before answering (an RS-485 adapter without echo suppression).
+    #[arg(long)]
+    pub echo: bool,
+    /// Wait this long before every reply (a probe slow to answer), e.g. 1500ms.
+    #[arg(long, value_name = "DURATION", value_parser = parse_duration)]
+    pub turnaround: Option<Duration>,
+    /// Run at these serial settings, BAUD-8N1 (8N2, 8E1, 8O1); on a pty a client at
+    /// another baud rate or parity reads garbage (where the pty keeps parity: Linux ptys drop it).
+    #[arg(long, value_name = "BAUD-FORMAT", conflicts_with = "tcp")]
+    pub serial: Option<String>,
+    /// Two probes at the address answer every request at once (their serial numbers differ).
+    #[arg(long)]
+    pub collide: bool,
+    /// Refuse Start Measurement with an exception and answer reads all the same.
+    #[arg(long)]
+    pub refuse_start: bool,
+}
 
 /// Parses `drop=0.05,corrupt_crc=0.02`, `all=0.1`, `delay_by=500ms`.
 pub fn parse_faults(spec: &str, seed: u64) -> Result<FaultConfig> {

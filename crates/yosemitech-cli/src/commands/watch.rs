@@ -7,10 +7,26 @@ use std::time::{Duration, Instant, SystemTime};
 use ratatui::DefaultTerminal;
 use ratatui::crossterm::event::{self, Event, KeyCode, KeyEventKind, KeyModifiers};
 
-use crate::cli::WatchArgs;
 use crate::dashboard::Dashboard;
 use crate::error::{CliError, Result};
+use crate::format::parse_duration;
 use crate::stored::StoredReadings;
+use clap::Args;
+use std::path::PathBuf;
+
+/// `watch`.
+#[derive(Args, Debug)]
+pub struct WatchArgs {
+    /// The station's store (the SQLite file `yosemitech log` writes).
+    #[arg(long, value_name = "FILE")]
+    pub db: PathBuf,
+    /// Time between two reads of the store.
+    #[arg(short, long, value_name = "DURATION", default_value = "2s", value_parser = parse_duration)]
+    pub interval: Duration,
+    /// How far back the sparklines and the error and retry counts reach.
+    #[arg(long, value_name = "DURATION", default_value = "6h", value_parser = parse_duration)]
+    pub window: Duration,
+}
 
 /// Values kept per measurement for its sparkline: more than a terminal is wide.
 const HISTORY: usize = 512;

@@ -5,14 +5,40 @@ use std::io::Write;
 
 use yosemitech_spec::{CommandSpec, Role, Value};
 
+use crate::args::Global;
 use crate::backup;
 use crate::catalog::{self, Catalog, read_back_for};
-use crate::cli::{Global, WriteArgs};
 use crate::confirm::{confirm, ensure_can_ask};
 use crate::device;
 use crate::error::{CliError, Result};
 use crate::format::{hex, parse_values, value_with_unit};
 use crate::port;
+use crate::port::AddressArg;
+use crate::port::PortArgs;
+use clap::Args;
+use std::path::PathBuf;
+
+/// `write`.
+#[derive(Args, Debug)]
+pub struct WriteArgs {
+    /// Sensor.
+    pub sensor: String,
+    /// Write command (`yosemitech list SENSOR` shows them).
+    pub command: String,
+    /// Values: field=value pairs, or values in field order.
+    #[arg(value_name = "VALUES", allow_negative_numbers = true)]
+    pub values: Vec<String>,
+    #[command(flatten)]
+    pub port: PortArgs,
+    #[command(flatten)]
+    pub address: AddressArg,
+    /// Send without asking.
+    #[arg(short, long)]
+    pub yes: bool,
+    /// Where to save the coefficient backup [default: the current directory].
+    #[arg(long, value_name = "DIR")]
+    pub backup_dir: Option<PathBuf>,
+}
 
 /// Runs `write`.
 pub fn run(catalog: &Catalog, global: &Global, args: &WriteArgs, out: &mut dyn Write) -> Result<()> {

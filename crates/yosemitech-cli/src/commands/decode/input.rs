@@ -7,6 +7,7 @@ use std::path::Path;
 use yosemitech_rtu::bytes::byte;
 
 use crate::error::{CliError, Result};
+use crate::explain::Line;
 
 /// The bytes to decode.
 pub(super) enum Input {
@@ -63,15 +64,6 @@ pub(super) fn parse_hex(text: &str) -> Result<Vec<u8>> {
         return Err(bad(format!("{} hex digits is an odd number; each byte takes two", nibbles.len())));
     }
     Ok(nibbles.chunks(2).map(|pair| (byte(pair, 0).unwrap_or(0) << 4) | byte(pair, 1).unwrap_or(0)).collect())
-}
-
-/// One capture line: its number, its text, and the byte strings it may hold
-/// (with and without leading label words), best guess first.
-pub(super) struct Line<'t> {
-    pub(super) number: usize,
-    pub(super) text: &'t str,
-    pub(super) readings: Vec<Vec<u8>>,
-    pub(super) problem: Option<String>,
 }
 
 /// At most this many leading words are tried as a label.
@@ -131,18 +123,4 @@ pub(super) fn read_lines(text: &str) -> Vec<Line<'_>> {
         lines.push(Line { number: i + 1, text: trimmed, readings, problem });
     }
     lines
-}
-
-/// Maps offsets in all the bytes to capture lines.
-#[derive(Default)]
-pub(super) struct LineMap {
-    /// (offset of the line's first byte, line number), by offset.
-    pub(super) starts: Vec<(usize, usize)>,
-}
-
-impl LineMap {
-    pub(super) fn line(&self, offset: usize) -> usize {
-        let after = self.starts.partition_point(|&(start, _)| start <= offset);
-        after.checked_sub(1).and_then(|i| self.starts.get(i)).map_or(0, |&(_, line)| line)
-    }
 }

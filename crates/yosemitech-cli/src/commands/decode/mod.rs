@@ -1,44 +1,60 @@
 //! `yosemitech decode`: frames from a log or a bus capture, explained.
 //!
-//! One frame is decoded on its own: the command is found from the frame
-//! ([`single::decode_one`]). Several frames (a request and its reply, a hex stream,
-//! a `--capture` file) are split into frames by a [`scan::Scanner`]: requests are
-//! recognised by the commands' request layouts, replies by their CRC and the
-//! length the pending request's command expects; what no loaded command
-//! frames (a request of an unknown command, a reply with no request before
-//! it) is framed by the runtime's segmenter ([`yosemitech_rtu::segment`]),
-//! on the same length rules. Each reply is paired with the request before
-//! it and decoded as the command(s) the request names; decodings that fail
-//! are dropped and equal ones reported together.
-//!
-//! The modules: [`input`] reads hex and captures, [`scan`] splits and
-//! pairs, [`report`] decodes what was found into values, [`print`] and
-//! [`single`] (one frame on its own) write them out; [`candidates`] is what
-//! a frame may be.
+//! The explanation is the library's ([`crate::explain`]): this module
+//! reads the input ([`input`]), chooses the commands `--sensor` and
+//! `--command` leave ([`filter`]), and renders the explanation: a frame on
+//! its own as a block ([`single`]), a request with its reply as a block and
+//! several entries one line each ([`print`]), or JSON.
 
-mod candidates;
+mod filter;
 mod input;
 mod print;
-mod report;
-mod scan;
 mod single;
 
 use std::io::Write;
 use std::path::Path;
 
 use serde_json::{Value as Json, json};
-use yosemitech_rtu::crc_ok;
 
 use crate::catalog::Catalog;
-use crate::cli::{DecodeArgs, DecodeCommandArgs};
 use crate::error::{CliError, Kind as ErrorKind, Result};
 
-use self::candidates::{Cand, Filter};
+use crate::explain::{CaptureMode, Explanation, explain, explain_capture};
+
+use self::filter::commands;
 use self::input::{Input, parse_hex, read_capture, read_lines};
 use self::print::{print_pair, print_reports};
-use self::report::{Report, report};
-use self::scan::{Found, Scanner, frame_bytes};
-use self::single::decode_one;
+use self::single::print_frame;
+use clap::Args;
+use std::path::PathBuf;
+
+/// `decode`: the frames and how to read them.
+#[derive(Args, Debug)]
+pub struct DecodeArgs {
+    /// Frames in hex: one frame, a request and its reply, or a stream (arguments are joined).
+    #[arg(value_name = "HEX", required_unless_present = "capture", conflicts_with = "capture", num_args = 1..)]
+    pub hex: Vec<String>,
+    /// Only consider this sensor's commands.
+    #[arg(long, value_name = "SENSOR")]
+    pub sensor: Option<String>,
+    /// Decode as this command.
+    #[arg(long, value_name = "COMMAND")]
+    pub command: Option<String>,
+    /// Print JSON (one document; JSON lines for several transactions and captures).
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// `decode` on the command line: [`DecodeArgs`] and a capture file.
+#[derive(Args, Debug)]
+pub struct DecodeCommandArgs {
+    /// The frames and options.
+    #[command(flatten)]
+    pub frames: DecodeArgs,
+    /// Read a capture from FILE (`-`: stdin): one frame per line, or a hex stream.
+    #[arg(long, value_name = "FILE")]
+    pub capture: Option<PathBuf>,
+}
 
 /// The error as JSON: what `--json` prints instead of (and besides) the `error:` line.
 fn error_json(e: &CliError) -> Json {
@@ -127,29 +143,15 @@ fn dispatch(catalog: &Catalog, args: &DecodeArgs, capture: Option<&Path>, out: &
         Some(path) => Input::Capture(read_capture(path)?),
         None => Input::Bytes(parse_hex(&args.hex.join(" "))?),
     };
-    let filter = Filter::new(catalog, args)?;
-    let all: Vec<Cand<'_>> = catalog
-        .entries()
-        .iter()
-        .flat_map(|e| e.sensor.commands.iter().map(|c| Cand { sensor: &e.sensor.name, command: c }))
-        .collect();
-    let scanner = Scanner::new(&all);
+    let commands = commands(catalog, args)?;
     match input {
-        Input::Bytes(bytes) => {
-            let found = scanner.scan_stream(&bytes);
-            let frames: usize = found.iter().map(Found::frames).sum();
-            let noise = found.iter().any(|f| matches!(f, Found::Noise(_)));
-            let one_pair = matches!(found.as_slice(), [Found::Pair { reply: Some(_), .. }]);
-            // One frame (or bytes with no frame in them) is decoded on its own, as ever.
-            if !one_pair && (frames == 0 || (frames == 1 && !noise) || (bytes.len() >= 4 && crc_ok(&bytes))) {
-                return decode_one(&filter, args.json, &bytes, out);
-            }
-            let reports: Vec<Report<'_>> = found.into_iter().map(|f| report(&filter, &all, f)).collect();
-            match reports.as_slice() {
-                [Report::Exchange(x)] if one_pair => print_pair(x, args.json, out),
-                _ => print_reports(&reports, "stream", args.json, out),
-            }
-        }
+        Input::Bytes(bytes) => match explain(&commands, &bytes) {
+            Explanation::TooShort(len) => Err(CliError::usage(format!("{len} byte(s) is too short for a frame"))
+                .hint("an RTU frame has at least an address, a function code and a 2-byte CRC")),
+            Explanation::Frame(frame) => print_frame(&frame, args.json, out),
+            Explanation::Exchange(x) => print_pair(&x, args.json, out),
+            Explanation::Stream(reports) => print_reports(&reports, CaptureMode::Stream, args.json, out),
+        },
         Input::Capture(text) => {
             let lines = read_lines(&text);
             if !lines.iter().any(|l| !l.readings.is_empty()) {
@@ -161,16 +163,7 @@ fn dispatch(catalog: &Catalog, args: &DecodeArgs, capture: Option<&Path>, out: &
                 return Err(CliError::usage(what)
                     .hint("a capture is hex text: one frame per line (`01 03 28 00 00 02 CD AB`), or one hex stream"));
             }
-            // One frame per line, or one stream wrapped over lines: whichever
-            // reading explains more bytes as frames (one line is a stream).
-            let (found, mode) = if lines.iter().filter(|l| !l.readings.is_empty()).count() == 1 {
-                (scanner.scan_joined(&lines), "stream")
-            } else {
-                let by_line = scanner.scan_lines(&lines);
-                let as_stream = scanner.scan_joined(&lines);
-                if frame_bytes(&as_stream) > frame_bytes(&by_line) { (as_stream, "stream") } else { (by_line, "lines") }
-            };
-            let reports: Vec<Report<'_>> = found.into_iter().map(|f| report(&filter, &all, f)).collect();
+            let (reports, mode) = explain_capture(&commands, &lines);
             print_reports(&reports, mode, args.json, out)
         }
     }

@@ -10,11 +10,35 @@ use yosemitech_rtu::{Function, crc_ok};
 use yosemitech_spec::CommandSpec;
 
 use crate::error::{CliError, Result};
-use crate::format::{hex, value_with_unit};
+use crate::explain::candidates::label;
+use crate::explain::exchange::describe;
+use crate::explain::scan::Framed;
+use crate::explain::{CaptureMode, Decoding, Exchange, Report, Status};
+use crate::format::{fields_json, hex, value_with_unit, values_json};
 
-use super::report::{Decoding, Exchange, Report, Status, describe};
-use super::scan::Framed;
 use super::{error_json, pretty};
+
+/// `ph = 7.6 pH, temperature_c = 25 °C`.
+pub(super) fn values_text(d: &Decoding<'_>) -> String {
+    let command = d.command();
+    d.values
+        .iter()
+        .map(|(n, v)| format!("{n} = {}", value_with_unit(v, command.and_then(|c| c.field(n)))))
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+fn decoding_json(d: &Decoding<'_>) -> Json {
+    let empty = Json::Array(Vec::new());
+    json!({
+        "command": d.name(),
+        "sensors": d.sensors(),
+        "commands": d.cands.iter().map(|c| json!({ "sensor": c.sensor, "command": c.command.name })).collect::<Vec<_>>(),
+        "title": d.command().map(|c| c.title.as_str()),
+        "values": values_json(&d.values),
+        "fields": d.command().map_or(empty, |c| fields_json(c, &d.values)),
+    })
+}
 
 /// A frame's bytes and place, as JSON.
 pub(super) fn framed_json(f: &Framed) -> Json {
@@ -36,7 +60,7 @@ pub(super) fn exchange_json(x: &Exchange<'_>) -> Json {
         Function::Read => "read",
         Function::Write => "write",
     });
-    let decodings: Vec<Json> = x.decodings.iter().map(Decoding::json).collect();
+    let decodings: Vec<Json> = x.decodings.iter().map(decoding_json).collect();
     // The one decoding, at the top level too.
     let chosen = match decodings.as_slice() {
         [only] => only.clone(),
@@ -101,7 +125,7 @@ pub(super) fn exchange_error(x: &Exchange<'_>) -> Option<CliError> {
                 x.decodings.len()
             ));
             for d in &x.decodings {
-                e = e.detail(format!("{}: {}", d.label(), d.values_text()));
+                e = e.detail(format!("{}: {}", label(&d.cands), values_text(d)));
             }
             let example = x
                 .decodings
@@ -143,7 +167,7 @@ pub(super) fn print_pair(x: &Exchange<'_>, json_out: bool, out: &mut dyn Write) 
         for (i, d) in x.decodings.iter().enumerate() {
             let head = if many { format!("decoding {}", i + 1) } else { "command".to_owned() };
             let title = d.command().map_or(String::new(), |c| format!(": {}", c.title));
-            writeln!(out, "{head:<12}{}{title}", d.label())?;
+            writeln!(out, "{head:<12}{}{title}", label(&d.cands))?;
             let width = d.values.iter().map(|(n, _)| n.len()).max().unwrap_or(0).max(10);
             for (name, value) in &d.values {
                 let field = d.command().and_then(|c| c.field(name));
@@ -211,15 +235,19 @@ pub(super) fn report_text(r: &Report<'_>) -> String {
         None => String::new(),
     };
     let decoded = |d: &Decoding<'_>| {
-        let values = d.values_text();
+        let values = values_text(d);
         let written = match (d.command().is_some_and(CommandSpec::is_read), x.status) {
             (true, _) => "",
             (false, Status::Broadcast) => " (broadcast, not answered)",
             (false, _) => " (write acknowledged)",
         };
-        if values.is_empty() { format!("{}{written}", d.label()) } else { format!("{}: {values}{written}", d.label()) }
+        if values.is_empty() {
+            format!("{}{written}", label(&d.cands))
+        } else {
+            format!("{}: {values}{written}", label(&d.cands))
+        }
     };
-    let labels = x.decodings.iter().map(Decoding::label).collect::<Vec<_>>().join(" | ");
+    let labels = x.decodings.iter().map(|d| label(&d.cands)).collect::<Vec<_>>().join(" | ");
     let first = x.problems.first().map_or("", String::as_str);
     let what = match x.status {
         Status::Decoded | Status::Broadcast => x.chosen().map(decoded).unwrap_or_default(),
@@ -247,7 +275,12 @@ pub(super) fn report_text(r: &Report<'_>) -> String {
 }
 
 /// Several entries (a stream or a capture): one line of text or JSON each, then a summary.
-pub(super) fn print_reports(reports: &[Report<'_>], mode: &str, json_out: bool, out: &mut dyn Write) -> Result<()> {
+pub(super) fn print_reports(
+    reports: &[Report<'_>],
+    mode: CaptureMode,
+    json_out: bool,
+    out: &mut dyn Write,
+) -> Result<()> {
     let failed = reports.iter().filter(|r| !r.status().ok()).count();
     let transactions = reports.iter().filter(|r| matches!(r, Report::Exchange(x) if x.request.is_some())).count();
     let decoded = reports.iter().filter(|r| r.status().ok()).count();
@@ -260,7 +293,10 @@ pub(super) fn print_reports(reports: &[Report<'_>], mode: &str, json_out: bool, 
             writeln!(out, "{place:<width$}{}", report_text(r))?;
         }
     }
-    let how = if mode == "lines" { "frames by line" } else { "one hex stream" };
+    let (mode, how) = match mode {
+        CaptureMode::Lines => ("lines", "frames by line"),
+        CaptureMode::Stream => ("stream", "one hex stream"),
+    };
     if json_out {
         let summary = json!({
             "type": "summary",

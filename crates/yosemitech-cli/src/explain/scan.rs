@@ -5,57 +5,94 @@ use yosemitech_rtu::frame::{EXCEPTION_BIT, EXCEPTION_LEN, MAX_SLAVE, REQUEST_BYT
 use yosemitech_rtu::segment::{self, SpanKind};
 use yosemitech_rtu::{Function, Layout, crc_ok};
 
-use super::candidates::{Cand, fits_slave, reply_lens};
-use super::input::{Line, LineMap};
+use super::candidates::{Candidate, fits_slave, reply_lens};
+
+/// One capture line: its number, its text, and the byte strings it may hold
+/// (with and without leading label words), best guess first.
+pub struct Line<'t> {
+    /// Counted from 1.
+    pub number: usize,
+    /// Trimmed.
+    pub text: &'t str,
+    /// The bytes it may hold, best guess first.
+    pub readings: Vec<Vec<u8>>,
+    /// Why it is not hex, if it is not.
+    pub problem: Option<String>,
+}
+
+/// Maps offsets in all the bytes to capture lines.
+#[derive(Default)]
+pub(crate) struct LineMap {
+    /// (offset of the line's first byte, line number), by offset.
+    pub(crate) starts: Vec<(usize, usize)>,
+}
+
+impl LineMap {
+    pub(crate) fn line(&self, offset: usize) -> usize {
+        let after = self.starts.partition_point(|&(start, _)| start <= offset);
+        after.checked_sub(1).and_then(|i| self.starts.get(i)).map_or(0, |&(_, line)| line)
+    }
+}
 
 /// What a request asks: its header.
 #[derive(Debug, Clone, Copy)]
-pub(super) struct Header {
-    pub(super) slave: u8,
-    pub(super) function: u8,
-    pub(super) address: u16,
-    pub(super) count: u16,
+pub struct Header {
+    /// The slave addressed.
+    pub slave: u8,
+    /// The function code.
+    pub function: u8,
+    /// The first register.
+    pub address: u16,
+    /// Registers.
+    pub count: u16,
 }
 
 /// Where bytes are: the capture line of the first byte (0 for arguments) and
 /// its offset in all the bytes read.
 #[derive(Debug, Clone, Copy, Default)]
-pub(super) struct Place {
-    pub(super) line: usize,
-    pub(super) offset: usize,
+pub struct Place {
+    /// Counted from 1; 0 for bytes not from a capture.
+    pub line: usize,
+    /// Bytes before it.
+    pub offset: usize,
 }
 
 /// Bytes and where they were.
 #[derive(Debug, Clone)]
-pub(super) struct Framed {
-    pub(super) bytes: Vec<u8>,
-    pub(super) place: Place,
+pub struct Framed {
+    /// The bytes.
+    pub bytes: Vec<u8>,
+    /// Where they start.
+    pub place: Place,
 }
 
 /// A request waiting for its reply.
 #[derive(Clone)]
-pub(super) struct Pending<'c> {
-    pub(super) request: Framed,
-    pub(super) header: Header,
+struct Pending<'c> {
+    request: Framed,
+    header: Header,
     /// Every loaded command the request fits (before --sensor/--command).
-    pub(super) cands: Vec<Cand<'c>>,
+    cands: Vec<Candidate<'c>>,
 }
 
 /// What the scanner found, in input order.
-pub(super) enum Found<'c> {
+pub enum Found<'c> {
     /// A request, with its reply if one followed (`intact` false: the reply
     /// is cut short or its CRC is wrong).
-    Pair { request: Framed, header: Header, cands: Vec<Cand<'c>>, reply: Option<Framed>, intact: bool },
+    #[allow(missing_docs)]
+    Pair { request: Framed, header: Header, cands: Vec<Candidate<'c>>, reply: Option<Framed>, intact: bool },
     /// A reply (or exception) with no request before it.
     Lone(Framed),
     /// Bytes that are no frame.
     Noise(Framed),
     /// A capture line that is not hex.
+    #[allow(missing_docs)]
     Unreadable { place: Place, text: String, problem: String },
 }
 
 impl Found<'_> {
-    pub(super) fn place(&self) -> Place {
+    /// Where it starts.
+    pub fn place(&self) -> Place {
         match self {
             Found::Pair { request, .. } => request.place,
             Found::Lone(f) | Found::Noise(f) => f.place,
@@ -64,7 +101,7 @@ impl Found<'_> {
     }
 
     /// Frames in it.
-    pub(super) fn frames(&self) -> usize {
+    pub fn frames(&self) -> usize {
         match self {
             Found::Pair { reply, .. } => 1 + usize::from(reply.is_some()),
             Found::Lone(_) => 1,
@@ -73,7 +110,7 @@ impl Found<'_> {
     }
 
     /// Bytes in whole, CRC-valid frames.
-    pub(super) fn frame_bytes(&self) -> usize {
+    pub fn frame_bytes(&self) -> usize {
         match self {
             Found::Pair { request, reply, intact, .. } => {
                 request.bytes.len() + reply.as_ref().filter(|_| *intact).map_or(0, |r| r.bytes.len())
@@ -83,7 +120,8 @@ impl Found<'_> {
         }
     }
 
-    pub(super) fn noise_bytes(&self) -> usize {
+    /// Bytes in no frame, or in a damaged one.
+    pub fn noise_bytes(&self) -> usize {
         match self {
             Found::Noise(f) => f.bytes.len(),
             Found::Pair { reply: Some(r), intact: false, .. } => r.bytes.len(),
@@ -92,31 +130,33 @@ impl Found<'_> {
     }
 }
 
-pub(super) fn frame_bytes(found: &[Found<'_>]) -> usize {
+/// Bytes in whole, CRC-valid frames of all `found`.
+pub fn frame_bytes(found: &[Found<'_>]) -> usize {
     found.iter().map(Found::frame_bytes).sum()
 }
 
 /// Splits bytes into frames and pairs requests with replies.
-pub(super) struct Scanner<'a, 'c> {
+pub struct Scanner<'a, 'c> {
     /// Every command of every loaded sensor: framing does not depend on --sensor/--command.
-    pub(super) all: &'a [Cand<'c>],
-    pub(super) pending: Option<Pending<'c>>,
-    pub(super) noise: Option<Framed>,
-    pub(super) found: Vec<Found<'c>>,
+    all: &'a [Candidate<'c>],
+    pending: Option<Pending<'c>>,
+    noise: Option<Framed>,
+    found: Vec<Found<'c>>,
 }
 
 impl<'a, 'c> Scanner<'a, 'c> {
-    pub(super) fn new(all: &'a [Cand<'c>]) -> Self {
+    /// A scanner framing by `all`, with no request pending.
+    pub fn new(all: &'a [Candidate<'c>]) -> Self {
         Self { all, pending: None, noise: None, found: Vec::new() }
     }
 
     /// A fresh scanner that continues from this one's pending request.
-    pub(super) fn trial(&self) -> Self {
+    fn trial(&self) -> Self {
         Self { all: self.all, pending: self.pending.clone(), noise: None, found: Vec::new() }
     }
 
     /// All of `bytes`, as one stream.
-    pub(super) fn scan_stream(&self, bytes: &[u8]) -> Vec<Found<'c>> {
+    pub fn scan_stream(&self, bytes: &[u8]) -> Vec<Found<'c>> {
         let mut scanner = self.trial();
         scanner.feed(bytes, 0, &LineMap::default());
         scanner.finish()
@@ -124,7 +164,7 @@ impl<'a, 'c> Scanner<'a, 'c> {
 
     /// A capture read one frame (or a few) per line: frames do not span lines.
     /// Of a line's readings, the one that is most frames wins.
-    pub(super) fn scan_lines(&self, lines: &[Line<'_>]) -> Vec<Found<'c>> {
+    pub fn scan_lines(&self, lines: &[Line<'_>]) -> Vec<Found<'c>> {
         let mut scanner = self.trial();
         let mut offset = 0;
         for line in lines {
@@ -173,7 +213,7 @@ impl<'a, 'c> Scanner<'a, 'c> {
     }
 
     /// A capture read as one hex stream that may wrap over lines.
-    pub(super) fn scan_joined(&self, lines: &[Line<'_>]) -> Vec<Found<'c>> {
+    pub fn scan_joined(&self, lines: &[Line<'_>]) -> Vec<Found<'c>> {
         let mut scanner = self.trial();
         let mut bytes = Vec::new();
         let mut map = LineMap::default();
@@ -195,7 +235,7 @@ impl<'a, 'c> Scanner<'a, 'c> {
     }
 
     /// Scans one piece (a line, or the whole stream): frames never span pieces.
-    pub(super) fn feed(&mut self, piece: &[u8], start: usize, lines: &LineMap) {
+    fn feed(&mut self, piece: &[u8], start: usize, lines: &LineMap) {
         let mut p = 0;
         while p < piece.len() {
             let place = Place { line: lines.line(start + p), offset: start + p };
@@ -241,28 +281,28 @@ impl<'a, 'c> Scanner<'a, 'c> {
     }
 
     /// The pending request's reply.
-    pub(super) fn pair(&mut self, reply: Framed, intact: bool) {
+    fn pair(&mut self, reply: Framed, intact: bool) {
         self.end_noise();
         if let Some(Pending { request, header, cands }) = self.pending.take() {
             self.found.push(Found::Pair { request, header, cands, reply: Some(reply), intact });
         }
     }
 
-    pub(super) fn end_noise(&mut self) {
+    fn end_noise(&mut self) {
         if let Some(noise) = self.noise.take() {
             self.found.push(Found::Noise(noise));
         }
     }
 
     /// The pending request got no reply.
-    pub(super) fn close_pending(&mut self) {
+    fn close_pending(&mut self) {
         if let Some(Pending { request, header, cands }) = self.pending.take() {
             self.found.push(Found::Pair { request, header, cands, reply: None, intact: true });
         }
     }
 
     /// Everything found, in input order.
-    pub(super) fn finish(mut self) -> Vec<Found<'c>> {
+    fn finish(mut self) -> Vec<Found<'c>> {
         self.end_noise();
         self.close_pending();
         let mut found = self.found;
@@ -276,7 +316,7 @@ impl<'a, 'c> Scanner<'a, 'c> {
     /// A request at `p`: its length, header and the commands it fits. A
     /// well-formed request that no loaded command fits (a read of 8 bytes, a
     /// write whose byte count is twice its register count) has no candidates.
-    pub(super) fn request_at(&self, piece: &[u8], p: usize) -> Option<(usize, Header, Vec<Cand<'c>>)> {
+    fn request_at(&self, piece: &[u8], p: usize) -> Option<(usize, Header, Vec<Candidate<'c>>)> {
         let rest = piece.get(p..)?;
         if rest.len() < 8 {
             return None;
@@ -287,7 +327,7 @@ impl<'a, 'c> Scanner<'a, 'c> {
             address: word(rest, 2).unwrap_or(0),
             count: word(rest, 4).unwrap_or(0),
         };
-        let cands: Vec<Cand<'c>> = self
+        let cands: Vec<Candidate<'c>> = self
             .all
             .iter()
             .filter(|c| {
@@ -321,7 +361,7 @@ impl<'a, 'c> Scanner<'a, 'c> {
     /// intact. A reply with the right header but a wrong CRC or cut short is
     /// taken (not intact) where the piece ends after it or a frame follows
     /// it, unless a frame starts at `p` itself (the caller checks).
-    pub(super) fn reply_at(&self, piece: &[u8], p: usize, pending: &Pending<'c>) -> Option<(usize, bool)> {
+    fn reply_at(&self, piece: &[u8], p: usize, pending: &Pending<'c>) -> Option<(usize, bool)> {
         let rest = piece.get(p..)?;
         let (slave, function) = (*rest.first()?, *rest.get(1)?);
         let asked = pending.header;
@@ -368,7 +408,7 @@ impl<'a, 'c> Scanner<'a, 'c> {
     /// address a probe may use, of a function the probes serve: framed by
     /// the runtime's segmenter (its CRC, and a length the byte count gives
     /// or, for the replies the manuals print with another count, the CRC).
-    pub(super) fn lone_reply_at(&self, piece: &[u8], p: usize) -> Option<usize> {
+    fn lone_reply_at(&self, piece: &[u8], p: usize) -> Option<usize> {
         let rest = piece.get(p..)?;
         let (slave, function) = (*rest.first()?, *rest.get(1)?);
         let fixed = self.all.iter().any(|c| c.command.fixed_slave == Some(slave));

@@ -1,20 +1,20 @@
 //! What the scanner found, decoded: each exchange as a value (status,
-//! decodings, notes, problems), before any of it is printed.
+//! decodings, notes, problems), for a front end to render.
 
-use serde_json::{Value as Json, json};
 use yosemitech_rtu::bytes::byte;
-use yosemitech_rtu::frame::{EXCEPTION_BIT, EXCEPTION_LEN};
+use yosemitech_rtu::frame::EXCEPTION_LEN;
 use yosemitech_rtu::{ExceptionCode, Function, crc16};
-use yosemitech_spec::{CommandSpec, Values};
+use yosemitech_spec::Values;
 
-use crate::format::{fields_json, hex, value_with_unit, values_json};
+use crate::format::hex;
 
-use super::candidates::{Cand, Filter, fits_slave, label, reply_lens};
+use super::candidates::{Candidate, Commands, Decoding, by_equal_values, fits_slave, label, reply_lens};
+use super::frame::Kind;
 use super::scan::{Found, Framed, Header, Place};
 
 /// How a transaction or a frame ended up.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(super) enum Status {
+pub enum Status {
     /// The reply decoded, one way.
     Decoded,
     /// The device answered with a Modbus exception.
@@ -38,7 +38,8 @@ pub(super) enum Status {
 }
 
 impl Status {
-    pub(super) fn name(self) -> &'static str {
+    /// `no_reply`: its name in JSON (and, spaced, in text).
+    pub fn name(self) -> &'static str {
         match self {
             Status::Decoded => "decoded",
             Status::Exception => "exception",
@@ -54,90 +55,32 @@ impl Status {
     }
 
     /// Whether the entry counts as decoded for the exit code.
-    pub(super) fn ok(self) -> bool {
+    pub fn ok(self) -> bool {
         matches!(self, Status::Decoded | Status::Exception | Status::Broadcast)
     }
 }
 
-/// One way to read a transaction: the commands that read it so, and the values.
-pub(super) struct Decoding<'c> {
-    pub(super) cands: Vec<Cand<'c>>,
-    pub(super) values: Values,
-}
-
-impl<'c> Decoding<'c> {
-    pub(super) fn command(&self) -> Option<&'c CommandSpec> {
-        self.cands.first().map(|c| c.command)
-    }
-
-    /// `get_sn of conductivity, ph_orp`.
-    pub(super) fn label(&self) -> String {
-        label(&self.cands)
-    }
-
-    /// `ph = 7.6 pH, temperature_c = 25 °C`.
-    pub(super) fn values_text(&self) -> String {
-        let command = self.command();
-        self.values
-            .iter()
-            .map(|(n, v)| format!("{n} = {}", value_with_unit(v, command.and_then(|c| c.field(n)))))
-            .collect::<Vec<_>>()
-            .join(", ")
-    }
-
-    /// The command's name, when every candidate has the same one.
-    pub(super) fn name(&self) -> Option<&str> {
-        let first = self.command()?;
-        self.cands.iter().all(|c| c.command.name == first.name).then_some(first.name.as_str())
-    }
-
-    pub(super) fn json(&self) -> Json {
-        let empty = Json::Array(Vec::new());
-        json!({
-            "command": self.name(),
-            "sensors": self.cands.iter().map(|c| c.sensor).collect::<Vec<_>>(),
-            "commands": self.cands.iter().map(|c| json!({ "sensor": c.sensor, "command": c.command.name })).collect::<Vec<_>>(),
-            "title": self.command().map(|c| c.title.as_str()),
-            "values": values_json(&self.values),
-            "fields": self.command().map_or(empty, |c| fields_json(c, &self.values)),
-        })
-    }
-}
-
-/// Candidates with their values, the equal ones together: same fields, same
-/// values (bit for bit), same units.
-pub(super) fn group<'c>(decoded: impl IntoIterator<Item = (Cand<'c>, Values)>) -> Vec<Decoding<'c>> {
-    let mut groups: Vec<Decoding<'c>> = Vec::new();
-    for (cand, values) in decoded {
-        let same = groups.iter_mut().find(|g| {
-            let unit = |c: Option<&CommandSpec>, n: &str| c.and_then(|c| c.field(n)).and_then(|f| f.unit.clone());
-            g.values.len() == values.len()
-                && g.values.iter().zip(&values).all(|((n1, v1), (n2, v2))| {
-                    n1 == n2 && v1.same_as(v2) && unit(g.command(), n1) == unit(Some(cand.command), n2)
-                })
-        });
-        match same {
-            Some(g) => g.cands.push(cand),
-            None => groups.push(Decoding { cands: vec![cand], values }),
-        }
-    }
-    groups
-}
-
 /// A request and its reply (or a reply alone), decoded.
-pub(super) struct Exchange<'c> {
-    pub(super) request: Option<(Framed, Header)>,
-    pub(super) reply: Option<Framed>,
-    pub(super) status: Status,
+pub struct Exchange<'c> {
+    /// The request and what it asks, if one was seen.
+    pub request: Option<(Framed, Header)>,
+    /// The reply, if one followed (or came alone).
+    pub reply: Option<Framed>,
+    /// How it ended up.
+    pub status: Status,
     /// Every way to read it; one when decoded.
-    pub(super) decodings: Vec<Decoding<'c>>,
-    pub(super) exception: Option<ExceptionCode>,
-    pub(super) notes: Vec<String>,
-    pub(super) problems: Vec<String>,
+    pub decodings: Vec<Decoding<'c>>,
+    /// The exception the reply carries.
+    pub exception: Option<ExceptionCode>,
+    /// What is unusual but accepted.
+    pub notes: Vec<String>,
+    /// What is wrong, first the reason of the status.
+    pub problems: Vec<String>,
 }
 
 impl<'c> Exchange<'c> {
-    pub(super) fn slave(&self) -> Option<u8> {
+    /// The slave address the request names, else the reply's.
+    pub fn slave(&self) -> Option<u8> {
         match (&self.request, &self.reply) {
             (Some((_, header)), _) => Some(header.slave),
             (None, Some(reply)) => reply.bytes.first().copied(),
@@ -146,7 +89,7 @@ impl<'c> Exchange<'c> {
     }
 
     /// The one decoding, when there is exactly one.
-    pub(super) fn chosen(&self) -> Option<&Decoding<'c>> {
+    pub fn chosen(&self) -> Option<&Decoding<'c>> {
         match self.decodings.as_slice() {
             [only] => Some(only),
             _ => None,
@@ -155,14 +98,19 @@ impl<'c> Exchange<'c> {
 }
 
 /// An entry of the output.
-pub(super) enum Report<'c> {
+pub enum Report<'c> {
+    /// A request and its reply, or one of them alone.
     Exchange(Exchange<'c>),
+    /// Bytes that are no frame.
     Noise(Framed),
+    /// A capture line that is not hex: where, its text and why.
+    #[allow(missing_docs)]
     Unreadable { place: Place, text: String, problem: String },
 }
 
 impl Report<'_> {
-    pub(super) fn status(&self) -> Status {
+    /// How the entry ended up.
+    pub fn status(&self) -> Status {
         match self {
             Report::Exchange(x) => x.status,
             Report::Noise(_) => Status::Noise,
@@ -172,7 +120,7 @@ impl Report<'_> {
 }
 
 /// `a read of 0x2800, 2 registers`.
-pub(super) fn describe(header: &Header) -> String {
+pub fn describe(header: &Header) -> String {
     let registers =
         format!("0x{:04X}, {} register{}", header.address, header.count, if header.count == 1 { "" } else { "s" });
     match Function::from_code(header.function) {
@@ -183,27 +131,28 @@ pub(super) fn describe(header: &Header) -> String {
 }
 
 /// Decodes what the scanner found, with the commands --sensor/--command leave.
-pub(super) fn report<'c>(filter: &Filter<'_>, all: &[Cand<'c>], found: Found<'c>) -> Report<'c> {
+pub fn report<'c>(commands: &Commands<'c>, found: Found<'c>) -> Report<'c> {
     match found {
         Found::Noise(f) => Report::Noise(f),
         Found::Unreadable { place, text, problem } => Report::Unreadable { place, text, problem },
         Found::Pair { request, header, cands, reply, intact } => {
-            Report::Exchange(transaction(filter, request, header, &cands, reply, intact))
+            Report::Exchange(transaction(commands, request, header, &cands, reply, intact))
         }
-        Found::Lone(reply) => Report::Exchange(lone(filter, all, reply)),
+        Found::Lone(reply) => Report::Exchange(lone(commands, reply)),
     }
 }
 
-pub(super) fn transaction<'c>(
-    filter: &Filter<'_>,
+/// A request and what followed it, decoded as the commands it fits that the choice leaves.
+pub fn transaction<'c>(
+    commands: &Commands<'c>,
     request: Framed,
     header: Header,
-    cands: &[Cand<'c>],
+    cands: &[Candidate<'c>],
     reply: Option<Framed>,
     intact: bool,
 ) -> Exchange<'c> {
-    let allowed: Vec<Cand<'c>> = cands.iter().filter(|c| filter.allows(c)).copied().collect();
-    let written = |c: &Cand<'_>| -> Values {
+    let allowed: Vec<Candidate<'c>> = cands.iter().filter(|c| commands.allows(c)).copied().collect();
+    let written = |c: &Candidate<'_>| -> Values {
         if c.command.is_read() {
             Vec::new()
         } else {
@@ -230,7 +179,7 @@ pub(super) fn transaction<'c>(
             });
         }
         (None, _) => {
-            x.decodings = group(allowed.iter().map(|c| (*c, written(c))));
+            x.decodings = by_equal_values(allowed.iter().map(|c| (*c, written(c))));
             if header.slave == 0 {
                 x.status = Status::Broadcast;
                 x.notes.push("address 0: a broadcast, never answered".into());
@@ -240,10 +189,10 @@ pub(super) fn transaction<'c>(
             }
         }
         (Some(reply), false) => {
-            x.decodings = group(allowed.iter().map(|c| (*c, written(c))));
+            x.decodings = by_equal_values(allowed.iter().map(|c| (*c, written(c))));
             x.status = Status::Undecodable;
             let bytes = &reply.bytes;
-            let expected = if byte(bytes, 1).unwrap_or(0) & EXCEPTION_BIT != 0 {
+            let expected = if Kind::of(bytes) == Kind::Exception {
                 EXCEPTION_LEN
             } else {
                 allowed.iter().filter_map(|c| reply_lens(c.command)[0]).max().unwrap_or(0)
@@ -257,10 +206,10 @@ pub(super) fn transaction<'c>(
                 format!("the reply's CRC is wrong: it carries {}, its bytes give {}", hex(carried), hex(&computed))
             });
         }
-        (Some(reply), true) if byte(&reply.bytes, 1).unwrap_or(0) & EXCEPTION_BIT != 0 => {
+        (Some(reply), true) if Kind::of(&reply.bytes) == Kind::Exception => {
             x.status = Status::Exception;
             x.exception = Some(ExceptionCode::from_u8(byte(&reply.bytes, 2).unwrap_or(0)));
-            x.decodings = group(allowed.iter().map(|c| (*c, written(c))));
+            x.decodings = by_equal_values(allowed.iter().map(|c| (*c, written(c))));
         }
         (Some(reply), true) => {
             let mut decoded = Vec::new();
@@ -271,7 +220,7 @@ pub(super) fn transaction<'c>(
                     Err(e) => rejected.push(format!("not {} of {}: {e}", c.command.name, c.sensor)),
                 }
             }
-            x.decodings = group(decoded);
+            x.decodings = by_equal_values(decoded);
             x.status = match x.decodings.len() {
                 0 => Status::Undecodable,
                 1 => Status::Decoded,
@@ -302,7 +251,7 @@ pub(super) fn transaction<'c>(
 }
 
 /// A reply with no request: what it could be, for information.
-pub(super) fn lone<'c>(filter: &Filter<'_>, all: &[Cand<'c>], reply: Framed) -> Exchange<'c> {
+pub fn lone<'c>(commands: &Commands<'c>, reply: Framed) -> Exchange<'c> {
     let (slave, function) = (byte(&reply.bytes, 0).unwrap_or(0), byte(&reply.bytes, 1).unwrap_or(0));
     let mut x = Exchange {
         request: None,
@@ -315,19 +264,20 @@ pub(super) fn lone<'c>(filter: &Filter<'_>, all: &[Cand<'c>], reply: Framed) -> 
             "no request to address {slave} before this reply (lost, or sent before the capture began)"
         )],
     };
-    if function & EXCEPTION_BIT != 0 {
+    if Kind::of(&reply.bytes) == Kind::Exception {
         x.exception = Some(ExceptionCode::from_u8(byte(&reply.bytes, 2).unwrap_or(0)));
     } else {
         // A reply from 0xFF fits only a command with that fixed address.
-        let decoded = all
+        let decoded = commands
+            .all
             .iter()
-            .filter(|c| filter.allows(c) && c.command.function.code() == function)
+            .filter(|c| commands.allows(c) && c.command.function.code() == function)
             .filter(|c| slave != 0 && fits_slave(c.command, slave))
             .filter_map(|c| {
                 let values = c.command.decode_response(c.command.fixed_slave.unwrap_or(slave), &reply.bytes).ok()?;
                 Some((*c, values))
             });
-        x.decodings = group(decoded);
+        x.decodings = by_equal_values(decoded);
     }
     x.reply = Some(reply);
     x
