@@ -228,14 +228,15 @@ fn message_impl(
     }
 }
 
-/// Who builds a message type decides its shape. A reply is built by this
-/// crate's decoder, so it is `#[non_exhaustive]`: a field a later manual
-/// names is then no breaking change for code that reads the others (outside
-/// the crate it is read, matched with `..`, or made by `Message::from_data`).
+/// Who builds a message type decides its shape. A reply is built by the
+/// generated crate's decoder, so it is `#[non_exhaustive]`: a field a later
+/// manual names is then no breaking change for code that reads the others
+/// (outside that crate a reply is read, matched with `..`, or made by
+/// `Message::from_data`).
 /// A request is built by its user and stays exhaustive: a field a later
 /// manual adds to a write is something the device now needs, which every
 /// caller must supply.
-#[derive(Clone, Copy, PartialEq, Eq)]
+#[derive(Clone, Copy)]
 enum Builder {
     User,
     Decoder,
