@@ -92,7 +92,7 @@ pub fn decode_response(data: &[u8]) {
 
 /// The [`decode_response`] checks, for every command of every sensor.
 fn check_all_sensors(slave: u8, frame: &[u8]) {
-    for module in &SENSORS {
+    for module in SENSORS {
         check_sensor(module, slave, frame);
     }
 }

@@ -191,7 +191,7 @@ pub fn generated_spec() -> &'static Spec {
 /// Every generated module with its spec sensor, checked to be one-to-one
 /// with the spec, and every module's commands checked against the spec's.
 pub fn sensors() -> Vec<(Api, &'static yosemitech_spec::Sensor)> {
-    let apis: Vec<Api> = yosemitech::SENSORS.iter().chain(&crate::fixture::SENSORS).map(api).collect();
+    let apis: Vec<Api> = yosemitech::SENSORS.iter().chain(crate::fixture::SENSORS).map(api).collect();
     let spec = generated_spec();
     let listed: Vec<&str> = apis.iter().map(|a| a.sensor).collect();
     let in_spec: Vec<&str> = spec.sensors.iter().map(|s| s.name.as_str()).collect();

@@ -102,8 +102,8 @@ fn fixture_device_handle() {
     let mut client = Client::new(transport);
     let mut probe = do_probe::Device::new(&mut client, 10);
     assert_eq!(probe.address(), 10);
-    assert_eq!(probe.tilt().unwrap(), -10_i8, "a one-field read returns the value");
-    assert_eq!(probe.mode().unwrap(), Mode::OnDemand);
+    assert_eq!(probe.tilt().unwrap().tilt_deg, -10_i8, "a one-field read returns its reply");
+    assert_eq!(probe.mode().unwrap().mode, Mode::OnDemand);
     let status = probe.status().unwrap();
     assert_eq!((status.state, status.error_count), (State::Measuring, 3));
     assert_eq!(probe.oxygen_sample().unwrap().do_mg_l, 8.25);

@@ -21,7 +21,7 @@ use yosemitech_spec::{Derived, InputSource, Sensor, Spec};
 fn quantities() -> Vec<(Sensor, Derived, &'static DerivedInfo)> {
     let fixture = yosemitech_spec::load_paths(&[yosemitech_tests::derived_spec_dir()]).expect("the fixture loads");
     let sets: [(&Spec, &[SensorModule]); 2] =
-        [(yosemitech_tests::spec(), &yosemitech::SENSORS), (&fixture, &yosemitech_tests::derived_fixture::SENSORS)];
+        [(yosemitech_tests::spec(), yosemitech::SENSORS), (&fixture, yosemitech_tests::derived_fixture::SENSORS)];
     let mut out = Vec::new();
     for (spec, modules) in sets {
         for sensor in &spec.sensors {

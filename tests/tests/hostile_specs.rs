@@ -592,7 +592,7 @@ fn hostile_fixture_talks_to_its_simulator() {
     };
     device.set_max_write(write).expect("a 255-byte request through the client");
     // `response` and `command` are not usable method names: these keep the `get_`.
-    assert_eq!(device.get_response().expect("get_response"), 0xBEEF);
+    assert_eq!(device.get_response().expect("get_response").response_code, 0xBEEF);
     device.get_command().expect("get_command");
     device.get_address().expect("get_address keeps its full name: Device::address is taken");
     device.trigger().expect("a write of no registers");

@@ -345,12 +345,12 @@ fn device_handles_change_their_address_with_verification() {
     let mut probe = conductivity::Device::new(&mut bus, 1);
     probe.set_slave_address(42).unwrap();
     assert_eq!(probe.address(), 42);
-    assert_eq!(probe.sn().unwrap().as_str(), Some("YL0914010022"), "the handle follows the probe");
+    assert_eq!(probe.sn().unwrap().serial_number.as_str(), Some("YL0914010022"), "the handle follows the probe");
     assert!(matches!(probe.set_slave_address(0), Err(AddressChangeError::InvalidAddress(0))));
     assert_eq!(probe.address(), 42, "a refused change leaves the handle where the probe is");
 
     let mut bus = client(Simulator::new(sensor(ph_orp::SENSOR.name)));
     let mut probe = ph_orp::Device::new(&mut bus, 1);
     probe.set_slave_address(7).unwrap();
-    assert_eq!(probe.ph().unwrap(), 7.6);
+    assert_eq!(probe.ph().unwrap().ph, 7.6);
 }

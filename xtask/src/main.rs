@@ -7,6 +7,7 @@
 //! cargo xtask docs [--check]       write docs/sensors/<sensor>.md
 //! cargo xtask fuzz --seconds N     run every fuzz target for N seconds
 //! cargo xtask callgrind [--check]  the client's instructions a transaction, against rmodbus
+//! cargo xtask semver [--baseline REV]  the published crates' API against the last release tag
 //! cargo xtask import MANUAL [--name NAME] [--out FILE] | MANUAL --into SPEC [--out FILE] [--json] | --accuracy [--write]
 //! ```
 
@@ -20,6 +21,7 @@ mod fuzz;
 mod generated_files;
 mod import;
 mod schema;
+mod semver;
 mod validate;
 
 /// The workspace root (the parent of `xtask/`).
@@ -45,7 +47,7 @@ pub fn check_flag(args: &[String], usage: &str) -> anyhow::Result<Option<bool>> 
     Ok(Some(check))
 }
 
-const USAGE: &str = "usage: cargo xtask <validate [PATH...] | schema [--check] | codegen [--check] | docs [--check] | fuzz --seconds N | callgrind [--check] | import MANUAL [--name NAME] [--out FILE] | import MANUAL --into SPEC [--out FILE] [--json] | import --accuracy [--write]>";
+const USAGE: &str = "usage: cargo xtask <validate [PATH...] | schema [--check] | codegen [--check] | docs [--check] | fuzz --seconds N | callgrind [--check] | semver [--baseline REV] | import MANUAL [--name NAME] [--out FILE] | import MANUAL --into SPEC [--out FILE] [--json] | import --accuracy [--write]>";
 
 fn main() -> ExitCode {
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -60,6 +62,7 @@ fn main() -> ExitCode {
         "docs" => docs::run(rest),
         "fuzz" => fuzz::run(rest),
         "callgrind" => callgrind::run(rest),
+        "semver" => semver::run(rest),
         "import" => import::run(rest),
         "-h" | "--help" | "help" => {
             println!("{USAGE}");

@@ -122,7 +122,7 @@ fn client_transactions_do_not_allocate() {
         for _ in 0..ROUNDS {
             assert_eq!(client.call(1, &GetPh).unwrap().ph, GET_PH_VALUE);
             let mut probe = ph_orp::Device::new(&mut client, 1);
-            assert_eq!(probe.ph().unwrap(), GET_PH_VALUE);
+            assert_eq!(probe.ph().unwrap().ph, GET_PH_VALUE);
         }
     });
     assert_eq!(n, 0, "allocations in {} client transactions", 2 * ROUNDS);

@@ -200,12 +200,12 @@ impl Config {
                 quote::quote!(#m::MODULE)
             })
             .collect();
-        let count = proc_macro2::Literal::usize_unsuffixed(module_refs.len());
         let runtime_path = &options.runtime;
         modules.extend(quote::quote! {
             /// Every generated sensor module, in spec-file order, as data: for code
-            /// that serves any sensor of the spec without naming one.
-            pub const SENSORS: [#runtime_path::SensorModule; #count] = [#(#module_refs),*];
+            /// that serves any sensor of the spec without naming one. A slice, so
+            /// that a sensor added to the spec changes no type.
+            pub const SENSORS: &[#runtime_path::SensorModule] = &[#(#module_refs),*];
         });
         let files: Vec<String> = spec.sensors.iter().filter_map(|s| file_name(&s.file)).collect();
         let modules = format_tokens(MODULES_FILE, modules, &format!("from {}", files.join(", ")))?;

@@ -32,15 +32,15 @@ fn main() -> Result<(), Box<dyn Error>> {
     let ph_path = ph_server.tty_path().ok_or("the pH simulator has no pty")?;
     let mut ph_bus = Client::with_config(SerialTransport::open(&SerialConfig::new(ph_path))?, config);
     let mut ph = ph_orp::Device::new(&mut ph_bus, ph_orp::SENSOR.default_address);
-    println!("pH/ORP probe {} on {ph_path}", ph.sn()?);
-    println!("  pH           {:.2} pH", ph.ph()?);
-    println!("  ORP          {:.2} mV", ph.orp()?);
-    println!("  temperature  {:.2} degC", ph.temperature()?);
+    println!("pH/ORP probe {} on {ph_path}", ph.sn()?.serial_number);
+    println!("  pH           {:.2} pH", ph.ph()?.ph);
+    println!("  ORP          {:.2} mV", ph.orp()?.orp_mv);
+    println!("  temperature  {:.2} degC", ph.temperature()?.temperature_c);
 
     let cond_path = cond_server.tty_path().ok_or("the conductivity simulator has no pty")?;
     let mut cond_bus = Client::with_config(SerialTransport::open(&SerialConfig::new(cond_path))?, config);
     let mut cond = conductivity::Device::new(&mut cond_bus, conductivity::SENSOR.default_address);
-    println!("conductivity probe {} on {cond_path}", cond.sn()?);
+    println!("conductivity probe {} on {cond_path}", cond.sn()?.serial_number);
     let reading = cond.temperature_and_conductivity()?;
     println!("  conductivity {:.3} mS/cm ({})", reading.conductivity_ms_cm, reading.range_status);
     println!("  temperature  {:.2} degC", reading.temperature_c);

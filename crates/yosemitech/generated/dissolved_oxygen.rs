@@ -241,6 +241,7 @@ impl rtu::NoData for GetTemperatureAndDo {}
 
 /// Reply to [`GetTemperatureAndDo`]. Temperature and dissolved oxygen in one read.
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[non_exhaustive]
 pub struct GetTemperatureAndDoResponse {
     /// Water temperature in degrees Celsius. Unit: degC.
     ///
@@ -358,6 +359,7 @@ impl rtu::NoData for GetUserCalibration {}
 
 /// Reply to [`GetUserCalibration`]. Reads the user calibration of the dissolved oxygen, meant to correct drift from ageing and similar causes: DO = K x measured DO + B, with K = 1 and B = 0 by default.
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[non_exhaustive]
 pub struct GetUserCalibrationResponse {
     /// Slope K (no unit).
     ///
@@ -691,8 +693,9 @@ impl rtu::Command for SetCapCoefficients {
 pub use super::yosemitech_common::{GetSlaveId, GetSlaveIdResponse};
 
 /// Every command of this sensor as data, in spec order: name, title,
-/// layout, fields and codecs ([`CommandId`] indexes it).
-pub const COMMANDS: [rtu::CommandEntry; 10] = [
+/// layout, fields and codecs ([`CommandId`] indexes it). A slice, so
+/// that a command a later manual adds changes no type.
+pub const COMMANDS: &[rtu::CommandEntry] = &[
     rtu::CommandEntry::of::<SetSlaveId>("Set Slave Device ID"),
     rtu::CommandEntry::of::<GetSn>("Get SN"),
     rtu::CommandEntry::of::<StartMeasurement>("Start Measurement"),
@@ -706,8 +709,10 @@ pub const COMMANDS: [rtu::CommandEntry; 10] = [
 ];
 
 /// Every command of this sensor, for code that picks commands at run
-/// time (CLIs, simulators, tests).
+/// time (CLIs, simulators, tests). Non-exhaustive: a later manual may
+/// add a command, so a `match` outside this crate needs a `_` arm.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+#[non_exhaustive]
 pub enum CommandId {
     /// `set_slave_id`: [`SetSlaveId`].
     SetSlaveId,
@@ -733,7 +738,7 @@ pub enum CommandId {
 
 impl CommandId {
     /// Every command, in spec order.
-    pub const ALL: [Self; 10] = [
+    pub const ALL: &[Self] = &[
         Self::SetSlaveId,
         Self::GetSn,
         Self::StartMeasurement,
@@ -756,7 +761,7 @@ impl CommandId {
     }
     /// The command called `name` in the spec.
     pub fn from_name(name: &str) -> Option<Self> {
-        Self::ALL.into_iter().find(|id| id.name() == name)
+        Self::ALL.iter().copied().find(|id| id.name() == name)
     }
     /// The command's title in the manual.
     pub const fn title(self) -> &'static str {
@@ -876,8 +881,10 @@ impl ::core::fmt::Display for CommandId {
     }
 }
 
-/// A request of any command of this sensor.
+/// A request of any command of this sensor. Non-exhaustive, as
+/// [`CommandId`] is.
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[non_exhaustive]
 pub enum Request {
     /// A [`SetSlaveId`] request.
     SetSlaveId(SetSlaveId),
@@ -960,7 +967,9 @@ impl Request {
 }
 
 /// A reply to any command of this sensor (writes reply with no data).
+/// Non-exhaustive, as [`CommandId`] is.
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[non_exhaustive]
 pub enum Response {
     /// The reply to [`SetSlaveId`].
     SetSlaveId,
@@ -1176,12 +1185,12 @@ pub fn decode_response(
 /// and register count (the first in spec order if several match). Does
 /// not check the frame: decode it with [`CommandId::decode_request`].
 pub fn identify_request(frame: &[u8]) -> Option<CommandId> {
-    rtu::identify_request(&COMMANDS, frame).and_then(|i| CommandId::ALL.get(i).copied())
+    rtu::identify_request(COMMANDS, frame).and_then(|i| CommandId::ALL.get(i).copied())
 }
 
 /// Every derived quantity of the sensor as data, in spec order: its
 /// inputs, and its function (`compute` takes the inputs in parameter order).
-pub const DERIVED: [rtu::DerivedInfo; 1] = [
+pub const DERIVED: &[rtu::DerivedInfo] = &[
     rtu::DerivedInfo {
         name: "dissolved_oxygen_mg_l",
         title: "Dissolved oxygen concentration",
@@ -1245,14 +1254,14 @@ pub const DERIVED: [rtu::DerivedInfo; 1] = [
 /// (`crate::SENSORS` lists them all).
 pub const MODULE: rtu::SensorModule = rtu::SensorModule {
     info: SENSOR,
-    commands: &COMMANDS,
-    derived: &DERIVED,
+    commands: COMMANDS,
+    derived: DERIVED,
 };
 
 #[cfg(feature = "std")]
 /// One Optical dissolved-oxygen probe on a bus: a borrowed [`rtu::Client`] and the probe's slave address, with one method per command.
 ///
-/// Reads are named after the command without its `get_` prefix and return the reply, or its only field; writes keep the command's name and take the field (one field) or the request (several). Commands with a fixed slave address (a read at the wildcard address 0xFF) use it instead of the device's.
+/// Reads are named after the command without its `get_` prefix and return the reply (a struct that later fields may join); writes keep the command's name and take the field (one field) or the request (several). Commands with a fixed slave address (a read at the wildcard address 0xFF) use it instead of the device's.
 pub struct Device<'c, T> {
     client: &'c mut rtu::Client<T>,
     address: u8,
@@ -1289,9 +1298,9 @@ impl<'c, T: rtu::Transport> Device<'c, T> {
     pub fn set_slave_id(&mut self, slave_address: u8) -> Result<(), rtu::Error> {
         self.call(&SetSlaveId { slave_address })
     }
-    /// Get SN: sends [`GetSn`] and returns its `serial_number`.
-    pub fn sn(&mut self) -> Result<rtu::Ascii<12>, rtu::Error> {
-        self.call(&GetSn).map(|reply| reply.serial_number)
+    /// Get SN: sends [`GetSn`] and returns the reply.
+    pub fn sn(&mut self) -> Result<GetSnResponse, rtu::Error> {
+        self.call(&GetSn)
     }
     /// Start Measurement: sends [`StartMeasurement`] and returns the reply.
     pub fn start_measurement(&mut self) -> Result<StartMeasurementResponse, rtu::Error> {
@@ -1331,9 +1340,9 @@ impl<'c, T: rtu::Transport> Device<'c, T> {
     ) -> Result<(), rtu::Error> {
         self.call(&request)
     }
-    /// Get Slave Device ID: sends [`GetSlaveId`] and returns its `slave_address`.
-    pub fn slave_id(&mut self) -> Result<u8, rtu::Error> {
-        self.call(&GetSlaveId).map(|reply| reply.slave_address)
+    /// Get Slave Device ID: sends [`GetSlaveId`] and returns the reply.
+    pub fn slave_id(&mut self) -> Result<GetSlaveIdResponse, rtu::Error> {
+        self.call(&GetSlaveId)
     }
     /// Changes the probe's slave address to `new` (1..=247, not in use on the bus) with [`SetSlaveId`], confirmed by the probe's reply and verified by reading [`GetSn`] at `new`; the handle then talks to `new`. On failure the error says where the probe answers (see `rtu::address::change_address`).
     pub fn set_slave_address(
@@ -1390,9 +1399,9 @@ impl<'c, L: rtu::transport::AsyncLink> AsyncDevice<'c, L> {
     pub async fn set_slave_id(&mut self, slave_address: u8) -> Result<(), rtu::Error> {
         self.call(&SetSlaveId { slave_address }).await
     }
-    /// Get SN: sends [`GetSn`] and returns its `serial_number`.
-    pub async fn sn(&mut self) -> Result<rtu::Ascii<12>, rtu::Error> {
-        self.call(&GetSn).await.map(|reply| reply.serial_number)
+    /// Get SN: sends [`GetSn`] and returns the reply.
+    pub async fn sn(&mut self) -> Result<GetSnResponse, rtu::Error> {
+        self.call(&GetSn).await
     }
     /// Start Measurement: sends [`StartMeasurement`] and returns the reply.
     pub async fn start_measurement(
@@ -1436,8 +1445,8 @@ impl<'c, L: rtu::transport::AsyncLink> AsyncDevice<'c, L> {
     ) -> Result<(), rtu::Error> {
         self.call(&request).await
     }
-    /// Get Slave Device ID: sends [`GetSlaveId`] and returns its `slave_address`.
-    pub async fn slave_id(&mut self) -> Result<u8, rtu::Error> {
-        self.call(&GetSlaveId).await.map(|reply| reply.slave_address)
+    /// Get Slave Device ID: sends [`GetSlaveId`] and returns the reply.
+    pub async fn slave_id(&mut self) -> Result<GetSlaveIdResponse, rtu::Error> {
+        self.call(&GetSlaveId).await
     }
 }

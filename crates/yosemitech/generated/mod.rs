@@ -573,8 +573,9 @@ pub mod cod {
 }
 
 /// Every generated sensor module, in spec-file order, as data: for code
-/// that serves any sensor of the spec without naming one.
-pub const SENSORS: [::yosemitech_rtu::SensorModule; 13] = [
+/// that serves any sensor of the spec without naming one. A slice, so
+/// that a sensor added to the spec changes no type.
+pub const SENSORS: &[::yosemitech_rtu::SensorModule] = &[
     blue_green_algae::MODULE,
     chlorophyll::MODULE,
     conductivity::MODULE,

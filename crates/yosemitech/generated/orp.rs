@@ -81,6 +81,7 @@ impl rtu::NoData for GetOrp {}
 
 /// Reply to [`GetOrp`]. The oxidation-reduction potential in millivolts, with the user calibration applied.
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[non_exhaustive]
 pub struct GetOrpResponse {
     /// Oxidation-reduction potential. Unit: mV.
     ///
@@ -127,6 +128,7 @@ impl rtu::NoData for GetTemperature {}
 
 /// Reply to [`GetTemperature`]. The water temperature from the probe's built-in sensor.
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[non_exhaustive]
 pub struct GetTemperatureResponse {
     /// Water temperature in degrees Celsius. Unit: degC.
     ///
@@ -174,6 +176,7 @@ impl rtu::NoData for GetUserCalibration {}
 
 /// Reply to [`GetUserCalibration`]. Reads the user calibration of the ORP: slope K and offset B (final = K x raw + B; defaults K = 1, B = 0), at 0x3400 on this model.
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[non_exhaustive]
 pub struct GetUserCalibrationResponse {
     /// Slope K (no unit).
     ///
@@ -291,8 +294,9 @@ impl rtu::Command for SetUserCalibration {
 }
 
 /// Every command of this sensor as data, in spec order: name, title,
-/// layout, fields and codecs ([`CommandId`] indexes it).
-pub const COMMANDS: [rtu::CommandEntry; 9] = [
+/// layout, fields and codecs ([`CommandId`] indexes it). A slice, so
+/// that a command a later manual adds changes no type.
+pub const COMMANDS: &[rtu::CommandEntry] = &[
     rtu::CommandEntry::of::<SetSlaveId>("Set Slave Device ID"),
     rtu::CommandEntry::of::<GetSn>("Get SN"),
     rtu::CommandEntry::of::<GetVersion>("Get Software and Hardware Rev"),
@@ -305,8 +309,10 @@ pub const COMMANDS: [rtu::CommandEntry; 9] = [
 ];
 
 /// Every command of this sensor, for code that picks commands at run
-/// time (CLIs, simulators, tests).
+/// time (CLIs, simulators, tests). Non-exhaustive: a later manual may
+/// add a command, so a `match` outside this crate needs a `_` arm.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+#[non_exhaustive]
 pub enum CommandId {
     /// `set_slave_id`: [`SetSlaveId`].
     SetSlaveId,
@@ -330,7 +336,7 @@ pub enum CommandId {
 
 impl CommandId {
     /// Every command, in spec order.
-    pub const ALL: [Self; 9] = [
+    pub const ALL: &[Self] = &[
         Self::SetSlaveId,
         Self::GetSn,
         Self::GetVersion,
@@ -352,7 +358,7 @@ impl CommandId {
     }
     /// The command called `name` in the spec.
     pub fn from_name(name: &str) -> Option<Self> {
-        Self::ALL.into_iter().find(|id| id.name() == name)
+        Self::ALL.iter().copied().find(|id| id.name() == name)
     }
     /// The command's title in the manual.
     pub const fn title(self) -> &'static str {
@@ -464,8 +470,10 @@ impl ::core::fmt::Display for CommandId {
     }
 }
 
-/// A request of any command of this sensor.
+/// A request of any command of this sensor. Non-exhaustive, as
+/// [`CommandId`] is.
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[non_exhaustive]
 pub enum Request {
     /// A [`SetSlaveId`] request.
     SetSlaveId(SetSlaveId),
@@ -543,7 +551,9 @@ impl Request {
 }
 
 /// A reply to any command of this sensor (writes reply with no data).
+/// Non-exhaustive, as [`CommandId`] is.
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[non_exhaustive]
 pub enum Response {
     /// The reply to [`SetSlaveId`].
     SetSlaveId,
@@ -744,25 +754,25 @@ pub fn decode_response(
 /// and register count (the first in spec order if several match). Does
 /// not check the frame: decode it with [`CommandId::decode_request`].
 pub fn identify_request(frame: &[u8]) -> Option<CommandId> {
-    rtu::identify_request(&COMMANDS, frame).and_then(|i| CommandId::ALL.get(i).copied())
+    rtu::identify_request(COMMANDS, frame).and_then(|i| CommandId::ALL.get(i).copied())
 }
 
 /// Every derived quantity of the sensor as data, in spec order: its
 /// inputs, and its function (`compute` takes the inputs in parameter order).
-pub const DERIVED: [rtu::DerivedInfo; 0] = [];
+pub const DERIVED: &[rtu::DerivedInfo] = &[];
 
 /// This module as data, for code that serves every sensor without naming one
 /// (`crate::SENSORS` lists them all).
 pub const MODULE: rtu::SensorModule = rtu::SensorModule {
     info: SENSOR,
-    commands: &COMMANDS,
-    derived: &DERIVED,
+    commands: COMMANDS,
+    derived: DERIVED,
 };
 
 #[cfg(feature = "std")]
 /// One ORP probe on a bus: a borrowed [`rtu::Client`] and the probe's slave address, with one method per command.
 ///
-/// Reads are named after the command without its `get_` prefix and return the reply, or its only field; writes keep the command's name and take the field (one field) or the request (several). Commands with a fixed slave address (a read at the wildcard address 0xFF) use it instead of the device's.
+/// Reads are named after the command without its `get_` prefix and return the reply (a struct that later fields may join); writes keep the command's name and take the field (one field) or the request (several). Commands with a fixed slave address (a read at the wildcard address 0xFF) use it instead of the device's.
 pub struct Device<'c, T> {
     client: &'c mut rtu::Client<T>,
     address: u8,
@@ -799,29 +809,29 @@ impl<'c, T: rtu::Transport> Device<'c, T> {
     pub fn set_slave_id(&mut self, slave_address: u8) -> Result<(), rtu::Error> {
         self.call(&SetSlaveId { slave_address })
     }
-    /// Get SN: sends [`GetSn`] and returns its `serial_number`.
-    pub fn sn(&mut self) -> Result<rtu::Ascii<12>, rtu::Error> {
-        self.call(&GetSn).map(|reply| reply.serial_number)
+    /// Get SN: sends [`GetSn`] and returns the reply.
+    pub fn sn(&mut self) -> Result<GetSnResponse, rtu::Error> {
+        self.call(&GetSn)
     }
     /// Get Software and Hardware Rev: sends [`GetVersion`] and returns the reply.
     pub fn version(&mut self) -> Result<GetVersionResponse, rtu::Error> {
         self.call(&GetVersion)
     }
-    /// Get Slave Device ID: sends [`GetSlaveId`] and returns its `slave_address`.
-    pub fn slave_id(&mut self) -> Result<u8, rtu::Error> {
-        self.call(&GetSlaveId).map(|reply| reply.slave_address)
+    /// Get Slave Device ID: sends [`GetSlaveId`] and returns the reply.
+    pub fn slave_id(&mut self) -> Result<GetSlaveIdResponse, rtu::Error> {
+        self.call(&GetSlaveId)
     }
     /// Start Measurement: sends [`StartMeasurement`] and returns the reply.
     pub fn start_measurement(&mut self) -> Result<StartMeasurementResponse, rtu::Error> {
         self.call(&StartMeasurement)
     }
-    /// Get ORP value: sends [`GetOrp`] and returns its `orp_mv` (mV).
-    pub fn orp(&mut self) -> Result<f32, rtu::Error> {
-        self.call(&GetOrp).map(|reply| reply.orp_mv)
+    /// Get ORP value: sends [`GetOrp`] and returns the reply.
+    pub fn orp(&mut self) -> Result<GetOrpResponse, rtu::Error> {
+        self.call(&GetOrp)
     }
-    /// Get temperature: sends [`GetTemperature`] and returns its `temperature_c` (degC).
-    pub fn temperature(&mut self) -> Result<f32, rtu::Error> {
-        self.call(&GetTemperature).map(|reply| reply.temperature_c)
+    /// Get temperature: sends [`GetTemperature`] and returns the reply.
+    pub fn temperature(&mut self) -> Result<GetTemperatureResponse, rtu::Error> {
+        self.call(&GetTemperature)
     }
     /// Get user calibration coefficients: sends [`GetUserCalibration`] and returns the reply.
     pub fn user_calibration(
@@ -891,17 +901,17 @@ impl<'c, L: rtu::transport::AsyncLink> AsyncDevice<'c, L> {
     pub async fn set_slave_id(&mut self, slave_address: u8) -> Result<(), rtu::Error> {
         self.call(&SetSlaveId { slave_address }).await
     }
-    /// Get SN: sends [`GetSn`] and returns its `serial_number`.
-    pub async fn sn(&mut self) -> Result<rtu::Ascii<12>, rtu::Error> {
-        self.call(&GetSn).await.map(|reply| reply.serial_number)
+    /// Get SN: sends [`GetSn`] and returns the reply.
+    pub async fn sn(&mut self) -> Result<GetSnResponse, rtu::Error> {
+        self.call(&GetSn).await
     }
     /// Get Software and Hardware Rev: sends [`GetVersion`] and returns the reply.
     pub async fn version(&mut self) -> Result<GetVersionResponse, rtu::Error> {
         self.call(&GetVersion).await
     }
-    /// Get Slave Device ID: sends [`GetSlaveId`] and returns its `slave_address`.
-    pub async fn slave_id(&mut self) -> Result<u8, rtu::Error> {
-        self.call(&GetSlaveId).await.map(|reply| reply.slave_address)
+    /// Get Slave Device ID: sends [`GetSlaveId`] and returns the reply.
+    pub async fn slave_id(&mut self) -> Result<GetSlaveIdResponse, rtu::Error> {
+        self.call(&GetSlaveId).await
     }
     /// Start Measurement: sends [`StartMeasurement`] and returns the reply.
     pub async fn start_measurement(
@@ -909,13 +919,13 @@ impl<'c, L: rtu::transport::AsyncLink> AsyncDevice<'c, L> {
     ) -> Result<StartMeasurementResponse, rtu::Error> {
         self.call(&StartMeasurement).await
     }
-    /// Get ORP value: sends [`GetOrp`] and returns its `orp_mv` (mV).
-    pub async fn orp(&mut self) -> Result<f32, rtu::Error> {
-        self.call(&GetOrp).await.map(|reply| reply.orp_mv)
+    /// Get ORP value: sends [`GetOrp`] and returns the reply.
+    pub async fn orp(&mut self) -> Result<GetOrpResponse, rtu::Error> {
+        self.call(&GetOrp).await
     }
-    /// Get temperature: sends [`GetTemperature`] and returns its `temperature_c` (degC).
-    pub async fn temperature(&mut self) -> Result<f32, rtu::Error> {
-        self.call(&GetTemperature).await.map(|reply| reply.temperature_c)
+    /// Get temperature: sends [`GetTemperature`] and returns the reply.
+    pub async fn temperature(&mut self) -> Result<GetTemperatureResponse, rtu::Error> {
+        self.call(&GetTemperature).await
     }
     /// Get user calibration coefficients: sends [`GetUserCalibration`] and returns the reply.
     pub async fn user_calibration(

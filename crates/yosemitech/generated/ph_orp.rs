@@ -104,8 +104,9 @@ pub fn ph_from_potential(
 
 /// Calibration status code (Fig 43).
 ///
-/// A code of one byte on the wire, used by `get_calibration_status.status`. Codes the spec does not name decode to [`Self::Unknown`]; `from_raw` never returns `Unknown` for a named code.
+/// A code of one byte on the wire, used by `get_calibration_status.status`. Codes the spec does not name decode to [`Self::Unknown`]; `from_raw` never returns `Unknown` for a named code. Non-exhaustive: a later manual may name another code, so a `match` outside this crate needs a `_` arm.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+#[non_exhaustive]
 pub enum CalibrationStatus {
     /// Calibration succeeded. Code 0x00.
     Success,
@@ -121,7 +122,7 @@ pub enum CalibrationStatus {
 
 impl CalibrationStatus {
     /// Every named code, in spec order.
-    pub const KNOWN: [Self; 4] = [
+    pub const KNOWN: &[Self] = &[
         Self::Success,
         Self::NotACalibrationStandard,
         Self::FewerThanThreePoints,
@@ -222,6 +223,7 @@ impl rtu::NoData for GetPh {}
 
 /// Reply to [`GetPh`]. The pH, temperature-compensated by the probe.
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[non_exhaustive]
 pub struct GetPhResponse {
     /// pH value. Unit: pH.
     ///
@@ -275,6 +277,7 @@ impl rtu::NoData for GetOrpAndPh {}
 
 /// Reply to [`GetOrpAndPh`]. The potential (ORP) and the pH in one read.
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[non_exhaustive]
 pub struct GetOrpAndPhResponse {
     /// Oxidation-reduction potential. Unit: mV.
     ///
@@ -347,6 +350,7 @@ impl rtu::NoData for GetOrp {}
 
 /// Reply to [`GetOrp`]. The oxidation-reduction potential.
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[non_exhaustive]
 pub struct GetOrpResponse {
     /// Oxidation-reduction potential. Unit: mV.
     ///
@@ -521,6 +525,7 @@ impl rtu::NoData for GetCalibrationStatus {}
 
 /// Reply to [`GetCalibrationStatus`]. The outcome of the last calibration.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+#[non_exhaustive]
 pub struct GetCalibrationStatusResponse {
     /// Calibration status code (Fig 43).
     ///
@@ -578,6 +583,7 @@ impl rtu::NoData for GetTemperature {}
 
 /// Reply to [`GetTemperature`]. The temperature of the solution.
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[non_exhaustive]
 pub struct GetTemperatureResponse {
     /// Temperature in degrees Celsius. Unit: degC.
     ///
@@ -784,6 +790,7 @@ impl rtu::NoData for GetPhElectrodeCoefficients {}
 
 /// Reply to [`GetPhElectrodeCoefficients`]. Reads the electrode coefficients K1..K6.
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[non_exhaustive]
 pub struct GetPhElectrodeCoefficientsResponse {
     /// Electrode coefficient K1.
     ///
@@ -1011,6 +1018,7 @@ impl rtu::NoData for GetOrpCalibration {}
 
 /// Reply to [`GetOrpCalibration`]. Reads the ORP calibration coefficients K and B.
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[non_exhaustive]
 pub struct GetOrpCalibrationResponse {
     /// Slope K.
     ///
@@ -1155,6 +1163,7 @@ impl rtu::NoData for GetPhCalibration {}
 
 /// Reply to [`GetPhCalibration`]. Reads the pH customer calibration coefficients K and B.
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[non_exhaustive]
 pub struct GetPhCalibrationResponse {
     /// Slope K.
     ///
@@ -1235,8 +1244,9 @@ impl rtu::Command for GetPhCalibration {
 pub use super::yosemitech_common::{GetSlaveId, GetSlaveIdResponse};
 
 /// Every command of this sensor as data, in spec order: name, title,
-/// layout, fields and codecs ([`CommandId`] indexes it).
-pub const COMMANDS: [rtu::CommandEntry; 16] = [
+/// layout, fields and codecs ([`CommandId`] indexes it). A slice, so
+/// that a command a later manual adds changes no type.
+pub const COMMANDS: &[rtu::CommandEntry] = &[
     rtu::CommandEntry::of::<SetSlaveId>("Set Slave Device ID"),
     rtu::CommandEntry::of::<GetSn>("Get SN"),
     rtu::CommandEntry::of::<GetPh>("Get pH value"),
@@ -1260,8 +1270,10 @@ pub const COMMANDS: [rtu::CommandEntry; 16] = [
 ];
 
 /// Every command of this sensor, for code that picks commands at run
-/// time (CLIs, simulators, tests).
+/// time (CLIs, simulators, tests). Non-exhaustive: a later manual may
+/// add a command, so a `match` outside this crate needs a `_` arm.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+#[non_exhaustive]
 pub enum CommandId {
     /// `set_slave_id`: [`SetSlaveId`].
     SetSlaveId,
@@ -1299,7 +1311,7 @@ pub enum CommandId {
 
 impl CommandId {
     /// Every command, in spec order.
-    pub const ALL: [Self; 16] = [
+    pub const ALL: &[Self] = &[
         Self::SetSlaveId,
         Self::GetSn,
         Self::GetPh,
@@ -1328,7 +1340,7 @@ impl CommandId {
     }
     /// The command called `name` in the spec.
     pub fn from_name(name: &str) -> Option<Self> {
-        Self::ALL.into_iter().find(|id| id.name() == name)
+        Self::ALL.iter().copied().find(|id| id.name() == name)
     }
     /// The command's title in the manual.
     pub const fn title(self) -> &'static str {
@@ -1502,8 +1514,10 @@ impl ::core::fmt::Display for CommandId {
     }
 }
 
-/// A request of any command of this sensor.
+/// A request of any command of this sensor. Non-exhaustive, as
+/// [`CommandId`] is.
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[non_exhaustive]
 pub enum Request {
     /// A [`SetSlaveId`] request.
     SetSlaveId(SetSlaveId),
@@ -1620,7 +1634,9 @@ impl Request {
 }
 
 /// A reply to any command of this sensor (writes reply with no data).
+/// Non-exhaustive, as [`CommandId`] is.
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[non_exhaustive]
 pub enum Response {
     /// The reply to [`SetSlaveId`].
     SetSlaveId,
@@ -1942,12 +1958,12 @@ pub fn decode_response(
 /// and register count (the first in spec order if several match). Does
 /// not check the frame: decode it with [`CommandId::decode_request`].
 pub fn identify_request(frame: &[u8]) -> Option<CommandId> {
-    rtu::identify_request(&COMMANDS, frame).and_then(|i| CommandId::ALL.get(i).copied())
+    rtu::identify_request(COMMANDS, frame).and_then(|i| CommandId::ALL.get(i).copied())
 }
 
 /// Every derived quantity of the sensor as data, in spec order: its
 /// inputs, and its function (`compute` takes the inputs in parameter order).
-pub const DERIVED: [rtu::DerivedInfo; 1] = [
+pub const DERIVED: &[rtu::DerivedInfo] = &[
     rtu::DerivedInfo {
         name: "ph_from_potential",
         title: "pH from the electrode potential",
@@ -1991,14 +2007,14 @@ pub const DERIVED: [rtu::DerivedInfo; 1] = [
 /// (`crate::SENSORS` lists them all).
 pub const MODULE: rtu::SensorModule = rtu::SensorModule {
     info: SENSOR,
-    commands: &COMMANDS,
-    derived: &DERIVED,
+    commands: COMMANDS,
+    derived: DERIVED,
 };
 
 #[cfg(feature = "std")]
 /// One Optical pH / ORP probe on a bus: a borrowed [`rtu::Client`] and the probe's slave address, with one method per command.
 ///
-/// Reads are named after the command without its `get_` prefix and return the reply, or its only field; writes keep the command's name and take the field (one field) or the request (several). Commands with a fixed slave address (a read at the wildcard address 0xFF) use it instead of the device's.
+/// Reads are named after the command without its `get_` prefix and return the reply (a struct that later fields may join); writes keep the command's name and take the field (one field) or the request (several). Commands with a fixed slave address (a read at the wildcard address 0xFF) use it instead of the device's.
 pub struct Device<'c, T> {
     client: &'c mut rtu::Client<T>,
     address: u8,
@@ -2035,21 +2051,21 @@ impl<'c, T: rtu::Transport> Device<'c, T> {
     pub fn set_slave_id(&mut self, slave_address: u8) -> Result<(), rtu::Error> {
         self.call(&SetSlaveId { slave_address })
     }
-    /// Get SN: sends [`GetSn`] and returns its `serial_number`.
-    pub fn sn(&mut self) -> Result<rtu::Ascii<12>, rtu::Error> {
-        self.call(&GetSn).map(|reply| reply.serial_number)
+    /// Get SN: sends [`GetSn`] and returns the reply.
+    pub fn sn(&mut self) -> Result<GetSnResponse, rtu::Error> {
+        self.call(&GetSn)
     }
-    /// Get pH value: sends [`GetPh`] and returns its `ph` (pH).
-    pub fn ph(&mut self) -> Result<f32, rtu::Error> {
-        self.call(&GetPh).map(|reply| reply.ph)
+    /// Get pH value: sends [`GetPh`] and returns the reply.
+    pub fn ph(&mut self) -> Result<GetPhResponse, rtu::Error> {
+        self.call(&GetPh)
     }
     /// Get pH and potential value (ORP): sends [`GetOrpAndPh`] and returns the reply.
     pub fn orp_and_ph(&mut self) -> Result<GetOrpAndPhResponse, rtu::Error> {
         self.call(&GetOrpAndPh)
     }
-    /// Get potential value (ORP): sends [`GetOrp`] and returns its `orp_mv` (mV).
-    pub fn orp(&mut self) -> Result<f32, rtu::Error> {
-        self.call(&GetOrp).map(|reply| reply.orp_mv)
+    /// Get potential value (ORP): sends [`GetOrp`] and returns the reply.
+    pub fn orp(&mut self) -> Result<GetOrpResponse, rtu::Error> {
+        self.call(&GetOrp)
     }
     /// Get Software and Hardware Rev: sends [`GetVersion`] and returns the reply.
     pub fn version(&mut self) -> Result<GetVersionResponse, rtu::Error> {
@@ -2059,13 +2075,15 @@ impl<'c, T: rtu::Transport> Device<'c, T> {
     pub fn start_ph_calibration(&mut self, standard_ph: f32) -> Result<(), rtu::Error> {
         self.call(&StartPhCalibration { standard_ph })
     }
-    /// Get Calibration Status: sends [`GetCalibrationStatus`] and returns its `status`.
-    pub fn calibration_status(&mut self) -> Result<CalibrationStatus, rtu::Error> {
-        self.call(&GetCalibrationStatus).map(|reply| reply.status)
+    /// Get Calibration Status: sends [`GetCalibrationStatus`] and returns the reply.
+    pub fn calibration_status(
+        &mut self,
+    ) -> Result<GetCalibrationStatusResponse, rtu::Error> {
+        self.call(&GetCalibrationStatus)
     }
-    /// Get Temperature Value: sends [`GetTemperature`] and returns its `temperature_c` (degC).
-    pub fn temperature(&mut self) -> Result<f32, rtu::Error> {
-        self.call(&GetTemperature).map(|reply| reply.temperature_c)
+    /// Get Temperature Value: sends [`GetTemperature`] and returns the reply.
+    pub fn temperature(&mut self) -> Result<GetTemperatureResponse, rtu::Error> {
+        self.call(&GetTemperature)
     }
     /// Set pH Electrode Coefficients: sends `request` ([`SetPhElectrodeCoefficients`]).
     pub fn set_ph_electrode_coefficients(
@@ -2102,9 +2120,9 @@ impl<'c, T: rtu::Transport> Device<'c, T> {
     pub fn ph_calibration(&mut self) -> Result<GetPhCalibrationResponse, rtu::Error> {
         self.call(&GetPhCalibration)
     }
-    /// Get Slave Device ID: sends [`GetSlaveId`] and returns its `slave_address`.
-    pub fn slave_id(&mut self) -> Result<u8, rtu::Error> {
-        self.call(&GetSlaveId).map(|reply| reply.slave_address)
+    /// Get Slave Device ID: sends [`GetSlaveId`] and returns the reply.
+    pub fn slave_id(&mut self) -> Result<GetSlaveIdResponse, rtu::Error> {
+        self.call(&GetSlaveId)
     }
     /// Changes the probe's slave address to `new` (1..=247, not in use on the bus) with [`SetSlaveId`], confirmed by the probe's reply and verified by reading [`GetSn`] at `new`; the handle then talks to `new`. On failure the error says where the probe answers (see `rtu::address::change_address`).
     pub fn set_slave_address(
@@ -2161,21 +2179,21 @@ impl<'c, L: rtu::transport::AsyncLink> AsyncDevice<'c, L> {
     pub async fn set_slave_id(&mut self, slave_address: u8) -> Result<(), rtu::Error> {
         self.call(&SetSlaveId { slave_address }).await
     }
-    /// Get SN: sends [`GetSn`] and returns its `serial_number`.
-    pub async fn sn(&mut self) -> Result<rtu::Ascii<12>, rtu::Error> {
-        self.call(&GetSn).await.map(|reply| reply.serial_number)
+    /// Get SN: sends [`GetSn`] and returns the reply.
+    pub async fn sn(&mut self) -> Result<GetSnResponse, rtu::Error> {
+        self.call(&GetSn).await
     }
-    /// Get pH value: sends [`GetPh`] and returns its `ph` (pH).
-    pub async fn ph(&mut self) -> Result<f32, rtu::Error> {
-        self.call(&GetPh).await.map(|reply| reply.ph)
+    /// Get pH value: sends [`GetPh`] and returns the reply.
+    pub async fn ph(&mut self) -> Result<GetPhResponse, rtu::Error> {
+        self.call(&GetPh).await
     }
     /// Get pH and potential value (ORP): sends [`GetOrpAndPh`] and returns the reply.
     pub async fn orp_and_ph(&mut self) -> Result<GetOrpAndPhResponse, rtu::Error> {
         self.call(&GetOrpAndPh).await
     }
-    /// Get potential value (ORP): sends [`GetOrp`] and returns its `orp_mv` (mV).
-    pub async fn orp(&mut self) -> Result<f32, rtu::Error> {
-        self.call(&GetOrp).await.map(|reply| reply.orp_mv)
+    /// Get potential value (ORP): sends [`GetOrp`] and returns the reply.
+    pub async fn orp(&mut self) -> Result<GetOrpResponse, rtu::Error> {
+        self.call(&GetOrp).await
     }
     /// Get Software and Hardware Rev: sends [`GetVersion`] and returns the reply.
     pub async fn version(&mut self) -> Result<GetVersionResponse, rtu::Error> {
@@ -2188,13 +2206,15 @@ impl<'c, L: rtu::transport::AsyncLink> AsyncDevice<'c, L> {
     ) -> Result<(), rtu::Error> {
         self.call(&StartPhCalibration { standard_ph }).await
     }
-    /// Get Calibration Status: sends [`GetCalibrationStatus`] and returns its `status`.
-    pub async fn calibration_status(&mut self) -> Result<CalibrationStatus, rtu::Error> {
-        self.call(&GetCalibrationStatus).await.map(|reply| reply.status)
+    /// Get Calibration Status: sends [`GetCalibrationStatus`] and returns the reply.
+    pub async fn calibration_status(
+        &mut self,
+    ) -> Result<GetCalibrationStatusResponse, rtu::Error> {
+        self.call(&GetCalibrationStatus).await
     }
-    /// Get Temperature Value: sends [`GetTemperature`] and returns its `temperature_c` (degC).
-    pub async fn temperature(&mut self) -> Result<f32, rtu::Error> {
-        self.call(&GetTemperature).await.map(|reply| reply.temperature_c)
+    /// Get Temperature Value: sends [`GetTemperature`] and returns the reply.
+    pub async fn temperature(&mut self) -> Result<GetTemperatureResponse, rtu::Error> {
+        self.call(&GetTemperature).await
     }
     /// Set pH Electrode Coefficients: sends `request` ([`SetPhElectrodeCoefficients`]).
     pub async fn set_ph_electrode_coefficients(
@@ -2235,8 +2255,8 @@ impl<'c, L: rtu::transport::AsyncLink> AsyncDevice<'c, L> {
     ) -> Result<GetPhCalibrationResponse, rtu::Error> {
         self.call(&GetPhCalibration).await
     }
-    /// Get Slave Device ID: sends [`GetSlaveId`] and returns its `slave_address`.
-    pub async fn slave_id(&mut self) -> Result<u8, rtu::Error> {
-        self.call(&GetSlaveId).await.map(|reply| reply.slave_address)
+    /// Get Slave Device ID: sends [`GetSlaveId`] and returns the reply.
+    pub async fn slave_id(&mut self) -> Result<GetSlaveIdResponse, rtu::Error> {
+        self.call(&GetSlaveId).await
     }
 }

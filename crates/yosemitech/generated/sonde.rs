@@ -55,6 +55,7 @@ impl rtu::NoData for GetMeasurementData {}
 
 /// Reply to [`GetMeasurementData`]. Every measured value in one read: eight floats in a fixed order.
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[non_exhaustive]
 pub struct GetMeasurementDataResponse {
     /// Dissolved oxygen. Unit: mg/L.
     ///
@@ -303,6 +304,7 @@ impl rtu::NoData for GetErrorFlag {}
 
 /// Reply to [`GetErrorFlag`]. The sonde's error flags; 0 means no error.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+#[non_exhaustive]
 pub struct GetErrorFlagResponse {
     /// Error and status bits.
     ///
@@ -379,6 +381,7 @@ impl rtu::NoData for GetBrushInterval {}
 
 /// Reply to [`GetBrushInterval`]. The time between two rotations of the brush, in minutes (default 30), a little-endian 16-bit integer.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+#[non_exhaustive]
 pub struct GetBrushIntervalResponse {
     /// Minutes between two rotations of the brush. Unit: min.
     ///
@@ -607,6 +610,7 @@ impl rtu::NoData for GetTime {}
 
 /// Reply to [`GetTime`]. Reads the sonde's real-time clock, laid out as in Set the time.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+#[non_exhaustive]
 pub struct GetTimeResponse {
     /// Seconds.
     ///
@@ -729,6 +733,7 @@ impl rtu::NoData for GetSupplyVoltage {}
 
 /// Reply to [`GetSupplyVoltage`]. The supply voltage the sonde measures, in volts.
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[non_exhaustive]
 pub struct GetSupplyVoltageResponse {
     /// Supply voltage. Unit: V.
     ///
@@ -795,8 +800,9 @@ impl rtu::Command for ActiveBrush {
 }
 
 /// Every command of this sensor as data, in spec order: name, title,
-/// layout, fields and codecs ([`CommandId`] indexes it).
-pub const COMMANDS: [rtu::CommandEntry; 10] = [
+/// layout, fields and codecs ([`CommandId`] indexes it). A slice, so
+/// that a command a later manual adds changes no type.
+pub const COMMANDS: &[rtu::CommandEntry] = &[
     rtu::CommandEntry::of::<GetMeasurementData>("Get measurement data"),
     rtu::CommandEntry::of::<GetSn>("Get SN"),
     rtu::CommandEntry::of::<GetErrorFlag>("Error Flag"),
@@ -810,8 +816,10 @@ pub const COMMANDS: [rtu::CommandEntry; 10] = [
 ];
 
 /// Every command of this sensor, for code that picks commands at run
-/// time (CLIs, simulators, tests).
+/// time (CLIs, simulators, tests). Non-exhaustive: a later manual may
+/// add a command, so a `match` outside this crate needs a `_` arm.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+#[non_exhaustive]
 pub enum CommandId {
     /// `get_measurement_data`: [`GetMeasurementData`].
     GetMeasurementData,
@@ -837,7 +845,7 @@ pub enum CommandId {
 
 impl CommandId {
     /// Every command, in spec order.
-    pub const ALL: [Self; 10] = [
+    pub const ALL: &[Self] = &[
         Self::GetMeasurementData,
         Self::GetSn,
         Self::GetErrorFlag,
@@ -860,7 +868,7 @@ impl CommandId {
     }
     /// The command called `name` in the spec.
     pub fn from_name(name: &str) -> Option<Self> {
-        Self::ALL.into_iter().find(|id| id.name() == name)
+        Self::ALL.iter().copied().find(|id| id.name() == name)
     }
     /// The command's title in the manual.
     pub const fn title(self) -> &'static str {
@@ -980,8 +988,10 @@ impl ::core::fmt::Display for CommandId {
     }
 }
 
-/// A request of any command of this sensor.
+/// A request of any command of this sensor. Non-exhaustive, as
+/// [`CommandId`] is.
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[non_exhaustive]
 pub enum Request {
     /// A [`GetMeasurementData`] request.
     GetMeasurementData(GetMeasurementData),
@@ -1064,7 +1074,9 @@ impl Request {
 }
 
 /// A reply to any command of this sensor (writes reply with no data).
+/// Non-exhaustive, as [`CommandId`] is.
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[non_exhaustive]
 pub enum Response {
     /// The reply to [`GetMeasurementData`].
     GetMeasurementData(GetMeasurementDataResponse),
@@ -1270,25 +1282,25 @@ pub fn decode_response(
 /// and register count (the first in spec order if several match). Does
 /// not check the frame: decode it with [`CommandId::decode_request`].
 pub fn identify_request(frame: &[u8]) -> Option<CommandId> {
-    rtu::identify_request(&COMMANDS, frame).and_then(|i| CommandId::ALL.get(i).copied())
+    rtu::identify_request(COMMANDS, frame).and_then(|i| CommandId::ALL.get(i).copied())
 }
 
 /// Every derived quantity of the sensor as data, in spec order: its
 /// inputs, and its function (`compute` takes the inputs in parameter order).
-pub const DERIVED: [rtu::DerivedInfo; 0] = [];
+pub const DERIVED: &[rtu::DerivedInfo] = &[];
 
 /// This module as data, for code that serves every sensor without naming one
 /// (`crate::SENSORS` lists them all).
 pub const MODULE: rtu::SensorModule = rtu::SensorModule {
     info: SENSOR,
-    commands: &COMMANDS,
-    derived: &DERIVED,
+    commands: COMMANDS,
+    derived: DERIVED,
 };
 
 #[cfg(feature = "std")]
 /// One Multi-parameter sonde on a bus: a borrowed [`rtu::Client`] and the probe's slave address, with one method per command.
 ///
-/// Reads are named after the command without its `get_` prefix and return the reply, or its only field; writes keep the command's name and take the field (one field) or the request (several). Commands with a fixed slave address (a read at the wildcard address 0xFF) use it instead of the device's.
+/// Reads are named after the command without its `get_` prefix and return the reply (a struct that later fields may join); writes keep the command's name and take the field (one field) or the request (several). Commands with a fixed slave address (a read at the wildcard address 0xFF) use it instead of the device's.
 pub struct Device<'c, T> {
     client: &'c mut rtu::Client<T>,
     address: u8,
@@ -1327,17 +1339,17 @@ impl<'c, T: rtu::Transport> Device<'c, T> {
     ) -> Result<GetMeasurementDataResponse, rtu::Error> {
         self.call(&GetMeasurementData)
     }
-    /// Get SN: sends [`GetSn`] and returns its `serial_number`.
-    pub fn sn(&mut self) -> Result<rtu::Ascii<12>, rtu::Error> {
-        self.call(&GetSn).map(|reply| reply.serial_number)
+    /// Get SN: sends [`GetSn`] and returns the reply.
+    pub fn sn(&mut self) -> Result<GetSnResponse, rtu::Error> {
+        self.call(&GetSn)
     }
-    /// Error Flag: sends [`GetErrorFlag`] and returns its `error_flags`.
-    pub fn error_flag(&mut self) -> Result<u8, rtu::Error> {
-        self.call(&GetErrorFlag).map(|reply| reply.error_flags)
+    /// Error Flag: sends [`GetErrorFlag`] and returns the reply.
+    pub fn error_flag(&mut self) -> Result<GetErrorFlagResponse, rtu::Error> {
+        self.call(&GetErrorFlag)
     }
-    /// Get Brush Interval of time: sends [`GetBrushInterval`] and returns its `interval_min` (min).
-    pub fn brush_interval(&mut self) -> Result<u16, rtu::Error> {
-        self.call(&GetBrushInterval).map(|reply| reply.interval_min)
+    /// Get Brush Interval of time: sends [`GetBrushInterval`] and returns the reply.
+    pub fn brush_interval(&mut self) -> Result<GetBrushIntervalResponse, rtu::Error> {
+        self.call(&GetBrushInterval)
     }
     /// Set Brush Interval of time: sends [`SetBrushInterval`] with `interval_min`.
     pub fn set_brush_interval(&mut self, interval_min: u16) -> Result<(), rtu::Error> {
@@ -1355,9 +1367,9 @@ impl<'c, T: rtu::Transport> Device<'c, T> {
     pub fn set_slave_id(&mut self, slave_address: u8) -> Result<(), rtu::Error> {
         self.call(&SetSlaveId { slave_address })
     }
-    /// Get the supply voltage: sends [`GetSupplyVoltage`] and returns its `supply_voltage_v` (V).
-    pub fn supply_voltage(&mut self) -> Result<f32, rtu::Error> {
-        self.call(&GetSupplyVoltage).map(|reply| reply.supply_voltage_v)
+    /// Get the supply voltage: sends [`GetSupplyVoltage`] and returns the reply.
+    pub fn supply_voltage(&mut self) -> Result<GetSupplyVoltageResponse, rtu::Error> {
+        self.call(&GetSupplyVoltage)
     }
     /// Active Brush: sends [`ActiveBrush`].
     pub fn active_brush(&mut self) -> Result<(), rtu::Error> {
@@ -1420,17 +1432,19 @@ impl<'c, L: rtu::transport::AsyncLink> AsyncDevice<'c, L> {
     ) -> Result<GetMeasurementDataResponse, rtu::Error> {
         self.call(&GetMeasurementData).await
     }
-    /// Get SN: sends [`GetSn`] and returns its `serial_number`.
-    pub async fn sn(&mut self) -> Result<rtu::Ascii<12>, rtu::Error> {
-        self.call(&GetSn).await.map(|reply| reply.serial_number)
+    /// Get SN: sends [`GetSn`] and returns the reply.
+    pub async fn sn(&mut self) -> Result<GetSnResponse, rtu::Error> {
+        self.call(&GetSn).await
     }
-    /// Error Flag: sends [`GetErrorFlag`] and returns its `error_flags`.
-    pub async fn error_flag(&mut self) -> Result<u8, rtu::Error> {
-        self.call(&GetErrorFlag).await.map(|reply| reply.error_flags)
+    /// Error Flag: sends [`GetErrorFlag`] and returns the reply.
+    pub async fn error_flag(&mut self) -> Result<GetErrorFlagResponse, rtu::Error> {
+        self.call(&GetErrorFlag).await
     }
-    /// Get Brush Interval of time: sends [`GetBrushInterval`] and returns its `interval_min` (min).
-    pub async fn brush_interval(&mut self) -> Result<u16, rtu::Error> {
-        self.call(&GetBrushInterval).await.map(|reply| reply.interval_min)
+    /// Get Brush Interval of time: sends [`GetBrushInterval`] and returns the reply.
+    pub async fn brush_interval(
+        &mut self,
+    ) -> Result<GetBrushIntervalResponse, rtu::Error> {
+        self.call(&GetBrushInterval).await
     }
     /// Set Brush Interval of time: sends [`SetBrushInterval`] with `interval_min`.
     pub async fn set_brush_interval(
@@ -1451,9 +1465,11 @@ impl<'c, L: rtu::transport::AsyncLink> AsyncDevice<'c, L> {
     pub async fn set_slave_id(&mut self, slave_address: u8) -> Result<(), rtu::Error> {
         self.call(&SetSlaveId { slave_address }).await
     }
-    /// Get the supply voltage: sends [`GetSupplyVoltage`] and returns its `supply_voltage_v` (V).
-    pub async fn supply_voltage(&mut self) -> Result<f32, rtu::Error> {
-        self.call(&GetSupplyVoltage).await.map(|reply| reply.supply_voltage_v)
+    /// Get the supply voltage: sends [`GetSupplyVoltage`] and returns the reply.
+    pub async fn supply_voltage(
+        &mut self,
+    ) -> Result<GetSupplyVoltageResponse, rtu::Error> {
+        self.call(&GetSupplyVoltage).await
     }
     /// Active Brush: sends [`ActiveBrush`].
     pub async fn active_brush(&mut self) -> Result<(), rtu::Error> {

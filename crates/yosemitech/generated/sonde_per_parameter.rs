@@ -52,6 +52,7 @@ impl rtu::NoData for GetDoMgL {}
 
 /// Reply to [`GetDoMgL`]. Reads the dissolved oxygen, parameter 0x01.
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[non_exhaustive]
 pub struct GetDoMgLResponse {
     /// Dissolved oxygen concentration. Unit: mg/L.
     ///
@@ -98,6 +99,7 @@ impl rtu::NoData for GetTurbidityNtu {}
 
 /// Reply to [`GetTurbidityNtu`]. Reads the turbidity, parameter 0x02.
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[non_exhaustive]
 pub struct GetTurbidityNtuResponse {
     /// Turbidity. Unit: NTU.
     ///
@@ -144,6 +146,7 @@ impl rtu::NoData for GetConductivityMsCm {}
 
 /// Reply to [`GetConductivityMsCm`]. Reads the conductivity, parameter 0x03.
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[non_exhaustive]
 pub struct GetConductivityMsCmResponse {
     /// Conductivity. Unit: mS/cm.
     ///
@@ -190,6 +193,7 @@ impl rtu::NoData for GetPh {}
 
 /// Reply to [`GetPh`]. Reads the pH, parameter 0x04.
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[non_exhaustive]
 pub struct GetPhResponse {
     /// pH value. Unit: pH.
     ///
@@ -234,6 +238,7 @@ impl rtu::NoData for GetTemperatureC {}
 
 /// Reply to [`GetTemperatureC`]. Reads the temperature, parameter 0x06.
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[non_exhaustive]
 pub struct GetTemperatureCResponse {
     /// Water temperature in degrees Celsius. Unit: degC.
     ///
@@ -280,6 +285,7 @@ impl rtu::NoData for GetSalinity {}
 
 /// Reply to [`GetSalinity`]. Reads the salinity, parameter 0x08.
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[non_exhaustive]
 pub struct GetSalinityResponse {
     /// Salinity (no source states its unit).
     ///
@@ -324,6 +330,7 @@ impl rtu::NoData for GetDoSaturation {}
 
 /// Reply to [`GetDoSaturation`]. Reads the dissolved oxygen saturation, parameter 0x0A.
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[non_exhaustive]
 pub struct GetDoSaturationResponse {
     /// Dissolved oxygen as percent saturation. Unit: %.
     ///
@@ -370,6 +377,7 @@ impl rtu::NoData for GetOrpMv {}
 
 /// Reply to [`GetOrpMv`]. Reads the ORP, parameter 0x0B.
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[non_exhaustive]
 pub struct GetOrpMvResponse {
     /// Oxidation-reduction potential. Unit: mV.
     ///
@@ -416,6 +424,7 @@ impl rtu::NoData for GetChlorophyll {}
 
 /// Reply to [`GetChlorophyll`]. Reads the chlorophyll, parameter 0x0C.
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[non_exhaustive]
 pub struct GetChlorophyllResponse {
     /// Chlorophyll (no source states its unit).
     ///
@@ -462,6 +471,7 @@ impl rtu::NoData for GetOilInWater {}
 
 /// Reply to [`GetOilInWater`]. Reads the oil in water, parameter 0x0D.
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[non_exhaustive]
 pub struct GetOilInWaterResponse {
     /// Oil in water (no source states its unit).
     ///
@@ -508,6 +518,7 @@ impl rtu::NoData for GetBga {}
 
 /// Reply to [`GetBga`]. Reads the blue-green algae, parameter 0x0E.
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[non_exhaustive]
 pub struct GetBgaResponse {
     /// Blue-green algae (no source states its unit).
     ///
@@ -552,6 +563,7 @@ impl rtu::NoData for GetTds {}
 
 /// Reply to [`GetTds`]. Reads the total dissolved solids, parameter 0x0F.
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[non_exhaustive]
 pub struct GetTdsResponse {
     /// Total dissolved solids (no source states its unit).
     ///
@@ -585,8 +597,9 @@ impl rtu::Command for GetTds {
 }
 
 /// Every command of this sensor as data, in spec order: name, title,
-/// layout, fields and codecs ([`CommandId`] indexes it).
-pub const COMMANDS: [rtu::CommandEntry; 14] = [
+/// layout, fields and codecs ([`CommandId`] indexes it). A slice, so
+/// that a command a later manual adds changes no type.
+pub const COMMANDS: &[rtu::CommandEntry] = &[
     rtu::CommandEntry::of::<SetSlaveId>("Set Slave Device ID"),
     rtu::CommandEntry::of::<GetSn>("Get SN"),
     rtu::CommandEntry::of::<GetDoMgL>("Get dissolved oxygen"),
@@ -604,8 +617,10 @@ pub const COMMANDS: [rtu::CommandEntry; 14] = [
 ];
 
 /// Every command of this sensor, for code that picks commands at run
-/// time (CLIs, simulators, tests).
+/// time (CLIs, simulators, tests). Non-exhaustive: a later manual may
+/// add a command, so a `match` outside this crate needs a `_` arm.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+#[non_exhaustive]
 pub enum CommandId {
     /// `set_slave_id`: [`SetSlaveId`].
     SetSlaveId,
@@ -639,7 +654,7 @@ pub enum CommandId {
 
 impl CommandId {
     /// Every command, in spec order.
-    pub const ALL: [Self; 14] = [
+    pub const ALL: &[Self] = &[
         Self::SetSlaveId,
         Self::GetSn,
         Self::GetDoMgL,
@@ -666,7 +681,7 @@ impl CommandId {
     }
     /// The command called `name` in the spec.
     pub fn from_name(name: &str) -> Option<Self> {
-        Self::ALL.into_iter().find(|id| id.name() == name)
+        Self::ALL.iter().copied().find(|id| id.name() == name)
     }
     /// The command's title in the manual.
     pub const fn title(self) -> &'static str {
@@ -818,8 +833,10 @@ impl ::core::fmt::Display for CommandId {
     }
 }
 
-/// A request of any command of this sensor.
+/// A request of any command of this sensor. Non-exhaustive, as
+/// [`CommandId`] is.
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[non_exhaustive]
 pub enum Request {
     /// A [`SetSlaveId`] request.
     SetSlaveId(SetSlaveId),
@@ -922,7 +939,9 @@ impl Request {
 }
 
 /// A reply to any command of this sensor (writes reply with no data).
+/// Non-exhaustive, as [`CommandId`] is.
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[non_exhaustive]
 pub enum Response {
     /// The reply to [`SetSlaveId`].
     SetSlaveId,
@@ -1220,25 +1239,25 @@ pub fn decode_response(
 /// and register count (the first in spec order if several match). Does
 /// not check the frame: decode it with [`CommandId::decode_request`].
 pub fn identify_request(frame: &[u8]) -> Option<CommandId> {
-    rtu::identify_request(&COMMANDS, frame).and_then(|i| CommandId::ALL.get(i).copied())
+    rtu::identify_request(COMMANDS, frame).and_then(|i| CommandId::ALL.get(i).copied())
 }
 
 /// Every derived quantity of the sensor as data, in spec order: its
 /// inputs, and its function (`compute` takes the inputs in parameter order).
-pub const DERIVED: [rtu::DerivedInfo; 0] = [];
+pub const DERIVED: &[rtu::DerivedInfo] = &[];
 
 /// This module as data, for code that serves every sensor without naming one
 /// (`crate::SENSORS` lists them all).
 pub const MODULE: rtu::SensorModule = rtu::SensorModule {
     info: SENSOR,
-    commands: &COMMANDS,
-    derived: &DERIVED,
+    commands: COMMANDS,
+    derived: DERIVED,
 };
 
 #[cfg(feature = "std")]
 /// One Multi-parameter sonde, newer hardware (per-parameter registers) on a bus: a borrowed [`rtu::Client`] and the probe's slave address, with one method per command.
 ///
-/// Reads are named after the command without its `get_` prefix and return the reply, or its only field; writes keep the command's name and take the field (one field) or the request (several). Commands with a fixed slave address (a read at the wildcard address 0xFF) use it instead of the device's.
+/// Reads are named after the command without its `get_` prefix and return the reply (a struct that later fields may join); writes keep the command's name and take the field (one field) or the request (several). Commands with a fixed slave address (a read at the wildcard address 0xFF) use it instead of the device's.
 pub struct Device<'c, T> {
     client: &'c mut rtu::Client<T>,
     address: u8,
@@ -1275,57 +1294,59 @@ impl<'c, T: rtu::Transport> Device<'c, T> {
     pub fn set_slave_id(&mut self, slave_address: u8) -> Result<(), rtu::Error> {
         self.call(&SetSlaveId { slave_address })
     }
-    /// Get SN: sends [`GetSn`] and returns its `serial_number`.
-    pub fn sn(&mut self) -> Result<rtu::Ascii<12>, rtu::Error> {
-        self.call(&GetSn).map(|reply| reply.serial_number)
+    /// Get SN: sends [`GetSn`] and returns the reply.
+    pub fn sn(&mut self) -> Result<GetSnResponse, rtu::Error> {
+        self.call(&GetSn)
     }
-    /// Get dissolved oxygen: sends [`GetDoMgL`] and returns its `do_mg_l` (mg/L).
-    pub fn do_mg_l(&mut self) -> Result<f32, rtu::Error> {
-        self.call(&GetDoMgL).map(|reply| reply.do_mg_l)
+    /// Get dissolved oxygen: sends [`GetDoMgL`] and returns the reply.
+    pub fn do_mg_l(&mut self) -> Result<GetDoMgLResponse, rtu::Error> {
+        self.call(&GetDoMgL)
     }
-    /// Get turbidity: sends [`GetTurbidityNtu`] and returns its `turbidity_ntu` (NTU).
-    pub fn turbidity_ntu(&mut self) -> Result<f32, rtu::Error> {
-        self.call(&GetTurbidityNtu).map(|reply| reply.turbidity_ntu)
+    /// Get turbidity: sends [`GetTurbidityNtu`] and returns the reply.
+    pub fn turbidity_ntu(&mut self) -> Result<GetTurbidityNtuResponse, rtu::Error> {
+        self.call(&GetTurbidityNtu)
     }
-    /// Get conductivity: sends [`GetConductivityMsCm`] and returns its `conductivity_ms_cm` (mS/cm).
-    pub fn conductivity_ms_cm(&mut self) -> Result<f32, rtu::Error> {
-        self.call(&GetConductivityMsCm).map(|reply| reply.conductivity_ms_cm)
+    /// Get conductivity: sends [`GetConductivityMsCm`] and returns the reply.
+    pub fn conductivity_ms_cm(
+        &mut self,
+    ) -> Result<GetConductivityMsCmResponse, rtu::Error> {
+        self.call(&GetConductivityMsCm)
     }
-    /// Get pH: sends [`GetPh`] and returns its `ph` (pH).
-    pub fn ph(&mut self) -> Result<f32, rtu::Error> {
-        self.call(&GetPh).map(|reply| reply.ph)
+    /// Get pH: sends [`GetPh`] and returns the reply.
+    pub fn ph(&mut self) -> Result<GetPhResponse, rtu::Error> {
+        self.call(&GetPh)
     }
-    /// Get temperature: sends [`GetTemperatureC`] and returns its `temperature_c` (degC).
-    pub fn temperature_c(&mut self) -> Result<f32, rtu::Error> {
-        self.call(&GetTemperatureC).map(|reply| reply.temperature_c)
+    /// Get temperature: sends [`GetTemperatureC`] and returns the reply.
+    pub fn temperature_c(&mut self) -> Result<GetTemperatureCResponse, rtu::Error> {
+        self.call(&GetTemperatureC)
     }
-    /// Get salinity: sends [`GetSalinity`] and returns its `salinity`.
-    pub fn salinity(&mut self) -> Result<f32, rtu::Error> {
-        self.call(&GetSalinity).map(|reply| reply.salinity)
+    /// Get salinity: sends [`GetSalinity`] and returns the reply.
+    pub fn salinity(&mut self) -> Result<GetSalinityResponse, rtu::Error> {
+        self.call(&GetSalinity)
     }
-    /// Get dissolved oxygen saturation: sends [`GetDoSaturation`] and returns its `do_saturation` (%).
-    pub fn do_saturation(&mut self) -> Result<f32, rtu::Error> {
-        self.call(&GetDoSaturation).map(|reply| reply.do_saturation)
+    /// Get dissolved oxygen saturation: sends [`GetDoSaturation`] and returns the reply.
+    pub fn do_saturation(&mut self) -> Result<GetDoSaturationResponse, rtu::Error> {
+        self.call(&GetDoSaturation)
     }
-    /// Get ORP: sends [`GetOrpMv`] and returns its `orp_mv` (mV).
-    pub fn orp_mv(&mut self) -> Result<f32, rtu::Error> {
-        self.call(&GetOrpMv).map(|reply| reply.orp_mv)
+    /// Get ORP: sends [`GetOrpMv`] and returns the reply.
+    pub fn orp_mv(&mut self) -> Result<GetOrpMvResponse, rtu::Error> {
+        self.call(&GetOrpMv)
     }
-    /// Get chlorophyll: sends [`GetChlorophyll`] and returns its `chlorophyll`.
-    pub fn chlorophyll(&mut self) -> Result<f32, rtu::Error> {
-        self.call(&GetChlorophyll).map(|reply| reply.chlorophyll)
+    /// Get chlorophyll: sends [`GetChlorophyll`] and returns the reply.
+    pub fn chlorophyll(&mut self) -> Result<GetChlorophyllResponse, rtu::Error> {
+        self.call(&GetChlorophyll)
     }
-    /// Get oil in water: sends [`GetOilInWater`] and returns its `oil_in_water`.
-    pub fn oil_in_water(&mut self) -> Result<f32, rtu::Error> {
-        self.call(&GetOilInWater).map(|reply| reply.oil_in_water)
+    /// Get oil in water: sends [`GetOilInWater`] and returns the reply.
+    pub fn oil_in_water(&mut self) -> Result<GetOilInWaterResponse, rtu::Error> {
+        self.call(&GetOilInWater)
     }
-    /// Get blue-green algae: sends [`GetBga`] and returns its `bga`.
-    pub fn bga(&mut self) -> Result<f32, rtu::Error> {
-        self.call(&GetBga).map(|reply| reply.bga)
+    /// Get blue-green algae: sends [`GetBga`] and returns the reply.
+    pub fn bga(&mut self) -> Result<GetBgaResponse, rtu::Error> {
+        self.call(&GetBga)
     }
-    /// Get total dissolved solids: sends [`GetTds`] and returns its `tds`.
-    pub fn tds(&mut self) -> Result<f32, rtu::Error> {
-        self.call(&GetTds).map(|reply| reply.tds)
+    /// Get total dissolved solids: sends [`GetTds`] and returns the reply.
+    pub fn tds(&mut self) -> Result<GetTdsResponse, rtu::Error> {
+        self.call(&GetTds)
     }
     /// Changes the probe's slave address to `new` (1..=247, not in use on the bus) with [`SetSlaveId`], confirmed by the probe's reply and verified by reading [`GetSn`] at `new`; the handle then talks to `new`. On failure the error says where the probe answers (see `rtu::address::change_address`).
     pub fn set_slave_address(
@@ -1382,56 +1403,64 @@ impl<'c, L: rtu::transport::AsyncLink> AsyncDevice<'c, L> {
     pub async fn set_slave_id(&mut self, slave_address: u8) -> Result<(), rtu::Error> {
         self.call(&SetSlaveId { slave_address }).await
     }
-    /// Get SN: sends [`GetSn`] and returns its `serial_number`.
-    pub async fn sn(&mut self) -> Result<rtu::Ascii<12>, rtu::Error> {
-        self.call(&GetSn).await.map(|reply| reply.serial_number)
+    /// Get SN: sends [`GetSn`] and returns the reply.
+    pub async fn sn(&mut self) -> Result<GetSnResponse, rtu::Error> {
+        self.call(&GetSn).await
     }
-    /// Get dissolved oxygen: sends [`GetDoMgL`] and returns its `do_mg_l` (mg/L).
-    pub async fn do_mg_l(&mut self) -> Result<f32, rtu::Error> {
-        self.call(&GetDoMgL).await.map(|reply| reply.do_mg_l)
+    /// Get dissolved oxygen: sends [`GetDoMgL`] and returns the reply.
+    pub async fn do_mg_l(&mut self) -> Result<GetDoMgLResponse, rtu::Error> {
+        self.call(&GetDoMgL).await
     }
-    /// Get turbidity: sends [`GetTurbidityNtu`] and returns its `turbidity_ntu` (NTU).
-    pub async fn turbidity_ntu(&mut self) -> Result<f32, rtu::Error> {
-        self.call(&GetTurbidityNtu).await.map(|reply| reply.turbidity_ntu)
+    /// Get turbidity: sends [`GetTurbidityNtu`] and returns the reply.
+    pub async fn turbidity_ntu(
+        &mut self,
+    ) -> Result<GetTurbidityNtuResponse, rtu::Error> {
+        self.call(&GetTurbidityNtu).await
     }
-    /// Get conductivity: sends [`GetConductivityMsCm`] and returns its `conductivity_ms_cm` (mS/cm).
-    pub async fn conductivity_ms_cm(&mut self) -> Result<f32, rtu::Error> {
-        self.call(&GetConductivityMsCm).await.map(|reply| reply.conductivity_ms_cm)
+    /// Get conductivity: sends [`GetConductivityMsCm`] and returns the reply.
+    pub async fn conductivity_ms_cm(
+        &mut self,
+    ) -> Result<GetConductivityMsCmResponse, rtu::Error> {
+        self.call(&GetConductivityMsCm).await
     }
-    /// Get pH: sends [`GetPh`] and returns its `ph` (pH).
-    pub async fn ph(&mut self) -> Result<f32, rtu::Error> {
-        self.call(&GetPh).await.map(|reply| reply.ph)
+    /// Get pH: sends [`GetPh`] and returns the reply.
+    pub async fn ph(&mut self) -> Result<GetPhResponse, rtu::Error> {
+        self.call(&GetPh).await
     }
-    /// Get temperature: sends [`GetTemperatureC`] and returns its `temperature_c` (degC).
-    pub async fn temperature_c(&mut self) -> Result<f32, rtu::Error> {
-        self.call(&GetTemperatureC).await.map(|reply| reply.temperature_c)
+    /// Get temperature: sends [`GetTemperatureC`] and returns the reply.
+    pub async fn temperature_c(
+        &mut self,
+    ) -> Result<GetTemperatureCResponse, rtu::Error> {
+        self.call(&GetTemperatureC).await
     }
-    /// Get salinity: sends [`GetSalinity`] and returns its `salinity`.
-    pub async fn salinity(&mut self) -> Result<f32, rtu::Error> {
-        self.call(&GetSalinity).await.map(|reply| reply.salinity)
+    /// Get salinity: sends [`GetSalinity`] and returns the reply.
+    pub async fn salinity(&mut self) -> Result<GetSalinityResponse, rtu::Error> {
+        self.call(&GetSalinity).await
     }
-    /// Get dissolved oxygen saturation: sends [`GetDoSaturation`] and returns its `do_saturation` (%).
-    pub async fn do_saturation(&mut self) -> Result<f32, rtu::Error> {
-        self.call(&GetDoSaturation).await.map(|reply| reply.do_saturation)
+    /// Get dissolved oxygen saturation: sends [`GetDoSaturation`] and returns the reply.
+    pub async fn do_saturation(
+        &mut self,
+    ) -> Result<GetDoSaturationResponse, rtu::Error> {
+        self.call(&GetDoSaturation).await
     }
-    /// Get ORP: sends [`GetOrpMv`] and returns its `orp_mv` (mV).
-    pub async fn orp_mv(&mut self) -> Result<f32, rtu::Error> {
-        self.call(&GetOrpMv).await.map(|reply| reply.orp_mv)
+    /// Get ORP: sends [`GetOrpMv`] and returns the reply.
+    pub async fn orp_mv(&mut self) -> Result<GetOrpMvResponse, rtu::Error> {
+        self.call(&GetOrpMv).await
     }
-    /// Get chlorophyll: sends [`GetChlorophyll`] and returns its `chlorophyll`.
-    pub async fn chlorophyll(&mut self) -> Result<f32, rtu::Error> {
-        self.call(&GetChlorophyll).await.map(|reply| reply.chlorophyll)
+    /// Get chlorophyll: sends [`GetChlorophyll`] and returns the reply.
+    pub async fn chlorophyll(&mut self) -> Result<GetChlorophyllResponse, rtu::Error> {
+        self.call(&GetChlorophyll).await
     }
-    /// Get oil in water: sends [`GetOilInWater`] and returns its `oil_in_water`.
-    pub async fn oil_in_water(&mut self) -> Result<f32, rtu::Error> {
-        self.call(&GetOilInWater).await.map(|reply| reply.oil_in_water)
+    /// Get oil in water: sends [`GetOilInWater`] and returns the reply.
+    pub async fn oil_in_water(&mut self) -> Result<GetOilInWaterResponse, rtu::Error> {
+        self.call(&GetOilInWater).await
     }
-    /// Get blue-green algae: sends [`GetBga`] and returns its `bga`.
-    pub async fn bga(&mut self) -> Result<f32, rtu::Error> {
-        self.call(&GetBga).await.map(|reply| reply.bga)
+    /// Get blue-green algae: sends [`GetBga`] and returns the reply.
+    pub async fn bga(&mut self) -> Result<GetBgaResponse, rtu::Error> {
+        self.call(&GetBga).await
     }
-    /// Get total dissolved solids: sends [`GetTds`] and returns its `tds`.
-    pub async fn tds(&mut self) -> Result<f32, rtu::Error> {
-        self.call(&GetTds).await.map(|reply| reply.tds)
+    /// Get total dissolved solids: sends [`GetTds`] and returns the reply.
+    pub async fn tds(&mut self) -> Result<GetTdsResponse, rtu::Error> {
+        self.call(&GetTds).await
     }
 }

@@ -15,6 +15,7 @@ impl rtu::NoData for GetUserCalibration {}
 
 /// Reply to [`GetUserCalibration`]. Reads the user calibration: slope K and offset B, which the probe applies to its main value as final = K x raw + B (defaults K = 1, B = 0).
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[non_exhaustive]
 pub struct GetUserCalibrationResponse {
     /// Slope K (no unit).
     ///

@@ -65,6 +65,7 @@ impl rtu::NoData for GetSn {}
 
 /// Reply to [`GetSn`]. Reads the probe's serial number: 14 bytes, a 0x00, twelve ASCII characters ("YL…") and a 0x00.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+#[non_exhaustive]
 pub struct GetSnResponse {
     /// The serial number, twelve ASCII characters.
     ///
@@ -132,6 +133,7 @@ impl rtu::NoData for GetVersion {}
 
 /// Reply to [`GetVersion`]. Reads the hardware and software revisions, one register each, read as major.minor byte pairs (a reading that fits every manual's example; the manuals do not define the encoding).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+#[non_exhaustive]
 pub struct GetVersionResponse {
     /// Hardware revision, major.minor.
     ///
@@ -192,6 +194,7 @@ impl rtu::NoData for GetSlaveId {}
 
 /// Reply to [`GetSlaveId`]. Reads the probe's slave address.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+#[non_exhaustive]
 pub struct GetSlaveIdResponse {
     /// The current slave address.
     ///

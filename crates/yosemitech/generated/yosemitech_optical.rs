@@ -18,6 +18,7 @@ impl rtu::NoData for StartMeasurement {}
 
 /// Reply to [`StartMeasurement`]: an acknowledgement that carries no value.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
+#[non_exhaustive]
 pub struct StartMeasurementResponse;
 
 impl rtu::NoData for StartMeasurementResponse {}
@@ -49,6 +50,7 @@ impl rtu::NoData for StopMeasurement {}
 
 /// Reply to [`StopMeasurement`]: an acknowledgement that carries no value.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
+#[non_exhaustive]
 pub struct StopMeasurementResponse;
 
 impl rtu::NoData for StopMeasurementResponse {}

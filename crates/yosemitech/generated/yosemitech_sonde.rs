@@ -15,6 +15,7 @@ impl rtu::NoData for GetSn {}
 
 /// Reply to [`GetSn`]. Reads the sonde's serial number: twelve ASCII characters ("YL..."), with no byte before or after them, unlike the probes' Get SN at 0x0900.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+#[non_exhaustive]
 pub struct GetSnResponse {
     /// The serial number, twelve ASCII characters.
     ///

@@ -81,6 +81,7 @@ impl rtu::NoData for GetBrushInterval {}
 
 /// Reply to [`GetBrushInterval`]. Reads the time between two automatic rotations of the brush, in minutes (default 30).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+#[non_exhaustive]
 pub struct GetBrushIntervalResponse {
     /// Minutes between two rotations of the brush. Unit: min.
     ///

@@ -42,7 +42,7 @@
 //! });
 //! let mut client = Client::new(transport);
 //! let mut probe = ph_orp::Device::new(&mut client, 1);
-//! assert_eq!(probe.ph()?, 7.6);
+//! assert_eq!(probe.ph()?.ph, 7.6);
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 //!
@@ -59,7 +59,7 @@
 //! let port = SerialTransport::open(&SerialConfig::with_settings("/dev/ttyUSB0", settings))?;
 //! let mut client = Client::new(port);
 //! let mut probe = ph_orp::Device::new(&mut client, ph_orp::SENSOR.default_address);
-//! println!("pH {}", probe.ph()?);
+//! println!("pH {}", probe.ph()?.ph);
 //! # }
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
@@ -110,10 +110,13 @@
 //! - **Replies**: a read replies with `GetPhResponse`, a struct of named
 //!   fields; a write replies with `()` (the runtime checks the echoed address
 //!   and count).
+//! - **What a later manual adds breaks nothing that did not use it** (see
+//!   "Stability" below): replies, coded-field enums, `CommandId`, `Request`
+//!   and `Response` are `#[non_exhaustive]`, and the tables are slices.
 //! - **Field types**: `f32`, `u8`/`i8`/`u16`/`i16`/`u32`/`i32`, [`Ascii<N>`]
 //!   (raw bytes kept, padding trimmed on display), [`Version`], and a
 //!   generated enum per coded field with an `Unknown(raw)` arm
-//!   (`CalibrationStatus::from_raw(4)`, `.raw()`, `.name()`).
+//!   (`CalibrationStatus::from_raw(4)`, `.raw()`, `.name()`, `KNOWN`).
 //! - **Dispatch**: `COMMANDS`, one [`rtu::CommandEntry`] per command (name,
 //!   title, layout, fields, codecs as function pointers), is the module's
 //!   command table; `CommandId` indexes it (`ALL`, `name()`, `from_name()`,
@@ -123,10 +126,9 @@
 //!   `identify_request(frame)` (by function, start address and register
 //!   count) complete it.
 //! - **Device handles** (`std`): `Device::new(&mut client, address)`; reads
-//!   are named after the command without `get_` and return the reply, or its
-//!   only field directly (`ph()`, `orp()` (the `orp_mv` field),
-//!   `temperature()`, `sn()`, `slave_id()`, `calibration_status()`; `version()`
-//!   and `orp_and_ph()` return the reply struct); writes keep
+//!   are named after the command without `get_` and return the reply struct,
+//!   even of one field (`ph()?.ph`, `orp()?.orp_mv`, `sn()?.serial_number`,
+//!   `version()`, `orp_and_ph()`); writes keep
 //!   their name and take the field (`set_slave_id(20)`,
 //!   `start_ph_calibration(4.0)`) or, with several fields, the request struct
 //!   (`set_orp_calibration(SetOrpCalibration { k_slope: 1.0, b_offset: 0.0 })`).
@@ -151,6 +153,25 @@
 //! - **Docs** of each type carry the manual's title, text, section and
 //!   figures, the command's function, address and count, the printed example
 //!   frames, and the errata that concern it.
+//!
+//! # Stability
+//!
+//! A new revision of a manual adds fields, codes and commands; code that did
+//! not use them compiles unchanged against the crate generated from it:
+//!
+//! - A reply struct is `#[non_exhaustive]`: read its fields, match it with
+//!   `..` (`GetPhResponse { ph, .. }`); outside this crate it is made by
+//!   decoding, or from data bytes with [`Message::from_data`] (tests,
+//!   simulators).
+//! - Coded-field enums, `CommandId`, `Request` and `Response` are
+//!   `#[non_exhaustive]`: a `match` needs a `_` arm.
+//! - `COMMANDS`, `CommandId::ALL`, each enum's `KNOWN`, `DERIVED` and
+//!   [`SENSORS`] are `&'static [T]`: their lengths are no part of a type.
+//! - A read's `Device` method returns the reply struct, so a field joining
+//!   a one-field reply changes no signature.
+//! - Write requests stay exhaustive structs, built by their user: a field a
+//!   later manual adds to a write is data the device now needs, and the
+//!   compiler should ask every caller for it.
 //!
 //! Decoding never allocates and never panics on any input: every check
 //! (length, CRC, slave, function, byte count, write echo, Modbus exception)

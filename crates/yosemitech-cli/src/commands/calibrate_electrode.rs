@@ -150,7 +150,7 @@ pub fn run(catalog: &Catalog, global: &Global, args: &CalibratePhArgs, out: &mut
                     let temperature =
                         probe.temperature().map_err(|e| request_failed(&e, probe.client().last_reply(), &ctx))?;
                     mv += e.orp_mv;
-                    t += temperature;
+                    t += temperature.temperature_c;
                 }
                 let reading = BufferReading {
                     buffer_ph,

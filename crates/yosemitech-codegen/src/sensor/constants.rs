@@ -124,7 +124,6 @@ pub(super) fn enum_type(s: &Sensor, e: &EnumDef) -> Result<TokenStream, Error> {
         name_arms.push(quote!(Self::#vi => Some(#name),));
         known.push(quote!(Self::#vi));
     }
-    let n = Literal::usize_unsuffixed(known.len());
     let mut d = e.doc.as_deref().map(one_line).unwrap_or_default();
     let size = match e.repr {
         EnumRepr::U8 => "one byte".to_owned(),
@@ -136,10 +135,14 @@ pub(super) fn enum_type(s: &Sensor, e: &EnumDef) -> Result<TokenStream, Error> {
         e.used_by.iter().map(|u| format!("`{u}`")).collect::<Vec<_>>().join(", ")
     );
     d.push_str(" Codes the spec does not name decode to [`Self::Unknown`]; `from_raw` never returns `Unknown` for a named code.");
+    d.push_str(
+        " Non-exhaustive: a later manual may name another code, so a `match` outside this crate needs a `_` arm.",
+    );
     let d = doc(&d);
     Ok(quote! {
         #d
         #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+        #[non_exhaustive]
         pub enum #ty {
             #(#variants)*
             /// A code the spec does not name, as received.
@@ -148,7 +151,7 @@ pub(super) fn enum_type(s: &Sensor, e: &EnumDef) -> Result<TokenStream, Error> {
 
         impl #ty {
             /// Every named code, in spec order.
-            pub const KNOWN: [Self; #n] = [#(#known),*];
+            pub const KNOWN: &[Self] = &[#(#known),*];
 
             /// The variant for a wire code.
             pub const fn from_raw(raw: #raw_ty) -> Self {

@@ -229,10 +229,9 @@ pub(super) fn derived_table(s: &Sensor) -> TokenStream {
             }
         })
         .collect();
-    let n = Literal::usize_unsuffixed(entries.len());
     quote! {
         /// Every derived quantity of the sensor as data, in spec order: its
         /// inputs, and its function (`compute` takes the inputs in parameter order).
-        pub const DERIVED: [rtu::DerivedInfo; #n] = [#(#entries),*];
+        pub const DERIVED: &[rtu::DerivedInfo] = &[#(#entries),*];
     }
 }

@@ -57,29 +57,19 @@ pub(super) fn device(s: &Sensor, names: &Names, o: &Options) -> TokenStream {
         let gens = field_gens(names, ci, c);
         let title = one_line(&c.title);
         let title = title.trim_end_matches('.');
-        // (doc, parameters, return type, request expression, reply mapping)
-        let (d, params, ret, request, map) = match c.function {
+        // (doc, parameters, return type, request expression)
+        let (d, params, ret, request) = match c.function {
             Function::Read => {
+                // The whole reply, even of one field: a field a later manual
+                // adds to it then changes no method's type.
                 let resp = ident(&n.response);
-                if let [only] = gens.as_slice() {
-                    let field = &only.name;
-                    let fty = &only.ty;
-                    let unit = only.field.unit.as_deref().map(|u| format!(" ({})", one_line(u))).unwrap_or_default();
-                    let d = doc(&format!(
-                        "{title}: sends [`{}`] and returns its `{}`{unit}.",
-                        n.ty,
-                        only.field.display_name()
-                    ));
-                    (d, quote!(), quote!(#fty), quote!(&#ty), quote!(.map(|reply| reply.#field)))
-                } else {
-                    let d = doc(&format!("{title}: sends [`{}`] and returns the reply.", n.ty));
-                    (d, quote!(), quote!(#resp), quote!(&#ty), quote!())
-                }
+                let d = doc(&format!("{title}: sends [`{}`] and returns the reply.", n.ty));
+                (d, quote!(), quote!(#resp), quote!(&#ty))
             }
             Function::Write => match gens.as_slice() {
                 [] => {
                     let d = doc(&format!("{title}: sends [`{}`].", n.ty));
-                    (d, quote!(), quote!(()), quote!(&#ty), quote!())
+                    (d, quote!(), quote!(()), quote!(&#ty))
                 }
                 [only] => {
                     let field = &only.name;
@@ -90,7 +80,7 @@ pub(super) fn device(s: &Sensor, names: &Names, o: &Options) -> TokenStream {
                         only.field.display_name(),
                         if only.field.range.is_some() { RANGE_NOTE } else { "" }
                     ));
-                    (d, quote!(, #field: #fty), quote!(()), quote!(&#ty { #field }), quote!())
+                    (d, quote!(, #field: #fty), quote!(()), quote!(&#ty { #field }))
                 }
                 _ => {
                     let ranged = gens.iter().any(|g| g.field.range.is_some());
@@ -99,20 +89,20 @@ pub(super) fn device(s: &Sensor, names: &Names, o: &Options) -> TokenStream {
                         n.ty,
                         if ranged { RANGE_NOTE } else { "" }
                     ));
-                    (d, quote!(, request: #ty), quote!(()), quote!(&request), quote!())
+                    (d, quote!(, request: #ty), quote!(()), quote!(&request))
                 }
             },
         };
         methods.push(quote! {
             #d
             pub fn #method(&mut self #params) -> Result<#ret, rtu::Error> {
-                self.call(#request) #map
+                self.call(#request)
             }
         });
         async_methods.push(quote! {
             #d
             pub async fn #method(&mut self #params) -> Result<#ret, rtu::Error> {
-                self.call(#request).await #map
+                self.call(#request).await
             }
         });
     }
@@ -169,7 +159,7 @@ pub(super) fn device(s: &Sensor, names: &Names, o: &Options) -> TokenStream {
     };
     let d = doc(&format!(
         "One {title} on a bus: a borrowed [`rtu::Client`] and the probe's slave address, with one method per command.\n\n\
-         Reads are named after the command without its `get_` prefix and return the reply, or its only field; writes \
+         Reads are named after the command without its `get_` prefix and return the reply (a struct that later fields may join); writes \
          keep the command's name and take the field (one field) or the request (several). Commands with a fixed slave \
          address (a read at the wildcard address 0xFF) use it instead of the device's."
     ));

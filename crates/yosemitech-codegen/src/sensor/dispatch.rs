@@ -11,7 +11,6 @@ use crate::text::{doc, lit, one_line};
 
 pub(super) fn dispatch(s: &Sensor, names: &Names) -> TokenStream {
     let derived_table = derived_table(s);
-    let n = Literal::usize_unsuffixed(s.commands.len());
     let variants: Vec<Ident> = names.commands.iter().map(|c| ident(&c.ty)).collect();
     let titles: Vec<Literal> = s.commands.iter().map(|c| lit(&one_line(&c.title))).collect();
     let id_docs: Vec<TokenStream> =
@@ -63,21 +62,24 @@ pub(super) fn dispatch(s: &Sensor, names: &Names) -> TokenStream {
 
     quote! {
         /// Every command of this sensor as data, in spec order: name, title,
-        /// layout, fields and codecs ([`CommandId`] indexes it).
-        pub const COMMANDS: [rtu::CommandEntry; #n] = [
+        /// layout, fields and codecs ([`CommandId`] indexes it). A slice, so
+        /// that a command a later manual adds changes no type.
+        pub const COMMANDS: &[rtu::CommandEntry] = &[
             #(rtu::CommandEntry::of::<#variants>(#titles),)*
         ];
 
         /// Every command of this sensor, for code that picks commands at run
-        /// time (CLIs, simulators, tests).
+        /// time (CLIs, simulators, tests). Non-exhaustive: a later manual may
+        /// add a command, so a `match` outside this crate needs a `_` arm.
         #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+        #[non_exhaustive]
         pub enum CommandId {
             #(#id_docs #variants,)*
         }
 
         impl CommandId {
             /// Every command, in spec order.
-            pub const ALL: [Self; #n] = [#(Self::#variants),*];
+            pub const ALL: &[Self] = &[#(Self::#variants),*];
 
             /// The command's row of [`COMMANDS`].
             // Variants are declared in table order, so every discriminant is an index.
@@ -93,7 +95,7 @@ pub(super) fn dispatch(s: &Sensor, names: &Names) -> TokenStream {
 
             /// The command called `name` in the spec.
             pub fn from_name(name: &str) -> Option<Self> {
-                Self::ALL.into_iter().find(|id| id.name() == name)
+                Self::ALL.iter().copied().find(|id| id.name() == name)
             }
 
             /// The command's title in the manual.
@@ -139,8 +141,10 @@ pub(super) fn dispatch(s: &Sensor, names: &Names) -> TokenStream {
             }
         }
 
-        /// A request of any command of this sensor.
+        /// A request of any command of this sensor. Non-exhaustive, as
+        /// [`CommandId`] is.
         #[derive(Debug, Clone, Copy, PartialEq)]
+        #[non_exhaustive]
         pub enum Request {
             #(#request_variants,)*
         }
@@ -174,7 +178,9 @@ pub(super) fn dispatch(s: &Sensor, names: &Names) -> TokenStream {
         }
 
         /// A reply to any command of this sensor (writes reply with no data).
+        /// Non-exhaustive, as [`CommandId`] is.
         #[derive(Debug, Clone, Copy, PartialEq)]
+        #[non_exhaustive]
         pub enum Response {
             #(#response_variants,)*
         }
@@ -219,13 +225,13 @@ pub(super) fn dispatch(s: &Sensor, names: &Names) -> TokenStream {
         /// and register count (the first in spec order if several match). Does
         /// not check the frame: decode it with [`CommandId::decode_request`].
         pub fn identify_request(frame: &[u8]) -> Option<CommandId> {
-            rtu::identify_request(&COMMANDS, frame).and_then(|i| CommandId::ALL.get(i).copied())
+            rtu::identify_request(COMMANDS, frame).and_then(|i| CommandId::ALL.get(i).copied())
         }
 
         #derived_table
 
         /// This module as data, for code that serves every sensor without naming one
         /// (`crate::SENSORS` lists them all).
-        pub const MODULE: rtu::SensorModule = rtu::SensorModule { info: SENSOR, commands: &COMMANDS, derived: &DERIVED };
+        pub const MODULE: rtu::SensorModule = rtu::SensorModule { info: SENSOR, commands: COMMANDS, derived: DERIVED };
     }
 }

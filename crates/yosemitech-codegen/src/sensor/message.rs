@@ -228,11 +228,30 @@ fn message_impl(
     }
 }
 
-fn struct_def(ty: &Ident, gens: &[FieldGen<'_>], docs: TokenStream) -> TokenStream {
+/// Who builds a message type decides its shape. A reply is built by the
+/// generated crate's decoder, so it is `#[non_exhaustive]`: a field a later
+/// manual names is then no breaking change for code that reads the others
+/// (outside that crate a reply is read, matched with `..`, or made by
+/// `Message::from_data`).
+/// A request is built by its user and stays exhaustive: a field a later
+/// manual adds to a write is something the device now needs, which every
+/// caller must supply.
+#[derive(Clone, Copy)]
+enum Builder {
+    User,
+    Decoder,
+}
+
+fn struct_def(ty: &Ident, gens: &[FieldGen<'_>], docs: TokenStream, builder: Builder) -> TokenStream {
+    let non_exhaustive = match builder {
+        Builder::Decoder => quote!(#[non_exhaustive]),
+        Builder::User => TokenStream::new(),
+    };
     if gens.is_empty() {
         return quote! {
             #docs
             #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
+            #non_exhaustive
             pub struct #ty;
         };
     }
@@ -251,6 +270,7 @@ fn struct_def(ty: &Ident, gens: &[FieldGen<'_>], docs: TokenStream) -> TokenStre
     quote! {
         #docs
         #derives
+        #non_exhaustive
         pub struct #ty {
             #(#members),*
         }
@@ -384,14 +404,14 @@ pub(super) fn command(names: &Names, ci: usize, c: &CommandSpec) -> TokenStream 
                     one_line(&c.doc).split(". ").next().unwrap_or_default().trim_end_matches('.').to_owned();
                 (&gens[..], doc(&format!("Reply to [`{}`]. {first_sentence}.", n.ty)))
             };
-            out.extend(struct_def(&ty, &[], docs));
+            out.extend(struct_def(&ty, &[], docs, Builder::User));
             out.extend(message_impl(&ty, &[], c, false, false));
-            out.extend(struct_def(&resp, resp_gens, resp_docs));
+            out.extend(struct_def(&resp, resp_gens, resp_docs, Builder::Decoder));
             out.extend(message_impl(&resp, resp_gens, c, !c.trigger, false));
             quote!(#resp)
         }
         Function::Write => {
-            out.extend(struct_def(&ty, &gens, docs));
+            out.extend(struct_def(&ty, &gens, docs, Builder::User));
             out.extend(message_impl(&ty, &gens, c, true, true));
             quote!(())
         }

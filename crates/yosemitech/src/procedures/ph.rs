@@ -100,7 +100,7 @@ pub fn calibrate<T: Transport>(
         probe.start_ph_calibration(standard_ph)?;
         guide.point_written(index, standard_ph);
     }
-    let status = probe.calibration_status()?;
+    let status = probe.calibration_status()?.status;
     let after = read_ph_orp(probe)?;
     Ok(CalibrationReport { status, backup, after })
 }
