@@ -126,7 +126,9 @@ pub struct CycleDelay {
 
 impl embedded_hal_async::delay::DelayNs for CycleDelay {
     async fn delay_ns(&mut self, ns: u32) {
-        let until = self.clock.cycles() + u64::from(ns) * u64::from(CYCLES_PER_MICRO) / 1000;
+        // Whole microseconds, rounded up: a 32-bit division (a 64-bit one
+        // links a kilobyte of library code on this core).
+        let until = self.clock.cycles() + u64::from(ns.div_ceil(1000)) * u64::from(CYCLES_PER_MICRO);
         poll_fn(|cx| {
             if self.clock.cycles() >= until {
                 Poll::Ready(())

@@ -90,6 +90,8 @@ fn shift_nibble(crc: u16) -> u16 {
 
 /// [`crc16_update`] half a byte at a time: the build without `fast-crc`
 /// (and the reference its tests hold the fast one to).
+// Out of line: the firmware checks CRCs in several places and keeps one loop.
+#[inline(never)]
 #[cfg_attr(all(feature = "fast-crc", not(test)), allow(dead_code))]
 fn crc16_update_by_nibbles(mut crc: u16, data: &[u8]) -> u16 {
     for &byte in data {

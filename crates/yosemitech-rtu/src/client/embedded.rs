@@ -115,7 +115,8 @@ impl<L: Read + Write, D: DelayNs, K: Clock> FirmwareClient<L, D, K> {
                 Action::Wait { until } => {
                     let now = self.clock.now();
                     if now < until {
-                        self.delay.delay_us(micros(until.saturating_duration_since(now))).await;
+                        let wait = until.as_micros().saturating_sub(now.as_micros());
+                        self.delay.delay_us(u32::try_from(wait).unwrap_or(u32::MAX)).await;
                     }
                     self.core.handle_timeout(now.max(until));
                 }
