@@ -170,8 +170,7 @@ async fn read_within<L: Read, D: DelayNs>(
 
 /// A wait in whole microseconds for [`DelayNs`], rounded up, at most ~71 minutes.
 fn micros(duration: core::time::Duration) -> u32 {
-    let whole = duration.as_micros().saturating_add(u128::from(!duration.subsec_nanos().is_multiple_of(1000)));
-    u32::try_from(whole).unwrap_or(u32::MAX)
+    u32::try_from(super::time::micros_ceil(duration)).unwrap_or(u32::MAX)
 }
 
 impl<L, D, K> core::fmt::Debug for FirmwareClient<L, D, K> {
