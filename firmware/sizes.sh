@@ -23,3 +23,9 @@ for sensor in $(grep -oP '^\s+\K\w+(?=::MODULE,)' ../crates/yosemitech/generated
     read -r flash ram _ _ < <(size $out/size_codecs)
     echo "| \`size_codecs\` (SENSOR=$sensor) | $flash | $((flash - base_flash)) | $ram |"
 done
+# The same without the derived quantities: the command table's codecs alone.
+for sensor in $(grep -oP '^\s+\K\w+(?=::MODULE,)' ../crates/yosemitech/generated/mod.rs); do
+    COMMANDS_ONLY=1 SENSOR=$sensor cargo build --release --quiet --bin size_codecs
+    read -r flash ram _ _ < <(size $out/size_codecs)
+    echo "| \`size_codecs\` (SENSOR=$sensor COMMANDS_ONLY=1) | $flash | $((flash - base_flash)) | $ram |"
+done

@@ -101,6 +101,8 @@ pub struct CycleClock {
 }
 
 impl CycleClock {
+    // Out of line: the clock and the delay read it in several places.
+    #[inline(never)]
     fn cycles(&mut self) -> u64 {
         // SAFETY: the DWT cycle counter, a valid read-only MMIO address.
         let now = unsafe { read_volatile(DWT_CYCCNT as *const u32) };
@@ -124,9 +126,9 @@ pub struct CycleDelay {
     clock: CycleClock,
 }
 
-impl embedded_hal_async::delay::DelayNs for CycleDelay {
-    async fn delay_ns(&mut self, ns: u32) {
-        let until = self.clock.cycles() + u64::from(ns) * u64::from(CYCLES_PER_MICRO) / 1000;
+impl CycleDelay {
+    async fn delay_cycles(&mut self, cycles: u64) {
+        let until = self.clock.cycles() + cycles;
         poll_fn(|cx| {
             if self.clock.cycles() >= until {
                 Poll::Ready(())
@@ -136,6 +138,23 @@ impl embedded_hal_async::delay::DelayNs for CycleDelay {
             }
         })
         .await
+    }
+}
+
+// The waits in cycles, each a 32-bit multiplication or division (a 64-bit
+// division links a kilobyte of library code on this core); the default
+// `delay_us` and `delay_ms` would split long waits into chunks of `delay_ns`.
+impl embedded_hal_async::delay::DelayNs for CycleDelay {
+    async fn delay_ns(&mut self, ns: u32) {
+        self.delay_cycles(u64::from(ns.div_ceil(1000)) * u64::from(CYCLES_PER_MICRO)).await
+    }
+
+    async fn delay_us(&mut self, us: u32) {
+        self.delay_cycles(u64::from(us) * u64::from(CYCLES_PER_MICRO)).await
+    }
+
+    async fn delay_ms(&mut self, ms: u32) {
+        self.delay_cycles(u64::from(ms) * 1000 * u64::from(CYCLES_PER_MICRO)).await
     }
 }
 

@@ -16,7 +16,8 @@ use codec_common::{Api, Cmd, Decoded, data_strategy, normalized, sensors, usable
 use proptest::prelude::*;
 use proptest::test_runner::{Config, TestCaseError, TestRunner};
 use yosemitech_rtu::EncodeError;
-use yosemitech_spec::{CommandSpec, FieldKind, Sensor};
+use yosemitech_spec::interp::{self, Value};
+use yosemitech_spec::{CommandSpec, Field, FieldKind, Sensor};
 
 const CASES: u32 = 256;
 
@@ -60,6 +61,78 @@ fn out_of_range(command: &CommandSpec, data: &[u8]) -> bool {
         yosemitech_spec::interp::encode_fields(command, &map),
         Err(yosemitech_spec::interp::EncodeValuesError::OutOfRange { .. })
     )
+}
+
+/// The values of `field`'s type next to `bound`: the nearest f32 and its
+/// neighbours, or the integers around it.
+fn values_around(field: &Field, bound: f64) -> Vec<Value> {
+    match field.kind {
+        FieldKind::F32 { .. } => {
+            let near = bound as f32;
+            [near.next_down(), near, near.next_up()].into_iter().map(Value::Float).collect()
+        }
+        _ => {
+            let (below, above) = (bound.floor() as i64, bound.ceil() as i64);
+            [below - 1, below, above, above + 1].into_iter().map(Value::Int).collect()
+        }
+    }
+}
+
+/// A write's range check refuses exactly what the spec refuses, at the very
+/// edges of every range (where an inexact comparison would err): for each
+/// ranged field of every write, the values next to each bound are checked
+/// by the generated codec and by the interpreter, which compares in `f64`.
+#[test]
+fn range_checks_refuse_exactly_outside_the_spec_range() {
+    let mut edges = 0;
+    for (api, sensor) in &sensors() {
+        for cmd in &api.commands {
+            let spec_cmd = sensor.command(cmd.name).unwrap();
+            if spec_cmd.is_read() {
+                continue;
+            }
+            let sample = yosemitech_tests::values::sample_values(spec_cmd);
+            let data = interp::encode_fields(spec_cmd, &sample).unwrap();
+            for field in spec_cmd.fields.iter().filter(|f| {
+                matches!(
+                    f.kind,
+                    FieldKind::F32 { .. }
+                        | FieldKind::U8
+                        | FieldKind::I8
+                        | FieldKind::U16 { .. }
+                        | FieldKind::I16 { .. }
+                        | FieldKind::U32 { .. }
+                        | FieldKind::I32 { .. }
+                )
+            }) {
+                let (Some(name), Some((min, max))) = (field.name.as_deref(), field.range) else { continue };
+                let unranged = Field { range: None, ..field.clone() };
+                for value in [min, max].into_iter().filter(|b| b.is_finite()).flat_map(|b| values_around(field, b)) {
+                    // A value the type cannot hold is no edge of the range.
+                    let Ok(bytes) = interp::encode_field(&unranged, &value) else { continue };
+                    let mut values = sample.clone();
+                    values.insert(name.to_owned(), value.clone());
+                    let spec_refuses = matches!(
+                        interp::encode_fields(spec_cmd, &values),
+                        Err(interp::EncodeValuesError::OutOfRange { .. })
+                    );
+                    let mut edited = data.clone();
+                    edited[field.offset..field.offset + bytes.len()].copy_from_slice(&bytes);
+                    let frame = codec_common::request_frame(spec_cmd, usable_slave(spec_cmd, 1), &edited);
+                    let decoded = (cmd.decode_request)(&frame).unwrap();
+                    let codec_refuses =
+                        matches!(decoded.encoded, Err(EncodeError::OutOfRange { field }) if field == name);
+                    assert_eq!(
+                        codec_refuses, spec_refuses,
+                        "{}.{}.{name} = {value:?} (range {min}..={max})",
+                        sensor.name, cmd.name
+                    );
+                    edges += 1;
+                }
+            }
+        }
+    }
+    yosemitech_tests::report!("range_checks_refuse_exactly_outside_the_spec_range: {edges} values at range edges");
 }
 
 #[test]

@@ -1,20 +1,26 @@
 //! CRC-16/MODBUS (poly 0x8005 reflected as 0xA001, init 0xFFFF), sent low byte first.
 
-/// Bytes per step of the main loop of [`crc16_update`]: 16 with the
-/// `fast-crc` feature (16 tables, 8 KiB), else 1 (one table, 512 bytes: for
-/// firmware, where flash counts more than nanoseconds).
+/// One step of the bit-serial CRC: the register shifted right by one bit.
+const fn shift_bit(crc: u16) -> u16 {
+    if crc & 1 != 0 { (crc >> 1) ^ 0xA001 } else { crc >> 1 }
+}
+
+/// Bytes per step of the main loop of [`crc16_update`] with the `fast-crc`
+/// feature: 16 tables of 256 entries, 8 KiB. Without it the runtime looks up
+/// half a byte at a time in [`NIBBLES`] (32 bytes: for firmware, where flash
+/// counts more than nanoseconds).
 #[cfg(feature = "fast-crc")]
 const LANES: usize = 16;
-#[cfg(not(feature = "fast-crc"))]
-const LANES: usize = 1;
 
 /// `TABLES[k][b]`: the CRC register after byte `b` followed by `k` zero
 /// bytes, from a zero register (16 × 256 entries, computed at compile time).
 /// `TABLES[0]` is the classic byte-at-a-time table.
+#[cfg(feature = "fast-crc")]
 static TABLES: [[u16; 256]; LANES] = build_tables();
 
 // Runs only in const evaluation, where an out-of-bounds index is a compile
 // error rather than a panic; `get_mut` is not usable in a `const fn` loop.
+#[cfg(feature = "fast-crc")]
 #[allow(clippy::indexing_slicing)]
 const fn build_tables() -> [[u16; 256]; LANES] {
     let mut tables = [[0u16; 256]; LANES];
@@ -23,7 +29,7 @@ const fn build_tables() -> [[u16; 256]; LANES] {
         let mut crc = i as u16;
         let mut bit = 0;
         while bit < 8 {
-            crc = if crc & 1 != 0 { (crc >> 1) ^ 0xA001 } else { crc >> 1 };
+            crc = shift_bit(crc);
             bit += 1;
         }
         tables[0][i] = crc;
@@ -45,9 +51,53 @@ const fn build_tables() -> [[u16; 256]; LANES] {
 /// `TABLES[lane][byte]`. A byte cannot be out of range and every caller
 /// passes a constant lane below [`LANES`], so the check compiles away; `get`
 /// keeps the no-panic guarantee visible to clippy.
+#[cfg(feature = "fast-crc")]
 #[inline(always)]
 fn lookup(lane: usize, byte: u8) -> u16 {
     TABLES.get(lane).and_then(|table| table.get(usize::from(byte))).copied().unwrap_or(0)
+}
+
+/// `NIBBLES[n]`: the CRC register after the four bits `n`, from a zero
+/// register (computed at compile time).
+#[cfg_attr(all(feature = "fast-crc", not(test)), allow(dead_code))]
+static NIBBLES: [u16; 16] = build_nibbles();
+
+#[allow(clippy::indexing_slicing)] // const evaluation only, as `build_tables`
+#[cfg_attr(all(feature = "fast-crc", not(test)), allow(dead_code))]
+const fn build_nibbles() -> [u16; 16] {
+    let mut table = [0u16; 16];
+    let mut n = 0;
+    while n < 16 {
+        let mut crc = n as u16;
+        let mut bit = 0;
+        while bit < 4 {
+            crc = shift_bit(crc);
+            bit += 1;
+        }
+        table[n] = crc;
+        n += 1;
+    }
+    table
+}
+
+/// The register after its low four bits: the masked index is always in
+/// range, so the check compiles away.
+#[inline(always)]
+#[cfg_attr(all(feature = "fast-crc", not(test)), allow(dead_code))]
+fn shift_nibble(crc: u16) -> u16 {
+    (crc >> 4) ^ NIBBLES.get(usize::from(crc & 0x0F)).copied().unwrap_or(0)
+}
+
+/// [`crc16_update`] half a byte at a time: the build without `fast-crc`
+/// (and the reference its tests hold the fast one to).
+// Out of line: the firmware checks CRCs in several places and keeps one loop.
+#[inline(never)]
+#[cfg_attr(all(feature = "fast-crc", not(test)), allow(dead_code))]
+fn crc16_update_by_nibbles(mut crc: u16, data: &[u8]) -> u16 {
+    for &byte in data {
+        crc = shift_nibble(shift_nibble(crc ^ u16::from(byte)));
+    }
+    crc
 }
 
 /// Defines `fn $name(crc, &[u8; N]) -> u16`: the register after a block of
@@ -115,14 +165,11 @@ pub fn crc16_update(mut crc: u16, data: &[u8]) -> u16 {
 }
 
 /// Continues a CRC-16/MODBUS computation over `data`, starting from `crc`
-/// (byte at a time: the build without `fast-crc`).
+/// (half a byte at a time: the build without `fast-crc`).
 #[inline]
 #[cfg(not(feature = "fast-crc"))]
-pub fn crc16_update(mut crc: u16, data: &[u8]) -> u16 {
-    for &byte in data {
-        crc = (crc >> 8) ^ lookup(0, (crc as u8) ^ byte);
-    }
-    crc
+pub fn crc16_update(crc: u16, data: &[u8]) -> u16 {
+    crc16_update_by_nibbles(crc, data)
 }
 
 /// The initial value of a CRC-16/MODBUS computation.
@@ -152,8 +199,7 @@ mod tests {
     use super::*;
 
     /// A bit-by-bit implementation, independent of the table.
-    fn crc16_bitwise(data: &[u8]) -> u16 {
-        let mut crc = 0xFFFFu16;
+    fn crc16_bitwise(mut crc: u16, data: &[u8]) -> u16 {
         for &b in data {
             crc ^= u16::from(b);
             for _ in 0..8 {
@@ -180,7 +226,12 @@ mod tests {
     proptest::proptest! {
         #[test]
         fn table_matches_bitwise(data in proptest::collection::vec(proptest::num::u8::ANY, 0..300)) {
-            proptest::prop_assert_eq!(crc16(&data), crc16_bitwise(&data));
+            proptest::prop_assert_eq!(crc16(&data), crc16_bitwise(CRC_INIT, &data));
+        }
+
+        #[test]
+        fn nibbles_match_bitwise(data in proptest::collection::vec(proptest::num::u8::ANY, 0..300), init: u16) {
+            proptest::prop_assert_eq!(crc16_update_by_nibbles(init, &data), crc16_bitwise(init, &data));
         }
 
         #[test]

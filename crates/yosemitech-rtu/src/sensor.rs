@@ -2,7 +2,7 @@
 
 use crate::command::Command;
 use crate::error::{EncodeError, FrameError};
-use crate::frame::Layout;
+use crate::frame::{Layout, MAX_ADU};
 use crate::message::Message;
 use crate::timing::{CharFormat, LineSettings, LineTiming};
 use crate::value::{FieldInfo, FieldValue};
@@ -89,20 +89,55 @@ pub struct CommandEntry {
     pub request_fields: &'static [FieldInfo],
     /// Name and unit of each field of the reply (empty for writes).
     pub response_fields: &'static [FieldInfo],
-    // Generic over the message type alone, with the layout passed in: the
-    // entries of messages of one shape (every read's empty request) share code.
-    visit_request_fn: VisitRequestFn,
-    visit_response_fn: VisitResponseFn,
-    reencode_request_fn: ReencodeRequestFn,
-    reencode_response_fn: ReencodeResponseFn,
+    // One function per message type, generic over the type alone: the
+    // framing is the entry's own (non-generic) code, and the messages of one
+    // shape (every read's empty request) share one function.
+    request_codec: MessageCodec,
+    response_codec: MessageCodec,
 }
 
-type VisitRequestFn = fn(&Layout<'static>, &[u8], FieldVisitor<'_>) -> Result<u8, FrameError>;
-type VisitResponseFn = fn(&Layout<'static>, u8, &[u8], FieldVisitor<'_>) -> Result<(), FrameError>;
-type ReencodeRequestFn = fn(&Layout<'static>, &[u8], &mut [u8]) -> Result<usize, RoundTripError>;
+/// What a message's codec does with the message it decodes from register data.
+enum Pass<'p, 'v> {
+    /// Passes each field to the visitor.
+    Visit(FieldVisitor<'v>),
+    /// Encodes the message's register data again into `out` (checking its
+    /// ranges first when `validate`): the length written.
+    Reencode { out: &'p mut [u8], validate: bool },
+}
 
-/// Re-encodes a reply to a request sent to the given slave address.
-type ReencodeResponseFn = fn(&Layout<'static>, u8, &[u8], &mut [u8]) -> Result<usize, RoundTripError>;
+/// Why a message's codec stopped.
+enum CodecError {
+    /// The register data is not the message's length (the layout frames
+    /// exactly that length, so this is a table whose layout and type disagree).
+    DataLength,
+    /// The message failed its range check or does not fit `out`.
+    Encode(EncodeError),
+}
+
+/// Decodes one message type from its register data and does the [`Pass`] asked.
+type MessageCodec = fn(&[u8], Pass<'_, '_>) -> Result<usize, CodecError>;
+
+fn message_codec<M: Message>(data: &[u8], pass: Pass<'_, '_>) -> Result<usize, CodecError> {
+    let data = M::Data::try_from(data).map_err(|_| CodecError::DataLength)?;
+    let message = M::from_data(&data);
+    match pass {
+        Pass::Visit(visit) => {
+            message.fields().for_each(|(info, value)| visit(info, value));
+            Ok(0)
+        }
+        Pass::Reencode { out, validate } => {
+            if validate {
+                message.validate().map_err(CodecError::Encode)?;
+            }
+            let data = message.to_data();
+            let data = data.as_ref();
+            let slot =
+                out.get_mut(..data.len()).ok_or(CodecError::Encode(EncodeError::FrameTooLong { len: data.len() }))?;
+            slot.copy_from_slice(data);
+            Ok(data.len())
+        }
+    }
+}
 
 impl CommandEntry {
     /// The entry of command `C`, titled as the manual titles it.
@@ -113,35 +148,57 @@ impl CommandEntry {
             layout: C::LAYOUT,
             request_fields: C::FIELDS,
             response_fields: <C::Response as Message>::FIELDS,
-            visit_request_fn: visit_request::<C>,
-            visit_response_fn: visit_response::<C::Response>,
-            reencode_request_fn: reencode_request::<C>,
-            reencode_response_fn: reencode_response::<C::Response>,
+            request_codec: message_codec::<C>,
+            response_codec: message_codec::<C::Response>,
         }
     }
 
     /// Decodes a request, passes each field of a write's data (in wire
     /// order) to the visitor, and returns the slave address it is for.
     pub fn visit_request(&self, frame: &[u8], visit: FieldVisitor<'_>) -> Result<u8, FrameError> {
-        (self.visit_request_fn)(&self.layout, frame, visit)
+        let (slave, data) = self.layout.decode_request(frame)?;
+        match (self.request_codec)(data, Pass::Visit(visit)) {
+            Ok(_) => Ok(slave),
+            Err(_) => Err(truncated(self.layout.request_len(), frame)),
+        }
     }
 
     /// Decodes a reply to a request sent to `slave` and passes each field,
     /// in wire order, to the visitor.
     pub fn visit_response(&self, slave: u8, frame: &[u8], visit: FieldVisitor<'_>) -> Result<(), FrameError> {
-        (self.visit_response_fn)(&self.layout, slave, frame, visit)
+        let data = response_data(&self.layout, slave, frame)?;
+        match (self.response_codec)(data, Pass::Visit(visit)) {
+            Ok(_) => Ok(()),
+            Err(_) => Err(truncated(self.layout.response_len(), frame)),
+        }
     }
 
     /// Decodes a request and encodes the typed request again into `out`:
     /// the length written.
     pub fn reencode_request(&self, frame: &[u8], out: &mut [u8]) -> Result<usize, RoundTripError> {
-        (self.reencode_request_fn)(&self.layout, frame, out)
+        let (slave, data) = self.layout.decode_request(frame).map_err(RoundTripError::Frame)?;
+        let mut again = [0; MAX_ADU];
+        let len = (self.request_codec)(data, Pass::Reencode { out: &mut again, validate: true })
+            .map_err(|error| self.codec_error(error, self.layout.request_len(), frame))?;
+        self.layout.encode_request(slave, again.get(..len).unwrap_or(&[]), out).map_err(RoundTripError::Encode)
     }
 
     /// Decodes a reply (to a request sent to `slave`) and encodes the typed
     /// reply again into `out`: the length written.
     pub fn reencode_response(&self, slave: u8, frame: &[u8], out: &mut [u8]) -> Result<usize, RoundTripError> {
-        (self.reencode_response_fn)(&self.layout, slave, frame, out)
+        let data = response_data(&self.layout, slave, frame).map_err(RoundTripError::Frame)?;
+        let mut again = [0; MAX_ADU];
+        // A reply is not range-checked: a probe may report values outside its measuring range.
+        let len = (self.response_codec)(data, Pass::Reencode { out: &mut again, validate: false })
+            .map_err(|error| self.codec_error(error, self.layout.response_len(), frame))?;
+        self.layout.encode_response(slave, again.get(..len).unwrap_or(&[]), out).map_err(RoundTripError::Encode)
+    }
+
+    fn codec_error(&self, error: CodecError, frame_len: usize, frame: &[u8]) -> RoundTripError {
+        match error {
+            CodecError::DataLength => RoundTripError::Frame(truncated(frame_len, frame)),
+            CodecError::Encode(error) => RoundTripError::Encode(error),
+        }
     }
 }
 
@@ -151,96 +208,16 @@ impl core::fmt::Debug for CommandEntry {
     }
 }
 
-// The table's codecs are generic over the command only where the command's
-// types are: the frame checks and framing go through the non-generic
-// functions below, kept out of line so a firmware that links every entry
-// links them once (the typed `Command` methods inline them for speed).
-
-fn visit_request<M: Message>(
-    layout: &Layout<'static>,
-    frame: &[u8],
-    visit: FieldVisitor<'_>,
-) -> Result<u8, FrameError> {
-    let (slave, request) = typed_request::<M>(layout, frame)?;
-    request.fields().for_each(|(info, value)| visit(info, value));
-    Ok(slave)
+/// The error of a frame whose register data is not its message's length.
+fn truncated(expected: usize, frame: &[u8]) -> FrameError {
+    FrameError::Truncated { expected, actual: frame.len() }
 }
 
-fn visit_response<M: Message>(
-    layout: &Layout<'static>,
-    slave: u8,
-    frame: &[u8],
-    visit: FieldVisitor<'_>,
-) -> Result<(), FrameError> {
-    typed_response::<M>(layout, slave, frame)?.fields().for_each(|(info, value)| visit(info, value));
-    Ok(())
-}
-
-fn reencode_request<M: Message>(
-    layout: &Layout<'static>,
-    frame: &[u8],
-    out: &mut [u8],
-) -> Result<usize, RoundTripError> {
-    let (slave, request) = typed_request::<M>(layout, frame).map_err(RoundTripError::Frame)?;
-    request.validate().map_err(RoundTripError::Encode)?;
-    frame_out(layout, Direction::Request, slave, request.to_data().as_ref(), out)
-}
-
-fn reencode_response<M: Message>(
-    layout: &Layout<'static>,
-    slave: u8,
-    frame: &[u8],
-    out: &mut [u8],
-) -> Result<usize, RoundTripError> {
-    let response = typed_response::<M>(layout, slave, frame).map_err(RoundTripError::Frame)?;
-    frame_out(layout, Direction::Response, slave, response.to_data().as_ref(), out)
-}
-
-fn typed_request<M: Message>(layout: &Layout<'_>, frame: &[u8]) -> Result<(u8, M), FrameError> {
-    let (slave, data) = request_data(layout, frame)?;
-    let data = M::Data::try_from(data)
-        .map_err(|_| FrameError::Truncated { expected: layout.request_len(), actual: frame.len() })?;
-    Ok((slave, M::from_data(&data)))
-}
-
-fn typed_response<M: Message>(layout: &Layout<'_>, slave: u8, frame: &[u8]) -> Result<M, FrameError> {
-    let data = response_data(layout, slave, frame)?;
-    let data = M::Data::try_from(data)
-        .map_err(|_| FrameError::Truncated { expected: layout.response_len(), actual: frame.len() })?;
-    Ok(M::from_data(&data))
-}
-
-#[inline(never)]
-fn request_data<'f>(layout: &Layout<'_>, frame: &'f [u8]) -> Result<(u8, &'f [u8]), FrameError> {
-    layout.decode_request(frame)
-}
-
-#[inline(never)]
+/// A reply's register data: none for a trigger, whose reply is an
+/// acknowledgement (whatever registers it carries mean nothing).
 fn response_data<'f>(layout: &Layout<'_>, slave: u8, frame: &'f [u8]) -> Result<&'f [u8], FrameError> {
     let data = layout.decode_response(slave, frame)?;
-    // A trigger's reply is an acknowledgement: whatever registers it carries mean nothing.
     Ok(if layout.trigger { &[] } else { data })
-}
-
-#[derive(Clone, Copy)]
-enum Direction {
-    Request,
-    Response,
-}
-
-#[inline(never)]
-fn frame_out(
-    layout: &Layout<'_>,
-    direction: Direction,
-    slave: u8,
-    data: &[u8],
-    out: &mut [u8],
-) -> Result<usize, RoundTripError> {
-    match direction {
-        Direction::Request => layout.encode_request(slave, data, out),
-        Direction::Response => layout.encode_response(slave, data, out),
-    }
-    .map_err(RoundTripError::Encode)
 }
 
 /// A generated sensor module as data: what code that serves every sensor

@@ -240,6 +240,30 @@ impl LineTiming {
         if self.baud > FIXED_TIMING_ABOVE_BAUD { FIXED_T3_5 } else { self.tenths_of_chars(35) }
     }
 
+    /// [`LineTiming::frame_time`] in whole microseconds, rounded up (what a
+    /// deadline adds to an `Instant`), without the 64-bit division a 32-bit
+    /// MCU calls a library routine for. Exact for frames of at most
+    /// [`MAX_ADU`](crate::frame::MAX_ADU) bytes; saturates past 4,294 s.
+    pub(crate) fn frame_micros_ceil(&self, bytes: usize) -> u64 {
+        self.tenths_of_chars_micros_ceil(u32::try_from(bytes).unwrap_or(u32::MAX).saturating_mul(10))
+    }
+
+    /// [`LineTiming::t3_5`] in whole microseconds, rounded up.
+    pub(crate) fn t3_5_micros_ceil(&self) -> u64 {
+        if self.baud > FIXED_TIMING_ABOVE_BAUD { 1750 } else { self.tenths_of_chars_micros_ceil(35) }
+    }
+
+    /// [`LineTiming::tenths_of_chars`] rounded up to the microsecond. With
+    /// `bits × tenths × 10⁵ = q × baud + r`, the nanoseconds are
+    /// `1000 q + ⌊1000 r / baud⌋`: `q` microseconds, and one more when the
+    /// rest is a whole nanosecond or more (`1000 r >= baud`). Every division
+    /// is 32-bit.
+    fn tenths_of_chars_micros_ceil(&self, tenths: u32) -> u64 {
+        let scaled = self.bits_per_char.saturating_mul(tenths).saturating_mul(100_000);
+        let (whole, rest) = (scaled / self.baud, scaled % self.baud);
+        u64::from(whole) + u64::from(u64::from(rest) * 1000 >= u64::from(self.baud))
+    }
+
     /// `tenths / 10` character times, rounded down to the nanosecond.
     const fn tenths_of_chars(&self, tenths: u64) -> Duration {
         // bits * tenths * 1e8 fits in u64 for any realistic frame; saturate otherwise.
@@ -300,6 +324,26 @@ mod tests {
             assert_eq!(line.t1_5(), Duration::from_micros(750));
         }
         assert_eq!(LineTiming::new(115_200, CharFormat::EIGHT_N_1).char_time().as_nanos(), 86_805);
+    }
+
+    #[test]
+    fn microseconds_of_frames_are_their_durations_rounded_up() {
+        let formats = [
+            CharFormat::EIGHT_N_1,
+            CharFormat { parity: Parity::Even, stop_bits: StopBits::Two, ..CharFormat::EIGHT_N_1 },
+        ];
+        let bauds =
+            [1, 3, 7, 300, 1200, 2400, 4800, 9600, 14_400, 19_200, 38_400, 57_600, 115_200, 1_000_000, 7_777_777];
+        for format in formats {
+            for baud in bauds {
+                let line = LineTiming::new(baud, format);
+                let ceil = |d: Duration| crate::client::micros_ceil(d);
+                assert_eq!(line.t3_5_micros_ceil(), ceil(line.t3_5()), "{baud} {format}");
+                for bytes in 0..=crate::frame::MAX_ADU {
+                    assert_eq!(line.frame_micros_ceil(bytes), ceil(line.frame_time(bytes)), "{baud} {format} {bytes}");
+                }
+            }
+        }
     }
 
     #[test]

@@ -470,9 +470,7 @@ impl rtu::Message for StartPhCalibration {
         }
     }
     fn validate(&self) -> Result<(), rtu::EncodeError> {
-        if !self.standard_ph.is_nan()
-            && !(0.0..=14.0).contains(&f64::from(self.standard_ph))
-        {
+        if !self.standard_ph.is_nan() && !(0.0..=14.0).contains(&self.standard_ph) {
             Err(rtu::EncodeError::OutOfRange {
                 field: "standard_ph",
             })

@@ -1,6 +1,7 @@
 //! One sensor's generated codecs, all of them (the module's dispatch keeps
 //! every command's encoder and decoder): build with `SENSOR=<name>` (a module
-//! of `yosemitech::SENSORS`); the driver is not linked.
+//! of `yosemitech::SENSORS`); the driver is not linked. The module's derived
+//! quantities are linked too, unless built with `COMMANDS_ONLY=1`.
 #![no_std]
 #![no_main]
 
@@ -40,8 +41,13 @@ const fn same(a: &[u8], b: &[u8]) -> bool {
     true
 }
 
-/// Only the chosen module is linked (indexing `SENSORS` at run time would link all).
-static MODULE: yosemitech_rtu::SensorModule = SENSORS[CHOSEN];
+/// Only the chosen module is linked (indexing `SENSORS` at run time would
+/// link all). Built with `COMMANDS_ONLY=1`, without its derived quantities
+/// (their functions and the `f64` and `libm` code they need): the codecs alone.
+static MODULE: yosemitech_rtu::SensorModule = match option_env!("COMMANDS_ONLY") {
+    Some(_) => yosemitech_rtu::SensorModule { derived: &[], ..SENSORS[CHOSEN] },
+    None => SENSORS[CHOSEN],
+};
 
 #[entry]
 fn main() -> ! {

@@ -8,7 +8,7 @@ use quote::{format_ident, quote};
 use yosemitech_rtu::{ByteOrder2, ByteOrder4};
 use yosemitech_spec::{CommandSpec, EnumRepr, Field, FieldKind};
 
-use super::constants::f64_lit;
+use super::constants::{f32_lit, f64_lit};
 use super::ident;
 use crate::naming::Names;
 use crate::text::{self, doc, hex, one_line};
@@ -222,9 +222,11 @@ pub(super) fn field_value(g: &FieldGen<'_>) -> TokenStream {
 pub(super) fn range_violation(g: &FieldGen<'_>) -> Option<TokenStream> {
     let (min, max) = g.field.range?;
     let name = &g.name;
+    // An integer is at least `min` when it is at least `min` rounded up (at
+    // most `max` rounded down): the check needs no float, whatever the bounds.
     let int_bounds = |lo: f64, hi: f64| -> Option<(i64, i64)> {
         let (a, b) = (min.ceil().max(lo), max.floor().min(hi));
-        (min.is_finite() && max.is_finite() && a <= b).then_some((a as i64, b as i64))
+        (!min.is_nan() && !max.is_nan() && a <= b).then_some((a as i64, b as i64))
     };
     let int_check = |lo: i64, hi: i64, type_lo: i64, type_hi: i64| -> Option<TokenStream> {
         if lo <= type_lo && hi >= type_hi {
@@ -247,10 +249,13 @@ pub(super) fn range_violation(g: &FieldGen<'_>) -> Option<TokenStream> {
             return Some(quote!(self.#name.value().is_none_or(|v| !(#lo..=#hi).contains(&v))));
         }
         FieldKind::F32 { .. } => {
-            let (lo, hi) = (f64_lit(min), f64_lit(max));
+            // Compared as f32, exactly (an f32 MCU has no f64 unit): a value is
+            // at least `min` when it is at least the least f32 not below it,
+            // at most `max` when at most the greatest f32 not above it.
+            let (lo, hi) = (f32_lit(f32_at_or_above(min)), f32_lit(f32_at_or_below(max)));
             // NaN is not range-checked (the reference interpreter agrees): it is how
             // a logger writes "no value".
-            return Some(quote!(!self.#name.is_nan() && !(#lo..=#hi).contains(&f64::from(self.#name))));
+            return Some(quote!(!self.#name.is_nan() && !(#lo..=#hi).contains(&self.#name)));
         }
         FieldKind::U8 => (0, 255),
         FieldKind::I8 => (-128, 127),
@@ -261,9 +266,25 @@ pub(super) fn range_violation(g: &FieldGen<'_>) -> Option<TokenStream> {
         _ => return None,
     };
     match int_bounds(type_lo as f64, type_hi as f64) {
-        Some((lo, hi)) if min.fract() == 0.0 && max.fract() == 0.0 => int_check(lo, hi, type_lo, type_hi),
-        _ => Some(float_check()),
+        Some((lo, hi)) => int_check(lo, hi, type_lo, type_hi),
+        // No value of the type is in range.
+        None => Some(float_check()),
     }
+}
+
+/// The least f32 at or above `bound` (infinity above the f32 range).
+fn f32_at_or_above(bound: f64) -> f32 {
+    // Rounding is the point: the nearest f32, then a step when it fell below.
+    #[allow(clippy::cast_possible_truncation)]
+    let near = bound as f32;
+    if f64::from(near) < bound { near.next_up() } else { near }
+}
+
+/// The greatest f32 at or below `bound` (minus infinity below the f32 range).
+fn f32_at_or_below(bound: f64) -> f32 {
+    #[allow(clippy::cast_possible_truncation)]
+    let near = bound as f32;
+    if f64::from(near) > bound { near.next_down() } else { near }
 }
 
 pub(super) fn field_doc(g: &FieldGen<'_>) -> TokenStream {
@@ -280,4 +301,19 @@ pub(super) fn field_doc(g: &FieldGen<'_>) -> TokenStream {
         let _ = write!(d, " Valid range {min}..={max}; encoding refuses other values.");
     }
     doc(&d)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{f32_at_or_above, f32_at_or_below};
+
+    #[test]
+    fn f32_bounds_are_the_nearest_on_their_side() {
+        let bounds = [0.0, 14.0, 0.1, -0.1, 1.0 / 3.0, 1e-50, -1e-50, 1e39, -1e39, f64::from(f32::MAX), 16_777_217.0];
+        for bound in bounds {
+            let (lo, hi) = (f32_at_or_above(bound), f32_at_or_below(bound));
+            assert!(f64::from(lo) >= bound && f64::from(lo.next_down()) < bound, "{bound}: {lo}");
+            assert!(f64::from(hi) <= bound && f64::from(hi.next_up()) > bound, "{bound}: {hi}");
+        }
+    }
 }

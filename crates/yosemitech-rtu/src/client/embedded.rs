@@ -115,7 +115,8 @@ impl<L: Read + Write, D: DelayNs, K: Clock> FirmwareClient<L, D, K> {
                 Action::Wait { until } => {
                     let now = self.clock.now();
                     if now < until {
-                        self.delay.delay_us(micros(until.saturating_duration_since(now))).await;
+                        let wait = until.as_micros().saturating_sub(now.as_micros());
+                        self.delay.delay_us(u32::try_from(wait).unwrap_or(u32::MAX)).await;
                     }
                     self.core.handle_timeout(now.max(until));
                 }
@@ -169,8 +170,7 @@ async fn read_within<L: Read, D: DelayNs>(
 
 /// A wait in whole microseconds for [`DelayNs`], rounded up, at most ~71 minutes.
 fn micros(duration: core::time::Duration) -> u32 {
-    let whole = duration.as_micros().saturating_add(u128::from(!duration.subsec_nanos().is_multiple_of(1000)));
-    u32::try_from(whole).unwrap_or(u32::MAX)
+    u32::try_from(super::time::micros_ceil(duration)).unwrap_or(u32::MAX)
 }
 
 impl<L, D, K> core::fmt::Debug for FirmwareClient<L, D, K> {

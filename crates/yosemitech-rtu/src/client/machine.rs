@@ -7,7 +7,7 @@ use core::time::Duration;
 
 use super::config::ClientConfig;
 use super::error::{ClientError, Sent};
-use super::time::{Instant, micros_ceil};
+use super::time::{Instant, duration_from_micros_clamped, micros_ceil};
 use crate::command::Command;
 use crate::crc::{CRC_INIT, crc_ok, crc16_update};
 use crate::error::{EncodeError, FrameError};
@@ -69,7 +69,8 @@ pub enum Action<'a> {
     /// only what is buffered, and is timed; so a reply that is already
     /// buffered costs one clock read, not two.
     Receive {
-        /// The longest wait for the first byte.
+        /// The longest wait for the first byte: at most `u32::MAX` µs (about
+        /// 71 minutes); a later deadline is reached by reads asked for again.
         timeout: Duration,
         /// Whether `handle_received` needs the time the read returned.
         needs_time: bool,
@@ -292,9 +293,21 @@ impl ClientCore {
         }
     }
 
+    /// [`ClientCore::inter_frame_delay`] in microseconds, rounded up, from
+    /// the line's timing in microseconds: the same rule without the 64-bit
+    /// divisions of a `Duration` (a library routine on a 32-bit MCU).
     #[inline]
     fn set_gap(&mut self) {
-        self.gap_micros = micros_ceil(self.inter_frame_delay());
+        self.gap_micros = match self.config.inter_frame_delay {
+            Some(delay) => micros_ceil(delay),
+            None => self.line.map_or(0, |line| {
+                if line.baud() > FIXED_TIMING_ABOVE_BAUD {
+                    line.t3_5_micros_ceil()
+                } else {
+                    line.t3_5_micros_ceil().max(micros_ceil(self.config.min_inter_frame_delay))
+                }
+            }),
+        };
     }
 
     /// The silence kept before each request (see
@@ -550,7 +563,7 @@ impl ClientCore {
         }
         // On a timed line the request is on the wire until its start (the
         // last time reported, fresh here) plus its line time.
-        let on_line = self.line.map_or(now, |line| (self.now + line.frame_time(self.tx_len)).max(now));
+        let on_line = self.line.map_or(now, |line| self.now.add_micros(line.frame_micros_ceil(self.tx_len)).max(now));
         self.set_now(now);
         self.bus_busy_until = Some(on_line);
         log!(debug, frame = %crate::Hex(self.tx.get(..self.tx_len).unwrap_or(&[])), "tx");
@@ -800,12 +813,13 @@ impl ClientCore {
         if self.time_stale {
             return Duration::ZERO;
         }
-        let remaining = self.deadline.saturating_duration_since(self.now);
-        if self.rejected_error.is_some() {
-            remaining.min(Duration::from_micros(self.gap_micros).max(self.config.min_inter_frame_delay))
+        let remaining = self.deadline.as_micros().saturating_sub(self.now.as_micros());
+        let micros = if self.rejected_error.is_some() {
+            remaining.min(self.gap_micros.max(micros_ceil(self.config.min_inter_frame_delay)))
         } else {
             remaining
-        }
+        };
+        duration_from_micros_clamped(micros)
     }
 
     /// Frames the bytes received so far: skips noise, offers a complete
@@ -883,7 +897,7 @@ impl ClientCore {
         }
         if self.start + target > MAX_ADU {
             log!(debug, skipped = %crate::Hex(self.rx.get(..self.start).unwrap_or(&[])), "bytes before the reply");
-            self.rx.copy_within(self.start..self.end, 0);
+            move_to_front(&mut self.rx, self.start..self.end);
             self.short_failed_at = self.short_failed_at.and_then(|at| at.checked_sub(self.start));
             self.end -= self.start;
             self.start = 0;
@@ -927,6 +941,24 @@ impl ClientCore {
                 self.state = State::Done;
             }
         }
+    }
+}
+
+/// Moves `buf[range]` to the front of `buf`, in pieces no longer than the
+/// distance moved so that no piece overlaps its destination: copies that
+/// every build links anyway, not `memmove` (1.5 KB of a firmware's flash)
+/// for a move made only when noise has filled the buffer.
+fn move_to_front(buf: &mut [u8], range: Range<usize>) {
+    let distance = range.start;
+    let mut from = range.start;
+    while from < range.end && distance > 0 {
+        let len = (range.end - from).min(distance);
+        let (before, after) = buf.split_at_mut(from);
+        match (before.get_mut(from - distance..from - distance + len), after.get(..len)) {
+            (Some(to), Some(piece)) => to.copy_from_slice(piece),
+            _ => return,
+        }
+        from += len;
     }
 }
 

@@ -53,5 +53,7 @@ pub use self::config::{ClientConfig, RetryPolicy};
 pub use self::error::{ClientError, Sent};
 pub use self::machine::{Action, ClientCore};
 pub use self::time::Instant;
+#[cfg(test)]
+pub(crate) use self::time::micros_ceil;
 #[cfg(feature = "tokio")]
 pub use self::tokio::AsyncClient;

@@ -52,9 +52,20 @@ impl Instant {
 
 /// `duration` in whole microseconds, rounded up and saturating, without
 /// 128-bit arithmetic: what a silence or a deadline adds to an [`Instant`].
+// Out of line without `std`: a firmware's flash keeps one copy of its
+// 64-bit arithmetic, not one per deadline; a host inlines it for speed.
+#[cfg_attr(not(feature = "std"), inline(never))]
 pub(crate) const fn micros_ceil(duration: Duration) -> u64 {
     let sub_micros = duration.subsec_nanos().div_ceil(1000) as u64;
     duration.as_secs().saturating_mul(1_000_000).saturating_add(sub_micros)
+}
+
+/// `micros` microseconds, at most `u32::MAX` (about 71 minutes: a longer
+/// wait ends early and is asked for again), without the 64-bit division
+/// of `Duration::from_micros` (a library routine on a 32-bit MCU).
+pub(crate) const fn duration_from_micros_clamped(micros: u64) -> Duration {
+    let micros = if micros > u32::MAX as u64 { u32::MAX } else { micros as u32 };
+    Duration::new((micros / 1_000_000) as u64, (micros % 1_000_000) * 1000)
 }
 
 impl core::ops::Add<Duration> for Instant {
@@ -85,5 +96,15 @@ mod tests {
         assert_eq!(t.saturating_duration_since(Instant::from_micros(20)), Duration::ZERO);
         assert_eq!(Instant::from_micros(20).saturating_duration_since(t), Duration::from_micros(10));
         assert_eq!(format!("{:?}", Instant::from_micros(1_000_042)), "1.000042s");
+    }
+
+    #[test]
+    fn durations_from_microseconds_are_exact_up_to_the_clamp() {
+        for micros in [0, 1, 999_999, 1_000_000, 1_000_001, 4_000_000_123, u64::from(u32::MAX)] {
+            assert_eq!(duration_from_micros_clamped(micros), Duration::from_micros(micros));
+        }
+        let clamp = Duration::from_micros(u64::from(u32::MAX));
+        assert_eq!(duration_from_micros_clamped(u64::from(u32::MAX) + 1), clamp);
+        assert_eq!(duration_from_micros_clamped(u64::MAX), clamp);
     }
 }

@@ -412,3 +412,18 @@ fn a_short_trigger_reply_after_noise_that_opens_a_longer_frame_is_found() {
     assert_eq!(h.call(1, &TRIGGER_READ), Ok(()));
     assert_eq!(h.core.last_reply(), short);
 }
+
+#[test]
+fn moving_bytes_to_the_front_is_copy_within_for_every_range() {
+    const LEN: usize = 24;
+    let original: [u8; LEN] = core::array::from_fn(|i| i as u8 + 1);
+    for start in 0..=LEN {
+        for end in start..=LEN {
+            let mut expected = original;
+            expected.copy_within(start..end, 0);
+            let mut moved = original;
+            move_to_front(&mut moved, start..end);
+            assert_eq!(moved, expected, "{start}..{end}");
+        }
+    }
+}
