@@ -8,17 +8,14 @@
 #![cfg(unix)]
 
 use std::io::{BufRead, BufReader};
-use std::process::{Command, Stdio};
-use std::sync::Arc;
-use std::time::{Duration, Instant};
+use std::process::Stdio;
+use std::time::Duration;
 
-use crate::device::{calibrated_sensor, coefficients, float, overwrite, shown};
+use crate::device::{calibrated_sensor, coefficients, float, overwrite};
 use serde_json::Value as Json;
-use yosemitech_sim::{Bus, FaultConfig, FaultKind, Simulator, UnknownRequestPolicy};
-use yosemitech_spec::{CommandSpec, Field, FieldKind, Role, Sensor, Value};
-use yosemitech_tests::cli::{Binary, Run, Sim, fixture_spec_dir, interrupt, number_after, sim};
-use yosemitech_tests::values::varied_float;
-use yosemitech_tests::{report, spec};
+use yosemitech_sim::Simulator;
+use yosemitech_spec::{Role, Value};
+use yosemitech_tests::cli::{Binary, Run, Sim, number_after, sim};
 
 /// The binary under test.
 const YOSEMITECH: Binary = Binary(env!("CARGO_BIN_EXE_yosemitech"));

@@ -6,18 +6,12 @@
 //! real serial code path. No hardware.
 #![cfg(unix)]
 
-use std::io::{BufRead, BufReader};
-use std::process::{Command, Stdio};
-use std::sync::Arc;
-use std::time::{Duration, Instant};
-
 use crate::device::{coefficient_field, coefficients, float, overwrite};
 use serde_json::Value as Json;
-use yosemitech_sim::{Bus, FaultConfig, FaultKind, Simulator, UnknownRequestPolicy};
-use yosemitech_spec::{CommandSpec, Field, FieldKind, Role, Sensor, Value};
-use yosemitech_tests::cli::{Binary, Run, Sim, fixture_spec_dir, interrupt, number_after, sim};
+use yosemitech_spec::{Field, Value};
+use yosemitech_tests::cli::{Binary, sim};
+use yosemitech_tests::report;
 use yosemitech_tests::values::varied_float;
-use yosemitech_tests::{report, spec};
 
 /// The binary under test.
 const YOSEMITECH: Binary = Binary(env!("CARGO_BIN_EXE_yosemitech"));

@@ -7,17 +7,13 @@
 //! real serial code path. No hardware.
 #![cfg(unix)]
 
-use std::io::{BufRead, BufReader};
-use std::process::{Command, Stdio};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use crate::device::{coefficients, scan_says, served_serial_number, shown, shown_number, sn_layouts, sn_request};
-use serde_json::Value as Json;
-use yosemitech_sim::{Bus, FaultConfig, FaultKind, Simulator, UnknownRequestPolicy};
-use yosemitech_spec::{CommandSpec, Field, FieldKind, Role, Sensor, Value};
-use yosemitech_tests::cli::{Binary, Run, Sim, fixture_spec_dir, interrupt, number_after, sim};
-use yosemitech_tests::values::varied_float;
+use crate::device::{scan_says, served_serial_number, shown_number, sn_layouts, sn_request};
+use yosemitech_sim::Simulator;
+use yosemitech_spec::{CommandSpec, Role, Sensor, Value};
+use yosemitech_tests::cli::{Binary, number_after};
 use yosemitech_tests::{report, spec};
 
 /// The binary under test.

@@ -8,15 +8,13 @@
 
 use std::io::{BufRead, BufReader};
 use std::process::{Command, Stdio};
-use std::sync::Arc;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
-use crate::device::{FAST, elsewhere, float, poll_columns, shown};
+use crate::device::{FAST, elsewhere, float, poll_columns};
 use serde_json::Value as Json;
-use yosemitech_sim::{Bus, FaultConfig, FaultKind, Simulator, UnknownRequestPolicy};
-use yosemitech_spec::{CommandSpec, Field, FieldKind, Role, Sensor, Value};
-use yosemitech_tests::cli::{Binary, Run, Sim, fixture_spec_dir, interrupt, number_after, sim};
-use yosemitech_tests::values::varied_float;
+use yosemitech_sim::{FaultConfig, FaultKind};
+use yosemitech_spec::{Sensor, Value};
+use yosemitech_tests::cli::{Binary, sim};
 use yosemitech_tests::{report, spec};
 
 /// The binary under test.

@@ -7,19 +7,13 @@
 //! real serial code path. No hardware.
 #![cfg(unix)]
 
-use std::io::{BufRead, BufReader};
-use std::process::{Command, Stdio};
 use std::sync::Arc;
-use std::time::{Duration, Instant};
 
-use crate::device::{
-    declaring, identifiable, scan_says, served_serial_number, shown, sn_field, sn_layouts, sn_request,
-};
+use crate::device::{declaring, identifiable, scan_says, served_serial_number, sn_field, sn_layouts, sn_request};
 use serde_json::Value as Json;
-use yosemitech_sim::{Bus, FaultConfig, FaultKind, Simulator, UnknownRequestPolicy};
-use yosemitech_spec::{CommandSpec, Field, FieldKind, Role, Sensor, Value};
-use yosemitech_tests::cli::{Binary, Run, Sim, fixture_spec_dir, interrupt, number_after, sim};
-use yosemitech_tests::values::varied_float;
+use yosemitech_sim::{Bus, Simulator};
+use yosemitech_spec::{Role, Sensor, Value};
+use yosemitech_tests::cli::Binary;
 use yosemitech_tests::{report, spec};
 
 /// The binary under test.

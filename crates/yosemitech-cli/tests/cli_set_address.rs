@@ -6,17 +6,9 @@
 //! real serial code path. No hardware.
 #![cfg(unix)]
 
-use std::io::{BufRead, BufReader};
-use std::process::{Command, Stdio};
-use std::sync::Arc;
-use std::time::{Duration, Instant};
-
 use crate::device::{FAST, elsewhere, new_address, served_serial_number};
-use serde_json::Value as Json;
-use yosemitech_sim::{Bus, FaultConfig, FaultKind, Simulator, UnknownRequestPolicy};
-use yosemitech_spec::{CommandSpec, Field, FieldKind, Role, Sensor, Value};
-use yosemitech_tests::cli::{Binary, Run, Sim, fixture_spec_dir, interrupt, number_after, sim};
-use yosemitech_tests::values::varied_float;
+use yosemitech_spec::{Role, Sensor};
+use yosemitech_tests::cli::{Binary, sim};
 use yosemitech_tests::{report, spec};
 
 /// The binary under test.

@@ -8,8 +8,9 @@ use std::sync::Arc;
 
 use yosemitech_sim::Simulator;
 use yosemitech_spec::{CommandSpec, Field, FieldKind, Role, Sensor, Value};
-use yosemitech_tests::cli::{Run, Sim, number_after};
-use yosemitech_tests::spec;
+use yosemitech_tests::cli::{Sim, number_after};
+use yosemitech_tests::values::varied_float;
+use yosemitech_tests::{report, spec};
 
 /// Short timeouts for requests that are meant to fail.
 pub const FAST: [&str; 4] = ["--timeout", "150ms", "--retries", "0"];
