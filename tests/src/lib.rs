@@ -2,6 +2,7 @@
 //! and the helpers of the codec ([`codec`]), simulator ([`sim`]), CLI
 //! ([`cli`]), runtime ([`rtu`], [`driver`], [`counting_alloc`]) and MQTT
 //! ([`broker`]) and Monitor My Watershed ([`portal`]) tests, and values for any command of the spec ([`values`]),
+//! the gate of the slow tests ([`slow`]),
 //! used by the tests of every crate so that no test directory writes its own.
 //!
 //! Also home of the fixture sensor `do_probe` (tests/fixtures/do-probe), a
@@ -23,6 +24,7 @@ pub mod driver;
 pub mod portal;
 pub mod rtu;
 pub mod sim;
+pub mod slow;
 pub mod values;
 
 /// The workspace's spec directory (`spec/`).

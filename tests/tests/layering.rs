@@ -10,6 +10,8 @@
 //!   the repository (a spec cites its manual by title and revision).
 //! - Every workspace member, and every project beside it, is in README's
 //!   layout table and in ARCHITECTURE.md.
+//! - Every test file is in a test binary: where a package's integration
+//!   tests share one binary, `tests/main.rs` declares each file.
 
 use std::path::PathBuf;
 
@@ -74,10 +76,7 @@ const CEILING: usize = 1000;
 
 /// Files over [`CEILING`], each with why and how it is to be split. A file
 /// listed here that is back under the ceiling fails too: take it off.
-const LARGE_FILES: &[(&str, &str)] = &[(
-    "crates/yosemitech-cli/tests/cli_device.rs",
-    "one binary's tests of every device subcommand, to split by subcommand",
-)];
+const LARGE_FILES: &[(&str, &str)] = &[];
 
 /// The workspace root.
 fn root() -> PathBuf {
@@ -227,4 +226,62 @@ fn every_member_is_in_the_readme_layout_and_the_architecture() {
         }
     }
     assert!(missing.is_empty(), "{}", missing.join("\n"));
+}
+
+/// The test files a package's `[[test]]` targets build: each target's file
+/// and the modules it declares (`mod name;`), as paths relative to the
+/// package's `tests/` folder.
+fn files_in_test_targets(package: &std::path::Path, manifest: &toml::Table) -> Vec<String> {
+    let mut built = Vec::new();
+    let targets = manifest.get("test").and_then(toml::Value::as_array);
+    for target in targets.into_iter().flatten() {
+        let path = match (
+            target.get("path").and_then(toml::Value::as_str),
+            target.get("name").and_then(toml::Value::as_str),
+        ) {
+            (Some(path), _) => path.to_owned(),
+            (None, Some(name)) => format!("tests/{name}.rs"),
+            (None, None) => continue,
+        };
+        let Some(file) = path.strip_prefix("tests/") else { continue };
+        built.push(file.to_owned());
+        let text = std::fs::read_to_string(package.join(&path)).unwrap_or_default();
+        let modules = text.lines().filter_map(|l| l.trim().strip_prefix("mod ")?.strip_suffix(';'));
+        for module in modules {
+            built.push(format!("{module}.rs"));
+            built.push(format!("{module}/mod.rs"));
+        }
+    }
+    built
+}
+
+/// A package whose integration tests share one binary (`autotests = false`)
+/// names each test file, in `tests/main.rs` or as a `[[test]]` of its own:
+/// a file it forgets would never build, and its tests never run.
+#[test]
+fn every_test_file_is_in_a_test_binary() {
+    let root = root();
+    let mut problems = Vec::new();
+    let mut shared = 0;
+    for (dir, _) in workspace_members(&root) {
+        let package = root.join(&dir);
+        let manifest = read(&package.join("Cargo.toml"));
+        let autotests = manifest.get("package").and_then(|p| p.get("autotests")).and_then(toml::Value::as_bool);
+        if autotests != Some(false) {
+            continue;
+        }
+        shared += 1;
+        let built = files_in_test_targets(&package, &manifest);
+        let Ok(entries) = std::fs::read_dir(package.join("tests")) else { continue };
+        for entry in entries.flatten() {
+            let name = entry.file_name().to_string_lossy().into_owned();
+            let file = if entry.path().is_dir() { format!("{name}/mod.rs") } else { name };
+            let rust = file.ends_with(".rs") && package.join("tests").join(&file).is_file();
+            if rust && !built.contains(&file) {
+                problems.push(format!("{dir}/tests/{file}: in no test binary: add `mod` for it to tests/main.rs"));
+            }
+        }
+    }
+    assert!(shared > 0, "no package shares a test binary");
+    assert!(problems.is_empty(), "{}", problems.join("\n"));
 }

@@ -164,6 +164,9 @@ fn commands_with_request<'s>(spec: &'s Spec, request: &[u8]) -> Vec<(&'s str, &'
 
 #[test]
 fn every_example_pair_decodes_as_its_command() {
+    if !yosemitech_tests::slow::enabled("decode of every example pair, a process each (about 25 s)") {
+        return;
+    }
     let spec = spec();
     // The two-argument form and the text output are checked once per sensor
     // and per command shared by several sensors (each run loads the spec).

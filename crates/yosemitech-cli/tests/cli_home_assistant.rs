@@ -8,7 +8,7 @@
 //! unavailable, and a probe removed from the station file has its configs
 //! cleared at the next start.
 
-mod station;
+use crate::station;
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::time::Duration;
@@ -18,13 +18,7 @@ use station::{Station, start_logger, stored, terminate};
 use yosemitech_spec::units;
 use yosemitech_station::StoredReading;
 use yosemitech_station::outbox::message;
-use yosemitech_tests::broker::{Broker, BrokerKind, Subscriber, available, rumqttd_child_main, wait_until};
-
-#[test]
-#[ignore = "the rumqttd broker process of the other tests; they start it"]
-fn rumqttd_child_process() {
-    rumqttd_child_main();
-}
+use yosemitech_tests::broker::{Broker, BrokerKind, Subscriber, available, wait_until};
 
 const STATION: &str = "river";
 const DISCOVERY_PREFIX: &str = "homeassistant";

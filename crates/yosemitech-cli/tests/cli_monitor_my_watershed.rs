@@ -6,7 +6,7 @@
 //! its own. `log --check` validates the section, located, and neither it
 //! nor a refused run ever shows the token.
 
-mod station;
+use crate::station;
 
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -17,17 +17,9 @@ use station::{Station, YOSEMITECH, command, stored_ids, terminate};
 use yosemitech_portal::body::timestamp;
 use yosemitech_station::portal::cursor_of;
 use yosemitech_station::{Datum, Store, plan};
-use yosemitech_tests::broker::{
-    Broker, BrokerKind, Subscriber, ids_and_first_occurrences, rumqttd_child_main, wait_until,
-};
+use yosemitech_tests::broker::{Broker, BrokerKind, Subscriber, ids_and_first_occurrences, wait_until};
 use yosemitech_tests::portal::{Portal, Stored};
 use yosemitech_tests::spec;
-
-#[test]
-#[ignore = "the rumqttd broker process of the other tests; they start it"]
-fn rumqttd_child_process() {
-    rumqttd_child_main();
-}
 
 const TOKEN: &str = "mmw-e2e-token-5c0ffee0";
 const FEATURE: &str = "5a5a5a5a-1111-4222-8333-444455556666";

@@ -295,6 +295,9 @@ fn list_shows_sensors_commands_and_fields() {
 
 #[test]
 fn decode_json_of_every_manual_reply_gives_the_stated_values() {
+    if !yosemitech_tests::slow::enabled("decode --json of every manual reply, a process each (20-30 s)") {
+        return;
+    }
     let mut decoded = 0;
     for (sensor, command, example) in examples() {
         let Some(reply) = example.true_response() else { continue };
@@ -332,6 +335,9 @@ fn decode_json_of_every_manual_reply_gives_the_stated_values() {
 
 #[test]
 fn decode_json_of_every_manual_request_gives_the_stated_values() {
+    if !yosemitech_tests::slow::enabled("decode --json of every manual request, a process each (about 20 s)") {
+        return;
+    }
     let mut decoded = 0;
     for (sensor, command, example) in examples() {
         let Some(request) = example.true_request() else { continue };
@@ -353,6 +359,9 @@ fn decode_json_of_every_manual_request_gives_the_stated_values() {
 
 #[test]
 fn encode_reproduces_every_manual_frame() {
+    if !yosemitech_tests::slow::enabled("encode of every manual frame, a process each (about 2 minutes)") {
+        return;
+    }
     let (mut requests, mut replies) = (0, 0);
     for (sensor, command, example) in examples() {
         let Some((true_request, true_response)) = example.true_pair() else { continue };

@@ -5,7 +5,7 @@
 //! schedule goes on, and takes readings again once there is room.
 #![cfg(unix)]
 
-mod station;
+use crate::station;
 
 use std::io::{BufRead, BufReader, Read};
 use std::path::Path;

@@ -4,7 +4,7 @@
 //! logger on a simulated bus stops cleanly on SIGTERM with every reading it
 //! announced committed to its SQLite file.
 
-mod station;
+use crate::station;
 
 use std::io::{BufRead, BufReader};
 use std::process::Stdio;

@@ -7,22 +7,14 @@
 //! at-least-once: a reading in flight at the kill may arrive again,
 //! byte-identical) sees every stored reading exactly once, in order.
 
-mod station;
+use crate::station;
 
 use std::collections::BTreeMap;
 use std::time::Duration;
 
 use station::{Station, start_logger, stored_ids, terminate};
 use yosemitech_station::Store;
-use yosemitech_tests::broker::{
-    Broker, BrokerKind, Subscriber, available, ids_and_first_occurrences, rumqttd_child_main, wait_until,
-};
-
-#[test]
-#[ignore = "the rumqttd broker process of the other tests; they start it"]
-fn rumqttd_child_process() {
-    rumqttd_child_main();
-}
+use yosemitech_tests::broker::{Broker, BrokerKind, Subscriber, available, ids_and_first_occurrences, wait_until};
 
 /// Readings allowed in flight: the copies one interruption can cause.
 const MAX_IN_FLIGHT: usize = 4;

@@ -18,18 +18,10 @@ use yosemitech_mqtt::topic::DEFAULT_TOPIC_PREFIX;
 use yosemitech_mqtt::{MemoryOutbox, Outbox, Publisher, ReadingMessage, ShutdownReport};
 use yosemitech_tests::broker::{
     Broker, BrokerKind, DEADLINE, Received, Subscriber, available, capture_logs, credentials_file,
-    ids_and_first_occurrences, reading, rumqttd_child_main, wait_until,
+    ids_and_first_occurrences, reading, wait_until,
 };
 
 const ALL_READINGS: &str = "yosemitech/v1/+/+/reading";
-
-/// The broker process for the rumqttd runs: this binary, re-run by
-/// [`Broker::start`] with this test selected.
-#[test]
-#[ignore = "the rumqttd broker process of the other tests; they start it"]
-fn rumqttd_child_process() {
-    rumqttd_child_main();
-}
 
 /// One test per broker kind for a scenario.
 macro_rules! on_every_broker {
