@@ -13,6 +13,7 @@ mod fault_soak_pty;
 mod golden;
 mod hostile_specs;
 mod layering;
+mod manual_revision;
 mod no_sensor_names;
 mod procedures;
 mod roundtrip;

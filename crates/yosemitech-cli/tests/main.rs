@@ -26,6 +26,7 @@ mod cli_simulate;
 mod cli_spec_files;
 mod cli_station;
 mod cli_station_mqtt;
+mod cli_timer_slack;
 mod cli_units;
 mod cli_view;
 mod cli_write;
