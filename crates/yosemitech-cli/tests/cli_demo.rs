@@ -24,7 +24,9 @@ fn demo_reads_every_sensor_and_runs_every_procedure() {
     let started = Instant::now();
     let run = YOSEMITECH.run(&["demo"]);
     let out = run.ok();
-    assert!(started.elapsed() < Duration::from_secs(20), "the demo takes a few seconds");
+    // A generous bound, not a speed target: a demo that kept the manuals' waits
+    // (a minute's settling per calibration point) would take several minutes.
+    assert!(started.elapsed() < Duration::from_secs(180), "the demo shortens the procedures' waits");
     let (probes, rest) = out.split_once("waits shortened").unwrap_or_else(|| panic!("no procedures:\n{out}"));
     let procedures = rest.split("the whole family on one RS-485 bus").next().unwrap();
     let (mut reads, mut procedures_run, mut compared) = (0, 0, 0);
