@@ -93,18 +93,7 @@ fn range_checks_refuse_exactly_outside_the_spec_range() {
             }
             let sample = yosemitech_tests::values::sample_values(spec_cmd);
             let data = interp::encode_fields(spec_cmd, &sample).unwrap();
-            for field in spec_cmd.fields.iter().filter(|f| {
-                matches!(
-                    f.kind,
-                    FieldKind::F32 { .. }
-                        | FieldKind::U8
-                        | FieldKind::I8
-                        | FieldKind::U16 { .. }
-                        | FieldKind::I16 { .. }
-                        | FieldKind::U32 { .. }
-                        | FieldKind::I32 { .. }
-                )
-            }) {
+            for field in spec_cmd.fields.iter().filter(|f| f.kind.is_number()) {
                 let (Some(name), Some((min, max))) = (field.name.as_deref(), field.range) else { continue };
                 let unranged = Field { range: None, ..field.clone() };
                 for value in [min, max].into_iter().filter(|b| b.is_finite()).flat_map(|b| values_around(field, b)) {

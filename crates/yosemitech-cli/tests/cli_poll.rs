@@ -6,11 +6,10 @@
 //! real serial code path. No hardware.
 #![cfg(unix)]
 
-use std::io::{BufRead, BufReader};
-use std::process::{Command, Stdio};
+use std::process::Command;
 use std::time::Duration;
 
-use crate::device::{FAST, elsewhere, float, poll_columns};
+use crate::device::{FAST, elsewhere, float, poll_columns, polling};
 use serde_json::Value as Json;
 use yosemitech_sim::{FaultConfig, FaultKind};
 use yosemitech_spec::{Sensor, Value};
@@ -192,25 +191,10 @@ fn poll_reports_errors_per_row_and_goes_on() {
 
 #[test]
 fn poll_stops_cleanly_on_ctrl_c() {
-    let Some(sensor) = spec().sensors.iter().find(|&s| !poll_columns(s).is_empty()).cloned() else {
+    let Some((_sim, mut child, _stdout, line)) = polling(YOSEMITECH) else {
         report!("no sensor of the spec has a measurement to poll");
         return;
     };
-    let s = sim(&sensor.name, sensor.default_address);
-    let mut child = YOSEMITECH
-        .command()
-        .args(["poll", &sensor.name, "-p", &s.path, "--interval", "50ms", "--format", "csv"])
-        .stdin(Stdio::null())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let mut stdout = BufReader::new(child.stdout.take().unwrap());
-    let mut line = String::new();
-    for _ in 0..3 {
-        line.clear();
-        stdout.read_line(&mut line).unwrap();
-    }
     assert!(line.ends_with(",\n"), "a data row: {line}");
     let status = Command::new("kill").args(["-INT", &child.id().to_string()]).status().unwrap();
     assert!(status.success());

@@ -3,37 +3,21 @@
 //! kernel's default 50 µs: read off a running `poll` against a simulated probe.
 #![cfg(target_os = "linux")]
 
-use std::io::{BufRead, BufReader};
-use std::process::Stdio;
 use std::time::Duration;
 
-use yosemitech_tests::cli::{Binary, sim};
-use yosemitech_tests::{report, spec};
+use crate::device::polling;
+use yosemitech_tests::cli::Binary;
+use yosemitech_tests::report;
 
 const YOSEMITECH: Binary = Binary(env!("CARGO_BIN_EXE_yosemitech"));
 
 #[test]
 fn a_polling_tool_sleeps_with_one_microsecond_of_slack() {
-    let Some(sensor) = spec().sensors.iter().find(|&s| !yosemitech_station::plan::measurements(s).is_empty()) else {
+    // Past a data row: the tool is through its start-up and talking to the probe.
+    let Some((_sim, mut child, _stdout, _row)) = polling(YOSEMITECH) else {
         report!("no sensor of the spec has a measurement to poll");
         return;
     };
-    let s = sim(&sensor.name, sensor.default_address);
-    let mut child = YOSEMITECH
-        .command()
-        .args(["poll", &sensor.name, "-p", &s.path, "--interval", "50ms", "--format", "csv"])
-        .stdin(Stdio::null())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::null())
-        .spawn()
-        .unwrap();
-    // A data row: the tool is past its start-up and talking to the probe.
-    let mut stdout = BufReader::new(child.stdout.take().unwrap());
-    let mut line = String::new();
-    for _ in 0..2 {
-        line.clear();
-        stdout.read_line(&mut line).unwrap();
-    }
     let slack = std::fs::read_to_string(format!("/proc/{}/timerslack_ns", child.id()));
     child.kill().unwrap();
     yosemitech_tests::cli::wait(&mut child, Duration::from_secs(10));

@@ -271,3 +271,30 @@ pub fn stated_read() -> Option<StatedRead> {
     report!("no measurement read of the spec has a stated example the simulator answers");
     None
 }
+
+/// `yosemitech poll` (CSV, every 50 ms) running against a simulated probe of
+/// the first sensor of the spec that has a measurement, past its header and
+/// first data row: the simulator, the child and its output. `None` when no
+/// sensor has a measurement.
+pub fn polling(
+    binary: yosemitech_tests::cli::Binary,
+) -> Option<(Sim<Simulator>, std::process::Child, std::io::BufReader<std::process::ChildStdout>, String)> {
+    use std::io::BufRead as _;
+    let sensor = spec().sensors.iter().find(|&s| !poll_columns(s).is_empty())?;
+    let s = yosemitech_tests::cli::sim(&sensor.name, sensor.default_address);
+    let mut child = binary
+        .command()
+        .args(["poll", &sensor.name, "-p", &s.path, "--interval", "50ms", "--format", "csv"])
+        .stdin(std::process::Stdio::null())
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut stdout = std::io::BufReader::new(child.stdout.take().unwrap());
+    let mut line = String::new();
+    for _ in 0..3 {
+        line.clear();
+        stdout.read_line(&mut line).unwrap();
+    }
+    Some((s, child, stdout, line))
+}

@@ -170,6 +170,21 @@ pub enum FieldKind {
 }
 
 impl FieldKind {
+    /// A plain number (float or integer): what a range, a derived
+    /// quantity's input or a unit applies to.
+    pub fn is_number(&self) -> bool {
+        matches!(
+            self,
+            Self::F32 { .. }
+                | Self::U8
+                | Self::I8
+                | Self::U16 { .. }
+                | Self::I16 { .. }
+                | Self::U32 { .. }
+                | Self::I32 { .. }
+        )
+    }
+
     /// Bytes on the wire: 1, 2, 4, or a text's or reserved run's length.
     pub fn size(&self) -> usize {
         match self {

@@ -17,9 +17,7 @@ use crate::check::{check_name, check_text};
 use crate::diag::{Pos, Reporter};
 use crate::document::{DerivedDoc, DerivedInputDoc};
 use crate::expr::{self, Binding, Name, Unit};
-use crate::model::{
-    CommandSpec, Constant, ConstantType, Derived, DerivedExample, DerivedInput, FieldKind, InputSource,
-};
+use crate::model::{CommandSpec, Constant, ConstantType, Derived, DerivedExample, DerivedInput, InputSource};
 use crate::names::{check_derived_name, check_input_name, check_snake, escape};
 use crate::suggest::closest;
 
@@ -380,23 +378,8 @@ fn resolve_field(
         r.error(Pos::at(at), fkey, format!("the sensor has no read called `{}`", escape(command)), Some(help));
         return None;
     };
-    let numbers: Vec<&str> = cmd
-        .fields
-        .iter()
-        .filter(|f| {
-            matches!(
-                f.kind,
-                FieldKind::F32 { .. }
-                    | FieldKind::U8
-                    | FieldKind::I8
-                    | FieldKind::U16 { .. }
-                    | FieldKind::I16 { .. }
-                    | FieldKind::U32 { .. }
-                    | FieldKind::I32 { .. }
-            )
-        })
-        .filter_map(|f| f.name.as_deref())
-        .collect();
+    let numbers: Vec<&str> =
+        cmd.fields.iter().filter(|f| f.kind.is_number()).filter_map(|f| f.name.as_deref()).collect();
     let Some(f) = cmd.field(field).filter(|f| f.name.as_deref().is_some_and(|n| numbers.contains(&n))) else {
         let help = match closest(field, &numbers) {
             Some(best) => format!("did you mean `{command}.{best}`? number fields: {}", numbers.join(", ")),
