@@ -7,7 +7,7 @@
 //! cargo xtask docs [--check]       write docs/sensors/<sensor>.md
 //! cargo xtask fuzz --seconds N     run every fuzz target for N seconds
 //! cargo xtask callgrind [--check]  the client's instructions a transaction, against rmodbus
-//! cargo xtask semver [--baseline REV]  the published crates' API against the last release tag
+//! cargo xtask semver [--baseline REV | --record TAG]  the published crates' API against the last release
 //! cargo xtask import MANUAL [--name NAME] [--out FILE] | MANUAL --into SPEC [--out FILE] [--json] | --accuracy [--write]
 //! ```
 
@@ -47,7 +47,7 @@ pub fn check_flag(args: &[String], usage: &str) -> anyhow::Result<Option<bool>> 
     Ok(Some(check))
 }
 
-const USAGE: &str = "usage: cargo xtask <validate [PATH...] | schema [--check] | codegen [--check] | docs [--check] | fuzz --seconds N | callgrind [--check] | semver [--baseline REV] | import MANUAL [--name NAME] [--out FILE] | import MANUAL --into SPEC [--out FILE] [--json] | import --accuracy [--write]>";
+const USAGE: &str = "usage: cargo xtask <validate [PATH...] | schema [--check] | codegen [--check] | docs [--check] | fuzz --seconds N | callgrind [--check] | semver [--baseline REV | --record TAG] | import MANUAL [--name NAME] [--out FILE] | import MANUAL --into SPEC [--out FILE] [--json] | import --accuracy [--write]>";
 
 fn main() -> ExitCode {
     let args: Vec<String> = std::env::args().skip(1).collect();
