@@ -37,8 +37,8 @@ use accuracy::{accuracy_task, printed_key};
 pub use draft::{DCommand, DExample, DField, Draft, DraftFrame};
 use parse::shared_from;
 pub use parse::{import_text, import_with};
+use render::q;
 pub(crate) use render::{CommandRender, one_line_text, render_command};
-use render::{fig_list, q};
 use tokens::{bare_hex, first_word_lower, hex_token, segments, snake};
 
 /// Largest manual accepted (the real ones are under 100 kB of text).

@@ -115,7 +115,7 @@ fn a_new_revision_is_merged_reviewed_and_refused_where_it_must_be() {
         "the original's lines are kept:\n{merged}"
     );
     for want in [
-        "also_in:\n          - {manual: \"3.4\", figures: [9, 10]}",
+        "also_in:\n          - manual: \"3.4\"\n            figures: [9, 10]",
         "since: \"3.4\"",
         "stop_bits: 2}",
         "values:\n          value: 21.5",
@@ -236,7 +236,10 @@ fn a_frame_that_differs_becomes_an_example_of_the_new_manual() {
     assert!(review.contains("frames that differ (1):") && review.contains("! get_level"), "{review}");
     assert!(review.contains("printed:  01 03 04 00 00 20 40") && review.contains("bytes 5, 6"), "{review}");
     let merged = std::fs::read_to_string(&out).unwrap();
-    assert!(merged.contains("        manual: \"2.0\"\n") && merged.contains("values: {level: 2.5}"), "{merged}");
+    assert!(
+        merged.contains("        manual: \"2.0\"\n") && merged.contains("values:\n          level: 2.5"),
+        "{merged}"
+    );
     let (code, _, err) = xtask(&["validate", s(&out)]);
     assert_eq!(code, 0, "{err}\n{merged}");
     std::fs::remove_dir_all(&d).ok();
@@ -354,5 +357,37 @@ fn a_recorded_manual_is_nothing_new_on_the_command_line() {
     }
     assert!(checked > 0);
     println!("import --into: {checked} recorded manuals, nothing new on the command line");
+    std::fs::remove_dir_all(&d).ok();
+}
+
+/// A register table that disagrees with the frames it sits above: the merge
+/// records it as an erratum of the new manual (its words as the spec's
+/// `table:`, the address in hex), and the merged spec validates.
+#[test]
+fn a_register_table_the_frames_contradict_becomes_an_erratum_of_the_new_manual() {
+    let d = dir("table-erratum");
+    let manual = d.join("level-2.0.txt");
+    let text = manual_with("2.0", &[("2.2.1", "Get Level", 0x26, [5, 6, 7], "17.625")]);
+    let table_row = "  0x2600          0x02";
+    assert!(text.contains(table_row), "the made-up manual's register table: {text}");
+    std::fs::write(&manual, text.replacen(table_row, "  0x2700          0x02", 1)).unwrap();
+    let into = d.join("probe.yaml");
+    std::fs::write(&into, spec()).unwrap();
+    let out = d.join("merged.yaml");
+    let (code, review, err) = xtask(&["import", s(&manual), "--into", s(&into), "--out", s(&out)]);
+    assert_eq!(code, 0, "{err}\n{review}");
+    let merged = std::fs::read_to_string(&out).unwrap();
+    let errata = merged.find("    errata:\n").unwrap_or_else(|| panic!("no errata in the merged spec:\n{merged}"));
+    let erratum = &merged[errata..];
+    for want in ["manual: \"2.0\"", "figure: 5", "table:\n", "address: 0x2700"] {
+        assert!(erratum.contains(want), "the erratum lacks `{want}`:\n{merged}");
+    }
+    // A person checks the erratum the merge could not match to a known one,
+    // and deletes the TODO: what is left validates.
+    assert!(merged.contains("address 0x2700 against the printed frames: check erratum"), "{merged}");
+    let checked: String = merged.lines().filter(|l| !l.contains("# TODO(import)")).map(|l| format!("{l}\n")).collect();
+    std::fs::write(&out, &checked).unwrap();
+    let (code, _, err) = xtask(&["validate", s(&out)]);
+    assert_eq!(code, 0, "{err}\n{checked}");
     std::fs::remove_dir_all(&d).ok();
 }

@@ -2,7 +2,8 @@
 //! TODO as a `# TODO(import)` comment above the key it concerns (where
 //! `cargo xtask validate` reports it by line and column), a blank line
 //! between top-level sections and between commands, and register addresses,
-//! slave addresses and codes in hex as the manuals print them.
+//! slave addresses and codes in hex as the manuals print them, and short
+//! lists of numbers on one line (`figures: [5, 6]`).
 //!
 //! It reads only the block-style YAML the serializer writes (one key or item
 //! per line, nested by indentation), not YAML in general.
@@ -106,8 +107,13 @@ pub(super) fn annotate(yaml: &str, todos: &[Todo]) -> String {
         let line = first_line_of(&t.at).unwrap_or(0);
         above[line].push(&t.text);
     }
+    let lines: Vec<&str> = yaml.lines().collect();
     let mut out = String::new();
-    for (k, line) in yaml.lines().enumerate() {
+    let mut folded = 0..0;
+    for (k, &line) in lines.iter().enumerate() {
+        if folded.contains(&k) {
+            continue;
+        }
         let starts = paths.get(k).map_or(&[][..], Vec::as_slice);
         let indent = line.len() - line.trim_start().len();
         let top_level = indent == 0 && !line.starts_with('-') && !line.starts_with('#') && !line.is_empty();
@@ -118,10 +124,40 @@ pub(super) fn annotate(yaml: &str, todos: &[Todo]) -> String {
         for text in above.get(k).into_iter().flatten() {
             out.push_str(&format!("{}# {IMPORT_TODO}: {text}\n", " ".repeat(indent)));
         }
-        out.push_str(&in_hex(line, starts.last().map(String::as_str)));
+        match number_list(&lines, k, &above) {
+            Some((numbers, end)) => {
+                out.push_str(&format!("{line} [{}]", numbers.join(", ")));
+                folded = k + 1..end;
+            }
+            None => out.push_str(&in_hex(line, starts.last().map(String::as_str))),
+        }
         out.push('\n');
     }
     out
+}
+
+/// A key whose value is a block list of plain numbers with no TODO among
+/// them (`figures:` then `- 5`, `- 6`): the numbers and the line after the
+/// list, to write it as the reviewed specs do (`figures: [5, 6]`).
+fn number_list(lines: &[&str], key: usize, above: &[Vec<&str>]) -> Option<(Vec<String>, usize)> {
+    let line = lines[key];
+    let rest = line.trim_start();
+    // `- figures:` starts an item: its key is two columns in.
+    let indent = line.len() - rest.len() + if rest.starts_with("- ") { 2 } else { 0 };
+    if !line.ends_with(':') || rest.starts_with('#') {
+        return None;
+    }
+    let dash = format!("{}- ", " ".repeat(indent + 2));
+    let mut numbers = Vec::new();
+    let mut end = key + 1;
+    while let Some(item) = lines.get(end).and_then(|l| l.strip_prefix(&dash)) {
+        if item.parse::<f64>().is_err() || above.get(end).is_some_and(|t| !t.is_empty()) {
+            return None;
+        }
+        numbers.push(item.to_owned());
+        end += 1;
+    }
+    (!numbers.is_empty()).then_some((numbers, end))
 }
 
 /// `commands[N]`, N > 0: a command after the file's first.

@@ -3,6 +3,8 @@
 //! construction. What the importer could not decide becomes a [`Todo`] at the
 //! key it concerns, written as a comment by [`super::annotate`].
 
+use std::collections::BTreeMap;
+
 use serde::de::DeserializeOwned;
 use serde::de::value::StrDeserializer;
 use serde_saphyr::{Location, Spanned};
@@ -51,7 +53,7 @@ fn figure(label: &str) -> FigureDoc {
     }
 }
 
-fn figures(labels: &[String]) -> Vec<FigureDoc> {
+pub(super) fn figures(labels: &[String]) -> Vec<FigureDoc> {
     labels.iter().map(|l| figure(l)).collect()
 }
 
@@ -202,25 +204,17 @@ pub(crate) fn command_doc(c: &DCommand, o: &mut CommandRender<'_>) -> (CommandDo
         }
     }
     for (k, (fig, key, value)) in c.table_errata.iter().enumerate() {
-        let table: Option<TableSaysDoc> = serde_saphyr::from_str(&format!("{key}: {value}")).ok();
-        if table.is_none() {
-            todos.push(Todo::new(format!(".errata[{k}]"), format!("the table prints {key} {value}")));
-        }
         let note = o
             .table_notes
             .get(k)
             .cloned()
             .unwrap_or_else(|| "The register table disagrees with the printed frames; the frames are used.".into());
-        doc.errata.push(CommandErratumDoc {
-            id: unplaced((o.next_id)()),
-            figure: (!fig.is_empty()).then(|| unplaced(figure(fig))),
-            manual: manual(),
-            table: table.unwrap_or(TableSaysDoc { address: None, count: None, function: None }),
-            note: unplaced(note),
-        });
+        let (erratum, todo) = table_erratum_doc((o.next_id)(), fig, key, value, manual(), note);
+        todos.extend(todo.map(|t| Todo::new(format!(".errata[{k}]"), t)));
+        doc.errata.push(erratum);
     }
     for e in &c.examples {
-        doc.examples.push(example_doc(c, e, manual(), o.next_id));
+        doc.examples.push(example_doc(e, &e.figures, manual(), stated_values(c, e), o.next_id));
     }
     (doc, todos)
 }
@@ -260,22 +254,63 @@ fn field_doc(f: &DField) -> FieldDoc {
     }
 }
 
-fn example_doc(
-    c: &DCommand,
-    e: &DExample,
+/// A table erratum: where the register table and the printed frames
+/// disagree. With a TODO when the table's words are not a `table:` the spec
+/// reads (`address: 0x2600`).
+pub(super) fn table_erratum_doc(
+    id: String,
+    fig: &str,
+    key: &str,
+    value: &str,
     manual: Option<Spanned<String>>,
+    note: String,
+) -> (CommandErratumDoc, Option<String>) {
+    let table: Option<TableSaysDoc> = serde_saphyr::from_str(&format!("{key}: {value}")).ok();
+    let todo = table.is_none().then(|| format!("the table prints {key} {value}"));
+    let erratum = CommandErratumDoc {
+        id: unplaced(id),
+        figure: (!fig.is_empty()).then(|| unplaced(figure(fig))),
+        manual,
+        table: table.unwrap_or(TableSaysDoc { address: None, count: None, function: None }),
+        note: unplaced(note),
+    };
+    (erratum, todo)
+}
+
+/// An example's `values:`, from the values a manual states as text
+/// (`7.0`, `"Calibrated"`), by field name.
+pub(super) type StatedValues = Option<Spanned<BTreeMap<String, Spanned<StatedValue>>>>;
+
+/// The values of a drafted example, by the names of the drafted fields.
+fn stated_values(c: &DCommand, e: &DExample) -> StatedValues {
+    (!e.values.is_empty() || c.fields.iter().all(|f| f.name.is_none())).then(|| {
+        let named = e.values.iter().filter_map(|(offset, value)| {
+            let name = c.fields.iter().find(|f| f.offset == *offset).and_then(|f| f.name.clone())?;
+            Some((name, value.as_str()))
+        });
+        stated(named)
+    })
+}
+
+/// Values by name, each read as YAML would (`7.0` a number), else as text.
+pub(super) fn stated<'a>(
+    named: impl Iterator<Item = (String, &'a str)>,
+) -> Spanned<BTreeMap<String, Spanned<StatedValue>>> {
+    let read = |value: &str| serde_saphyr::from_str(value).unwrap_or_else(|_| StatedValue::Text(value.to_owned()));
+    unplaced(named.map(|(name, value)| (name, unplaced(read(value)))).collect())
+}
+
+/// An example of frames a manual prints, cited as `figures` (which may
+/// differ from the draft's own labels when merged into a recorded command).
+pub(super) fn example_doc(
+    e: &DExample,
+    figure_labels: &[String],
+    manual: Option<Spanned<String>>,
+    values: StatedValues,
     next_id: &mut dyn FnMut() -> String,
 ) -> ExampleDoc {
     let printed = |f: &Option<DraftFrame>| f.as_ref().map(|f| unplaced(f.text()));
     let crc = |f: &Option<DraftFrame>| f.as_ref().filter(|f| f.crc.is_none()).map(|_| unplaced(CrcDoc::Missing));
-    let values = (!e.values.is_empty() || c.fields.iter().all(|f| f.name.is_none())).then(|| {
-        let named = e.values.iter().filter_map(|(offset, value)| {
-            let name = c.fields.iter().find(|f| f.offset == *offset).and_then(|f| f.name.clone())?;
-            let stated = serde_saphyr::from_str(value).unwrap_or_else(|_| StatedValue::Text(value.clone()));
-            Some((name, unplaced(stated)))
-        });
-        unplaced(named.collect())
-    });
     let wrong = [("request", &e.request), ("response", &e.response)]
         .into_iter()
         .filter_map(|(key, f)| Some((key, f.as_ref().filter(|f| f.crc_wrong())?)))
@@ -298,7 +333,7 @@ fn example_doc(
         }
     });
     ExampleDoc {
-        figures: figures(&e.figures),
+        figures: figures(figure_labels),
         manual,
         request: printed(&e.request),
         request_crc: crc(&e.request),

@@ -408,7 +408,7 @@ pub(crate) fn apply_plan(lines: &[String], plan: &super::merge::Plan) -> (Edits,
         if !edit.citations.is_empty() {
             let ex_items = examples.as_ref().map(|k| items(lines, k)).unwrap_or_default();
             for (j, figures) in &edit.citations {
-                let cite = format!("- {{manual: {}, figures: {}}}", super::q(&plan.software), super::fig_list(figures));
+                let cite = super::merge::citation_item(&plan.software, figures);
                 match ex_items.get(*j) {
                     Some(x) if !flow_item(lines, *x) => {
                         if let Err(why) = append_item(lines, &mut e, *x, "also_in", &cite, x.end) {

@@ -13,12 +13,6 @@ pub(super) fn q(s: &str) -> String {
     format!("{s:?}")
 }
 
-pub(super) fn fig_list(figs: &[String]) -> String {
-    let items: Vec<String> =
-        figs.iter().map(|f| if f.chars().all(|c| c.is_ascii_digit()) { f.clone() } else { q(f) }).collect();
-    format!("[{}]", items.join(", "))
-}
-
 /// The draft as the text of a spec file: the spec's document types,
 /// serialized, under a header that says what the file is and how to finish it.
 pub(super) fn render(d: &Draft, h: &Header, name: &str, file: &str) -> String {

@@ -22,7 +22,8 @@ use super::review::{Changed, ErratumRow, FrameDiff, FrameRow, Renumbered, Review
 use super::{Draft, DraftFrame, file_name, one_line_text, printed_key, q};
 use compare::{differing_bytes, function_name, is_table_todo, row_of_draft, row_of_spec, todo_figure};
 use recorded::{figs, frames_of, id_generator, known_table_erratum, mapped_figures, same_table};
-use render::{example_item, revision_doc};
+pub(in crate::import) use render::citation_item;
+use render::{example_item, revision_doc, table_erratum_item};
 
 mod compare;
 mod recorded;
@@ -413,12 +414,7 @@ pub(crate) fn plan(
                 ),
                 None => "The register table disagrees with the printed frames; the frames are used.".to_string(),
             };
-            let figure = if fig.is_empty() { String::new() } else { format!("figure: {fig}, ") };
-            let item = format!(
-                "- {{id: {id}, manual: {}, {figure}table: {{{key}: {val}}}, note: {}}}\n",
-                q(software),
-                q(&note)
-            );
+            let (item, table_todo) = table_erratum_item(id.clone(), fig, (key, val), software, note);
             review.errata.push(ErratumRow {
                 command: c.name.clone(),
                 id: id.clone(),
@@ -434,6 +430,9 @@ pub(crate) fn plan(
                     "section {}: the register table (Fig {fig}) gives {key} {val} against the printed frames: check erratum {id}",
                     dc.section
                 ));
+            }
+            if let Some(todo) = table_todo {
+                edit.todos.push(format!("section {}: erratum {id}: {todo}", dc.section));
             }
         }
     }

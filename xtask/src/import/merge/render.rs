@@ -1,92 +1,88 @@
-//! The YAML the merge adds: examples of this manual and the revision's `doc`.
+//! The YAML the merge adds: examples, errata and citations of this manual
+//! (the spec crate's document types, serialized as list items) and the
+//! revision's `doc`.
 
+use yosemitech_spec::document::{CitationDoc, StatedValue};
 use yosemitech_spec::{CommandSpec, Value};
 
+use super::super::annotate::{annotate, yaml_of};
+use super::super::document::{StatedValues, example_doc, figures, table_erratum_doc, unplaced};
 use super::super::review::{CommandRow, Review};
-use super::super::{DExample, fig_list, q};
+use super::super::{DExample, one_line_text};
 use super::Place;
 
-/// A value as an example's `values:` writes it.
-pub(super) fn value_yaml(v: &Value) -> Option<String> {
+/// A value as an example's `values:` states it; `None` for one no manual
+/// could print (a NaN).
+fn stated_value(v: &Value) -> Option<StatedValue> {
     Some(match v {
-        Value::Float(f) if f.is_finite() => format!("{f:?}"),
+        // The f32's own shortest spelling (7.1), not its f64 widening.
+        Value::Float(f) if f.is_finite() => StatedValue::Number(format!("{f:?}").parse().ok()?),
         Value::Float(_) => return None,
-        Value::Int(i) => i.to_string(),
-        Value::Text(t) => q(t),
-        Value::Version(v) => q(&v.to_string()),
-        Value::Bcd(b) => b.value()?.to_string(),
-        Value::Enum { name: Some(n), .. } => n.clone(),
-        Value::Enum { raw, name: None } => raw.to_string(),
+        Value::Int(i) => StatedValue::Number(*i as f64),
+        Value::Text(t) => StatedValue::Text(t.clone()),
+        Value::Version(v) => StatedValue::Text(v.to_string()),
+        Value::Bcd(b) => StatedValue::Number(f64::from(b.value()?)),
+        Value::Enum { name: Some(n), .. } => StatedValue::Text(n.clone()),
+        Value::Enum { raw, name: None } => StatedValue::Number(f64::from(*raw)),
     })
 }
 
 /// The values a drafted example's frames give, decoded with the spec's fields.
-pub(super) fn stated_values(c: &CommandSpec, e: &DExample) -> Vec<(String, String)> {
+fn stated_values(c: &CommandSpec, e: &DExample) -> StatedValues {
     let (frame, start) = if c.is_read() { (&e.response, 3) } else { (&e.request, 7) };
-    let Some(frame) = frame else { return Vec::new() };
+    let frame = frame.as_ref()?;
     let mut out = Vec::new();
     for f in c.named_fields() {
         let bytes: Option<Vec<u8>> =
             (start + f.offset..start + f.offset + f.size()).map(|i| frame.bytes.get(i).copied().flatten()).collect();
         let Some(bytes) = bytes else { continue };
-        if let (Some(name), Some(v)) = (&f.name, value_yaml(&yosemitech_spec::interp::decode_field(f, &bytes))) {
-            out.push((name.clone(), v));
+        if let (Some(name), Some(v)) = (&f.name, stated_value(&yosemitech_spec::interp::decode_field(f, &bytes))) {
+            out.push((name.clone(), unplaced(v)));
         }
     }
-    out
+    (!out.is_empty()).then(|| unplaced(out.into_iter().collect()))
 }
 
-/// An example item (indent 0) for frames this manual prints.
+/// A document value as an item of a block list (indent 0): `- key: ...`,
+/// written as a draft's are.
+fn list_item<T: serde::Serialize>(value: &T) -> String {
+    match yaml_of(&[value]) {
+        Ok(text) => annotate(&text, &[]),
+        // The document types serialize whatever their values; should that
+        // ever fail, the item is a comment validation stops at.
+        Err(e) => format!("- # {}: {}\n", yosemitech_spec::IMPORT_TODO, one_line_text(&e.to_string())),
+    }
+}
+
+/// An example item for frames this manual prints, with the values the
+/// spec's fields decode from them.
 pub(super) fn example_item(
     c: Option<&CommandSpec>,
     e: &DExample,
-    figures: &[String],
+    figure_labels: &[String],
     manual: &str,
     next_id: &mut dyn FnMut() -> String,
 ) -> String {
-    let mut y = String::new();
-    y.push_str(&format!("- figures: {}\n  manual: {}\n", fig_list(figures), q(manual)));
-    let mut erratum = None;
-    for (key, f) in [("request", &e.request), ("response", &e.response)] {
-        let Some(f) = f else { continue };
-        y.push_str(&format!("  {key}: {}\n", q(&f.text())));
-        if f.crc.is_none() {
-            y.push_str(&format!("  {key}_crc: missing\n"));
-        }
-        if f.crc_wrong() {
-            erratum = Some((key, f));
-        }
-    }
-    if let Some(c) = c {
-        let values = stated_values(c, e);
-        if !values.is_empty() {
-            let v: Vec<String> = values.iter().map(|(n, v)| format!("{n}: {v}")).collect();
-            y.push_str(&format!("  values: {{{}}}\n", v.join(", ")));
-        }
-    }
-    if let Some((key, f)) = erratum {
-        let fig = e
-            .figures
-            .get(if key == "request" { 0 } else { e.figures.len().saturating_sub(1) })
-            .cloned()
-            .unwrap_or_default();
-        let correct = f.computed_crc().unwrap_or([0, 0]);
-        let printed = f.crc.unwrap_or([0, 0]);
-        y.push_str(&format!(
-            "  erratum:\n    id: {}\n    figure: {}\n",
-            next_id(),
-            fig_list(&[fig]).trim_matches(['[', ']'])
-        ));
-        y.push_str(&format!(
-            "    printed: {}\n",
-            q(&format!(
-                "The printed CRC {:02X} {:02X} is wrong; the frame's CRC is {:02X} {:02X}.",
-                printed[0], printed[1], correct[0], correct[1]
-            ))
-        ));
-        y.push_str(&format!("    corrected_{key}: {}\n    printed_decodes: false\n", q(&f.spec_text(Some(correct)))));
-    }
-    y
+    let values = c.and_then(|c| stated_values(c, e));
+    list_item(&example_doc(e, figure_labels, Some(unplaced(manual.to_owned())), values, next_id))
+}
+
+/// An erratum item for a register table that disagrees with the frames,
+/// and the TODO when its words are not a `table:` the spec reads.
+pub(super) fn table_erratum_item(
+    id: String,
+    fig: &str,
+    (key, value): (&str, &str),
+    manual: &str,
+    note: String,
+) -> (String, Option<String>) {
+    let (erratum, todo) = table_erratum_doc(id, fig, key, value, Some(unplaced(manual.to_owned())), note);
+    (list_item(&erratum), todo)
+}
+
+/// An `also_in` item: this manual prints an example's frames too.
+pub(in crate::import) fn citation_item(manual: &str, figure_labels: &[String]) -> String {
+    list_item(&CitationDoc { manual: unplaced(manual.to_owned()), figures: figures(figure_labels) })
 }
 
 /// The revision's `doc`: what changed, in a sentence or two of our own.
