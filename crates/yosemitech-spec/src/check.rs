@@ -13,7 +13,7 @@
 
 use std::collections::BTreeSet;
 
-use serde_saphyr::Spanned;
+use crate::Spanned;
 use yosemitech_rtu::{Hex, crc16};
 
 use crate::diag::{Pos, Reporter};

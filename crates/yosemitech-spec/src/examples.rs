@@ -8,7 +8,7 @@
 
 use std::collections::{BTreeMap, BTreeSet};
 
-use serde_saphyr::Spanned;
+use crate::Spanned;
 use yosemitech_rtu::{Function, Hex, crc_ok, crc16};
 
 use crate::check::{check_erratum_id, check_text, crc_text, parse_hex, resolve_figure, resolve_figures, stated_value};

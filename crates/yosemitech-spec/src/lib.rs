@@ -41,6 +41,7 @@ pub mod model;
 pub mod names;
 mod resolve;
 pub mod sources;
+mod spanned;
 pub mod suggest;
 pub mod units;
 mod yaml;
@@ -52,6 +53,7 @@ pub use resolve::{
     IMPORT_TODO, MAX_INCLUDE_DEPTH, MAX_READ_COUNT, MAX_TEXT_LEN, MAX_WRITE_COUNT, Summary, load_paths, load_with,
     parse_hex,
 };
+pub use spanned::Spanned;
 pub use yaml::{MAX_ALIAS_REPLAY, MAX_YAML_ALIASES, MAX_YAML_DEPTH, MAX_YAML_NODES};
 
 /// The JSON Schema of a spec file, for editors (feature `schema`: the build

@@ -7,7 +7,8 @@ use std::collections::BTreeMap;
 
 use serde::de::DeserializeOwned;
 use serde::de::value::StrDeserializer;
-use serde_saphyr::{Location, Spanned};
+use serde_saphyr::Location;
+use yosemitech_spec::Spanned;
 use yosemitech_spec::document::{
     AddressRangeDoc, CommandDoc, CommandErratumDoc, CrcDoc, ExampleDoc, ExampleErratumDoc, FieldDoc, FieldTypeDoc,
     FigureDoc, FlagDoc, IncludeDoc, ManualDoc, ParityDoc, SensorDoc, SerialDoc, SourceDoc, SpecFile, StatedValue,

@@ -7,8 +7,8 @@
 
 use std::collections::BTreeMap;
 
+use crate::Spanned;
 use serde::Deserialize;
-use serde_saphyr::Spanned;
 use yosemitech_rtu::{ByteOrder2, ByteOrder4, Parity};
 
 mod command;

@@ -13,7 +13,7 @@
 
 use std::collections::BTreeSet;
 
-use serde_saphyr::Spanned;
+use crate::Spanned;
 use yosemitech_rtu::Function;
 
 use crate::check::{check_erratum_id, check_name, check_role, check_text, resolve_figure};

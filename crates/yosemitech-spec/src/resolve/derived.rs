@@ -11,7 +11,7 @@
 
 use std::collections::BTreeMap;
 
-use serde_saphyr::Spanned;
+use crate::Spanned;
 
 use crate::check::{check_name, check_text};
 use crate::diag::{Pos, Reporter};

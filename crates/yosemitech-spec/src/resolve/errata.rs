@@ -7,7 +7,7 @@
 
 use std::collections::BTreeSet;
 
-use serde_saphyr::Spanned;
+use crate::Spanned;
 
 use crate::check::{check_erratum_id, check_text, resolve_figures};
 use crate::diag::{Pos, Reporter};

@@ -10,7 +10,7 @@
 
 use std::collections::{BTreeMap, BTreeSet};
 
-use serde_saphyr::Spanned;
+use crate::Spanned;
 use yosemitech_rtu::{ByteOrder2, ByteOrder4, Hex};
 
 use crate::check::{check_name, check_text, parse_hex, resolve_figures, stated_value};

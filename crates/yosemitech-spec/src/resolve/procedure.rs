@@ -6,7 +6,7 @@
 //! `after` step is sent without values; at least one command is read,
 //! 1..=1000 times, and no wait is longer than a day.
 
-use serde_saphyr::Spanned;
+use crate::Spanned;
 
 use crate::check::check_text;
 use crate::diag::{Pos, Reporter};

@@ -10,7 +10,7 @@
 
 use std::collections::BTreeMap;
 
-use serde_saphyr::Spanned;
+use crate::Spanned;
 
 use crate::check::{check_name, check_role, check_text, resolve_figures};
 use crate::diag::{Pos, Reporter};

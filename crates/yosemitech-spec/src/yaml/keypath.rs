@@ -5,9 +5,10 @@ use std::fmt;
 
 use serde::Deserialize;
 use serde::de::{self, MapAccess, SeqAccess, Visitor};
-use serde_saphyr::{DuplicateKeyPolicy, Spanned};
+use serde_saphyr::DuplicateKeyPolicy;
 
 use super::limits::options;
+use crate::Spanned;
 use crate::diag::Pos;
 use crate::names::{check_snake, escape};
 
