@@ -9,6 +9,7 @@ use yosemitech_spec::Values;
 use crate::format::hex;
 
 use super::candidates::{Candidate, Commands, Decoding, by_equal_values, fits_slave, label, reply_lens};
+use super::finding::Finding;
 use super::frame::Kind;
 use super::scan::{Found, Framed, Header, Place};
 
@@ -73,9 +74,9 @@ pub struct Exchange<'c> {
     /// The exception the reply carries.
     pub exception: Option<ExceptionCode>,
     /// What is unusual but accepted.
-    pub notes: Vec<String>,
+    pub notes: Vec<Finding>,
     /// What is wrong, first the reason of the status.
-    pub problems: Vec<String>,
+    pub problems: Vec<Finding>,
 }
 
 impl<'c> Exchange<'c> {
@@ -173,19 +174,19 @@ pub fn transaction<'c>(
         _ if allowed.is_empty() => {
             x.status = Status::UnknownCommand;
             x.problems.push(if cands.is_empty() {
-                format!("no loaded sensor has a command for {what}")
+                Finding::NoCommandFor { what }
             } else {
-                format!("{what} is {}, which --sensor/--command leave out", label(cands))
+                Finding::LeftOut { what, commands: label(cands) }
             });
         }
         (None, _) => {
             x.decodings = by_equal_values(allowed.iter().map(|c| (*c, written(c))));
             if header.slave == 0 {
                 x.status = Status::Broadcast;
-                x.notes.push("address 0: a broadcast, never answered".into());
+                x.notes.push(Finding::Broadcast);
             } else {
                 x.status = Status::NoReply;
-                x.problems.push(format!("no reply from address {} follows the request", header.slave));
+                x.problems.push(Finding::NoReply { slave: header.slave });
             }
         }
         (Some(reply), false) => {
@@ -199,11 +200,11 @@ pub fn transaction<'c>(
             };
             let n = bytes.len();
             x.problems.push(if n < expected {
-                format!("the reply is cut short: {n} of {expected} bytes")
+                Finding::ReplyCutShort { len: n, expected }
             } else {
                 let carried = bytes.get(n.saturating_sub(2)..).unwrap_or(&[]);
                 let computed = crc16(bytes.get(..n.saturating_sub(2)).unwrap_or(&[])).to_le_bytes();
-                format!("the reply's CRC is wrong: it carries {}, its bytes give {}", hex(carried), hex(&computed))
+                Finding::ReplyCrc { carried: hex(carried), computed: hex(&computed) }
             });
         }
         (Some(reply), true) if Kind::of(&reply.bytes) == Kind::Exception => {
@@ -217,7 +218,11 @@ pub fn transaction<'c>(
             for c in &allowed {
                 match c.command.decode_response(header.slave, &reply.bytes) {
                     Ok(values) => decoded.push((*c, if c.command.is_read() { values } else { written(c) })),
-                    Err(e) => rejected.push(format!("not {} of {}: {e}", c.command.name, c.sensor)),
+                    Err(e) => rejected.push(Finding::NotDecodedAs {
+                        command: c.command.name.clone(),
+                        sensor: c.sensor.to_string(),
+                        reason: e.to_string(),
+                    }),
                 }
             }
             x.decodings = by_equal_values(decoded);
@@ -234,13 +239,10 @@ pub fn transaction<'c>(
             if let Some(c) = x.chosen().and_then(Decoding::command) {
                 let n = byte(&reply.bytes, 2).unwrap_or(0);
                 if c.is_read() && !c.trigger && usize::from(n) != 2 * usize::from(c.count) {
-                    x.notes.push(format!(
-                        "byte count 0x{n:02X} over {} data bytes: a firmware quirk the spec documents, accepted",
-                        2 * c.count
-                    ));
+                    x.notes.push(Finding::QuirkByteCount { byte_count: n, data_bytes: 2 * usize::from(c.count) });
                 }
                 if let Some(fixed) = c.fixed_slave {
-                    x.notes.push(format!("{} is sent to and answered from the address 0x{fixed:02X}", c.name));
+                    x.notes.push(Finding::FixedAddressExchange { command: c.name.clone(), address: fixed });
                 }
             }
         }
@@ -260,9 +262,7 @@ pub fn lone<'c>(commands: &Commands<'c>, reply: Framed) -> Exchange<'c> {
         decodings: Vec::new(),
         exception: None,
         notes: Vec::new(),
-        problems: vec![format!(
-            "no request to address {slave} before this reply (lost, or sent before the capture began)"
-        )],
+        problems: vec![Finding::NoRequest { slave }],
     };
     if Kind::of(&reply.bytes) == Kind::Exception {
         x.exception = Some(ExceptionCode::from_u8(byte(&reply.bytes, 2).unwrap_or(0)));

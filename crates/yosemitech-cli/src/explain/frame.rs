@@ -8,6 +8,7 @@ use yosemitech_spec::interp::decode_fields;
 use yosemitech_spec::{CommandSpec, Values};
 
 use super::candidates::{Commands, Decoding, by_shared_command, fits_slave, reply_lens};
+use super::finding::Finding;
 
 /// What a frame is, from its function code and length.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -138,9 +139,9 @@ pub struct Frame<'c> {
     /// The values, decoded as the one candidate.
     pub values: Values,
     /// What is unusual but accepted.
-    pub notes: Vec<String>,
+    pub notes: Vec<Finding>,
     /// What is wrong.
-    pub problems: Vec<String>,
+    pub problems: Vec<Finding>,
 }
 
 impl<'c> Frame<'c> {
@@ -251,13 +252,11 @@ fn check(x: &mut Frame<'_>, data: &[u8]) {
                 let want = 2 * usize::from(c.count);
                 if usize::from(n) != want {
                     if c.trigger && c.layout().accepts_byte_count(n) {
-                        notes.push(format!("byte count 0x{n:02X}: a trigger's reply carries no value, accepted"));
+                        notes.push(Finding::TriggerByteCount { byte_count: n });
                     } else if c.layout().accepts_byte_count(n) {
-                        notes.push(format!(
-                            "byte count 0x{n:02X} over {want} data bytes: a firmware quirk the spec documents, accepted"
-                        ));
+                        notes.push(Finding::QuirkByteCount { byte_count: n, data_bytes: want });
                     } else {
-                        problems.push(format!("byte count 0x{n:02X}, expected 0x{want:02X}"));
+                        problems.push(Finding::ByteCount { byte_count: n, expected: want });
                     }
                 }
             }
@@ -268,42 +267,38 @@ fn check(x: &mut Frame<'_>, data: &[u8]) {
             if let Some(c) = chosen {
                 let want_len = c.layout().request_len();
                 if len != want_len {
-                    problems.push(format!("{len} bytes, a {} request has {want_len}", c.name));
+                    problems.push(Finding::RequestLength { command: c.name.clone(), len, expected: want_len });
                 } else {
                     x.values = decode_fields(c, data);
                 }
                 if usize::from(n) != 2 * usize::from(c.count) {
-                    problems.push(format!("byte count 0x{n:02X}, expected 0x{:02X}", 2 * c.count));
+                    problems.push(Finding::ByteCount { byte_count: n, expected: 2 * usize::from(c.count) });
                 }
             }
         }
         Kind::Exception => {
             x.exception = Some(ExceptionCode::from_u8(byte(&x.bytes, 2).unwrap_or(0)));
             if len != 5 {
-                problems.push(format!("an exception reply has 5 bytes, this one {len}"));
+                problems.push(Finding::ExceptionLength { len });
             }
         }
-        Kind::Unknown => {
-            problems.push(format!("function 0x{:02X} is not one the probes use (0x03 read, 0x10 write)", x.function))
-        }
+        Kind::Unknown => problems.push(Finding::UnknownFunction { function: x.function }),
         Kind::ReadRequest | Kind::WriteReply => {}
     }
     if let Some(c) = chosen {
         match c.fixed_slave {
             Some(fixed) if fixed != slave => {
-                problems.push(format!("{} is sent to and answered from address 0x{fixed:02X}, not {slave}", c.name));
+                problems.push(Finding::NotItsFixedAddress { command: c.name.clone(), address: fixed, slave });
             }
-            Some(fixed) => notes.push(format!("{} uses the wildcard address 0x{fixed:02X} (erratum E3)", c.name)),
-            None if slave == 0 && kind == Kind::WriteRequest => {
-                notes.push("address 0: a broadcast, never answered".into())
-            }
-            None if !(1..=247).contains(&slave) => problems.push(format!("address {slave} is outside 1..=247")),
+            Some(fixed) => notes.push(Finding::WildcardAddress { command: c.name.clone(), address: fixed }),
+            None if slave == 0 && kind == Kind::WriteRequest => notes.push(Finding::Broadcast),
+            None if !(1..=247).contains(&slave) => problems.push(Finding::AddressOutOfRange { slave }),
             None => {}
         }
     }
     if x.candidates.is_empty()
         && matches!(kind, Kind::ReadRequest | Kind::ReadReply | Kind::WriteRequest | Kind::WriteReply)
     {
-        problems.push(format!("no command of the loaded sensors fits this {}", kind.name()));
+        problems.push(Finding::NoCommandFits { kind: kind.name() });
     }
 }

@@ -25,6 +25,7 @@
 
 pub mod candidates;
 pub mod exchange;
+pub mod finding;
 pub mod frame;
 pub mod scan;
 
@@ -32,6 +33,7 @@ use yosemitech_rtu::crc_ok;
 
 pub use self::candidates::{Candidate, Commands, Decoding};
 pub use self::exchange::{Exchange, Report, Status};
+pub use self::finding::Finding;
 pub use self::frame::{Frame, FrameStatus, Kind};
 pub use self::scan::{Found, Line, Scanner};
 

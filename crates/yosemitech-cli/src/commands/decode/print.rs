@@ -16,7 +16,7 @@ use crate::explain::scan::Framed;
 use crate::explain::{CaptureMode, Decoding, Exchange, Report, Status};
 use crate::format::{fields_json, hex, value_with_unit, values_json};
 
-use super::{error_json, pretty};
+use super::{error_json, pretty, words};
 
 /// `ph = 7.6 pH, temperature_c = 25 °C`.
 pub(super) fn values_text(d: &Decoding<'_>) -> String {
@@ -79,8 +79,8 @@ pub(super) fn exchange_json(x: &Exchange<'_>) -> Json {
         "reply": x.reply.as_ref().map(framed_json),
         "decodings": decodings,
         "exception": x.exception.map(|e| json!({ "code": e.to_u8(), "name": e.to_string() })),
-        "notes": x.notes,
-        "problems": x.problems,
+        "notes": words(&x.notes),
+        "problems": words(&x.problems),
         "error": Json::Null,
     });
     if let (Json::Object(doc), Json::Object(chosen)) = (&mut doc, chosen) {
@@ -115,7 +115,7 @@ pub(super) fn report_json(r: &Report<'_>) -> Json {
 
 /// The error a single transaction ends with, if any.
 pub(super) fn exchange_error(x: &Exchange<'_>) -> Option<CliError> {
-    let first = x.problems.first().cloned().unwrap_or_default();
+    let first = x.problems.first().map(ToString::to_string).unwrap_or_default();
     match x.status {
         Status::Decoded | Status::Exception | Status::Broadcast => None,
         Status::Ambiguous => {
@@ -248,7 +248,7 @@ pub(super) fn report_text(r: &Report<'_>) -> String {
         }
     };
     let labels = x.decodings.iter().map(|d| label(&d.cands)).collect::<Vec<_>>().join(" | ");
-    let first = x.problems.first().map_or("", String::as_str);
+    let first = x.problems.first().map(ToString::to_string).unwrap_or_default();
     let what = match x.status {
         Status::Decoded | Status::Broadcast => x.chosen().map(decoded).unwrap_or_default(),
         Status::Exception => {

@@ -11,7 +11,7 @@ use crate::explain::{Decoding, Frame, FrameStatus, Kind};
 use crate::format::{fields_json, hex, value_with_unit, values_json};
 
 use super::print::values_text;
-use super::{error_json, pretty};
+use super::{error_json, pretty, words};
 
 /// `conductivity/ph_orp get_sn (0x0900, 7 registers)`.
 fn candidate_label(d: &Decoding<'_>) -> String {
@@ -127,8 +127,8 @@ fn print_explained(frame: &Frame<'_>, json_out: bool, out: &mut dyn Write) -> Re
             "values": values_json(&frame.values),
             "exception": frame.exception.map(|e| json!({ "code": e.to_u8(), "name": e.to_string() })),
             "crc": { "ok": frame.crc.ok(), "received": hex(&received), "expected": hex(&expected) },
-            "notes": frame.notes,
-            "problems": frame.problems,
+            "notes": words(&frame.notes),
+            "problems": words(&frame.problems),
         });
         writeln!(out, "{}", pretty(&doc))?;
     } else {
