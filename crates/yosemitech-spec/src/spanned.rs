@@ -129,3 +129,42 @@ impl<T: serde::Serialize> serde::Serialize for Spanned<T> {
         self.value.serialize(serializer)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use std::collections::BTreeMap;
+
+    use super::Spanned;
+
+    #[derive(serde::Deserialize)]
+    struct Doc {
+        first: Spanned<u32>,
+        second: Spanned<u32>,
+        list: Spanned<Vec<Spanned<String>>>,
+        table: BTreeMap<String, Spanned<f64>>,
+    }
+
+    #[test]
+    fn a_value_carries_where_it_is_written_and_where_it_is_used() {
+        let yaml = "first: &n 7\nsecond: *n\nlist:\n  - a\n  - b\ntable: {x: 1.5}\n";
+        let doc: Doc = serde_saphyr::from_str(yaml).unwrap();
+        let at = |l: serde_saphyr::Location| (l.line(), l.column());
+        assert_eq!((doc.first.value, doc.second.value), (7, 7));
+        assert_eq!(at(doc.first.defined), (1, 11));
+        // The alias uses the anchored value: defined there, referenced here.
+        assert_eq!(at(doc.second.defined), (1, 11));
+        assert_eq!(at(doc.second.referenced), (2, 9));
+        let items: Vec<_> = doc.list.value.iter().map(|s| (s.value.as_str(), at(s.defined))).collect();
+        assert_eq!(items, [("a", (4, 5)), ("b", (5, 5))]);
+        assert_eq!(doc.table["x"].value, 1.5);
+        assert_eq!(at(doc.table["x"].defined), (6, 12));
+    }
+
+    #[test]
+    fn a_wrong_type_is_an_error_at_the_value() {
+        let Err(e) = serde_saphyr::from_str::<Doc>("first: seven\nsecond: 1\nlist: []\ntable: {}\n") else {
+            panic!("`seven` read as a number")
+        };
+        assert_eq!(e.location().map(|l| (l.line(), l.column())), Some((1, 8)), "{e}");
+    }
+}
