@@ -131,3 +131,19 @@ pub(super) fn revision_doc(review: &Review, software: &str, place: &Place, newes
     parts.push("Merged by `cargo xtask import --into`.".into());
     parts.join(" ")
 }
+
+#[cfg(test)]
+mod tests {
+    use yosemitech_spec::Value;
+    use yosemitech_spec::document::StatedValue;
+
+    use super::stated_value;
+
+    #[test]
+    fn a_stated_float_is_the_number_its_f32_spells() {
+        // Widened, 7.1f32 is 7.099999904632568; the manual printed 7.1.
+        assert_eq!(stated_value(&Value::Float(7.1)), Some(StatedValue::Number(7.1)));
+        assert_eq!(stated_value(&Value::Float(f32::NAN)), None);
+        assert_eq!(stated_value(&Value::Int(-3)), Some(StatedValue::Number(-3.0)));
+    }
+}
