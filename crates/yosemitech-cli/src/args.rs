@@ -1,6 +1,6 @@
 //! Argument groups several subcommands share: the options every
-//! subcommand takes, calibration history, a store's time range and station
-//! inputs. The port options are beside the port's opening (`port`).
+//! subcommand takes, where a write keeps its coefficient backup,
+//! calibration history, a store's time range and station inputs. The port options are beside the port's opening (`port`).
 
 use crate::format::parse_duration;
 use crate::time::parse_instant_now as parse_instant;
@@ -26,6 +26,14 @@ pub struct Global {
     /// Retries after a timeout or a corrupt reply [default: 2; scan: 0].
     #[arg(long, value_name = "N", global = true)]
     pub retries: Option<u32>,
+}
+
+/// Where a command that writes coefficients saves the ones it replaces.
+#[derive(Args, Debug, Default, Clone)]
+pub struct BackupDir {
+    /// Where to save the coefficient backup [default: the current directory].
+    #[arg(long = "backup-dir", id = "backup_dir", value_name = "DIR")]
+    pub dir: Option<PathBuf>,
 }
 
 /// Where the calibration history is kept, and the note a calibration adds to it.

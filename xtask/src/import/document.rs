@@ -294,9 +294,7 @@ fn stated_values(c: &DCommand, e: &DExample) -> StatedValues {
 }
 
 /// Values by name, each read as YAML would (`7.0` a number), else as text.
-pub(super) fn stated<'a>(
-    named: impl Iterator<Item = (String, &'a str)>,
-) -> Spanned<BTreeMap<String, Spanned<StatedValue>>> {
+fn stated<'a>(named: impl Iterator<Item = (String, &'a str)>) -> Spanned<BTreeMap<String, Spanned<StatedValue>>> {
     let read = |value: &str| serde_saphyr::from_str(value).unwrap_or_else(|_| StatedValue::Text(value.to_owned()));
     unplaced(named.map(|(name, value)| (name, unplaced(read(value)))).collect())
 }

@@ -15,6 +15,7 @@ use yosemitech::procedures::coefficients::PhOrpCoefficients;
 use yosemitech::procedures::ph::{CalibrationConfig, CalibrationGuide, calibrate, explain};
 use yosemitech::procedures::{ProcedureError, RealSleep, Sleep};
 
+use crate::args::BackupDir;
 use crate::args::Global;
 use crate::args::HistoryArgs;
 use crate::backup::{self, Backup};
@@ -86,9 +87,8 @@ pub struct CalibratePhArgs {
     /// Start without asking (the buffer prompts still read stdin).
     #[arg(short, long)]
     pub yes: bool,
-    /// Where to save the coefficient backup [default: the current directory].
-    #[arg(long, value_name = "DIR")]
-    pub backup_dir: Option<PathBuf>,
+    #[command(flatten)]
+    pub backup: BackupDir,
     /// Compute the electrode coefficients K1..K6 here, by the vendor's
     /// model, from the potential and temperature read in each buffer,
     /// instead of the probe's own calibration; show them against the
@@ -130,7 +130,7 @@ pub(crate) fn save_backup(
     };
     let blocks = backup::read_blocks(opened, entry, slave).map_err(not_started)?;
     let backup = Backup::taken_now(opened, entry, slave, serial_number, blocks.clone());
-    let path = backup::save_in(args.backup_dir.as_deref(), &backup).map_err(not_started)?;
+    let path = backup::save_in(args.backup.dir.as_deref(), &backup).map_err(not_started)?;
     let restore = backup::restore_command(catalog, entry, &backup.port, backup.address, &path);
     writeln!(out, "saved every coefficient to {}", path.display())?;
     writeln!(out, "restore with: {restore}")?;

@@ -25,6 +25,7 @@ use serde_json::{Map, json};
 use yosemitech_station::Calibration;
 
 use super::calibrate::stdin_lines;
+use crate::args::BackupDir;
 use crate::args::Global;
 use crate::args::HistoryArgs;
 use crate::backup::{self, Backup};
@@ -39,7 +40,6 @@ use crate::port::AddressArg;
 use crate::port::PortArgs;
 use crate::port::{self, Opened};
 use clap::Args;
-use std::path::PathBuf;
 
 /// `calibrate SENSOR`: the K/B calibration.
 #[derive(Args, Debug, Default)]
@@ -83,9 +83,8 @@ pub struct CalibrateLinearArgs {
     /// Start and write without asking (the standard prompts still read stdin).
     #[arg(short, long)]
     pub yes: bool,
-    /// Where to save the coefficient backup [default: the current directory].
-    #[arg(long, value_name = "DIR")]
-    pub backup_dir: Option<PathBuf>,
+    #[command(flatten)]
+    pub backup: BackupDir,
     #[command(flatten)]
     pub history: HistoryArgs,
 }
@@ -561,7 +560,7 @@ pub fn run(
     };
     let blocks = backup::read_blocks(&mut opened, entry, slave).map_err(not_started)?;
     let saved = Backup::taken_now(&opened, entry, slave, serial_number, blocks);
-    let path = backup::save_in(args.backup_dir.as_deref(), &saved).map_err(not_started)?;
+    let path = backup::save_in(args.backup.dir.as_deref(), &saved).map_err(not_started)?;
     let restore = backup::restore_command(catalog, entry, &saved.port, slave, &path);
     writeln!(out, "saved every coefficient to {}", path.display())?;
     writeln!(out, "restore with: {restore}")?;

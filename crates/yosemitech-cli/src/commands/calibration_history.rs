@@ -8,6 +8,7 @@ use serde_json::Value as Json;
 use yosemitech_spec::Value;
 use yosemitech_station::StoredCalibration;
 
+use crate::args::BackupDir;
 use crate::args::Global;
 use crate::args::HistoryArgs;
 use crate::backup::{self, Backup};
@@ -20,7 +21,6 @@ use crate::port::AddressArg;
 use crate::port::PortArgs;
 use crate::{port, time};
 use clap::Args;
-use std::path::PathBuf;
 
 /// `calibrate history`.
 #[derive(Args, Debug)]
@@ -47,9 +47,8 @@ pub struct CalibrateRestoreArgs {
     /// Write without asking.
     #[arg(short, long)]
     pub yes: bool,
-    /// Where to save the coefficient backup [default: the current directory].
-    #[arg(long, value_name = "DIR")]
-    pub backup_dir: Option<PathBuf>,
+    #[command(flatten)]
+    pub backup: BackupDir,
     #[command(flatten)]
     pub history: HistoryArgs,
 }
@@ -180,7 +179,7 @@ pub fn restore(catalog: &Catalog, global: &Global, args: &CalibrateRestoreArgs, 
     // The probe's coefficients now are a calibration too: saved before anything is written.
     let current = backup::read_blocks(&mut opened, entry, slave)?;
     let saved = Backup::taken_now(&opened, entry, slave, identity.0.clone(), current.clone());
-    let file = backup::save_in(args.backup_dir.as_deref(), &saved)?;
+    let file = backup::save_in(args.backup.dir.as_deref(), &saved)?;
     let restore_command = backup::restore_command(catalog, entry, &saved.port, slave, &file);
     writeln!(out, "saved every coefficient to {}", file.display())?;
     let pairs = entry.sensor.coefficient_blocks();

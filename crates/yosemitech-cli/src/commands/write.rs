@@ -5,6 +5,7 @@ use std::io::Write;
 
 use yosemitech_spec::{CommandSpec, Role, Value};
 
+use crate::args::BackupDir;
 use crate::args::Global;
 use crate::backup;
 use crate::catalog::{self, Catalog, read_back_for};
@@ -16,7 +17,6 @@ use crate::port;
 use crate::port::AddressArg;
 use crate::port::PortArgs;
 use clap::Args;
-use std::path::PathBuf;
 
 /// `write`.
 #[derive(Args, Debug)]
@@ -35,9 +35,8 @@ pub struct WriteArgs {
     /// Send without asking.
     #[arg(short, long)]
     pub yes: bool,
-    /// Where to save the coefficient backup [default: the current directory].
-    #[arg(long, value_name = "DIR")]
-    pub backup_dir: Option<PathBuf>,
+    #[command(flatten)]
+    pub backup: BackupDir,
 }
 
 /// Runs `write`.
@@ -61,7 +60,7 @@ pub fn run(catalog: &Catalog, global: &Global, args: &WriteArgs, out: &mut dyn W
     let is_coefficient = sensor.coefficient_blocks().iter().any(|(w, _)| w.name == command.name);
     if is_coefficient {
         let taken = backup::take_backup(&mut opened, entry, address)?;
-        let path = backup::save_in(args.backup_dir.as_deref(), &taken)?;
+        let path = backup::save_in(args.backup.dir.as_deref(), &taken)?;
         writeln!(out, "saved every coefficient to {}", path.display())?;
         writeln!(out, "restore with: {}", backup::restore_command(catalog, entry, &opened.port, address, &path))?;
     }
