@@ -8,7 +8,7 @@ use serde_saphyr::Location;
 use crate::Spanned;
 
 /// A position in a spec file (1-based; 0 when unknown).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Default)]
 pub struct Pos {
     /// Line.
     pub line: u32,
@@ -17,14 +17,14 @@ pub struct Pos {
 }
 
 impl Pos {
-    /// The position of a YAML location.
+    /// The position of a serde-saphyr location.
     pub fn of(location: Location) -> Self {
         Self { line: location.line() as u32, column: location.column() as u32 }
     }
 
     /// Where a spanned value is written.
     pub fn at<T>(spanned: &Spanned<T>) -> Self {
-        Self::of(spanned.referenced)
+        spanned.referenced
     }
 }
 

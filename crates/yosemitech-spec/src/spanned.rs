@@ -1,45 +1,51 @@
-//! A value and where the spec file wrote it: serde-saphyr's `Spanned`, read
-//! the one way serde-saphyr hands it over.
+//! A value and where the spec file wrote it.
 //!
-//! serde-saphyr's own `Spanned<T>` also accepts a value buffered by serde
-//! (`flatten`, `untagged`), and so instantiates `T`'s deserializer once more
-//! for every primitive and every map access that path could bring: about a
-//! third of this crate's generated code, compiled in every build script that
-//! generates from a spec. The document types use neither `flatten` nor
-//! `untagged` around a located value, so this one asks for the location
-//! and reads the value with serde-saphyr's deserializer alone.
+//! A located value is asked for the way serde-saphyr's own `Spanned` asks:
+//! a newtype named `__yaml_spanned`, answered with a map of the value and
+//! its two places. serde-saphyr answers it, and so does the tree the spec
+//! files are read from (`yaml::tree`). Unlike serde-saphyr's `Spanned`, this
+//! one does not also accept a value buffered by serde (`flatten`,
+//! `untagged`), which would compile `T`'s deserializer once more for every
+//! primitive; the document types put no located value there.
 
 use std::fmt;
 use std::marker::PhantomData;
 
 use serde::Deserialize;
 use serde::de::{self, Deserializer, IgnoredAny, MapAccess, Visitor};
-use serde_saphyr::Location;
+
+use crate::diag::Pos;
 
 /// A value, where it is used (`referenced`: an alias's place) and where it
-/// is written (`defined`); both [`Location::UNKNOWN`] for a value made in
-/// code.
+/// is written (`defined`); both [`Pos::default`] (line 0) for a value made
+/// in code.
 #[derive(Clone, Debug, PartialEq, Eq, Hash)]
 pub struct Spanned<T> {
     /// The value.
     pub value: T,
     /// Where the value is used: the alias, or the value itself.
-    pub referenced: Location,
+    pub referenced: Pos,
     /// Where the value is written.
-    pub defined: Location,
+    pub defined: Pos,
 }
 
 impl<T> Spanned<T> {
     /// A value at the given places.
     #[must_use]
-    pub const fn new(value: T, referenced: Location, defined: Location) -> Self {
+    pub const fn new(value: T, referenced: Pos, defined: Pos) -> Self {
         Self { value, referenced, defined }
+    }
+
+    /// A value made in code, written nowhere.
+    #[must_use]
+    pub const fn unplaced(value: T) -> Self {
+        Self { value, referenced: Pos { line: 0, column: 0 }, defined: Pos { line: 0, column: 0 } }
     }
 }
 
-/// The newtype name by which serde-saphyr's deserializer recognises a
-/// request for a location (its own `Spanned` uses it).
-const SPANNED_REQUEST: &str = "__yaml_spanned";
+/// The newtype name by which a deserializer recognises a request for a
+/// location (serde-saphyr's own `Spanned` uses it).
+pub(crate) const SPANNED_REQUEST: &str = "__yaml_spanned";
 
 impl<'de, T: Deserialize<'de>> Deserialize<'de> for Spanned<T> {
     fn deserialize<D: Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
@@ -63,7 +69,7 @@ impl<'de, T: Deserialize<'de>> Visitor<'de> for Request<T> {
 }
 
 /// The located value as serde-saphyr writes it: a map of a marker, `value`,
-/// `referenced` and `defined`.
+/// `referenced` and `defined` (each a map with `line` and `column`).
 struct Fields<T>(PhantomData<T>);
 
 impl<'de, T: Deserialize<'de>> Visitor<'de> for Fields<T> {
@@ -78,26 +84,30 @@ impl<'de, T: Deserialize<'de>> Visitor<'de> for Fields<T> {
         while let Some(key) = map.next_key::<Key>()? {
             match key {
                 Key::Value => value = Some(map.next_value::<T>()?),
-                Key::Referenced => referenced = Some(map.next_value::<Location>()?),
-                Key::Defined => defined = Some(map.next_value::<Location>()?),
-                Key::Other => {
+                Key::Referenced => referenced = Some(map.next_value::<Place>()?.0),
+                Key::Defined => defined = Some(map.next_value::<Place>()?.0),
+                Key::Line | Key::Column | Key::Span | Key::Other => {
                     map.next_value::<IgnoredAny>()?;
                 }
             }
         }
         Ok(Spanned {
             value: value.ok_or_else(|| de::Error::missing_field("value"))?,
-            referenced: referenced.unwrap_or(Location::UNKNOWN),
-            defined: defined.unwrap_or(Location::UNKNOWN),
+            referenced: referenced.unwrap_or_default(),
+            defined: defined.unwrap_or_default(),
         })
     }
 }
 
-/// A key of the located value's map; the marker is one of the others.
+/// A key of the located value's map, or of a place's; the marker and a
+/// place's other keys (its span, its source) are `Other`.
 enum Key {
     Value,
     Referenced,
     Defined,
+    Line,
+    Column,
+    Span,
     Other,
 }
 
@@ -114,11 +124,59 @@ impl<'de> Deserialize<'de> for Key {
                     "value" => Key::Value,
                     "referenced" => Key::Referenced,
                     "defined" => Key::Defined,
+                    "line" => Key::Line,
+                    "column" => Key::Column,
+                    "span" => Key::Span,
                     _ => Key::Other,
                 })
             }
         }
         deserializer.deserialize_identifier(KeyVisitor)
+    }
+}
+
+/// A place: the line and column of a serde-saphyr `Location`, or the
+/// tree's (`yaml::tree`) line and column in one number, line first.
+struct Place(Pos);
+
+impl<'de> Deserialize<'de> for Place {
+    fn deserialize<D: Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        deserializer.deserialize_struct("Location", &["line", "column"], PlaceVisitor)
+    }
+}
+
+struct PlaceVisitor;
+
+impl<'de> Visitor<'de> for PlaceVisitor {
+    type Value = Place;
+
+    fn expecting(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str("a line and a column")
+    }
+
+    fn visit_u64<E: de::Error>(self, packed: u64) -> Result<Place, E> {
+        let half = |n: u64| u32::try_from(n & u64::from(u32::MAX)).unwrap_or(0);
+        Ok(Place(Pos { line: half(packed >> 32), column: half(packed) }))
+    }
+
+    fn visit_map<A: MapAccess<'de>>(self, mut map: A) -> Result<Place, A::Error> {
+        let mut pos = Pos::default();
+        while let Some(key) = map.next_key::<Key>()? {
+            // Past u32, a place is no place (a spec file is far smaller).
+            let number = |n: u64| u32::try_from(n).unwrap_or(0);
+            match key {
+                Key::Line => pos.line = number(map.next_value::<u64>()?),
+                Key::Column => pos.column = number(map.next_value::<u64>()?),
+                // serde-saphyr's span is read only as a span.
+                Key::Span => {
+                    map.next_value::<serde_saphyr::Span>()?;
+                }
+                Key::Value | Key::Referenced | Key::Defined | Key::Other => {
+                    map.next_value::<IgnoredAny>()?;
+                }
+            }
+        }
+        Ok(Place(pos))
     }
 }
 
@@ -148,7 +206,7 @@ mod tests {
     fn a_value_carries_where_it_is_written_and_where_it_is_used() {
         let yaml = "first: &n 7\nsecond: *n\nlist:\n  - a\n  - b\ntable: {x: 1.5}\n";
         let doc: Doc = serde_saphyr::from_str(yaml).unwrap();
-        let at = |l: serde_saphyr::Location| (l.line(), l.column());
+        let at = |p: crate::Pos| (p.line, p.column);
         assert_eq!((doc.first.value, doc.second.value), (7, 7));
         assert_eq!(at(doc.first.defined), (1, 11));
         // The alias uses the anchored value: defined there, referenced here.

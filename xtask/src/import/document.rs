@@ -7,7 +7,7 @@ use std::collections::BTreeMap;
 
 use serde::de::DeserializeOwned;
 use serde::de::value::StrDeserializer;
-use serde_saphyr::Location;
+use yosemitech_spec::Pos;
 use yosemitech_spec::Spanned;
 use yosemitech_spec::document::{
     AddressRangeDoc, CommandDoc, CommandErratumDoc, CrcDoc, ExampleDoc, ExampleErratumDoc, FieldDoc, FieldTypeDoc,
@@ -38,7 +38,7 @@ impl Todo {
 
 /// A value written by the importer: it has no position in any source.
 pub(super) fn unplaced<T>(value: T) -> Spanned<T> {
-    Spanned::new(value, Location::UNKNOWN, Location::UNKNOWN)
+    Spanned::unplaced(value)
 }
 
 /// The document value a spelling names (`"f32"`, `"read"`): the spec crate's

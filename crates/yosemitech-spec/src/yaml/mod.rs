@@ -20,6 +20,7 @@ mod lexer;
 mod limits;
 mod messages;
 mod recovery;
+mod tree;
 
 use std::borrow::Cow;
 
@@ -29,7 +30,7 @@ use self::comma::unquoted_comma;
 use self::keypath::{KeyPaths, parent_path};
 use self::lexer::unclosed_flow;
 pub use self::limits::{MAX_ALIAS_REPLAY, MAX_YAML_ALIASES, MAX_YAML_DEPTH, MAX_YAML_NODES};
-use self::limits::{MAX_LAYOUT_RESETS, MAX_YAML_PARSES, MAX_YAML_PROBLEMS, options};
+use self::limits::{MAX_LAYOUT_RESETS, MAX_YAML_PARSES, MAX_YAML_PROBLEMS};
 use self::messages::{explain, is_shape_error};
 use self::recovery::{Layout, Resume, keep_lines};
 use crate::diag::Pos;
@@ -55,7 +56,7 @@ pub(crate) struct Problem {
 /// Parsing stops at errors that concern the whole file (limits, a second
 /// document).
 pub(crate) fn parse(text: &str) -> Result<SpecFile, Vec<Problem>> {
-    let mut error = match serde_saphyr::from_str_with_options::<SpecFile>(text, options()) {
+    let mut error = match tree::from_str::<SpecFile>(text) {
         Ok(doc) => return Ok(doc),
         Err(e) => e,
     };
@@ -95,7 +96,7 @@ pub(crate) fn parse(text: &str) -> Result<SpecFile, Vec<Problem>> {
         let preamble = layout.as_ref().map_or(0, |l| l.preamble);
         let keep = |i: usize| i < preamble || i >= next.line || next.list.as_ref().is_some_and(|l| l.header == i);
         part = Part { text: Cow::Owned(keep_lines(text, keep)), from: Some(next) };
-        match serde_saphyr::from_str_with_options::<SpecFile>(&part.text, options()) {
+        match tree::from_str::<SpecFile>(&part.text) {
             Ok(_) => break,
             Err(e) => error = e,
         }

@@ -1,0 +1,612 @@
+//! A spec file read in two steps: serde-saphyr parses the YAML once into a
+//! tree of located nodes, and the document types are read from the tree.
+//!
+//! Read straight from serde-saphyr, every document type instantiates
+//! serde-saphyr's deserializer anew (its maps, keys, values, anchor
+//! replay, once per access type): most of this crate's generated code,
+//! compiled in every build script that generates from a spec. Read from the
+//! tree, serde-saphyr's deserializer is compiled for the node type and the
+//! handful of scalar types, and the document types for this small
+//! deserializer alone.
+//!
+//! What the YAML means stays serde-saphyr's word: a scalar asked for as a
+//! number, a boolean or text is read by serde-saphyr from the scalar's own
+//! text, placed at its line and column, so a value and an error (its kind,
+//! its place) are what reading the whole file would give.
+
+use std::fmt;
+
+use serde::de::value::StrDeserializer;
+use serde::de::{
+    self, DeserializeOwned, DeserializeSeed, Deserializer, IntoDeserializer, MapAccess, SeqAccess, Visitor,
+};
+use serde::{Deserialize, forward_to_deserialize_any};
+use serde_saphyr::{Error, Location, NonFiniteFloatPolicy, Options};
+
+use super::limits::options;
+use crate::diag::Pos;
+use crate::spanned::SPANNED_REQUEST;
+
+/// A YAML node and where it is used and written.
+pub(super) type Node = serde_saphyr::Spanned<Value>;
+
+/// What a YAML node holds, as serde-saphyr reads any node.
+pub(super) enum Value {
+    Null,
+    Bool(bool),
+    Unsigned(u64),
+    Signed(i64),
+    Float(f64),
+    Text(String),
+    List(Vec<Node>),
+    Map(Vec<(Node, Node)>),
+}
+
+/// Reads `T` from `text`: the tree first, under `options`, then `T` from it.
+pub(super) fn from_str<T: DeserializeOwned>(text: &str) -> Result<T, Error> {
+    let root = parse(text, options())?;
+    T::deserialize(NodeDeserializer { node: &root, text })
+}
+
+/// The tree of `text`. Non-finite floats are kept: whether `.inf` is
+/// allowed depends on what is asked of the scalar (it is fine as text).
+pub(super) fn parse(text: &str, mut options: Options) -> Result<Node, Error> {
+    options.non_finite_float_policy = NonFiniteFloatPolicy::PassThrough;
+    serde_saphyr::from_str_with_options(text, options)
+}
+
+impl Value {
+    /// The text of a node whose value is text, or of a scalar written
+    /// plainly (`read`, `12`), as a key or a variant name is read.
+    pub(super) fn name<'a>(&'a self, node: &Node, text: &'a str) -> Option<&'a str> {
+        match self {
+            Value::Text(s) => Some(s),
+            Value::Null | Value::Bool(_) | Value::Unsigned(_) | Value::Signed(_) | Value::Float(_) => {
+                source(node, text)
+            }
+            Value::List(_) | Value::Map(_) => None,
+        }
+    }
+}
+
+/// The text a node is written as, from the file.
+fn source<'a>(node: &Node, text: &'a str) -> Option<&'a str> {
+    let span = node.defined.span();
+    let start = usize::try_from(span.byte_offset()?).ok()?;
+    let len = usize::try_from(span.byte_len()?).ok()?;
+    text.get(start..start.checked_add(len)?)
+}
+
+impl<'de> Deserialize<'de> for Value {
+    fn deserialize<D: Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        deserializer.deserialize_any(ValueVisitor)
+    }
+}
+
+struct ValueVisitor;
+
+impl<'de> Visitor<'de> for ValueVisitor {
+    type Value = Value;
+
+    fn expecting(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str("any YAML node")
+    }
+    fn visit_bool<E: de::Error>(self, v: bool) -> Result<Value, E> {
+        Ok(Value::Bool(v))
+    }
+    fn visit_i64<E: de::Error>(self, v: i64) -> Result<Value, E> {
+        Ok(Value::Signed(v))
+    }
+    fn visit_u64<E: de::Error>(self, v: u64) -> Result<Value, E> {
+        Ok(Value::Unsigned(v))
+    }
+    fn visit_f64<E: de::Error>(self, v: f64) -> Result<Value, E> {
+        Ok(Value::Float(v))
+    }
+    fn visit_str<E: de::Error>(self, v: &str) -> Result<Value, E> {
+        Ok(Value::Text(v.to_owned()))
+    }
+    fn visit_string<E: de::Error>(self, v: String) -> Result<Value, E> {
+        Ok(Value::Text(v))
+    }
+    fn visit_unit<E: de::Error>(self) -> Result<Value, E> {
+        Ok(Value::Null)
+    }
+    fn visit_none<E: de::Error>(self) -> Result<Value, E> {
+        Ok(Value::Null)
+    }
+    fn visit_some<D: Deserializer<'de>>(self, d: D) -> Result<Value, D::Error> {
+        Value::deserialize(d)
+    }
+    fn visit_seq<A: SeqAccess<'de>>(self, mut seq: A) -> Result<Value, A::Error> {
+        let mut items = Vec::new();
+        while let Some(item) = seq.next_element()? {
+            items.push(item);
+        }
+        Ok(Value::List(items))
+    }
+    fn visit_map<A: MapAccess<'de>>(self, mut map: A) -> Result<Value, A::Error> {
+        let mut entries = Vec::new();
+        while let Some(entry) = map.next_entry()? {
+            entries.push(entry);
+        }
+        Ok(Value::Map(entries))
+    }
+}
+
+/// Gives an error made without a place (by serde or a visitor) the node's.
+fn placed(mut error: Error, at: Location) -> Error {
+    match &mut error {
+        Error::Message { location, .. }
+        | Error::SerdeInvalidType { location, .. }
+        | Error::SerdeInvalidValue { location, .. }
+        | Error::SerdeInvalidLength { location, .. }
+        | Error::SerdeUnknownVariant { location, .. }
+        | Error::SerdeUnknownField { location, .. }
+        | Error::SerdeMissingField { location, .. }
+            if *location == Location::UNKNOWN =>
+        {
+            *location = at;
+        }
+        _ => {}
+    }
+    error
+}
+
+/// Reads the document types from one node of the tree.
+#[derive(Clone, Copy)]
+struct NodeDeserializer<'a> {
+    node: &'a Node,
+    /// The whole file: a scalar is read again from its text there.
+    text: &'a str,
+}
+
+impl<'a> NodeDeserializer<'a> {
+    fn of(self, node: &'a Node) -> Self {
+        Self { node, text: self.text }
+    }
+
+    /// Places an error the node's reading made without a place: by serde,
+    /// by a visitor, or by a `Deserialize` impl after it read the node
+    /// (an untagged enum's "no variant matched").
+    fn place<R>(self, result: Result<R, Error>) -> Result<R, Error> {
+        result.map_err(|e| placed(e, self.node.referenced))
+    }
+
+    /// The scalar read by serde-saphyr as `S`, from its text placed at its
+    /// line and column: a value and an error exactly as in the whole file.
+    fn scalar<S: DeserializeOwned>(self) -> Result<S, Error> {
+        let at = self.node.defined;
+        let written = match self.node.value {
+            Value::List(_) | Value::Map(_) => None,
+            _ => source(self.node, self.text),
+        };
+        let Some(written) = written else { return Err(self.wrong_shape("scalar")) };
+        let line = usize::try_from(at.line()).unwrap_or(1).saturating_sub(1);
+        let column = usize::try_from(at.column()).unwrap_or(1).saturating_sub(1);
+        let mut placed_text = String::with_capacity(line + column + written.len());
+        placed_text.extend(std::iter::repeat_n('\n', line));
+        placed_text.extend(std::iter::repeat_n(' ', column));
+        placed_text.push_str(written);
+        serde_saphyr::from_str_with_options(&placed_text, options())
+    }
+
+    fn wrong_shape(self, expected: &'static str) -> Error {
+        Error::Unexpected { expected, location: self.node.referenced }
+    }
+
+    fn entries(self) -> Option<Entries<'a>> {
+        match &self.node.value {
+            Value::Map(entries) => Some(Entries { of: self, entries: entries.iter(), value: None }),
+            Value::Null => Some(Entries { of: self, entries: [].iter(), value: None }),
+            _ => None,
+        }
+    }
+}
+
+macro_rules! scalars {
+    ($($method:ident => $visit:ident: $ty:ty,)*) => {
+        $(
+            fn $method<V: Visitor<'de>>(self, visitor: V) -> Result<V::Value, Error> {
+                let value = self.scalar::<$ty>()?;
+                self.place(visitor.$visit(value))
+            }
+        )*
+    };
+}
+
+impl<'de> Deserializer<'de> for NodeDeserializer<'_> {
+    type Error = Error;
+
+    fn deserialize_any<V: Visitor<'de>>(self, visitor: V) -> Result<V::Value, Error> {
+        let result = match &self.node.value {
+            Value::Null => visitor.visit_unit(),
+            Value::Bool(b) => visitor.visit_bool(*b),
+            Value::Unsigned(n) => visitor.visit_u64(*n),
+            Value::Signed(n) => visitor.visit_i64(*n),
+            Value::Float(x) if x.is_finite() => visitor.visit_f64(*x),
+            // Refused, or not, as serde-saphyr's policy for a float of no
+            // asked-for type says.
+            Value::Float(_) => match self.scalar::<Value>()? {
+                Value::Float(x) => visitor.visit_f64(x),
+                _ => Err(self.wrong_shape("a number")),
+            },
+            Value::Text(s) => visitor.visit_str(s),
+            Value::List(items) => visitor.visit_seq(Items { of: self, items: items.iter() }),
+            Value::Map(entries) => visitor.visit_map(Entries { of: self, entries: entries.iter(), value: None }),
+        };
+        self.place(result)
+    }
+
+    scalars! {
+        deserialize_bool => visit_bool: bool,
+        deserialize_i8 => visit_i8: i8,
+        deserialize_i16 => visit_i16: i16,
+        deserialize_i32 => visit_i32: i32,
+        deserialize_i64 => visit_i64: i64,
+        deserialize_u8 => visit_u8: u8,
+        deserialize_u16 => visit_u16: u16,
+        deserialize_u32 => visit_u32: u32,
+        deserialize_u64 => visit_u64: u64,
+        deserialize_f32 => visit_f32: f32,
+        deserialize_f64 => visit_f64: f64,
+        deserialize_char => visit_char: char,
+    }
+
+    fn deserialize_unit<V: Visitor<'de>>(self, visitor: V) -> Result<V::Value, Error> {
+        if !matches!(self.node.value, Value::Null) {
+            self.scalar::<()>()?;
+        }
+        self.place(visitor.visit_unit())
+    }
+
+    fn deserialize_str<V: Visitor<'de>>(self, visitor: V) -> Result<V::Value, Error> {
+        self.deserialize_string(visitor)
+    }
+
+    fn deserialize_string<V: Visitor<'de>>(self, visitor: V) -> Result<V::Value, Error> {
+        let result = match &self.node.value {
+            Value::Text(s) => visitor.visit_str(s),
+            Value::List(_) | Value::Map(_) => Err(self.wrong_shape("string scalar")),
+            _ => visitor.visit_string(self.scalar::<String>()?),
+        };
+        self.place(result)
+    }
+
+    fn deserialize_bytes<V: Visitor<'de>>(self, visitor: V) -> Result<V::Value, Error> {
+        self.deserialize_any(visitor)
+    }
+
+    fn deserialize_byte_buf<V: Visitor<'de>>(self, visitor: V) -> Result<V::Value, Error> {
+        self.deserialize_any(visitor)
+    }
+
+    fn deserialize_option<V: Visitor<'de>>(self, visitor: V) -> Result<V::Value, Error> {
+        let result = match &self.node.value {
+            Value::Null => visitor.visit_none(),
+            _ => visitor.visit_some(self),
+        };
+        self.place(result)
+    }
+
+    fn deserialize_unit_struct<V: Visitor<'de>>(self, _name: &'static str, visitor: V) -> Result<V::Value, Error> {
+        self.deserialize_unit(visitor)
+    }
+
+    fn deserialize_newtype_struct<V: Visitor<'de>>(self, name: &'static str, visitor: V) -> Result<V::Value, Error> {
+        if name == SPANNED_REQUEST {
+            return visitor.visit_newtype_struct(Located(self));
+        }
+        self.place(visitor.visit_newtype_struct(self))
+    }
+
+    fn deserialize_seq<V: Visitor<'de>>(self, visitor: V) -> Result<V::Value, Error> {
+        let result = match &self.node.value {
+            Value::List(items) => visitor.visit_seq(Items { of: self, items: items.iter() }),
+            Value::Null => visitor.visit_seq(Items { of: self, items: [].iter() }),
+            _ => Err(self.wrong_shape("sequence start")),
+        };
+        self.place(result)
+    }
+
+    fn deserialize_tuple<V: Visitor<'de>>(self, _len: usize, visitor: V) -> Result<V::Value, Error> {
+        self.deserialize_seq(visitor)
+    }
+
+    fn deserialize_tuple_struct<V: Visitor<'de>>(
+        self,
+        _name: &'static str,
+        _len: usize,
+        visitor: V,
+    ) -> Result<V::Value, Error> {
+        self.deserialize_seq(visitor)
+    }
+
+    fn deserialize_map<V: Visitor<'de>>(self, visitor: V) -> Result<V::Value, Error> {
+        let entries = self.entries().ok_or_else(|| self.wrong_shape("mapping start"))?;
+        self.place(visitor.visit_map(entries))
+    }
+
+    fn deserialize_struct<V: Visitor<'de>>(
+        self,
+        _name: &'static str,
+        _fields: &'static [&'static str],
+        visitor: V,
+    ) -> Result<V::Value, Error> {
+        self.deserialize_map(visitor)
+    }
+
+    fn deserialize_enum<V: Visitor<'de>>(
+        self,
+        _name: &'static str,
+        _variants: &'static [&'static str],
+        visitor: V,
+    ) -> Result<V::Value, Error> {
+        let result = match &self.node.value {
+            Value::Map(entries) => match entries.as_slice() {
+                [(variant, value)] => {
+                    visitor.visit_enum(Variant { name: self.of(variant), value: VariantValue(Some(self.of(value))) })
+                }
+                _ => Err(self.wrong_shape("a single-key mapping")),
+            },
+            Value::List(_) => Err(self.wrong_shape("string scalar")),
+            _ => visitor.visit_enum(Variant { name: self, value: VariantValue(None) }),
+        };
+        self.place(result)
+    }
+
+    fn deserialize_identifier<V: Visitor<'de>>(self, visitor: V) -> Result<V::Value, Error> {
+        let result = match self.node.value.name(self.node, self.text) {
+            Some(name) => visitor.visit_str(name),
+            None => Err(self.wrong_shape("string scalar")),
+        };
+        self.place(result)
+    }
+
+    fn deserialize_ignored_any<V: Visitor<'de>>(self, visitor: V) -> Result<V::Value, Error> {
+        visitor.visit_unit()
+    }
+}
+
+/// The items of a list.
+struct Items<'a> {
+    of: NodeDeserializer<'a>,
+    items: std::slice::Iter<'a, Node>,
+}
+
+impl<'de> SeqAccess<'de> for Items<'_> {
+    type Error = Error;
+
+    fn next_element_seed<S: DeserializeSeed<'de>>(&mut self, seed: S) -> Result<Option<S::Value>, Error> {
+        self.items
+            .next()
+            .map(|item| {
+                let item = self.of.of(item);
+                item.place(seed.deserialize(item))
+            })
+            .transpose()
+    }
+
+    fn size_hint(&self) -> Option<usize> {
+        Some(self.items.len())
+    }
+}
+
+/// The entries of a mapping.
+struct Entries<'a> {
+    of: NodeDeserializer<'a>,
+    entries: std::slice::Iter<'a, (Node, Node)>,
+    value: Option<&'a Node>,
+}
+
+impl<'de> MapAccess<'de> for Entries<'_> {
+    type Error = Error;
+
+    fn next_key_seed<K: DeserializeSeed<'de>>(&mut self, seed: K) -> Result<Option<K::Value>, Error> {
+        let Some((key, value)) = self.entries.next() else { return Ok(None) };
+        self.value = Some(value);
+        let key = self.of.of(key);
+        key.place(seed.deserialize(key)).map(Some)
+    }
+
+    fn next_value_seed<S: DeserializeSeed<'de>>(&mut self, seed: S) -> Result<S::Value, Error> {
+        match self.value.take() {
+            Some(value) => {
+                let value = self.of.of(value);
+                value.place(seed.deserialize(value))
+            }
+            None => Err(de::Error::custom("a value asked for before its key")),
+        }
+    }
+
+    fn size_hint(&self) -> Option<usize> {
+        Some(self.entries.len())
+    }
+}
+
+/// An enum's variant: a name alone (`read`), or a single-key mapping.
+struct Variant<'a> {
+    name: NodeDeserializer<'a>,
+    value: VariantValue<'a>,
+}
+
+/// The value of a variant written as a single-key mapping.
+struct VariantValue<'a>(Option<NodeDeserializer<'a>>);
+
+impl<'de, 'a> de::EnumAccess<'de> for Variant<'a> {
+    type Error = Error;
+    type Variant = VariantValue<'a>;
+
+    fn variant_seed<S: DeserializeSeed<'de>>(self, seed: S) -> Result<(S::Value, Self::Variant), Error> {
+        let name = self.name;
+        let variant = match name.node.value.name(name.node, name.text) {
+            Some(text) => seed.deserialize(IntoDeserializer::<Error>::into_deserializer(text)),
+            None => Err(name.wrong_shape("string scalar")),
+        };
+        Ok((name.place(variant)?, self.value))
+    }
+}
+
+impl<'de> de::VariantAccess<'de> for VariantValue<'_> {
+    type Error = Error;
+
+    fn unit_variant(self) -> Result<(), Error> {
+        match self.0 {
+            None => Ok(()),
+            Some(value) => Deserialize::deserialize(value),
+        }
+    }
+
+    fn newtype_variant_seed<S: DeserializeSeed<'de>>(self, seed: S) -> Result<S::Value, Error> {
+        match self.0 {
+            Some(value) => seed.deserialize(value),
+            None => Err(de::Error::invalid_type(de::Unexpected::UnitVariant, &"a variant with a value")),
+        }
+    }
+
+    fn tuple_variant<V: Visitor<'de>>(self, _len: usize, visitor: V) -> Result<V::Value, Error> {
+        match self.0 {
+            Some(value) => value.deserialize_seq(visitor),
+            None => Err(de::Error::invalid_type(de::Unexpected::UnitVariant, &"a tuple variant")),
+        }
+    }
+
+    fn struct_variant<V: Visitor<'de>>(self, _fields: &'static [&'static str], visitor: V) -> Result<V::Value, Error> {
+        match self.0 {
+            Some(value) => value.deserialize_map(visitor),
+            None => Err(de::Error::invalid_type(de::Unexpected::UnitVariant, &"a struct variant")),
+        }
+    }
+}
+
+/// A located value asked for (`Spanned`): the value and its two places, as
+/// serde-saphyr answers.
+struct Located<'a>(NodeDeserializer<'a>);
+
+impl<'de> Deserializer<'de> for Located<'_> {
+    type Error = Error;
+
+    fn deserialize_any<V: Visitor<'de>>(self, visitor: V) -> Result<V::Value, Error> {
+        visitor.visit_map(LocatedFields { of: self.0, next: 0 })
+    }
+
+    forward_to_deserialize_any! {
+        bool i8 i16 i32 i64 i128 u8 u16 u32 u64 u128 f32 f64 char str string
+        bytes byte_buf option unit unit_struct newtype_struct seq tuple
+        tuple_struct map struct enum identifier ignored_any
+    }
+}
+
+/// The fields of a located value, in order.
+struct LocatedFields<'a> {
+    of: NodeDeserializer<'a>,
+    next: usize,
+}
+
+const LOCATED_FIELDS: [&str; 3] = ["value", "referenced", "defined"];
+
+impl<'de> MapAccess<'de> for LocatedFields<'_> {
+    type Error = Error;
+
+    fn next_key_seed<K: DeserializeSeed<'de>>(&mut self, seed: K) -> Result<Option<K::Value>, Error> {
+        let Some(key) = LOCATED_FIELDS.get(self.next) else { return Ok(None) };
+        self.next += 1;
+        seed.deserialize(StrDeserializer::<Error>::new(key)).map(Some)
+    }
+
+    fn next_value_seed<S: DeserializeSeed<'de>>(&mut self, seed: S) -> Result<S::Value, Error> {
+        // A place as one number: a deserializer of its own type here would
+        // compile every located type's reading once more.
+        let place = |location: Location| {
+            let Pos { line, column } = Pos::of(location);
+            IntoDeserializer::<Error>::into_deserializer(u64::from(line) << 32 | u64::from(column))
+        };
+        match self.next {
+            1 => self.of.place(seed.deserialize(self.of)),
+            2 => seed.deserialize(place(self.of.node.referenced)),
+            _ => seed.deserialize(place(self.of.node.defined)),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use std::collections::BTreeMap;
+
+    use serde::Deserialize;
+
+    use super::from_str;
+    use crate::Spanned;
+
+    #[derive(Debug, Deserialize, PartialEq)]
+    #[serde(rename_all = "snake_case")]
+    enum Function {
+        Read,
+        Write,
+    }
+
+    #[derive(Debug, Deserialize, PartialEq)]
+    #[serde(untagged)]
+    enum Stated {
+        Number(f64),
+        Text(String),
+    }
+
+    #[derive(Debug, Deserialize)]
+    #[serde(deny_unknown_fields)]
+    struct Doc {
+        count: Spanned<u32>,
+        title: String,
+        function: Function,
+        scale: Option<f64>,
+        note: Option<String>,
+        list: Vec<Spanned<String>>,
+        table: BTreeMap<String, Spanned<f64>>,
+        #[serde(default)]
+        stated: Vec<Stated>,
+    }
+
+    const DOC: &str =
+        "count: &n 0x10\ntitle: 1.10\nfunction: read\nscale: ~\nnote: \"\"\nlist: [a, 'b', *n]\ntable: {x: 1.5}\n";
+
+    #[test]
+    fn values_read_as_serde_saphyr_reads_them() {
+        let doc: Doc = from_str(DOC).unwrap();
+        assert_eq!(doc.count.value, 16);
+        assert_eq!(doc.title, "1.10", "a plain scalar asked for as text is its text");
+        assert_eq!(doc.function, Function::Read);
+        assert_eq!((doc.scale, doc.note.as_deref()), (None, Some("")));
+        let items: Vec<_> =
+            doc.list.iter().map(|s| (s.value.as_str(), s.referenced.column, s.defined.column)).collect();
+        assert_eq!(items, [("a", 8, 8), ("b", 11, 11), ("0x10", 16, 11)]);
+        assert_eq!((doc.table["x"].value, doc.table["x"].defined.line), (1.5, 7));
+        let stated = from_str::<Doc>(&format!("{DOC}stated: [7, \"7\", x]\n")).unwrap().stated;
+        assert_eq!(stated, [Stated::Number(7.0), Stated::Text("7".into()), Stated::Text("x".into())]);
+        // A float asked for as a float may be infinite; one of no asked-for type may not.
+        let infinite = from_str::<Doc>(&DOC.replace("scale: ~", "scale: .inf")).unwrap();
+        assert_eq!(infinite.scale, Some(f64::INFINITY));
+    }
+
+    #[test]
+    fn errors_are_serde_saphyrs_at_the_offending_place() {
+        let at = |text: &str| {
+            let Err(e) = from_str::<Doc>(text) else { panic!("read without an error:\n{text}") };
+            let place = e.location().map(|l| (l.line(), l.column()));
+            (place, e.to_string())
+        };
+        for (broken, line, column) in [
+            (DOC.replace("0x10", "ten"), 1, 11),
+            (DOC.replace("function: read", "function: raed"), 3, 11),
+            (DOC.replace("scale: ~", "scale: [1]"), 4, 8),
+            (DOC.replace("note: \"\"", "nota: x"), 5, 1),
+            (DOC.replace("count: &n 0x10", "count: &n 99999999999"), 1, 11),
+            (format!("{DOC}stated: [1, .inf]\n"), 8, 13),
+        ] {
+            let (place, message) = at(&broken);
+            assert_eq!(place, Some((line, column)), "{message}\n{broken}");
+        }
+        // Of the kind reading the whole file gives, which the messages know.
+        let Err(e) = from_str::<Doc>(&DOC.replace("0x10", "ten")) else { panic!("`ten` read as a number") };
+        assert!(matches!(e.without_snippet(), serde_saphyr::Error::InvalidScalar { ty, .. } if *ty == "u32"), "{e:?}");
+    }
+}
