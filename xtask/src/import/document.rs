@@ -7,7 +7,6 @@ use std::collections::BTreeMap;
 
 use serde::de::DeserializeOwned;
 use serde::de::value::StrDeserializer;
-use yosemitech_spec::Pos;
 use yosemitech_spec::Spanned;
 use yosemitech_spec::document::{
     AddressRangeDoc, CommandDoc, CommandErratumDoc, CrcDoc, ExampleDoc, ExampleErratumDoc, FieldDoc, FieldTypeDoc,
@@ -36,11 +35,6 @@ impl Todo {
     }
 }
 
-/// A value written by the importer: it has no position in any source.
-pub(super) fn unplaced<T>(value: T) -> Spanned<T> {
-    Spanned::unplaced(value)
-}
-
 /// The document value a spelling names (`"f32"`, `"read"`): the spec crate's
 /// own deserializer decides, so the importer keeps no copy of the spellings.
 fn spelled<T: DeserializeOwned>(text: &str) -> Option<T> {
@@ -59,7 +53,7 @@ pub(super) fn figures(labels: &[String]) -> Vec<FigureDoc> {
 }
 
 fn text(t: impl Into<String>) -> Option<Spanned<String>> {
-    Some(unplaced(t.into()))
+    Some(Spanned::unplaced(t.into()))
 }
 
 /// The sensor file a draft becomes, and its TODOs.
@@ -82,33 +76,33 @@ pub(super) fn spec_file(d: &Draft, h: &Header, name: &str, file: &str) -> (SpecF
         String::new()
     });
     let sensor = SensorDoc {
-        name: unplaced(name.to_string()),
-        title: unplaced(if h.title.is_empty() { name } else { &h.title }.to_string()),
-        doc: unplaced(format!("Imported from {file}.")),
+        name: Spanned::unplaced(name.to_string()),
+        title: Spanned::unplaced(if h.title.is_empty() { name } else { &h.title }.to_string()),
+        doc: Spanned::unplaced(format!("Imported from {file}.")),
         model: None,
         model_code: None,
         also_model_codes: Vec::new(),
         aliases: Vec::new(),
         manual: Some(ManualDoc {
-            title: unplaced(h.manual_title.clone()),
-            revision: unplaced(revision),
-            software: h.software.clone().map(unplaced),
+            title: Spanned::unplaced(h.manual_title.clone()),
+            revision: Spanned::unplaced(revision),
+            software: h.software.clone().map(Spanned::unplaced),
             file: text(file),
             serial_claims: Vec::new(),
         }),
         provenance: None,
         revisions: Vec::new(),
         serial,
-        addresses: AddressRangeDoc { min: unplaced(1), max: unplaced(247) },
-        default_address: unplaced(1),
+        addresses: AddressRangeDoc { min: Spanned::unplaced(1), max: Spanned::unplaced(247) },
+        default_address: Spanned::unplaced(1),
     };
     // One include per fragment file, listing the commands taken from it.
     let mut include: Vec<Spanned<IncludeDoc>> = Vec::new();
     for (fragment, command) in d.commands.iter().filter_map(|c| c.uses.as_ref()) {
-        let only = unplaced(command.clone());
+        let only = Spanned::unplaced(command.clone());
         match include.iter_mut().find(|i| i.value.file == *fragment) {
             Some(i) => i.value.only.get_or_insert_with(Vec::new).push(only),
-            None => include.push(unplaced(IncludeDoc { file: fragment.clone(), only: Some(vec![only]) })),
+            None => include.push(Spanned::unplaced(IncludeDoc { file: fragment.clone(), only: Some(vec![only]) })),
         }
     }
     include.sort_by(|a, b| a.value.file.cmp(&b.value.file));
@@ -140,10 +134,10 @@ pub(super) fn spec_file(d: &Draft, h: &Header, name: &str, file: &str) -> (SpecF
 
 fn serial_doc(baud: u32, h: &Header) -> SerialDoc {
     SerialDoc {
-        baud: unplaced(baud),
-        data_bits: unplaced(h.data_bits.map_or(8, u32::from)),
+        baud: Spanned::unplaced(baud),
+        data_bits: Spanned::unplaced(h.data_bits.map_or(8, u32::from)),
         parity: h.parity.and_then(spelled).unwrap_or(ParityDoc::None),
-        stop_bits: unplaced(h.stop_bits.map_or(1, u32::from)),
+        stop_bits: Spanned::unplaced(h.stop_bits.map_or(1, u32::from)),
     }
 }
 
@@ -156,20 +150,20 @@ pub(crate) fn command_doc(c: &DCommand, o: &mut CommandRender<'_>) -> (CommandDo
         .iter()
         .map(|t| Todo::new("", format!("section {}: {}", c.section, one_line_text(t))))
         .collect();
-    let manual = || o.manual.map(|m| unplaced(m.to_string()));
-    let used = c.uses.as_ref().map(|(_, n)| unplaced(n.clone()));
+    let manual = || o.manual.map(|m| Spanned::unplaced(m.to_string()));
+    let used = c.uses.as_ref().map(|(_, n)| Spanned::unplaced(n.clone()));
     let defined = used.is_none();
     let mut doc = CommandDoc {
-        name: defined.then(|| unplaced(c.name.clone())),
+        name: defined.then(|| Spanned::unplaced(c.name.clone())),
         uses: used,
         title: text(c.title.clone()),
-        since: o.since.map(|s| unplaced(s.to_string())),
+        since: o.since.map(|s| Spanned::unplaced(s.to_string())),
         role: None,
         calibrates: None,
         units: None,
-        doc: defined.then(|| unplaced(format!("Section {} of the manual.", c.section))),
+        doc: defined.then(|| Spanned::unplaced(format!("Section {} of the manual.", c.section))),
         source: Some(SourceDoc {
-            section: unplaced(c.section.clone()),
+            section: Spanned::unplaced(c.section.clone()),
             figures: figures(&c.figures),
             manual: manual(),
         }),
@@ -185,23 +179,24 @@ pub(crate) fn command_doc(c: &DCommand, o: &mut CommandRender<'_>) -> (CommandDo
         errata: Vec::new(),
     };
     if defined {
-        doc.function = c.function.and_then(|f| spelled(if f == 0x03 { "read" } else { "write" })).map(unplaced);
-        doc.address = c.address.map(|a| unplaced(u32::from(a)));
-        doc.count = c.count.map(|n| unplaced(u32::from(n)));
+        doc.function =
+            c.function.and_then(|f| spelled(if f == 0x03 { "read" } else { "write" })).map(Spanned::unplaced);
+        doc.address = c.address.map(|a| Spanned::unplaced(u32::from(a)));
+        doc.count = c.count.map(|n| Spanned::unplaced(u32::from(n)));
         let is_trigger_read = c.function == Some(0x03)
             && c.fields.is_empty()
             && c.examples
                 .iter()
                 .any(|e| e.response.as_ref().is_some_and(|r| r.open_ended && r.bytes.get(2) == Some(&Some(0))));
         if c.count.is_some_and(|n| n == 0 || is_trigger_read) {
-            doc.trigger = Some(unplaced(true));
+            doc.trigger = Some(Spanned::unplaced(true));
         }
         let slave = |e: &DExample| e.request.as_ref().and_then(|r| r.bytes.first().copied().flatten());
         if c.examples.iter().any(|e| slave(e) == Some(0xFF)) {
-            doc.fixed_slave = Some(unplaced(0xFF));
+            doc.fixed_slave = Some(Spanned::unplaced(0xFF));
         }
         if !c.fields.is_empty() {
-            doc.fields = Some(unplaced(c.fields.iter().map(field_doc).collect()));
+            doc.fields = Some(Spanned::unplaced(c.fields.iter().map(field_doc).collect()));
         }
     }
     for (k, (fig, key, value)) in c.table_errata.iter().enumerate() {
@@ -223,7 +218,7 @@ pub(crate) fn command_doc(c: &DCommand, o: &mut CommandRender<'_>) -> (CommandDo
 fn field_doc(f: &DField) -> FieldDoc {
     let ty = spelled(f.ty).unwrap_or(FieldTypeDoc::Reserved);
     let size = matches!(ty, FieldTypeDoc::Reserved | FieldTypeDoc::Ascii | FieldTypeDoc::Enum | FieldTypeDoc::Flags)
-        .then(|| unplaced(f.size as u32));
+        .then(|| Spanned::unplaced(f.size as u32));
     let named = |fallback: &str, doc: &str| (text(f.name.as_deref().unwrap_or(fallback)), text(doc));
     let (name, doc) = match ty {
         FieldTypeDoc::Reserved => (None, None),
@@ -231,13 +226,16 @@ fn field_doc(f: &DField) -> FieldDoc {
         FieldTypeDoc::Enum | FieldTypeDoc::Flags => named("code", "Code (see the section's table)."),
         _ => named("value", "Value."),
     };
-    let codes =
-        || f.codes.iter().map(|(v, label)| (unplaced(variant_name(label, *v)), u32::from(*v), text(label.clone())));
+    let codes = || {
+        f.codes
+            .iter()
+            .map(|(v, label)| (Spanned::unplaced(variant_name(label, *v)), u32::from(*v), text(label.clone())))
+    };
     FieldDoc {
         name,
-        ty: unplaced(ty),
+        ty: Spanned::unplaced(ty),
         offset: None,
-        byte_order: f.order.and_then(spelled).map(unplaced),
+        byte_order: f.order.and_then(spelled).map(Spanned::unplaced),
         size,
         padding: None,
         fill: None,
@@ -246,10 +244,15 @@ fn field_doc(f: &DField) -> FieldDoc {
         range: None,
         typical: None,
         variants: (ty == FieldTypeDoc::Enum).then(|| {
-            unplaced(codes().map(|(name, value, doc)| VariantDoc { name, value: unplaced(value), doc }).collect())
+            Spanned::unplaced(
+                codes().map(|(name, value, doc)| VariantDoc { name, value: Spanned::unplaced(value), doc }).collect(),
+            )
         }),
-        flags: (ty == FieldTypeDoc::Flags)
-            .then(|| unplaced(codes().map(|(name, mask, doc)| FlagDoc { name, mask: unplaced(mask), doc }).collect())),
+        flags: (ty == FieldTypeDoc::Flags).then(|| {
+            Spanned::unplaced(
+                codes().map(|(name, mask, doc)| FlagDoc { name, mask: Spanned::unplaced(mask), doc }).collect(),
+            )
+        }),
         absent: None,
         examples: Vec::new(),
     }
@@ -269,11 +272,11 @@ pub(super) fn table_erratum_doc(
     let table: Option<TableSaysDoc> = serde_saphyr::from_str(&format!("{key}: {value}")).ok();
     let todo = table.is_none().then(|| format!("the table prints {key} {value}"));
     let erratum = CommandErratumDoc {
-        id: unplaced(id),
-        figure: (!fig.is_empty()).then(|| unplaced(figure(fig))),
+        id: Spanned::unplaced(id),
+        figure: (!fig.is_empty()).then(|| Spanned::unplaced(figure(fig))),
         manual,
         table: table.unwrap_or(TableSaysDoc { address: None, count: None, function: None }),
-        note: unplaced(note),
+        note: Spanned::unplaced(note),
     };
     (erratum, todo)
 }
@@ -296,7 +299,7 @@ fn stated_values(c: &DCommand, e: &DExample) -> StatedValues {
 /// Values by name, each read as YAML would (`7.0` a number), else as text.
 fn stated<'a>(named: impl Iterator<Item = (String, &'a str)>) -> Spanned<BTreeMap<String, Spanned<StatedValue>>> {
     let read = |value: &str| serde_saphyr::from_str(value).unwrap_or_else(|_| StatedValue::Text(value.to_owned()));
-    unplaced(named.map(|(name, value)| (name, unplaced(read(value)))).collect())
+    Spanned::unplaced(named.map(|(name, value)| (name, Spanned::unplaced(read(value)))).collect())
 }
 
 /// An example of frames a manual prints, cited as `figures` (which may
@@ -308,8 +311,9 @@ pub(super) fn example_doc(
     values: StatedValues,
     next_id: &mut dyn FnMut() -> String,
 ) -> ExampleDoc {
-    let printed = |f: &Option<DraftFrame>| f.as_ref().map(|f| unplaced(f.text()));
-    let crc = |f: &Option<DraftFrame>| f.as_ref().filter(|f| f.crc.is_none()).map(|_| unplaced(CrcDoc::Missing));
+    let printed = |f: &Option<DraftFrame>| f.as_ref().map(|f| Spanned::unplaced(f.text()));
+    let crc =
+        |f: &Option<DraftFrame>| f.as_ref().filter(|f| f.crc.is_none()).map(|_| Spanned::unplaced(CrcDoc::Missing));
     let wrong = [("request", &e.request), ("response", &e.response)]
         .into_iter()
         .filter_map(|(key, f)| Some((key, f.as_ref().filter(|f| f.crc_wrong())?)))
@@ -320,15 +324,15 @@ pub(super) fn example_doc(
         let printed = f.crc.unwrap_or([0, 0]);
         let corrected = text(f.spec_text(Some(correct)));
         ExampleErratumDoc {
-            id: unplaced(next_id()),
-            figure: unplaced(figure(e.figures.get(at).map_or("", String::as_str))),
-            printed: unplaced(format!(
+            id: Spanned::unplaced(next_id()),
+            figure: Spanned::unplaced(figure(e.figures.get(at).map_or("", String::as_str))),
+            printed: Spanned::unplaced(format!(
                 "The printed CRC {:02X} {:02X} is wrong; the frame's CRC is {:02X} {:02X}.",
                 printed[0], printed[1], correct[0], correct[1]
             )),
             corrected_request: if key == "request" { corrected.clone() } else { None },
             corrected_response: if key == "response" { corrected } else { None },
-            printed_decodes: unplaced(false),
+            printed_decodes: Spanned::unplaced(false),
         }
     });
     ExampleDoc {

@@ -3,10 +3,10 @@
 //! revision's `doc`.
 
 use yosemitech_spec::document::{CitationDoc, StatedValue};
-use yosemitech_spec::{CommandSpec, Value};
+use yosemitech_spec::{CommandSpec, Spanned, Value};
 
 use super::super::annotate::{annotate, yaml_of};
-use super::super::document::{StatedValues, example_doc, figures, table_erratum_doc, unplaced};
+use super::super::document::{StatedValues, example_doc, figures, table_erratum_doc};
 use super::super::review::{CommandRow, Review};
 use super::super::{DExample, one_line_text};
 use super::Place;
@@ -37,10 +37,10 @@ fn stated_values(c: &CommandSpec, e: &DExample) -> StatedValues {
             (start + f.offset..start + f.offset + f.size()).map(|i| frame.bytes.get(i).copied().flatten()).collect();
         let Some(bytes) = bytes else { continue };
         if let (Some(name), Some(v)) = (&f.name, stated_value(&yosemitech_spec::interp::decode_field(f, &bytes))) {
-            out.push((name.clone(), unplaced(v)));
+            out.push((name.clone(), Spanned::unplaced(v)));
         }
     }
-    (!out.is_empty()).then(|| unplaced(out.into_iter().collect()))
+    (!out.is_empty()).then(|| Spanned::unplaced(out.into_iter().collect()))
 }
 
 /// A document value as an item of a block list (indent 0): `- key: ...`,
@@ -64,7 +64,7 @@ pub(super) fn example_item(
     next_id: &mut dyn FnMut() -> String,
 ) -> String {
     let values = c.and_then(|c| stated_values(c, e));
-    list_item(&example_doc(e, figure_labels, Some(unplaced(manual.to_owned())), values, next_id))
+    list_item(&example_doc(e, figure_labels, Some(Spanned::unplaced(manual.to_owned())), values, next_id))
 }
 
 /// An erratum item for a register table that disagrees with the frames,
@@ -76,13 +76,13 @@ pub(super) fn table_erratum_item(
     manual: &str,
     note: String,
 ) -> (String, Option<String>) {
-    let (erratum, todo) = table_erratum_doc(id, fig, key, value, Some(unplaced(manual.to_owned())), note);
+    let (erratum, todo) = table_erratum_doc(id, fig, key, value, Some(Spanned::unplaced(manual.to_owned())), note);
     (list_item(&erratum), todo)
 }
 
 /// An `also_in` item: this manual prints an example's frames too.
 pub(in crate::import) fn citation_item(manual: &str, figure_labels: &[String]) -> String {
-    list_item(&CitationDoc { manual: unplaced(manual.to_owned()), figures: figures(figure_labels) })
+    list_item(&CitationDoc { manual: Spanned::unplaced(manual.to_owned()), figures: figures(figure_labels) })
 }
 
 /// The revision's `doc`: what changed, in a sentence or two of our own.
