@@ -456,3 +456,31 @@ fn schema_keys(value: &serde_json::Value, out: &mut std::collections::BTreeSet<S
         _ => {}
     }
 }
+
+/// A file of many numbers, one a line, generated: each number is read from
+/// its own text, which must not cost time that grows with the line it is
+/// on. It loads, or is refused with positions, within the deadline.
+#[test]
+fn many_numbers_on_many_lines_load_in_time() {
+    let dir = std::env::temp_dir().join(format!("yosemitech-spec-numbers-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("a temporary directory");
+    let path = dir.join("numbers.yaml");
+    let mut text = String::from(concat!(
+        "sensor:\n  name: probe\n  title: Probe\n  doc: A probe.\n",
+        "  manual: {title: Manual, revision: Rev 1}\n",
+        "  serial: {baud: 9600, data_bits: 8, parity: none, stop_bits: 1}\n",
+        "  addresses: {min: 1, max: 247}\n  default_address: 1\n",
+        "commands:\n  - name: get_x\n    title: X\n    doc: X.\n    function: read\n",
+        "    address: 0x2800\n    count: 1\n    fields:\n      - {name: x, type: u16}\n",
+        "    extra_byte_counts:\n",
+    ));
+    // Most of a file's allowed size, well inside its allowed node count.
+    let line = "      - 7\n";
+    let numbers = (MAX_FILE_BYTES as usize - text.len()) / line.len() * 3 / 4;
+    text.push_str(&line.repeat(numbers));
+    std::fs::write(&path, &text).expect("the file is written");
+    if let Err(diags) = load_case("many-numbers", std::slice::from_ref(&path)) {
+        assert!(diags.0.iter().all(|d| d.pos.line > 0), "{diags}");
+    }
+    std::fs::remove_dir_all(&dir).ok();
+}

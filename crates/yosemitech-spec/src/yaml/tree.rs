@@ -135,20 +135,37 @@ impl<'de> Visitor<'de> for ValueVisitor {
 }
 
 /// Gives an error made without a place (by serde or a visitor) the node's.
-fn placed(mut error: Error, at: Location) -> Error {
+fn placed(error: Error, at: Location) -> Error {
+    if error.location().is_some_and(|l| l != Location::UNKNOWN) { error } else { moved(error, at) }
+}
+
+/// The error, at `at`: an error from reading a scalar's text alone is
+/// placed at the scalar (one whose kind carries no place of its own keeps
+/// its words, at the scalar).
+fn moved(mut error: Error, at: Location) -> Error {
     match &mut error {
         Error::Message { location, .. }
+        | Error::Eof { location }
+        | Error::Unexpected { location, .. }
+        | Error::InvalidBooleanStrict { location }
+        | Error::InvalidCharNull { location }
+        | Error::InvalidCharNotSingleScalar { location }
+        | Error::NullIntoString { location }
+        | Error::BytesNotSupportedMissingBinaryTag { location }
+        | Error::UnexpectedValueForUnit { location }
+        | Error::TaggedScalarCannotDeserializeIntoString { location }
+        | Error::InvalidScalar { location, .. }
+        | Error::NonFiniteFloat { location, .. }
+        | Error::QuotingRequired { location, .. }
+        | Error::UnsupportedTag { location, .. }
+        | Error::ExternalMessage { location, .. }
         | Error::SerdeInvalidType { location, .. }
         | Error::SerdeInvalidValue { location, .. }
         | Error::SerdeInvalidLength { location, .. }
         | Error::SerdeUnknownVariant { location, .. }
         | Error::SerdeUnknownField { location, .. }
-        | Error::SerdeMissingField { location, .. }
-            if *location == Location::UNKNOWN =>
-        {
-            *location = at;
-        }
-        _ => {}
+        | Error::SerdeMissingField { location, .. } => *location = at,
+        _ => return Error::Message { msg: error.without_snippet().to_string(), location: at },
     }
     error
 }
@@ -173,22 +190,18 @@ impl<'a> NodeDeserializer<'a> {
         result.map_err(|e| placed(e, self.node.referenced))
     }
 
-    /// The scalar read by serde-saphyr as `S`, from its text placed at its
-    /// line and column: a value and an error exactly as in the whole file.
+    /// The scalar read by serde-saphyr as `S` from its own text, so that a
+    /// value and an error (its kind) are what reading the whole file gives;
+    /// an error is placed at the scalar. (Read alone, not padded to its
+    /// line and column: padding would cost a hostile file of many short
+    /// lines time quadratic in its size.)
     fn scalar<S: DeserializeOwned>(self) -> Result<S, Error> {
-        let at = self.node.defined;
         let written = match self.node.value {
             Value::List(_) | Value::Map(_) => None,
             _ => source(self.node, self.text),
         };
         let Some(written) = written else { return Err(self.wrong_shape("scalar")) };
-        let line = usize::try_from(at.line()).unwrap_or(1).saturating_sub(1);
-        let column = usize::try_from(at.column()).unwrap_or(1).saturating_sub(1);
-        let mut placed_text = String::with_capacity(line + column + written.len());
-        placed_text.extend(std::iter::repeat_n('\n', line));
-        placed_text.extend(std::iter::repeat_n(' ', column));
-        placed_text.push_str(written);
-        serde_saphyr::from_str_with_options(&placed_text, options())
+        serde_saphyr::from_str_with_options(written, options()).map_err(|e| moved(e, self.node.defined))
     }
 
     fn wrong_shape(self, expected: &'static str) -> Error {
