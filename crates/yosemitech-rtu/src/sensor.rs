@@ -122,7 +122,7 @@ fn message_codec<M: Message>(data: &[u8], pass: Pass<'_, '_>) -> Result<usize, C
     let message = M::from_data(&data);
     match pass {
         Pass::Visit(visit) => {
-            message.fields().for_each(|(info, value)| visit(info, value));
+            visit_fields(M::FIELDS, &|index| message.field(index), visit);
             Ok(0)
         }
         Pass::Reencode { out, validate } => {
@@ -135,6 +135,17 @@ fn message_codec<M: Message>(data: &[u8], pass: Pass<'_, '_>) -> Result<usize, C
                 out.get_mut(..data.len()).ok_or(CodecError::Encode(EncodeError::FrameTooLong { len: data.len() }))?;
             slot.copy_from_slice(data);
             Ok(data.len())
+        }
+    }
+}
+
+/// Passes each field that has a value to the visitor, in wire order: one
+/// loop for every message type, which brings only its `field` (an
+/// iterator chain here would be compiled again for each of them).
+fn visit_fields<'m>(fields: &[FieldInfo], value: &dyn Fn(usize) -> Option<FieldValue<'m>>, visit: FieldVisitor<'_>) {
+    for (index, info) in fields.iter().enumerate() {
+        if let Some(v) = value(index) {
+            visit(*info, v);
         }
     }
 }
