@@ -11,8 +11,8 @@
 //!
 //! What the YAML means stays serde-saphyr's word: a scalar asked for as a
 //! number, a boolean or text is read by serde-saphyr from the scalar's own
-//! text, placed at its line and column, so a value and an error (its kind,
-//! its place) are what reading the whole file would give.
+//! text, so a value and an error (its kind, placed at the scalar) are what
+//! reading the whole file would give.
 
 use std::fmt;
 
@@ -192,16 +192,19 @@ impl<'a> NodeDeserializer<'a> {
 
     /// The scalar read by serde-saphyr as `S` from its own text, so that a
     /// value and an error (its kind) are what reading the whole file gives;
-    /// an error is placed at the scalar. (Read alone, not padded to its
-    /// line and column: padding would cost a hostile file of many short
-    /// lines time quadratic in its size.)
+    /// an error is placed at the scalar. The text is indented by a space,
+    /// as a value always is: at the start of a line, `--- 5` would be a
+    /// document marker and the number 5. (Not padded to its line and
+    /// column: that would cost a hostile file of many short lines time
+    /// quadratic in its size.)
     fn scalar<S: DeserializeOwned>(self) -> Result<S, Error> {
         let written = match self.node.value {
             Value::List(_) | Value::Map(_) => None,
             _ => source(self.node, self.text),
         };
         let Some(written) = written else { return Err(self.wrong_shape("scalar")) };
-        serde_saphyr::from_str_with_options(written, options()).map_err(|e| moved(e, self.node.defined))
+        let indented = format!(" {written}");
+        serde_saphyr::from_str_with_options(&indented, options()).map_err(|e| moved(e, self.node.defined))
     }
 
     fn wrong_shape(self, expected: &'static str) -> Error {
@@ -609,6 +612,8 @@ mod tests {
         };
         for (broken, line, column) in [
             (DOC.replace("0x10", "ten"), 1, 11),
+            (DOC.replace("0x10", "--- 5"), 1, 11),
+            (DOC.replace("0x10", "... 5"), 1, 11),
             (DOC.replace("function: read", "function: raed"), 3, 11),
             (DOC.replace("scale: ~", "scale: [1]"), 4, 8),
             (DOC.replace("note: \"\"", "nota: x"), 5, 1),
