@@ -44,7 +44,11 @@ pub(super) enum Value {
 
 /// Reads `T` from `text`: the tree first, under `options`, then `T` from it.
 pub(super) fn from_str<T: DeserializeOwned>(text: &str) -> Result<T, Error> {
-    let root = parse(text, options())?;
+    let mut root = parse(text, options())?;
+    // An empty document reads as an empty mapping, as serde-saphyr reads it.
+    if matches!(root.value, Value::Null) {
+        root.value = Value::Map(Vec::new());
+    }
     T::deserialize(NodeDeserializer { node: &root, text })
 }
 
@@ -69,12 +73,23 @@ impl Value {
     }
 }
 
-/// The text a node is written as, from the file.
+/// The text a node is written as, from the file, with the tag and anchor
+/// written before it (`!!str 5` is text, not a number).
 fn source<'a>(node: &Node, text: &'a str) -> Option<&'a str> {
     let span = node.defined.span();
     let start = usize::try_from(span.byte_offset()?).ok()?;
-    let len = usize::try_from(span.byte_len()?).ok()?;
-    text.get(start..start.checked_add(len)?)
+    let end = start.checked_add(usize::try_from(span.byte_len()?).ok()?)?;
+    let mut from = start;
+    loop {
+        let before = text.get(..from)?.trim_end();
+        let token_start =
+            before.rfind(|c: char| c.is_whitespace() || matches!(c, '[' | '{' | ',')).map_or(0, |i| i + 1);
+        match before.get(token_start..) {
+            Some(token) if token.starts_with(['!', '&']) => from = token_start,
+            _ => break,
+        }
+    }
+    text.get(from..end)
 }
 
 impl<'de> Deserialize<'de> for Value {
@@ -186,8 +201,32 @@ impl<'a> NodeDeserializer<'a> {
     /// Places an error the node's reading made without a place: by serde,
     /// by a visitor, or by a `Deserialize` impl after it read the node
     /// (an untagged enum's "no variant matched").
+    ///
+    /// An error inside a value used through an alias (`*name`) is told at
+    /// both places, as serde-saphyr tells it: where the value is written
+    /// and where it is used.
     fn place<R>(self, result: Result<R, Error>) -> Result<R, Error> {
-        result.map_err(|e| placed(e, self.node.referenced))
+        result.map_err(|e| {
+            let (used, written) = (self.node.referenced, self.node.defined);
+            let mut e = placed(e, written);
+            if let Error::AliasError { locations, .. } = &mut e {
+                // Every node of a value used through an alias is used at
+                // the alias: the value's own node, the outermost, names it.
+                if locations.reference_location == used {
+                    locations.defined_location = written;
+                }
+                return e;
+            }
+            if used == written || used == Location::UNKNOWN {
+                return e;
+            }
+            #[allow(deprecated)] // `msg` is still filled, as serde-saphyr fills it.
+            Error::AliasError {
+                msg: e.to_string(),
+                error: Box::new(e),
+                locations: serde_saphyr::Locations { reference_location: used, defined_location: written },
+            }
+        })
     }
 
     /// The scalar read by serde-saphyr as `S` from its own text, so that a
@@ -202,19 +241,20 @@ impl<'a> NodeDeserializer<'a> {
             Value::List(_) | Value::Map(_) => None,
             _ => source(self.node, self.text),
         };
-        let Some(written) = written else { return Err(self.wrong_shape("scalar")) };
+        let Some(written) = written else { return Err(self.wrong_shape("string scalar")) };
+        // A value left out (`key:`) is the null it means.
+        let written = if written.trim().is_empty() { "~" } else { written };
         let indented = format!(" {written}");
         serde_saphyr::from_str_with_options(&indented, options()).map_err(|e| moved(e, self.node.defined))
     }
 
     fn wrong_shape(self, expected: &'static str) -> Error {
-        Error::Unexpected { expected, location: self.node.referenced }
+        Error::Unexpected { expected, location: self.node.defined }
     }
 
     fn entries(self) -> Option<Entries<'a>> {
         match &self.node.value {
             Value::Map(entries) => Some(Entries { of: self, entries: entries.iter(), value: None }),
-            Value::Null => Some(Entries { of: self, entries: [].iter(), value: None }),
             _ => None,
         }
     }
@@ -319,7 +359,6 @@ impl<'de> Deserializer<'de> for NodeDeserializer<'_> {
     fn deserialize_seq<V: Visitor<'de>>(self, visitor: V) -> Result<V::Value, Error> {
         let result = match &self.node.value {
             Value::List(items) => visitor.visit_seq(Items { of: self, items: items.iter() }),
-            Value::Null => visitor.visit_seq(Items { of: self, items: [].iter() }),
             _ => Err(self.wrong_shape("sequence start")),
         };
         self.place(result)
@@ -365,7 +404,7 @@ impl<'de> Deserializer<'de> for NodeDeserializer<'_> {
                 }
                 _ => Err(self.wrong_shape("a single-key mapping")),
             },
-            Value::List(_) => Err(self.wrong_shape("string scalar")),
+            Value::List(_) => Err(Error::ExternallyTaggedEnumExpectedScalarOrMapping { location: self.node.defined }),
             _ => visitor.visit_enum(Variant { name: self, value: VariantValue(None) }),
         };
         self.place(result)
@@ -373,6 +412,7 @@ impl<'de> Deserializer<'de> for NodeDeserializer<'_> {
 
     fn deserialize_identifier<V: Visitor<'de>>(self, visitor: V) -> Result<V::Value, Error> {
         let result = match self.node.value.name(self.node, self.text) {
+            _ if matches!(self.node.value, Value::Null) => Err(Error::NullIntoString { location: self.node.defined }),
             Some(name) => visitor.visit_str(name),
             None => Err(self.wrong_shape("string scalar")),
         };
@@ -468,8 +508,10 @@ impl<'de> de::VariantAccess<'de> for VariantValue<'_> {
 
     fn unit_variant(self) -> Result<(), Error> {
         match self.0 {
-            None => Ok(()),
-            Some(value) => Deserialize::deserialize(value),
+            Some(value) if !matches!(value.node.value, Value::Null) => {
+                Err(Error::UnexpectedValueForUnitEnumVariant { location: value.node.defined })
+            }
+            _ => Ok(()),
         }
     }
 
@@ -626,5 +668,183 @@ mod tests {
         // Of the kind reading the whole file gives, which the messages know.
         let Err(e) = from_str::<Doc>(&DOC.replace("0x10", "ten")) else { panic!("`ten` read as a number") };
         assert!(matches!(e.without_snippet(), serde_saphyr::Error::InvalidScalar { ty, .. } if *ty == "u32"), "{e:?}");
+    }
+
+    #[derive(Debug, Deserialize)]
+    #[serde(deny_unknown_fields)]
+    #[allow(dead_code)]
+    struct Inner {
+        x: u32,
+    }
+
+    #[derive(Debug, Deserialize)]
+    #[serde(deny_unknown_fields)]
+    #[allow(dead_code)]
+    struct Outer {
+        inner: Inner,
+    }
+
+    /// Every shape the document types use, each optional.
+    #[derive(Debug, Deserialize)]
+    #[serde(deny_unknown_fields)]
+    #[allow(dead_code)]
+    struct Shapes {
+        #[serde(default)]
+        inner: Option<Inner>,
+        #[serde(default)]
+        outer: Option<Outer>,
+        #[serde(default)]
+        function: Option<Function>,
+        #[serde(default)]
+        text: Option<String>,
+        #[serde(default)]
+        flag: Option<bool>,
+        #[serde(default)]
+        number: Option<u32>,
+        #[serde(default)]
+        small: Option<u8>,
+        #[serde(default)]
+        signed: Option<i32>,
+        #[serde(default)]
+        real: Option<f64>,
+        #[serde(default)]
+        single: Option<f32>,
+        #[serde(default)]
+        list: Vec<u32>,
+        #[serde(default)]
+        located: Vec<Spanned<String>>,
+        #[serde(default)]
+        table: Option<BTreeMap<String, u32>>,
+        #[serde(default)]
+        stated: Option<Stated>,
+        #[serde(default)]
+        required: Vec<Inner>,
+    }
+
+    /// What serde-saphyr, reading the whole text, and the tree give: equal
+    /// values, or equal errors at equal places.
+    #[test]
+    fn the_tree_reads_what_serde_saphyr_reads() {
+        let texts = [
+            "inner: {x: 1}\n",
+            "inner: {x: }\n",
+            "inner: {x: ~}\n",
+            "inner: {}\n",
+            "inner: 5\n",
+            "inner: [1]\n",
+            "inner: {x: 1, y: 2}\n",
+            "outer: {inner: }\n",
+            "outer: {inner: ~}\n",
+            "outer: {inner: {x: [1]}}\n",
+            "function: read\n",
+            "function: [read]\n",
+            "function: {read: 1}\n",
+            "function: {raed: ~}\n",
+            "function: 3\n",
+            "function: ~\n",
+            "function: raed\n",
+            "text: [a]\n",
+            "text: {a: 1}\n",
+            "text: 12\n",
+            "text: 1.10\n",
+            "text: true\n",
+            "text: ~\n",
+            "text: \"\"\n",
+            "text: .inf\n",
+            "text: |\n  two\n  lines\n",
+            "flag: yes\n",
+            "flag: true\n",
+            "flag: [true]\n",
+            "flag: \"true\"\n",
+            "number: {a: 1}\n",
+            "number: \"12\"\n",
+            "number: 1_000\n",
+            "number: +12\n",
+            "number: 012\n",
+            "number: 0o17\n",
+            "number: 0x1C00\n",
+            "number: -1\n",
+            "number: 4294967296\n",
+            "number: 1.5\n",
+            "number: twelve\n",
+            "number: ''\n",
+            "small: 256\n",
+            "small: 255\n",
+            "signed: -5\n",
+            "signed: 0x7FFFFFFF\n",
+            "real: .inf\n",
+            "real: -.inf\n",
+            "real: .nan\n",
+            "real: 1e3\n",
+            "real: 5\n",
+            "real: \"1.5\"\n",
+            "single: 1e40\n",
+            "single: 0.1\n",
+            "list: ~\n",
+            "list:\n",
+            "list: 5\n",
+            "list: [1, x]\n",
+            "list: {a: 1}\n",
+            "list: [1, [2]]\n",
+            "located: [a, 'b', 3]\n",
+            "located: [[a]]\n",
+            "table: [1]\n",
+            "table: 5\n",
+            "table: ~\n",
+            "table: {a: 1, b: x}\n",
+            "table: {1: 2}\n",
+            "stated: 7\n",
+            "stated: \"7\"\n",
+            "stated: [7]\n",
+            "stated: .inf\n",
+            "stated: true\n",
+            "stated: ~\n",
+            "required: [{x: 1}, {}]\n",
+            "required: [{x: 1}, 5]\n",
+            "unknown: 1\n",
+            "~: 1\n",
+            "1: 2\n",
+            "",
+            "# nothing\n",
+            "text:\n",
+            "flag:\n",
+            "real:\n",
+            "function:\n",
+            "inner:\n",
+            "required: [~]\n",
+            "number: |\n  5\n",
+            "number: !!str 5\n",
+            "\"number\": 5\n",
+            "{number: 5, flag: true}\n",
+            "number: 5\nnumber: 6\n",
+            "text: plain\n  continued\n",
+            "number: 1\n  2\n",
+            "list: &l [1, x]\n",
+            "table: &t {a: 1}\nnumber: *t\n",
+            "inner: &i {x: a}\nouter: {inner: *i}\n",
+            "required: &r [{x: 1}]\nlist: *r\n",
+            "text: &s a\nfunction: *s\n",
+            "number: --- 5\n",
+            "number: ... 5\n",
+            "number: &a 5\nsmall: *a\n",
+            "list: &l [1]\nlocated: *l\n",
+        ];
+        let direct = |text: &str| {
+            let options = super::options();
+            match serde_saphyr::from_str_with_options::<Shapes>(text, options) {
+                Ok(v) => format!("{v:?}"),
+                Err(e) => format!("{}", e.without_snippet()),
+            }
+        };
+        let tree = |text: &str| match from_str::<Shapes>(text) {
+            Ok(v) => format!("{v:?}"),
+            Err(e) => format!("{}", e.without_snippet()),
+        };
+        let differ: Vec<String> = texts
+            .iter()
+            .filter(|t| direct(t) != tree(t))
+            .map(|t| format!("{t:?}\n  serde-saphyr: {}\n  tree:         {}", direct(t), tree(t)))
+            .collect();
+        assert!(differ.is_empty(), "{}", differ.join("\n"));
     }
 }
