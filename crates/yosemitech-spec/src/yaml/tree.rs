@@ -66,16 +66,16 @@ impl Value {
         match self {
             Value::Text(s) => Some(s),
             Value::Null | Value::Bool(_) | Value::Unsigned(_) | Value::Signed(_) | Value::Float(_) => {
-                source(node, text)
+                source(node, text).map(|(_, bare)| bare)
             }
             Value::List(_) | Value::Map(_) => None,
         }
     }
 }
 
-/// The text a node is written as, from the file, with the tag and anchor
-/// written before it (`!!str 5` is text, not a number).
-fn source<'a>(node: &Node, text: &'a str) -> Option<&'a str> {
+/// The text a node is written as, from the file: with the tag and anchor
+/// written before it (`!!str 5` is text, not a number), and bare.
+fn source<'a>(node: &Node, text: &'a str) -> Option<(&'a str, &'a str)> {
     let span = node.defined.span();
     let start = usize::try_from(span.byte_offset()?).ok()?;
     let end = start.checked_add(usize::try_from(span.byte_len()?).ok()?)?;
@@ -89,7 +89,7 @@ fn source<'a>(node: &Node, text: &'a str) -> Option<&'a str> {
             _ => break,
         }
     }
-    text.get(from..end)
+    Some((text.get(from..end)?, text.get(start..end)?))
 }
 
 impl<'de> Deserialize<'de> for Value {
@@ -239,7 +239,7 @@ impl<'a> NodeDeserializer<'a> {
     fn scalar<S: DeserializeOwned>(self) -> Result<S, Error> {
         let written = match self.node.value {
             Value::List(_) | Value::Map(_) => None,
-            _ => source(self.node, self.text),
+            _ => source(self.node, self.text).map(|(written, _)| written),
         };
         let Some(written) = written else { return Err(self.wrong_shape("string scalar")) };
         // A value left out (`key:`) is the null it means.
@@ -824,6 +824,10 @@ mod tests {
             "inner: &i {x: a}\nouter: {inner: *i}\n",
             "required: &r [{x: 1}]\nlist: *r\n",
             "text: &s a\nfunction: *s\n",
+            "&k flag: true\n",
+            "{&k 1: 2}\n",
+            "number: &n !!int 5\n",
+            "number: !!int &n 5\n",
             "number: --- 5\n",
             "number: ... 5\n",
             "number: &a 5\nsmall: *a\n",
