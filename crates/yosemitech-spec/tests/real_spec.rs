@@ -1,7 +1,5 @@
 //! The real `spec/` directory loads and holds what the manuals print.
 
-use std::path::PathBuf;
-
 use yosemitech_spec::Role;
 use yosemitech_tests::spec;
 
@@ -115,8 +113,9 @@ fn schema_describes_the_spec_files() {
     }
     assert_eq!(command["additionalProperties"], false);
     // The committed schema is the generated one.
-    let committed = std::fs::read_to_string(PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../spec/schema.json"))
-        .expect("spec/schema.json");
+    let committed =
+        std::fs::read_to_string(std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../spec/schema.json"))
+            .expect("spec/schema.json");
     let mut generated = serde_json::to_string_pretty(&schema).expect("json");
     generated.push('\n');
     assert!(committed == generated, "spec/schema.json is stale; run cargo xtask schema");

@@ -489,6 +489,14 @@ struct Variant<'a> {
 /// The value of a variant written as a single-key mapping.
 struct VariantValue<'a>(Option<NodeDeserializer<'a>>);
 
+impl<'a> VariantValue<'a> {
+    /// The value a variant with data needs: a variant written by its name
+    /// alone has none.
+    fn data(self, expected: &'static str) -> Result<NodeDeserializer<'a>, Error> {
+        self.0.ok_or_else(|| de::Error::invalid_type(de::Unexpected::UnitVariant, &expected))
+    }
+}
+
 impl<'de, 'a> de::EnumAccess<'de> for Variant<'a> {
     type Error = Error;
     type Variant = VariantValue<'a>;
@@ -516,24 +524,15 @@ impl<'de> de::VariantAccess<'de> for VariantValue<'_> {
     }
 
     fn newtype_variant_seed<S: DeserializeSeed<'de>>(self, seed: S) -> Result<S::Value, Error> {
-        match self.0 {
-            Some(value) => seed.deserialize(value),
-            None => Err(de::Error::invalid_type(de::Unexpected::UnitVariant, &"a variant with a value")),
-        }
+        seed.deserialize(self.data("a variant with a value")?)
     }
 
     fn tuple_variant<V: Visitor<'de>>(self, _len: usize, visitor: V) -> Result<V::Value, Error> {
-        match self.0 {
-            Some(value) => value.deserialize_seq(visitor),
-            None => Err(de::Error::invalid_type(de::Unexpected::UnitVariant, &"a tuple variant")),
-        }
+        self.data("a tuple variant")?.deserialize_seq(visitor)
     }
 
     fn struct_variant<V: Visitor<'de>>(self, _fields: &'static [&'static str], visitor: V) -> Result<V::Value, Error> {
-        match self.0 {
-            Some(value) => value.deserialize_map(visitor),
-            None => Err(de::Error::invalid_type(de::Unexpected::UnitVariant, &"a struct variant")),
-        }
+        self.data("a struct variant")?.deserialize_map(visitor)
     }
 }
 
