@@ -4,7 +4,7 @@
 
 use yosemitech_rtu::codec::{ByteOrder4, f32_from_wire, f32_to_wire};
 use yosemitech_rtu::frame::encode_exception;
-use yosemitech_rtu::{Command, FieldInfo, FieldValue, Layout, Message, NoData};
+use yosemitech_rtu::{Command, EncodeError, FieldInfo, FieldValue, Layout, Message, NoData};
 
 /// The pH manual's get_ph request (Fig 23): [`ReadFloat`] to slave 1.
 pub const READ_FLOAT_REQUEST: [u8; 8] = [0x01, 0x03, 0x28, 0x00, 0x00, 0x02, 0xCD, 0xAB];
@@ -99,6 +99,38 @@ impl Message for SlaveAddress {
     fn field(&self, index: usize) -> Option<FieldValue<'_>> {
         (index == 0).then_some(FieldValue::Int(i64::from(self.0)))
     }
+}
+
+/// A write with data: 2 registers at 0x1100, one f32 (DCBA) the probe
+/// takes only within -10..=10.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct WriteFloat(pub f32);
+
+impl Message for WriteFloat {
+    type Data = [u8; 4];
+    const FIELDS: &'static [FieldInfo] = &[FieldInfo::new("offset", Some("pH"))];
+
+    fn from_data(data: &[u8; 4]) -> Self {
+        Self(f32_from_wire(ByteOrder4::Dcba, *data))
+    }
+
+    fn to_data(&self) -> [u8; 4] {
+        f32_to_wire(ByteOrder4::Dcba, self.0)
+    }
+
+    fn field(&self, index: usize) -> Option<FieldValue<'_>> {
+        (index == 0).then_some(FieldValue::F32(self.0))
+    }
+
+    fn validate(&self) -> Result<(), EncodeError> {
+        if (-10.0..=10.0).contains(&self.0) { Ok(()) } else { Err(EncodeError::OutOfRange { field: "offset" }) }
+    }
+}
+
+impl Command for WriteFloat {
+    type Response = ();
+    const NAME: &'static str = "write_float";
+    const LAYOUT: Layout<'static> = Layout::write(0x1100, 2);
 }
 
 /// A pH probe at `address` reading `ph`: answers get_ph and get_slave_id,

@@ -60,10 +60,9 @@ pub trait Command: Message {
     /// Checks a reply to a request sent to `slave` and decodes it.
     #[inline]
     fn decode_response(slave: u8, frame: &[u8]) -> Result<Self::Response, FrameError> {
+        // A trigger's reply is an acknowledgement: the layout returns none of
+        // the registers it may carry, which mean nothing.
         let data = Self::LAYOUT.decode_response(slave, frame)?;
-        // A trigger's reply is an acknowledgement: whatever registers it
-        // carries mean nothing.
-        let data = if Self::LAYOUT.trigger { &[][..] } else { data };
         let data = <Self::Response as Message>::Data::try_from(data)
             .map_err(|_| FrameError::Truncated { expected: Self::RESPONSE_LEN, actual: frame.len() })?;
         Ok(Self::Response::from_data(&data))

@@ -20,6 +20,7 @@ pub mod codec;
 mod command;
 mod crc;
 pub mod derived;
+pub mod dispatch;
 mod error;
 pub mod frame;
 pub mod mbap;

@@ -1,6 +1,7 @@
 //! [`SensorInfo`]: what generated sensor modules say about their sensor.
 
 use crate::command::Command;
+use crate::dispatch::{request_data, response_data, write_request, write_response};
 use crate::error::{EncodeError, FrameError};
 use crate::frame::{Layout, MAX_ADU};
 use crate::message::Message;
@@ -117,8 +118,12 @@ enum CodecError {
 /// Decodes one message type from its register data and does the [`Pass`] asked.
 type MessageCodec = fn(&[u8], Pass<'_, '_>) -> Result<usize, CodecError>;
 
+// `let else` and `if let` rather than `map_err` and `?`: each closure would
+// be one more function per message type.
 fn message_codec<M: Message>(data: &[u8], pass: Pass<'_, '_>) -> Result<usize, CodecError> {
-    let data = M::Data::try_from(data).map_err(|_| CodecError::DataLength)?;
+    let Ok(data) = M::Data::try_from(data) else {
+        return Err(CodecError::DataLength);
+    };
     let message = M::from_data(&data);
     match pass {
         Pass::Visit(visit) => {
@@ -126,17 +131,19 @@ fn message_codec<M: Message>(data: &[u8], pass: Pass<'_, '_>) -> Result<usize, C
             Ok(0)
         }
         Pass::Reencode { out, validate } => {
-            if validate {
-                message.validate().map_err(CodecError::Encode)?;
+            if validate && let Err(error) = message.validate() {
+                return Err(CodecError::Encode(error));
             }
-            let data = message.to_data();
-            let data = data.as_ref();
-            let slot =
-                out.get_mut(..data.len()).ok_or(CodecError::Encode(EncodeError::FrameTooLong { len: data.len() }))?;
-            slot.copy_from_slice(data);
-            Ok(data.len())
+            copy_data(message.to_data().as_ref(), out)
         }
     }
+}
+
+/// Copies re-encoded register data to the start of `out`: its length.
+fn copy_data(data: &[u8], out: &mut [u8]) -> Result<usize, CodecError> {
+    let slot = out.get_mut(..data.len()).ok_or(CodecError::Encode(EncodeError::FrameTooLong { len: data.len() }))?;
+    slot.copy_from_slice(data);
+    Ok(data.len())
 }
 
 /// Passes each field that has a value to the visitor, in wire order: one
@@ -167,7 +174,7 @@ impl CommandEntry {
     /// Decodes a request, passes each field of a write's data (in wire
     /// order) to the visitor, and returns the slave address it is for.
     pub fn visit_request(&self, frame: &[u8], visit: FieldVisitor<'_>) -> Result<u8, FrameError> {
-        let (slave, data) = self.layout.decode_request(frame)?;
+        let (slave, data) = request_data(&self.layout, frame)?;
         match (self.request_codec)(data, Pass::Visit(visit)) {
             Ok(_) => Ok(slave),
             Err(_) => Err(truncated(self.layout.request_len(), frame)),
@@ -187,11 +194,11 @@ impl CommandEntry {
     /// Decodes a request and encodes the typed request again into `out`:
     /// the length written.
     pub fn reencode_request(&self, frame: &[u8], out: &mut [u8]) -> Result<usize, RoundTripError> {
-        let (slave, data) = self.layout.decode_request(frame).map_err(RoundTripError::Frame)?;
+        let (slave, data) = request_data(&self.layout, frame).map_err(RoundTripError::Frame)?;
         let mut again = [0; MAX_ADU];
         let len = (self.request_codec)(data, Pass::Reencode { out: &mut again, validate: true })
             .map_err(|error| self.codec_error(error, self.layout.request_len(), frame))?;
-        self.layout.encode_request(slave, again.get(..len).unwrap_or(&[]), out).map_err(RoundTripError::Encode)
+        write_request(&self.layout, slave, again.get(..len).unwrap_or(&[]), out).map_err(RoundTripError::Encode)
     }
 
     /// Decodes a reply (to a request sent to `slave`) and encodes the typed
@@ -202,7 +209,7 @@ impl CommandEntry {
         // A reply is not range-checked: a probe may report values outside its measuring range.
         let len = (self.response_codec)(data, Pass::Reencode { out: &mut again, validate: false })
             .map_err(|error| self.codec_error(error, self.layout.response_len(), frame))?;
-        self.layout.encode_response(slave, again.get(..len).unwrap_or(&[]), out).map_err(RoundTripError::Encode)
+        write_response(&self.layout, slave, again.get(..len).unwrap_or(&[]), out).map_err(RoundTripError::Encode)
     }
 
     fn codec_error(&self, error: CodecError, frame_len: usize, frame: &[u8]) -> RoundTripError {
@@ -222,13 +229,6 @@ impl core::fmt::Debug for CommandEntry {
 /// The error of a frame whose register data is not its message's length.
 fn truncated(expected: usize, frame: &[u8]) -> FrameError {
     FrameError::Truncated { expected, actual: frame.len() }
-}
-
-/// A reply's register data: none for a trigger, whose reply is an
-/// acknowledgement (whatever registers it carries mean nothing).
-fn response_data<'f>(layout: &Layout<'_>, slave: u8, frame: &'f [u8]) -> Result<&'f [u8], FrameError> {
-    let data = layout.decode_response(slave, frame)?;
-    Ok(if layout.trigger { &[] } else { data })
 }
 
 /// A generated sensor module as data: what code that serves every sensor

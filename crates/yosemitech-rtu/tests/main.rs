@@ -5,5 +5,6 @@
 
 mod async_links;
 mod client;
+mod dispatch;
 mod noise_alignment;
 mod transports;

@@ -613,39 +613,39 @@ impl CommandId {
     pub fn decode_request(self, frame: &[u8]) -> Result<(u8, Request), rtu::FrameError> {
         match self {
             Self::SetSlaveId => {
-                <SetSlaveId as rtu::Command>::decode_request(frame)
+                rtu::dispatch::decode_request::<SetSlaveId>(frame)
                     .map(|(slave, r)| (slave, Request::SetSlaveId(r)))
             }
             Self::GetSn => {
-                <GetSn as rtu::Command>::decode_request(frame)
+                rtu::dispatch::decode_request::<GetSn>(frame)
                     .map(|(slave, r)| (slave, Request::GetSn(r)))
             }
             Self::StartMeasurement => {
-                <StartMeasurement as rtu::Command>::decode_request(frame)
+                rtu::dispatch::decode_request::<StartMeasurement>(frame)
                     .map(|(slave, r)| (slave, Request::StartMeasurement(r)))
             }
             Self::GetTemperatureAndConductivity => {
-                <GetTemperatureAndConductivity as rtu::Command>::decode_request(frame)
+                rtu::dispatch::decode_request::<GetTemperatureAndConductivity>(frame)
                     .map(|(slave, r)| (slave, Request::GetTemperatureAndConductivity(r)))
             }
             Self::GetVersion => {
-                <GetVersion as rtu::Command>::decode_request(frame)
+                rtu::dispatch::decode_request::<GetVersion>(frame)
                     .map(|(slave, r)| (slave, Request::GetVersion(r)))
             }
             Self::StopMeasurement => {
-                <StopMeasurement as rtu::Command>::decode_request(frame)
+                rtu::dispatch::decode_request::<StopMeasurement>(frame)
                     .map(|(slave, r)| (slave, Request::StopMeasurement(r)))
             }
             Self::GetUserCalibration => {
-                <GetUserCalibration as rtu::Command>::decode_request(frame)
+                rtu::dispatch::decode_request::<GetUserCalibration>(frame)
                     .map(|(slave, r)| (slave, Request::GetUserCalibration(r)))
             }
             Self::SetUserCalibration => {
-                <SetUserCalibration as rtu::Command>::decode_request(frame)
+                rtu::dispatch::decode_request::<SetUserCalibration>(frame)
                     .map(|(slave, r)| (slave, Request::SetUserCalibration(r)))
             }
             Self::GetSlaveId => {
-                <GetSlaveId as rtu::Command>::decode_request(frame)
+                rtu::dispatch::decode_request::<GetSlaveId>(frame)
                     .map(|(slave, r)| (slave, Request::GetSlaveId(r)))
             }
         }
@@ -658,42 +658,41 @@ impl CommandId {
     ) -> Result<Response, rtu::FrameError> {
         match self {
             Self::SetSlaveId => {
-                <SetSlaveId as rtu::Command>::decode_response(slave, frame)
+                rtu::dispatch::decode_response::<SetSlaveId>(slave, frame)
                     .map(|()| Response::SetSlaveId)
             }
             Self::GetSn => {
-                <GetSn as rtu::Command>::decode_response(slave, frame)
+                rtu::dispatch::decode_response::<GetSn>(slave, frame)
                     .map(Response::GetSn)
             }
             Self::StartMeasurement => {
-                <StartMeasurement as rtu::Command>::decode_response(slave, frame)
+                rtu::dispatch::decode_response::<StartMeasurement>(slave, frame)
                     .map(|()| Response::StartMeasurement)
             }
             Self::GetTemperatureAndConductivity => {
-                <GetTemperatureAndConductivity as rtu::Command>::decode_response(
-                        slave,
-                        frame,
-                    )
+                rtu::dispatch::decode_response::<
+                    GetTemperatureAndConductivity,
+                >(slave, frame)
                     .map(Response::GetTemperatureAndConductivity)
             }
             Self::GetVersion => {
-                <GetVersion as rtu::Command>::decode_response(slave, frame)
+                rtu::dispatch::decode_response::<GetVersion>(slave, frame)
                     .map(Response::GetVersion)
             }
             Self::StopMeasurement => {
-                <StopMeasurement as rtu::Command>::decode_response(slave, frame)
+                rtu::dispatch::decode_response::<StopMeasurement>(slave, frame)
                     .map(Response::StopMeasurement)
             }
             Self::GetUserCalibration => {
-                <GetUserCalibration as rtu::Command>::decode_response(slave, frame)
+                rtu::dispatch::decode_response::<GetUserCalibration>(slave, frame)
                     .map(Response::GetUserCalibration)
             }
             Self::SetUserCalibration => {
-                <SetUserCalibration as rtu::Command>::decode_response(slave, frame)
+                rtu::dispatch::decode_response::<SetUserCalibration>(slave, frame)
                     .map(|()| Response::SetUserCalibration)
             }
             Self::GetSlaveId => {
-                <GetSlaveId as rtu::Command>::decode_response(slave, frame)
+                rtu::dispatch::decode_response::<GetSlaveId>(slave, frame)
                     .map(Response::GetSlaveId)
             }
         }
@@ -751,17 +750,17 @@ impl Request {
     /// Writes the request frame for `slave` into `out` and returns its length.
     pub fn encode(&self, slave: u8, out: &mut [u8]) -> Result<usize, rtu::EncodeError> {
         match self {
-            Self::SetSlaveId(r) => rtu::Command::encode_request(r, slave, out),
-            Self::GetSn(r) => rtu::Command::encode_request(r, slave, out),
-            Self::StartMeasurement(r) => rtu::Command::encode_request(r, slave, out),
+            Self::SetSlaveId(r) => rtu::dispatch::encode_request(r, slave, out),
+            Self::GetSn(r) => rtu::dispatch::encode_request(r, slave, out),
+            Self::StartMeasurement(r) => rtu::dispatch::encode_request(r, slave, out),
             Self::GetTemperatureAndConductivity(r) => {
-                rtu::Command::encode_request(r, slave, out)
+                rtu::dispatch::encode_request(r, slave, out)
             }
-            Self::GetVersion(r) => rtu::Command::encode_request(r, slave, out),
-            Self::StopMeasurement(r) => rtu::Command::encode_request(r, slave, out),
-            Self::GetUserCalibration(r) => rtu::Command::encode_request(r, slave, out),
-            Self::SetUserCalibration(r) => rtu::Command::encode_request(r, slave, out),
-            Self::GetSlaveId(r) => rtu::Command::encode_request(r, slave, out),
+            Self::GetVersion(r) => rtu::dispatch::encode_request(r, slave, out),
+            Self::StopMeasurement(r) => rtu::dispatch::encode_request(r, slave, out),
+            Self::GetUserCalibration(r) => rtu::dispatch::encode_request(r, slave, out),
+            Self::SetUserCalibration(r) => rtu::dispatch::encode_request(r, slave, out),
+            Self::GetSlaveId(r) => rtu::dispatch::encode_request(r, slave, out),
         }
     }
     /// The value of field `index` of [`CommandId::request_fields`].
@@ -836,33 +835,31 @@ impl Response {
     pub fn encode(&self, slave: u8, out: &mut [u8]) -> Result<usize, rtu::EncodeError> {
         match self {
             Self::SetSlaveId => {
-                <SetSlaveId as rtu::Command>::encode_response(&(), slave, out)
+                rtu::dispatch::encode_response::<SetSlaveId>(&(), slave, out)
             }
-            Self::GetSn(r) => <GetSn as rtu::Command>::encode_response(r, slave, out),
+            Self::GetSn(r) => rtu::dispatch::encode_response::<GetSn>(r, slave, out),
             Self::StartMeasurement => {
-                <StartMeasurement as rtu::Command>::encode_response(&(), slave, out)
+                rtu::dispatch::encode_response::<StartMeasurement>(&(), slave, out)
             }
             Self::GetTemperatureAndConductivity(r) => {
-                <GetTemperatureAndConductivity as rtu::Command>::encode_response(
-                    r,
-                    slave,
-                    out,
-                )
+                rtu::dispatch::encode_response::<
+                    GetTemperatureAndConductivity,
+                >(r, slave, out)
             }
             Self::GetVersion(r) => {
-                <GetVersion as rtu::Command>::encode_response(r, slave, out)
+                rtu::dispatch::encode_response::<GetVersion>(r, slave, out)
             }
             Self::StopMeasurement(r) => {
-                <StopMeasurement as rtu::Command>::encode_response(r, slave, out)
+                rtu::dispatch::encode_response::<StopMeasurement>(r, slave, out)
             }
             Self::GetUserCalibration(r) => {
-                <GetUserCalibration as rtu::Command>::encode_response(r, slave, out)
+                rtu::dispatch::encode_response::<GetUserCalibration>(r, slave, out)
             }
             Self::SetUserCalibration => {
-                <SetUserCalibration as rtu::Command>::encode_response(&(), slave, out)
+                rtu::dispatch::encode_response::<SetUserCalibration>(&(), slave, out)
             }
             Self::GetSlaveId(r) => {
-                <GetSlaveId as rtu::Command>::encode_response(r, slave, out)
+                rtu::dispatch::encode_response::<GetSlaveId>(r, slave, out)
             }
         }
     }

@@ -1360,67 +1360,67 @@ impl CommandId {
     pub fn decode_request(self, frame: &[u8]) -> Result<(u8, Request), rtu::FrameError> {
         match self {
             Self::SetSlaveId => {
-                <SetSlaveId as rtu::Command>::decode_request(frame)
+                rtu::dispatch::decode_request::<SetSlaveId>(frame)
                     .map(|(slave, r)| (slave, Request::SetSlaveId(r)))
             }
             Self::GetSn => {
-                <GetSn as rtu::Command>::decode_request(frame)
+                rtu::dispatch::decode_request::<GetSn>(frame)
                     .map(|(slave, r)| (slave, Request::GetSn(r)))
             }
             Self::GetPh => {
-                <GetPh as rtu::Command>::decode_request(frame)
+                rtu::dispatch::decode_request::<GetPh>(frame)
                     .map(|(slave, r)| (slave, Request::GetPh(r)))
             }
             Self::GetOrpAndPh => {
-                <GetOrpAndPh as rtu::Command>::decode_request(frame)
+                rtu::dispatch::decode_request::<GetOrpAndPh>(frame)
                     .map(|(slave, r)| (slave, Request::GetOrpAndPh(r)))
             }
             Self::GetOrp => {
-                <GetOrp as rtu::Command>::decode_request(frame)
+                rtu::dispatch::decode_request::<GetOrp>(frame)
                     .map(|(slave, r)| (slave, Request::GetOrp(r)))
             }
             Self::GetVersion => {
-                <GetVersion as rtu::Command>::decode_request(frame)
+                rtu::dispatch::decode_request::<GetVersion>(frame)
                     .map(|(slave, r)| (slave, Request::GetVersion(r)))
             }
             Self::StartPhCalibration => {
-                <StartPhCalibration as rtu::Command>::decode_request(frame)
+                rtu::dispatch::decode_request::<StartPhCalibration>(frame)
                     .map(|(slave, r)| (slave, Request::StartPhCalibration(r)))
             }
             Self::GetCalibrationStatus => {
-                <GetCalibrationStatus as rtu::Command>::decode_request(frame)
+                rtu::dispatch::decode_request::<GetCalibrationStatus>(frame)
                     .map(|(slave, r)| (slave, Request::GetCalibrationStatus(r)))
             }
             Self::GetTemperature => {
-                <GetTemperature as rtu::Command>::decode_request(frame)
+                rtu::dispatch::decode_request::<GetTemperature>(frame)
                     .map(|(slave, r)| (slave, Request::GetTemperature(r)))
             }
             Self::SetPhElectrodeCoefficients => {
-                <SetPhElectrodeCoefficients as rtu::Command>::decode_request(frame)
+                rtu::dispatch::decode_request::<SetPhElectrodeCoefficients>(frame)
                     .map(|(slave, r)| (slave, Request::SetPhElectrodeCoefficients(r)))
             }
             Self::GetPhElectrodeCoefficients => {
-                <GetPhElectrodeCoefficients as rtu::Command>::decode_request(frame)
+                rtu::dispatch::decode_request::<GetPhElectrodeCoefficients>(frame)
                     .map(|(slave, r)| (slave, Request::GetPhElectrodeCoefficients(r)))
             }
             Self::SetOrpCalibration => {
-                <SetOrpCalibration as rtu::Command>::decode_request(frame)
+                rtu::dispatch::decode_request::<SetOrpCalibration>(frame)
                     .map(|(slave, r)| (slave, Request::SetOrpCalibration(r)))
             }
             Self::GetOrpCalibration => {
-                <GetOrpCalibration as rtu::Command>::decode_request(frame)
+                rtu::dispatch::decode_request::<GetOrpCalibration>(frame)
                     .map(|(slave, r)| (slave, Request::GetOrpCalibration(r)))
             }
             Self::SetPhCalibration => {
-                <SetPhCalibration as rtu::Command>::decode_request(frame)
+                rtu::dispatch::decode_request::<SetPhCalibration>(frame)
                     .map(|(slave, r)| (slave, Request::SetPhCalibration(r)))
             }
             Self::GetPhCalibration => {
-                <GetPhCalibration as rtu::Command>::decode_request(frame)
+                rtu::dispatch::decode_request::<GetPhCalibration>(frame)
                     .map(|(slave, r)| (slave, Request::GetPhCalibration(r)))
             }
             Self::GetSlaveId => {
-                <GetSlaveId as rtu::Command>::decode_request(frame)
+                rtu::dispatch::decode_request::<GetSlaveId>(frame)
                     .map(|(slave, r)| (slave, Request::GetSlaveId(r)))
             }
         }
@@ -1433,73 +1433,71 @@ impl CommandId {
     ) -> Result<Response, rtu::FrameError> {
         match self {
             Self::SetSlaveId => {
-                <SetSlaveId as rtu::Command>::decode_response(slave, frame)
+                rtu::dispatch::decode_response::<SetSlaveId>(slave, frame)
                     .map(|()| Response::SetSlaveId)
             }
             Self::GetSn => {
-                <GetSn as rtu::Command>::decode_response(slave, frame)
+                rtu::dispatch::decode_response::<GetSn>(slave, frame)
                     .map(Response::GetSn)
             }
             Self::GetPh => {
-                <GetPh as rtu::Command>::decode_response(slave, frame)
+                rtu::dispatch::decode_response::<GetPh>(slave, frame)
                     .map(Response::GetPh)
             }
             Self::GetOrpAndPh => {
-                <GetOrpAndPh as rtu::Command>::decode_response(slave, frame)
+                rtu::dispatch::decode_response::<GetOrpAndPh>(slave, frame)
                     .map(Response::GetOrpAndPh)
             }
             Self::GetOrp => {
-                <GetOrp as rtu::Command>::decode_response(slave, frame)
+                rtu::dispatch::decode_response::<GetOrp>(slave, frame)
                     .map(Response::GetOrp)
             }
             Self::GetVersion => {
-                <GetVersion as rtu::Command>::decode_response(slave, frame)
+                rtu::dispatch::decode_response::<GetVersion>(slave, frame)
                     .map(Response::GetVersion)
             }
             Self::StartPhCalibration => {
-                <StartPhCalibration as rtu::Command>::decode_response(slave, frame)
+                rtu::dispatch::decode_response::<StartPhCalibration>(slave, frame)
                     .map(|()| Response::StartPhCalibration)
             }
             Self::GetCalibrationStatus => {
-                <GetCalibrationStatus as rtu::Command>::decode_response(slave, frame)
+                rtu::dispatch::decode_response::<GetCalibrationStatus>(slave, frame)
                     .map(Response::GetCalibrationStatus)
             }
             Self::GetTemperature => {
-                <GetTemperature as rtu::Command>::decode_response(slave, frame)
+                rtu::dispatch::decode_response::<GetTemperature>(slave, frame)
                     .map(Response::GetTemperature)
             }
             Self::SetPhElectrodeCoefficients => {
-                <SetPhElectrodeCoefficients as rtu::Command>::decode_response(
-                        slave,
-                        frame,
-                    )
+                rtu::dispatch::decode_response::<
+                    SetPhElectrodeCoefficients,
+                >(slave, frame)
                     .map(|()| Response::SetPhElectrodeCoefficients)
             }
             Self::GetPhElectrodeCoefficients => {
-                <GetPhElectrodeCoefficients as rtu::Command>::decode_response(
-                        slave,
-                        frame,
-                    )
+                rtu::dispatch::decode_response::<
+                    GetPhElectrodeCoefficients,
+                >(slave, frame)
                     .map(Response::GetPhElectrodeCoefficients)
             }
             Self::SetOrpCalibration => {
-                <SetOrpCalibration as rtu::Command>::decode_response(slave, frame)
+                rtu::dispatch::decode_response::<SetOrpCalibration>(slave, frame)
                     .map(|()| Response::SetOrpCalibration)
             }
             Self::GetOrpCalibration => {
-                <GetOrpCalibration as rtu::Command>::decode_response(slave, frame)
+                rtu::dispatch::decode_response::<GetOrpCalibration>(slave, frame)
                     .map(Response::GetOrpCalibration)
             }
             Self::SetPhCalibration => {
-                <SetPhCalibration as rtu::Command>::decode_response(slave, frame)
+                rtu::dispatch::decode_response::<SetPhCalibration>(slave, frame)
                     .map(|()| Response::SetPhCalibration)
             }
             Self::GetPhCalibration => {
-                <GetPhCalibration as rtu::Command>::decode_response(slave, frame)
+                rtu::dispatch::decode_response::<GetPhCalibration>(slave, frame)
                     .map(Response::GetPhCalibration)
             }
             Self::GetSlaveId => {
-                <GetSlaveId as rtu::Command>::decode_response(slave, frame)
+                rtu::dispatch::decode_response::<GetSlaveId>(slave, frame)
                     .map(Response::GetSlaveId)
             }
         }
@@ -1576,26 +1574,26 @@ impl Request {
     /// Writes the request frame for `slave` into `out` and returns its length.
     pub fn encode(&self, slave: u8, out: &mut [u8]) -> Result<usize, rtu::EncodeError> {
         match self {
-            Self::SetSlaveId(r) => rtu::Command::encode_request(r, slave, out),
-            Self::GetSn(r) => rtu::Command::encode_request(r, slave, out),
-            Self::GetPh(r) => rtu::Command::encode_request(r, slave, out),
-            Self::GetOrpAndPh(r) => rtu::Command::encode_request(r, slave, out),
-            Self::GetOrp(r) => rtu::Command::encode_request(r, slave, out),
-            Self::GetVersion(r) => rtu::Command::encode_request(r, slave, out),
-            Self::StartPhCalibration(r) => rtu::Command::encode_request(r, slave, out),
-            Self::GetCalibrationStatus(r) => rtu::Command::encode_request(r, slave, out),
-            Self::GetTemperature(r) => rtu::Command::encode_request(r, slave, out),
+            Self::SetSlaveId(r) => rtu::dispatch::encode_request(r, slave, out),
+            Self::GetSn(r) => rtu::dispatch::encode_request(r, slave, out),
+            Self::GetPh(r) => rtu::dispatch::encode_request(r, slave, out),
+            Self::GetOrpAndPh(r) => rtu::dispatch::encode_request(r, slave, out),
+            Self::GetOrp(r) => rtu::dispatch::encode_request(r, slave, out),
+            Self::GetVersion(r) => rtu::dispatch::encode_request(r, slave, out),
+            Self::StartPhCalibration(r) => rtu::dispatch::encode_request(r, slave, out),
+            Self::GetCalibrationStatus(r) => rtu::dispatch::encode_request(r, slave, out),
+            Self::GetTemperature(r) => rtu::dispatch::encode_request(r, slave, out),
             Self::SetPhElectrodeCoefficients(r) => {
-                rtu::Command::encode_request(r, slave, out)
+                rtu::dispatch::encode_request(r, slave, out)
             }
             Self::GetPhElectrodeCoefficients(r) => {
-                rtu::Command::encode_request(r, slave, out)
+                rtu::dispatch::encode_request(r, slave, out)
             }
-            Self::SetOrpCalibration(r) => rtu::Command::encode_request(r, slave, out),
-            Self::GetOrpCalibration(r) => rtu::Command::encode_request(r, slave, out),
-            Self::SetPhCalibration(r) => rtu::Command::encode_request(r, slave, out),
-            Self::GetPhCalibration(r) => rtu::Command::encode_request(r, slave, out),
-            Self::GetSlaveId(r) => rtu::Command::encode_request(r, slave, out),
+            Self::SetOrpCalibration(r) => rtu::dispatch::encode_request(r, slave, out),
+            Self::GetOrpCalibration(r) => rtu::dispatch::encode_request(r, slave, out),
+            Self::SetPhCalibration(r) => rtu::dispatch::encode_request(r, slave, out),
+            Self::GetPhCalibration(r) => rtu::dispatch::encode_request(r, slave, out),
+            Self::GetSlaveId(r) => rtu::dispatch::encode_request(r, slave, out),
         }
     }
     /// The value of field `index` of [`CommandId::request_fields`].
@@ -1696,54 +1694,50 @@ impl Response {
     pub fn encode(&self, slave: u8, out: &mut [u8]) -> Result<usize, rtu::EncodeError> {
         match self {
             Self::SetSlaveId => {
-                <SetSlaveId as rtu::Command>::encode_response(&(), slave, out)
+                rtu::dispatch::encode_response::<SetSlaveId>(&(), slave, out)
             }
-            Self::GetSn(r) => <GetSn as rtu::Command>::encode_response(r, slave, out),
-            Self::GetPh(r) => <GetPh as rtu::Command>::encode_response(r, slave, out),
+            Self::GetSn(r) => rtu::dispatch::encode_response::<GetSn>(r, slave, out),
+            Self::GetPh(r) => rtu::dispatch::encode_response::<GetPh>(r, slave, out),
             Self::GetOrpAndPh(r) => {
-                <GetOrpAndPh as rtu::Command>::encode_response(r, slave, out)
+                rtu::dispatch::encode_response::<GetOrpAndPh>(r, slave, out)
             }
-            Self::GetOrp(r) => <GetOrp as rtu::Command>::encode_response(r, slave, out),
+            Self::GetOrp(r) => rtu::dispatch::encode_response::<GetOrp>(r, slave, out),
             Self::GetVersion(r) => {
-                <GetVersion as rtu::Command>::encode_response(r, slave, out)
+                rtu::dispatch::encode_response::<GetVersion>(r, slave, out)
             }
             Self::StartPhCalibration => {
-                <StartPhCalibration as rtu::Command>::encode_response(&(), slave, out)
+                rtu::dispatch::encode_response::<StartPhCalibration>(&(), slave, out)
             }
             Self::GetCalibrationStatus(r) => {
-                <GetCalibrationStatus as rtu::Command>::encode_response(r, slave, out)
+                rtu::dispatch::encode_response::<GetCalibrationStatus>(r, slave, out)
             }
             Self::GetTemperature(r) => {
-                <GetTemperature as rtu::Command>::encode_response(r, slave, out)
+                rtu::dispatch::encode_response::<GetTemperature>(r, slave, out)
             }
             Self::SetPhElectrodeCoefficients => {
-                <SetPhElectrodeCoefficients as rtu::Command>::encode_response(
-                    &(),
-                    slave,
-                    out,
-                )
+                rtu::dispatch::encode_response::<
+                    SetPhElectrodeCoefficients,
+                >(&(), slave, out)
             }
             Self::GetPhElectrodeCoefficients(r) => {
-                <GetPhElectrodeCoefficients as rtu::Command>::encode_response(
-                    r,
-                    slave,
-                    out,
-                )
+                rtu::dispatch::encode_response::<
+                    GetPhElectrodeCoefficients,
+                >(r, slave, out)
             }
             Self::SetOrpCalibration => {
-                <SetOrpCalibration as rtu::Command>::encode_response(&(), slave, out)
+                rtu::dispatch::encode_response::<SetOrpCalibration>(&(), slave, out)
             }
             Self::GetOrpCalibration(r) => {
-                <GetOrpCalibration as rtu::Command>::encode_response(r, slave, out)
+                rtu::dispatch::encode_response::<GetOrpCalibration>(r, slave, out)
             }
             Self::SetPhCalibration => {
-                <SetPhCalibration as rtu::Command>::encode_response(&(), slave, out)
+                rtu::dispatch::encode_response::<SetPhCalibration>(&(), slave, out)
             }
             Self::GetPhCalibration(r) => {
-                <GetPhCalibration as rtu::Command>::encode_response(r, slave, out)
+                rtu::dispatch::encode_response::<GetPhCalibration>(r, slave, out)
             }
             Self::GetSlaveId(r) => {
-                <GetSlaveId as rtu::Command>::encode_response(r, slave, out)
+                rtu::dispatch::encode_response::<GetSlaveId>(r, slave, out)
             }
         }
     }

@@ -890,43 +890,43 @@ impl CommandId {
     pub fn decode_request(self, frame: &[u8]) -> Result<(u8, Request), rtu::FrameError> {
         match self {
             Self::GetMeasurementData => {
-                <GetMeasurementData as rtu::Command>::decode_request(frame)
+                rtu::dispatch::decode_request::<GetMeasurementData>(frame)
                     .map(|(slave, r)| (slave, Request::GetMeasurementData(r)))
             }
             Self::GetSn => {
-                <GetSn as rtu::Command>::decode_request(frame)
+                rtu::dispatch::decode_request::<GetSn>(frame)
                     .map(|(slave, r)| (slave, Request::GetSn(r)))
             }
             Self::GetErrorFlag => {
-                <GetErrorFlag as rtu::Command>::decode_request(frame)
+                rtu::dispatch::decode_request::<GetErrorFlag>(frame)
                     .map(|(slave, r)| (slave, Request::GetErrorFlag(r)))
             }
             Self::GetBrushInterval => {
-                <GetBrushInterval as rtu::Command>::decode_request(frame)
+                rtu::dispatch::decode_request::<GetBrushInterval>(frame)
                     .map(|(slave, r)| (slave, Request::GetBrushInterval(r)))
             }
             Self::SetBrushInterval => {
-                <SetBrushInterval as rtu::Command>::decode_request(frame)
+                rtu::dispatch::decode_request::<SetBrushInterval>(frame)
                     .map(|(slave, r)| (slave, Request::SetBrushInterval(r)))
             }
             Self::SetTime => {
-                <SetTime as rtu::Command>::decode_request(frame)
+                rtu::dispatch::decode_request::<SetTime>(frame)
                     .map(|(slave, r)| (slave, Request::SetTime(r)))
             }
             Self::GetTime => {
-                <GetTime as rtu::Command>::decode_request(frame)
+                rtu::dispatch::decode_request::<GetTime>(frame)
                     .map(|(slave, r)| (slave, Request::GetTime(r)))
             }
             Self::SetSlaveId => {
-                <SetSlaveId as rtu::Command>::decode_request(frame)
+                rtu::dispatch::decode_request::<SetSlaveId>(frame)
                     .map(|(slave, r)| (slave, Request::SetSlaveId(r)))
             }
             Self::GetSupplyVoltage => {
-                <GetSupplyVoltage as rtu::Command>::decode_request(frame)
+                rtu::dispatch::decode_request::<GetSupplyVoltage>(frame)
                     .map(|(slave, r)| (slave, Request::GetSupplyVoltage(r)))
             }
             Self::ActiveBrush => {
-                <ActiveBrush as rtu::Command>::decode_request(frame)
+                rtu::dispatch::decode_request::<ActiveBrush>(frame)
                     .map(|(slave, r)| (slave, Request::ActiveBrush(r)))
             }
         }
@@ -939,43 +939,43 @@ impl CommandId {
     ) -> Result<Response, rtu::FrameError> {
         match self {
             Self::GetMeasurementData => {
-                <GetMeasurementData as rtu::Command>::decode_response(slave, frame)
+                rtu::dispatch::decode_response::<GetMeasurementData>(slave, frame)
                     .map(Response::GetMeasurementData)
             }
             Self::GetSn => {
-                <GetSn as rtu::Command>::decode_response(slave, frame)
+                rtu::dispatch::decode_response::<GetSn>(slave, frame)
                     .map(Response::GetSn)
             }
             Self::GetErrorFlag => {
-                <GetErrorFlag as rtu::Command>::decode_response(slave, frame)
+                rtu::dispatch::decode_response::<GetErrorFlag>(slave, frame)
                     .map(Response::GetErrorFlag)
             }
             Self::GetBrushInterval => {
-                <GetBrushInterval as rtu::Command>::decode_response(slave, frame)
+                rtu::dispatch::decode_response::<GetBrushInterval>(slave, frame)
                     .map(Response::GetBrushInterval)
             }
             Self::SetBrushInterval => {
-                <SetBrushInterval as rtu::Command>::decode_response(slave, frame)
+                rtu::dispatch::decode_response::<SetBrushInterval>(slave, frame)
                     .map(|()| Response::SetBrushInterval)
             }
             Self::SetTime => {
-                <SetTime as rtu::Command>::decode_response(slave, frame)
+                rtu::dispatch::decode_response::<SetTime>(slave, frame)
                     .map(|()| Response::SetTime)
             }
             Self::GetTime => {
-                <GetTime as rtu::Command>::decode_response(slave, frame)
+                rtu::dispatch::decode_response::<GetTime>(slave, frame)
                     .map(Response::GetTime)
             }
             Self::SetSlaveId => {
-                <SetSlaveId as rtu::Command>::decode_response(slave, frame)
+                rtu::dispatch::decode_response::<SetSlaveId>(slave, frame)
                     .map(|()| Response::SetSlaveId)
             }
             Self::GetSupplyVoltage => {
-                <GetSupplyVoltage as rtu::Command>::decode_response(slave, frame)
+                rtu::dispatch::decode_response::<GetSupplyVoltage>(slave, frame)
                     .map(Response::GetSupplyVoltage)
             }
             Self::ActiveBrush => {
-                <ActiveBrush as rtu::Command>::decode_response(slave, frame)
+                rtu::dispatch::decode_response::<ActiveBrush>(slave, frame)
                     .map(|()| Response::ActiveBrush)
             }
         }
@@ -1034,16 +1034,16 @@ impl Request {
     /// Writes the request frame for `slave` into `out` and returns its length.
     pub fn encode(&self, slave: u8, out: &mut [u8]) -> Result<usize, rtu::EncodeError> {
         match self {
-            Self::GetMeasurementData(r) => rtu::Command::encode_request(r, slave, out),
-            Self::GetSn(r) => rtu::Command::encode_request(r, slave, out),
-            Self::GetErrorFlag(r) => rtu::Command::encode_request(r, slave, out),
-            Self::GetBrushInterval(r) => rtu::Command::encode_request(r, slave, out),
-            Self::SetBrushInterval(r) => rtu::Command::encode_request(r, slave, out),
-            Self::SetTime(r) => rtu::Command::encode_request(r, slave, out),
-            Self::GetTime(r) => rtu::Command::encode_request(r, slave, out),
-            Self::SetSlaveId(r) => rtu::Command::encode_request(r, slave, out),
-            Self::GetSupplyVoltage(r) => rtu::Command::encode_request(r, slave, out),
-            Self::ActiveBrush(r) => rtu::Command::encode_request(r, slave, out),
+            Self::GetMeasurementData(r) => rtu::dispatch::encode_request(r, slave, out),
+            Self::GetSn(r) => rtu::dispatch::encode_request(r, slave, out),
+            Self::GetErrorFlag(r) => rtu::dispatch::encode_request(r, slave, out),
+            Self::GetBrushInterval(r) => rtu::dispatch::encode_request(r, slave, out),
+            Self::SetBrushInterval(r) => rtu::dispatch::encode_request(r, slave, out),
+            Self::SetTime(r) => rtu::dispatch::encode_request(r, slave, out),
+            Self::GetTime(r) => rtu::dispatch::encode_request(r, slave, out),
+            Self::SetSlaveId(r) => rtu::dispatch::encode_request(r, slave, out),
+            Self::GetSupplyVoltage(r) => rtu::dispatch::encode_request(r, slave, out),
+            Self::ActiveBrush(r) => rtu::dispatch::encode_request(r, slave, out),
         }
     }
     /// The value of field `index` of [`CommandId::request_fields`].
@@ -1120,28 +1120,28 @@ impl Response {
     pub fn encode(&self, slave: u8, out: &mut [u8]) -> Result<usize, rtu::EncodeError> {
         match self {
             Self::GetMeasurementData(r) => {
-                <GetMeasurementData as rtu::Command>::encode_response(r, slave, out)
+                rtu::dispatch::encode_response::<GetMeasurementData>(r, slave, out)
             }
-            Self::GetSn(r) => <GetSn as rtu::Command>::encode_response(r, slave, out),
+            Self::GetSn(r) => rtu::dispatch::encode_response::<GetSn>(r, slave, out),
             Self::GetErrorFlag(r) => {
-                <GetErrorFlag as rtu::Command>::encode_response(r, slave, out)
+                rtu::dispatch::encode_response::<GetErrorFlag>(r, slave, out)
             }
             Self::GetBrushInterval(r) => {
-                <GetBrushInterval as rtu::Command>::encode_response(r, slave, out)
+                rtu::dispatch::encode_response::<GetBrushInterval>(r, slave, out)
             }
             Self::SetBrushInterval => {
-                <SetBrushInterval as rtu::Command>::encode_response(&(), slave, out)
+                rtu::dispatch::encode_response::<SetBrushInterval>(&(), slave, out)
             }
-            Self::SetTime => <SetTime as rtu::Command>::encode_response(&(), slave, out),
-            Self::GetTime(r) => <GetTime as rtu::Command>::encode_response(r, slave, out),
+            Self::SetTime => rtu::dispatch::encode_response::<SetTime>(&(), slave, out),
+            Self::GetTime(r) => rtu::dispatch::encode_response::<GetTime>(r, slave, out),
             Self::SetSlaveId => {
-                <SetSlaveId as rtu::Command>::encode_response(&(), slave, out)
+                rtu::dispatch::encode_response::<SetSlaveId>(&(), slave, out)
             }
             Self::GetSupplyVoltage(r) => {
-                <GetSupplyVoltage as rtu::Command>::encode_response(r, slave, out)
+                rtu::dispatch::encode_response::<GetSupplyVoltage>(r, slave, out)
             }
             Self::ActiveBrush => {
-                <ActiveBrush as rtu::Command>::encode_response(&(), slave, out)
+                rtu::dispatch::encode_response::<ActiveBrush>(&(), slave, out)
             }
         }
     }

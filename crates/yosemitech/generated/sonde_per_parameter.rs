@@ -703,59 +703,59 @@ impl CommandId {
     pub fn decode_request(self, frame: &[u8]) -> Result<(u8, Request), rtu::FrameError> {
         match self {
             Self::SetSlaveId => {
-                <SetSlaveId as rtu::Command>::decode_request(frame)
+                rtu::dispatch::decode_request::<SetSlaveId>(frame)
                     .map(|(slave, r)| (slave, Request::SetSlaveId(r)))
             }
             Self::GetSn => {
-                <GetSn as rtu::Command>::decode_request(frame)
+                rtu::dispatch::decode_request::<GetSn>(frame)
                     .map(|(slave, r)| (slave, Request::GetSn(r)))
             }
             Self::GetDoMgL => {
-                <GetDoMgL as rtu::Command>::decode_request(frame)
+                rtu::dispatch::decode_request::<GetDoMgL>(frame)
                     .map(|(slave, r)| (slave, Request::GetDoMgL(r)))
             }
             Self::GetTurbidityNtu => {
-                <GetTurbidityNtu as rtu::Command>::decode_request(frame)
+                rtu::dispatch::decode_request::<GetTurbidityNtu>(frame)
                     .map(|(slave, r)| (slave, Request::GetTurbidityNtu(r)))
             }
             Self::GetConductivityMsCm => {
-                <GetConductivityMsCm as rtu::Command>::decode_request(frame)
+                rtu::dispatch::decode_request::<GetConductivityMsCm>(frame)
                     .map(|(slave, r)| (slave, Request::GetConductivityMsCm(r)))
             }
             Self::GetPh => {
-                <GetPh as rtu::Command>::decode_request(frame)
+                rtu::dispatch::decode_request::<GetPh>(frame)
                     .map(|(slave, r)| (slave, Request::GetPh(r)))
             }
             Self::GetTemperatureC => {
-                <GetTemperatureC as rtu::Command>::decode_request(frame)
+                rtu::dispatch::decode_request::<GetTemperatureC>(frame)
                     .map(|(slave, r)| (slave, Request::GetTemperatureC(r)))
             }
             Self::GetSalinity => {
-                <GetSalinity as rtu::Command>::decode_request(frame)
+                rtu::dispatch::decode_request::<GetSalinity>(frame)
                     .map(|(slave, r)| (slave, Request::GetSalinity(r)))
             }
             Self::GetDoSaturation => {
-                <GetDoSaturation as rtu::Command>::decode_request(frame)
+                rtu::dispatch::decode_request::<GetDoSaturation>(frame)
                     .map(|(slave, r)| (slave, Request::GetDoSaturation(r)))
             }
             Self::GetOrpMv => {
-                <GetOrpMv as rtu::Command>::decode_request(frame)
+                rtu::dispatch::decode_request::<GetOrpMv>(frame)
                     .map(|(slave, r)| (slave, Request::GetOrpMv(r)))
             }
             Self::GetChlorophyll => {
-                <GetChlorophyll as rtu::Command>::decode_request(frame)
+                rtu::dispatch::decode_request::<GetChlorophyll>(frame)
                     .map(|(slave, r)| (slave, Request::GetChlorophyll(r)))
             }
             Self::GetOilInWater => {
-                <GetOilInWater as rtu::Command>::decode_request(frame)
+                rtu::dispatch::decode_request::<GetOilInWater>(frame)
                     .map(|(slave, r)| (slave, Request::GetOilInWater(r)))
             }
             Self::GetBga => {
-                <GetBga as rtu::Command>::decode_request(frame)
+                rtu::dispatch::decode_request::<GetBga>(frame)
                     .map(|(slave, r)| (slave, Request::GetBga(r)))
             }
             Self::GetTds => {
-                <GetTds as rtu::Command>::decode_request(frame)
+                rtu::dispatch::decode_request::<GetTds>(frame)
                     .map(|(slave, r)| (slave, Request::GetTds(r)))
             }
         }
@@ -768,59 +768,59 @@ impl CommandId {
     ) -> Result<Response, rtu::FrameError> {
         match self {
             Self::SetSlaveId => {
-                <SetSlaveId as rtu::Command>::decode_response(slave, frame)
+                rtu::dispatch::decode_response::<SetSlaveId>(slave, frame)
                     .map(|()| Response::SetSlaveId)
             }
             Self::GetSn => {
-                <GetSn as rtu::Command>::decode_response(slave, frame)
+                rtu::dispatch::decode_response::<GetSn>(slave, frame)
                     .map(Response::GetSn)
             }
             Self::GetDoMgL => {
-                <GetDoMgL as rtu::Command>::decode_response(slave, frame)
+                rtu::dispatch::decode_response::<GetDoMgL>(slave, frame)
                     .map(Response::GetDoMgL)
             }
             Self::GetTurbidityNtu => {
-                <GetTurbidityNtu as rtu::Command>::decode_response(slave, frame)
+                rtu::dispatch::decode_response::<GetTurbidityNtu>(slave, frame)
                     .map(Response::GetTurbidityNtu)
             }
             Self::GetConductivityMsCm => {
-                <GetConductivityMsCm as rtu::Command>::decode_response(slave, frame)
+                rtu::dispatch::decode_response::<GetConductivityMsCm>(slave, frame)
                     .map(Response::GetConductivityMsCm)
             }
             Self::GetPh => {
-                <GetPh as rtu::Command>::decode_response(slave, frame)
+                rtu::dispatch::decode_response::<GetPh>(slave, frame)
                     .map(Response::GetPh)
             }
             Self::GetTemperatureC => {
-                <GetTemperatureC as rtu::Command>::decode_response(slave, frame)
+                rtu::dispatch::decode_response::<GetTemperatureC>(slave, frame)
                     .map(Response::GetTemperatureC)
             }
             Self::GetSalinity => {
-                <GetSalinity as rtu::Command>::decode_response(slave, frame)
+                rtu::dispatch::decode_response::<GetSalinity>(slave, frame)
                     .map(Response::GetSalinity)
             }
             Self::GetDoSaturation => {
-                <GetDoSaturation as rtu::Command>::decode_response(slave, frame)
+                rtu::dispatch::decode_response::<GetDoSaturation>(slave, frame)
                     .map(Response::GetDoSaturation)
             }
             Self::GetOrpMv => {
-                <GetOrpMv as rtu::Command>::decode_response(slave, frame)
+                rtu::dispatch::decode_response::<GetOrpMv>(slave, frame)
                     .map(Response::GetOrpMv)
             }
             Self::GetChlorophyll => {
-                <GetChlorophyll as rtu::Command>::decode_response(slave, frame)
+                rtu::dispatch::decode_response::<GetChlorophyll>(slave, frame)
                     .map(Response::GetChlorophyll)
             }
             Self::GetOilInWater => {
-                <GetOilInWater as rtu::Command>::decode_response(slave, frame)
+                rtu::dispatch::decode_response::<GetOilInWater>(slave, frame)
                     .map(Response::GetOilInWater)
             }
             Self::GetBga => {
-                <GetBga as rtu::Command>::decode_response(slave, frame)
+                rtu::dispatch::decode_response::<GetBga>(slave, frame)
                     .map(Response::GetBga)
             }
             Self::GetTds => {
-                <GetTds as rtu::Command>::decode_response(slave, frame)
+                rtu::dispatch::decode_response::<GetTds>(slave, frame)
                     .map(Response::GetTds)
             }
         }
@@ -891,20 +891,20 @@ impl Request {
     /// Writes the request frame for `slave` into `out` and returns its length.
     pub fn encode(&self, slave: u8, out: &mut [u8]) -> Result<usize, rtu::EncodeError> {
         match self {
-            Self::SetSlaveId(r) => rtu::Command::encode_request(r, slave, out),
-            Self::GetSn(r) => rtu::Command::encode_request(r, slave, out),
-            Self::GetDoMgL(r) => rtu::Command::encode_request(r, slave, out),
-            Self::GetTurbidityNtu(r) => rtu::Command::encode_request(r, slave, out),
-            Self::GetConductivityMsCm(r) => rtu::Command::encode_request(r, slave, out),
-            Self::GetPh(r) => rtu::Command::encode_request(r, slave, out),
-            Self::GetTemperatureC(r) => rtu::Command::encode_request(r, slave, out),
-            Self::GetSalinity(r) => rtu::Command::encode_request(r, slave, out),
-            Self::GetDoSaturation(r) => rtu::Command::encode_request(r, slave, out),
-            Self::GetOrpMv(r) => rtu::Command::encode_request(r, slave, out),
-            Self::GetChlorophyll(r) => rtu::Command::encode_request(r, slave, out),
-            Self::GetOilInWater(r) => rtu::Command::encode_request(r, slave, out),
-            Self::GetBga(r) => rtu::Command::encode_request(r, slave, out),
-            Self::GetTds(r) => rtu::Command::encode_request(r, slave, out),
+            Self::SetSlaveId(r) => rtu::dispatch::encode_request(r, slave, out),
+            Self::GetSn(r) => rtu::dispatch::encode_request(r, slave, out),
+            Self::GetDoMgL(r) => rtu::dispatch::encode_request(r, slave, out),
+            Self::GetTurbidityNtu(r) => rtu::dispatch::encode_request(r, slave, out),
+            Self::GetConductivityMsCm(r) => rtu::dispatch::encode_request(r, slave, out),
+            Self::GetPh(r) => rtu::dispatch::encode_request(r, slave, out),
+            Self::GetTemperatureC(r) => rtu::dispatch::encode_request(r, slave, out),
+            Self::GetSalinity(r) => rtu::dispatch::encode_request(r, slave, out),
+            Self::GetDoSaturation(r) => rtu::dispatch::encode_request(r, slave, out),
+            Self::GetOrpMv(r) => rtu::dispatch::encode_request(r, slave, out),
+            Self::GetChlorophyll(r) => rtu::dispatch::encode_request(r, slave, out),
+            Self::GetOilInWater(r) => rtu::dispatch::encode_request(r, slave, out),
+            Self::GetBga(r) => rtu::dispatch::encode_request(r, slave, out),
+            Self::GetTds(r) => rtu::dispatch::encode_request(r, slave, out),
         }
     }
     /// The value of field `index` of [`CommandId::request_fields`].
@@ -997,39 +997,39 @@ impl Response {
     pub fn encode(&self, slave: u8, out: &mut [u8]) -> Result<usize, rtu::EncodeError> {
         match self {
             Self::SetSlaveId => {
-                <SetSlaveId as rtu::Command>::encode_response(&(), slave, out)
+                rtu::dispatch::encode_response::<SetSlaveId>(&(), slave, out)
             }
-            Self::GetSn(r) => <GetSn as rtu::Command>::encode_response(r, slave, out),
+            Self::GetSn(r) => rtu::dispatch::encode_response::<GetSn>(r, slave, out),
             Self::GetDoMgL(r) => {
-                <GetDoMgL as rtu::Command>::encode_response(r, slave, out)
+                rtu::dispatch::encode_response::<GetDoMgL>(r, slave, out)
             }
             Self::GetTurbidityNtu(r) => {
-                <GetTurbidityNtu as rtu::Command>::encode_response(r, slave, out)
+                rtu::dispatch::encode_response::<GetTurbidityNtu>(r, slave, out)
             }
             Self::GetConductivityMsCm(r) => {
-                <GetConductivityMsCm as rtu::Command>::encode_response(r, slave, out)
+                rtu::dispatch::encode_response::<GetConductivityMsCm>(r, slave, out)
             }
-            Self::GetPh(r) => <GetPh as rtu::Command>::encode_response(r, slave, out),
+            Self::GetPh(r) => rtu::dispatch::encode_response::<GetPh>(r, slave, out),
             Self::GetTemperatureC(r) => {
-                <GetTemperatureC as rtu::Command>::encode_response(r, slave, out)
+                rtu::dispatch::encode_response::<GetTemperatureC>(r, slave, out)
             }
             Self::GetSalinity(r) => {
-                <GetSalinity as rtu::Command>::encode_response(r, slave, out)
+                rtu::dispatch::encode_response::<GetSalinity>(r, slave, out)
             }
             Self::GetDoSaturation(r) => {
-                <GetDoSaturation as rtu::Command>::encode_response(r, slave, out)
+                rtu::dispatch::encode_response::<GetDoSaturation>(r, slave, out)
             }
             Self::GetOrpMv(r) => {
-                <GetOrpMv as rtu::Command>::encode_response(r, slave, out)
+                rtu::dispatch::encode_response::<GetOrpMv>(r, slave, out)
             }
             Self::GetChlorophyll(r) => {
-                <GetChlorophyll as rtu::Command>::encode_response(r, slave, out)
+                rtu::dispatch::encode_response::<GetChlorophyll>(r, slave, out)
             }
             Self::GetOilInWater(r) => {
-                <GetOilInWater as rtu::Command>::encode_response(r, slave, out)
+                rtu::dispatch::encode_response::<GetOilInWater>(r, slave, out)
             }
-            Self::GetBga(r) => <GetBga as rtu::Command>::encode_response(r, slave, out),
-            Self::GetTds(r) => <GetTds as rtu::Command>::encode_response(r, slave, out),
+            Self::GetBga(r) => rtu::dispatch::encode_response::<GetBga>(r, slave, out),
+            Self::GetTds(r) => rtu::dispatch::encode_response::<GetTds>(r, slave, out),
         }
     }
     /// The value of field `index` of [`CommandId::response_fields`].

@@ -598,51 +598,51 @@ impl CommandId {
     pub fn decode_request(self, frame: &[u8]) -> Result<(u8, Request), rtu::FrameError> {
         match self {
             Self::SetSlaveId => {
-                <SetSlaveId as rtu::Command>::decode_request(frame)
+                rtu::dispatch::decode_request::<SetSlaveId>(frame)
                     .map(|(slave, r)| (slave, Request::SetSlaveId(r)))
             }
             Self::GetSn => {
-                <GetSn as rtu::Command>::decode_request(frame)
+                rtu::dispatch::decode_request::<GetSn>(frame)
                     .map(|(slave, r)| (slave, Request::GetSn(r)))
             }
             Self::StartMeasurement => {
-                <StartMeasurement as rtu::Command>::decode_request(frame)
+                rtu::dispatch::decode_request::<StartMeasurement>(frame)
                     .map(|(slave, r)| (slave, Request::StartMeasurement(r)))
             }
             Self::GetTemperatureAndTurbidity => {
-                <GetTemperatureAndTurbidity as rtu::Command>::decode_request(frame)
+                rtu::dispatch::decode_request::<GetTemperatureAndTurbidity>(frame)
                     .map(|(slave, r)| (slave, Request::GetTemperatureAndTurbidity(r)))
             }
             Self::GetVersion => {
-                <GetVersion as rtu::Command>::decode_request(frame)
+                rtu::dispatch::decode_request::<GetVersion>(frame)
                     .map(|(slave, r)| (slave, Request::GetVersion(r)))
             }
             Self::StopMeasurement => {
-                <StopMeasurement as rtu::Command>::decode_request(frame)
+                rtu::dispatch::decode_request::<StopMeasurement>(frame)
                     .map(|(slave, r)| (slave, Request::StopMeasurement(r)))
             }
             Self::GetUserCalibration => {
-                <GetUserCalibration as rtu::Command>::decode_request(frame)
+                rtu::dispatch::decode_request::<GetUserCalibration>(frame)
                     .map(|(slave, r)| (slave, Request::GetUserCalibration(r)))
             }
             Self::SetUserCalibration => {
-                <SetUserCalibration as rtu::Command>::decode_request(frame)
+                rtu::dispatch::decode_request::<SetUserCalibration>(frame)
                     .map(|(slave, r)| (slave, Request::SetUserCalibration(r)))
             }
             Self::ActiveBrush => {
-                <ActiveBrush as rtu::Command>::decode_request(frame)
+                rtu::dispatch::decode_request::<ActiveBrush>(frame)
                     .map(|(slave, r)| (slave, Request::ActiveBrush(r)))
             }
             Self::SetBrushInterval => {
-                <SetBrushInterval as rtu::Command>::decode_request(frame)
+                rtu::dispatch::decode_request::<SetBrushInterval>(frame)
                     .map(|(slave, r)| (slave, Request::SetBrushInterval(r)))
             }
             Self::GetBrushInterval => {
-                <GetBrushInterval as rtu::Command>::decode_request(frame)
+                rtu::dispatch::decode_request::<GetBrushInterval>(frame)
                     .map(|(slave, r)| (slave, Request::GetBrushInterval(r)))
             }
             Self::GetSlaveId => {
-                <GetSlaveId as rtu::Command>::decode_request(frame)
+                rtu::dispatch::decode_request::<GetSlaveId>(frame)
                     .map(|(slave, r)| (slave, Request::GetSlaveId(r)))
             }
         }
@@ -655,54 +655,53 @@ impl CommandId {
     ) -> Result<Response, rtu::FrameError> {
         match self {
             Self::SetSlaveId => {
-                <SetSlaveId as rtu::Command>::decode_response(slave, frame)
+                rtu::dispatch::decode_response::<SetSlaveId>(slave, frame)
                     .map(|()| Response::SetSlaveId)
             }
             Self::GetSn => {
-                <GetSn as rtu::Command>::decode_response(slave, frame)
+                rtu::dispatch::decode_response::<GetSn>(slave, frame)
                     .map(Response::GetSn)
             }
             Self::StartMeasurement => {
-                <StartMeasurement as rtu::Command>::decode_response(slave, frame)
+                rtu::dispatch::decode_response::<StartMeasurement>(slave, frame)
                     .map(Response::StartMeasurement)
             }
             Self::GetTemperatureAndTurbidity => {
-                <GetTemperatureAndTurbidity as rtu::Command>::decode_response(
-                        slave,
-                        frame,
-                    )
+                rtu::dispatch::decode_response::<
+                    GetTemperatureAndTurbidity,
+                >(slave, frame)
                     .map(Response::GetTemperatureAndTurbidity)
             }
             Self::GetVersion => {
-                <GetVersion as rtu::Command>::decode_response(slave, frame)
+                rtu::dispatch::decode_response::<GetVersion>(slave, frame)
                     .map(Response::GetVersion)
             }
             Self::StopMeasurement => {
-                <StopMeasurement as rtu::Command>::decode_response(slave, frame)
+                rtu::dispatch::decode_response::<StopMeasurement>(slave, frame)
                     .map(Response::StopMeasurement)
             }
             Self::GetUserCalibration => {
-                <GetUserCalibration as rtu::Command>::decode_response(slave, frame)
+                rtu::dispatch::decode_response::<GetUserCalibration>(slave, frame)
                     .map(Response::GetUserCalibration)
             }
             Self::SetUserCalibration => {
-                <SetUserCalibration as rtu::Command>::decode_response(slave, frame)
+                rtu::dispatch::decode_response::<SetUserCalibration>(slave, frame)
                     .map(|()| Response::SetUserCalibration)
             }
             Self::ActiveBrush => {
-                <ActiveBrush as rtu::Command>::decode_response(slave, frame)
+                rtu::dispatch::decode_response::<ActiveBrush>(slave, frame)
                     .map(|()| Response::ActiveBrush)
             }
             Self::SetBrushInterval => {
-                <SetBrushInterval as rtu::Command>::decode_response(slave, frame)
+                rtu::dispatch::decode_response::<SetBrushInterval>(slave, frame)
                     .map(|()| Response::SetBrushInterval)
             }
             Self::GetBrushInterval => {
-                <GetBrushInterval as rtu::Command>::decode_response(slave, frame)
+                rtu::dispatch::decode_response::<GetBrushInterval>(slave, frame)
                     .map(Response::GetBrushInterval)
             }
             Self::GetSlaveId => {
-                <GetSlaveId as rtu::Command>::decode_response(slave, frame)
+                rtu::dispatch::decode_response::<GetSlaveId>(slave, frame)
                     .map(Response::GetSlaveId)
             }
         }
@@ -767,20 +766,20 @@ impl Request {
     /// Writes the request frame for `slave` into `out` and returns its length.
     pub fn encode(&self, slave: u8, out: &mut [u8]) -> Result<usize, rtu::EncodeError> {
         match self {
-            Self::SetSlaveId(r) => rtu::Command::encode_request(r, slave, out),
-            Self::GetSn(r) => rtu::Command::encode_request(r, slave, out),
-            Self::StartMeasurement(r) => rtu::Command::encode_request(r, slave, out),
+            Self::SetSlaveId(r) => rtu::dispatch::encode_request(r, slave, out),
+            Self::GetSn(r) => rtu::dispatch::encode_request(r, slave, out),
+            Self::StartMeasurement(r) => rtu::dispatch::encode_request(r, slave, out),
             Self::GetTemperatureAndTurbidity(r) => {
-                rtu::Command::encode_request(r, slave, out)
+                rtu::dispatch::encode_request(r, slave, out)
             }
-            Self::GetVersion(r) => rtu::Command::encode_request(r, slave, out),
-            Self::StopMeasurement(r) => rtu::Command::encode_request(r, slave, out),
-            Self::GetUserCalibration(r) => rtu::Command::encode_request(r, slave, out),
-            Self::SetUserCalibration(r) => rtu::Command::encode_request(r, slave, out),
-            Self::ActiveBrush(r) => rtu::Command::encode_request(r, slave, out),
-            Self::SetBrushInterval(r) => rtu::Command::encode_request(r, slave, out),
-            Self::GetBrushInterval(r) => rtu::Command::encode_request(r, slave, out),
-            Self::GetSlaveId(r) => rtu::Command::encode_request(r, slave, out),
+            Self::GetVersion(r) => rtu::dispatch::encode_request(r, slave, out),
+            Self::StopMeasurement(r) => rtu::dispatch::encode_request(r, slave, out),
+            Self::GetUserCalibration(r) => rtu::dispatch::encode_request(r, slave, out),
+            Self::SetUserCalibration(r) => rtu::dispatch::encode_request(r, slave, out),
+            Self::ActiveBrush(r) => rtu::dispatch::encode_request(r, slave, out),
+            Self::SetBrushInterval(r) => rtu::dispatch::encode_request(r, slave, out),
+            Self::GetBrushInterval(r) => rtu::dispatch::encode_request(r, slave, out),
+            Self::GetSlaveId(r) => rtu::dispatch::encode_request(r, slave, out),
         }
     }
     /// The value of field `index` of [`CommandId::request_fields`].
@@ -865,42 +864,40 @@ impl Response {
     pub fn encode(&self, slave: u8, out: &mut [u8]) -> Result<usize, rtu::EncodeError> {
         match self {
             Self::SetSlaveId => {
-                <SetSlaveId as rtu::Command>::encode_response(&(), slave, out)
+                rtu::dispatch::encode_response::<SetSlaveId>(&(), slave, out)
             }
-            Self::GetSn(r) => <GetSn as rtu::Command>::encode_response(r, slave, out),
+            Self::GetSn(r) => rtu::dispatch::encode_response::<GetSn>(r, slave, out),
             Self::StartMeasurement(r) => {
-                <StartMeasurement as rtu::Command>::encode_response(r, slave, out)
+                rtu::dispatch::encode_response::<StartMeasurement>(r, slave, out)
             }
             Self::GetTemperatureAndTurbidity(r) => {
-                <GetTemperatureAndTurbidity as rtu::Command>::encode_response(
-                    r,
-                    slave,
-                    out,
-                )
+                rtu::dispatch::encode_response::<
+                    GetTemperatureAndTurbidity,
+                >(r, slave, out)
             }
             Self::GetVersion(r) => {
-                <GetVersion as rtu::Command>::encode_response(r, slave, out)
+                rtu::dispatch::encode_response::<GetVersion>(r, slave, out)
             }
             Self::StopMeasurement(r) => {
-                <StopMeasurement as rtu::Command>::encode_response(r, slave, out)
+                rtu::dispatch::encode_response::<StopMeasurement>(r, slave, out)
             }
             Self::GetUserCalibration(r) => {
-                <GetUserCalibration as rtu::Command>::encode_response(r, slave, out)
+                rtu::dispatch::encode_response::<GetUserCalibration>(r, slave, out)
             }
             Self::SetUserCalibration => {
-                <SetUserCalibration as rtu::Command>::encode_response(&(), slave, out)
+                rtu::dispatch::encode_response::<SetUserCalibration>(&(), slave, out)
             }
             Self::ActiveBrush => {
-                <ActiveBrush as rtu::Command>::encode_response(&(), slave, out)
+                rtu::dispatch::encode_response::<ActiveBrush>(&(), slave, out)
             }
             Self::SetBrushInterval => {
-                <SetBrushInterval as rtu::Command>::encode_response(&(), slave, out)
+                rtu::dispatch::encode_response::<SetBrushInterval>(&(), slave, out)
             }
             Self::GetBrushInterval(r) => {
-                <GetBrushInterval as rtu::Command>::encode_response(r, slave, out)
+                rtu::dispatch::encode_response::<GetBrushInterval>(r, slave, out)
             }
             Self::GetSlaveId(r) => {
-                <GetSlaveId as rtu::Command>::encode_response(r, slave, out)
+                rtu::dispatch::encode_response::<GetSlaveId>(r, slave, out)
             }
         }
     }

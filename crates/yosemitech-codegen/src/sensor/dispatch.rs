@@ -28,9 +28,9 @@ pub(super) fn dispatch(s: &Sensor, names: &Names) -> TokenStream {
             let resp = format_ident!("{}Response", v);
             response_variants.push(quote!(#d #v(#resp)));
             decode_response_arms
-                .push(quote!(Self::#v => <#v as rtu::Command>::decode_response(slave, frame).map(Response::#v)));
+                .push(quote!(Self::#v => rtu::dispatch::decode_response::<#v>(slave, frame).map(Response::#v)));
             response_command_arms.push(quote!(Self::#v(_) => CommandId::#v));
-            response_encode_arms.push(quote!(Self::#v(r) => <#v as rtu::Command>::encode_response(r, slave, out)));
+            response_encode_arms.push(quote!(Self::#v(r) => rtu::dispatch::encode_response::<#v>(r, slave, out)));
             response_field_arms.push(quote!(Self::#v(r) => r.field(index)));
             froms.push(quote! {
                 impl From<#resp> for Response {
@@ -42,9 +42,9 @@ pub(super) fn dispatch(s: &Sensor, names: &Names) -> TokenStream {
         } else {
             response_variants.push(quote!(#d #v));
             decode_response_arms
-                .push(quote!(Self::#v => <#v as rtu::Command>::decode_response(slave, frame).map(|()| Response::#v)));
+                .push(quote!(Self::#v => rtu::dispatch::decode_response::<#v>(slave, frame).map(|()| Response::#v)));
             response_command_arms.push(quote!(Self::#v => CommandId::#v));
-            response_encode_arms.push(quote!(Self::#v => <#v as rtu::Command>::encode_response(&(), slave, out)));
+            response_encode_arms.push(quote!(Self::#v => rtu::dispatch::encode_response::<#v>(&(), slave, out)));
             response_field_arms.push(quote!(Self::#v => None));
         }
         froms.push(quote! {
@@ -122,7 +122,7 @@ pub(super) fn dispatch(s: &Sensor, names: &Names) -> TokenStream {
             pub fn decode_request(self, frame: &[u8]) -> Result<(u8, Request), rtu::FrameError> {
                 match self {
                     #(Self::#variants => {
-                        <#variants as rtu::Command>::decode_request(frame).map(|(slave, r)| (slave, Request::#variants(r)))
+                        rtu::dispatch::decode_request::<#variants>(frame).map(|(slave, r)| (slave, Request::#variants(r)))
                     })*
                 }
             }
@@ -160,7 +160,7 @@ pub(super) fn dispatch(s: &Sensor, names: &Names) -> TokenStream {
             /// Writes the request frame for `slave` into `out` and returns its length.
             pub fn encode(&self, slave: u8, out: &mut [u8]) -> Result<usize, rtu::EncodeError> {
                 match self {
-                    #(Self::#variants(r) => rtu::Command::encode_request(r, slave, out),)*
+                    #(Self::#variants(r) => rtu::dispatch::encode_request(r, slave, out),)*
                 }
             }
 
