@@ -12,6 +12,8 @@
 //!   layout table and in ARCHITECTURE.md.
 //! - Every test file is in a test binary: where a package's integration
 //!   tests share one binary, `tests/main.rs` declares each file.
+//! - Logging is opt-in: the default features of `yosemitech` (and so of the
+//!   runtime) do not build `tracing`; its feature `tracing` does.
 
 use std::path::PathBuf;
 
@@ -69,6 +71,46 @@ fn the_runtime_depends_on_no_crate_of_the_workspace() {
     assert!(dependencies.iter().any(|d| *d == "serialport"), "dependencies read: {dependencies:?}");
     let inward: Vec<&&String> = dependencies.iter().filter(|d| crates.contains(d)).collect();
     assert!(inward.is_empty(), "the runtime depends on workspace crates: {inward:?}");
+}
+
+/// What a package's `features` turn on, following `crate/feature` entries
+/// into the other manifests given: each entry as `crate:entry`.
+fn enabled(manifests: &[(&str, toml::Table)], package: &str, features: &[&str]) -> Vec<String> {
+    let mut todo: Vec<(String, String)> = features.iter().map(|f| (package.to_owned(), (*f).to_owned())).collect();
+    let mut seen = Vec::new();
+    while let Some((package, feature)) = todo.pop() {
+        let entry = format!("{package}:{feature}");
+        if seen.contains(&entry) {
+            continue;
+        }
+        seen.push(entry);
+        let Some((_, manifest)) = manifests.iter().find(|(name, _)| *name == package) else { continue };
+        let listed = manifest.get("features").and_then(|f| f.get(&feature)).and_then(toml::Value::as_array);
+        for next in listed.into_iter().flatten().filter_map(toml::Value::as_str) {
+            match next.split_once('/') {
+                Some((dependency, feature)) if manifests.iter().any(|(name, _)| *name == dependency) => {
+                    todo.push((dependency.to_owned(), feature.to_owned()));
+                }
+                _ => todo.push((package.clone(), next.to_owned())),
+            }
+        }
+    }
+    seen
+}
+
+#[test]
+fn logging_is_opt_in() {
+    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..");
+    let manifests = [
+        ("yosemitech", read(&root.join("crates/yosemitech/Cargo.toml"))),
+        ("yosemitech-rtu", read(&root.join("crates/yosemitech-rtu/Cargo.toml"))),
+    ];
+    let builds_tracing = |entries: &[String]| entries.iter().any(|e| e.ends_with(":dep:tracing"));
+    let by_default = enabled(&manifests, "yosemitech", &["default"]);
+    assert!(by_default.iter().any(|e| e == "yosemitech-rtu:std"), "read: {by_default:?}");
+    assert!(!builds_tracing(&by_default), "the default features build tracing: {by_default:?}");
+    let asked = enabled(&manifests, "yosemitech", &["default", "tracing"]);
+    assert!(builds_tracing(&asked), "feature `tracing` does not build tracing: {asked:?}");
 }
 
 /// Lines a hand-written Rust file may have.

@@ -12,6 +12,9 @@
 #![cfg_attr(not(any(feature = "std", test)), no_std)]
 #![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used, clippy::panic, clippy::indexing_slicing))]
 
+#[macro_use]
+mod trace;
+
 #[cfg(feature = "std")]
 pub mod address;
 pub mod bytes;

@@ -67,6 +67,9 @@
 //! Each module's documentation lists its commands with the `Device` method
 //! that sends each.
 //!
+//! The runtime logs nothing unless asked: feature `tracing` adds a debug span
+//! per transaction and the frames sent and received as `tracing` events.
+//!
 //! # Generic code
 //!
 //! Each module has a `CommandId` enum listing every command, `Request` and

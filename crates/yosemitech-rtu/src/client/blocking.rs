@@ -4,13 +4,11 @@ use std::fmt;
 use std::thread;
 use std::time::Duration;
 
-use tracing::debug_span;
-
 use super::clock::MonotonicClock;
 use super::{Action, ClientConfig, ClientCore, ClientError, Instant};
 use crate::command::Command;
 use crate::error::FrameError;
-use crate::frame::{BROADCAST, Layout};
+use crate::frame::Layout;
 use crate::transport::{MAX_WAIT, Transport};
 
 /// Why a request of the blocking [`Client`] failed: a [`ClientError`] whose
@@ -101,7 +99,7 @@ impl<T: Transport> Client<T> {
     /// [`Client::broadcast`]. Commands with a fixed slave address (get slave
     /// id: 0xFF) must be called with that address, and their reply carries it.
     pub fn call<C: Command>(&mut self, slave: u8, command: &C) -> Result<C::Response, Error> {
-        let _span = debug_span!("modbus", command = C::NAME, slave).entered();
+        enter_span!("modbus", command = C::NAME, slave);
         self.core.start_command(slave, command).map_err(ClientError::with_io)?;
         let mut response = None;
         self.run(&mut |frame| C::decode_response(slave, frame).map(|decoded| response = Some(decoded)))?;
@@ -113,7 +111,7 @@ impl<T: Transport> Client<T> {
     /// without waiting for a reply (none comes). The next request waits
     /// [`ClientConfig::broadcast_turnaround`]. Never retried.
     pub fn broadcast<C: Command>(&mut self, command: &C) -> Result<(), Error> {
-        let _span = debug_span!("modbus", command = C::NAME, slave = BROADCAST).entered();
+        enter_span!("modbus", command = C::NAME, slave = crate::frame::BROADCAST);
         self.core.start_command_broadcast(command).map_err(ClientError::with_io)?;
         self.run(&mut |_| Ok(()))
     }
@@ -127,7 +125,7 @@ impl<T: Transport> Client<T> {
     /// [`Error::Request`]; broadcast requests are refused (use
     /// [`Client::broadcast_raw`]).
     pub fn call_raw(&mut self, request: &[u8], layout: &Layout<'_>) -> Result<&[u8], Error> {
-        let _span = debug_span!("modbus", function = layout.function.code(), address = layout.address).entered();
+        enter_span!("modbus", function = layout.function.code(), address = layout.address);
         let slave = self.core.start_raw(request, layout).map_err(ClientError::with_io)?;
         self.run(&mut |frame| layout.decode_response(slave, frame).map(drop))?;
         Ok(self.core.last_reply())
@@ -137,7 +135,7 @@ impl<T: Transport> Client<T> {
     /// [`Client::broadcast`] and [`Client::call_raw`]. The request must be a
     /// write addressed to slave 0.
     pub fn broadcast_raw(&mut self, request: &[u8], layout: &Layout<'_>) -> Result<(), Error> {
-        let _span = debug_span!("modbus", function = layout.function.code(), address = layout.address).entered();
+        enter_span!("modbus", function = layout.function.code(), address = layout.address);
         self.core.start_raw_broadcast(request, layout).map_err(ClientError::with_io)?;
         self.run(&mut |_| Ok(()))
     }

@@ -21,14 +21,6 @@ const HEAD_LEN: usize = 3;
 /// Reads of pending (stale) input before each request.
 const DRAIN_ROUNDS: u8 = 4;
 
-/// Logs through `tracing` with the `std` feature; compiled out without it.
-macro_rules! log {
-    ($level:ident, $($arg:tt)*) => {
-        #[cfg(feature = "std")]
-        tracing::$level!($($arg)*);
-    };
-}
-
 /// What a driver must do next; returned by [`ClientCore::poll`].
 ///
 /// Each action names the event the driver reports when it is done. Between

@@ -31,8 +31,9 @@
 //!
 //! A transaction allocates nothing, on success or failure. Errors
 //! ([`ClientError`]) are a few words; the bytes of the last reply stay in the
-//! client (`last_reply()`). With `std`, frames go to `tracing` at debug level
-//! (`tx`, `rx`, stale and skipped bytes), retries at warn.
+//! client (`last_reply()`). With the `tracing` feature, each call is a debug
+//! span, frames go to `tracing` at debug level (`tx`, `rx`, stale and skipped
+//! bytes) and retries at warn.
 
 #[cfg(feature = "std")]
 mod blocking;

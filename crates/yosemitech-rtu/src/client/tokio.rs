@@ -5,12 +5,10 @@ use std::future::Future;
 use std::pin::pin;
 use std::task::{Context, Poll, Waker};
 
-use tracing::{Instrument as _, debug_span};
-
 use super::{Action, ClientConfig, ClientCore, ClientError, Error, Instant};
 use crate::command::Command;
 use crate::error::FrameError;
-use crate::frame::{BROADCAST, Layout};
+use crate::frame::Layout;
 use crate::transport::AsyncLink;
 
 /// A Modbus RTU master on one async link (one bus), for tokio: the same
@@ -108,22 +106,20 @@ impl<L: AsyncLink> AsyncClient<L> {
     /// Sends `command` to `slave` and returns the decoded reply; see
     /// [`Client::call`](crate::Client::call).
     pub async fn call<C: Command>(&mut self, slave: u8, command: &C) -> Result<C::Response, Error> {
-        let span = debug_span!("modbus", command = C::NAME, slave);
-        async {
+        let call = async {
             self.core.start_command(slave, command).map_err(ClientError::with_io)?;
             let mut response = None;
             self.run(|frame| C::decode_response(slave, frame).map(|decoded| response = Some(decoded))).await?;
             // `run` succeeds only after the decoder accepted a frame.
             response.ok_or(ClientError::Timeout { received: 0, sent: self.core.sent() })
-        }
-        .instrument(span)
-        .await
+        };
+        in_span!(call, "modbus", command = C::NAME, slave).await
     }
 
     /// Sends a write `command` to every slave; see [`Client::broadcast`](crate::Client::broadcast).
     pub async fn broadcast<C: Command>(&mut self, command: &C) -> Result<(), Error> {
         self.core.start_command_broadcast(command).map_err(ClientError::with_io)?;
-        self.run(|_| Ok(())).instrument(debug_span!("modbus", command = C::NAME, slave = BROADCAST)).await
+        in_span!(self.run(|_| Ok(())), "modbus", command = C::NAME, slave = crate::frame::BROADCAST).await
     }
 
     /// Sends a request frame built elsewhere and returns the checked reply
@@ -131,18 +127,25 @@ impl<L: AsyncLink> AsyncClient<L> {
     pub async fn call_raw(&mut self, request: &[u8], layout: &Layout<'_>) -> Result<&[u8], Error> {
         let (len, slave) = self.core.load_request(request, layout).map_err(ClientError::with_io)?;
         self.core.start_call(len, layout).map_err(ClientError::with_io)?;
-        let span = debug_span!("modbus", function = layout.function.code(), address = layout.address, slave);
-        self.run(|frame| layout.decode_response(slave, frame).map(drop)).instrument(span).await?;
+        let run = self.run(|frame| layout.decode_response(slave, frame).map(drop));
+        in_span!(run, "modbus", function = layout.function.code(), address = layout.address, slave).await?;
         Ok(self.core.last_reply())
     }
 
     /// Sends a broadcast request frame built elsewhere; see
     /// [`Client::broadcast_raw`](crate::Client::broadcast_raw).
     pub async fn broadcast_raw(&mut self, request: &[u8], layout: &Layout<'_>) -> Result<(), Error> {
-        let (len, slave) = self.core.load_request(request, layout).map_err(ClientError::with_io)?;
+        let (len, _) = self.core.load_request(request, layout).map_err(ClientError::with_io)?;
         self.core.start_broadcast(len, layout).map_err(ClientError::with_io)?;
-        let span = debug_span!("modbus", function = layout.function.code(), address = layout.address, slave);
-        self.run(|_| Ok(())).instrument(span).await
+        let run = self.run(|_| Ok(()));
+        in_span!(
+            run,
+            "modbus",
+            function = layout.function.code(),
+            address = layout.address,
+            slave = crate::frame::BROADCAST
+        )
+        .await
     }
 
     /// The core's clock: microseconds since the client was made, on tokio's clock.

@@ -267,8 +267,8 @@ impl<S: AsyncRead + AsyncWrite + Unpin> MbapLink<S> {
                 self.rtu_read = 0;
                 return Ok(());
             }
-            #[cfg(feature = "std")]
-            tracing::debug!(
+            log!(
+                debug,
                 transaction = header.transaction,
                 expected = self.transaction,
                 "dropping a late Modbus TCP reply"
