@@ -101,36 +101,36 @@ impl Message for SlaveAddress {
     }
 }
 
-/// A write with data: 2 registers at 0x1100, one f32 (DCBA) the probe
-/// takes only within -10..=10.
+/// A write with data: 1 register at 0x1100, a big-endian word the probe
+/// takes only up to 1000 (an averaging time, in seconds).
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct WriteFloat(pub f32);
+pub struct WriteWord(pub u16);
 
-impl Message for WriteFloat {
-    type Data = [u8; 4];
-    const FIELDS: &'static [FieldInfo] = &[FieldInfo::new("offset", Some("pH"))];
+impl Message for WriteWord {
+    type Data = [u8; 2];
+    const FIELDS: &'static [FieldInfo] = &[FieldInfo::new("averaging", Some("s"))];
 
-    fn from_data(data: &[u8; 4]) -> Self {
-        Self(f32_from_wire(ByteOrder4::Dcba, *data))
+    fn from_data(data: &[u8; 2]) -> Self {
+        Self(u16::from_be_bytes(*data))
     }
 
-    fn to_data(&self) -> [u8; 4] {
-        f32_to_wire(ByteOrder4::Dcba, self.0)
+    fn to_data(&self) -> [u8; 2] {
+        self.0.to_be_bytes()
     }
 
     fn field(&self, index: usize) -> Option<FieldValue<'_>> {
-        (index == 0).then_some(FieldValue::F32(self.0))
+        (index == 0).then_some(FieldValue::Int(i64::from(self.0)))
     }
 
     fn validate(&self) -> Result<(), EncodeError> {
-        if (-10.0..=10.0).contains(&self.0) { Ok(()) } else { Err(EncodeError::OutOfRange { field: "offset" }) }
+        if self.0 <= 1000 { Ok(()) } else { Err(EncodeError::OutOfRange { field: "averaging" }) }
     }
 }
 
-impl Command for WriteFloat {
+impl Command for WriteWord {
     type Response = ();
-    const NAME: &'static str = "write_float";
-    const LAYOUT: Layout<'static> = Layout::write(0x1100, 2);
+    const NAME: &'static str = "write_word";
+    const LAYOUT: Layout<'static> = Layout::write(0x1100, 1);
 }
 
 /// A pH probe at `address` reading `ph`: answers get_ph and get_slave_id,

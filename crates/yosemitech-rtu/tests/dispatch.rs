@@ -4,7 +4,7 @@
 
 use proptest::prelude::*;
 use yosemitech_rtu::{Command, EncodeError, Layout, Message, NoData, dispatch};
-use yosemitech_tests::rtu::{Ph, ReadAtFixedSlave, ReadFloat, SlaveAddress, StartMeasurement, WriteFloat};
+use yosemitech_tests::rtu::{Ph, ReadAtFixedSlave, ReadFloat, SlaveAddress, StartMeasurement, WriteWord};
 use yosemitech_tests::with_crc;
 
 /// A trigger read: a read of one register whose reply only acknowledges
@@ -57,7 +57,7 @@ fn assert_all_decoders_agree(slave: u8, frame: &[u8]) {
     assert_decoders_agree::<ReadFloat>(slave, frame);
     assert_decoders_agree::<StartMeasurement>(slave, frame);
     assert_decoders_agree::<ReadAtFixedSlave>(slave, frame);
-    assert_decoders_agree::<WriteFloat>(slave, frame);
+    assert_decoders_agree::<WriteWord>(slave, frame);
     assert_decoders_agree::<TriggerRead>(slave, frame);
 }
 
@@ -89,6 +89,7 @@ proptest! {
     fn decoders_agree_near_real_frames(
         slave in 0u8..=255,
         value: f32,
+        word: u16,
         at: usize,
         byte: u8,
         cut in 0usize..16,
@@ -102,8 +103,8 @@ proptest! {
             encoded(|out| StartMeasurement::encode_response(&(), slave, out)),
             encoded(|out| ReadAtFixedSlave.encode_request(0xFF, out)),
             encoded(|out| ReadAtFixedSlave::encode_response(&SlaveAddress(slave), 0xFF, out)),
-            encoded(|out| WriteFloat(value).encode_request(slave, out)),
-            encoded(|out| WriteFloat::encode_response(&(), slave, out)),
+            encoded(|out| WriteWord(word).encode_request(slave, out)),
+            encoded(|out| WriteWord::encode_response(&(), slave, out)),
             encoded(|out| TriggerRead.encode_request(slave, out)),
             encoded(|out| TriggerRead::encode_response(&(), slave, out)),
         ];
@@ -116,11 +117,11 @@ proptest! {
     }
 
     #[test]
-    fn encoders_agree(slave: u8, value: f32, room in 0usize..16) {
+    fn encoders_agree(slave: u8, value: f32, word: u16, room in 0usize..16) {
         assert_encoders_agree(&ReadFloat, &Ph(value), slave, room);
         assert_encoders_agree(&StartMeasurement, &(), slave, room);
         assert_encoders_agree(&ReadAtFixedSlave, &SlaveAddress(slave), slave, room);
-        assert_encoders_agree(&WriteFloat(value), &(), slave, room);
+        assert_encoders_agree(&WriteWord(word), &(), slave, room);
         assert_encoders_agree(&TriggerRead, &(), slave, room);
     }
 }
@@ -128,7 +129,7 @@ proptest! {
 #[test]
 fn a_write_out_of_range_is_refused_on_both_paths() {
     let mut out = [0u8; 32];
-    let refused = WriteFloat(11.0);
+    let refused = WriteWord(1001);
     assert!(refused.validate().is_err());
     assert_eq!(refused.encode_request(1, &mut out), dispatch::encode_request(&refused, 1, &mut out));
     assert!(dispatch::encode_request(&refused, 1, &mut out).is_err());
