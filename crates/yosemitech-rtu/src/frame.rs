@@ -163,7 +163,11 @@ impl Layout<'_> {
     /// (`extra_byte_counts`), or 0 for a trigger read. The one rule every
     /// decoder, the spec validator and the CLI apply.
     pub fn accepts_byte_count(&self, count: u8) -> bool {
-        usize::from(count) == self.data_len() || self.extra_byte_counts.contains(&count) || (self.trigger && count == 0)
+        // A loop, not `contains`: on bytes that is a `memchr`, 150 bytes of
+        // firmware flash to search a list of one or two.
+        usize::from(count) == self.data_len()
+            || self.extra_byte_counts.iter().any(|&extra| extra == count)
+            || (self.trigger && count == 0)
     }
 
     /// Bytes of register data in the request (writes) or zero (reads).
