@@ -162,9 +162,10 @@ impl Layout<'_> {
     /// `2 * count` data bytes: the Modbus count, a documented firmware quirk
     /// (`extra_byte_counts`), or 0 for a trigger read. The one rule every
     /// decoder, the spec validator and the CLI apply.
+    // A loop, not `contains`: on bytes that is a `memchr`, 150 bytes of
+    // firmware flash to search a list of one or two.
+    #[allow(clippy::manual_contains)]
     pub fn accepts_byte_count(&self, count: u8) -> bool {
-        // A loop, not `contains`: on bytes that is a `memchr`, 150 bytes of
-        // firmware flash to search a list of one or two.
         usize::from(count) == self.data_len()
             || self.extra_byte_counts.iter().any(|&extra| extra == count)
             || (self.trigger && count == 0)
