@@ -91,16 +91,17 @@ pub struct CommandEntry {
     /// Name and unit of each field of the reply (empty for writes).
     pub response_fields: &'static [FieldInfo],
     // One function per message type, generic over the type alone: the
-    // framing is the entry's own (non-generic) code, and the messages of one
-    // shape (every read's empty request) share one function.
+    // framing and the field names are the entry's own (non-generic) code and
+    // data, so messages of one shape (every read's empty request, a reading
+    // of one `f32` in one byte order) compile to one function.
     request_codec: MessageCodec,
     response_codec: MessageCodec,
 }
 
 /// What a message's codec does with the message it decodes from register data.
 enum Pass<'p, 'v> {
-    /// Passes each field to the visitor.
-    Visit(FieldVisitor<'v>),
+    /// Passes each field, named by the entry's `fields`, to the visitor.
+    Visit(&'static [FieldInfo], FieldVisitor<'v>),
     /// Encodes the message's register data again into `out` (checking its
     /// ranges first when `validate`): the length written.
     Reencode { out: &'p mut [u8], validate: bool },
@@ -115,6 +116,9 @@ enum CodecError {
     Encode(EncodeError),
 }
 
+/// A decoded message's value of each field, by index in its `FIELDS`.
+type FieldValues<'m> = &'m dyn Fn(usize) -> Option<FieldValue<'m>>;
+
 /// Decodes one message type from its register data and does the [`Pass`] asked.
 type MessageCodec = fn(&[u8], Pass<'_, '_>) -> Result<usize, CodecError>;
 
@@ -126,8 +130,8 @@ fn message_codec<M: Message>(data: &[u8], pass: Pass<'_, '_>) -> Result<usize, C
     };
     let message = M::from_data(&data);
     match pass {
-        Pass::Visit(visit) => {
-            visit_fields(M::FIELDS, &|index| message.field(index), visit);
+        Pass::Visit(fields, visit) => {
+            visit_fields(fields, &|index| message.field(index), visit);
             Ok(0)
         }
         Pass::Reencode { out, validate } => {
@@ -149,7 +153,8 @@ fn copy_data(data: &[u8], out: &mut [u8]) -> Result<usize, CodecError> {
 /// Passes each field that has a value to the visitor, in wire order: one
 /// loop for every message type, which brings only its `field` (an
 /// iterator chain here would be compiled again for each of them).
-fn visit_fields<'m>(fields: &[FieldInfo], value: &dyn Fn(usize) -> Option<FieldValue<'m>>, visit: FieldVisitor<'_>) {
+#[inline(never)]
+fn visit_fields(fields: &[FieldInfo], value: FieldValues<'_>, visit: FieldVisitor<'_>) {
     for (index, info) in fields.iter().enumerate() {
         if let Some(v) = value(index) {
             visit(*info, v);
@@ -175,7 +180,7 @@ impl CommandEntry {
     /// order) to the visitor, and returns the slave address it is for.
     pub fn visit_request(&self, frame: &[u8], visit: FieldVisitor<'_>) -> Result<u8, FrameError> {
         let (slave, data) = request_data(&self.layout, frame)?;
-        match (self.request_codec)(data, Pass::Visit(visit)) {
+        match (self.request_codec)(data, Pass::Visit(self.request_fields, visit)) {
             Ok(_) => Ok(slave),
             Err(_) => Err(truncated(self.layout.request_len(), frame)),
         }
@@ -185,7 +190,7 @@ impl CommandEntry {
     /// in wire order, to the visitor.
     pub fn visit_response(&self, slave: u8, frame: &[u8], visit: FieldVisitor<'_>) -> Result<(), FrameError> {
         let data = response_data(&self.layout, slave, frame)?;
-        match (self.response_codec)(data, Pass::Visit(visit)) {
+        match (self.response_codec)(data, Pass::Visit(self.response_fields, visit)) {
             Ok(_) => Ok(()),
             Err(_) => Err(truncated(self.layout.response_len(), frame)),
         }
