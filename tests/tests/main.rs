@@ -5,6 +5,7 @@
 
 mod async_client;
 mod codegen_fixture;
+mod coefficient_backup;
 mod derived;
 mod device_address;
 mod differential;

@@ -45,7 +45,7 @@ pub use error::{EchoField, EncodeError, ExceptionCode, FrameError};
 pub use frame::{Frame, Function, Layout};
 pub use mbap::MbapError;
 pub use message::{Message, NoData};
-pub use sensor::{CommandEntry, RoundTripError, SensorInfo, SensorModule, identify_request};
+pub use sensor::{CoefficientBlock, CommandEntry, RoundTripError, SensorInfo, SensorModule, identify_request};
 pub use timing::{CharFormat, DataBits, LineSettings, LineTiming, Parity, StopBits};
 pub use value::{FieldInfo, FieldValue};
 

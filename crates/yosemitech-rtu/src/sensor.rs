@@ -3,7 +3,7 @@
 use crate::command::Command;
 use crate::dispatch::{request_data, response_data, write_request, write_response};
 use crate::error::{EncodeError, FrameError};
-use crate::frame::{Layout, MAX_ADU};
+use crate::frame::{Function, Layout, MAX_ADU};
 use crate::message::Message;
 use crate::timing::{CharFormat, LineSettings, LineTiming};
 use crate::value::{FieldInfo, FieldValue};
@@ -96,6 +96,10 @@ pub struct CommandEntry {
     // of one `f32` in one byte order) compile to one function.
     request_codec: MessageCodec,
     response_codec: MessageCodec,
+    // A flag, not the read's name: the read is the one of the same registers
+    // (the spec's own pairing), and a name would add eight bytes to every
+    // row of every table in firmware.
+    restores_coefficients: bool,
 }
 
 /// What a message's codec does with the message it decodes from register data.
@@ -173,7 +177,21 @@ impl CommandEntry {
             response_fields: <C::Response as Message>::FIELDS,
             request_codec: message_codec::<C>,
             response_codec: message_codec::<C::Response>,
+            restores_coefficients: false,
         }
+    }
+
+    /// This entry, marked as a write of calibration coefficients: one of
+    /// the spec's coefficient blocks, which a read of the same registers
+    /// reads back (see [`SensorModule::coefficient_blocks`]).
+    pub const fn restoring_coefficients(self) -> Self {
+        Self { restores_coefficients: true, ..self }
+    }
+
+    /// Whether this is a write of calibration coefficients (see
+    /// [`SensorModule::coefficient_blocks`]).
+    pub const fn restores_coefficients(&self) -> bool {
+        self.restores_coefficients
     }
 
     /// Decodes a request, passes each field of a write's data (in wire
@@ -258,6 +276,22 @@ impl SensorModule {
         self.commands.iter().find(|c| c.name == name)
     }
 
+    /// The calibration-coefficient blocks of the sensor, in spec order: each
+    /// write the spec marks as one (every field an `f32` coefficient) with
+    /// the first read of the same registers, which reads them back. A
+    /// backup reads every block; a restore writes each and reads it back.
+    pub fn coefficient_blocks(&self) -> impl Iterator<Item = CoefficientBlock> + use<> {
+        let commands = self.commands;
+        commands.iter().filter(|w| w.restores_coefficients).filter_map(move |write| {
+            let read = commands.iter().find(|r| {
+                r.layout.function == Function::Read
+                    && r.layout.address == write.layout.address
+                    && r.layout.count == write.layout.count
+            })?;
+            Some(CoefficientBlock { write, read })
+        })
+    }
+
     /// Every command's spec name, in spec order.
     pub fn command_names(&self) -> impl Iterator<Item = &'static str> + use<> {
         self.commands.iter().map(|c| c.name)
@@ -312,6 +346,16 @@ impl SensorModule {
     ) -> Option<Result<usize, RoundTripError>> {
         Some(self.command(name)?.reencode_response(slave, frame, out))
     }
+}
+
+/// A block of calibration coefficients: the write that sets it and the read
+/// of the same registers (see [`SensorModule::coefficient_blocks`]).
+#[derive(Debug, Clone, Copy)]
+pub struct CoefficientBlock {
+    /// The write of the coefficients.
+    pub write: &'static CommandEntry,
+    /// The read of the same registers.
+    pub read: &'static CommandEntry,
 }
 
 /// The index of the first command of `commands` whose function, start

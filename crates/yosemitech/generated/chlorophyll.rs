@@ -506,7 +506,8 @@ pub const COMMANDS: &[rtu::CommandEntry] = &[
     rtu::CommandEntry::of::<GetVersion>("Get Software and Hardware Rev"),
     rtu::CommandEntry::of::<StopMeasurement>("Stop Measurement"),
     rtu::CommandEntry::of::<GetUserCalibration>("Get User Calibration Coefficients"),
-    rtu::CommandEntry::of::<SetUserCalibration>("Set Customer Calibration Coefficients"),
+    rtu::CommandEntry::of::<SetUserCalibration>("Set Customer Calibration Coefficients")
+        .restoring_coefficients(),
     rtu::CommandEntry::of::<ActiveBrush>("Active Brush"),
     rtu::CommandEntry::of::<SetBrushInterval>("Set Brush Interval of time"),
     rtu::CommandEntry::of::<GetBrushInterval>("Get Brush Interval of time"),

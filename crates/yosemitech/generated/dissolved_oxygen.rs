@@ -703,7 +703,8 @@ pub const COMMANDS: &[rtu::CommandEntry] = &[
     rtu::CommandEntry::of::<GetVersion>("Get Software and Hardware Rev"),
     rtu::CommandEntry::of::<StopMeasurement>("Stop Measurement"),
     rtu::CommandEntry::of::<GetUserCalibration>("Get User Calibration Coefficients"),
-    rtu::CommandEntry::of::<SetUserCalibration>("Set Customer Calibration Coefficients"),
+    rtu::CommandEntry::of::<SetUserCalibration>("Set Customer Calibration Coefficients")
+        .restoring_coefficients(),
     rtu::CommandEntry::of::<SetCapCoefficients>("Set Optical Sensor Cap Coefficients"),
     rtu::CommandEntry::of::<GetSlaveId>("Get Slave Device ID"),
 ];

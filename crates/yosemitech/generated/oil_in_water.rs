@@ -275,7 +275,8 @@ pub const COMMANDS: &[rtu::CommandEntry] = &[
     rtu::CommandEntry::of::<GetSn>("Get SN"),
     rtu::CommandEntry::of::<GetVersion>("Get Software and Hardware Rev"),
     rtu::CommandEntry::of::<GetSlaveId>("Get Slave Device ID"),
-    rtu::CommandEntry::of::<SetUserCalibration>("Set Customer Calibration Coefficients"),
+    rtu::CommandEntry::of::<SetUserCalibration>("Set Customer Calibration Coefficients")
+        .restoring_coefficients(),
     rtu::CommandEntry::of::<GetUserCalibration>("Get User Calibration Coefficients"),
     rtu::CommandEntry::of::<GetTemperatureAndOil>("Get temperature and oil in water"),
 ];

@@ -305,7 +305,8 @@ pub const COMMANDS: &[rtu::CommandEntry] = &[
     rtu::CommandEntry::of::<GetOrp>("Get ORP value"),
     rtu::CommandEntry::of::<GetTemperature>("Get temperature"),
     rtu::CommandEntry::of::<GetUserCalibration>("Get user calibration coefficients"),
-    rtu::CommandEntry::of::<SetUserCalibration>("Set user calibration coefficients"),
+    rtu::CommandEntry::of::<SetUserCalibration>("Set user calibration coefficients")
+        .restoring_coefficients(),
 ];
 
 /// Every command of this sensor, for code that picks commands at run

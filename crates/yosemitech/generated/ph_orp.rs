@@ -1254,13 +1254,14 @@ pub const COMMANDS: &[rtu::CommandEntry] = &[
     rtu::CommandEntry::of::<StartPhCalibration>("Start pH calibration"),
     rtu::CommandEntry::of::<GetCalibrationStatus>("Get Calibration Status"),
     rtu::CommandEntry::of::<GetTemperature>("Get Temperature Value"),
-    rtu::CommandEntry::of::<SetPhElectrodeCoefficients>("Set pH Electrode Coefficients"),
+    rtu::CommandEntry::of::<SetPhElectrodeCoefficients>("Set pH Electrode Coefficients")
+        .restoring_coefficients(),
     rtu::CommandEntry::of::<GetPhElectrodeCoefficients>("Get pH Electrode Coefficients"),
-    rtu::CommandEntry::of::<SetOrpCalibration>("Set ORP Calibration Coefficients"),
+    rtu::CommandEntry::of::<SetOrpCalibration>("Set ORP Calibration Coefficients")
+        .restoring_coefficients(),
     rtu::CommandEntry::of::<GetOrpCalibration>("Get ORP Calibration Coefficients"),
-    rtu::CommandEntry::of::<
-        SetPhCalibration,
-    >("Set pH Customer Calibration Coefficients"),
+    rtu::CommandEntry::of::<SetPhCalibration>("Set pH Customer Calibration Coefficients")
+        .restoring_coefficients(),
     rtu::CommandEntry::of::<
         GetPhCalibration,
     >("Get pH Customer Calibration Coefficients"),

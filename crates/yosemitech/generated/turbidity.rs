@@ -381,7 +381,8 @@ pub const COMMANDS: &[rtu::CommandEntry] = &[
     rtu::CommandEntry::of::<GetVersion>("Get Software and Hardware Rev"),
     rtu::CommandEntry::of::<StopMeasurement>("Stop Measurement"),
     rtu::CommandEntry::of::<GetUserCalibration>("Get User Calibration Coefficients"),
-    rtu::CommandEntry::of::<SetUserCalibration>("Set Customer Calibration Coefficients"),
+    rtu::CommandEntry::of::<SetUserCalibration>("Set Customer Calibration Coefficients")
+        .restoring_coefficients(),
     rtu::CommandEntry::of::<GetSlaveId>("Get Slave Device ID"),
 ];
 

@@ -185,11 +185,12 @@
 //! [`procedures`] runs what the manuals describe, with the spec's numbers:
 //! the conductivity measurement (warm-up, averaging, flagged readings
 //! discarded, TDS), the three-point pH calibration (coefficients backed up
-//! before anything is written), coefficient backup and restore with
-//! read-back, and a slave-address change verified at the new address. Waits
-//! are injectable, so tests run instantly. `examples/pty_sensors.rs` reads
-//! every measurement from simulated probes on ptys through the serial
-//! transport.
+//! before anything is written), the backup and restore of every coefficient
+//! block of any sensor with read-back ([`procedures::backup`], through
+//! [`SENSORS`]' module as data), and a slave-address change verified at the
+//! new address. Waits are injectable, so tests run instantly.
+//! `examples/pty_sensors.rs` reads every measurement from simulated probes
+//! on ptys through the serial transport.
 //!
 //! # Quirks the manuals document
 //!

@@ -13,6 +13,14 @@ pub(super) fn dispatch(s: &Sensor, names: &Names) -> TokenStream {
     let derived_table = derived_table(s);
     let variants: Vec<Ident> = names.commands.iter().map(|c| ident(&c.ty)).collect();
     let titles: Vec<Literal> = s.commands.iter().map(|c| lit(&one_line(&c.title))).collect();
+    let coefficient_writes: Vec<&str> = s.coefficient_blocks().iter().map(|(write, _)| write.name.as_str()).collect();
+    let entries = s.commands.iter().zip(&variants).zip(&titles).map(|((c, v), title)| {
+        if coefficient_writes.contains(&c.name.as_str()) {
+            quote!(rtu::CommandEntry::of::<#v>(#title).restoring_coefficients())
+        } else {
+            quote!(rtu::CommandEntry::of::<#v>(#title))
+        }
+    });
     let id_docs: Vec<TokenStream> =
         s.commands.iter().zip(&variants).map(|(c, v)| doc(&format!("`{}`: [`{v}`].", c.name))).collect();
 
@@ -65,7 +73,7 @@ pub(super) fn dispatch(s: &Sensor, names: &Names) -> TokenStream {
         /// layout, fields and codecs ([`CommandId`] indexes it). A slice, so
         /// that a command a later manual adds changes no type.
         pub const COMMANDS: &[rtu::CommandEntry] = &[
-            #(rtu::CommandEntry::of::<#variants>(#titles),)*
+            #(#entries,)*
         ];
 
         /// Every command of this sensor, for code that picks commands at run

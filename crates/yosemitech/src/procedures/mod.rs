@@ -8,8 +8,10 @@
 //!   master from the potentials read in the buffers, by the vendor's model.
 //! - [`linear`]: the statistics of the readings in each standard and the
 //!   K/B line through them (a probe's user calibration).
-//! - [`coefficients`]: every calibration coefficient of a probe, read and
-//!   restored with read-back.
+//! - [`backup`]: every calibration coefficient of any sensor, read as one
+//!   backup and restored with read-back, from the spec's coefficient blocks.
+//! - [`coefficients`]: the pH and conductivity probes' coefficients as
+//!   typed values, read and restored with read-back.
 //! - [`address`]: changing a probe's slave address, verified at the new one.
 //!
 //! Every number (warm-up, interval, count, TDS factor, standards, settling
@@ -19,6 +21,7 @@
 use std::fmt;
 use std::time::Duration;
 
+pub mod backup;
 pub mod coefficients;
 pub mod conductivity;
 pub mod linear;
@@ -98,6 +101,24 @@ pub enum ProcedureError {
         /// Which block.
         what: &'static str,
     },
+    /// A coefficient backup does not fit the probe it was to restore;
+    /// nothing was written.
+    BackupDoesNotFit {
+        /// The sensor restored to.
+        sensor: &'static str,
+        /// The block at fault, when one is.
+        block: Option<String>,
+        /// What is wrong.
+        reason: &'static str,
+    },
+    /// A restore failed after it began writing: the probe may hold part of
+    /// the backup. `replaced` is every coefficient it held before.
+    RestoreInterrupted {
+        /// The probe's coefficients before the restore.
+        replaced: Box<backup::CoefficientBackup>,
+        /// Why it stopped.
+        cause: Box<ProcedureError>,
+    },
 }
 
 impl fmt::Display for ProcedureError {
@@ -111,6 +132,16 @@ impl fmt::Display for ProcedureError {
             ),
             Self::NotFinite { what } => write!(f, "{what} contain a NaN or infinite value; nothing was written"),
             Self::ReadBackMismatch { what } => write!(f, "{what} did not read back as written"),
+            Self::BackupDoesNotFit { sensor, block: Some(block), reason } => {
+                write!(f, "the backup's `{block}` does not fit this {sensor} probe: {reason}; nothing was written")
+            }
+            Self::BackupDoesNotFit { sensor, block: None, reason } => {
+                write!(f, "the backup does not fit this {sensor} probe: {reason}; nothing was written")
+            }
+            Self::RestoreInterrupted { replaced, cause } => write!(
+                f,
+                "the restore stopped after it began writing ({cause}); the coefficients it replaced were: {replaced}"
+            ),
         }
     }
 }

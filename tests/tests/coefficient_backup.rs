@@ -1,0 +1,172 @@
+//! The coefficient backup of every sensor (yosemitech::procedures::backup),
+//! through the module as data, against each sensor's simulator: the
+//! runtime's blocks are the spec's, a restore brings back every coefficient
+//! and returns what it replaced, a backup that does not fit writes nothing,
+//! and a failed read-back hands back the replaced coefficients.
+
+use std::time::Duration;
+
+use yosemitech::procedures::ProcedureError;
+use yosemitech::procedures::backup::{CoefficientBackup, backup, restore};
+use yosemitech::rtu::frame::{Function, MAX_ADU};
+use yosemitech::rtu::transport::Responder;
+use yosemitech::rtu::{CoefficientBlock, SensorModule};
+use yosemitech::{Client, ClientConfig, ResponderTransport, RetryPolicy};
+use yosemitech_sim::Simulator;
+use yosemitech_tests::sim::simulated_modules;
+
+fn fast() -> ClientConfig {
+    ClientConfig {
+        timeout: Duration::from_millis(50),
+        inter_frame_delay: Some(Duration::ZERO),
+        retry: RetryPolicy::NONE,
+        ..ClientConfig::default()
+    }
+}
+
+/// A simulator that counts the writes reaching it and, while `drop_writes`,
+/// answers them from a scratch probe instead (the echo a probe sends, with
+/// nothing kept).
+struct Probe {
+    sim: Simulator,
+    scratch: Simulator,
+    writes: usize,
+    drop_writes: bool,
+}
+
+impl Responder for Probe {
+    fn respond(&mut self, request: &[u8], reply: &mut Vec<u8>) {
+        if request.get(1) == Some(&Function::Write.code()) {
+            self.writes += 1;
+            if self.drop_writes {
+                return self.scratch.respond(request, reply);
+            }
+        }
+        self.sim.respond(request, reply);
+    }
+}
+
+/// Every generated module with coefficient blocks, each with a client on its
+/// simulator. Not empty: the spec has probes with coefficient blocks.
+fn probes() -> Vec<(&'static SensorModule, Client<ResponderTransport<Probe>>)> {
+    let probes: Vec<_> = simulated_modules()
+        .into_iter()
+        .filter(|(module, _)| module.coefficient_blocks().next().is_some())
+        .map(|(module, sim)| {
+            let scratch = sim.clone();
+            let probe = Probe { sim, scratch, writes: 0, drop_writes: false };
+            (module, Client::with_config(ResponderTransport::new(probe), fast()))
+        })
+        .collect();
+    assert!(!probes.is_empty(), "the spec has sensors with coefficient blocks");
+    probes
+}
+
+/// Whether the block's write accepts `data` (its ranges, finite values).
+fn accepts(block: &CoefficientBlock, data: &[u8]) -> bool {
+    let mut frame = [0; MAX_ADU];
+    let Ok(len) = block.write.layout.encode_request(1, data, &mut frame) else { return false };
+    let mut finite = true;
+    let visited = block.write.visit_request(&frame[..len], &mut |_, v| {
+        finite &= !matches!(v, yosemitech::rtu::FieldValue::F32(f) if !f.is_finite());
+    });
+    visited.is_ok() && finite && block.write.reencode_request(&frame[..len], &mut [0; MAX_ADU]).is_ok()
+}
+
+/// A backup unlike `saved` that every block's write accepts: each block's
+/// bytes all one value, so every `f32` reads the same in any byte order.
+fn altered(module: &SensorModule, saved: &CoefficientBackup) -> CoefficientBackup {
+    let mut changed = saved.clone();
+    for (block, slot) in module.coefficient_blocks().zip(&mut changed.blocks) {
+        let data = [0x3F, 0x40, 0xBF, 0x41]
+            .into_iter()
+            .map(|byte| vec![byte; slot.data.len()])
+            .find(|data| *data != slot.data && accepts(&block, data))
+            .unwrap_or_else(|| panic!("{}: no changed coefficients the write accepts", block.write.name));
+        slot.data = data;
+    }
+    changed
+}
+
+#[test]
+fn every_modules_blocks_are_the_specs() {
+    for module in yosemitech::SENSORS {
+        let sensor = yosemitech_tests::spec().sensor(module.info.name).expect("every module is in the spec");
+        let ours: Vec<(&str, &str)> = module.coefficient_blocks().map(|b| (b.write.name, b.read.name)).collect();
+        let spec: Vec<(&str, &str)> =
+            sensor.coefficient_blocks().iter().map(|(w, r)| (w.name.as_str(), r.name.as_str())).collect();
+        assert_eq!(ours, spec, "{}", module.info.name);
+    }
+}
+
+#[test]
+fn a_restore_brings_back_every_coefficient_and_returns_what_it_replaced() {
+    for (module, mut client) in probes() {
+        let name = module.info.name;
+        let slave = module.info.default_address;
+        let saved = backup(&mut client, module, slave).unwrap();
+        assert_eq!(saved.sensor, name);
+        for (block, backed_up) in module.coefficient_blocks().zip(&saved.blocks) {
+            assert_eq!(backed_up.write, block.write.name, "{name}");
+            assert_eq!(backed_up.data.len(), block.read.layout.data_len(), "{name}: {}", block.write.name);
+        }
+        let changed = altered(module, &saved);
+        assert_eq!(restore(&mut client, module, slave, &changed).unwrap(), saved, "{name}: what it replaced");
+        assert_eq!(backup(&mut client, module, slave).unwrap(), changed, "{name}: the probe holds the restore");
+        assert_eq!(restore(&mut client, module, slave, &saved).unwrap(), changed, "{name}: what it replaced");
+        assert_eq!(backup(&mut client, module, slave).unwrap(), saved, "{name}: back where it started");
+    }
+}
+
+#[test]
+fn a_backup_that_does_not_fit_writes_nothing() {
+    for (module, mut client) in probes() {
+        let name = module.info.name;
+        let slave = module.info.default_address;
+        let saved = backup(&mut client, module, slave).unwrap();
+        let changed = altered(module, &saved);
+        let mut unfit: Vec<(&str, CoefficientBackup)> = Vec::new();
+        let mut other = changed.clone();
+        other.sensor.push_str("_other");
+        unfit.push(("another sensor's", other));
+        let mut missing = changed.clone();
+        missing.blocks.pop();
+        unfit.push(("a block missing", missing));
+        let mut stray = changed.clone();
+        stray.blocks[0].write.push_str("_stray");
+        unfit.push(("a block the sensor lacks", stray));
+        let mut short = changed.clone();
+        short.blocks[0].data.truncate(2);
+        unfit.push(("a block of another length", short));
+        let mut nan = changed.clone();
+        nan.blocks[0].data.fill(0xFF);
+        unfit.push(("a NaN", nan));
+        for (what, backup_) in unfit {
+            let error = restore(&mut client, module, slave, &backup_).expect_err(what);
+            assert!(
+                matches!(error, ProcedureError::BackupDoesNotFit { .. } | ProcedureError::NotFinite { .. }),
+                "{name}, {what}: {error}"
+            );
+            assert_eq!(client.transport().responder().writes, 0, "{name}, {what}: nothing is written");
+        }
+        assert_eq!(backup(&mut client, module, slave).unwrap(), saved, "{name}: the probe is as it was");
+    }
+}
+
+#[test]
+fn a_failed_read_back_hands_back_what_the_probe_held() {
+    for (module, mut client) in probes() {
+        let name = module.info.name;
+        let slave = module.info.default_address;
+        let saved = backup(&mut client, module, slave).unwrap();
+        let changed = altered(module, &saved);
+        client.transport_mut().responder_mut().drop_writes = true;
+        match restore(&mut client, module, slave, &changed) {
+            Err(ProcedureError::RestoreInterrupted { replaced, cause }) => {
+                assert_eq!(*replaced, saved, "{name}");
+                assert!(matches!(*cause, ProcedureError::ReadBackMismatch { .. }), "{name}: {cause}");
+            }
+            other => panic!("{name}: a write the probe did not keep is not a restore: {other:?}"),
+        }
+    }
+}
