@@ -11,18 +11,9 @@ use yosemitech::procedures::backup::{CoefficientBackup, backup, restore};
 use yosemitech::rtu::frame::{Function, MAX_ADU};
 use yosemitech::rtu::transport::Responder;
 use yosemitech::rtu::{CoefficientBlock, SensorModule};
-use yosemitech::{Client, ClientConfig, ResponderTransport, RetryPolicy};
+use yosemitech::{Client, ResponderTransport};
 use yosemitech_sim::Simulator;
-use yosemitech_tests::sim::simulated_modules;
-
-fn fast() -> ClientConfig {
-    ClientConfig {
-        timeout: Duration::from_millis(50),
-        inter_frame_delay: Some(Duration::ZERO),
-        retry: RetryPolicy::NONE,
-        ..ClientConfig::default()
-    }
-}
+use yosemitech_tests::sim::{client, simulated_modules};
 
 /// A simulator that counts the writes reaching it and, while `drop_writes`,
 /// answers them from a scratch probe instead (the echo a probe sends, with
@@ -46,20 +37,34 @@ impl Responder for Probe {
     }
 }
 
-/// Every generated module with coefficient blocks, each with a client on its
-/// simulator. Not empty: the spec has probes with coefficient blocks.
-fn probes() -> Vec<(&'static SensorModule, Client<ResponderTransport<Probe>>)> {
-    let probes: Vec<_> = simulated_modules()
-        .into_iter()
-        .filter(|(module, _)| module.coefficient_blocks().next().is_some())
-        .map(|(module, sim)| {
-            let scratch = sim.clone();
-            let probe = Probe { sim, scratch, writes: 0, drop_writes: false };
-            (module, Client::with_config(ResponderTransport::new(probe), fast()))
-        })
-        .collect();
-    assert!(!probes.is_empty(), "the spec has sensors with coefficient blocks");
-    probes
+/// One probe with coefficient blocks, at its factory address, and what a
+/// test starts from: its backup and a restore unlike it.
+struct Case {
+    module: &'static SensorModule,
+    client: Client<ResponderTransport<Probe>>,
+    slave: u8,
+    saved: CoefficientBackup,
+    changed: CoefficientBackup,
+}
+
+/// Runs `test` on the simulator of every generated module with coefficient
+/// blocks (the spec has some: a test that ran on none would prove nothing).
+fn for_each_probe(mut test: impl FnMut(&str, Case)) {
+    let mut probes = 0;
+    for (module, sim) in simulated_modules() {
+        if module.coefficient_blocks().next().is_none() {
+            continue;
+        }
+        let scratch = sim.clone();
+        let probe = Probe { sim, scratch, writes: 0, drop_writes: false };
+        let mut client = client(ResponderTransport::new(probe), Duration::from_millis(50));
+        let slave = module.info.default_address;
+        let saved = backup(&mut client, module, slave).unwrap_or_else(|e| panic!("{}: {e}", module.info.name));
+        let changed = altered(module, &saved);
+        test(module.info.name, Case { module, client, slave, saved, changed });
+        probes += 1;
+    }
+    assert!(probes > 0, "the spec has sensors with coefficient blocks");
 }
 
 /// Whether the block's write accepts `data` (its ranges, finite values).
@@ -101,30 +106,22 @@ fn every_modules_blocks_are_the_specs() {
 
 #[test]
 fn a_restore_brings_back_every_coefficient_and_returns_what_it_replaced() {
-    for (module, mut client) in probes() {
-        let name = module.info.name;
-        let slave = module.info.default_address;
-        let saved = backup(&mut client, module, slave).unwrap();
+    for_each_probe(|name, Case { module, mut client, slave, saved, changed }| {
         assert_eq!(saved.sensor, name);
         for (block, backed_up) in module.coefficient_blocks().zip(&saved.blocks) {
             assert_eq!(backed_up.write, block.write.name, "{name}");
             assert_eq!(backed_up.data.len(), block.read.layout.data_len(), "{name}: {}", block.write.name);
         }
-        let changed = altered(module, &saved);
         assert_eq!(restore(&mut client, module, slave, &changed).unwrap(), saved, "{name}: what it replaced");
         assert_eq!(backup(&mut client, module, slave).unwrap(), changed, "{name}: the probe holds the restore");
         assert_eq!(restore(&mut client, module, slave, &saved).unwrap(), changed, "{name}: what it replaced");
         assert_eq!(backup(&mut client, module, slave).unwrap(), saved, "{name}: back where it started");
-    }
+    });
 }
 
 #[test]
 fn a_backup_that_does_not_fit_writes_nothing() {
-    for (module, mut client) in probes() {
-        let name = module.info.name;
-        let slave = module.info.default_address;
-        let saved = backup(&mut client, module, slave).unwrap();
-        let changed = altered(module, &saved);
+    for_each_probe(|name, Case { module, mut client, slave, saved, changed }| {
         let mut unfit: Vec<(&str, CoefficientBackup)> = Vec::new();
         let mut other = changed.clone();
         other.sensor.push_str("_other");
@@ -150,16 +147,12 @@ fn a_backup_that_does_not_fit_writes_nothing() {
             assert_eq!(client.transport().responder().writes, 0, "{name}, {what}: nothing is written");
         }
         assert_eq!(backup(&mut client, module, slave).unwrap(), saved, "{name}: the probe is as it was");
-    }
+    });
 }
 
 #[test]
 fn a_failed_read_back_hands_back_what_the_probe_held() {
-    for (module, mut client) in probes() {
-        let name = module.info.name;
-        let slave = module.info.default_address;
-        let saved = backup(&mut client, module, slave).unwrap();
-        let changed = altered(module, &saved);
+    for_each_probe(|name, Case { module, mut client, slave, saved, changed }| {
         client.transport_mut().responder_mut().drop_writes = true;
         match restore(&mut client, module, slave, &changed) {
             Err(ProcedureError::RestoreInterrupted { replaced, cause }) => {
@@ -168,5 +161,5 @@ fn a_failed_read_back_hands_back_what_the_probe_held() {
             }
             other => panic!("{name}: a write the probe did not keep is not a restore: {other:?}"),
         }
-    }
+    });
 }
