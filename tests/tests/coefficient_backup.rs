@@ -114,6 +114,14 @@ fn a_restore_brings_back_every_coefficient_and_returns_what_it_replaced() {
         }
         assert_eq!(restore(&mut client, module, slave, &changed).unwrap(), saved, "{name}: what it replaced");
         assert_eq!(backup(&mut client, module, slave).unwrap(), changed, "{name}: the probe holds the restore");
+        // Each changed block is one byte throughout: every value is that byte four times.
+        let values = changed.values(module);
+        for block in &changed.blocks {
+            let of_block: Vec<f32> = values.iter().filter(|(b, ..)| *b == block.write).map(|v| v.2).collect();
+            assert!(!of_block.is_empty(), "{name}: {} has values", block.write);
+            let bits = u32::from_ne_bytes([block.data[0]; 4]);
+            assert!(of_block.iter().all(|v| v.to_bits() == bits), "{name}: {} {of_block:?}", block.write);
+        }
         assert_eq!(restore(&mut client, module, slave, &saved).unwrap(), changed, "{name}: what it replaced");
         assert_eq!(backup(&mut client, module, slave).unwrap(), saved, "{name}: back where it started");
     });

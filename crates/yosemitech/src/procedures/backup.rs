@@ -10,6 +10,9 @@
 //! # fn run<T: Transport>(client: &mut Client<T>) -> Result<(), yosemitech::procedures::ProcedureError> {
 //! for module in SENSORS.iter().filter(|m| m.coefficient_blocks().next().is_some()) {
 //!     let saved = backup(client, module, module.info.default_address)?;
+//!     for (block, field, value) in saved.values(module) {
+//!         println!("{} {block}.{}: {value}", module.info.name, field.name);
+//!     }
 //!     // ... a calibration writes new coefficients ...
 //!     let replaced = restore(client, module, module.info.default_address, &saved)?;
 //!     assert_eq!(replaced.sensor, module.info.name);
@@ -21,7 +24,7 @@
 use std::fmt;
 
 use yosemitech_rtu::frame::MAX_ADU;
-use yosemitech_rtu::{CoefficientBlock, CommandEntry, FieldValue, FrameError, RoundTripError, SensorModule};
+use yosemitech_rtu::{CoefficientBlock, CommandEntry, FieldInfo, FieldValue, FrameError, RoundTripError, SensorModule};
 
 use super::ProcedureError;
 use crate::{Client, Transport};
@@ -48,6 +51,24 @@ impl CoefficientBackup {
     /// The block restored by the write called `write`.
     pub fn block(&self, write: &str) -> Option<&BlockBackup> {
         self.blocks.iter().find(|b| b.write == write)
+    }
+
+    /// Every coefficient, as `module`'s reads decode it: the block's write
+    /// name, the field's name and unit, and its value. Blocks `module` does
+    /// not have, or whose data is not their length, are left out.
+    pub fn values(&self, module: &SensorModule) -> Vec<(&str, FieldInfo, f32)> {
+        let mut values = Vec::new();
+        for saved in &self.blocks {
+            let Some(block) = module.coefficient_blocks().find(|b| b.write.name == saved.write) else { continue };
+            let mut frame = [0; MAX_ADU];
+            let Ok(len) = block.read.layout.encode_response(1, &saved.data, &mut frame) else { continue };
+            let _ = block.read.visit_response(1, frame.get(..len).unwrap_or_default(), &mut |info, value| {
+                if let FieldValue::F32(v) = value {
+                    values.push((saved.write.as_str(), info, v));
+                }
+            });
+        }
+        values
     }
 }
 
