@@ -13,7 +13,7 @@ use yosemitech::rtu::transport::Responder;
 use yosemitech::rtu::{CoefficientBlock, SensorModule};
 use yosemitech::{Client, ResponderTransport};
 use yosemitech_sim::Simulator;
-use yosemitech_tests::sim::{client, simulated_modules};
+use yosemitech_tests::sim::{client, f32_bytes, simulated_modules};
 
 /// A simulator that counts the writes reaching it and, while `drop_writes`,
 /// answers them from a scratch probe instead (the echo a probe sends, with
@@ -45,6 +45,8 @@ struct Case {
     slave: u8,
     saved: CoefficientBackup,
     changed: CoefficientBackup,
+    /// Each coefficient of `changed` (block, value), in wire order.
+    changed_values: Vec<(String, f32)>,
 }
 
 /// Runs `test` on the simulator of every generated module with coefficient
@@ -60,8 +62,8 @@ fn for_each_probe(mut test: impl FnMut(&str, Case)) {
         let mut client = client(ResponderTransport::new(probe), Duration::from_millis(50));
         let slave = module.info.default_address;
         let saved = backup(&mut client, module, slave).unwrap_or_else(|e| panic!("{}: {e}", module.info.name));
-        let changed = altered(module, &saved);
-        test(module.info.name, Case { module, client, slave, saved, changed });
+        let (changed, changed_values) = altered(module, &saved);
+        test(module.info.name, Case { module, client, slave, saved, changed, changed_values });
         probes += 1;
     }
     assert!(probes > 0, "the spec has sensors with coefficient blocks");
@@ -78,19 +80,33 @@ fn accepts(block: &CoefficientBlock, data: &[u8]) -> bool {
     visited.is_ok() && finite && block.write.reencode_request(&frame[..len], &mut [0; MAX_ADU]).is_ok()
 }
 
-/// A backup unlike `saved` that every block's write accepts: each block's
-/// bytes all one value, so every `f32` reads the same in any byte order.
-fn altered(module: &SensorModule, saved: &CoefficientBackup) -> CoefficientBackup {
+/// A backup unlike `saved` that every block's write accepts, and the value
+/// of each coefficient in it (block, value), in wire order. Each value is
+/// chosen from the spec's field (inside its range, unlike the saved one)
+/// and placed in the field's byte order.
+fn altered(module: &SensorModule, saved: &CoefficientBackup) -> (CoefficientBackup, Vec<(String, f32)>) {
+    let sensor = yosemitech_tests::spec().sensor(module.info.name).expect("every module is in the spec");
     let mut changed = saved.clone();
+    let mut values = Vec::new();
     for (block, slot) in module.coefficient_blocks().zip(&mut changed.blocks) {
-        let data = [0x3F, 0x40, 0xBF, 0x41]
-            .into_iter()
-            .map(|byte| vec![byte; slot.data.len()])
-            .find(|data| *data != slot.data && accepts(&block, data))
-            .unwrap_or_else(|| panic!("{}: no changed coefficients the write accepts", block.write.name));
-        slot.data = data;
+        let write = sensor.commands.iter().find(|c| c.name == slot.write).expect("the block's write is in the spec");
+        for field in write.fields.iter().filter(|f| f.name.is_some()) {
+            let span = field.offset..field.offset + 4;
+            let candidates = match field.range {
+                Some((min, max)) => [0.5, 0.25, 0.75].map(|k| (min + (max - min) * k) as f32),
+                None => [0.75, 1.5, -2.25],
+            };
+            let value = candidates
+                .into_iter()
+                .find(|v| f32_bytes(field, *v)[..] != slot.data[span.clone()])
+                .unwrap_or(candidates[0]);
+            slot.data[span].copy_from_slice(&f32_bytes(field, value));
+            values.push((slot.write.clone(), value));
+        }
+        assert!(accepts(&block, &slot.data), "{}: the write accepts values inside its ranges", block.write.name);
     }
-    changed
+    assert_ne!(changed, *saved, "{}: a changed backup", module.info.name);
+    (changed, values)
 }
 
 #[test]
@@ -106,7 +122,7 @@ fn every_modules_blocks_are_the_specs() {
 
 #[test]
 fn a_restore_brings_back_every_coefficient_and_returns_what_it_replaced() {
-    for_each_probe(|name, Case { module, mut client, slave, saved, changed }| {
+    for_each_probe(|name, Case { module, mut client, slave, saved, changed, changed_values }| {
         assert_eq!(saved.sensor, name);
         for (block, backed_up) in module.coefficient_blocks().zip(&saved.blocks) {
             assert_eq!(backed_up.write, block.write.name, "{name}");
@@ -114,22 +130,21 @@ fn a_restore_brings_back_every_coefficient_and_returns_what_it_replaced() {
         }
         assert_eq!(restore(&mut client, module, slave, &changed).unwrap(), saved, "{name}: what it replaced");
         assert_eq!(backup(&mut client, module, slave).unwrap(), changed, "{name}: the probe holds the restore");
-        // Each changed block is one byte throughout: every value is that byte four times.
-        let values = changed.values(module);
-        for block in &changed.blocks {
-            let of_block: Vec<f32> = values.iter().filter(|(b, ..)| *b == block.write).map(|v| v.2).collect();
-            assert!(!of_block.is_empty(), "{name}: {} has values", block.write);
-            let bits = u32::from_ne_bytes([block.data[0]; 4]);
-            assert!(of_block.iter().all(|v| v.to_bits() == bits), "{name}: {} {of_block:?}", block.write);
-        }
-        assert_eq!(restore(&mut client, module, slave, &saved).unwrap(), changed, "{name}: what it replaced");
-        assert_eq!(backup(&mut client, module, slave).unwrap(), saved, "{name}: back where it started");
+        let shown: Vec<(String, u32)> =
+            changed.values(module).into_iter().map(|(block, _, v)| (block.to_owned(), v.to_bits())).collect();
+        let set: Vec<(String, u32)> = changed_values.iter().map(|(block, v)| (block.clone(), v.to_bits())).collect();
+        assert_eq!(shown, set, "{name}: the values shown are those restored");
+        // A second restore, not of `saved`: a simulator may start with values
+        // outside a write's range, which a restore refuses to write.
+        let (again, _) = altered(module, &changed);
+        assert_eq!(restore(&mut client, module, slave, &again).unwrap(), changed, "{name}: what it replaced");
+        assert_eq!(backup(&mut client, module, slave).unwrap(), again, "{name}: the probe holds the second restore");
     });
 }
 
 #[test]
 fn a_backup_that_does_not_fit_writes_nothing() {
-    for_each_probe(|name, Case { module, mut client, slave, saved, changed }| {
+    for_each_probe(|name, Case { module, mut client, slave, saved, changed, .. }| {
         let mut unfit: Vec<(&str, CoefficientBackup)> = Vec::new();
         let mut other = changed.clone();
         other.sensor.push_str("_other");
@@ -160,7 +175,7 @@ fn a_backup_that_does_not_fit_writes_nothing() {
 
 #[test]
 fn a_failed_read_back_hands_back_what_the_probe_held() {
-    for_each_probe(|name, Case { module, mut client, slave, saved, changed }| {
+    for_each_probe(|name, Case { module, mut client, slave, saved, changed, .. }| {
         client.transport_mut().responder_mut().drop_writes = true;
         match restore(&mut client, module, slave, &changed) {
             Err(ProcedureError::RestoreInterrupted { replaced, cause }) => {
