@@ -2,7 +2,8 @@
 //! through the module as data, against each sensor's simulator: the
 //! runtime's blocks are the spec's, a restore brings back every coefficient
 //! and returns what it replaced, a backup that does not fit writes nothing,
-//! and a failed read-back hands back the replaced coefficients.
+//! and a failed read-back or a reply lost at any step hands back the
+//! replaced coefficients, which restore the probe.
 
 use std::time::Duration;
 
@@ -17,16 +18,25 @@ use yosemitech_tests::sim::{client, f32_bytes, simulated_modules};
 
 /// A simulator that counts the writes reaching it and, while `drop_writes`,
 /// answers them from a scratch probe instead (the echo a probe sends, with
-/// nothing kept).
+/// nothing kept). With `lose_reply_at`, the reply to that request (counted
+/// in `requests` from 0) is lost on the way back: the probe acts on it.
 struct Probe {
     sim: Simulator,
     scratch: Simulator,
     writes: usize,
     drop_writes: bool,
+    requests: usize,
+    lose_reply_at: Option<usize>,
 }
 
 impl Responder for Probe {
     fn respond(&mut self, request: &[u8], reply: &mut Vec<u8>) {
+        let index = self.requests;
+        self.requests += 1;
+        if self.lose_reply_at == Some(index) {
+            self.sim.respond(request, &mut Vec::new());
+            return;
+        }
         if request.get(1) == Some(&Function::Write.code()) {
             self.writes += 1;
             if self.drop_writes {
@@ -58,7 +68,7 @@ fn for_each_probe(mut test: impl FnMut(&str, Case)) {
             continue;
         }
         let scratch = sim.clone();
-        let probe = Probe { sim, scratch, writes: 0, drop_writes: false };
+        let probe = Probe { sim, scratch, writes: 0, drop_writes: false, requests: 0, lose_reply_at: None };
         let mut client = client(ResponderTransport::new(probe), Duration::from_millis(50));
         let slave = module.info.default_address;
         let saved = backup(&mut client, module, slave).unwrap_or_else(|e| panic!("{}: {e}", module.info.name));
@@ -184,5 +194,45 @@ fn a_failed_read_back_hands_back_what_the_probe_held() {
             }
             other => panic!("{name}: a write the probe did not keep is not a restore: {other:?}"),
         }
+    });
+}
+
+#[test]
+fn a_reply_lost_at_any_step_of_a_restore_loses_no_coefficient() {
+    for_each_probe(|name, Case { module, mut client, slave, changed, .. }| {
+        // From `changed` to another in-range backup: the simulator's own
+        // start values may be outside a write's range.
+        let (target, _) = altered(module, &changed);
+        let mut interrupted = 0;
+        for lost in 0.. {
+            assert!(lost < 256, "{name}: a restore is a bounded number of exchanges");
+            restore(&mut client, module, slave, &changed).unwrap_or_else(|e| panic!("{name}: reset: {e}"));
+            let probe = client.transport_mut().responder_mut();
+            (probe.requests, probe.lose_reply_at) = (0, Some(lost));
+            let result = restore(&mut client, module, slave, &target);
+            let probe = client.transport_mut().responder_mut();
+            let fired = probe.requests > lost;
+            probe.lose_reply_at = None;
+            match result {
+                Ok(replaced) => {
+                    assert!(!fired, "{name}, reply {lost} lost: a restore cannot succeed without a reply");
+                    assert_eq!(replaced, changed, "{name}: what it replaced");
+                    assert_eq!(backup(&mut client, module, slave).unwrap(), target, "{name}: the probe holds it");
+                    break;
+                }
+                Err(ProcedureError::RestoreInterrupted { replaced, cause }) => {
+                    assert!(fired, "{name}, reply {lost}: interrupted by {cause}");
+                    assert_eq!(*replaced, changed, "{name}, reply {lost} lost: what the probe held");
+                    interrupted += 1;
+                    // The coefficients handed back restore the probe.
+                    restore(&mut client, module, slave, &replaced)
+                        .unwrap_or_else(|e| panic!("{name}, reply {lost} lost: restoring what it replaced: {e}"));
+                }
+                // Lost before the first write: the probe was not touched.
+                Err(error) => assert!(fired, "{name}, reply {lost}: {error}"),
+            }
+            assert_eq!(backup(&mut client, module, slave).unwrap(), changed, "{name}, reply {lost} lost: nothing lost");
+        }
+        assert!(interrupted > 0, "{name}: some lost reply falls after a write");
     });
 }
