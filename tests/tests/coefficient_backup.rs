@@ -3,12 +3,15 @@
 //! runtime's blocks are the spec's, a restore brings back every coefficient
 //! and returns what it replaced, a backup that does not fit writes nothing,
 //! and a failed read-back or a reply lost at any step hands back the
-//! replaced coefficients, which restore the probe.
+//! replaced coefficients, which restore the probe; a backup kept as text
+//! reads back as it was and restores the probe.
 
 use std::time::Duration;
 
+use proptest::prelude::*;
+
 use yosemitech::procedures::ProcedureError;
-use yosemitech::procedures::backup::{CoefficientBackup, backup, restore};
+use yosemitech::procedures::backup::{BlockBackup, CoefficientBackup, backup, restore};
 use yosemitech::rtu::frame::{Function, MAX_ADU};
 use yosemitech::rtu::transport::Responder;
 use yosemitech::rtu::{CoefficientBlock, SensorModule};
@@ -235,4 +238,59 @@ fn a_reply_lost_at_any_step_of_a_restore_loses_no_coefficient() {
         }
         assert!(interrupted > 0, "{name}: some lost reply falls after a write");
     });
+}
+
+#[test]
+fn a_backup_kept_as_text_restores_the_probe() {
+    for_each_probe(|name, Case { module, mut client, slave, changed, .. }| {
+        let kept = changed.to_string();
+        let read: CoefficientBackup = kept.parse().unwrap_or_else(|e| panic!("{name}: {kept}: {e}"));
+        assert_eq!(read, changed, "{name}: {kept}");
+        restore(&mut client, module, slave, &read).unwrap_or_else(|e| panic!("{name}: {e}"));
+        assert_eq!(backup(&mut client, module, slave).unwrap(), changed, "{name}: the probe holds the kept backup");
+    });
+}
+
+#[test]
+fn a_damaged_backup_text_is_refused() {
+    let kept = "probe: set_one [3F80 0000] set_two [0102]";
+    assert!(kept.parse::<CoefficientBackup>().is_ok());
+    for (damaged, at) in [
+        ("probe set_one [3F80 0000]", 0),
+        ("the probe: set_one [3F80]", 0),
+        ("probe: set_one [3F80 0000] set_two [0102", 27),
+        ("probe: set_one 3F80 0000]", 7),
+        ("probe: set_one [3F8 0000]", 7),
+        ("probe: set_one [+F80 0000]", 7),
+        ("probe: set_one [3G80 0000]", 7),
+        ("probe: set one [3F80 0000]", 7),
+        ("probe: set_one [3F80] ]", 22),
+    ] {
+        let error = damaged.parse::<CoefficientBackup>().expect_err(damaged);
+        assert_eq!(error.at, at, "{damaged}: {error}");
+        assert!(error.to_string().contains(error.reason), "{error}");
+    }
+}
+
+/// A backup as `backup` makes them: spec names (one snake_case word each)
+/// and register data.
+fn any_backup() -> impl Strategy<Value = CoefficientBackup> {
+    let block = ("[a-z][a-z0-9_]{0,24}", proptest::collection::vec(any::<u8>(), 0..64))
+        .prop_map(|(write, data)| BlockBackup { write, data });
+    ("[a-z][a-z0-9_]{0,24}", proptest::collection::vec(block, 0..6))
+        .prop_map(|(sensor, blocks)| CoefficientBackup { sensor, blocks })
+}
+
+proptest! {
+    #[test]
+    fn every_backup_reads_back_from_its_text(saved in any_backup()) {
+        prop_assert_eq!(saved.to_string().parse::<CoefficientBackup>(), Ok(saved));
+    }
+
+    #[test]
+    fn any_text_is_read_or_refused_and_what_reads_is_its_own_text(text in "\\PC{0,80}|[a-z_ :\\[\\]0-9A-Fa-f+]{0,80}") {
+        if let Ok(read) = text.parse::<CoefficientBackup>() {
+            prop_assert_eq!(read.to_string().parse::<CoefficientBackup>(), Ok(read));
+        }
+    }
 }

@@ -22,6 +22,7 @@
 //! ```
 
 use std::fmt;
+use std::str::FromStr;
 
 use yosemitech_rtu::frame::MAX_ADU;
 use yosemitech_rtu::{CoefficientBlock, CommandEntry, FieldInfo, FieldValue, FrameError, RoundTripError, SensorModule};
@@ -72,6 +73,22 @@ impl CoefficientBackup {
     }
 }
 
+/// The text of a backup: `sensor: write [HHHH HHHH] write [HHHH ...]`, each
+/// block's register data in hex, a register (two bytes) per group. It reads
+/// back with [`str::parse`], so a backup can be kept in a file before a
+/// calibration and restored after a power cut.
+///
+/// ```
+/// use yosemitech::procedures::backup::{BlockBackup, CoefficientBackup};
+///
+/// let saved = CoefficientBackup {
+///     sensor: "probe".into(),
+///     blocks: vec![BlockBackup { write: "set_calibration".into(), data: vec![0x3F, 0x80, 0, 0] }],
+/// };
+/// let text = saved.to_string();
+/// assert_eq!(text, "probe: set_calibration [3F80 0000]");
+/// assert_eq!(text.parse::<CoefficientBackup>(), Ok(saved));
+/// ```
 impl fmt::Display for CoefficientBackup {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         write!(f, "{}:", self.sensor)?;
@@ -85,6 +102,76 @@ impl fmt::Display for CoefficientBackup {
         }
         Ok(())
     }
+}
+
+/// Reads a backup's text (its [`Display`](fmt::Display) form). Only the
+/// text is checked here; whether the backup fits a probe is
+/// [`restore`]'s to check, before it writes anything.
+impl FromStr for CoefficientBackup {
+    type Err = ParseBackupError;
+
+    fn from_str(text: &str) -> Result<Self, ParseBackupError> {
+        // Every `rest` below is a suffix of `body`, a prefix of `text`: the
+        // offset where reading stopped is what `rest` lacks.
+        let body = text.trim_end();
+        let error = |rest: &str, reason| ParseBackupError { at: body.len() - rest.len(), reason };
+        let (sensor, mut rest) = body.split_once(':').ok_or_else(|| error(body, "no `:` after the sensor"))?;
+        let sensor = name(sensor).ok_or_else(|| error(body, "the sensor's name is not one word"))?;
+        let mut blocks = Vec::new();
+        loop {
+            rest = rest.trim_start();
+            if rest.is_empty() {
+                return Ok(Self { sensor: sensor.to_owned(), blocks });
+            }
+            let (write, after) = rest.split_once('[').ok_or_else(|| error(rest, "a block without `[`"))?;
+            let write = name(write).ok_or_else(|| error(rest, "a block's name is not one word"))?;
+            let (hex, after) = after.split_once(']').ok_or_else(|| error(rest, "a block without `]`"))?;
+            let data = hex_bytes(hex).ok_or_else(|| error(rest, "a block's data is not pairs of hex digits"))?;
+            blocks.push(BlockBackup { write: write.to_owned(), data });
+            rest = after;
+        }
+    }
+}
+
+/// Why a backup's text did not read.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct ParseBackupError {
+    /// The byte offset in the text where reading stopped.
+    pub at: usize,
+    /// What was wrong there.
+    pub reason: &'static str,
+}
+
+impl fmt::Display for ParseBackupError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "not a coefficient backup: {} (at byte {})", self.reason, self.at)
+    }
+}
+
+impl std::error::Error for ParseBackupError {}
+
+/// `text` trimmed, if it is one word without the text form's separators.
+fn name(text: &str) -> Option<&str> {
+    let word = text.trim();
+    let separator = |c: char| c.is_whitespace() || matches!(c, ':' | '[' | ']');
+    (!word.is_empty() && !word.contains(separator)).then_some(word)
+}
+
+/// The bytes written in hex as `text`: groups of whole bytes (two digits
+/// each), separated by whitespace.
+fn hex_bytes(text: &str) -> Option<Vec<u8>> {
+    let mut bytes = Vec::new();
+    for group in text.split_whitespace() {
+        let digits = group.as_bytes();
+        // `from_str_radix` alone would take a sign (`+F`).
+        if digits.len() % 2 != 0 || !digits.iter().all(u8::is_ascii_hexdigit) {
+            return None;
+        }
+        for pair in digits.chunks_exact(2) {
+            bytes.push(u8::from_str_radix(std::str::from_utf8(pair).ok()?, 16).ok()?);
+        }
+    }
+    Some(bytes)
 }
 
 /// Reads every coefficient block of the probe at `slave`.
