@@ -136,7 +136,8 @@ impl FromStr for CoefficientBackup {
 /// Why a backup's text did not read.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct ParseBackupError {
-    /// The byte offset in the text where reading stopped.
+    /// The byte offset in the text of the part that did not read: the
+    /// start of the block at fault, or 0 when the sensor's name is.
     pub at: usize,
     /// What was wrong there.
     pub reason: &'static str,
