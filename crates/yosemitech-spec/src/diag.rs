@@ -3,8 +3,6 @@
 use std::fmt;
 use std::path::{Path, PathBuf};
 
-use serde_saphyr::Location;
-
 use crate::Spanned;
 
 /// A position in a spec file (1-based; 0 when unknown).
@@ -17,11 +15,6 @@ pub struct Pos {
 }
 
 impl Pos {
-    /// The position of a serde-saphyr location.
-    pub fn of(location: Location) -> Self {
-        Self { line: location.line() as u32, column: location.column() as u32 }
-    }
-
     /// Where a spanned value is written.
     pub fn at<T>(spanned: &Spanned<T>) -> Self {
         spanned.referenced

@@ -2,8 +2,9 @@
 //!
 //! A located value is asked for the way serde-saphyr's own `Spanned` asks:
 //! a newtype named `__yaml_spanned`, answered with a map of the value and
-//! its two places. serde-saphyr answers it, and so does the tree the spec
-//! files are read from (`yaml::tree`). Unlike serde-saphyr's `Spanned`, this
+//! its two places. The tree the spec files are read from (`yaml::tree`)
+//! answers it, and so does serde-saphyr (which tools that write spec files
+//! compile, with the feature `serialize`). Unlike serde-saphyr's `Spanned`, this
 //! one does not also accept a value buffered by serde (`flatten`,
 //! `untagged`), which would compile `T`'s deserializer once more for every
 //! primitive; the document types put no located value there.
@@ -167,9 +168,15 @@ impl<'de> Visitor<'de> for PlaceVisitor {
             match key {
                 Key::Line => pos.line = number(map.next_value::<u64>()?),
                 Key::Column => pos.column = number(map.next_value::<u64>()?),
-                // serde-saphyr's span is read only as a span.
+                // serde-saphyr's span is read only as a span; the spec
+                // crate's own reader writes none.
+                #[cfg(any(test, feature = "serialize"))]
                 Key::Span => {
                     map.next_value::<serde_saphyr::Span>()?;
+                }
+                #[cfg(not(any(test, feature = "serialize")))]
+                Key::Span => {
+                    map.next_value::<IgnoredAny>()?;
                 }
                 Key::Value | Key::Referenced | Key::Defined | Key::Other => {
                     map.next_value::<IgnoredAny>()?;

@@ -1,10 +1,7 @@
 //! The key path (`commands[0] (get_ph).count`) of a position, from any
 //! well-formed YAML, for errors the typed parse reports without one.
 
-use serde_saphyr::DuplicateKeyPolicy;
-
-use super::limits::options;
-use super::tree::{Node, Value, parse};
+use super::load::{Duplicates, Node, Value, parse};
 use crate::diag::Pos;
 use crate::names::{check_snake, escape};
 
@@ -14,11 +11,9 @@ pub(super) struct KeyPaths(Vec<(Pos, String)>);
 impl KeyPaths {
     /// The key paths of `text`, if it is well-formed YAML (within the limits).
     pub(super) fn of(text: &str) -> Option<Self> {
-        let mut options = options();
-        options.duplicate_keys = DuplicateKeyPolicy::LastWins;
-        let root = parse(text, options).ok()?;
+        let root = parse(text, Duplicates::LastWins).ok()?;
         let mut out = Vec::new();
-        walk(&root, text, String::new(), &mut out);
+        walk(&root, String::new(), &mut out);
         out.sort_by_key(|(pos, _)| *pos);
         Some(Self(out))
     }
@@ -51,21 +46,16 @@ pub(super) fn parent_path(path: &str) -> Option<String> {
     }
 }
 
-fn walk(node: &Node, text: &str, path: String, out: &mut Vec<(Pos, String)>) {
-    out.push((Pos::of(node.referenced), path.clone()));
+fn walk(node: &Node, path: String, out: &mut Vec<(Pos, String)>) {
+    out.push((node.referenced, path.clone()));
     match &node.value {
         Value::List(items) => {
             for (i, item) in items.iter().enumerate() {
                 // Entries with a valid `name` (or `use`) are shown by it: `commands[3] (get_ph)`.
                 let name = match &item.value {
-                    Value::Map(entries) => entries.iter().find_map(|(k, v)| match &v.value {
-                        Value::Text(s)
-                            if matches!(&k.value, Value::Text(k) if k == "name" || k == "use")
-                                && check_snake(s).is_none() =>
-                        {
-                            Some(s.clone())
-                        }
-                        _ => None,
+                    Value::Map(entries) => entries.iter().find_map(|(k, v)| {
+                        let (key, name) = (k.name()?, v.name()?);
+                        ((key == "name" || key == "use") && check_snake(name).is_none()).then(|| name.to_owned())
                     }),
                     _ => None,
                 };
@@ -73,17 +63,17 @@ fn walk(node: &Node, text: &str, path: String, out: &mut Vec<(Pos, String)>) {
                     Some(n) => format!("{path}[{i}] ({n})"),
                     None => format!("{path}[{i}]"),
                 };
-                walk(item, text, item_path, out);
+                walk(item, item_path, out);
             }
         }
         Value::Map(entries) => {
             for (k, v) in entries {
-                let key = escape(k.value.name(k, text).unwrap_or_default());
+                let key = escape(k.name().unwrap_or_default());
                 let key_path = if path.is_empty() { key } else { format!("{path}.{key}") };
-                out.push((Pos::of(k.referenced), key_path.clone()));
-                walk(v, text, key_path, out);
+                out.push((k.referenced, key_path.clone()));
+                walk(v, key_path, out);
             }
         }
-        _ => {}
+        Value::Scalar(_) => {}
     }
 }

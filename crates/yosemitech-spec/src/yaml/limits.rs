@@ -1,8 +1,6 @@
 //! How much YAML one file may hold, and how much work finding its
 //! problems may take: hostile input is refused early and cheaply.
 
-use serde_saphyr::DuplicateKeyPolicy;
-
 /// Most YAML nodes (scalars, sequences, mappings) one file may hold, aliases
 /// expanded. The real specs have a few thousand.
 pub const MAX_YAML_NODES: usize = 100_000;
@@ -10,32 +8,9 @@ pub const MAX_YAML_NODES: usize = 100_000;
 pub const MAX_YAML_DEPTH: usize = 32;
 /// Most alias (`*name`) uses in one file.
 pub const MAX_YAML_ALIASES: usize = 1_000;
-/// Most events aliases may replay in one file: stops exponential "billion
+/// Most nodes aliases may copy in one file: stops exponential "billion
 /// laughs" expansion long before it costs time or memory.
 pub const MAX_ALIAS_REPLAY: usize = 50_000;
-
-pub(super) fn options() -> serde_saphyr::Options {
-    serde_saphyr::options! {
-        budget: serde_saphyr::budget! {
-            max_nodes: MAX_YAML_NODES,
-            max_events: 4 * MAX_YAML_NODES,
-            max_depth: MAX_YAML_DEPTH,
-            max_aliases: MAX_YAML_ALIASES,
-            max_anchors: MAX_YAML_ALIASES,
-            max_documents: 1,
-            flow_nesting_limit: MAX_YAML_DEPTH,
-            max_recorded_anchor_events: 4 * MAX_YAML_NODES,
-        },
-        alias_limits: serde_saphyr::alias_limits! {
-            max_total_replayed_events: MAX_ALIAS_REPLAY,
-            max_replay_stack_depth: MAX_YAML_DEPTH,
-        },
-        duplicate_keys: DuplicateKeyPolicy::Error,
-        // `yes`, `no`, `on`, `off` are text, not booleans (YAML 1.2).
-        strict_booleans: true,
-        with_snippet: false,
-    }
-}
 
 /// Most problems reported for one file's YAML.
 pub(super) const MAX_YAML_PROBLEMS: usize = 20;

@@ -1,48 +1,45 @@
-//! serde-saphyr's errors in the spec's terms: what is wrong and, where it
-//! can be told, what would be valid, at the offending place.
-
-use serde_saphyr::Error;
-use serde_saphyr::budget::BudgetBreach;
+//! The YAML errors in the spec's terms: what is wrong and, where it can be
+//! told, what would be valid, at the offending place.
 
 use super::Problem;
+use super::error::{Error, Limit};
 use super::lexer::{quote_start, unclosed_flow};
-use super::limits::{MAX_YAML_ALIASES, MAX_YAML_DEPTH, MAX_YAML_NODES};
+use super::limits::{MAX_ALIAS_REPLAY, MAX_YAML_ALIASES, MAX_YAML_DEPTH, MAX_YAML_NODES};
 use crate::diag::Pos;
 use crate::names::escape;
 use crate::suggest::closest;
 
 /// Errors about the shape of well-formed YAML, which have a key path.
 pub(super) fn is_shape_error(e: &Error) -> bool {
-    match e.without_snippet() {
-        Error::AliasError { error, .. } => is_shape_error(error),
-        Error::SerdeUnknownField { .. }
-        | Error::SerdeUnknownVariant { .. }
-        | Error::SerdeMissingField { .. }
-        | Error::InvalidScalar { .. }
-        | Error::SerdeInvalidType { .. }
-        | Error::SerdeInvalidValue { .. }
-        | Error::SerdeInvalidLength { .. }
-        | Error::NullIntoString { .. }
-        | Error::Unexpected { .. }
-        | Error::NonFiniteFloat { .. }
-        | Error::InvalidBooleanStrict { .. }
-        | Error::DuplicateMappingKey { .. }
-        | Error::Message { .. } => true,
-        _ => false,
-    }
+    matches!(
+        e.inner(),
+        Error::UnknownField { .. }
+            | Error::UnknownVariant { .. }
+            | Error::MissingField { .. }
+            | Error::InvalidScalar { .. }
+            | Error::InvalidType { .. }
+            | Error::InvalidValue { .. }
+            | Error::InvalidLength { .. }
+            | Error::NullIntoString { .. }
+            | Error::Unexpected { .. }
+            | Error::NonFiniteFloat { .. }
+            | Error::DuplicateKey { .. }
+            | Error::Message { .. }
+    )
 }
 
-/// Turns a serde-saphyr error into a [`Problem`].
+/// Turns an error into a [`Problem`].
 pub(super) fn explain(e: &Error, text: &str) -> Problem {
-    let pos = e.location().map(Pos::of).filter(|p| p.line > 0).unwrap_or(Pos { line: 1, column: 1 });
+    let pos = e.at().unwrap_or(Pos { line: 1, column: 1 });
     let schema = "spec/schema.json describes every key and its type";
     let problem = |message: String, help: Option<String>| Problem { pos, key: String::new(), message, help };
-    match e.without_snippet() {
-        Error::AliasError { error, .. } => {
+    let bomb = "spec files use aliases (`*name`) only to share small lists";
+    match e {
+        Error::Alias { error, .. } => {
             let inner = explain(error, text);
             Problem { pos, ..inner }
         }
-        Error::SerdeUnknownField { field, expected, .. } => {
+        Error::UnknownField { field, expected, .. } => {
             let field = escape(field);
             let help = match (closest(&field, expected), expected.is_empty()) {
                 (_, true) => "no keys are allowed here".to_string(),
@@ -51,7 +48,7 @@ pub(super) fn explain(e: &Error, text: &str) -> Problem {
             };
             problem(format!("unknown key `{field}`"), Some(help))
         }
-        Error::SerdeUnknownVariant { variant, expected, .. } => {
+        Error::UnknownVariant { variant, expected, .. } => {
             let variant = escape(variant);
             let help = match closest(&variant, expected) {
                 Some(best) => format!("did you mean `{best}`? valid values: {}", expected.join(", ")),
@@ -59,7 +56,7 @@ pub(super) fn explain(e: &Error, text: &str) -> Problem {
             };
             problem(format!("`{variant}` is not a valid value here"), Some(help))
         }
-        Error::SerdeMissingField { field, .. } => {
+        Error::MissingField { field, .. } => {
             problem(format!("missing key `{field}`"), Some(format!("add `{field}:` to this mapping; {schema}")))
         }
         Error::InvalidScalar { ty, .. } => {
@@ -67,13 +64,13 @@ pub(super) fn explain(e: &Error, text: &str) -> Problem {
             let (message, help) = invalid_scalar(ty, &found);
             problem(message, Some(help))
         }
-        Error::SerdeInvalidType { unexpected, expected, .. } => {
+        Error::InvalidType { unexpected, expected, .. } => {
             problem(format!("expected {expected}, found {unexpected}"), Some(schema.into()))
         }
-        Error::SerdeInvalidValue { unexpected, expected, .. } => {
+        Error::InvalidValue { unexpected, expected, .. } => {
             problem(format!("invalid value {unexpected}, expected {expected}"), Some(schema.into()))
         }
-        Error::SerdeInvalidLength { len, expected, .. } => {
+        Error::InvalidLength { len, expected, .. } => {
             problem(format!("a list of {len} items, expected {expected}"), Some(schema.into()))
         }
         Error::NullIntoString { .. } => problem(
@@ -84,15 +81,13 @@ pub(super) fn explain(e: &Error, text: &str) -> Problem {
             let what = match *expected {
                 "mapping start" => "a mapping (`key: value` entries)",
                 "sequence start" => "a list (`- item` lines or `[a, b]`)",
-                "mapping end" => "the end of the mapping",
-                "scalar" | "value" => "a single value",
-                "string scalar" | "str expected" => "text",
+                "string scalar" => "text",
                 other => other,
             };
             problem(format!("expected {what} here"), Some(schema.into()))
         }
-        Error::DuplicateMappingKey { key, .. } => {
-            let key = key.as_deref().map(escape).unwrap_or_else(|| "?".into());
+        Error::DuplicateKey { key, .. } => {
+            let key = escape(key);
             let first = first_occurrence(text, pos, &key);
             let help = match first {
                 Some(p) => {
@@ -106,42 +101,39 @@ pub(super) fn explain(e: &Error, text: &str) -> Problem {
             "a second YAML document starts here; a spec file holds exactly one".into(),
             Some("remove the `---` separator, or move the second document to its own file".into()),
         ),
-        Error::Budget { breach, .. } => {
-            let (message, help) = budget(breach);
+        Error::Limit { limit, .. } => {
+            let (message, help) = match limit {
+                Limit::Nodes => (
+                    format!("the YAML holds more than {MAX_YAML_NODES} values"),
+                    "spec files are small; aliases (`*name`) that expand exponentially (an alias bomb) are refused"
+                        .into(),
+                ),
+                Limit::Aliases => (format!("the YAML uses more than {MAX_YAML_ALIASES} aliases"), bomb.into()),
+                Limit::Anchors => (format!("the YAML defines more than {MAX_YAML_ALIASES} anchors"), bomb.into()),
+                Limit::AliasReplay => (
+                    format!("aliases expand to more than {MAX_ALIAS_REPLAY} YAML values"),
+                    "this looks like an alias bomb; spec files use aliases (`*name`) only to share small lists".into(),
+                ),
+                Limit::Depth => (
+                    format!("the YAML nests more than {MAX_YAML_DEPTH} levels deep"),
+                    "spec files nest a few levels; flatten the structure".into(),
+                ),
+            };
             problem(message, Some(help))
         }
-        Error::AliasReplayLimitExceeded { max_total_replayed_events, .. } => problem(
-            format!("aliases expand to more than {max_total_replayed_events} YAML events"),
-            Some("this looks like an alias bomb; spec files use aliases (`*name`) only to share small lists".into()),
-        ),
-        Error::AliasExpansionLimitExceeded { max_expansions_per_anchor, .. } => problem(
-            format!("an anchor is expanded more than {max_expansions_per_anchor} times"),
-            Some("spec files use aliases (`*name`) only to share small lists".into()),
-        ),
-        Error::AliasReplayStackDepthExceeded { max_depth, .. } => problem(
-            format!("aliases nest more than {max_depth} deep"),
-            Some("spec files use aliases (`*name`) only to share small lists".into()),
-        ),
         Error::UnknownAnchor { .. } => problem(
             "this alias refers to no anchor".into(),
             Some("define `&name` before using `*name`; anchors do not cross files".into()),
         ),
-        Error::Eof { .. } => problem("unexpected end of file".into(), unclosed_help(text, pos)),
         Error::NonFiniteFloat { value, .. } => {
             problem(format!("`{}` is not a finite number", escape(value)), Some("write a finite number".into()))
         }
-        Error::ExternalMessage { msg, .. } => syntax(msg, text, pos),
-        Error::InvalidBooleanStrict { .. } => {
-            let found = scalar_at(text, pos).unwrap_or_default();
-            let (message, help) = invalid_scalar("bool", &found);
-            problem(message, Some(help))
-        }
+        Error::Syntax { msg, .. } => syntax(msg, text, pos),
         Error::Message { msg, .. } if msg.contains("untagged enum StatedValue") => problem(
             "a stated value is a number or text".into(),
             Some("write the value as the manual states it: `7.6`, `\"1.1\"` or a variant name".into()),
         ),
         Error::Message { msg, .. } => problem(first_line(msg), Some(schema.into())),
-        other => problem(first_line(&other.to_string()), Some(schema.into())),
     }
 }
 
@@ -206,13 +198,6 @@ fn syntax(msg: &str, text: &str, pos: Pos) -> Problem {
     Problem { pos, key: String::new(), message: format!("invalid YAML: {msg}"), help: None }
 }
 
-/// A help pointing at a `[` or `{` opened before `pos` and never closed.
-fn unclosed_help(text: &str, pos: Pos) -> Option<String> {
-    let (line, column, open) = unclosed_flow(text, pos)?;
-    let close = if open == '[' { ']' } else { '}' };
-    Some(format!("the `{open}` at line {line}, column {column} is never closed; add `{close}`"))
-}
-
 fn first_line(msg: &str) -> String {
     let first = msg.lines().next().unwrap_or("invalid YAML").trim();
     let first = first.strip_prefix("error: ").unwrap_or(first);
@@ -231,25 +216,6 @@ fn first_line(msg: &str) -> String {
         None => first,
     };
     escape(first)
-}
-
-fn budget(breach: &BudgetBreach) -> (String, String) {
-    let bomb = "spec files are small; aliases (`*name`) that expand exponentially (an alias bomb) are refused";
-    match breach {
-        BudgetBreach::Nodes { .. } => (format!("the YAML holds more than {MAX_YAML_NODES} values"), bomb.into()),
-        BudgetBreach::Events { .. } => (format!("the YAML holds more than {MAX_YAML_NODES} values"), bomb.into()),
-        BudgetBreach::Aliases { .. } => (format!("the YAML uses more than {MAX_YAML_ALIASES} aliases"), bomb.into()),
-        BudgetBreach::Anchors { .. } => (format!("the YAML defines more than {MAX_YAML_ALIASES} anchors"), bomb.into()),
-        BudgetBreach::Depth { .. } => (
-            format!("the YAML nests more than {MAX_YAML_DEPTH} levels deep"),
-            "spec files nest a few levels; flatten the structure".into(),
-        ),
-        BudgetBreach::Documents { .. } => (
-            "a second YAML document starts here; a spec file holds exactly one".into(),
-            "remove the `---` separator, or move the second document to its own file".into(),
-        ),
-        other => (format!("the YAML exceeds a parser limit ({other:?})"), bomb.into()),
-    }
 }
 
 /// The message and help for a scalar that is not a `ty`.

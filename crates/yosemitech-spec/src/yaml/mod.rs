@@ -1,30 +1,34 @@
-//! YAML parsing with hardened limits, and serde-saphyr's errors turned into
-//! messages a spec author can act on.
+//! YAML parsing with hardened limits, and its errors turned into messages
+//! a spec author can act on.
 //!
-//! serde-saphyr's own texts are written for developers ("invalid u32",
-//! "set DuplicateKeyPolicy in Options"); here each error kind gets a message
-//! that says what is wrong in the spec's terms and, where we can tell, what
-//! would be valid. Positions come from serde-saphyr, corrected where its
-//! position is not the offending place (a tab is reported at the scalar
-//! before it).
+//! The parser (granit-parser) gives events; `load` builds a tree of located
+//! nodes from them under the limits of `limits`, `tree` reads the document
+//! types from it (a scalar as the type asked for, `scalar`), and `messages`
+//! says what each error kind means in the spec's terms and, where we can
+//! tell, what would be valid. Positions come from the parser, corrected
+//! where its position is not the offending place (a tab is reported at the
+//! scalar before it).
 //!
-//! serde-saphyr stops at a file's first error. To report more in one run,
+//! The parser stops at a file's first error. To report more in one run,
 //! parsing resumes after it at the next top-level key or item of a
 //! top-level list (each command, constant, erratum), so independent
 //! mistakes in separate entries are all reported, with their positions in
 //! the file (see [`parse`]).
 
 mod comma;
+mod error;
 mod keypath;
 mod lexer;
 mod limits;
+mod load;
 mod messages;
 mod recovery;
+mod scalar;
 mod tree;
 
 use std::borrow::Cow;
 
-use serde_saphyr::Error;
+use self::error::Error;
 
 use self::comma::unquoted_comma;
 use self::keypath::{KeyPaths, parent_path};
@@ -49,7 +53,7 @@ pub(crate) struct Problem {
 /// Parses one spec file; on failure, every problem the parser lets us find,
 /// in line order.
 ///
-/// serde-saphyr stops at the first error. To find more, parsing resumes
+/// The parser stops at the first error. To find more, parsing resumes
 /// after it at the next top-level key or item of a top-level list (see
 /// [`Layout`]), the lines before blanked so that positions stay those of
 /// the file: independent mistakes in separate commands are all reported.
@@ -81,7 +85,7 @@ pub(crate) fn parse(text: &str) -> Result<SpecFile, Vec<Problem>> {
                 line
             }
             // Where the parser stopped: everything before it parsed.
-            None => (problem.pos.line as usize).max(error.location().map_or(0, |l| l.line() as usize)),
+            None => (problem.pos.line as usize).max(error.at().map_or(0, |at| at.line as usize)),
         };
         let report = part.from.is_none() || !anchor_defined_before(&error, text, problem.pos);
         if report && !problems.iter().any(|p| p.pos == problem.pos && p.message == problem.message) {
@@ -114,11 +118,11 @@ struct Part<'a> {
 /// The line (1-based) of a quote or flow collection never closed that made
 /// the parser fail further down, swallowing the lines between.
 fn swallowed_from(e: &Error, text: &str, pos: Pos) -> Option<usize> {
-    let raw = e.location().map_or(0, |l| l.line() as usize);
-    match e.without_snippet() {
+    let raw = e.at().map_or(0, |at| at.line as usize);
+    match e {
         // `syntax` points at the opening quote or bracket.
-        Error::ExternalMessage { .. } if (pos.line as usize) < raw => Some(pos.line as usize),
-        Error::Eof { .. } => unclosed_flow(text, pos).map(|(line, _, _)| line as usize).filter(|&l| l < raw),
+        Error::Syntax { .. } if (pos.line as usize) < raw => Some(pos.line as usize),
+        Error::Syntax { .. } => unclosed_flow(text, pos).map(|(line, _, _)| line as usize).filter(|&l| l < raw),
         _ => None,
     }
     .filter(|&line| line > 0)
@@ -126,15 +130,14 @@ fn swallowed_from(e: &Error, text: &str, pos: Pos) -> Option<usize> {
 
 /// Errors after which the rest of the file can still be parsed on its own.
 fn recoverable(e: &Error) -> bool {
-    matches!(e.without_snippet(), Error::ExternalMessage { .. } | Error::Eof { .. } | Error::UnknownAnchor { .. })
-        || is_shape_error(e)
+    matches!(e, Error::Syntax { .. } | Error::UnknownAnchor { .. }) || is_shape_error(e)
 }
 
 /// Whether the error is an alias (`*name`) at `pos` whose anchor (`&name`)
 /// is written before it in `text`: true of an alias whose anchor was
 /// blanked out of a resumed parse, which is no mistake.
 fn anchor_defined_before(e: &Error, text: &str, pos: Pos) -> bool {
-    if !matches!(e.without_snippet(), Error::UnknownAnchor { .. }) {
+    if !matches!(e, Error::UnknownAnchor { .. }) {
         return false;
     }
     let Some(line) = text.lines().nth((pos.line as usize).saturating_sub(1)) else { return false };
@@ -166,21 +169,21 @@ fn problem(e: &Error, text: &str, layout: Option<&Layout>) -> Problem {
     // The YAML is well-formed (up to the error at least) but does not fit
     // the spec's shape: find the key. If the text has a syntax error
     // further down, the lines after the error's entry are left out.
-    let raw_line = e.location().map_or(0, |l| l.line() as usize);
+    let raw_line = e.at().map_or(0, |at| at.line as usize);
     let line = (problem.pos.line as usize).max(raw_line);
     let entry_end = layout.and_then(|l| l.next_start_after(line));
     let paths = entry_end
         .and_then(|end| KeyPaths::of(&keep_lines(text, |i| i < end)))
         .or_else(|| KeyPaths::of(text))
         .or_else(|| KeyPaths::of(&keep_lines(text, |i| i < line)));
-    let missing = matches!(e.without_snippet(), Error::SerdeMissingField { .. });
+    let missing = matches!(e.inner(), Error::MissingField { .. });
     if let Some((pos, key)) = paths.as_ref().and_then(|p| p.at(problem.pos, missing)) {
         problem.key = key;
         if missing {
             problem.pos = pos;
         }
     }
-    let stray = matches!(e.without_snippet(), Error::SerdeUnknownField { .. } | Error::DuplicateMappingKey { .. });
+    let stray = matches!(e.inner(), Error::UnknownField { .. } | Error::DuplicateKey { .. });
     if let Some(comma) = stray.then(|| unquoted_comma(text, problem.pos)).flatten() {
         let key = paths.as_ref().and_then(|p| p.exact(comma.key_pos)).unwrap_or_else(|| {
             parent_path(&problem.key).map_or_else(|| comma.key.clone(), |up| format!("{up}.{}", comma.key))

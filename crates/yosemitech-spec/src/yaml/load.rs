@@ -1,0 +1,249 @@
+//! A spec file's YAML as a tree of located nodes, built from the parser's
+//! events under the limits of [`super::limits`].
+//!
+//! Scalars are kept as written (text, plain or quoted, tag): what a scalar
+//! means depends on what the document asks of it (`scalar`), as in YAML
+//! 1.2's core schema read by type.
+
+use std::collections::HashMap;
+
+use granit_parser::{ErrorKind, Event, Parser, ScalarStyle, ScanError, Span};
+
+use super::error::{Error, Limit};
+use super::limits::{MAX_ALIAS_REPLAY, MAX_YAML_ALIASES, MAX_YAML_DEPTH, MAX_YAML_NODES};
+use crate::diag::Pos;
+
+/// A YAML node, where it is used (an alias's place, or its own) and where
+/// it is written.
+#[derive(Clone, Debug)]
+pub(super) struct Node {
+    pub value: Value,
+    pub referenced: Pos,
+    pub defined: Pos,
+}
+
+#[derive(Clone, Debug)]
+pub(super) enum Value {
+    Scalar(Scalar),
+    List(Vec<Node>),
+    Map(Vec<(Node, Node)>),
+}
+
+/// A scalar as written.
+#[derive(Clone, Debug)]
+pub(super) struct Scalar {
+    /// The text, quotes and escapes resolved.
+    pub text: String,
+    /// Written without quotes or block indicator: only a plain scalar can
+    /// mean null, a boolean or a number when read as any value.
+    pub plain: bool,
+    /// The tag: a core-schema suffix (`str`, `int`, ...) or the tag as written.
+    pub tag: Option<String>,
+}
+
+/// Whether a key written twice in one mapping is an error or the last wins
+/// (for finding key paths in a file whose error is elsewhere).
+#[derive(Clone, Copy, PartialEq, Eq)]
+pub(super) enum Duplicates {
+    Refuse,
+    LastWins,
+}
+
+/// The tree of `text`: its one document, or `Null` for none.
+pub(super) fn parse(text: &str, duplicates: Duplicates) -> Result<Node, Error> {
+    let options = granit_parser::options! {
+        flow_nesting_limit: MAX_YAML_DEPTH,
+        block_nesting_limit: MAX_YAML_DEPTH,
+    };
+    let mut builder =
+        Builder { duplicates, stack: Vec::new(), anchors: HashMap::new(), root: None, counts: Counts::default() };
+    let mut documents = 0;
+    for event in Parser::new_from_str_with_options(text, options) {
+        let (event, span) = event.map_err(syntax)?;
+        let at = pos(&span);
+        match event {
+            Event::DocumentStart(..) => {
+                documents += 1;
+                if documents > 1 {
+                    return Err(Error::MultipleDocuments { at });
+                }
+            }
+            Event::Scalar(text, style, anchor, tag) => {
+                let tag = tag.map(|tag| tag.core_suffix().map_or_else(|| tag.original(), str::to_owned));
+                let scalar = Scalar { text: text.into_owned(), plain: matches!(style, ScalarStyle::Plain), tag };
+                builder.count(at)?;
+                builder.complete(Node { value: Value::Scalar(scalar), referenced: at, defined: at }, anchor)?;
+            }
+            Event::SequenceStart(_, anchor, _) => builder.open(Open::List(Vec::new()), anchor, at)?,
+            Event::MappingStart(_, anchor, _) => builder.open(Open::Map(Vec::new(), None), anchor, at)?,
+            Event::SequenceEnd | Event::MappingEnd => builder.close()?,
+            Event::Alias(id) => builder.alias(id, at)?,
+            Event::UnresolvedAlias(_) => return Err(Error::UnknownAnchor { at }),
+            _ => {}
+        }
+    }
+    Ok(builder.root.unwrap_or(Node {
+        value: Value::Scalar(Scalar { text: String::new(), plain: true, tag: None }),
+        referenced: Pos { line: 1, column: 1 },
+        defined: Pos { line: 1, column: 1 },
+    }))
+}
+
+fn pos(span: &Span) -> Pos {
+    let number = |n: usize| u32::try_from(n).unwrap_or(u32::MAX);
+    Pos { line: number(span.start.line()), column: number(span.start.col().saturating_add(1)) }
+}
+
+fn syntax(e: ScanError) -> Error {
+    let mark = e.marker();
+    let number = |n: usize| u32::try_from(n).unwrap_or(u32::MAX);
+    let at = Pos { line: number(mark.line()), column: number(mark.col().saturating_add(1)) };
+    match e.kind() {
+        ErrorKind::UnknownAnchor => Error::UnknownAnchor { at },
+        ErrorKind::MultipleDocumentsUnsupported => Error::MultipleDocuments { at },
+        _ => Error::Syntax { msg: e.info(), at },
+    }
+}
+
+/// A collection being read.
+enum Open {
+    List(Vec<Node>),
+    /// The entries so far, and a key waiting for its value.
+    Map(Vec<(Node, Node)>, Option<Node>),
+}
+
+struct Frame {
+    open: Open,
+    anchor: usize,
+    at: Pos,
+}
+
+#[derive(Default)]
+struct Counts {
+    nodes: usize,
+    aliases: usize,
+    replayed: usize,
+}
+
+struct Builder {
+    duplicates: Duplicates,
+    stack: Vec<Frame>,
+    /// Each anchored node, and how many nodes it holds.
+    anchors: HashMap<usize, (Node, usize)>,
+    root: Option<Node>,
+    counts: Counts,
+}
+
+impl Builder {
+    fn count(&mut self, at: Pos) -> Result<(), Error> {
+        self.counts.nodes += 1;
+        if self.counts.nodes > MAX_YAML_NODES {
+            return Err(Error::Limit { limit: Limit::Nodes, at });
+        }
+        Ok(())
+    }
+
+    fn open(&mut self, open: Open, anchor: usize, at: Pos) -> Result<(), Error> {
+        self.count(at)?;
+        if self.stack.len() >= MAX_YAML_DEPTH {
+            return Err(Error::Limit { limit: Limit::Depth, at });
+        }
+        self.stack.push(Frame { open, anchor, at });
+        Ok(())
+    }
+
+    fn close(&mut self) -> Result<(), Error> {
+        let Some(Frame { open, anchor, at }) = self.stack.pop() else { return Ok(()) };
+        let value = match open {
+            Open::List(items) => Value::List(items),
+            Open::Map(entries, _) => Value::Map(entries),
+        };
+        self.complete(Node { value, referenced: at, defined: at }, anchor)
+    }
+
+    /// A copy of an anchored node, used at `at`: every node in it is used there.
+    fn alias(&mut self, id: usize, at: Pos) -> Result<(), Error> {
+        self.counts.aliases += 1;
+        if self.counts.aliases > MAX_YAML_ALIASES {
+            return Err(Error::Limit { limit: Limit::Aliases, at });
+        }
+        let Some((node, size)) = self.anchors.get(&id) else { return Err(Error::UnknownAnchor { at }) };
+        let size = *size;
+        self.counts.replayed = self.counts.replayed.saturating_add(size);
+        if self.counts.replayed > MAX_ALIAS_REPLAY {
+            return Err(Error::Limit { limit: Limit::AliasReplay, at });
+        }
+        self.counts.nodes = self.counts.nodes.saturating_add(size);
+        if self.counts.nodes > MAX_YAML_NODES {
+            return Err(Error::Limit { limit: Limit::Nodes, at });
+        }
+        let mut copy = node.clone();
+        used_at(&mut copy, at);
+        self.complete(copy, 0)
+    }
+
+    /// A node read whole: into its collection, or the document's root.
+    fn complete(&mut self, node: Node, anchor: usize) -> Result<(), Error> {
+        if anchor != 0 {
+            if self.anchors.len() >= MAX_YAML_ALIASES {
+                return Err(Error::Limit { limit: Limit::Anchors, at: node.defined });
+            }
+            self.anchors.insert(anchor, (node.clone(), size(&node)));
+        }
+        let Some(frame) = self.stack.last_mut() else {
+            self.root = Some(node);
+            return Ok(());
+        };
+        match &mut frame.open {
+            Open::List(items) => items.push(node),
+            Open::Map(_, key @ None) => *key = Some(node),
+            Open::Map(entries, key) => {
+                let Some(key) = key.take() else { return Ok(()) };
+                let same = |k: &Node| same_key(k, &key);
+                match entries.iter().position(|(k, _)| same(k)) {
+                    Some(_) if self.duplicates == Duplicates::Refuse => {
+                        let name = match &key.value {
+                            Value::Scalar(s) => s.text.clone(),
+                            _ => "?".into(),
+                        };
+                        return Err(Error::DuplicateKey { key: name, at: key.referenced });
+                    }
+                    Some(i) => {
+                        entries.remove(i);
+                        entries.push((key, node));
+                    }
+                    None => entries.push((key, node)),
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Keys are the same if both are scalars of the same text.
+fn same_key(a: &Node, b: &Node) -> bool {
+    match (&a.value, &b.value) {
+        (Value::Scalar(a), Value::Scalar(b)) => a.text == b.text,
+        _ => false,
+    }
+}
+
+fn size(node: &Node) -> usize {
+    1 + match &node.value {
+        Value::Scalar(_) => 0,
+        Value::List(items) => items.iter().map(size).sum(),
+        Value::Map(entries) => entries.iter().map(|(k, v)| size(k) + size(v)).sum(),
+    }
+}
+
+fn used_at(node: &mut Node, at: Pos) {
+    node.referenced = at;
+    match &mut node.value {
+        Value::Scalar(_) => {}
+        Value::List(items) => items.iter_mut().for_each(|item| used_at(item, at)),
+        Value::Map(entries) => entries.iter_mut().for_each(|(k, v)| {
+            used_at(k, at);
+            used_at(v, at);
+        }),
+    }
+}
