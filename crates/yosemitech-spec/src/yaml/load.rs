@@ -75,7 +75,7 @@ pub(super) fn parse(text: &str, duplicates: Duplicates) -> Result<Node, Error> {
                 builder.complete(Node { value: Value::Scalar(scalar), referenced: at, defined: at }, anchor)?;
             }
             Event::SequenceStart(_, anchor, _) => builder.open(Open::List(Vec::new()), anchor, at)?,
-            Event::MappingStart(_, anchor, _) => builder.open(Open::Map(Vec::new(), None), anchor, at)?,
+            Event::MappingStart(_, anchor, _) => builder.open(Open::Map(OpenMap::default()), anchor, at)?,
             Event::SequenceEnd | Event::MappingEnd => builder.close()?,
             Event::Alias(id) => builder.alias(id, at)?,
             Event::UnresolvedAlias(_) => return Err(Error::UnknownAnchor { at }),
@@ -87,6 +87,24 @@ pub(super) fn parse(text: &str, duplicates: Duplicates) -> Result<Node, Error> {
         referenced: Pos { line: 1, column: 1 },
         defined: Pos { line: 1, column: 1 },
     }))
+}
+
+impl Node {
+    pub(super) fn scalar(&self) -> Option<&Scalar> {
+        match &self.value {
+            Value::Scalar(s) => Some(s),
+            Value::List(_) | Value::Map(_) => None,
+        }
+    }
+
+    pub(super) fn is_null(&self) -> bool {
+        self.scalar().is_some_and(Scalar::is_null)
+    }
+
+    /// The text of a scalar, as a key or a variant name is read.
+    pub(super) fn name(&self) -> Option<&str> {
+        self.scalar().map(|s| s.text.as_str())
+    }
 }
 
 fn pos(span: &Span) -> Pos {
@@ -108,8 +126,17 @@ fn syntax(e: ScanError) -> Error {
 /// A collection being read.
 enum Open {
     List(Vec<Node>),
-    /// The entries so far, and a key waiting for its value.
-    Map(Vec<(Node, Node)>, Option<Node>),
+    Map(OpenMap),
+}
+
+/// A mapping being read: its entries, where each scalar key's entry is (so
+/// that a mapping of many keys costs no quadratic search), and a key
+/// waiting for its value.
+#[derive(Default)]
+struct OpenMap {
+    entries: Vec<(Node, Node)>,
+    index: HashMap<String, usize>,
+    key: Option<Node>,
 }
 
 struct Frame {
@@ -156,7 +183,7 @@ impl Builder {
         let Some(Frame { open, anchor, at }) = self.stack.pop() else { return Ok(()) };
         let value = match open {
             Open::List(items) => Value::List(items),
-            Open::Map(entries, _) => Value::Map(entries),
+            Open::Map(map) => Value::Map(map.entries),
         };
         self.complete(Node { value, referenced: at, defined: at }, anchor)
     }
@@ -196,35 +223,32 @@ impl Builder {
         };
         match &mut frame.open {
             Open::List(items) => items.push(node),
-            Open::Map(_, key @ None) => *key = Some(node),
-            Open::Map(entries, key) => {
+            Open::Map(OpenMap { key: key @ None, .. }) => *key = Some(node),
+            Open::Map(OpenMap { entries, index, key }) => {
                 let Some(key) = key.take() else { return Ok(()) };
-                let same = |k: &Node| same_key(k, &key);
-                match entries.iter().position(|(k, _)| same(k)) {
+                // Only a scalar key can be written twice: a collection as a
+                // key is refused by every document type.
+                let Some(name) = key.name().map(str::to_owned) else {
+                    entries.push((key, node));
+                    return Ok(());
+                };
+                match index.get(&name) {
                     Some(_) if self.duplicates == Duplicates::Refuse => {
-                        let name = match &key.value {
-                            Value::Scalar(s) => s.text.clone(),
-                            _ => "?".into(),
-                        };
                         return Err(Error::DuplicateKey { key: name, at: key.referenced });
                     }
-                    Some(i) => {
-                        entries.remove(i);
+                    Some(&i) => {
+                        if let Some(entry) = entries.get_mut(i) {
+                            *entry = (key, node);
+                        }
+                    }
+                    None => {
+                        index.insert(name, entries.len());
                         entries.push((key, node));
                     }
-                    None => entries.push((key, node)),
                 }
             }
         }
         Ok(())
-    }
-}
-
-/// Keys are the same if both are scalars of the same text.
-fn same_key(a: &Node, b: &Node) -> bool {
-    match (&a.value, &b.value) {
-        (Value::Scalar(a), Value::Scalar(b)) => a.text == b.text,
-        _ => false,
     }
 }
 
@@ -245,5 +269,53 @@ fn used_at(node: &mut Node, at: Pos) {
             used_at(k, at);
             used_at(v, at);
         }),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn entries(node: &Node) -> Vec<(String, String)> {
+        let Value::Map(entries) = &node.value else { panic!("not a mapping: {node:?}") };
+        let text = |n: &Node| n.name().unwrap_or("?").to_owned();
+        entries.iter().map(|(k, v)| (text(k), text(v))).collect()
+    }
+
+    #[test]
+    fn a_key_written_twice_is_refused_where_it_is_written_again_or_the_last_wins() {
+        let text = "a: 1\nb: 2\na: 3\n";
+        match parse(text, Duplicates::Refuse) {
+            Err(Error::DuplicateKey { key, at }) => assert_eq!((key.as_str(), at), ("a", Pos { line: 3, column: 1 })),
+            other => panic!("{other:?}"),
+        }
+        let Ok(root) = parse(text, Duplicates::LastWins) else { panic!("no tree") };
+        assert_eq!(entries(&root), [("a".into(), "3".into()), ("b".into(), "2".into())]);
+    }
+
+    #[test]
+    fn a_mapping_of_many_keys_is_read_whole() {
+        // Near the node limit: a quadratic duplicate search would not finish.
+        let keys = MAX_YAML_NODES / 2 - 1;
+        let text: String = (0..keys).map(|i| format!("k{i}: {i}\n")).collect();
+        let Ok(root) = parse(&text, Duplicates::Refuse) else { panic!("refused") };
+        assert_eq!(entries(&root).len(), keys);
+        let over: String = format!("{text}x: 1\ny: 2\n");
+        assert!(matches!(parse(&over, Duplicates::Refuse), Err(Error::Limit { limit: Limit::Nodes, .. })));
+    }
+
+    #[test]
+    fn every_node_of_an_aliased_value_is_used_at_the_alias() {
+        let Ok(root) = parse("a: &x {b: [1]}\nc: *x\n", Duplicates::Refuse) else { panic!("refused") };
+        let Value::Map(top) = &root.value else { panic!("not a mapping") };
+        let Some((_, used)) = top.last() else { panic!("empty") };
+        let Value::Map(inner) = &used.value else { panic!("not a mapping") };
+        let Some((key, list)) = inner.first() else { panic!("empty") };
+        let Value::List(items) = &list.value else { panic!("not a list") };
+        let alias = Pos { line: 2, column: 4 };
+        for node in [used, key, list].into_iter().chain(items) {
+            assert_eq!(node.referenced, alias, "{node:?}");
+            assert_eq!(node.defined.line, 1, "{node:?}");
+        }
     }
 }

@@ -27,24 +27,6 @@ pub(super) fn from_str<T: DeserializeOwned>(text: &str) -> Result<T, Error> {
     T::deserialize(NodeDeserializer { node: &root })
 }
 
-impl Node {
-    pub(super) fn scalar(&self) -> Option<&Scalar> {
-        match &self.value {
-            Value::Scalar(s) => Some(s),
-            Value::List(_) | Value::Map(_) => None,
-        }
-    }
-
-    fn is_null(&self) -> bool {
-        self.scalar().is_some_and(Scalar::is_null)
-    }
-
-    /// The text of a scalar, as a key or a variant name is read.
-    pub(super) fn name(&self) -> Option<&str> {
-        self.scalar().map(|s| s.text.as_str())
-    }
-}
-
 /// Reads the document types from one node of the tree.
 #[derive(Clone, Copy)]
 struct NodeDeserializer<'a> {
