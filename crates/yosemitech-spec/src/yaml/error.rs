@@ -52,6 +52,12 @@ pub(super) enum Error {
         ty: &'static str,
         at: Pos,
     },
+    /// A scalar whose tag (`!!str`, `!!binary`) says it is not the `ty` asked for.
+    WrongTag {
+        tag: String,
+        ty: &'static str,
+        at: Pos,
+    },
     InvalidType {
         unexpected: String,
         expected: String,
@@ -119,6 +125,7 @@ impl Error {
             | Error::UnknownVariant { at, .. }
             | Error::MissingField { at, .. }
             | Error::InvalidScalar { at, .. }
+            | Error::WrongTag { at, .. }
             | Error::InvalidType { at, .. }
             | Error::InvalidValue { at, .. }
             | Error::InvalidLength { at, .. }
@@ -146,6 +153,7 @@ impl Error {
             | Error::UnknownVariant { at, .. }
             | Error::MissingField { at, .. }
             | Error::InvalidScalar { at, .. }
+            | Error::WrongTag { at, .. }
             | Error::InvalidType { at, .. }
             | Error::InvalidValue { at, .. }
             | Error::InvalidLength { at, .. }
@@ -179,6 +187,7 @@ impl fmt::Display for Error {
             Error::UnknownVariant { variant, .. } => write!(f, "unknown variant `{variant}`"),
             Error::MissingField { field, .. } => write!(f, "missing field `{field}`"),
             Error::InvalidScalar { ty, .. } => write!(f, "invalid {ty}"),
+            Error::WrongTag { tag, ty, .. } => write!(f, "tag {tag} where a {ty} is expected"),
             Error::InvalidType { unexpected, expected, .. } => {
                 write!(f, "invalid type: {unexpected}, expected {expected}")
             }

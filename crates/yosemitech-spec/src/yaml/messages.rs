@@ -17,6 +17,7 @@ pub(super) fn is_shape_error(e: &Error) -> bool {
             | Error::UnknownVariant { .. }
             | Error::MissingField { .. }
             | Error::InvalidScalar { .. }
+            | Error::WrongTag { .. }
             | Error::InvalidType { .. }
             | Error::InvalidValue { .. }
             | Error::InvalidLength { .. }
@@ -63,6 +64,20 @@ pub(super) fn explain(e: &Error, text: &str) -> Problem {
             let found = scalar_at(text, pos).unwrap_or_default();
             let (message, help) = invalid_scalar(ty, &found);
             problem(message, Some(help))
+        }
+        Error::WrongTag { tag, ty, .. } => {
+            // A core-schema tag is kept by its suffix (`str`), any other as written.
+            let tag = if tag.starts_with('!') { escape(tag) } else { format!("!!{}", escape(tag)) };
+            let takes = match *ty {
+                "f32" | "f64" => "a number",
+                "bool" => "`true` or `false`",
+                "u8" | "u16" | "u32" | "u64" | "i8" | "i16" | "i32" | "i64" => "a whole number",
+                _ => "a value of another type",
+            };
+            problem(
+                format!("the tag `{tag}` does not fit this key"),
+                Some(format!("remove the tag; this key takes {takes}")),
+            )
         }
         Error::InvalidType { unexpected, expected, .. } => {
             problem(format!("expected {expected}, found {unexpected}"), Some(schema.into()))

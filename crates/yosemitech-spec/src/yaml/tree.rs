@@ -63,7 +63,10 @@ impl<'a> NodeDeserializer<'a> {
     /// The scalar read as `ty` by `read`, or `InvalidScalar` at the scalar.
     fn read<T>(self, ty: &'static str, read: impl FnOnce(&Scalar) -> Option<T>) -> Result<T, Error> {
         let scalar = self.scalar()?;
-        read(scalar).ok_or(Error::InvalidScalar { ty, at: self.node.defined })
+        read(scalar).ok_or_else(|| match &scalar.tag {
+            Some(tag) => Error::WrongTag { tag: tag.clone(), ty, at: self.node.defined },
+            None => Error::InvalidScalar { ty, at: self.node.defined },
+        })
     }
 
     fn wrong_shape(self, expected: &'static str) -> Error {
@@ -507,6 +510,9 @@ mod tests {
         // Of the kind the messages know.
         let Err(e) = from_str::<Doc>(&DOC.replace("0x10", "ten")) else { panic!("`ten` read as a number") };
         assert!(matches!(e, super::Error::InvalidScalar { ty: "u32", .. }), "{e:?}");
+        // A tag that says the value is something else is named as the cause.
+        let Err(e) = from_str::<Doc>(&DOC.replace("0x10", "!!str 16")) else { panic!("`!!str 16` read as a number") };
+        assert!(matches!(&e, super::Error::WrongTag { tag, ty: "u32", .. } if tag == "str"), "{e:?}");
     }
 
     #[derive(Debug, Deserialize)]
