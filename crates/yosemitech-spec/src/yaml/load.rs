@@ -9,7 +9,7 @@ use std::collections::HashMap;
 
 use granit_parser::{ErrorKind, Event, Parser, ScalarStyle, ScanError, Span};
 
-use super::error::{Error, Limit};
+use super::error::{Error, Kind, Limit};
 use super::limits::{MAX_ALIAS_REPLAY, MAX_YAML_ALIASES, MAX_YAML_DEPTH, MAX_YAML_NODES};
 use crate::diag::Pos;
 
@@ -65,7 +65,7 @@ pub(super) fn parse(text: &str, duplicates: Duplicates) -> Result<Node, Error> {
             Event::DocumentStart(..) => {
                 documents += 1;
                 if documents > 1 {
-                    return Err(Error::MultipleDocuments { at });
+                    return Err(Error::new(Kind::MultipleDocuments, at));
                 }
             }
             Event::Scalar(text, style, anchor, tag) => {
@@ -78,7 +78,7 @@ pub(super) fn parse(text: &str, duplicates: Duplicates) -> Result<Node, Error> {
             Event::MappingStart(_, anchor, _) => builder.open(Open::Map(OpenMap::default()), anchor, at)?,
             Event::SequenceEnd | Event::MappingEnd => builder.close()?,
             Event::Alias(id) => builder.alias(id, at)?,
-            Event::UnresolvedAlias(_) => return Err(Error::UnknownAnchor { at }),
+            Event::UnresolvedAlias(_) => return Err(Error::new(Kind::UnknownAnchor, at)),
             _ => {}
         }
     }
@@ -117,9 +117,9 @@ fn syntax(e: ScanError) -> Error {
     let number = |n: usize| u32::try_from(n).unwrap_or(u32::MAX);
     let at = Pos { line: number(mark.line()), column: number(mark.col().saturating_add(1)) };
     match e.kind() {
-        ErrorKind::UnknownAnchor => Error::UnknownAnchor { at },
-        ErrorKind::MultipleDocumentsUnsupported => Error::MultipleDocuments { at },
-        _ => Error::Syntax { msg: e.info(), at },
+        ErrorKind::UnknownAnchor => Error::new(Kind::UnknownAnchor, at),
+        ErrorKind::MultipleDocumentsUnsupported => Error::new(Kind::MultipleDocuments, at),
+        _ => Error::new(Kind::Syntax { msg: e.info() }, at),
     }
 }
 
@@ -165,7 +165,7 @@ impl Builder {
     fn count(&mut self, at: Pos) -> Result<(), Error> {
         self.counts.nodes += 1;
         if self.counts.nodes > MAX_YAML_NODES {
-            return Err(Error::Limit { limit: Limit::Nodes, at });
+            return Err(Error::new(Kind::Limit { limit: Limit::Nodes }, at));
         }
         Ok(())
     }
@@ -173,7 +173,7 @@ impl Builder {
     fn open(&mut self, open: Open, anchor: usize, at: Pos) -> Result<(), Error> {
         self.count(at)?;
         if self.stack.len() >= MAX_YAML_DEPTH {
-            return Err(Error::Limit { limit: Limit::Depth, at });
+            return Err(Error::new(Kind::Limit { limit: Limit::Depth }, at));
         }
         self.stack.push(Frame { open, anchor, at });
         Ok(())
@@ -192,17 +192,17 @@ impl Builder {
     fn alias(&mut self, id: usize, at: Pos) -> Result<(), Error> {
         self.counts.aliases += 1;
         if self.counts.aliases > MAX_YAML_ALIASES {
-            return Err(Error::Limit { limit: Limit::Aliases, at });
+            return Err(Error::new(Kind::Limit { limit: Limit::Aliases }, at));
         }
-        let Some((node, size)) = self.anchors.get(&id) else { return Err(Error::UnknownAnchor { at }) };
+        let Some((node, size)) = self.anchors.get(&id) else { return Err(Error::new(Kind::UnknownAnchor, at)) };
         let size = *size;
         self.counts.replayed = self.counts.replayed.saturating_add(size);
         if self.counts.replayed > MAX_ALIAS_REPLAY {
-            return Err(Error::Limit { limit: Limit::AliasReplay, at });
+            return Err(Error::new(Kind::Limit { limit: Limit::AliasReplay }, at));
         }
         self.counts.nodes = self.counts.nodes.saturating_add(size);
         if self.counts.nodes > MAX_YAML_NODES {
-            return Err(Error::Limit { limit: Limit::Nodes, at });
+            return Err(Error::new(Kind::Limit { limit: Limit::Nodes }, at));
         }
         let mut copy = node.clone();
         used_at(&mut copy, at);
@@ -213,7 +213,7 @@ impl Builder {
     fn complete(&mut self, node: Node, anchor: usize) -> Result<(), Error> {
         if anchor != 0 {
             if self.anchors.len() >= MAX_YAML_ALIASES {
-                return Err(Error::Limit { limit: Limit::Anchors, at: node.defined });
+                return Err(Error::new(Kind::Limit { limit: Limit::Anchors }, node.defined));
             }
             self.anchors.insert(anchor, (node.clone(), size(&node)));
         }
@@ -234,7 +234,7 @@ impl Builder {
                 };
                 match index.get(&name) {
                     Some(_) if self.duplicates == Duplicates::Refuse => {
-                        return Err(Error::DuplicateKey { key: name, at: key.referenced });
+                        return Err(Error::new(Kind::DuplicateKey { key: name }, key.referenced));
                     }
                     Some(&i) => {
                         if let Some(entry) = entries.get_mut(i) {
@@ -286,7 +286,9 @@ mod tests {
     fn a_key_written_twice_is_refused_where_it_is_written_again_or_the_last_wins() {
         let text = "a: 1\nb: 2\na: 3\n";
         match parse(text, Duplicates::Refuse) {
-            Err(Error::DuplicateKey { key, at }) => assert_eq!((key.as_str(), at), ("a", Pos { line: 3, column: 1 })),
+            Err(Error { kind: Kind::DuplicateKey { key }, at }) => {
+                assert_eq!((key.as_str(), at), ("a", Pos { line: 3, column: 1 }));
+            }
             other => panic!("{other:?}"),
         }
         let Ok(root) = parse(text, Duplicates::LastWins) else { panic!("no tree") };
@@ -301,7 +303,10 @@ mod tests {
         let Ok(root) = parse(&text, Duplicates::Refuse) else { panic!("refused") };
         assert_eq!(entries(&root).len(), keys);
         let over: String = format!("{text}x: 1\ny: 2\n");
-        assert!(matches!(parse(&over, Duplicates::Refuse), Err(Error::Limit { limit: Limit::Nodes, .. })));
+        assert!(matches!(
+            parse(&over, Duplicates::Refuse),
+            Err(Error { kind: Kind::Limit { limit: Limit::Nodes }, .. })
+        ));
     }
 
     #[test]

@@ -2,7 +2,7 @@
 //! told, what would be valid, at the offending place.
 
 use super::Problem;
-use super::error::{Error, Limit};
+use super::error::{Error, Kind, Limit};
 use super::lexer::{quote_start, unclosed_flow};
 use super::limits::{MAX_ALIAS_REPLAY, MAX_YAML_ALIASES, MAX_YAML_DEPTH, MAX_YAML_NODES};
 use crate::diag::Pos;
@@ -12,20 +12,20 @@ use crate::suggest::closest;
 /// Errors about the shape of well-formed YAML, which have a key path.
 pub(super) fn is_shape_error(e: &Error) -> bool {
     matches!(
-        e.inner(),
-        Error::UnknownField { .. }
-            | Error::UnknownVariant { .. }
-            | Error::MissingField { .. }
-            | Error::InvalidScalar { .. }
-            | Error::WrongTag { .. }
-            | Error::InvalidType { .. }
-            | Error::InvalidValue { .. }
-            | Error::InvalidLength { .. }
-            | Error::NullIntoString { .. }
-            | Error::Unexpected { .. }
-            | Error::NonFiniteFloat { .. }
-            | Error::DuplicateKey { .. }
-            | Error::Message { .. }
+        e.inner().kind,
+        Kind::UnknownField { .. }
+            | Kind::UnknownVariant { .. }
+            | Kind::MissingField { .. }
+            | Kind::InvalidScalar { .. }
+            | Kind::WrongTag { .. }
+            | Kind::InvalidType { .. }
+            | Kind::InvalidValue { .. }
+            | Kind::InvalidLength { .. }
+            | Kind::NullIntoString
+            | Kind::Unexpected { .. }
+            | Kind::NonFiniteFloat { .. }
+            | Kind::DuplicateKey { .. }
+            | Kind::Message { .. }
     )
 }
 
@@ -35,12 +35,12 @@ pub(super) fn explain(e: &Error, text: &str) -> Problem {
     let schema = "spec/schema.json describes every key and its type";
     let problem = |message: String, help: Option<String>| Problem { pos, key: String::new(), message, help };
     let bomb = "spec files use aliases (`*name`) only to share small lists";
-    match e {
-        Error::Alias { error, .. } => {
+    match &e.kind {
+        Kind::Alias { error, .. } => {
             let inner = explain(error, text);
             Problem { pos, ..inner }
         }
-        Error::UnknownField { field, expected, .. } => {
+        Kind::UnknownField { field, expected } => {
             let field = escape(field);
             let help = match (closest(&field, expected), expected.is_empty()) {
                 (_, true) => "no keys are allowed here".to_string(),
@@ -49,7 +49,7 @@ pub(super) fn explain(e: &Error, text: &str) -> Problem {
             };
             problem(format!("unknown key `{field}`"), Some(help))
         }
-        Error::UnknownVariant { variant, expected, .. } => {
+        Kind::UnknownVariant { variant, expected } => {
             let variant = escape(variant);
             let help = match closest(&variant, expected) {
                 Some(best) => format!("did you mean `{best}`? valid values: {}", expected.join(", ")),
@@ -57,15 +57,15 @@ pub(super) fn explain(e: &Error, text: &str) -> Problem {
             };
             problem(format!("`{variant}` is not a valid value here"), Some(help))
         }
-        Error::MissingField { field, .. } => {
+        Kind::MissingField { field } => {
             problem(format!("missing key `{field}`"), Some(format!("add `{field}:` to this mapping; {schema}")))
         }
-        Error::InvalidScalar { ty, .. } => {
+        Kind::InvalidScalar { ty } => {
             let found = scalar_at(text, pos).unwrap_or_default();
             let (message, help) = invalid_scalar(ty, &found);
             problem(message, Some(help))
         }
-        Error::WrongTag { tag, ty, .. } => {
+        Kind::WrongTag { tag, ty } => {
             // A core-schema tag is kept by its suffix (`str`), any other as written.
             let tag = if tag.starts_with('!') { escape(tag) } else { format!("!!{}", escape(tag)) };
             let takes = match *ty {
@@ -79,20 +79,20 @@ pub(super) fn explain(e: &Error, text: &str) -> Problem {
                 Some(format!("remove the tag; this key takes {takes}")),
             )
         }
-        Error::InvalidType { unexpected, expected, .. } => {
+        Kind::InvalidType { unexpected, expected } => {
             problem(format!("expected {expected}, found {unexpected}"), Some(schema.into()))
         }
-        Error::InvalidValue { unexpected, expected, .. } => {
+        Kind::InvalidValue { unexpected, expected } => {
             problem(format!("invalid value {unexpected}, expected {expected}"), Some(schema.into()))
         }
-        Error::InvalidLength { len, expected, .. } => {
+        Kind::InvalidLength { len, expected } => {
             problem(format!("a list of {len} items, expected {expected}"), Some(schema.into()))
         }
-        Error::NullIntoString { .. } => problem(
+        Kind::NullIntoString => problem(
             "expected text, found nothing".into(),
             Some("write the text after the key; quote it if it contains `: ` or ` #`".into()),
         ),
-        Error::Unexpected { expected, .. } => {
+        Kind::Unexpected { expected } => {
             let what = match *expected {
                 "mapping start" => "a mapping (`key: value` entries)",
                 "sequence start" => "a list (`- item` lines or `[a, b]`)",
@@ -101,7 +101,7 @@ pub(super) fn explain(e: &Error, text: &str) -> Problem {
             };
             problem(format!("expected {what} here"), Some(schema.into()))
         }
-        Error::DuplicateKey { key, .. } => {
+        Kind::DuplicateKey { key } => {
             let key = escape(key);
             let first = first_occurrence(text, pos, &key);
             let help = match first {
@@ -112,11 +112,11 @@ pub(super) fn explain(e: &Error, text: &str) -> Problem {
             };
             problem(format!("duplicate key `{key}`"), Some(help))
         }
-        Error::MultipleDocuments { .. } => problem(
+        Kind::MultipleDocuments => problem(
             "a second YAML document starts here; a spec file holds exactly one".into(),
             Some("remove the `---` separator, or move the second document to its own file".into()),
         ),
-        Error::Limit { limit, .. } => {
+        Kind::Limit { limit } => {
             let (message, help) = match limit {
                 Limit::Nodes => (
                     format!("the YAML holds more than {MAX_YAML_NODES} values"),
@@ -136,19 +136,19 @@ pub(super) fn explain(e: &Error, text: &str) -> Problem {
             };
             problem(message, Some(help))
         }
-        Error::UnknownAnchor { .. } => problem(
+        Kind::UnknownAnchor => problem(
             "this alias refers to no anchor".into(),
             Some("define `&name` before using `*name`; anchors do not cross files".into()),
         ),
-        Error::NonFiniteFloat { value, .. } => {
+        Kind::NonFiniteFloat { value } => {
             problem(format!("`{}` is not a finite number", escape(value)), Some("write a finite number".into()))
         }
-        Error::Syntax { msg, .. } => syntax(msg, text, pos),
-        Error::Message { msg, .. } if msg.contains("untagged enum StatedValue") => problem(
+        Kind::Syntax { msg } => syntax(msg, text, pos),
+        Kind::Message { msg } if msg.contains("untagged enum StatedValue") => problem(
             "a stated value is a number or text".into(),
             Some("write the value as the manual states it: `7.6`, `\"1.1\"` or a variant name".into()),
         ),
-        Error::Message { msg, .. } => problem(first_line(msg), Some(schema.into())),
+        Kind::Message { msg } => problem(first_line(msg), Some(schema.into())),
     }
 }
 

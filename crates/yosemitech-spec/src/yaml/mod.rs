@@ -28,7 +28,7 @@ mod tree;
 
 use std::borrow::Cow;
 
-use self::error::Error;
+use self::error::{Error, Kind};
 
 use self::comma::unquoted_comma;
 use self::keypath::{KeyPaths, parent_path};
@@ -119,10 +119,10 @@ struct Part<'a> {
 /// the parser fail further down, swallowing the lines between.
 fn swallowed_from(e: &Error, text: &str, pos: Pos) -> Option<usize> {
     let raw = e.at().map_or(0, |at| at.line as usize);
-    match e {
+    match e.kind {
         // `syntax` points at the opening quote or bracket.
-        Error::Syntax { .. } if (pos.line as usize) < raw => Some(pos.line as usize),
-        Error::Syntax { .. } => unclosed_flow(text, pos).map(|(line, _, _)| line as usize).filter(|&l| l < raw),
+        Kind::Syntax { .. } if (pos.line as usize) < raw => Some(pos.line as usize),
+        Kind::Syntax { .. } => unclosed_flow(text, pos).map(|(line, _, _)| line as usize).filter(|&l| l < raw),
         _ => None,
     }
     .filter(|&line| line > 0)
@@ -130,14 +130,14 @@ fn swallowed_from(e: &Error, text: &str, pos: Pos) -> Option<usize> {
 
 /// Errors after which the rest of the file can still be parsed on its own.
 fn recoverable(e: &Error) -> bool {
-    matches!(e, Error::Syntax { .. } | Error::UnknownAnchor { .. }) || is_shape_error(e)
+    matches!(e.kind, Kind::Syntax { .. } | Kind::UnknownAnchor) || is_shape_error(e)
 }
 
 /// Whether the error is an alias (`*name`) at `pos` whose anchor (`&name`)
 /// is written before it in `text`: true of an alias whose anchor was
 /// blanked out of a resumed parse, which is no mistake.
 fn anchor_defined_before(e: &Error, text: &str, pos: Pos) -> bool {
-    if !matches!(e, Error::UnknownAnchor { .. }) {
+    if !matches!(e.kind, Kind::UnknownAnchor) {
         return false;
     }
     let Some(line) = text.lines().nth((pos.line as usize).saturating_sub(1)) else { return false };
@@ -176,14 +176,14 @@ fn problem(e: &Error, text: &str, layout: Option<&Layout>) -> Problem {
         .and_then(|end| KeyPaths::of(&keep_lines(text, |i| i < end)))
         .or_else(|| KeyPaths::of(text))
         .or_else(|| KeyPaths::of(&keep_lines(text, |i| i < line)));
-    let missing = matches!(e.inner(), Error::MissingField { .. });
+    let missing = matches!(e.inner().kind, Kind::MissingField { .. });
     if let Some((pos, key)) = paths.as_ref().and_then(|p| p.at(problem.pos, missing)) {
         problem.key = key;
         if missing {
             problem.pos = pos;
         }
     }
-    let stray = matches!(e.inner(), Error::UnknownField { .. } | Error::DuplicateKey { .. });
+    let stray = matches!(e.inner().kind, Kind::UnknownField { .. } | Kind::DuplicateKey { .. });
     if let Some(comma) = stray.then(|| unquoted_comma(text, problem.pos)).flatten() {
         let key = paths.as_ref().and_then(|p| p.exact(comma.key_pos)).unwrap_or_else(|| {
             parent_path(&problem.key).map_or_else(|| comma.key.clone(), |up| format!("{up}.{}", comma.key))

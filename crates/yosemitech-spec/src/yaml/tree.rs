@@ -11,7 +11,7 @@ use serde::de::{
 };
 use serde::forward_to_deserialize_any;
 
-use super::error::Error;
+use super::error::{Error, Kind};
 use super::load::{Duplicates, Node, Scalar, Value, parse};
 use super::scalar::Resolved;
 use crate::diag::Pos;
@@ -48,10 +48,10 @@ impl<'a> NodeDeserializer<'a> {
         result.map_err(|e| {
             let (used, written) = (self.node.referenced, self.node.defined);
             let e = e.placed(written);
-            if matches!(e, Error::Alias { .. }) || used == written || used.line == 0 {
+            if matches!(e.kind, Kind::Alias { .. }) || used == written || used.line == 0 {
                 return e;
             }
-            Error::Alias { error: Box::new(e), used, written }
+            Error::new(Kind::Alias { error: Box::new(e), written }, used)
         })
     }
 
@@ -64,17 +64,17 @@ impl<'a> NodeDeserializer<'a> {
     fn read<T>(self, ty: &'static str, read: impl FnOnce(&Scalar) -> Option<T>) -> Result<T, Error> {
         let scalar = self.scalar()?;
         read(scalar).ok_or_else(|| match &scalar.tag {
-            Some(tag) => Error::WrongTag { tag: tag.clone(), ty, at: self.node.defined },
-            None => Error::InvalidScalar { ty, at: self.node.defined },
+            Some(tag) => Error::new(Kind::WrongTag { tag: tag.clone(), ty }, self.node.defined),
+            None => Error::new(Kind::InvalidScalar { ty }, self.node.defined),
         })
     }
 
     fn wrong_shape(self, expected: &'static str) -> Error {
-        Error::Unexpected { expected, at: self.node.defined }
+        Error::new(Kind::Unexpected { expected }, self.node.defined)
     }
 
     fn message(self, msg: &str) -> Error {
-        Error::Message { msg: msg.into(), at: self.node.defined }
+        Error::new(Kind::Message { msg: msg.into() }, self.node.defined)
     }
 
     fn entries(self) -> Option<Entries<'a>> {
@@ -109,10 +109,10 @@ impl<'de> Deserializer<'de> for NodeDeserializer<'_> {
                 Ok(Resolved::Float(x)) if x.is_finite() => visitor.visit_f64(x),
                 // Allowed only where a number is asked for.
                 Ok(Resolved::Float(_)) => {
-                    return Err(Error::NonFiniteFloat { value: scalar.text.clone(), at: self.node.defined });
+                    return Err(Error::new(Kind::NonFiniteFloat { value: scalar.text.clone() }, self.node.defined));
                 }
                 Ok(Resolved::Text(s)) => visitor.visit_str(s),
-                Err(ty) => Err(Error::InvalidScalar { ty, at: self.node.defined }),
+                Err(ty) => Err(Error::new(Kind::InvalidScalar { ty }, self.node.defined)),
             },
             Value::List(items) => visitor.visit_seq(Items { of: self, items: items.iter() }),
             Value::Map(entries) => visitor.visit_map(Entries { of: self, entries: entries.iter(), value: None }),
@@ -174,7 +174,7 @@ impl<'de> Deserializer<'de> for NodeDeserializer<'_> {
     fn deserialize_string<V: Visitor<'de>>(self, visitor: V) -> Result<V::Value, Error> {
         let scalar = self.scalar()?;
         if scalar.is_null() {
-            return Err(Error::NullIntoString { at: self.node.defined });
+            return Err(Error::new(Kind::NullIntoString, self.node.defined));
         }
         self.place(visitor.visit_str(&scalar.text))
     }
@@ -259,7 +259,7 @@ impl<'de> Deserializer<'de> for NodeDeserializer<'_> {
 
     fn deserialize_identifier<V: Visitor<'de>>(self, visitor: V) -> Result<V::Value, Error> {
         let result = match self.node.name() {
-            _ if self.node.is_null() => Err(Error::NullIntoString { at: self.node.defined }),
+            _ if self.node.is_null() => Err(Error::new(Kind::NullIntoString, self.node.defined)),
             Some(name) => visitor.visit_str(name),
             None => Err(self.wrong_shape("string scalar")),
         };
@@ -509,10 +509,10 @@ mod tests {
         }
         // Of the kind the messages know.
         let Err(e) = from_str::<Doc>(&DOC.replace("0x10", "ten")) else { panic!("`ten` read as a number") };
-        assert!(matches!(e, super::Error::InvalidScalar { ty: "u32", .. }), "{e:?}");
+        assert!(matches!(e.kind, super::Kind::InvalidScalar { ty: "u32" }), "{e:?}");
         // A tag that says the value is something else is named as the cause.
         let Err(e) = from_str::<Doc>(&DOC.replace("0x10", "!!str 16")) else { panic!("`!!str 16` read as a number") };
-        assert!(matches!(&e, super::Error::WrongTag { tag, ty: "u32", .. } if tag == "str"), "{e:?}");
+        assert!(matches!(&e.kind, super::Kind::WrongTag { tag, ty: "u32" } if tag == "str"), "{e:?}");
     }
 
     #[derive(Debug, Deserialize)]
