@@ -49,7 +49,7 @@ pub(super) enum Duplicates {
     LastWins,
 }
 
-/// The tree of `text`: its one document, or `Null` for none.
+/// The tree of `text`: its one document, or an empty scalar (null) for none.
 pub(super) fn parse(text: &str, duplicates: Duplicates) -> Result<Node, Error> {
     let options = granit_parser::options! {
         flow_nesting_limit: MAX_YAML_DEPTH,
