@@ -60,12 +60,19 @@ impl<'a> NodeDeserializer<'a> {
         self.node.scalar().ok_or_else(|| self.wrong_shape("string scalar"))
     }
 
-    /// The scalar read as `ty` by `read`, or `InvalidScalar` at the scalar.
-    fn read<T>(self, ty: &'static str, read: impl FnOnce(&Scalar) -> Option<T>) -> Result<T, Error> {
+    /// The scalar read as `ty` by `read`, or the error at the scalar:
+    /// `WrongTag` when the text would read but its tag says otherwise
+    /// (`!!str 5` for a number), `InvalidScalar` when the text does not.
+    fn read<T>(self, ty: &'static str, read: impl Fn(&Scalar) -> Option<T>) -> Result<T, Error> {
         let scalar = self.scalar()?;
-        read(scalar).ok_or_else(|| match &scalar.tag {
-            Some(tag) => Error::new(Kind::WrongTag { tag: tag.clone(), ty }, self.node.defined),
-            None => Error::new(Kind::InvalidScalar { ty }, self.node.defined),
+        read(scalar).ok_or_else(|| {
+            let kind = match &scalar.tag {
+                Some(tag) if read(&Scalar { tag: None, ..scalar.clone() }).is_some() => {
+                    Kind::WrongTag { tag: tag.clone(), ty }
+                }
+                _ => Kind::InvalidScalar { ty },
+            };
+            Error::new(kind, self.node.defined)
         })
     }
 
@@ -513,6 +520,9 @@ mod tests {
         // A tag that says the value is something else is named as the cause.
         let Err(e) = from_str::<Doc>(&DOC.replace("0x10", "!!str 16")) else { panic!("`!!str 16` read as a number") };
         assert!(matches!(&e.kind, super::Kind::WrongTag { tag, ty: "u32" } if tag == "str"), "{e:?}");
+        // A tag that fits, on a text that does not, is the text's error.
+        let Err(e) = from_str::<Doc>(&DOC.replace("0x10", "!!int ten")) else { panic!("`!!int ten` read") };
+        assert!(matches!(e.kind, super::Kind::InvalidScalar { ty: "u32" }), "{e:?}");
     }
 
     #[derive(Debug, Deserialize)]
