@@ -108,14 +108,17 @@ impl Node {
 }
 
 fn pos(span: &Span) -> Pos {
+    place(span.start.line(), span.start.col())
+}
+
+/// The 1-based place of the parser's line (1-based) and column (0-based).
+fn place(line: usize, column: usize) -> Pos {
     let number = |n: usize| u32::try_from(n).unwrap_or(u32::MAX);
-    Pos { line: number(span.start.line()), column: number(span.start.col().saturating_add(1)) }
+    Pos { line: number(line), column: number(column.saturating_add(1)) }
 }
 
 fn syntax(e: ScanError) -> Error {
-    let mark = e.marker();
-    let number = |n: usize| u32::try_from(n).unwrap_or(u32::MAX);
-    let at = Pos { line: number(mark.line()), column: number(mark.col().saturating_add(1)) };
+    let at = place(e.marker().line(), e.marker().col());
     match e.kind() {
         ErrorKind::UnknownAnchor => Error::new(Kind::UnknownAnchor, at),
         ErrorKind::MultipleDocumentsUnsupported => Error::new(Kind::MultipleDocuments, at),

@@ -5,6 +5,7 @@ use super::Problem;
 use super::error::{Error, Kind, Limit};
 use super::lexer::{quote_start, unclosed_flow};
 use super::limits::{MAX_ALIAS_REPLAY, MAX_YAML_ALIASES, MAX_YAML_DEPTH, MAX_YAML_NODES};
+use super::scalar::whole;
 use crate::diag::Pos;
 use crate::names::escape;
 use crate::suggest::closest;
@@ -245,7 +246,7 @@ fn invalid_scalar(ty: &str, found: &str) -> (String, String) {
     };
     if let Some(max) = max {
         let range = format!("a whole number in 0..={max}, decimal or 0x hex");
-        return match parse_int(&found) {
+        return match whole(&found) {
             Some(n) if n < 0 => (format!("`{found}` is negative, but this key takes an unsigned number"), range),
             Some(_) => (format!("`{found}` is too large for this key"), range),
             None => (format!("`{found}` is not a whole number"), range),
@@ -261,18 +262,6 @@ fn invalid_scalar(ty: &str, found: &str) -> (String, String) {
         }
         _ => (format!("`{found}` is not a valid {ty}"), "spec/schema.json describes every key and its type".into()),
     }
-}
-
-fn parse_int(text: &str) -> Option<i128> {
-    let (negative, digits) = match text.strip_prefix('-') {
-        Some(rest) => (true, rest),
-        None => (false, text.strip_prefix('+').unwrap_or(text)),
-    };
-    let value = match digits.strip_prefix("0x").or_else(|| digits.strip_prefix("0X")) {
-        Some(hex) => i128::from_str_radix(&hex.replace('_', ""), 16).ok()?,
-        None => digits.replace('_', "").parse::<i128>().ok()?,
-    };
-    Some(if negative { -value } else { value })
 }
 
 /// The scalar written at `pos`, without quotes.
@@ -335,9 +324,12 @@ mod tests {
         assert_eq!(scalar_at("a: two\n", Pos { line: 1, column: 4 }).as_deref(), Some("two"));
         assert_eq!(scalar_at("{a: 1x, b: 2}", Pos { line: 1, column: 5 }).as_deref(), Some("1x"));
         assert_eq!(scalar_at("a: \"x y\" # c", Pos { line: 1, column: 4 }).as_deref(), Some("x y"));
-        assert_eq!(parse_int("-2"), Some(-2));
-        assert_eq!(parse_int("0x10"), Some(16));
-        assert_eq!(parse_int("two"), None);
+        assert_eq!(whole("-2"), Some(-2));
+        assert_eq!(whole("0x10"), Some(16));
+        assert_eq!(whole("two"), None);
+        // The same rules as reading the value: a leading zero is no number, not a large one.
+        assert_eq!(invalid_scalar("u32", "012").0, "`012` is not a whole number");
+        assert_eq!(invalid_scalar("u8", "256").0, "`256` is too large for this key");
     }
 
     #[test]

@@ -124,7 +124,9 @@ fn decimal(text: &str) -> bool {
     digits(whole) && digits(fraction) && whole.len() + fraction.len() > 0 && exponent_ok
 }
 
-fn whole(text: &str) -> Option<i128> {
+/// The whole number `text` is, by the rules of [`Scalar::whole`]; also how
+/// an error tells a negative or too large number from text.
+pub(super) fn whole(text: &str) -> Option<i128> {
     let (negative, unsigned) = match text.strip_prefix('-') {
         Some(rest) => (true, rest),
         None => (false, text.strip_prefix('+').unwrap_or(text)),

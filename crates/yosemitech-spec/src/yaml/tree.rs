@@ -21,7 +21,7 @@ use crate::spanned::SPANNED_REQUEST;
 pub(super) fn from_str<T: DeserializeOwned>(text: &str) -> Result<T, Error> {
     let mut root = parse(text, Duplicates::Refuse)?;
     // An empty document reads as an empty mapping.
-    if root.scalar().is_some_and(Scalar::is_null) {
+    if root.is_null() {
         root.value = Value::Map(Vec::new());
     }
     T::deserialize(NodeDeserializer { node: &root })
