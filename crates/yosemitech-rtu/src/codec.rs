@@ -210,6 +210,18 @@ impl<const N: usize> Ascii<N> {
         Self { bytes, pad }
     }
 
+    /// The field at `at..at + N` of a message's register data, as received
+    /// (`pad` bytes if the data ends before, which a message's own data,
+    /// of the length its layout frames, never does).
+    #[inline]
+    pub fn read(data: &[u8], at: usize, pad: u8) -> Self {
+        let mut bytes = [pad; N];
+        if let Some(from) = data.get(at..at.saturating_add(N)) {
+            crate::bytes::copy_in_pieces(&mut bytes, from);
+        }
+        Self { bytes, pad }
+    }
+
     /// The field from text: at most `N` ASCII bytes, padded with `pad`.
     /// Returns `None` when `text` is too long or not ASCII.
     pub fn from_text(text: &str, pad: u8) -> Option<Self> {

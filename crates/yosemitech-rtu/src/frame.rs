@@ -10,7 +10,7 @@
 use core::ops::Deref;
 
 use crate::bytes::{byte, word};
-use crate::crc::{crc_ok, crc16};
+use crate::crc::crc16;
 use crate::error::{EchoField, EncodeError, FrameError};
 
 /// The largest RTU frame (address + PDU + CRC).
@@ -297,28 +297,31 @@ impl Layout<'_> {
     pub fn decode_response<'f>(&self, slave: u8, frame: &'f [u8]) -> Result<&'f [u8], FrameError> {
         let expected_slave = self.reply_slave(slave);
         let function = self.function.code();
-        if frame.get(1) == Some(&(function | EXCEPTION_BIT)) {
-            check_len(frame, EXCEPTION_LEN)?;
-            check_crc(frame)?;
-            check_slave(frame, expected_slave)?;
+        let exception = frame.get(1) == Some(&(function | EXCEPTION_BIT));
+        let short = !exception && self.short_response_len() == Some(frame.len());
+        // One length, CRC and slave check for the three forms a reply takes:
+        // each check inlined once, in every caller that inlines this.
+        let len = if exception {
+            EXCEPTION_LEN
+        } else if short {
+            frame.len()
+        } else {
+            self.response_len()
+        };
+        check_len(frame, len)?;
+        check_crc(frame)?;
+        check_slave(frame, expected_slave)?;
+        if exception {
             return Err(FrameError::Exception {
                 function,
                 code: crate::ExceptionCode::from_u8(byte(frame, 2).unwrap_or(0)),
             });
         }
-        if let Some(short) = self.short_response_len()
-            && frame.len() == short
-        {
-            check_crc(frame)?;
-            check_slave(frame, expected_slave)?;
-            check_function(frame, function)?;
+        check_function(frame, function)?;
+        if short {
             check_byte_count(byte(frame, REPLY_BYTE_COUNT_AT).unwrap_or(0), 0, &[])?;
             return Ok(&[]);
         }
-        check_len(frame, self.response_len())?;
-        check_crc(frame)?;
-        check_slave(frame, expected_slave)?;
-        check_function(frame, function)?;
         match self.function {
             Function::Read => {
                 let count = byte(frame, REPLY_BYTE_COUNT_AT).unwrap_or(0);
@@ -383,15 +386,13 @@ fn check_len(frame: &[u8], expected: usize) -> Result<(), FrameError> {
     }
 }
 
+/// The CRC computed once: the error reports the value the check compared.
 #[inline]
 fn check_crc(frame: &[u8]) -> Result<(), FrameError> {
-    if crc_ok(frame) {
-        return Ok(());
-    }
     let n = frame.len().saturating_sub(2);
-    let received = word(frame, n).map_or(0, u16::swap_bytes);
     let computed = crc16(frame.get(..n).unwrap_or(&[]));
-    Err(FrameError::Crc { received, computed })
+    let received = word(frame, n).map_or(0, u16::swap_bytes);
+    if frame.len() >= 2 && computed == received { Ok(()) } else { Err(FrameError::Crc { received, computed }) }
 }
 
 #[inline]

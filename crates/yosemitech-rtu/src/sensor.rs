@@ -1,5 +1,6 @@
 //! [`SensorInfo`]: what generated sensor modules say about their sensor.
 
+use crate::bytes::copy_in_pieces;
 use crate::command::Command;
 use crate::dispatch::{request_data, response_data, write_request, write_response};
 use crate::error::{EncodeError, FrameError};
@@ -149,9 +150,11 @@ fn message_codec<M: Message>(data: &[u8], pass: Pass<'_, '_>) -> Result<usize, C
 
 /// Copies re-encoded register data to the start of `out`: its length.
 fn copy_data(data: &[u8], out: &mut [u8]) -> Result<usize, CodecError> {
-    let slot = out.get_mut(..data.len()).ok_or(CodecError::Encode(EncodeError::FrameTooLong { len: data.len() }))?;
-    slot.copy_from_slice(data);
-    Ok(data.len())
+    if copy_in_pieces(out, data) {
+        Ok(data.len())
+    } else {
+        Err(CodecError::Encode(EncodeError::FrameTooLong { len: data.len() }))
+    }
 }
 
 /// Passes each field that has a value to the visitor, in wire order: one

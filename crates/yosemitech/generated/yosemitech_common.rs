@@ -80,23 +80,7 @@ impl rtu::Message for GetSnResponse {
     ];
     fn from_data(data: &[u8; 14]) -> Self {
         Self {
-            serial_number: rtu::Ascii::from_wire(
-                [
-                    data[1],
-                    data[2],
-                    data[3],
-                    data[4],
-                    data[5],
-                    data[6],
-                    data[7],
-                    data[8],
-                    data[9],
-                    data[10],
-                    data[11],
-                    data[12],
-                ],
-                0x00,
-            ),
+            serial_number: rtu::Ascii::read(data, 1, 0x00),
         }
     }
     fn to_data(&self) -> [u8; 14] {

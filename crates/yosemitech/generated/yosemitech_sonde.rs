@@ -30,7 +30,7 @@ impl rtu::Message for GetSnResponse {
     ];
     fn from_data(data: &[u8; 12]) -> Self {
         Self {
-            serial_number: rtu::Ascii::from_wire(*data, 0x00),
+            serial_number: rtu::Ascii::read(data, 0, 0x00),
         }
     }
     fn to_data(&self) -> [u8; 12] {

@@ -127,7 +127,7 @@ pub(super) fn decode_expr(g: &FieldGen<'_>, data_len: usize) -> TokenStream {
         }
         FieldKind::Ascii { padding, .. } => {
             let p = hex(u32::from(*padding), 2);
-            quote!(rtu::Ascii::from_wire(#b, #p))
+            quote!(rtu::Ascii::read(data, #at, #p))
         }
         FieldKind::Version => quote!(rtu::Version::from_wire(#b)),
         FieldKind::Bcd => quote!(rtu::Bcd(data[#at])),
