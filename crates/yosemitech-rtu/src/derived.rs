@@ -168,6 +168,36 @@ pub fn pow(base: f64, exponent: f64) -> f64 {
     libm::pow(base, exponent)
 }
 
+/// A positive `base` to the power `exponent`, given the base's natural
+/// logarithm `ln_base`: what a formula's `10^y` becomes, without the
+/// general [`pow`] (about 3 KB of firmware flash). A whole exponent of at
+/// most 64 is a product ([`powi`]), so `10^2` is exactly 100; any other is
+/// `exp(ln_base * exponent)`, within a few units in the last place.
+pub fn pow_positive(base: f64, ln_base: f64, exponent: f64) -> f64 {
+    // `as` saturates and maps NaN to 0; the comparison refuses both.
+    #[allow(clippy::cast_possible_truncation)]
+    let whole = exponent as i32;
+    if f64::from(whole) == exponent && whole.unsigned_abs() <= 64 { powi(base, whole) } else { exp(ln_base * exponent) }
+}
+
+/// `base` to a whole power, by repeated squaring: what a formula's `x^2`
+/// becomes, without the general [`pow`] (about 3 KB of firmware flash for
+/// a square). `x^2` is `x * x` exactly; a power of at most 64 is within a
+/// few units in the last place.
+pub fn powi(base: f64, exponent: i32) -> f64 {
+    let (mut result, mut square, mut rest) = (1.0, base, exponent.unsigned_abs());
+    while rest > 0 {
+        if rest & 1 == 1 {
+            result *= square;
+        }
+        rest >>= 1;
+        if rest > 0 {
+            square *= square;
+        }
+    }
+    if exponent < 0 { 1.0 / result } else { result }
+}
+
 /// Both operands of a comparison, if neither is NaN.
 fn ordered(a: f64, b: f64) -> Result<(f64, f64), NotComputable> {
     if a.is_nan() || b.is_nan() { Err(NotComputable::Undefined) } else { Ok((a, b)) }
@@ -222,5 +252,42 @@ mod tests {
         assert_eq!(le(1.0, 1.0), Ok(true));
         assert!((exp(ln(5.0)) - 5.0).abs() < 1e-12);
         assert!((pow(10.0, 2.0) - 100.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn whole_powers_agree_with_the_general_power() {
+        for base in [-3.7, -1.0, -0.5, 0.0, 0.25, 1.0, 2.0, 3.15, 298.15 / 100.0, 1e3] {
+            for exponent in -64..=64 {
+                let (whole, general) = (powi(base, exponent), pow(base, f64::from(exponent)));
+                if general.is_finite() && general != 0.0 {
+                    let error = ((whole - general) / general).abs();
+                    assert!(error < 1e-13, "{base}^{exponent}: {whole} against {general}");
+                } else {
+                    assert_eq!(whole.is_finite(), general.is_finite(), "{base}^{exponent}");
+                }
+            }
+            assert_eq!(powi(base, 2), base * base, "a square is one multiplication");
+        }
+        assert!(powi(f64::NAN, 0) == 1.0 && powi(f64::NAN, 1).is_nan());
+    }
+
+    #[test]
+    fn powers_of_a_positive_number_agree_with_the_general_power() {
+        for base in [0.5, 2.0, 10.0, 273.15] {
+            let ln_base = libm::log(base);
+            for tenth in -700..=700 {
+                let exponent = f64::from(tenth) / 10.0;
+                let (ours, general) = (pow_positive(base, ln_base, exponent), pow(base, exponent));
+                if general.is_finite() && general != 0.0 {
+                    assert!(((ours - general) / general).abs() < 1e-12, "{base}^{exponent}: {ours} against {general}");
+                }
+                if exponent.fract() == 0.0 && exponent.abs() <= 64.0 {
+                    assert_eq!(ours, powi(base, exponent as i32), "{base}^{exponent} is a product");
+                }
+            }
+        }
+        assert_eq!(pow_positive(10.0, core::f64::consts::LN_10, 2.0), 100.0);
+        assert_eq!(pow_positive(2.0, core::f64::consts::LN_2, 9.0), 512.0);
+        assert!(pow_positive(10.0, core::f64::consts::LN_10, f64::NAN).is_nan());
     }
 }

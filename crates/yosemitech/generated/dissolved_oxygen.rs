@@ -152,13 +152,20 @@ pub fn dissolved_oxygen_mg_l(
                             + f64::from(DO_SOLUBILITY_B2)
                                 * ((273.15 + temperature) / 100.0)
                             + f64::from(DO_SOLUBILITY_B3)
-                                * rtu::derived::pow((273.15 + temperature) / 100.0, 2.0)),
+                                * rtu::derived::powi((273.15 + temperature) / 100.0, 2)),
             )
             * (pressure * 760.0 / 101.325
-                - rtu::derived::pow(10.0, 8.10765 - 1750.286 / (235.0 + temperature)))
+                - rtu::derived::pow_positive(
+                    10.0,
+                    core::f64::consts::LN_10,
+                    8.10765 - 1750.286 / (235.0 + temperature),
+                ))
             / (760.0
-                - rtu::derived::pow(10.0, 8.10765 - 1750.286 / (235.0 + temperature)))
-            * f64::from(OXYGEN_MG_PER_ML),
+                - rtu::derived::pow_positive(
+                    10.0,
+                    core::f64::consts::LN_10,
+                    8.10765 - 1750.286 / (235.0 + temperature),
+                )) * f64::from(OXYGEN_MG_PER_ML),
     )
 }
 

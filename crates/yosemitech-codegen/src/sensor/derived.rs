@@ -4,7 +4,7 @@ use std::fmt::Write as _;
 
 use proc_macro2::{Ident, Literal, TokenStream};
 use quote::quote;
-use yosemitech_spec::expr::{Cmp, Func, Node, Op};
+use yosemitech_spec::expr::{Cmp, Func, Node, Op, Power};
 use yosemitech_spec::{Derived, InputSource, Sensor};
 
 use super::constants::f64_lit;
@@ -35,10 +35,27 @@ fn formula(e: &yosemitech_spec::expr::Expr) -> (TokenStream, u8) {
             let x = wrap(formula(x), 3);
             (quote!(-#x), 3)
         }
-        Node::Bin(Op::Pow, a, b) => {
-            let (a, b) = (formula(a).0, formula(b).0);
-            (quote!(rtu::derived::pow(#a, #b)), 3)
-        }
+        Node::Bin(Op::Pow, base, exponent) => match Power::of(base, exponent) {
+            Power::Whole(n) => {
+                let (a, n) = (formula(base).0, Literal::i32_unsuffixed(n));
+                (quote!(rtu::derived::powi(#a, #n)), 3)
+            }
+            Power::OfNumber { base, ln_base } => {
+                // The logarithms `core` names, by name; another base's as a number.
+                #[allow(clippy::float_cmp)]
+                let ln = match base {
+                    10.0 => quote!(core::f64::consts::LN_10),
+                    2.0 => quote!(core::f64::consts::LN_2),
+                    _ => f64_lit(ln_base),
+                };
+                let (base, b) = (f64_lit(base), formula(exponent).0);
+                (quote!(rtu::derived::pow_positive(#base, #ln, #b)), 3)
+            }
+            Power::General => {
+                let (a, b) = (formula(base).0, formula(exponent).0);
+                (quote!(rtu::derived::pow(#a, #b)), 3)
+            }
+        },
         Node::Bin(op, a, b) => {
             let prec = if matches!(op, Op::Add | Op::Sub) { 1 } else { 2 };
             let a = wrap(formula(a), prec);

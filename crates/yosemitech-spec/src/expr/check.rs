@@ -101,14 +101,6 @@ fn same(a: Dim, b: Dim, span: Span, what: &str) -> Result<Dim, ExprError> {
 }
 
 /// The whole number `e` is, when it is one written as such (`2`, `-1`).
-fn whole_literal(e: &Expr) -> Option<i32> {
-    match &e.node {
-        Node::Num(v) if v.fract() == 0.0 && v.abs() <= 64.0 => Some(*v as i32),
-        Node::Neg(x) => whole_literal(x).map(|n| -n),
-        _ => None,
-    }
-}
-
 fn check_node(e: &mut Expr, names: &[Name]) -> Result<Ty, ExprError> {
     let span = e.span;
     let ty = match &mut e.node {
@@ -134,7 +126,7 @@ fn check_node(e: &mut Expr, names: &[Name]) -> Result<Ty, ExprError> {
         Node::Neg(x) => Ty::Num(number(x, names, "`-`")?),
         Node::Bin(op, a, b) => {
             let op = *op;
-            let whole = whole_literal(b);
+            let whole = b.whole_literal();
             let da = number(a, names, "an operand")?;
             let db = number(b, names, "an operand")?;
             Ty::Num(match op {

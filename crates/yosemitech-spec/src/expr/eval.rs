@@ -1,6 +1,6 @@
 //! A formula's value in `f64`, as the generated functions compute it.
 
-use super::{Cmp, Expr, Func, Node, Op};
+use super::{Cmp, Expr, Func, Node, Op, Power};
 
 impl Expr {
     /// The value for `inputs` (by index), in `f64`; `None` where a
@@ -11,14 +11,22 @@ impl Expr {
             Node::Input(i, _) => *inputs.get(*i)?,
             Node::Name(_) | Node::Cmp(..) => return None,
             Node::Neg(x) => -x.eval(inputs)?,
+            Node::Bin(Op::Pow, base, exponent) => {
+                let power = Power::of(base, exponent);
+                let (a, b) = (base.eval(inputs)?, exponent.eval(inputs)?);
+                match power {
+                    Power::Whole(n) => yosemitech_rtu::derived::powi(a, n),
+                    Power::OfNumber { base, ln_base } => yosemitech_rtu::derived::pow_positive(base, ln_base, b),
+                    Power::General => a.powf(b),
+                }
+            }
             Node::Bin(op, a, b) => {
                 let (a, b) = (a.eval(inputs)?, b.eval(inputs)?);
                 match op {
                     Op::Add => a + b,
                     Op::Sub => a - b,
                     Op::Mul => a * b,
-                    Op::Div => a / b,
-                    Op::Pow => a.powf(b),
+                    Op::Div | Op::Pow => a / b,
                 }
             }
             Node::Call(Func::Exp, x) => x.eval(inputs)?.exp(),

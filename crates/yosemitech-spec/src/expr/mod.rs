@@ -152,6 +152,51 @@ impl Expr {
     fn new(node: Node, span: Span) -> Self {
         Self { node, span }
     }
+
+    /// The whole number this is written as (`2`, `-3`), within the
+    /// powers [`Power::Whole`] computes by multiplication.
+    pub fn whole_literal(&self) -> Option<i32> {
+        match &self.node {
+            Node::Num(v) if v.fract() == 0.0 && v.abs() <= 64.0 => Some(*v as i32),
+            Node::Neg(x) => x.whole_literal().map(|n| -n),
+            _ => None,
+        }
+    }
+}
+
+/// How `base ^ exponent` is computed, decided from how the formula writes
+/// it: the generated function and the interpreter compute a power the same
+/// way. A general power function is large in firmware (about 3 KB of
+/// flash with its helpers) and the formulas of the manuals need none: they
+/// square a value or raise a number to a computed power.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Power {
+    /// A whole exponent written as such (`x^2`): repeated multiplication.
+    Whole(i32),
+    /// A positive number raised to a computed power (`10^y`): a product
+    /// when `y` is whole, else `exp(ln_base * y)`, with the base's
+    /// logarithm computed once, here.
+    OfNumber {
+        /// The base, as written.
+        base: f64,
+        /// Its natural logarithm.
+        ln_base: f64,
+    },
+    /// Anything else: the general power function.
+    General,
+}
+
+impl Power {
+    /// How the formula's `base ^ exponent` is computed.
+    pub fn of(base: &Expr, exponent: &Expr) -> Self {
+        if let Some(n) = exponent.whole_literal() {
+            return Self::Whole(n);
+        }
+        match base.node {
+            Node::Num(b) if b > 0.0 && b.is_finite() => Self::OfNumber { base: b, ln_base: b.ln() },
+            _ => Self::General,
+        }
+    }
 }
 
 /// What the tests of each part share: a formula parsed, checked against
