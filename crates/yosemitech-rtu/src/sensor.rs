@@ -253,6 +253,12 @@ impl core::fmt::Debug for CommandEntry {
 }
 
 /// The error of a frame whose register data is not its message's length.
+/// `a == b`, byte by byte: `==` on text is a call to `memcmp`, 116 bytes
+/// of firmware flash to compare command names of a dozen bytes.
+fn same_text(a: &str, b: &str) -> bool {
+    a.len() == b.len() && a.bytes().zip(b.bytes()).all(|(x, y)| x == y)
+}
+
 fn truncated(expected: usize, frame: &[u8]) -> FrameError {
     FrameError::Truncated { expected, actual: frame.len() }
 }
@@ -275,8 +281,11 @@ pub struct SensorModule {
 
 impl SensorModule {
     /// The command called `name` in the spec.
+    // Out of line: firmware that looks commands up by name in several
+    // places keeps one copy of the search.
+    #[inline(never)]
     pub fn command(&self, name: &str) -> Option<&'static CommandEntry> {
-        self.commands.iter().find(|c| c.name == name)
+        self.commands.iter().find(|c| same_text(c.name, name))
     }
 
     /// The calibration-coefficient blocks of the sensor, in spec order: each
