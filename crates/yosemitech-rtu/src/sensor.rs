@@ -252,13 +252,13 @@ impl core::fmt::Debug for CommandEntry {
     }
 }
 
-/// The error of a frame whose register data is not its message's length.
 /// `a == b`, byte by byte: `==` on text is a call to `memcmp`, 116 bytes
 /// of firmware flash to compare command names of a dozen bytes.
 fn same_text(a: &str, b: &str) -> bool {
     a.len() == b.len() && a.bytes().zip(b.bytes()).all(|(x, y)| x == y)
 }
 
+/// The error of a frame whose register data is not its message's length.
 fn truncated(expected: usize, frame: &[u8]) -> FrameError {
     FrameError::Truncated { expected, actual: frame.len() }
 }

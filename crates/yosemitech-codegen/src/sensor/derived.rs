@@ -42,7 +42,6 @@ fn formula(e: &yosemitech_spec::expr::Expr) -> (TokenStream, u8) {
             }
             Power::OfNumber { base, ln_base } => {
                 // The logarithms `core` names, by name; another base's as a number.
-                #[allow(clippy::float_cmp)]
                 let ln = match base {
                     10.0 => quote!(core::f64::consts::LN_10),
                     2.0 => quote!(core::f64::consts::LN_2),

@@ -100,7 +100,6 @@ fn same(a: Dim, b: Dim, span: Span, what: &str) -> Result<Dim, ExprError> {
     }
 }
 
-/// The whole number `e` is, when it is one written as such (`2`, `-1`).
 fn check_node(e: &mut Expr, names: &[Name]) -> Result<Ty, ExprError> {
     let span = e.span;
     let ty = match &mut e.node {

@@ -11,22 +11,19 @@ impl Expr {
             Node::Input(i, _) => *inputs.get(*i)?,
             Node::Name(_) | Node::Cmp(..) => return None,
             Node::Neg(x) => -x.eval(inputs)?,
-            Node::Bin(Op::Pow, base, exponent) => {
-                let power = Power::of(base, exponent);
-                let (a, b) = (base.eval(inputs)?, exponent.eval(inputs)?);
-                match power {
-                    Power::Whole(n) => yosemitech_rtu::derived::powi(a, n),
-                    Power::OfNumber { base, ln_base } => yosemitech_rtu::derived::pow_positive(base, ln_base, b),
-                    Power::General => a.powf(b),
-                }
-            }
             Node::Bin(op, a, b) => {
+                let power = (*op == Op::Pow).then(|| Power::of(a, b));
                 let (a, b) = (a.eval(inputs)?, b.eval(inputs)?);
-                match op {
-                    Op::Add => a + b,
-                    Op::Sub => a - b,
-                    Op::Mul => a * b,
-                    Op::Div | Op::Pow => a / b,
+                match (op, power) {
+                    (Op::Add, _) => a + b,
+                    (Op::Sub, _) => a - b,
+                    (Op::Mul, _) => a * b,
+                    (Op::Div, _) => a / b,
+                    (Op::Pow, Some(Power::Whole(n))) => yosemitech_rtu::derived::powi(a, n),
+                    (Op::Pow, Some(Power::OfNumber { base, ln_base })) => {
+                        yosemitech_rtu::derived::pow_positive(base, ln_base, b)
+                    }
+                    (Op::Pow, Some(Power::General) | None) => a.powf(b),
                 }
             }
             Node::Call(Func::Exp, x) => x.eval(inputs)?.exp(),
