@@ -1,8 +1,7 @@
 //! `cargo xtask codegen [--check]`: writes the code generated from `spec/`
-//! to `crates/yosemitech/generated/` so that people can read and review it.
-//!
-//! The build never reads these files: `crates/yosemitech/build.rs` generates
-//! the same code into `OUT_DIR`. `--check` fails when the copy is stale (CI).
+//! to `crates/yosemitech/generated/`, the sensor modules the `yosemitech`
+//! crate compiles (it has no build script). `--check` fails when they are
+//! stale (CI, and xtask's own test under `cargo test`).
 
 use std::process::ExitCode;
 
@@ -14,7 +13,8 @@ pub fn run(args: &[String]) -> anyhow::Result<ExitCode> {
         return Ok(ExitCode::SUCCESS);
     };
     let root = crate::root();
-    // The same configuration as crates/yosemitech/build.rs.
+    // `std` gates the blocking device handles, `tokio` the async ones: the
+    // features of crates/yosemitech/Cargo.toml.
     let generated = yosemitech_codegen::Config::new()
         .std_feature(Some("std"))
         .async_device_handles(Some("tokio"))

@@ -1,14 +1,17 @@
 //! Typed, allocation-free Modbus RTU codecs and device handles for Yosemitech
 //! water-quality probes, generated from the vendor manuals.
 //!
-//! Every module here is generated at build time from the YAML spec files
-//! that transcribe the manuals (`spec/*.yaml`: registers, field types, byte
+//! Every sensor module here is generated from the YAML spec files that
+//! transcribe the manuals (`spec/*.yaml`: registers, field types, byte
 //! orders, units, the manuals' example frames and their errata). The spec is
 //! the single source of truth: the same files drive the reference
 //! interpreter, the simulator, the golden tests and the register maps in
-//! `docs/sensors/`. A readable copy of the generated code is kept in
-//! `crates/yosemitech/generated/` for review (`cargo xtask codegen`); the
-//! build never reads it.
+//! `docs/sensors/`. The crate ships the generated code
+//! (`crates/yosemitech/generated/`, written by `cargo xtask codegen`), as
+//! `prost-types` ships its well-known types, so that building it compiles
+//! neither the spec loader nor the generator; a crate with spec files of
+//! its own generates its modules from its `build.rs` with
+//! `yosemitech-codegen`.
 //!
 //! # Decoding a frame
 //!
@@ -224,7 +227,9 @@
 #![cfg_attr(not(feature = "std"), no_std)]
 #![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used, clippy::panic, clippy::indexing_slicing))]
 
-include!(concat!(env!("OUT_DIR"), "/mod.rs"));
+// The committed output of `cargo xtask codegen`; `cargo test` fails when it
+// is stale (xtask's `every_generated_file_is_fresh`), naming that command.
+include!("../generated/mod.rs");
 
 /// The runtime the generated code is built on.
 pub use yosemitech_rtu as rtu;
