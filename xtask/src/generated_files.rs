@@ -110,14 +110,9 @@ mod tests {
     /// do: a spec edited without `cargo xtask codegen` / `docs` / `schema`.
     #[test]
     fn every_generated_file_is_fresh() {
-        let check = ["--check".to_owned()];
-        for (what, run) in [
-            ("cargo xtask codegen", crate::codegen::run as fn(&[String]) -> anyhow::Result<ExitCode>),
-            ("cargo xtask docs", crate::docs::run),
-            ("cargo xtask schema", crate::schema::run),
-        ] {
-            let code = run(&check).unwrap_or_else(|e| panic!("{what} --check: {e:#}"));
-            assert_eq!(code, ExitCode::SUCCESS, "stale files: run `{what}` and commit the result");
+        for (task, run) in crate::SPEC_TASKS {
+            let code = run(&["--check".to_owned()]).unwrap_or_else(|e| panic!("cargo xtask {task} --check: {e:#}"));
+            assert_eq!(code, ExitCode::SUCCESS, "stale files: run `cargo xtask {task}` and commit the result");
         }
     }
 }
