@@ -44,11 +44,18 @@
 //!
 //! And per sensor: `SENSOR` (a `SensorInfo`), one `pub const` per spec
 //! constant, `COMMANDS` (one `CommandEntry` per command: name, title,
-//! layout, fields and the typed codecs as function pointers), `CommandId`
-//! (`ALL`, `name`, `from_name`, `layout`, decoding: a view of `COMMANDS`),
-//! `Request` and `Response` enums over every command, `decode_response`,
-//! `identify_request`, `DERIVED`, `MODULE` (the module as data), and
-//! (unless disabled) a `Device` handle with one method per command.
+//! layout, fields and the typed codecs as function pointers), the command
+//! set declared with the runtime's `command_set!` over it (`CommandId`: `ALL`,
+//! `name`, `from_name`, `layout`, decoding; `Request` and `Response` enums
+//! over every command; `decode_response`, `identify_request`), `DERIVED`,
+//! `MODULE` (the module as data), and (unless disabled) a `Device` handle
+//! declared with `device_handle!` and given one method per command.
+//!
+//! What every module would repeat is the runtime's, once: the command set's
+//! dispatch and the handles' shared methods (`new`, `address`, `set_address`,
+//! `client`, `call`) are `macro_rules!` of `yosemitech-rtu`, so a module
+//! declares its commands and the compiler, not the generator, writes the
+//! `match`es.
 //!
 //! The generated code allocates nothing, has no `unwrap` and no indexing
 //! that could panic (array accesses are constant indices into arrays of
@@ -394,7 +401,73 @@ fn format_tokens(what: &str, tokens: TokenStream, from: &str) -> Result<String, 
 fn render(what: &str, tokens: TokenStream) -> Result<String, Error> {
     let file: syn::File =
         syn::parse2(tokens).map_err(|e| Error::Internal { file: what.to_owned(), reason: e.to_string() })?;
-    Ok(space_items(&prettyplease::unparse(&file)))
+    Ok(space_items(&lay_out_declarations(&prettyplease::unparse(&file))))
+}
+
+/// The runtime's declaring macros (`command_set!`, `device_handle!`,
+/// `async_device_handle!`) laid out as a person would write them: prettyplease
+/// fills a macro's body like a paragraph, since it cannot know its grammar.
+/// A body that is an item (a handle's documented `struct`) is laid out as
+/// one; a command set gets its table name and then one command a line.
+#[cfg(feature = "pretty")]
+fn lay_out_declarations(source: &str) -> String {
+    let mut out = String::with_capacity(source.len());
+    let mut lines = source.lines();
+    while let Some(line) = lines.next() {
+        out.push_str(line);
+        out.push('\n');
+        let declaring = ["command_set! {", "device_handle! {"].iter().any(|m| line.ends_with(m));
+        if !declaring || line.starts_with(' ') {
+            continue;
+        }
+        let mut body = String::new();
+        for inner in lines.by_ref() {
+            if inner == "}" {
+                break;
+            }
+            body.push_str(inner);
+            body.push('\n');
+        }
+        out.push_str(&declaration_body(&body));
+        out.push_str("}\n");
+    }
+    out
+}
+
+#[cfg(feature = "pretty")]
+fn declaration_body(body: &str) -> String {
+    let Ok(tokens) = body.parse::<TokenStream>() else {
+        return body.to_owned();
+    };
+    if let Ok(file) = syn::parse2::<syn::File>(tokens.clone()) {
+        let items = prettyplease::unparse(&file);
+        return items.lines().map(|l| if l.is_empty() { "\n".to_owned() } else { format!("    {l}\n") }).collect();
+    }
+    // One entry a line: the pieces between top-level `;` and `,`.
+    let mut out = String::new();
+    let mut entry = String::new();
+    for token in tokens {
+        match &token {
+            proc_macro2::TokenTree::Punct(p) if matches!(p.as_char(), ';' | ',') => {
+                out.push_str(&format!("    {}{}\n", entry.trim_end(), p.as_char()));
+                entry.clear();
+            }
+            proc_macro2::TokenTree::Punct(p) if p.spacing() == proc_macro2::Spacing::Joint => entry.push(p.as_char()),
+            proc_macro2::TokenTree::Group(g) if g.delimiter() == proc_macro2::Delimiter::Parenthesis => {
+                entry.truncate(entry.trim_end().len());
+                entry.push_str(&format!("({})", g.stream()));
+                entry.push(' ');
+            }
+            other => {
+                entry.push_str(&other.to_string());
+                entry.push(' ');
+            }
+        }
+    }
+    if !entry.trim().is_empty() {
+        out.push_str(&format!("    {}\n", entry.trim_end()));
+    }
+    out
 }
 
 /// The tokens as the compiler reads them: one item a line.

@@ -29,6 +29,31 @@ fn spec_names(spec: &yosemitech_spec::Spec) -> SpecNames {
     names
 }
 
+/// What `rtu::command_set!` declares in the module that invokes it.
+const COMMAND_SET_DECLARES: [&str; 5] = ["CommandId", "Request", "Response", "decode_response", "identify_request"];
+
+/// The items a declaring macro of the runtime stands for: a device handle's
+/// body is its `struct`; a command set declares `COMMAND_SET_DECLARES`.
+fn declared_by(m: &syn::ItemMacro) -> Vec<syn::Item> {
+    let Some(name) = m.mac.path.segments.last().map(|s| s.ident.to_string()) else {
+        return Vec::new();
+    };
+    if name == "command_set" {
+        return COMMAND_SET_DECLARES
+            .iter()
+            .map(|n| {
+                let ident = syn::Ident::new(n, proc_macro2::Span::call_site());
+                if n.starts_with(char::is_lowercase) {
+                    syn::parse_quote!(fn #ident() {})
+                } else {
+                    syn::parse_quote!(struct #ident;)
+                }
+            })
+            .collect();
+    }
+    syn::parse2::<syn::File>(m.mac.tokens.clone()).map(|f| f.items).unwrap_or_default()
+}
+
 /// The last segment of every type a struct's fields have: a field's enum
 /// is the spec's when some message carries it.
 fn field_types(file: &syn::File, out: &mut BTreeSet<String>) {
@@ -68,7 +93,11 @@ fn every_emitted_name_is_the_specs_or_on_the_reserved_list() {
     let mut emitted: BTreeSet<String> = BTreeSet::new();
     let mut strays = Vec::new();
     for (name, file) in &files {
-        for item in &file.items {
+        let declared = file.items.iter().flat_map(|item| match item {
+            syn::Item::Macro(m) => declared_by(m),
+            other => vec![other.clone()],
+        });
+        for item in &declared.collect::<Vec<_>>() {
             let (ident, reserved, spec_own) = match item {
                 syn::Item::Struct(s) => (s.ident.to_string(), MODULE_TYPES, own.types.contains(&s.ident.to_string())),
                 syn::Item::Enum(e) => {

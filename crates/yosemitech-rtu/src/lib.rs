@@ -22,6 +22,7 @@ pub mod client;
 pub mod codec;
 mod command;
 mod crc;
+mod declare;
 pub mod derived;
 pub mod dispatch;
 mod error;

@@ -130,7 +130,8 @@
 //!   `MODULE` ([`rtu::SensorModule`]) carries it for code that serves every
 //!   sensor. `Request`, `Response`, `decode_response(id, slave, frame)` and
 //!   `identify_request(frame)` (by function, start address and register
-//!   count) complete it.
+//!   count) complete it. A module declares these with
+//!   [`rtu::command_set!`], which spells them once for every module.
 //! - **Device handles** (`std`): `Device::new(&mut client, address)`; reads
 //!   are named after the command without `get_` and return the reply struct,
 //!   even of one field (`ph()?.ph`, `orp()?.orp_mv`, `sn()?.serial_number`,

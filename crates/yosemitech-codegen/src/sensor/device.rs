@@ -1,4 +1,5 @@
-//! `Device` and `AsyncDevice`: one method per command over a client.
+//! `Device` and `AsyncDevice`: one method per command over a client (the
+//! handles themselves are `rtu::device_handle!`'s and `rtu::async_device_handle!`'s).
 
 use proc_macro2::TokenStream;
 use quote::quote;
@@ -116,41 +117,13 @@ pub(super) fn device(s: &Sensor, names: &Names, o: &Options) -> TokenStream {
             ));
             quote! {
                 #[cfg(feature = #feature)]
-                #d
-                pub struct AsyncDevice<'c, L> {
-                    client: &'c mut rtu::AsyncClient<L>,
-                    address: u8,
+                rtu::async_device_handle! {
+                    #d
+                    pub struct AsyncDevice;
                 }
 
                 #[cfg(feature = #feature)]
                 impl<'c, L: rtu::transport::AsyncLink> AsyncDevice<'c, L> {
-                    /// The probe at `address` on `client`'s bus.
-                    pub fn new(client: &'c mut rtu::AsyncClient<L>, address: u8) -> Self {
-                        Self { client, address }
-                    }
-
-                    /// The probe's slave address.
-                    pub fn address(&self) -> u8 {
-                        self.address
-                    }
-
-                    /// Points the handle at another address, after the probe's
-                    /// address was changed and verified.
-                    pub fn set_address(&mut self, address: u8) {
-                        self.address = address;
-                    }
-
-                    /// The client, for requests to other devices on the bus.
-                    pub fn client(&mut self) -> &mut rtu::AsyncClient<L> {
-                        self.client
-                    }
-
-                    /// Sends any command to this probe (or to the command's fixed
-                    /// slave address) and returns the decoded reply.
-                    pub async fn call<C: rtu::Command>(&mut self, command: &C) -> Result<C::Response, rtu::Error> {
-                        self.client.call(C::LAYOUT.request_slave(self.address), command).await
-                    }
-
                     #(#async_methods)*
                 }
             }
@@ -165,41 +138,13 @@ pub(super) fn device(s: &Sensor, names: &Names, o: &Options) -> TokenStream {
     ));
     quote! {
         #cfg
-        #d
-        pub struct Device<'c, T> {
-            client: &'c mut rtu::Client<T>,
-            address: u8,
+        rtu::device_handle! {
+            #d
+            pub struct Device;
         }
 
         #cfg
         impl<'c, T: rtu::Transport> Device<'c, T> {
-            /// The probe at `address` on `client`'s bus.
-            pub fn new(client: &'c mut rtu::Client<T>, address: u8) -> Self {
-                Self { client, address }
-            }
-
-            /// The probe's slave address.
-            pub fn address(&self) -> u8 {
-                self.address
-            }
-
-            /// Points the handle at another address, after the probe's
-            /// address was changed and verified (see `rtu::address`).
-            pub fn set_address(&mut self, address: u8) {
-                self.address = address;
-            }
-
-            /// The client, for requests to other devices on the bus.
-            pub fn client(&mut self) -> &mut rtu::Client<T> {
-                self.client
-            }
-
-            /// Sends any command to this probe (or to the command's fixed
-            /// slave address) and returns the decoded reply.
-            pub fn call<C: rtu::Command>(&mut self, command: &C) -> Result<C::Response, rtu::Error> {
-                self.client.call(C::LAYOUT.request_slave(self.address), command)
-            }
-
             #(#methods)*
         }
 
