@@ -439,12 +439,23 @@ fn check_alone_or_asked(reply: &[u8]) -> bool {
         return true;
     }
     let err = run.fails_with_hint(2);
-    let asked = format!("fits {} commands; say which one", candidates.len());
+    let asked = format!("fits {} commands", candidates.len());
     assert!(err.contains(&asked), "{}: `{asked}` not in\n{err}", hex(reply));
+    assert!(err.contains("decode REQUEST REPLY"), "the hint names what tells them apart:\n{err}");
     for c in &candidates {
         let listed = format!("{} (0x{:04X}, ", label(c), c.1.address);
         assert!(err.contains(&listed), "{}: `{listed}` not listed:\n{err}", hex(reply));
     }
+    // The same reply damaged on the line: the CRC is what is wrong, not the
+    // choice of command.
+    let mut damaged = reply.to_vec();
+    if let Some(last) = damaged.last_mut() {
+        *last ^= 0x01;
+    }
+    let run = YOSEMITECH.run(&["decode", &hex(&damaged)]);
+    let err = run.fails_with_hint(1);
+    let first = err.lines().next().unwrap_or_default();
+    assert!(first.starts_with("error: the CRC is wrong"), "{}: {err}", hex(&damaged));
     false
 }
 
@@ -841,4 +852,49 @@ commands:
     assert!(run.ok().contains("10 NTU"), "{}", run.stdout);
     let run = YOSEMITECH.run(&["encode", "test_probe", "read_level", "--spec", spec]);
     assert_eq!(run.ok().trim(), "01 03 26 00 00 02 CF 43");
+}
+
+/// The words of a README command line: double quotes group, `#` outside
+/// them starts the comment.
+fn shell_words(line: &str) -> Vec<String> {
+    let (mut words, mut word, mut quoted, mut started) = (Vec::new(), String::new(), false, false);
+    for ch in line.chars() {
+        match ch {
+            '"' => (quoted, started) = (!quoted, true),
+            '#' if !quoted && !started => break,
+            c if c.is_whitespace() && !quoted => {
+                if started {
+                    words.push(std::mem::take(&mut word));
+                }
+                started = false;
+            }
+            c => {
+                word.push(c);
+                started = true;
+            }
+        }
+    }
+    if started {
+        words.push(word);
+    }
+    words
+}
+
+#[test]
+fn the_readmes_offline_decode_examples_succeed() {
+    // What a technician copies from the README first: every `decode` of
+    // frames given on the line (no file, no port) must decode and exit 0.
+    let readme = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/../../README.md")).expect("README.md");
+    let mut ran = 0;
+    for line in readme.lines().filter(|l| l.starts_with("yosemitech decode ")) {
+        let words = shell_words(line);
+        if words.iter().any(|w| w.starts_with("--capture")) {
+            continue;
+        }
+        let args: Vec<&str> = words.iter().skip(1).map(String::as_str).collect();
+        let text = YOSEMITECH.run(&args).ok().to_owned();
+        assert!(text.contains("command "), "`{line}` names no command:\n{text}");
+        ran += 1;
+    }
+    assert!(ran > 0, "the README shows no offline decode");
 }

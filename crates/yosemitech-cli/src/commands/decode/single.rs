@@ -46,21 +46,37 @@ fn not_the_command(frame: &Frame<'_>, name: &str) -> CliError {
         .hint("check the frame, or leave out --command to see what fits")
 }
 
-fn print_ambiguous(frame: &Frame<'_>, json_out: bool, out: &mut dyn Write) -> Result<()> {
-    let mut e = CliError::usage(format!(
-        "this {} of {} bytes fits {} commands; say which one",
-        frame.kind.name(),
-        frame.bytes.len(),
-        frame.candidates.len()
-    ));
+/// The error of a frame that fits several commands. A wrong CRC comes
+/// first: it is what the technician must fix, and with it no reading of the
+/// bytes is worth choosing.
+fn ambiguity_error(frame: &Frame<'_>) -> CliError {
+    let (kind, len, fits) = (frame.kind.name(), frame.bytes.len(), frame.candidates.len());
+    let mut e = if frame.crc.ok() {
+        let why = if frame.kind.is_request() {
+            String::new()
+        } else {
+            " (a reply does not say which registers it answers)".to_owned()
+        };
+        CliError::usage(format!("this {kind} of {len} bytes fits {fits} commands{why}"))
+            .hint("give its request too (`decode REQUEST REPLY` names the command), or choose one of the above with --sensor and --command")
+    } else {
+        CliError::device(format!(
+            "the CRC is wrong: the frame carries {}, its bytes give {}",
+            hex(&frame.crc.received),
+            hex(&frame.crc.expected)
+        ))
+        .hint(format!(
+            "the frame was corrupted on the line or copied wrongly; as received, the {kind} would fit {fits} commands (above)"
+        ))
+    };
     for d in &frame.candidates {
         e = e.detail(format!("{}: {}", candidate_label(d), values_text(d)));
     }
-    let example = frame.candidates.first().map_or(String::new(), |d| {
-        let sensor = d.sensors().first().copied().unwrap_or("");
-        format!(", e.g. --sensor {sensor} --command {}", d.command().map_or("", |c| c.name.as_str()))
-    });
-    let e = e.hint(format!("choose with --sensor and/or --command{example}"));
+    e
+}
+
+fn print_ambiguous(frame: &Frame<'_>, json_out: bool, out: &mut dyn Write) -> Result<()> {
+    let e = ambiguity_error(frame);
     if json_out {
         let listed: Vec<Json> = frame
             .candidates
@@ -82,6 +98,7 @@ fn print_ambiguous(frame: &Frame<'_>, json_out: bool, out: &mut dyn Write) -> Re
             "slave": frame.slave,
             "function": frame.function,
             "status": "ambiguous",
+            "crc": { "ok": frame.crc.ok(), "received": hex(&frame.crc.received), "expected": hex(&frame.crc.expected) },
             "candidates": listed,
             "error": error_json(&e),
         });
