@@ -12,6 +12,7 @@ use std::io;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
+use yosemitech_spec::lookup::{Lookup, find_sensor};
 use yosemitech_spec::sources::{FsSources, MemSources, Sources};
 use yosemitech_spec::suggest::closest;
 use yosemitech_spec::{CommandSpec, Sensor, load_with};
@@ -143,48 +144,29 @@ impl Catalog {
     /// The sensor called `name` (`-` may stand for `_`), or an error that
     /// suggests the closest name.
     pub fn entry(&self, name: &str) -> Result<&Entry> {
-        let wanted = name.replace('-', "_");
-        if let Some(entry) = self.entries.iter().find(|e| e.sensor.name == wanted) {
-            return Ok(entry);
-        }
-        // A model name (`Y504`, `y521`), the sensor's or one of its aliases'.
-        let by_model: Vec<&Entry> = self
-            .entries
-            .iter()
-            .filter(|e| {
-                let s = &e.sensor;
-                s.model.as_deref().is_some_and(|m| m.eq_ignore_ascii_case(name))
-                    || s.aliases.iter().any(|a| a.model.eq_ignore_ascii_case(name))
-            })
-            .collect();
-        match by_model.as_slice() {
-            [entry] => return Ok(entry),
-            [] => {}
-            many => {
-                let names: Vec<&str> = many.iter().map(|e| e.sensor.name.as_str()).collect();
-                return Err(CliError::usage(format!(
-                    "model `{name}` is {} sensors: {}",
-                    names.len(),
-                    names.join(", ")
-                ))
-                .hint("name the sensor (`yosemitech list` says how they differ)"));
+        let sensors: Vec<&Sensor> = self.entries.iter().map(|e| &*e.sensor).collect();
+        match find_sensor(&sensors, name) {
+            Lookup::Found { index, .. } => {
+                self.entries.get(index).ok_or_else(|| CliError::usage(format!("unknown sensor `{name}`")))
+            }
+            Lookup::SameModel(indices) => {
+                let names: Vec<&str> =
+                    indices.iter().filter_map(|&i| sensors.get(i)).map(|s| s.name.as_str()).collect();
+                Err(CliError::usage(format!("model `{name}` is {} sensors: {}", names.len(), names.join(", ")))
+                    .hint("name the sensor (`yosemitech list` says how they differ)"))
+            }
+            Lookup::Unknown { closest } => {
+                let names: Vec<&str> = sensors.iter().map(|s| s.name.as_str()).collect();
+                let e = CliError::usage(format!("unknown sensor `{name}`"));
+                Err(match closest {
+                    Some(best) => e.hint(format!("did you mean `{best}`? Known sensors: {}", names.join(", "))),
+                    None => e.hint(format!(
+                        "known sensors: {}; `yosemitech list` shows them, --spec DIR loads more",
+                        names.join(", ")
+                    )),
+                })
             }
         }
-        // A unique prefix (`ph` for `ph_orp`, `cond` for `conductivity`).
-        let prefixed: Vec<&Entry> = self.entries.iter().filter(|e| e.sensor.name.starts_with(&wanted)).collect();
-        if let ([entry], false) = (prefixed.as_slice(), wanted.is_empty()) {
-            return Ok(entry);
-        }
-        let names: Vec<&str> = self.entries.iter().map(|e| e.sensor.name.as_str()).collect();
-        let mut e = CliError::usage(format!("unknown sensor `{name}`"));
-        e = match closest(&wanted, &names) {
-            Some(best) => e.hint(format!("did you mean `{best}`? Known sensors: {}", names.join(", "))),
-            None => e.hint(format!(
-                "known sensors: {}; `yosemitech list` shows them, --spec DIR loads more",
-                names.join(", ")
-            )),
-        };
-        Err(e)
     }
 
     /// The sensor called `name`.

@@ -25,6 +25,7 @@ mod cli_set_address;
 mod cli_simulate;
 mod cli_spec_files;
 mod cli_station;
+mod cli_station_check;
 mod cli_station_mqtt;
 mod cli_timer_slack;
 mod cli_units;

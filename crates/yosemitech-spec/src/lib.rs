@@ -37,6 +37,7 @@ pub mod document;
 mod examples;
 pub mod expr;
 pub mod interp;
+pub mod lookup;
 pub mod model;
 pub mod names;
 mod resolve;

@@ -21,7 +21,7 @@
 //!
 //! [[bus.probe]]
 //! label = "upstream-ph"           # unique in the station
-//! sensor = "..."                  # a sensor of the spec (`yosemitech list`)
+//! sensor = "..."                  # a sensor of the spec or its model (`Y504`), as `yosemitech list` shows
 //! address = 1
 //! measurements = ["..."]          # field or read names; default: every measurement
 //! interval = "15m"                # 500ms, 30s, 15m, 1h, 1h30m ...
@@ -67,6 +67,7 @@ use yosemitech_portal::{PortalConfig, TokenSource, is_uuid};
 use yosemitech_rtu::{LineSettings, Parity};
 use yosemitech_spec::Sensor;
 use yosemitech_spec::beside::StationInputError;
+use yosemitech_spec::lookup::{By, Lookup, find_sensor};
 use yosemitech_spec::units::{self, ChoiceError, Conversion, Quantity};
 
 use crate::plan;
@@ -360,6 +361,24 @@ pub fn parse_duration(text: &str) -> Result<Duration, String> {
     Ok(total)
 }
 
+/// A duration as the station file writes it (`15m`, `1h30m`, `2s`,
+/// `1s500ms`): what [`parse_duration`] reads back to the same duration
+/// (to the millisecond).
+pub fn show_duration(d: Duration) -> String {
+    let mut ms = d.as_millis();
+    if ms == 0 {
+        return "0ms".to_owned();
+    }
+    let mut out = String::new();
+    for (unit, size) in [("d", 86_400_000), ("h", 3_600_000), ("m", 60_000), ("s", 1000), ("ms", 1)] {
+        if ms >= size {
+            out.push_str(&format!("{}{unit}", ms / size));
+            ms %= size;
+        }
+    }
+    out
+}
+
 /// Locates byte offsets of one file's text.
 struct Locator<'a> {
     file: &'a Path,
@@ -611,19 +630,38 @@ fn validate_probe(
     raw: RawProbe,
     sensors: &[Arc<Sensor>],
 ) -> Option<(ProbeConfig, Range<usize>, Range<usize>)> {
-    let Some(sensor) = sensors.iter().find(|s| s.name == *raw.sensor.get_ref()) else {
-        let known: Vec<&str> =
-            sensors.iter().filter(|s| s.measurement_reads().next().is_some()).map(|s| s.name.as_str()).collect();
-        loc.error(
-            raw.sensor.span(),
-            format!(
-                "no sensor `{}` in the spec; sensors with measurements: {}",
-                raw.sensor.get_ref(),
-                known.join(", ")
-            ),
-        );
-        return None;
+    // The words `read` and `simulate` take: a name or a model (`Y504`). Not
+    // a prefix: a file outlives the spec, and a sensor added later could
+    // make a prefix name another.
+    let refs: Vec<&Sensor> = sensors.iter().map(|s| &**s).collect();
+    let word = raw.sensor.get_ref();
+    let found = match find_sensor(&refs, word) {
+        Lookup::Found { index, by: By::Name | By::Model } => sensors.get(index),
+        Lookup::Found { index, by: By::Prefix } => {
+            let name = refs.get(index).map_or("", |s| s.name.as_str());
+            loc.error(raw.sensor.span(), format!("no sensor `{word}` in the spec; did you mean `{name}`?"));
+            return None;
+        }
+        Lookup::SameModel(indices) => {
+            let names: Vec<&str> = indices.iter().filter_map(|&i| refs.get(i)).map(|s| s.name.as_str()).collect();
+            loc.error(
+                raw.sensor.span(),
+                format!("model `{word}` is {} sensors: {}; name one of them", names.len(), names.join(", ")),
+            );
+            return None;
+        }
+        Lookup::Unknown { closest } => {
+            let known: Vec<&str> =
+                sensors.iter().filter(|s| s.measurement_reads().next().is_some()).map(|s| s.name.as_str()).collect();
+            let guess = closest.map(|c| format!("did you mean `{c}`? ")).unwrap_or_default();
+            loc.error(
+                raw.sensor.span(),
+                format!("no sensor `{word}` in the spec; {guess}sensors with measurements: {}", known.join(", ")),
+            );
+            return None;
+        }
     };
+    let sensor = found?;
     let mut ok = true;
     if raw.label.get_ref().trim().is_empty() {
         loc.error(raw.label.span(), "the probe label is empty");
@@ -950,6 +988,20 @@ mod tests {
         assert_eq!(parse_duration("250ms"), Ok(Duration::from_millis(250)));
         for bad in ["", "15", "m", "1x", "-1s", "1.5s", "99999999999999999999s"] {
             assert!(parse_duration(bad).is_err(), "{bad}");
+        }
+    }
+
+    #[test]
+    fn durations_are_shown_as_the_file_writes_them() {
+        assert_eq!(show_duration(Duration::from_secs(900)), "15m");
+        assert_eq!(show_duration(Duration::from_secs(5400)), "1h30m");
+        assert_eq!(show_duration(Duration::from_millis(1500)), "1s500ms");
+        // Every shown duration reads back as itself, over spans of every unit.
+        let mut ms: u64 = 1;
+        while ms < 40 * 86_400_000 {
+            let d = Duration::from_millis(ms);
+            assert_eq!(parse_duration(&show_duration(d)), Ok(d), "{ms} ms");
+            ms = ms * 7 + 3;
         }
     }
 

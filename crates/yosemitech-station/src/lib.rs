@@ -28,6 +28,7 @@ pub mod logger;
 pub mod outbox;
 pub mod plan;
 pub mod portal;
+pub mod preflight;
 pub mod recovery;
 pub mod store;
 pub mod time;

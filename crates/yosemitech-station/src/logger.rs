@@ -293,6 +293,30 @@ struct ProbeRun<'c> {
     identity: Option<(Option<String>, Option<String>)>,
 }
 
+/// A probe's grid of slots from `start`: its origin and the first slot
+/// (`origin + slot * interval`): the start itself, or with `align` the
+/// first multiple of the interval since 00:00 UTC at or after it.
+fn grid(config: &ProbeConfig, start: SystemTime) -> (SystemTime, u64) {
+    if config.align {
+        let since = start.duration_since(UNIX_EPOCH).unwrap_or_default().as_millis();
+        (UNIX_EPOCH, u64::try_from(since.div_ceil(millis(config.interval))).unwrap_or(0))
+    } else {
+        (start, 0)
+    }
+}
+
+/// When a probe started at `start` takes its first sample.
+pub fn first_sample(config: &ProbeConfig, start: SystemTime) -> SystemTime {
+    let (origin, slot) = grid(config, start);
+    slot_time(origin, config.interval, slot)
+}
+
+/// The time of slot `slot` of a grid.
+fn slot_time(origin: SystemTime, interval: Duration, slot: u64) -> SystemTime {
+    let ms = u64::try_from(millis(interval).saturating_mul(u128::from(slot))).unwrap_or(u64::MAX);
+    origin.checked_add(Duration::from_millis(ms)).unwrap_or(origin)
+}
+
 /// Milliseconds of a duration, at least 1.
 fn millis(d: Duration) -> u128 {
     d.as_millis().max(1)
@@ -303,12 +327,7 @@ impl<'c> ProbeRun<'c> {
         let names: Vec<&str> = config.measurements.iter().map(String::as_str).collect();
         let plan = plan::plan(&config.sensor, &names);
         let steps = if config.procedure { Steps::of(&config.sensor) } else { None };
-        let (base, slot) = if config.align {
-            let since = start.duration_since(UNIX_EPOCH).unwrap_or_default().as_millis();
-            (UNIX_EPOCH, u64::try_from(since.div_ceil(millis(config.interval))).unwrap_or(0))
-        } else {
-            (start, 0)
-        };
+        let (base, slot) = grid(config, start);
         let mut run = Self {
             config,
             plan,
@@ -325,8 +344,7 @@ impl<'c> ProbeRun<'c> {
     }
 
     fn slot_time(&self, slot: u64) -> SystemTime {
-        let ms = u64::try_from(millis(self.config.interval).saturating_mul(u128::from(slot))).unwrap_or(u64::MAX);
-        self.base.checked_add(Duration::from_millis(ms)).unwrap_or(self.base)
+        slot_time(self.base, self.config.interval, slot)
     }
 
     /// The monotonic instant of a slot.

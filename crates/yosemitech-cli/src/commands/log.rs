@@ -7,16 +7,18 @@ use std::time::Duration;
 
 use yosemitech_mqtt::Publisher;
 use yosemitech_mqtt::home_assistant::{Discovery, Tracker};
-use yosemitech_station::config::{self, ConfigErrors, Link, StationConfig};
+use yosemitech_station::config::{self, ConfigErrors, Link, StationConfig, show_duration};
 use yosemitech_station::export::to_json;
 use yosemitech_station::outbox::{StoreOutbox, message};
 use yosemitech_station::portal::PortalOutbox;
+use yosemitech_station::preflight::{Finding, Severity, preflight, store_directory_of};
 use yosemitech_station::recovery::{RunMarker, UncleanStop};
 use yosemitech_station::{Store, StoredReading, logger, plan};
 
 use crate::catalog::Catalog;
 use crate::error::{CliError, Result};
 use crate::service;
+use crate::time::clock;
 use clap::Args;
 use std::path::PathBuf;
 
@@ -48,13 +50,15 @@ fn load(catalog: &Catalog, args: &LogArgs) -> Result<StationConfig> {
 /// Runs `log --check`: validates the file and prints what it describes.
 pub fn check(catalog: &Catalog, args: &LogArgs, out: &mut dyn Write) -> Result<()> {
     let station = load(catalog, args)?;
+    let directory = store_directory_of(&station);
     writeln!(
         out,
-        "{}: station `{}`, storage {}{}",
+        "{}: station `{}`, storage {}{}{}",
         args.config.display(),
         station.station,
         station.storage.display(),
-        station.storage_max_size.map(|b| format!(" (at most {b} bytes)")).unwrap_or_default()
+        station.storage_max_size.map(|b| format!(" (at most {b} bytes)")).unwrap_or_default(),
+        if directory.is_dir() { String::new() } else { format!(" ({} is created at start)", directory.display()) }
     )?;
     for bus in &station.buses {
         let link = match &bus.link {
@@ -63,8 +67,11 @@ pub fn check(catalog: &Catalog, args: &LogArgs, out: &mut dyn Write) -> Result<(
         };
         writeln!(
             out,
-            "bus `{}`: {link}, timeout {:?}, {} retries, backoff up to {:?}",
-            bus.name, bus.timeout, bus.retries, bus.max_backoff
+            "bus `{}`: {link}, timeout {}, {} retries, backoff up to {}",
+            bus.name,
+            show_duration(bus.timeout),
+            bus.retries,
+            show_duration(bus.max_backoff)
         )?;
         for probe in &bus.probes {
             let chosen: Vec<&str> = probe.measurements.iter().map(String::as_str).collect();
@@ -73,11 +80,11 @@ pub fn check(catalog: &Catalog, args: &LogArgs, out: &mut dyn Write) -> Result<(
             let reads: Vec<&str> = planned.reads.iter().map(|r| r.command.name.as_str()).collect();
             writeln!(
                 out,
-                "  probe `{}`: {} at address {}, every {:?}{}{}",
+                "  probe `{}`: {} at address {}, every {}{}{}",
                 probe.label,
                 probe.sensor.name,
                 probe.address,
-                probe.interval,
+                show_duration(probe.interval),
                 if probe.align { " on the clock" } else { "" },
                 if probe.procedure { ", with the spec's procedure" } else { "" },
             )?;
@@ -85,14 +92,19 @@ pub fn check(catalog: &Catalog, args: &LogArgs, out: &mut dyn Write) -> Result<(
                 let inputs: Vec<String> = probe.inputs.iter().map(|(n, v)| format!("{n} = {v}")).collect();
                 writeln!(out, "    station inputs: {}", inputs.join(", "))?;
             }
+            // The plan's saving, when it saves anything.
+            let saving = if naive.reads.len() > reads.len() {
+                format!(" instead of {}", naive.reads.len())
+            } else {
+                String::new()
+            };
             writeln!(
                 out,
-                "    {}: {} read{} ({}) instead of {}",
+                "    {}: {} read{} ({}){saving}",
                 chosen.join(", "),
                 reads.len(),
                 if reads.len() == 1 { "" } else { "s" },
                 reads.join(", "),
-                naive.reads.len()
             )?;
             if !probe.units.is_empty() {
                 let units: Vec<String> = probe
@@ -136,8 +148,70 @@ pub fn check(catalog: &Catalog, args: &LogArgs, out: &mut dyn Write) -> Result<(
             writeln!(out, "  probe `{label}`: {}", bound.join(", "))?;
         }
     }
-    writeln!(out, "ok")?;
+    let findings = preflight(&station);
+    if findings.iter().any(|f| f.severity == Severity::Problem) {
+        out.flush()?;
+        return Err(findings_error(&findings));
+    }
+    // Warnings name what fails until mended (an adapter not plugged in);
+    // the station can start.
+    let mut err = std::io::stderr().lock();
+    for f in &findings {
+        writeln!(err, "warning: {}\nhint: {}", f.message, f.hint)?;
+    }
+    match findings.len() {
+        0 => writeln!(out, "ok")?,
+        n => writeln!(out, "ok, with {n} warning{} (on stderr)", if n == 1 { "" } else { "s" })?,
+    }
     Ok(())
+}
+
+/// The findings, problems first, as one usage error (the file's): the
+/// first as the message, the others as details, each one's mend in the hint.
+fn findings_error(findings: &[Finding]) -> CliError {
+    let label = |f: &Finding| match f.severity {
+        Severity::Problem => f.message.clone(),
+        Severity::Warning => format!("warning: {}", f.message),
+    };
+    let mut e = CliError::usage(findings.first().map(|f| f.message.clone()).unwrap_or_default());
+    for f in findings.iter().skip(1) {
+        e = e.detail(label(f));
+    }
+    let hints: Vec<&str> = findings.iter().map(|f| f.hint.as_str()).collect();
+    e.hint(hints.join("; "))
+}
+
+/// Says on stderr what the logger is about to do, so that a first run is
+/// not silent until its first reading: every probe and when it first reads.
+fn say_start(station: &StationConfig) {
+    let mut err = std::io::stderr().lock();
+    let now = std::time::SystemTime::now();
+    let _ = writeln!(
+        err,
+        "log: station `{}`: {} probe(s) on {} bus(es), readings into {} (Ctrl-C stops)",
+        station.station,
+        station.probes().count(),
+        station.buses.len(),
+        station.storage.display()
+    );
+    for (bus, probe) in station.probes() {
+        let first = logger::first_sample(probe, now);
+        let when = if first > now + Duration::from_secs(1) {
+            format!("first at {} UTC (waiting for its slot on the clock)", clock(first))
+        } else {
+            "first now".to_owned()
+        };
+        let _ = writeln!(
+            err,
+            "log: probe `{}` ({} at address {} on bus `{}`): every {}{}, {when}",
+            probe.label,
+            probe.sensor.name,
+            probe.address,
+            bus.name,
+            show_duration(probe.interval),
+            if probe.procedure { " with the spec's procedure" } else { "" },
+        );
+    }
 }
 
 /// Says that the previous run did not stop cleanly (a power cut, a kill)
@@ -174,7 +248,19 @@ fn announcements_file(station: &StationConfig) -> std::path::PathBuf {
 /// Runs `log` until `stop` (Ctrl-C, SIGTERM): one JSON line per committed reading on stdout.
 pub fn run(catalog: &Catalog, args: &LogArgs, stop: &Arc<AtomicBool>, out: &mut dyn Write) -> Result<()> {
     let station = load(catalog, args)?;
+    let findings = preflight(&station);
+    if findings.iter().any(|f| f.severity == Severity::Problem) {
+        return Err(findings_error(&findings));
+    }
+    for f in &findings {
+        let _ = writeln!(std::io::stderr(), "log: warning: {} ({})", f.message, f.hint);
+    }
     let storage = station.storage.display();
+    let directory = store_directory_of(&station);
+    std::fs::create_dir_all(directory).map_err(|e| {
+        CliError::device(format!("cannot create the store's directory {}: {e}", directory.display()))
+            .hint("check `[storage] path`: the logger must be allowed to create it, or create it yourself")
+    })?;
     let mut store = Store::open(&station.storage).map_err(|e| {
         CliError::device(format!("cannot open the store {storage}: {e}"))
             .hint("check `[storage] path`: its directory must exist and be writable")
@@ -240,6 +326,7 @@ pub fn run(catalog: &Catalog, args: &LogArgs, stop: &Arc<AtomicBool>, out: &mut 
         n.notify(&format!("READY=1\nSTATUS=logging {} probe(s) into {storage}", station.probes().count()));
         service::watchdog_interval().map(|every| service::Watchdog::start(Arc::clone(n), every))
     });
+    say_start(&station);
     // The bus threads hand each committed reading to this thread, which
     // owns stdout.
     let (lines, printed) = mpsc::channel::<String>();
@@ -247,6 +334,12 @@ pub fn run(catalog: &Catalog, args: &LogArgs, stop: &Arc<AtomicBool>, out: &mut 
         let logger = scope.spawn(|| {
             let lines = lines;
             logger::run(&station, &store, stop, &|id, reading| {
+                // A failed reading is stored and printed like the others; a
+                // technician watching the terminal also reads why on stderr.
+                if let Some(error) = &reading.error {
+                    let _ =
+                        writeln!(std::io::stderr(), "log: probe `{}` on bus `{}`: {error}", reading.probe, reading.bus);
+                }
                 // As stored: with the calibration in force the insert looked up.
                 let stored = store.lock().unwrap_or_else(PoisonError::into_inner).get(id).ok().flatten();
                 let stored =

@@ -183,6 +183,15 @@ pub struct Procedure {
     pub after: Vec<String>,
 }
 
+impl Procedure {
+    /// The least time one run of the procedure takes: its warm-up and the
+    /// spacing of its readings (the replies themselves take more).
+    pub fn least_duration(&self) -> std::time::Duration {
+        let spacing = u64::from(self.interval_ms) * u64::from(self.readings.max(1) - 1);
+        std::time::Duration::from_millis(u64::from(self.warm_up_ms) + spacing)
+    }
+}
+
 /// Another model that answers with a sensor's commands.
 #[derive(Debug, Clone, Serialize)]
 pub struct ModelAlias {
