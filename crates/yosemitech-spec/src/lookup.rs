@@ -5,7 +5,7 @@
 //!
 //! ```
 //! use yosemitech_spec::lookup::{By, Lookup, find_sensor};
-//! # let spec = yosemitech_spec::load_paths(&[concat!(env!("CARGO_MANIFEST_DIR"), "/../../spec")])?;
+//! # let spec = yosemitech_spec::load_paths(&[concat!(env!("CARGO_MANIFEST_DIR"), "/../../spec").into()])?;
 //! let sensors: Vec<&yosemitech_spec::Sensor> = spec.sensors.iter().collect();
 //! let Lookup::Found { index, by: By::Name } = find_sensor(&sensors, &sensors[0].name) else { panic!() };
 //! assert_eq!(index, 0);
