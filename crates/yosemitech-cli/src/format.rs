@@ -314,22 +314,13 @@ pub fn parse_value(field: &Field, text: &str, bounded: bool) -> Result<Value> {
         }
     };
     // Check a write's range here too, for a message that names the range.
-    if let (Some((min, max)), Some(v)) = (range, numeric(&value))
+    if let (Some((min, max)), Some(v)) = (range, value.number())
         && !(min..=max).contains(&v)
     {
         return Err(CliError::usage(format!("{name} = {text} is outside the valid range {min}..={max}"))
             .hint(format!("the spec allows `{name}` from {min} to {max}; nothing was sent")));
     }
     Ok(value)
-}
-
-fn numeric(value: &Value) -> Option<f64> {
-    match value {
-        Value::Float(v) => Some(f64::from(*v)),
-        Value::Int(v) => Some(*v as f64),
-        Value::Bcd(v) => v.value().map(f64::from),
-        _ => None,
-    }
 }
 
 /// A whole number, decimal or `0x` hex, possibly negative.

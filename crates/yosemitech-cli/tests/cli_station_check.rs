@@ -151,6 +151,16 @@ fn log_says_what_it_will_do_before_the_first_reading_and_creates_the_stores_dire
     assert!(probe.contains("every 200ms") && probe.contains("first now"), "{probe}");
     let reading = wait_for(&stdout, "reading", |l| l.starts_with('{'));
     assert!(reading.contains("\"probe\":\"p0\""), "{reading}");
+    // Values as the probe sent them: an f32 has at most 9 significant
+    // digits, so 17 (`15.800000190734863`) are the f32's binary error.
+    let json: serde_json::Value = serde_json::from_str(&reading).unwrap();
+    for value in json["values"].as_array().unwrap() {
+        if let Some(number) = value["value"].as_f64() {
+            let digits = number.to_string().chars().filter(char::is_ascii_digit).collect::<String>();
+            let significant = digits.trim_start_matches('0').trim_end_matches('0').len();
+            assert!(significant <= 9, "{} = {number}: float noise in {reading}", value["name"]);
+        }
+    }
     assert_eq!(terminate(&mut child, WATCHDOG), 0);
     assert!(deeper.exists(), "the store was not created in its new directory");
 }

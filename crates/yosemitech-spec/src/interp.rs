@@ -50,7 +50,27 @@ fn ser_bcd<S: serde::Serializer>(v: &Bcd, s: S) -> Result<S::Ok, S::Error> {
     }
 }
 
+/// An `f32` as the `f64` of its shortest decimal: the probe's 15.8 is 15.8,
+/// not 15.800000190734863 (`f64::from` keeps the f32's binary error, which
+/// stores, exports and JSON would then print).
+pub fn f32_decimal(v: f32) -> f64 {
+    // Display writes the shortest decimal that reads back as the same f32.
+    v.to_string().parse().unwrap_or(f64::NAN)
+}
+
 impl Value {
+    /// The value as a number, for stores, means and JSON: a float as its
+    /// shortest decimal ([`f32_decimal`]), an integer, a BCD byte's digits;
+    /// `None` for text, versions, enums and a BCD byte of invalid digits.
+    pub fn number(&self) -> Option<f64> {
+        match self {
+            Value::Float(v) => Some(f32_decimal(*v)),
+            Value::Int(v) => Some(*v as f64),
+            Value::Bcd(v) => v.value().map(f64::from),
+            Value::Text(_) | Value::Version(_) | Value::Enum { .. } => None,
+        }
+    }
+
     /// Bit-exact equality (floats compared by bits, so NaN payloads and -0.0 count).
     pub fn same_as(&self, other: &Value) -> bool {
         match (self, other) {
@@ -421,6 +441,23 @@ impl CommandSpec {
 
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn an_f32_is_its_shortest_decimal_as_f64() {
+        assert_eq!(super::f32_decimal(15.8).to_string(), "15.8");
+        assert_eq!(super::f32_decimal(-6.56).to_string(), "-6.56");
+        // Whatever the f32, the f64 reads back as it and prints as it does.
+        for bits in (0..u32::MAX).step_by(7_654_321) {
+            let v = f32::from_bits(bits);
+            let d = super::f32_decimal(v);
+            if v.is_nan() {
+                assert!(d.is_nan());
+                continue;
+            }
+            assert_eq!((d as f32).to_bits(), v.to_bits(), "{v}");
+            assert_eq!(d.to_string(), v.to_string(), "{v}");
+        }
+    }
+
     use yosemitech_rtu::FieldValue;
 
     use super::Value;

@@ -3,6 +3,7 @@
 //! from the sample's stored values and the probe's station inputs.
 
 use yosemitech_spec::beside;
+use yosemitech_spec::interp::f32_decimal;
 
 use crate::config::ProbeConfig;
 use crate::plan::Plan;
@@ -25,7 +26,7 @@ pub fn measurements(probe: &ProbeConfig, plan: &Plan<'_>, values: &[Measurement]
         .map(|d| Measurement {
             name: d.quantity.name.clone(),
             value: match d.value {
-                Ok(v) => Datum::Number(f64::from(v)),
+                Ok(v) => Datum::Number(f32_decimal(v)),
                 Err(why) => Datum::NotComputable(why),
             },
             unit: d.quantity.unit.clone(),

@@ -220,12 +220,7 @@ struct Accumulator<'c> {
 
 impl Accumulator<'_> {
     fn add(&mut self, value: &Value, kind: &FieldKind) {
-        let number = match value {
-            Value::Float(v) => Some(f64::from(*v)),
-            Value::Int(v) => Some(*v as f64),
-            Value::Bcd(v) => v.value().map(f64::from),
-            _ => None,
-        };
+        let number = value.number();
         match (number, kind) {
             // Enumerations, flags and versions are codes, not quantities.
             (Some(_), FieldKind::Enum { .. } | FieldKind::Flags { .. }) | (None, _) => {

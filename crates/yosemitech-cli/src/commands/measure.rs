@@ -130,12 +130,7 @@ impl FieldResult {
 
     fn add(&mut self, value: Value) {
         if self.is_averaged() {
-            let number = match &value {
-                Value::Float(v) => Some(f64::from(*v)),
-                Value::Int(v) => Some(*v as f64),
-                Value::Bcd(v) => v.value().map(f64::from),
-                _ => None,
-            };
+            let number = value.number();
             match number {
                 Some(v) if self.field.absent.is_some_and(|a| a == v) => self.absent += 1,
                 Some(v) if v.is_finite() => {
