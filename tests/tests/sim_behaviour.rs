@@ -826,6 +826,47 @@ fn a_simulated_day_of_water_stays_in_range_and_moves() {
     );
 }
 
+/// A quantity that two measurement reads hold (pH in `get_ph` and in
+/// `get_orp_and_ph`) reads the same through both at one moment, with noise
+/// and a daily cycle on: the simulator holds one water, not one per register.
+#[test]
+fn registers_that_hold_one_quantity_agree() {
+    let mut pairs = 0;
+    for sensor in &spec().sensors {
+        let mut sim = Simulator::new(sensor.clone()).with_manual_clock();
+        sim.fill_with_water();
+        sim.set_variation(Some(Variation { noise: 0.05, ..Variation::water(5, 0.05, Duration::from_secs(86_400)) }));
+        if let Some(start) = sensor.command_with_role(Role::StartMeasurement) {
+            exchange(&mut sim, &request(start, sensor.default_address, &[]));
+        }
+        let slave = sensor.default_address;
+        for hour in 0..6 {
+            sim.advance(Duration::from_secs(3600 + hour));
+            // Every quantity as each read gives it, all at this moment.
+            let mut read: BTreeMap<String, Vec<(String, f32)>> = BTreeMap::new();
+            for command in sensor.measurement_reads() {
+                let reply = exchange(&mut sim, &request(command, slave, &[]));
+                let Ok(values) = command.decode_response(slave, &reply) else {
+                    panic!("{}.{}: no reading: {reply:02X?}", sensor.name, command.name)
+                };
+                for (name, value) in values {
+                    if let Value::Float(v) = value {
+                        read.entry(name).or_default().push((command.name.clone(), v));
+                    }
+                }
+            }
+            for (name, readings) in read.iter().filter(|(_, r)| r.len() > 1) {
+                let (first, v) = &readings[0];
+                for (other, u) in &readings[1..] {
+                    assert_eq!(v.to_bits(), u.to_bits(), "{}.{name}: {first} reads {v}, {other} {u}", sensor.name);
+                    pairs += 1;
+                }
+            }
+        }
+    }
+    yosemitech_tests::report!("one quantity, one value: {pairs} pairs of reads agreed");
+}
+
 #[test]
 fn setting_a_reading_changes_no_other_read_but_the_same_registers() {
     // A value set on one read shows in another read only where that read's

@@ -1,6 +1,7 @@
 //! `yosemitech simulate`: a simulated probe served on a pty, RTU over TCP
-//! and Modbus TCP, silence or exceptions for registers it lacks, and
-//! injected faults the client retries.
+//! and Modbus TCP (with `--examples`, the manual's replies byte for byte),
+//! natural water by default, silence or exceptions for registers it lacks,
+//! and injected faults the client retries.
 //!
 //! Against simulated probes on pseudo-terminals (yosemitech-sim's
 //! `serve_pty`, or `yosemitech simulate` in a child process), through the
@@ -19,7 +20,7 @@ const YOSEMITECH: Binary = Binary(env!("CARGO_BIN_EXE_yosemitech"));
 #[test]
 fn simulate_serves_a_pty_until_interrupted() {
     let Some((sensor, command, _, _, line)) = stated_read() else { return };
-    let (child, port) = YOSEMITECH.simulate(&[&sensor.name, "--address", "4"]);
+    let (child, port) = YOSEMITECH.simulate(&[&sensor.name, "--address", "4", "--examples"]);
     assert!(port.starts_with("/dev/"), "{port}");
     let out = YOSEMITECH.run(&["read", &sensor.name, &command.name, "-p", &port, "-a", "4"]);
     assert!(out.ok().contains(&line), "{}", out.stdout);
@@ -29,9 +30,41 @@ fn simulate_serves_a_pty_until_interrupted() {
 }
 
 #[test]
+fn simulate_serves_natural_water_by_default_one_value_per_quantity() {
+    // A quantity two measurement reads hold (pH in two reads of a pH probe).
+    let spec = spec();
+    let Some((sensor, reads, name)) = spec.sensors.iter().find_map(|s| {
+        let reads: Vec<_> = s.measurement_reads().collect();
+        reads.iter().flat_map(|r| r.fields.iter()).find_map(|f| {
+            let name = f.name.as_deref()?;
+            let holders: Vec<_> = reads.iter().filter(|r| r.field(name).is_some()).copied().collect();
+            (holders.len() > 1 && f.unit.is_some()).then(|| (s, holders, name.to_owned()))
+        })
+    }) else {
+        return report!("simulate: no sensor holds a quantity in two reads");
+    };
+    let (child, port) = YOSEMITECH.simulate(&[&sensor.name]);
+    let values: Vec<f64> = reads
+        .iter()
+        .map(|read| {
+            let run = YOSEMITECH.run(&["read", &sensor.name, &read.name, "-p", &port, "--json"]);
+            let json: serde_json::Value = serde_json::from_str(run.ok()).unwrap();
+            json["values"][&name].as_f64().unwrap_or_else(|| panic!("{name} in {json}"))
+        })
+        .collect();
+    interrupt(child);
+    // One water: the reads agree but for the daily cycle's few seconds.
+    for (read, v) in reads.iter().zip(&values) {
+        let first = values[0];
+        assert!((v - first).abs() <= 1e-3 * first.abs().max(1.0), "{}: {name} {v} vs {first}", read.name);
+    }
+    report!("simulate: {}.{name} agrees across {} reads: {values:?}", sensor.name, reads.len());
+}
+
+#[test]
 fn simulate_serves_rtu_over_tcp() {
     let Some((sensor, command, _, _, line)) = stated_read() else { return };
-    let (child, port) = YOSEMITECH.simulate(&[&sensor.name, "--tcp", "127.0.0.1:0"]);
+    let (child, port) = YOSEMITECH.simulate(&[&sensor.name, "--tcp", "127.0.0.1:0", "--examples"]);
     assert!(port.starts_with("tcp://127.0.0.1:"), "{port}");
     let out = YOSEMITECH.run(&["read", &sensor.name, &command.name, "-p", &port]);
     assert_eq!(out.ok().trim(), line);
@@ -44,7 +77,8 @@ fn simulate_serves_modbus_tcp() {
     use yosemitech_rtu::mbap::{MAX_MBAP_ADU, adu_to_rtu, rtu_to_adu};
 
     let Some((sensor, command, request, reply, _)) = stated_read() else { return };
-    let (child, port) = YOSEMITECH.simulate(&[&sensor.name, "--tcp", "127.0.0.1:0", "--protocol", "mbap"]);
+    let (child, port) =
+        YOSEMITECH.simulate(&[&sensor.name, "--tcp", "127.0.0.1:0", "--protocol", "mbap", "--examples"]);
     let addr = port.strip_prefix("mbap://").unwrap_or_else(|| panic!("{port}"));
     let mut stream = std::net::TcpStream::connect(addr).unwrap();
     stream.set_read_timeout(Some(Duration::from_secs(5))).unwrap();

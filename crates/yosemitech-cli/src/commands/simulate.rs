@@ -55,10 +55,14 @@ pub struct SimulateArgs {
     /// Noise amplitude added to every measurement, in its unit.
     #[arg(long, value_name = "X")]
     pub noise: Option<f32>,
-    /// Serve plausible values of natural water (each quantity's typical
-    /// value or the middle of its range, the temperature of a river) that
-    /// follow a daily cycle, instead of the manual's example values.
-    #[arg(long)]
+    /// Serve the values the manual's example replies carry, fixed, instead
+    /// of natural water (what `simulate` serves by default: each quantity's
+    /// typical value or the middle of its range, the temperature of a
+    /// river, on a daily cycle, every register of a quantity agreeing).
+    #[arg(long, conflicts_with = "water")]
+    pub examples: bool,
+    /// Natural water (the default; kept for scripts that ask for it).
+    #[arg(long, hide = true)]
     pub water: bool,
     /// Emulate the serial line's timing at the sensor's baud rate (at 9600 baud, about 1 ms a byte).
     #[arg(long)]
@@ -208,7 +212,7 @@ pub fn run(catalog: &Catalog, args: &SimulateArgs, stop: &Arc<AtomicBool>, out: 
     if let Some(noise) = args.noise {
         sim.set_variation(Some(Variation::noise(args.seed, noise, 0.0)));
     }
-    if args.water {
+    if !args.examples {
         sim.fill_with_water();
         let noise = args.noise.unwrap_or(0.0);
         sim.set_variation(Some(Variation { noise, ..Variation::water(args.seed, 0.04, Duration::from_secs(86_400)) }));

@@ -414,12 +414,11 @@ impl Simulator {
         let index = self.command_index(command)?;
         let sensor = Arc::clone(&self.sensor);
         let cmd = sensor.commands.get(index).ok_or_else(|| SimError::UnknownCommand(command.into()))?;
-        let (field_index, spec_field) =
-            cmd.fields
-                .iter()
-                .enumerate()
-                .find(|(_, f)| f.name.as_deref() == Some(field))
-                .ok_or_else(|| SimError::UnknownField { command: command.into(), field: field.into() })?;
+        let spec_field = cmd
+            .fields
+            .iter()
+            .find(|f| f.name.as_deref() == Some(field))
+            .ok_or_else(|| SimError::UnknownField { command: command.into(), field: field.into() })?;
         let bytes = encode_command_field(cmd, spec_field, &value)?;
         let address_field = self.address_slots.iter().any(|s| s.command == index && s.field.name == spec_field.name);
         if address_field
@@ -429,8 +428,10 @@ impl Simulator {
             self.set_address(a);
         }
         self.registers_of_mut(index).write_bytes(cmd.address, spec_field.offset, &bytes);
-        if let (Some(variation), Value::Float(v)) = (self.variation.as_mut(), &value) {
-            variation.bases.insert((index, field_index), *v);
+        // A measured quantity's new base, for every register that holds it.
+        let measured = self.measurement.get(index).copied().unwrap_or(false);
+        if let (Some(variation), Value::Float(v), true) = (self.variation.as_mut(), &value, measured) {
+            variation.bases.insert(field.to_owned(), *v);
         }
         Ok(())
     }

@@ -15,7 +15,7 @@ use super::Simulator;
 ///
 /// On each read of a *measurement* command (a read that no write command
 /// covers and that has a field with a unit: pH, temperature, conductivity,
-/// ORP), every f32 field is set to
+/// ORP), every f32 quantity it holds is set to
 /// `base + swing * span * sin(2 pi t / day + phase) + drift_per_read * n + noise * u`
 /// before the reply is built, where `base` is the value when the variation
 /// was enabled or last [`Simulator::set`] (see [`Simulator::fill_with_water`]
@@ -23,10 +23,14 @@ use super::Simulator;
 /// the time of day (the wall clock, so probes on one bus see the same
 /// water; the manual clock when [`Simulator::with_manual_clock`]), `phase`
 /// the same for every temperature (unit `degC`) and different for other
-/// fields, `n` the number of earlier reads of the command and `u` uniform in
-/// `[-1, 1)` from a generator seeded with `seed`; clamped to the field's
-/// `range` if it has one. The registers hold what was sent, so
-/// [`Simulator::get`] after a read is the truth the client saw.
+/// quantities, `n` the number of earlier reads of the quantity and `u`
+/// uniform in `[-1, 1)` from a generator seeded with `seed`, drawn once a
+/// second of the clock (a probe measures about once a second); clamped to
+/// the field's `range` if it has one. A quantity is a field name of the
+/// sensor: the new value goes to every register that holds it, so two
+/// reads of pH (`get_ph`, `get_orp_and_ph`) at one moment agree. The
+/// registers hold what was sent, so [`Simulator::get`] after a read is the
+/// truth the client saw.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Variation {
     /// Seed of the noise: the same seed gives the same readings.
@@ -78,14 +82,22 @@ pub fn daily_span(field: &Field, base: f32) -> f64 {
     }
 }
 
+/// The variation's state. A quantity (a field name of the sensor: `ph`
+/// in `get_ph` and in `get_orp_and_ph`) is one value of the water, whatever
+/// command reads it: its base, phase, drift and noise are the quantity's,
+/// and its new value goes to every register that holds it.
 #[derive(Debug, Clone)]
 pub(super) struct VariationState {
     config: Variation,
     rng: Rng,
-    /// Base value by (command index, field index).
-    pub(super) bases: BTreeMap<(usize, usize), f32>,
-    /// Reads served by command index.
-    reads: BTreeMap<usize, u64>,
+    /// Base value by quantity.
+    pub(super) bases: BTreeMap<String, f32>,
+    /// Reads served by quantity.
+    reads: BTreeMap<String, u64>,
+    /// The noise of a quantity and the second of the clock it was drawn
+    /// in: a probe measures about once a second, so reads within one
+    /// second see one measurement.
+    noise: BTreeMap<String, (u64, f32)>,
 }
 
 impl Simulator {
@@ -96,6 +108,7 @@ impl Simulator {
             rng: Rng::new(config.seed),
             bases: BTreeMap::new(),
             reads: BTreeMap::new(),
+            noise: BTreeMap::new(),
         });
     }
 
@@ -106,30 +119,47 @@ impl Simulator {
     /// around these.
     pub fn fill_with_water(&mut self) {
         let sensor = Arc::clone(&self.sensor);
-        for (index, command) in sensor.commands.iter().enumerate() {
-            if !self.measurement.get(index).copied().unwrap_or(false) {
+        // One value per quantity, from the first field of that name that
+        // says enough: every register holding the quantity gets it.
+        let mut values: BTreeMap<&str, f64> = BTreeMap::new();
+        for (_, field) in self.measured_floats(&sensor) {
+            let Some(name) = field.name.as_deref() else { continue };
+            if values.contains_key(name) {
                 continue;
             }
-            for field in &command.fields {
-                if !matches!(field.kind, FieldKind::F32 { .. }) {
-                    continue;
-                }
-                let temperature = field.unit.as_deref() == Some("degC");
-                let value = match (field.typical, field.range) {
-                    (Some(t), _) => t,
-                    (None, Some((min, max))) if temperature => WATER_TEMPERATURE_C.clamp(min, max),
-                    (None, Some((min, max))) => (min + max) / 2.0,
-                    (None, None) if temperature => WATER_TEMPERATURE_C,
-                    (None, None) => continue,
-                };
-                if let Ok(bytes) = encode_command_field(command, field, &Value::Float(value as f32)) {
-                    self.registers_of_mut(index).write_bytes(command.address, field.offset, &bytes);
-                }
+            let temperature = field.unit.as_deref() == Some("degC");
+            let value = match (field.typical, field.range) {
+                (Some(t), _) => t,
+                (None, Some((min, max))) if temperature => WATER_TEMPERATURE_C.clamp(min, max),
+                (None, Some((min, max))) => (min + max) / 2.0,
+                (None, None) if temperature => WATER_TEMPERATURE_C,
+                (None, None) => continue,
+            };
+            values.insert(name, value);
+        }
+        for (index, field) in self.measured_floats(&sensor) {
+            let Some(value) = field.name.as_deref().and_then(|n| values.get(n)) else { continue };
+            if let Some(command) = sensor.commands.get(index)
+                && let Ok(bytes) = encode_command_field(command, field, &Value::Float(*value as f32))
+            {
+                self.registers_of_mut(index).write_bytes(command.address, field.offset, &bytes);
             }
         }
         if let Some(v) = self.variation.as_mut() {
             v.bases.clear();
         }
+    }
+
+    /// Every f32 field of every measurement read, with its command's index.
+    fn measured_floats<'s>(&self, sensor: &'s yosemitech_spec::Sensor) -> Vec<(usize, &'s Field)> {
+        sensor
+            .commands
+            .iter()
+            .enumerate()
+            .filter(|(index, _)| self.measurement.get(*index).copied().unwrap_or(false))
+            .flat_map(|(index, c)| c.fields.iter().map(move |f| (index, f)))
+            .filter(|(_, f)| matches!(f.kind, FieldKind::F32 { .. }) && f.name.is_some())
+            .collect()
     }
 
     /// The time of day for the daily cycle, in seconds.
@@ -142,35 +172,54 @@ impl Simulator {
         now.as_secs_f64() % day / day
     }
 
-    /// Applies the variation to a measurement read about to be served.
+    /// Applies the variation to a measurement read about to be served:
+    /// each quantity it holds gets its value of now, written to every
+    /// register that holds the quantity.
     pub(super) fn vary(&mut self, index: usize, command: &CommandSpec) {
         if !self.measurement.get(index).copied().unwrap_or(false) {
             return;
         }
         let Some(day) = self.variation.as_ref().map(|v| v.config.day) else { return };
         let fraction = self.time_of_day(day);
-        let Some(variation) = self.variation.as_mut() else { return };
-        let reads = variation.reads.entry(index).or_insert(0);
-        let n = *reads as f32;
-        *reads += 1;
-        for (field_index, field) in command.fields.iter().enumerate() {
-            if !matches!(field.kind, FieldKind::F32 { .. }) {
+        let second = self.clock.now().as_secs();
+        let sensor = Arc::clone(&self.sensor);
+        let quantities = self.measured_floats(&sensor);
+        // The phase of a quantity: its place among the sensor's quantities.
+        let mut names: Vec<&str> = quantities.iter().filter_map(|(_, f)| f.name.as_deref()).collect();
+        names.dedup();
+        let mut seen: Vec<&str> = Vec::new();
+        for field in command.fields.iter().filter(|f| matches!(f.kind, FieldKind::F32 { .. })) {
+            let Some(name) = field.name.as_deref() else { continue };
+            if seen.contains(&name) {
                 continue;
             }
+            seen.push(name);
+            let place = names.iter().position(|n| *n == name).unwrap_or(0);
             let registers = self.own_registers.get(&index).unwrap_or(&self.registers);
-            let base = *variation.bases.entry((index, field_index)).or_insert_with(|| {
-                let bytes = registers.read(command.address, command.count);
-                match bytes.get(field.offset..field.offset + field.size()).map(|b| decode_field(field, b)) {
+            let held = registers.read(command.address, command.count);
+            let Some(variation) = self.variation.as_mut() else { return };
+            let base = *variation.bases.entry(name.to_owned()).or_insert_with(|| {
+                match held.get(field.offset..field.offset + field.size()).map(|b| decode_field(field, b)) {
                     Some(Value::Float(v)) => v,
                     _ => 0.0,
                 }
             });
-            let noise = variation.config.noise * variation.rng.next_signed() as f32;
+            let reads = variation.reads.entry(name.to_owned()).or_insert(0);
+            let n = *reads as f32;
+            *reads += 1;
+            let noise = match variation.noise.get(name) {
+                Some((drawn, noise)) if *drawn == second => *noise,
+                _ => {
+                    let noise = variation.config.noise * variation.rng.next_signed() as f32;
+                    variation.noise.insert(name.to_owned(), (second, noise));
+                    noise
+                }
+            };
             // Every temperature swings alike and peaks together (one water);
             // other quantities swing with their range, each at its own hour.
             let temperature = field.unit.as_deref() == Some("degC");
             let span = daily_span(field, base);
-            let phase = if temperature { 0.0 } else { 0.7 * (field_index as f64 + 1.0) };
+            let phase = if temperature { 0.0 } else { 0.7 * (place as f64 + 1.0) };
             let cycle = f64::from(variation.config.daily_swing)
                 * span
                 * (std::f64::consts::TAU * fraction - std::f64::consts::FRAC_PI_2 + phase).sin();
@@ -178,13 +227,13 @@ impl Simulator {
             if let Some((min, max)) = field.range {
                 value = value.clamp(min as f32, max as f32);
             }
-            // A read is not bounded by its range on the wire: encode as the probe would.
-            if let Ok(bytes) = encode_command_field(command, field, &Value::Float(value)) {
-                let registers = match self.own_registers.get_mut(&index) {
-                    Some(own) => own,
-                    None => &mut self.registers,
-                };
-                registers.write_bytes(command.address, field.offset, &bytes);
+            // Every register of the quantity; a read is not bounded by its
+            // range on the wire: encode as the probe would.
+            for (holder, f) in quantities.iter().filter(|(_, f)| f.name.as_deref() == Some(name)) {
+                let Some(c) = sensor.commands.get(*holder) else { continue };
+                if let Ok(bytes) = encode_command_field(c, f, &Value::Float(value)) {
+                    self.registers_of_mut(*holder).write_bytes(c.address, f.offset, &bytes);
+                }
             }
         }
     }
