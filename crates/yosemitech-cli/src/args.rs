@@ -2,12 +2,10 @@
 //! subcommand takes, where a write keeps its coefficient backup,
 //! calibration history, a store's time range and station inputs. The port options are beside the port's opening (`port`).
 
-use crate::format::parse_duration;
 use crate::time::parse_instant_now as parse_instant;
 use clap::ArgAction;
 use clap::Args;
 use std::path::PathBuf;
-use std::time::Duration;
 use std::time::SystemTime;
 
 /// Options every subcommand takes.
@@ -20,12 +18,6 @@ pub struct Global {
     /// Show frame dumps on stderr: -v every frame sent and received (debug), -vv everything (trace).
     #[arg(short, long, action = ArgAction::Count, global = true)]
     pub verbose: u8,
-    /// Time allowed for each reply, e.g. 500ms, 2s [default: 1s; scan: 100ms].
-    #[arg(long, value_name = "DURATION", value_parser = parse_duration, global = true)]
-    pub timeout: Option<Duration>,
-    /// Retries after a timeout or a corrupt reply [default: 2; scan: 0].
-    #[arg(long, value_name = "N", global = true)]
-    pub retries: Option<u32>,
 }
 
 /// Where a command that writes coefficients saves the ones it replaces.

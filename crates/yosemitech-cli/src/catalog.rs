@@ -123,7 +123,7 @@ impl Catalog {
                         e = e.detail(line.to_owned());
                     }
                 }
-                e.hint("fix the file (`cargo xtask validate` checks a spec directory); your editor checks keys through spec/schema.json")
+                e.hint("fix the file; `yosemitech list --spec FILE` checks it again, and an editor checks keys through spec/schema.json")
             })?;
             for sensor in loaded.sensors {
                 let entry = Entry { sensor: Arc::new(sensor), origin: Origin::Loaded(path.clone()) };

@@ -172,7 +172,7 @@ pub fn parse_size(text: &str) -> std::result::Result<(u32, u32), String> {
     let (w, h) = (side(w)?, side(h)?);
     for (name, n) in [("width", w), ("height", h)] {
         if !(MIN_SIDE..=MAX_SIDE).contains(&n) {
-            return Err(format!("the {name} {n} is outside {MIN_SIDE}..={MAX_SIDE} pixels"));
+            return Err(format!("the {name} {n} is outside {MIN_SIDE} to {MAX_SIDE} pixels"));
         }
     }
     Ok((w, h))
@@ -240,7 +240,7 @@ pub fn fields_hint(command: &CommandSpec) -> String {
                 about.push(unit(u).to_owned());
             }
             if let Some((min, max)) = f.range {
-                about.push(format!("{min}..={max}"));
+                about.push(format!("{min} to {max}"));
             }
             if let FieldKind::Enum { variants, .. } = &f.kind {
                 about.push(variants.iter().map(|v| v.name.as_str()).collect::<Vec<_>>().join("|"));
@@ -262,7 +262,7 @@ pub fn parse_value(field: &Field, text: &str, bounded: bool) -> Result<Value> {
         CliError::usage(format!("`{text}` is not {what} (field `{name}`)")).hint(format!(
             "`{name}` is a {}{}",
             field.kind.type_name(),
-            range.map(|(a, b)| format!(" in {a}..={b}")).unwrap_or_default()
+            range.map(|(a, b)| format!(" in {a} to {b}")).unwrap_or_default()
         ))
     };
     let value = match &field.kind {
@@ -292,8 +292,10 @@ pub fn parse_value(field: &Field, text: &str, bounded: bool) -> Result<Value> {
         FieldKind::Reserved { .. } => Value::Int(0),
         FieldKind::Bcd => {
             let v = parse_int(text).ok_or_else(|| bad("a whole number"))?;
-            let digits =
-                u8::try_from(v).ok().and_then(yosemitech_rtu::Bcd::from_value).ok_or_else(|| bad("a number 0..=99"))?;
+            let digits = u8::try_from(v)
+                .ok()
+                .and_then(yosemitech_rtu::Bcd::from_value)
+                .ok_or_else(|| bad("a number 0 to 99"))?;
             Value::Bcd(digits)
         }
         FieldKind::Flags { flags, .. } => {
@@ -317,7 +319,7 @@ pub fn parse_value(field: &Field, text: &str, bounded: bool) -> Result<Value> {
     if let (Some((min, max)), Some(v)) = (range, value.number())
         && !(min..=max).contains(&v)
     {
-        return Err(CliError::usage(format!("{name} = {text} is outside the valid range {min}..={max}"))
+        return Err(CliError::usage(format!("{name} = {text} is outside the valid range {min} to {max}"))
             .hint(format!("the spec allows `{name}` from {min} to {max}; nothing was sent")));
     }
     Ok(value)

@@ -7,7 +7,9 @@
 //! run that shows none does not load the spec for it.
 
 use clap::builder::StyledStr;
-use clap::error::ErrorKind;
+use std::io::Write as _;
+
+use clap::error::{ContextKind, ErrorKind};
 use clap::{Command, CommandFactory};
 
 use crate::catalog::Catalog;
@@ -20,6 +22,16 @@ const WIDTH: usize = 92;
 /// Exits as clap does for a parse error; help is rendered again with its
 /// placeholders filled in first.
 pub fn exit(e: clap::Error) -> ! {
+    if let Some(variable) = from_environment(&e) {
+        let value = std::env::var(variable).unwrap_or_default();
+        let _ = writeln!(
+            std::io::stderr(),
+            "error: {variable}={value:?} is not valid for {}\nhint: set {variable} to a valid value, or unset it \
+             and give the option on the command line",
+            e.get(ContextKind::InvalidArg).map(ToString::to_string).unwrap_or_default()
+        );
+        std::process::exit(2);
+    }
     if matches!(e.kind(), ErrorKind::DisplayHelp | ErrorKind::DisplayHelpOnMissingArgumentOrSubcommand)
         && let Ok(catalog) = Catalog::load(&[])
         && let Err(filled) = fill(Cli::command(), &Placeholders::of(&catalog)).try_get_matches()
@@ -27,6 +39,26 @@ pub fn exit(e: clap::Error) -> ! {
         filled.exit()
     }
     e.exit()
+}
+
+/// The environment variable a refused value came from: the option has one
+/// (`YOSEMITECH_BAUD` for `--baud`), it is set, and the command line does
+/// not give the option. Clap's own message blames the option.
+fn from_environment(e: &clap::Error) -> Option<&'static str> {
+    if !matches!(e.kind(), ErrorKind::ValueValidation | ErrorKind::InvalidValue) {
+        return None;
+    }
+    let arg = e.get(ContextKind::InvalidArg)?.to_string();
+    let args: Vec<String> = std::env::args().collect();
+    let given = |long: &str, short: &str| {
+        args.iter().any(|a| a == long || a.starts_with(&format!("{long}=")) || a.starts_with(short))
+    };
+    [("--baud", "-b", "YOSEMITECH_BAUD"), ("--port", "-p", "YOSEMITECH_PORT")]
+        .into_iter()
+        .find(|(long, short, variable)| {
+            arg.starts_with(long) && !given(long, short) && std::env::var_os(variable).is_some()
+        })
+        .map(|(_, _, variable)| variable)
 }
 
 /// Each placeholder and its text.

@@ -10,8 +10,8 @@ use yosemitech_rtu::{
     Client, ClientConfig, LineSettings, RetryPolicy, SerialConfig, SerialTransport, TcpTransport, Transport,
 };
 
-use crate::args::Global;
 use crate::error::{CliError, Context, Result};
+use crate::format::parse_duration;
 
 /// A client on any transport.
 pub type AnyClient = Client<Box<dyn Transport + Send>>;
@@ -26,6 +26,12 @@ pub struct PortArgs {
     /// Baud rate [default: the sensor's, 9600 for every Yosemitech probe].
     #[arg(short, long, env = "YOSEMITECH_BAUD", value_name = "BAUD")]
     pub baud: Option<u32>,
+    /// Time allowed for each reply, e.g. 500ms, 2s [default: 1s; scan: 100ms].
+    #[arg(long, value_name = "DURATION", value_parser = parse_duration)]
+    pub timeout: Option<Duration>,
+    /// Retries after a timeout or a corrupt reply [default: 2; scan: 0].
+    #[arg(long, value_name = "N")]
+    pub retries: Option<u32>,
 }
 
 /// The slave address option.
@@ -47,7 +53,7 @@ impl AddressArg {
 pub fn check_address(address: u32, what: &str) -> Result<u8> {
     match u8::try_from(address) {
         Ok(a @ 1..=247) => Ok(a),
-        _ => Err(CliError::usage(format!("{what} {address} is outside 1..=247")).hint(
+        _ => Err(CliError::usage(format!("{what} {address} is outside 1 to 247")).hint(
             "Modbus RTU slave addresses run from 1 to 247 (0 is broadcast); Yosemitech probes leave the factory at 1",
         )),
     }
@@ -79,29 +85,28 @@ pub fn port_name(args: &PortArgs) -> Result<String> {
     }
 }
 
-/// Client settings from the global options and this command's defaults.
-pub fn client_config(global: &Global, default_timeout: Duration, default_retries: u32) -> ClientConfig {
-    let timeout = global.timeout.unwrap_or(default_timeout);
-    let retries = global.retries.unwrap_or(default_retries);
+/// Client settings from the port options and this command's defaults.
+pub fn client_config(args: &PortArgs, default_timeout: Duration, default_retries: u32) -> ClientConfig {
+    let timeout = args.timeout.unwrap_or(default_timeout);
+    let retries = args.retries.unwrap_or(default_retries);
     ClientConfig { timeout, retry: RetryPolicy { retries, ..RetryPolicy::default() }, ..ClientConfig::default() }
 }
 
 /// Opens the port for a sensor with `serial` settings, with the default
 /// timeout (1 s) and retries (2).
-pub fn open(args: &PortArgs, global: &Global, serial: &LineSettings) -> Result<Opened> {
-    open_with(args, global, serial, Duration::from_secs(1), RetryPolicy::default().retries)
+pub fn open(args: &PortArgs, serial: &LineSettings) -> Result<Opened> {
+    open_with(args, serial, Duration::from_secs(1), RetryPolicy::default().retries)
 }
 
 /// Opens the port.
 pub fn open_with(
     args: &PortArgs,
-    global: &Global,
     serial: &LineSettings,
     default_timeout: Duration,
     default_retries: u32,
 ) -> Result<Opened> {
     let port = port_name(args)?;
-    let config = client_config(global, default_timeout, default_retries);
+    let config = client_config(args, default_timeout, default_retries);
     let baud = args.baud.unwrap_or(serial.baud);
     if baud == 0 {
         return Err(

@@ -653,8 +653,8 @@ fn bad_input_gets_one_error_and_a_hint() {
                     ([&["read", name, &typo(read)][..], &null].concat(), 2, format!("did you mean `{read}`")),
                     (vec!["read", name, read], 2, "no port given".into()),
                     (vec!["read", name, read, "--port", "/dev/yosemitech-no-such-port"], 1, "not found".into()),
-                    ([&["read", name, read][..], &null, &["--address", "0"]].concat(), 2, "outside 1..=247".into()),
-                    ([&["read", name, read][..], &null, &["--address", "248"]].concat(), 2, "outside 1..=247".into()),
+                    ([&["read", name, read][..], &null, &["--address", "0"]].concat(), 2, "outside 1 to 247".into()),
+                    ([&["read", name, read][..], &null, &["--address", "248"]].concat(), 2, "outside 1 to 247".into()),
                     ([&["write", name, read][..], &null].concat(), 2, "read command".into()),
                     (vec!["encode", name, read, "7.6"], 2, "carries no values".into()),
                     (vec!["simulate", name, "--faults", "dorp=0.1"], 2, "did you mean `drop`".into()),
@@ -708,7 +708,7 @@ fn bad_input_gets_one_error_and_a_hint() {
         Some((sensor, set, field)) => {
             let (name, command, field_name) = (sensor.name.as_str(), set.name.as_str(), field.display_name());
             if let Some((min, max)) = field.range {
-                let range = format!("outside the valid range {min}..={max}");
+                let range = format!("outside the valid range {min} to {max}");
                 for beyond in [min - 1.0, max + 1.0].into_iter().filter(|v| *v >= 0.0) {
                     owned.push((words(&["encode", name, command, &beyond.to_string()]), 2, range.clone()));
                 }
@@ -755,10 +755,11 @@ fn bad_input_gets_one_error_and_a_hint() {
         (&["decode", "01 03 0"], 2, "odd number"),
         (&["decode", "01 03 zz"], 2, "not a hex digit"),
         (&["decode", "0103"], 2, "too short"),
+        (&["decode", "-"], 2, "use `--capture -`"),
         (&["decode", "01 2B 0E 01 00 70 77"], 1, "function 0x2B"),
-        (&["set-address", "--port", "/dev/null", "--from", "0", "--to", "5"], 2, "--from 0 is outside 1..=247"),
-        (&["set-address", "--port", "/dev/null", "--from", "1", "--to", "248"], 2, "--to 248 is outside 1..=247"),
-        (&["scan", "--port", "/dev/null", "--addresses", "0-3"], 2, "outside 1..=247"),
+        (&["set-address", "--port", "/dev/null", "--from", "0", "--to", "5"], 2, "--from 0 is outside 1 to 247"),
+        (&["set-address", "--port", "/dev/null", "--from", "1", "--to", "248"], 2, "--to 248 is outside 1 to 247"),
+        (&["scan", "--port", "/dev/null", "--addresses", "0-3"], 2, "outside 1 to 247"),
         (&["scan", "--port", "/dev/null", "--addresses", "a-b"], 2, "not an address"),
         (&["list", "nonexistent_sensor"], 2, "unknown sensor"),
         (&["list", "--spec", "/nonexistent/spec/dir"], 2, "no such file"),
@@ -854,32 +855,6 @@ commands:
     assert_eq!(run.ok().trim(), "01 03 26 00 00 02 CF 43");
 }
 
-/// The words of a README command line: double quotes group, `#` outside
-/// them starts the comment.
-fn shell_words(line: &str) -> Vec<String> {
-    let (mut words, mut word, mut quoted, mut started) = (Vec::new(), String::new(), false, false);
-    for ch in line.chars() {
-        match ch {
-            '"' => (quoted, started) = (!quoted, true),
-            '#' if !quoted && !started => break,
-            c if c.is_whitespace() && !quoted => {
-                if started {
-                    words.push(std::mem::take(&mut word));
-                }
-                started = false;
-            }
-            c => {
-                word.push(c);
-                started = true;
-            }
-        }
-    }
-    if started {
-        words.push(word);
-    }
-    words
-}
-
 #[test]
 fn the_readmes_offline_decode_examples_succeed() {
     // What a technician copies from the README first: every `decode` of
@@ -887,7 +862,8 @@ fn the_readmes_offline_decode_examples_succeed() {
     let readme = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/../../README.md")).expect("README.md");
     let mut ran = 0;
     for line in readme.lines().filter(|l| l.starts_with("yosemitech decode ")) {
-        let words = shell_words(line);
+        // The command, without its `# comment`.
+        let words = words(line.split(" #").next().unwrap_or(line));
         if words.iter().any(|w| w.starts_with("--capture")) {
             continue;
         }
@@ -897,4 +873,50 @@ fn the_readmes_offline_decode_examples_succeed() {
         ran += 1;
     }
     assert!(ran > 0, "the README shows no offline decode");
+}
+
+#[test]
+fn only_the_subcommands_that_open_a_port_take_its_timeout_and_retries() {
+    // Every subcommand `--help` lists.
+    let top = YOSEMITECH.run(&["--help"]).ok().to_owned();
+    let subcommands: Vec<&str> = top
+        .lines()
+        .skip_while(|l| !l.starts_with("Commands:"))
+        .skip(1)
+        .take_while(|l| l.starts_with("  "))
+        .filter_map(|l| l.split_whitespace().next())
+        .filter(|s| *s != "help")
+        .collect();
+    let mut checked = 0;
+    for sub in subcommands {
+        let help = YOSEMITECH.run(&[sub, "--help"]).ok().to_owned();
+        let opens_a_port = help.contains("--port");
+        for option in ["--timeout", "--retries"] {
+            assert_eq!(help.contains(option), opens_a_port, "`{sub} --help` and {option}:\n{help}");
+        }
+        checked += 1;
+    }
+    assert!(checked > 0, "no subcommand in:\n{top}");
+}
+
+#[test]
+fn a_bad_baud_rate_from_the_environment_names_the_variable() {
+    let Some(sensor) = spec().sensors.first().cloned() else { return };
+    let Some(read) = sensor.measurement_reads().next() else { return };
+    let out = std::process::Command::new(YOSEMITECH.0)
+        .args(["read", &sensor.name, &read.name, "--port", "/dev/null"])
+        .env("YOSEMITECH_BAUD", "fast")
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(err.starts_with("error: YOSEMITECH_BAUD=\"fast\""), "{err}");
+    // Given on the command line, the option is what is wrong.
+    let out = std::process::Command::new(YOSEMITECH.0)
+        .args(["read", &sensor.name, &read.name, "--port", "/dev/null", "--baud", "fast"])
+        .env("YOSEMITECH_BAUD", "9600")
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("'--baud <BAUD>'") && !err.contains("YOSEMITECH_BAUD"), "{err}");
 }

@@ -19,7 +19,6 @@ use yosemitech_spec::{CommandSpec, Sensor};
 
 use super::scan::{self, Identification};
 use super::set_address::{ChangeFrames, address_commands, explain, pick_commands};
-use crate::args::Global;
 use crate::catalog::Catalog;
 use crate::commands::set_address::SetAddressArgs;
 use crate::confirm::{confirm, ensure_can_ask};
@@ -80,7 +79,7 @@ fn next_probe_connected(number: usize, from: u8) -> Result<bool> {
 }
 
 /// Runs `set-address --plan`.
-pub fn run(catalog: &Catalog, global: &Global, args: &SetAddressArgs, out: &mut dyn Write) -> Result<()> {
+pub fn run(catalog: &Catalog, args: &SetAddressArgs, out: &mut dyn Write) -> Result<()> {
     let from = check_address(args.from.unwrap_or(1), "--from")?;
     let plan = planned_addresses(args, from)?;
     let wanted = match args.count {
@@ -101,7 +100,7 @@ pub fn run(catalog: &Catalog, global: &Global, args: &SetAddressArgs, out: &mut 
     let (sensor, _, _) = pick_commands(catalog, args.sensor.as_deref())?;
     let serial = if args.sensor.is_some() { sensor.serial } else { scan::common_serial(catalog) };
     ensure_can_ask(args.yes, "change addresses")?;
-    let mut opened = port::open(&args.port, global, &serial)?;
+    let mut opened = port::open(&args.port, &serial)?;
     let shown: Vec<String> = plan.iter().take(wanted.min(4)).map(|&a| both_bases(a)).collect();
     writeln!(
         out,

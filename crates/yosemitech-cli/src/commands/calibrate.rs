@@ -16,7 +16,6 @@ use yosemitech::procedures::ph::{CalibrationConfig, CalibrationGuide, calibrate,
 use yosemitech::procedures::{ProcedureError, RealSleep, Sleep};
 
 use crate::args::BackupDir;
-use crate::args::Global;
 use crate::args::HistoryArgs;
 use crate::backup::{self, Backup};
 use crate::catalog::{Catalog, Entry};
@@ -222,9 +221,9 @@ impl CalibrationGuide for Guide<'_> {
 }
 
 /// Runs `calibrate ph`.
-pub fn run(catalog: &Catalog, global: &Global, args: &CalibratePhArgs, out: &mut dyn Write) -> Result<()> {
+pub fn run(catalog: &Catalog, args: &CalibratePhArgs, out: &mut dyn Write) -> Result<()> {
     if args.compute || args.readings.is_some() {
-        return super::calibrate_electrode::run(catalog, global, args, out);
+        return super::calibrate_electrode::run(catalog, args, out);
     }
     if args.json {
         return Err(CliError::usage("`calibrate ph --json` prints computed coefficients: add --compute"));
@@ -238,7 +237,7 @@ pub fn run(catalog: &Catalog, global: &Global, args: &CalibratePhArgs, out: &mut
     let slave = args.address.get(entry.sensor.default_address)?;
     ensure_can_ask(args.yes, "calibrate")?;
     let (mut store, history_file) = history::open(catalog, &args.history)?;
-    let mut opened = port::open(&args.port, global, &entry.sensor.serial)?;
+    let mut opened = port::open(&args.port, &entry.sensor.serial)?;
     let identity = history::identity(&mut opened, entry, slave);
     let serial_number = identity.0.clone();
     let config = CalibrationConfig::default();

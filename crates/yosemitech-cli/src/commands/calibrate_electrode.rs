@@ -17,7 +17,6 @@ use yosemitech::procedures::{RealSleep, Sleep, same_bits};
 use yosemitech::{Command, ph_orp};
 
 use super::calibrate::{SENSOR, save_backup, stdin_lines};
-use crate::args::Global;
 use crate::catalog::Catalog;
 use crate::commands::calibrate::CalibratePhArgs;
 use crate::confirm::ensure_can_ask;
@@ -87,7 +86,7 @@ fn wait_for_enter(input: &Receiver<String>, what: &str) -> Result<()> {
 }
 
 /// Runs `calibrate ph --compute` (and `calibrate ph --readings FILE`).
-pub fn run(catalog: &Catalog, global: &Global, args: &CalibratePhArgs, out: &mut dyn Write) -> Result<()> {
+pub fn run(catalog: &Catalog, args: &CalibratePhArgs, out: &mut dyn Write) -> Result<()> {
     let entry = catalog.entry(SENSOR)?;
     if !is_typed(entry, SENSOR) {
         return Err(CliError::usage(format!("`calibrate ph --compute` needs the built-in {SENSOR} sensor"))
@@ -113,7 +112,7 @@ pub fn run(catalog: &Catalog, global: &Global, args: &CalibratePhArgs, out: &mut
     let slave = args.address.get(entry.sensor.default_address)?;
     ensure_can_ask(args.yes, "write electrode coefficients")?;
     let (mut store, history_file) = history::open(catalog, &args.history)?;
-    let mut opened = port::open(&args.port, global, &entry.sensor.serial)?;
+    let mut opened = port::open(&args.port, &entry.sensor.serial)?;
     let ctx = opened.context(slave, "the electrode calibration");
     let input = stdin_lines();
     let readings = match from_file {

@@ -26,7 +26,6 @@ use yosemitech_station::Calibration;
 
 use super::calibrate::stdin_lines;
 use crate::args::BackupDir;
-use crate::args::Global;
 use crate::args::HistoryArgs;
 use crate::backup::{self, Backup};
 use crate::catalog::Catalog;
@@ -514,13 +513,7 @@ fn record_of(
 }
 
 /// Runs `calibrate SENSOR`.
-pub fn run(
-    catalog: &Catalog,
-    global: &Global,
-    args: &CalibrateLinearArgs,
-    stop: &AtomicBool,
-    out: &mut dyn Write,
-) -> Result<()> {
+pub fn run(catalog: &Catalog, args: &CalibrateLinearArgs, stop: &AtomicBool, out: &mut dyn Write) -> Result<()> {
     let Some(name) = args.sensor.as_deref() else {
         return Err(CliError::usage("`calibrate` needs a sensor (or the subcommand `ph`)")
             .hint("yosemitech calibrate SENSOR --standard VALUE ... -p PORT; `yosemitech list` names the sensors"));
@@ -532,7 +525,7 @@ pub fn run(
     ensure_can_ask(args.yes, "calibrate")?;
     // The history opens before anything is written: a calibration is always recorded.
     let (mut store, history_file) = history::open(catalog, &args.history)?;
-    let mut opened = port::open(&args.port, global, &entry.sensor.serial)?;
+    let mut opened = port::open(&args.port, &entry.sensor.serial)?;
     let identity = history::identity(&mut opened, entry, slave);
     let serial_number = identity.0.clone();
     let unit = target.unit.as_deref().map(|u| format!(" {u}")).unwrap_or_default();

@@ -9,7 +9,6 @@ use yosemitech_spec::Value;
 use yosemitech_station::StoredCalibration;
 
 use crate::args::BackupDir;
-use crate::args::Global;
 use crate::args::HistoryArgs;
 use crate::backup::{self, Backup};
 use crate::catalog::Catalog;
@@ -135,7 +134,7 @@ fn restorable(catalog: &Catalog, record: &StoredCalibration) -> Result<Vec<(Stri
 }
 
 /// Runs `calibrate restore ID`.
-pub fn restore(catalog: &Catalog, global: &Global, args: &CalibrateRestoreArgs, out: &mut dyn Write) -> Result<()> {
+pub fn restore(catalog: &Catalog, args: &CalibrateRestoreArgs, out: &mut dyn Write) -> Result<()> {
     let path = history::file(catalog, &args.history)?;
     if !path.exists() {
         return Err(CliError::usage(format!("no calibration history at {}", path.display())));
@@ -152,7 +151,7 @@ pub fn restore(catalog: &Catalog, global: &Global, args: &CalibrateRestoreArgs, 
     let entry = catalog.entry(&record.calibration.sensor)?;
     let slave = args.address.get(record.calibration.address)?;
     ensure_can_ask(args.yes, "restore a calibration")?;
-    let mut opened = port::open(&args.port, global, &entry.sensor.serial)?;
+    let mut opened = port::open(&args.port, &entry.sensor.serial)?;
     let identity = history::identity(&mut opened, entry, slave);
     if let Some(was) = &record.calibration.serial_number
         && identity.0.as_deref() != Some(was.as_str())

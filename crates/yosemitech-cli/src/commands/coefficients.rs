@@ -3,7 +3,6 @@
 
 use std::io::Write;
 
-use crate::args::Global;
 use crate::backup::{self, Backup};
 use crate::catalog::Catalog;
 use crate::confirm::{confirm, ensure_can_ask};
@@ -55,13 +54,13 @@ pub struct CoefficientsRestoreArgs {
 }
 
 /// Runs `coefficients backup`.
-pub fn backup(catalog: &Catalog, global: &Global, args: &CoefficientsBackupArgs, out: &mut dyn Write) -> Result<()> {
+pub fn backup(catalog: &Catalog, args: &CoefficientsBackupArgs, out: &mut dyn Write) -> Result<()> {
     let entry = catalog.entry(&args.sensor)?;
     if entry.sensor.coefficient_blocks().is_empty() {
         return Err(CliError::usage(format!("sensor `{}` has no calibration coefficients", entry.sensor.name)));
     }
     let slave = args.address.get(entry.sensor.default_address)?;
-    let mut opened = port::open(&args.port, global, &entry.sensor.serial)?;
+    let mut opened = port::open(&args.port, &entry.sensor.serial)?;
     let taken = backup::take_backup(&mut opened, entry, slave)?;
     let path = match &args.file {
         Some(path) => {
@@ -79,7 +78,7 @@ pub fn backup(catalog: &Catalog, global: &Global, args: &CoefficientsBackupArgs,
 }
 
 /// Runs `coefficients restore`.
-pub fn restore(catalog: &Catalog, global: &Global, args: &CoefficientsRestoreArgs, out: &mut dyn Write) -> Result<()> {
+pub fn restore(catalog: &Catalog, args: &CoefficientsRestoreArgs, out: &mut dyn Write) -> Result<()> {
     let entry = catalog.entry(&args.sensor)?;
     let saved = Backup::load(&args.file)?;
     if saved.sensor != entry.sensor.name {
@@ -93,7 +92,7 @@ pub fn restore(catalog: &Catalog, global: &Global, args: &CoefficientsRestoreArg
     }
     let slave = args.address.get(entry.sensor.default_address)?;
     ensure_can_ask(args.yes, "restore coefficients")?;
-    let mut opened = port::open(&args.port, global, &entry.sensor.serial)?;
+    let mut opened = port::open(&args.port, &entry.sensor.serial)?;
     let serial_number = backup::serial_number(&mut opened, entry, slave);
     writeln!(
         out,

@@ -9,7 +9,6 @@ use std::time::Duration;
 use indicatif::ProgressBar;
 use yosemitech_spec::Sensor;
 
-use crate::args::Global;
 use crate::catalog::Catalog;
 use crate::commands::scan::common_serial;
 use crate::doctor::{self, Plan, Probes, Progress, Report, SerialLine, VerdictCode, hex};
@@ -62,13 +61,7 @@ impl Progress for Shown {
 }
 
 /// Runs `doctor`.
-pub fn run(
-    catalog: &Catalog,
-    global: &Global,
-    args: &DoctorArgs,
-    stop: &Arc<AtomicBool>,
-    out: &mut dyn Write,
-) -> Result<()> {
+pub fn run(catalog: &Catalog, args: &DoctorArgs, stop: &Arc<AtomicBool>, out: &mut dyn Write) -> Result<()> {
     let port = port::port_name(&args.port)?;
     if port.starts_with("tcp://") {
         return Err(CliError::usage("doctor needs the serial port itself, not a TCP gateway").hint(
@@ -96,7 +89,7 @@ pub fn run(
         settings.baud = baud;
     }
     let address = args.address.get(sensors.first().map_or(1, |s| s.default_address))?;
-    let plan = Plan::new(address, settings, global.timeout.unwrap_or(Duration::from_secs(1)), probes.starts.len());
+    let plan = Plan::new(address, settings, args.port.timeout.unwrap_or(Duration::from_secs(1)), probes.starts.len());
     let mut line = SerialLine::new(port.clone());
     // Opened here first, so a missing port is an error, not a diagnosis.
     doctor::Line::configure(&mut line, settings).map_err(|e| open_failed(&port, &e))?;

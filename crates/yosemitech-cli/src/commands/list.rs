@@ -150,7 +150,7 @@ fn show_sensor(entry: &Entry, with_fields: bool, out: &mut dyn Write) -> Result<
     }
     writeln!(
         out,
-        "  serial: {} (newest firmware); addresses {}..={}, factory address {}",
+        "  serial: {} (newest firmware); addresses {} to {}, factory address {}",
         serial_text(&s.serial),
         s.min_address,
         s.max_address,
@@ -199,7 +199,7 @@ fn field_line(f: &Field) -> String {
         text.push_str(&format!(" [{}]", unit(u)));
     }
     if let Some((min, max)) = f.range {
-        text.push_str(&format!(" {min}..={max}"));
+        text.push_str(&format!(" {min} to {max}"));
     }
     text.push_str(&format!(" (bytes {}..{})", f.offset, f.offset + f.size()));
     text

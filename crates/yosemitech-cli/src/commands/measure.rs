@@ -13,7 +13,6 @@ use yosemitech_spec::{CommandSpec, Field, FieldKind, Procedure, Role, Sensor, Va
 
 use yosemitech_spec::beside::{self, DerivedValue};
 
-use crate::args::Global;
 use crate::args::InputArgs;
 use crate::catalog::Catalog;
 use crate::commands::read::derived_json;
@@ -218,7 +217,7 @@ fn commands<'s>(sensor: &'s Sensor, names: &[String], what: &str) -> Result<Vec<
         .map(|name| {
             sensor.command(name).ok_or_else(|| {
                 CliError::usage(format!("the procedure of `{}` {what} `{name}`, which it does not define", sensor.name))
-                    .hint("fix the spec (`cargo xtask validate` checks it)")
+                    .hint("fix the spec; `yosemitech list --spec FILE` checks it again")
             })
         })
         .collect()
@@ -376,13 +375,13 @@ pub fn describe(procedure: &Procedure, timing: Timing) -> String {
 }
 
 /// Runs `measure`.
-pub fn run(catalog: &Catalog, global: &Global, args: &MeasureArgs, out: &mut dyn Write) -> Result<()> {
+pub fn run(catalog: &Catalog, args: &MeasureArgs, out: &mut dyn Write) -> Result<()> {
     let sensor = catalog.sensor(&args.sensor)?;
     let procedure = sensor.procedure.as_ref().ok_or_else(|| no_procedure(sensor, Some(catalog)))?;
     let timing = timing(procedure, args)?;
     let station = derived::station(sensor, &args.inputs.inputs)?;
     let slave = args.address.get(sensor.default_address)?;
-    let mut opened = port::open(&args.port, global, &sensor.serial)?;
+    let mut opened = port::open(&args.port, &sensor.serial)?;
     if !args.json {
         let section = procedure.source.as_ref().map(|s| format!(" (manual section {})", s.section)).unwrap_or_default();
         writeln!(
@@ -485,7 +484,7 @@ pub fn show(m: &ProcedureResult, digits: Option<usize>, out: &mut dyn Write) -> 
                         .field
                         .range
                         .filter(|(min, max)| !(*min..=*max).contains(&mean))
-                        .map(|(min, max)| format!(" [outside the measuring range {min}..={max}]"))
+                        .map(|(min, max)| format!(" [outside the measuring range {min} to {max}]"))
                         .unwrap_or_default();
                     let of =
                         if r.count == 1 { "1 reading".to_owned() } else { format!("mean of {} readings", r.count) };

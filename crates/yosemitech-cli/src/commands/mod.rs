@@ -53,33 +53,32 @@ fn ctrl_c_flag() -> Arc<AtomicBool> {
 /// Runs the parsed command line.
 pub fn run(cli: &Cli) -> Result<()> {
     let catalog = Catalog::load(&cli.global.spec)?;
-    let global = &cli.global;
     let stdout = io::stdout();
     let mut out = stdout.lock();
     let result = match &cli.command {
         Subcommand::Demo(args) => demo::run(&catalog, args, &mut out),
         Subcommand::List(args) => list::run(&catalog, args, &mut out),
-        Subcommand::Read(args) => read::run(&catalog, global, args, &mut out),
-        Subcommand::Write(args) => write::run(&catalog, global, args, &mut out),
-        Subcommand::Poll(args) => poll::run(&catalog, global, args, &ctrl_c_flag(), &mut out),
-        Subcommand::Measure(args) => measure::run(&catalog, global, args, &mut out),
+        Subcommand::Read(args) => read::run(&catalog, args, &mut out),
+        Subcommand::Write(args) => write::run(&catalog, args, &mut out),
+        Subcommand::Poll(args) => poll::run(&catalog, args, &ctrl_c_flag(), &mut out),
+        Subcommand::Measure(args) => measure::run(&catalog, args, &mut out),
         Subcommand::Watch(args) => watch::run(args, &ctrl_c_flag()),
         Subcommand::Plot(args) => plot::run(args, &mut out),
         Subcommand::Calibrate(args) => match &args.command {
-            Some(CalibrateSubcommand::Ph(args)) => calibrate::run(&catalog, global, args, &mut out),
+            Some(CalibrateSubcommand::Ph(args)) => calibrate::run(&catalog, args, &mut out),
             Some(CalibrateSubcommand::History(args)) => calibration_history::list(&catalog, args, &mut out),
-            Some(CalibrateSubcommand::Restore(args)) => calibration_history::restore(&catalog, global, args, &mut out),
-            None => calibrate_linear::run(&catalog, global, &args.linear, &ctrl_c_flag(), &mut out),
+            Some(CalibrateSubcommand::Restore(args)) => calibration_history::restore(&catalog, args, &mut out),
+            None => calibrate_linear::run(&catalog, &args.linear, &ctrl_c_flag(), &mut out),
         },
         Subcommand::Coefficients(CoefficientsSubcommand::Backup(args)) => {
-            coefficients::backup(&catalog, global, args, &mut out)
+            coefficients::backup(&catalog, args, &mut out)
         }
         Subcommand::Coefficients(CoefficientsSubcommand::Restore(args)) => {
-            coefficients::restore(&catalog, global, args, &mut out)
+            coefficients::restore(&catalog, args, &mut out)
         }
-        Subcommand::Scan(args) => scan::run(&catalog, global, args, &mut out),
-        Subcommand::Doctor(args) => doctor::run(&catalog, global, args, &ctrl_c_flag(), &mut out),
-        Subcommand::SetAddress(args) => set_address::run(&catalog, global, args, &mut out),
+        Subcommand::Scan(args) => scan::run(&catalog, args, &mut out),
+        Subcommand::Doctor(args) => doctor::run(&catalog, args, &ctrl_c_flag(), &mut out),
+        Subcommand::SetAddress(args) => set_address::run(&catalog, args, &mut out),
         Subcommand::Decode(args) => decode::run(&catalog, args, &mut out),
         Subcommand::Encode(args) => encode::run(&catalog, args, &mut out),
         Subcommand::Simulate(args) => simulate::run(&catalog, args, &ctrl_c_flag(), &mut out),

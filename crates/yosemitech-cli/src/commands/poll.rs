@@ -13,7 +13,6 @@ use yosemitech_spec::{CommandSpec, Derived, Sensor, Value};
 
 use yosemitech_station::plan;
 
-use crate::args::Global;
 use crate::args::InputArgs;
 use crate::catalog::Catalog;
 use crate::commands::read::derived_json;
@@ -97,13 +96,7 @@ fn csv(text: &str) -> String {
 }
 
 /// Runs `poll` until `count` polls are done or `stop` is set (Ctrl-C).
-pub fn run(
-    catalog: &Catalog,
-    global: &Global,
-    args: &PollArgs,
-    stop: &Arc<AtomicBool>,
-    out: &mut dyn Write,
-) -> Result<()> {
+pub fn run(catalog: &Catalog, args: &PollArgs, stop: &Arc<AtomicBool>, out: &mut dyn Write) -> Result<()> {
     let sensor = catalog.sensor(&args.sensor)?;
     let chosen = plan::choose(sensor, &args.measurements).map_err(|e| {
         CliError::usage(e.to_string())
@@ -118,7 +111,7 @@ pub fn run(
     let read_names: Vec<&str> = reads.iter().map(|c| c.name.as_str()).collect();
     // The units are checked before the port opens: a typo costs no transaction.
     let chosen = choose_units(sensor, &planned, &read_names, &args.units)?;
-    let mut opened = port::open(&args.port, global, &sensor.serial)?;
+    let mut opened = port::open(&args.port, &sensor.serial)?;
 
     let columns: Vec<Column<'_>> = planned
         .reads

@@ -6,7 +6,6 @@ use std::time::SystemTime;
 use serde_json::json;
 use yosemitech_spec::{CommandSpec, Derived, Values};
 
-use crate::args::Global;
 use crate::args::InputArgs;
 use crate::catalog::{self, Catalog};
 use crate::derived;
@@ -44,7 +43,7 @@ pub struct ReadArgs {
 }
 
 /// Runs `read`.
-pub fn run(catalog: &Catalog, global: &Global, args: &ReadArgs, out: &mut dyn Write) -> Result<()> {
+pub fn run(catalog: &Catalog, args: &ReadArgs, out: &mut dyn Write) -> Result<()> {
     let sensor = catalog.sensor(&args.sensor)?;
     let command = catalog::command(sensor, &args.command)?;
     if !command.is_read() {
@@ -57,7 +56,7 @@ pub fn run(catalog: &Catalog, global: &Global, args: &ReadArgs, out: &mut dyn Wr
     let covered: Vec<&Derived> =
         beside::beside(sensor, &|c, _| c == command.name, &|_, _| None, &|_| None).iter().map(|d| d.quantity).collect();
     let chosen = Chosen::resolve(&args.units, &units::quantities(command, &covered), &sensor.name)?;
-    let mut opened = port::open(&args.port, global, &sensor.serial)?;
+    let mut opened = port::open(&args.port, &sensor.serial)?;
     let values = device::read(&mut opened, command, address)?;
     let lookup = |c: &str, f: &str| {
         if c == command.name {

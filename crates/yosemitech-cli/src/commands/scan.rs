@@ -9,7 +9,6 @@ use yosemitech_rtu::{Error as RtuError, FrameError, LineSettings, Version};
 use yosemitech_spec::interp::{decode_field, decode_fields};
 use yosemitech_spec::{CommandSpec, FieldKind, Manual, Role, Sensor, Value};
 
-use crate::args::Global;
 use crate::catalog::Catalog;
 use crate::commands::list::software_key;
 use crate::error::{CliError, Result, request_failed, short};
@@ -35,7 +34,7 @@ pub struct ScanArgs {
 pub fn parse_addresses(text: &str) -> Result<Vec<u8>> {
     let bad = |part: &str| {
         CliError::usage(format!("`{part}` in --addresses is not an address or a range"))
-            .hint("write addresses 1..=247 as 1-247, 1,5,10-20 or 3")
+            .hint("write addresses 1 to 247 as 1-247, 1,5,10-20 or 3")
     };
     let mut out = Vec::new();
     for part in text.split(',').map(str::trim).filter(|p| !p.is_empty()) {
@@ -544,7 +543,7 @@ pub fn identify_at<'c>(catalog: &'c Catalog, opened: &mut Opened, address: u8) -
 }
 
 /// Runs `scan`.
-pub fn run(catalog: &Catalog, global: &Global, args: &ScanArgs, out: &mut dyn Write) -> Result<()> {
+pub fn run(catalog: &Catalog, args: &ScanArgs, out: &mut dyn Write) -> Result<()> {
     let addresses = parse_addresses(&args.addresses)?;
     let requests = sn_requests(catalog);
     if requests.is_empty() {
@@ -552,7 +551,7 @@ pub fn run(catalog: &Catalog, global: &Global, args: &ScanArgs, out: &mut dyn Wr
             .hint("scan reads the command with `role: serial_number`; check the --spec files"));
     }
     let serial = common_serial(catalog);
-    let mut opened = port::open_with(&args.port, global, &serial, Duration::from_millis(100), 0)?;
+    let mut opened = port::open_with(&args.port, &serial, Duration::from_millis(100), 0)?;
     if !args.json {
         let with: Vec<String> = requests
             .iter()

@@ -7,7 +7,6 @@ use yosemitech::procedures::address::{AddressChangeError, change_address_with};
 use yosemitech_rtu::LineSettings;
 use yosemitech_spec::{CommandSpec, Role, Sensor, Value};
 
-use crate::args::Global;
 use crate::catalog::Catalog;
 use crate::confirm::{confirm, ensure_can_ask};
 use crate::error::{CliError, Result, request_failed};
@@ -101,9 +100,9 @@ pub(crate) fn pick_commands<'c>(
 }
 
 /// Runs `set-address` (`--plan`: [`super::address_plan`]).
-pub fn run(catalog: &Catalog, global: &Global, args: &SetAddressArgs, out: &mut dyn Write) -> Result<()> {
+pub fn run(catalog: &Catalog, args: &SetAddressArgs, out: &mut dyn Write) -> Result<()> {
     if args.plan {
-        return super::address_plan::run(catalog, global, args, out);
+        return super::address_plan::run(catalog, args, out);
     }
     let (Some(from), Some(to)) = (args.from, args.to) else {
         return Err(CliError::usage("set-address needs --from and --to").hint("or --plan to address a bus of probes"));
@@ -117,7 +116,7 @@ pub fn run(catalog: &Catalog, global: &Global, args: &SetAddressArgs, out: &mut 
     let frames = ChangeFrames::build(write, probe, from, to)?;
     let serial = if args.sensor.is_some() { sensor.serial } else { LineSettings::default() };
     ensure_can_ask(args.yes, "change the address")?;
-    let mut opened = port::open(&args.port, global, &serial)?;
+    let mut opened = port::open(&args.port, &serial)?;
     writeln!(out, "changing the slave address of the probe at {from} to {to} on {}", opened.port)?;
     out.flush()?;
     confirm(args.yes, &format!("Change address {from} to {to}?"))?;
@@ -198,7 +197,7 @@ pub(crate) fn explain(
                 .hint(format!("choose a free address; `{scan}` lists the used ones"))
         }
         AddressChangeError::SameAddress(a) => CliError::usage(format!("the probe is already at address {a}")),
-        AddressChangeError::InvalidAddress(a) => CliError::usage(format!("address {a} is outside 1..=247")),
+        AddressChangeError::InvalidAddress(a) => CliError::usage(format!("address {a} is outside 1 to 247")),
         AddressChangeError::NotFound { address, error } => {
             let base = request_failed(error, reply, ctx);
             CliError::device(format!("no probe answers at address {address}; nothing was written ({})", base.message))

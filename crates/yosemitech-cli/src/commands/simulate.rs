@@ -122,7 +122,7 @@ pub fn parse_faults(spec: &str, seed: u64) -> Result<FaultConfig> {
             continue;
         }
         let p: f64 = value.parse().ok().filter(|p: &f64| (0.0..=1.0).contains(p)).ok_or_else(|| {
-            CliError::usage(format!("`{value}` in --faults is not a probability 0..=1")).hint(hint.clone())
+            CliError::usage(format!("`{value}` in --faults is not a probability 0 to 1")).hint(hint.clone())
         })?;
         if key == "all" {
             let seeded = FaultConfig::uniform(seed, p);

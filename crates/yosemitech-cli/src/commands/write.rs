@@ -6,7 +6,6 @@ use std::io::Write;
 use yosemitech_spec::{CommandSpec, Role, Value};
 
 use crate::args::BackupDir;
-use crate::args::Global;
 use crate::backup;
 use crate::catalog::{self, Catalog, read_back_for};
 use crate::confirm::{confirm, ensure_can_ask};
@@ -40,7 +39,7 @@ pub struct WriteArgs {
 }
 
 /// Runs `write`.
-pub fn run(catalog: &Catalog, global: &Global, args: &WriteArgs, out: &mut dyn Write) -> Result<()> {
+pub fn run(catalog: &Catalog, args: &WriteArgs, out: &mut dyn Write) -> Result<()> {
     let entry = catalog.entry(&args.sensor)?;
     let sensor = &entry.sensor;
     let command = catalog::command(sensor, &args.command)?;
@@ -56,7 +55,7 @@ pub fn run(catalog: &Catalog, global: &Global, args: &WriteArgs, out: &mut dyn W
         .map_err(|e| CliError::usage(format!("cannot build the {} request: {e}", command.name)))?;
     ensure_can_ask(args.yes, &format!("send {}", command.name))?;
 
-    let mut opened = port::open(&args.port, global, &sensor.serial)?;
+    let mut opened = port::open(&args.port, &sensor.serial)?;
     let is_coefficient = sensor.coefficient_blocks().iter().any(|(w, _)| w.name == command.name);
     if is_coefficient {
         let taken = backup::take_backup(&mut opened, entry, address)?;

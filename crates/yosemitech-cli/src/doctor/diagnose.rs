@@ -302,7 +302,7 @@ impl<'c> Doctor<'_, 'c> {
                         if (1..=247).contains(&reported) {
                             ", where it does not answer"
                         } else {
-                            ", outside 1..=247, where no master can reach it"
+                            ", outside 1 to 247, where no master can reach it"
                         }
                     ),
                     "alone on the bus, give it an address in 1..=247 with the vendor's tool or a set-slave-address \

@@ -143,7 +143,7 @@ impl fmt::Display for Finding {
             Self::NotItsFixedAddress { command, address, slave } => {
                 write!(f, "{command} is sent to and answered from address 0x{address:02X}, not {slave}")
             }
-            Self::AddressOutOfRange { slave } => write!(f, "address {slave} is outside 1..=247"),
+            Self::AddressOutOfRange { slave } => write!(f, "address {slave} is outside 1 to 247"),
             Self::TriggerByteCount { byte_count } => {
                 write!(f, "byte count 0x{byte_count:02X}: a trigger's reply carries no value, accepted")
             }

@@ -39,6 +39,11 @@ pub(super) fn read_capture(path: &Path) -> Result<String> {
 /// Hex as people type it (spaces, `0x` prefixes, commas, colons, dashes or
 /// semicolons between bytes), of any length: one frame or a whole stream.
 pub(super) fn parse_hex(text: &str) -> Result<Vec<u8>> {
+    // `-` is how other tools say "stdin": here that is `--capture -`.
+    if text.trim() == "-" {
+        return Err(CliError::usage("`-` is not a frame: to read frames from stdin, use `--capture -`")
+            .hint("`decode --capture -` reads a capture (one frame a line, or a hex stream) from stdin"));
+    }
     let shown: String = match text.trim() {
         t if t.chars().count() > 72 => format!("{}…", t.chars().take(72).collect::<String>()),
         t => t.to_owned(),
