@@ -69,7 +69,7 @@ pub enum AddressChangeError {
 impl fmt::Display for AddressChangeError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
-            Self::InvalidAddress(a) => write!(f, "address {a} is outside 1..=247"),
+            Self::InvalidAddress(a) => write!(f, "address {a} is outside 1 to 247"),
             Self::SameAddress(a) => write!(f, "the probe is already at address {a}"),
             Self::AddressInUse(a) => write!(f, "another device already answers at address {a}"),
             Self::NotFound { address, error } => write!(f, "no probe answers at address {address}: {error}"),

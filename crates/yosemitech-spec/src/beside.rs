@@ -91,7 +91,7 @@ fn compute<'s>(
             && v.is_finite()
             && !(min..=max).contains(&v)
         {
-            let why = format!("station input {name} is {v}, outside {min}..={max}");
+            let why = format!("station input {name} is {v}, outside {min} to {max}");
             return DerivedValue { quantity: d, value: Err(why), defaulted };
         }
         inputs.push(v as f32);
@@ -122,7 +122,7 @@ impl StationInput<'_> {
             notes.push(format!("default {d}"));
         }
         if let Some((min, max)) = i.range {
-            notes.push(format!("{min}..={max}"));
+            notes.push(format!("{min} to {max}"));
         }
         if !notes.is_empty() {
             text.push_str(&format!(" ({})", notes.join(", ")));
@@ -193,7 +193,7 @@ impl fmt::Display for StationInputError {
             ),
             Self::NotFinite { name } => write!(f, "station input `{name}` is not a finite number"),
             Self::OutOfRange { name, value, quantity, min, max } => {
-                write!(f, "station input `{name}` = {value} is outside {min}..={max}, the range `{quantity}` takes")
+                write!(f, "station input `{name}` = {value} is outside {min} to {max}, the range `{quantity}` takes")
             }
         }
     }

@@ -256,7 +256,7 @@ fn int_in(field: &Field, value: &Value, min: i64, max: i64) -> Result<i64, Encod
         }
     };
     if v < min || v > max {
-        return Err(out_of_range(field, format!("{v} is outside {min}..={max}")));
+        return Err(out_of_range(field, format!("{v} is outside {min} to {max}")));
     }
     Ok(v)
 }
@@ -266,7 +266,7 @@ fn check_range(ranges: bool, field: &Field, v: f64) -> Result<(), EncodeValuesEr
     match field.range {
         _ if !ranges => Ok(()),
         Some((min, max)) if !(min..=max).contains(&v) => {
-            Err(out_of_range(field, format!("{v} is outside the valid range {min}..={max}")))
+            Err(out_of_range(field, format!("{v} is outside the valid range {min} to {max}")))
         }
         _ => Ok(()),
     }

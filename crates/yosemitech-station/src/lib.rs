@@ -19,6 +19,7 @@
 //! loaded spec (`yosemitech_spec`).
 #![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used, clippy::panic))]
 
+mod amounts;
 pub mod calibration;
 pub mod config;
 pub mod derive;
