@@ -20,12 +20,7 @@ impl StoredReadings {
     /// Opens the store at `path`, which must exist: watching or plotting
     /// never creates one.
     pub fn open(path: &Path) -> Result<Self> {
-        if !path.is_file() {
-            return Err(CliError::usage(format!("{}: no such store", path.display()))
-                .hint("`yosemitech log --config station.toml` writes a station's store"));
-        }
-        let store = Store::open(path).map_err(|e| failed(path, &e))?;
-        Ok(Self { store, path: path.to_owned() })
+        Ok(Self { store: open_existing(path)?, path: path.to_owned() })
     }
 
     /// Readings with `from <= time < to`, in the order they were committed.
@@ -55,6 +50,17 @@ impl StoredReadings {
         }
         Ok(Snapshot::from_readings(&readings, history))
     }
+}
+
+/// The station store at `path`, which must exist: the views and `export`
+/// read a store and never create one, and all say so in the same words.
+pub fn open_existing(path: &Path) -> Result<Store> {
+    if !path.is_file() {
+        return Err(CliError::usage(format!("no station store at {}", path.display())).hint(
+            "pass the `[storage] path` of the station file; `yosemitech log --config station.toml` writes the store",
+        ));
+    }
+    Store::open(path).map_err(|e| failed(path, &e))
 }
 
 fn failed(path: &Path, e: &StoreError) -> CliError {

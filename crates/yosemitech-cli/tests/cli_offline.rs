@@ -756,6 +756,8 @@ fn bad_input_gets_one_error_and_a_hint() {
         (&["decode", "01 03 zz"], 2, "not a hex digit"),
         (&["decode", "0103"], 2, "too short"),
         (&["decode", "-"], 2, "use `--capture -`"),
+        (&["export", "--db", "/nonexistent/station.sqlite"], 2, "no station store at /nonexistent/station.sqlite"),
+        (&["plot", "--db", "/nonexistent/station.sqlite", "--out", "/nonexistent/day.png"], 2, "no station store at"),
         (&["decode", "01 2B 0E 01 00 70 77"], 1, "function 0x2B"),
         (&["set-address", "--port", "/dev/null", "--from", "0", "--to", "5"], 2, "--from 0 is outside 1 to 247"),
         (&["set-address", "--port", "/dev/null", "--from", "1", "--to", "248"], 2, "--to 248 is outside 1 to 247"),

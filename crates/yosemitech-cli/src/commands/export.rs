@@ -3,10 +3,11 @@
 use std::io::Write;
 use std::time::{Duration, UNIX_EPOCH};
 
-use yosemitech_station::{Store, export};
+use yosemitech_station::export;
 
 use crate::args::StoredRange;
 use crate::error::{CliError, Result};
+use crate::stored::open_existing;
 use clap::Args;
 use clap::ValueEnum;
 
@@ -33,14 +34,7 @@ pub struct ExportArgs {
 
 /// Runs `export`.
 pub fn run(args: &ExportArgs, out: &mut dyn Write) -> Result<()> {
-    if !args.range.db.is_file() {
-        return Err(CliError::usage(format!("no database at {}", args.range.db.display()))
-            .hint("pass the `[storage] path` of the station file that `yosemitech log` writes"));
-    }
-    let store = Store::open(&args.range.db).map_err(|e| {
-        CliError::device(format!("cannot open {}: {e}", args.range.db.display()))
-            .hint("is it the SQLite file `yosemitech log` writes?")
-    })?;
+    let store = open_existing(&args.range.db)?;
     let from = args.range.from.unwrap_or(UNIX_EPOCH);
     // The far future: every reading.
     let to = args.range.to.unwrap_or(UNIX_EPOCH + Duration::from_secs(i64::MAX as u64 / 1000 / 2));
