@@ -1,6 +1,7 @@
 //! `cargo xtask docs [--check]`: writes `docs/sensors/<sensor>.md`, one
-//! register map per sensor, from `spec/`. `--check` fails when a map is stale
-//! or left over (CI).
+//! register map per sensor, from `spec/`, and the README's generated blocks
+//! (`readme`). `--check` fails when a map or a block is stale, or a map is
+//! left over (CI).
 
 use std::fmt::Write as _;
 use std::path::Path;
@@ -19,14 +20,16 @@ pub fn run(args: &[String]) -> anyhow::Result<ExitCode> {
     let root = crate::root();
     let spec = yosemitech_spec::load_paths(&[root.join("spec")]).map_err(|e| anyhow::anyhow!("{e}"))?;
     let files = spec.sensors.iter().map(|s| (format!("{}.md", s.name), register_map(s))).collect();
-    crate::generated_files::GeneratedFiles {
+    let maps = crate::generated_files::GeneratedFiles {
         what: "register maps",
         command: "cargo xtask docs",
         dir: root.join("docs/sensors"),
         files,
         owns_suffix: Some(".md"),
     }
-    .ensure(check)
+    .ensure(check)?;
+    let readme = crate::readme::ensure(&spec, check)?;
+    Ok(if maps == ExitCode::SUCCESS { readme } else { maps })
 }
 
 /// Text on one line, safe inside a Markdown table cell.

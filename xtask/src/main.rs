@@ -22,6 +22,7 @@ mod docs;
 mod fuzz;
 mod generated_files;
 mod import;
+mod readme;
 mod schema;
 mod semver;
 mod validate;

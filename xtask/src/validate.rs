@@ -26,27 +26,7 @@ pub fn run(args: &[String]) -> anyhow::Result<ExitCode> {
         .map_err(|_| anyhow::anyhow!("internal error: the spec loader panicked; please report this input"))?;
     match loaded {
         Ok(spec) => {
-            let s = spec.summary();
-            let manuals: usize = spec.sensors.iter().map(|x| x.manuals().count()).sum();
-            let unsourced = spec.sensors.iter().filter(|x| x.manual.is_none()).count();
-            let aliases: usize = spec.sensors.iter().map(|x| x.aliases.len()).sum();
-            println!(
-                "validated {} ({} from {}, {} without a manual, from the field's sources; {} sharing a sensor's commands), {}, {}: {} frames printed ({} complete with their CRC, {} without a CRC or with placeholders), {} checked with the errata's corrections; {}; {} ({} of their examples computed and held)",
-                count(s.sensors, "sensor", "sensors"),
-                s.sensors - unsourced,
-                count(manuals, "manual", "manuals"),
-                unsourced,
-                count(aliases, "model alias", "model aliases"),
-                count(s.commands, "command", "commands"),
-                count(s.examples, "example", "examples"),
-                s.printed_frames,
-                s.complete_frames,
-                s.printed_frames - s.complete_frames,
-                s.frames,
-                count(s.errata, "erratum", "errata"),
-                count(s.derived, "derived quantity", "derived quantities"),
-                s.derived_examples,
-            );
+            println!("{}", summary_line(&spec));
             // A note, never an error: a spec may use any unit; only conversion needs the table.
             let outside = units_outside_the_table(&spec);
             if !outside.is_empty() {
@@ -63,6 +43,32 @@ pub fn run(args: &[String]) -> anyhow::Result<ExitCode> {
             Ok(ExitCode::FAILURE)
         }
     }
+}
+
+/// The one line a successful run prints: what the spec holds (README
+/// shows it, kept fresh by `cargo xtask docs`).
+pub fn summary_line(spec: &yosemitech_spec::Spec) -> String {
+    let s = spec.summary();
+    let manuals: usize = spec.sensors.iter().map(|x| x.manuals().count()).sum();
+    let unsourced = spec.sensors.iter().filter(|x| x.manual.is_none()).count();
+    let aliases: usize = spec.sensors.iter().map(|x| x.aliases.len()).sum();
+    format!(
+        "validated {} ({} from {}, {} without a manual, from the field's sources; {} sharing a sensor's commands), {}, {}: {} frames printed ({} complete with their CRC, {} without a CRC or with placeholders), {} checked with the errata's corrections; {}; {} ({} of their examples computed and held)",
+        count(s.sensors, "sensor", "sensors"),
+        s.sensors - unsourced,
+        count(manuals, "manual", "manuals"),
+        unsourced,
+        count(aliases, "model alias", "model aliases"),
+        count(s.commands, "command", "commands"),
+        count(s.examples, "example", "examples"),
+        s.printed_frames,
+        s.complete_frames,
+        s.printed_frames - s.complete_frames,
+        s.frames,
+        count(s.errata, "erratum", "errata"),
+        count(s.derived, "derived quantity", "derived quantities"),
+        s.derived_examples,
+    )
 }
 
 /// The units of fields and derived quantities that `yosemitech_spec::units`
