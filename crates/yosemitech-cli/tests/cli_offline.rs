@@ -652,6 +652,7 @@ fn bad_input_gets_one_error_and_a_hint() {
                     ([&["read", &typo(name), read][..], &null].concat(), 2, format!("did you mean `{name}`")),
                     ([&["read", name, &typo(read)][..], &null].concat(), 2, format!("did you mean `{read}`")),
                     (vec!["read", name, read], 2, "no port given".into()),
+                    ([&["read", name][..], &null].concat(), 2, format!("say which read of `{name}`: ")),
                     (vec!["read", name, read, "--port", "/dev/yosemitech-no-such-port"], 1, "not found".into()),
                     ([&["read", name, read][..], &null, &["--address", "0"]].concat(), 2, "outside 1 to 247".into()),
                     ([&["read", name, read][..], &null, &["--address", "248"]].concat(), 2, "outside 1 to 247".into()),

@@ -24,8 +24,8 @@ use yosemitech_spec::beside::{self, DerivedValue};
 pub struct ReadArgs {
     /// Sensor (`yosemitech list` shows them).
     pub sensor: String,
-    /// Read command (`yosemitech list SENSOR` shows them).
-    pub command: String,
+    /// Read command (`yosemitech list SENSOR` shows them; without one, `read` names them).
+    pub command: Option<String>,
     #[command(flatten)]
     pub port: PortArgs,
     #[command(flatten)]
@@ -45,7 +45,10 @@ pub struct ReadArgs {
 /// Runs `read`.
 pub fn run(catalog: &Catalog, args: &ReadArgs, out: &mut dyn Write) -> Result<()> {
     let sensor = catalog.sensor(&args.sensor)?;
-    let command = catalog::command(sensor, &args.command)?;
+    let Some(name) = args.command.as_deref() else {
+        return Err(which_read(sensor));
+    };
+    let command = catalog::command(sensor, name)?;
     if !command.is_read() {
         return Err(CliError::usage(format!("`{}` is a write command", command.name))
             .hint(format!("send it with `yosemitech write {} {} ...`", sensor.name, command.name)));
@@ -135,4 +138,16 @@ pub fn show(command: &CommandSpec, values: &Values, out: &mut dyn Write) -> Resu
         writeln!(out, "{name:width$}  {}", value_with_unit(value, command.field(name)))?;
     }
     Ok(())
+}
+
+/// The error of a `read` that names no command: the sensor's reads, and the
+/// commands that read every measurement at once.
+fn which_read(sensor: &yosemitech_spec::Sensor) -> CliError {
+    let reads: Vec<&str> = sensor.commands.iter().filter(|c| c.is_read()).map(|c| c.name.as_str()).collect();
+    let example = sensor.measurement_reads().next().map_or("COMMAND", |c| c.name.as_str());
+    CliError::usage(format!("say which read of `{}`: {}", sensor.name, reads.join(", "))).hint(format!(
+        "e.g. `yosemitech read {0} {example} --port PORT`; `yosemitech poll {0} -n 1 --port PORT` reads every \
+         measurement once, `yosemitech list {0}` describes each read",
+        sensor.name
+    ))
 }
