@@ -8,6 +8,9 @@
 //! them ([`interp`]): the same walk encodes requests and decodes replies for
 //! the validator, the simulator and the CLI.
 //!
+//! Other YAML a tool reads (`cargo xtask import`'s drafts) goes through
+//! the same reader, with the same limits and messages: [`from_yaml_str`].
+//!
 //! Validation checks, among others: unique names (sensors, commands, fields,
 //! variants, constants), also once converted to Rust; names that are
 //! snake_case identifiers and not keywords; register counts within Modbus
@@ -55,7 +58,7 @@ pub use resolve::{
     parse_hex,
 };
 pub use spanned::Spanned;
-pub use yaml::{MAX_ALIAS_REPLAY, MAX_YAML_ALIASES, MAX_YAML_DEPTH, MAX_YAML_NODES};
+pub use yaml::{MAX_ALIAS_REPLAY, MAX_YAML_ALIASES, MAX_YAML_DEPTH, MAX_YAML_NODES, YamlError, from_yaml_str};
 
 /// The JSON Schema of a spec file, for editors (feature `schema`: the build
 /// scripts that generate code do not need it).

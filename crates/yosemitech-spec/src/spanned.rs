@@ -2,12 +2,13 @@
 //!
 //! A located value is asked for the way serde-saphyr's own `Spanned` asks:
 //! a newtype named `__yaml_spanned`, answered with a map of the value and
-//! its two places. The tree the spec files are read from (`yaml::tree`)
-//! answers it, and so does serde-saphyr (which tools that write spec files
-//! compile, with the feature `serialize`). Unlike serde-saphyr's `Spanned`, this
-//! one does not also accept a value buffered by serde (`flatten`,
-//! `untagged`), which would compile `T`'s deserializer once more for every
-//! primitive; the document types put no located value there.
+//! its two places. The tree YAML is read from (`yaml::tree`, the
+//! workspace's one reader) answers it; so does serde-saphyr, which this
+//! crate's tests use as an oracle (the tools only write YAML with it).
+//! Unlike serde-saphyr's `Spanned`, this one does not also accept a value
+//! buffered by serde (`flatten`, `untagged`), which would compile `T`'s
+//! deserializer once more for every primitive; the document types put no
+//! located value there.
 
 use std::fmt;
 use std::marker::PhantomData;
@@ -54,7 +55,7 @@ impl<'de, T: Deserialize<'de>> Deserialize<'de> for Spanned<T> {
     }
 }
 
-/// Answered by serde-saphyr with a deserializer of the located value.
+/// Answered with a deserializer of the located value.
 struct Request<T>(PhantomData<T>);
 
 impl<'de, T: Deserialize<'de>> Visitor<'de> for Request<T> {
@@ -168,13 +169,14 @@ impl<'de> Visitor<'de> for PlaceVisitor {
             match key {
                 Key::Line => pos.line = number(map.next_value::<u64>()?),
                 Key::Column => pos.column = number(map.next_value::<u64>()?),
-                // serde-saphyr's span is read only as a span; the spec
-                // crate's own reader writes none.
-                #[cfg(any(test, feature = "serialize"))]
+                // serde-saphyr's span reads only as its own type (it
+                // refuses `IgnoredAny`), and serde-saphyr answers a located
+                // value only in the tests; the tree writes no span.
+                #[cfg(test)]
                 Key::Span => {
                     map.next_value::<serde_saphyr::Span>()?;
                 }
-                #[cfg(not(any(test, feature = "serialize")))]
+                #[cfg(not(test))]
                 Key::Span => {
                     map.next_value::<IgnoredAny>()?;
                 }
@@ -209,27 +211,35 @@ mod tests {
         table: BTreeMap<String, Spanned<f64>>,
     }
 
+    /// Read by the tree (the workspace's reader) and by serde-saphyr (the
+    /// oracle), which answer the request alike.
+    fn both(yaml: &str) -> [Doc; 2] {
+        [crate::from_yaml_str(yaml).unwrap(), serde_saphyr::from_str(yaml).unwrap()]
+    }
+
     #[test]
     fn a_value_carries_where_it_is_written_and_where_it_is_used() {
         let yaml = "first: &n 7\nsecond: *n\nlist:\n  - a\n  - b\ntable: {x: 1.5}\n";
-        let doc: Doc = serde_saphyr::from_str(yaml).unwrap();
-        let at = |p: crate::Pos| (p.line, p.column);
-        assert_eq!((doc.first.value, doc.second.value), (7, 7));
-        assert_eq!(at(doc.first.defined), (1, 11));
-        // The alias uses the anchored value: defined there, referenced here.
-        assert_eq!(at(doc.second.defined), (1, 11));
-        assert_eq!(at(doc.second.referenced), (2, 9));
-        let items: Vec<_> = doc.list.value.iter().map(|s| (s.value.as_str(), at(s.defined))).collect();
-        assert_eq!(items, [("a", (4, 5)), ("b", (5, 5))]);
-        assert_eq!(doc.table["x"].value, 1.5);
-        assert_eq!(at(doc.table["x"].defined), (6, 12));
+        for doc in both(yaml) {
+            let at = |p: crate::Pos| (p.line, p.column);
+            assert_eq!((doc.first.value, doc.second.value), (7, 7));
+            assert_eq!(at(doc.first.defined), (1, 11));
+            // The alias uses the anchored value: defined there, referenced here.
+            assert_eq!(at(doc.second.defined), (1, 11));
+            assert_eq!(at(doc.second.referenced), (2, 9));
+            let items: Vec<_> = doc.list.value.iter().map(|s| (s.value.as_str(), at(s.defined))).collect();
+            assert_eq!(items, [("a", (4, 5)), ("b", (5, 5))]);
+            assert_eq!(doc.table["x"].value, 1.5);
+            assert_eq!(at(doc.table["x"].defined), (6, 12));
+        }
     }
 
     #[test]
     fn a_wrong_type_is_an_error_at_the_value() {
-        let Err(e) = serde_saphyr::from_str::<Doc>("first: seven\nsecond: 1\nlist: []\ntable: {}\n") else {
-            panic!("`seven` read as a number")
-        };
+        let yaml = "first: seven\nsecond: 1\nlist: []\ntable: {}\n";
+        let Err(e) = serde_saphyr::from_str::<Doc>(yaml) else { panic!("`seven` read as a number") };
         assert_eq!(e.location().map(|l| (l.line(), l.column())), Some((1, 8)), "{e}");
+        let Err(e) = crate::from_yaml_str::<Doc>(yaml) else { panic!("`seven` read as a number") };
+        assert_eq!((e.pos.line, e.pos.column), (1, 8), "{e}");
     }
 }

@@ -269,7 +269,7 @@ pub(super) fn table_erratum_doc(
     manual: Option<Spanned<String>>,
     note: String,
 ) -> (CommandErratumDoc, Option<String>) {
-    let table: Option<TableSaysDoc> = serde_saphyr::from_str(&format!("{key}: {value}")).ok();
+    let table: Option<TableSaysDoc> = yosemitech_spec::from_yaml_str(&format!("{key}: {value}")).ok();
     let todo = table.is_none().then(|| format!("the table prints {key} {value}"));
     let erratum = CommandErratumDoc {
         id: Spanned::unplaced(id),
@@ -298,7 +298,8 @@ fn stated_values(c: &DCommand, e: &DExample) -> StatedValues {
 
 /// Values by name, each read as YAML would (`7.0` a number), else as text.
 fn stated<'a>(named: impl Iterator<Item = (String, &'a str)>) -> Spanned<BTreeMap<String, Spanned<StatedValue>>> {
-    let read = |value: &str| serde_saphyr::from_str(value).unwrap_or_else(|_| StatedValue::Text(value.to_owned()));
+    let read =
+        |value: &str| yosemitech_spec::from_yaml_str(value).unwrap_or_else(|_| StatedValue::Text(value.to_owned()));
     Spanned::unplaced(named.map(|(name, value)| (name, Spanned::unplaced(read(value)))).collect())
 }
 

@@ -24,7 +24,7 @@ fn import(text: &str) -> Result<Draft, BadInput> {
 
 /// The draft read back as the spec's document types.
 fn document(d: &Draft) -> SpecFile {
-    serde_saphyr::from_str(&d.yaml).unwrap_or_else(|e| panic!("the draft parses back: {e}\n{}", d.yaml))
+    yosemitech_spec::from_yaml_str(&d.yaml).unwrap_or_else(|e| panic!("the draft parses back: {e}\n{}", d.yaml))
 }
 
 #[test]

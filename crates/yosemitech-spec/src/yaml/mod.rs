@@ -14,6 +14,12 @@
 //! top-level list (each command, constant, erratum), so independent
 //! mistakes in separate entries are all reported, with their positions in
 //! the file (see [`parse`]).
+//!
+//! It is the workspace's one YAML reader: the tools that draft spec files
+//! read YAML back through [`from_yaml_str`] (the same tree, limits and
+//! messages, the first problem only). serde-saphyr only writes drafts
+//! (`cargo xtask import`) and, in this crate's tests, is the oracle the
+//! tree's reading is compared with.
 
 mod comma;
 mod error;
@@ -27,6 +33,9 @@ mod scalar;
 mod tree;
 
 use std::borrow::Cow;
+use std::fmt;
+
+use serde::de::DeserializeOwned;
 
 use self::error::{Error, Kind};
 
@@ -108,6 +117,67 @@ pub(crate) fn parse(text: &str) -> Result<SpecFile, Vec<Problem>> {
     problems.sort_by_key(|p| p.pos);
     Err(problems)
 }
+
+/// Reads a `T` from YAML text the way spec files are read: the same limits
+/// ([`MAX_YAML_NODES`], [`MAX_YAML_DEPTH`], [`MAX_YAML_ALIASES`],
+/// [`MAX_ALIAS_REPLAY`]), scalars read by YAML 1.2's core schema as the
+/// type asked for (`yes` is text, not `true`; `.inf` only where a float is
+/// asked for), a key written twice refused, one document only, and an
+/// empty text (or only comments) read as an empty mapping.
+///
+/// For tools that read YAML beside the loader (`cargo xtask import` reads
+/// its drafts back with it), so that what they accept is what a spec file
+/// may hold. Unlike [`crate::load_paths`], it stops at the first problem
+/// and checks nothing beyond the shape of `T`.
+///
+/// ```
+/// use yosemitech_spec::document::StatedValue;
+///
+/// let value: StatedValue = yosemitech_spec::from_yaml_str("7.6").unwrap();
+/// assert_eq!(value, StatedValue::Number(7.6));
+/// let error = yosemitech_spec::from_yaml_str::<StatedValue>("[7, 6]").unwrap_err();
+/// assert_eq!(error.to_string(), "1:1: a stated value is a number or text");
+/// ```
+///
+/// # Errors
+///
+/// The first problem, at its line and column, worded as for a spec
+/// file's author (a tab where YAML expects spaces is reported at the tab, a
+/// quote never closed where it opens).
+pub fn from_yaml_str<T: DeserializeOwned>(text: &str) -> Result<T, YamlError> {
+    tree::from_str(text).map_err(|e| {
+        let Problem { pos, key, message, help } = problem(&e, text, Layout::of(text).as_ref());
+        YamlError { pos, key, message, help }
+    })
+}
+
+/// Why YAML text does not read as the type asked for ([`from_yaml_str`]).
+///
+/// Displayed as `line:column: message`, with the key path before the
+/// message when it is known (`3:5: commands[0] (get_ph).count: ...`).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct YamlError {
+    /// Where (1-based line and column).
+    pub pos: Pos,
+    /// The offending key as a path (`commands[0] (get_ph).count`), or empty.
+    pub key: String,
+    /// What is wrong.
+    pub message: String,
+    /// What would be valid, when it can be told.
+    pub help: Option<String>,
+}
+
+impl fmt::Display for YamlError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{}:{}: ", self.pos.line, self.pos.column)?;
+        if !self.key.is_empty() {
+            write!(f, "{}: ", self.key)?;
+        }
+        f.write_str(&self.message)
+    }
+}
+
+impl std::error::Error for YamlError {}
 
 /// The text parsed to find more problems, and where it resumes.
 struct Part<'a> {
@@ -391,6 +461,58 @@ mod tests {
                 );
             }
         }
+    }
+
+    #[test]
+    fn any_type_reads_through_the_tree_with_its_limits_and_messages() {
+        use std::collections::BTreeMap;
+
+        #[derive(Debug, serde::Deserialize, PartialEq)]
+        #[serde(deny_unknown_fields)]
+        struct Entry {
+            name: String,
+            count: u32,
+            #[serde(default)]
+            flag: bool,
+        }
+        #[derive(Debug, serde::Deserialize, PartialEq)]
+        #[serde(deny_unknown_fields)]
+        struct Doc {
+            entries: Vec<Entry>,
+        }
+        let read = |text: &str| from_yaml_str::<Doc>(text).map_err(|e| e.to_string());
+        let doc = read("entries:\n  - {name: a, count: 0x10}\n  - name: b\n    count: 2\n    flag: true\n");
+        assert_eq!(
+            doc,
+            Ok(Doc {
+                entries: vec![
+                    Entry { name: "a".into(), count: 16, flag: false },
+                    Entry { name: "b".into(), count: 2, flag: true },
+                ]
+            })
+        );
+        for (text, expected) in [
+            ("entries:\n  - name: a\n    cuont: 1\n", "3:5: entries[0] (a).cuont: unknown key `cuont`"),
+            ("entries:\n  - {name: a, count: two}\n", "2:22: entries[0] (a).count: `two` is not a whole number"),
+            ("entries:\n  - {name: a, count: 1, flag: yes}\n", "2:31: entries[0] (a).flag: `yes` is not true or false"),
+            ("entries:\n  - name: a\n    count: 1\n    count: 2\n", "4:5: entries[0] (a).count: duplicate key `count`"),
+            ("entries:\n  - name: \"a\n    count: 1\n", "2:11: this quoted string is never closed"),
+            ("entries:\n  - name: a\n\tcount: 1\n", "3:1: a tab character where YAML expects spaces"),
+            (
+                "entries: []\n---\nentries: []\n",
+                "2:1: a second YAML document starts here; a spec file holds exactly one",
+            ),
+        ] {
+            assert_eq!(read(text), Err(expected.to_owned()), "{text:?}");
+        }
+        // An empty text is an empty mapping.
+        assert_eq!(from_yaml_str::<BTreeMap<String, u32>>("# nothing\n"), Ok(BTreeMap::new()));
+        // The limits are the loader's.
+        let bomb: String = (0..12).fold("a: &a0 [x, x, x, x, x, x, x, x, x, x]\n".to_owned(), |text, i| {
+            format!("{text}a{}: &a{} [{}]\n", i + 1, i + 1, vec![format!("*a{i}"); 10].join(", "))
+        });
+        let Err(e) = from_yaml_str::<BTreeMap<String, serde::de::IgnoredAny>>(&bomb) else { panic!("a bomb read") };
+        assert!(e.message.contains(&MAX_ALIAS_REPLAY.to_string()), "{e}");
     }
 
     proptest::proptest! {

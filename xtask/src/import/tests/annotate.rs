@@ -80,7 +80,7 @@ fn stated_numbers_read_back_as_written() {
     use super::super::annotate::yaml_of;
     for n in [20.0, 17.625, -3.0, 0.1] {
         let yaml = yaml_of(&StatedValue::Number(n)).expect("serializes");
-        let back: StatedValue = serde_saphyr::from_str(&yaml).expect("reads back");
+        let back: StatedValue = yosemitech_spec::from_yaml_str(&yaml).expect("reads back");
         assert_eq!(back, StatedValue::Number(n), "{yaml}");
         assert_eq!(yaml.trim().contains('.'), n.fract() != 0.0, "a whole number has no fraction: {yaml}");
     }
@@ -121,9 +121,9 @@ fn every_reviewed_spec_survives_a_read_and_a_write() {
     for path in files {
         let text = std::fs::read_to_string(&path).expect("readable");
         let data = |text: &str| -> serde_json::Value {
-            as_read(serde_saphyr::from_str(text).unwrap_or_else(|e| panic!("{}: {e}\n{text}", path.display())))
+            as_read(yosemitech_spec::from_yaml_str(text).unwrap_or_else(|e| panic!("{}: {e}\n{text}", path.display())))
         };
-        let document: SpecFile = serde_saphyr::from_str(&text).expect("a reviewed spec reads");
+        let document: SpecFile = yosemitech_spec::from_yaml_str(&text).expect("a reviewed spec reads");
         let written = yaml_of(&document).expect("serializes");
         assert_eq!(data(&written), data(&text), "{}:\n{written}", path.display());
     }
