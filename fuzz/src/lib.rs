@@ -12,7 +12,7 @@
 //! | [`decode_response`] | slave byte + frame | typed decoding of every command of every sensor agrees with the reference interpreter; anything accepted re-encodes to the same frame |
 //! | [`frame_reader`] | header + stale bytes + reply stream, split into chunks | the client's reader never panics or hangs, returns a value only for a valid frame it was sent, and accepts a clean reply |
 //! | [`spec_loader`] | two YAML files | the loader never panics; what it accepts generates code that parses |
-//! | [`cli_decode`] | hex text | the decode library's explanation (`yosemitech_cli::explain`): segmenting, pairing, classification and interpretation against every spec command; its entries cover the bytes exactly |
+//! | [`cli_decode`] | hex text | the decode library's explanation (`yosemitech_cli::explain`): segmenting, pairing, classification and interpretation against every spec command; its entries cover the bytes exactly, and so do the sniffer's (`explain::sniff`), the bytes heard in chunks and silences the data chooses |
 //! | [`segmenter`] | chunk size + bytes | the frame segmenter's spans cover the bytes exactly, frames hold their CRC, and chunked reads find the same spans |
 
 use std::io;
@@ -555,7 +555,8 @@ pub fn spec_loader(data: &[u8]) {
 /// with the decode library ([`yosemitech_cli::explain`]: segmenting,
 /// pairing, classification and interpretation against every spec command,
 /// and a frame on its own) and checks that the explanation covers every
-/// byte exactly once, then runs the generated decoders on the same frame
+/// byte exactly once (and so does the sniffer's, `check_sniffer`), then
+/// runs the generated decoders on the same frame
 /// ([`decode_response`]) and the interpreter on every command.
 pub fn cli_decode(data: &[u8]) {
     let text = String::from_utf8_lossy(data);
@@ -567,6 +568,7 @@ pub fn cli_decode(data: &[u8]) {
     // Text the parser refuses is explained as its raw bytes.
     let parsed = yosemitech_cli::parse_frame(&text);
     check_explanation(parsed.as_deref().unwrap_or(data));
+    check_sniffer(data);
     let Ok(frame) = parsed else { return };
     assert!(!frame.is_empty() && frame.len() <= MAX_ADU);
     if frame.len() < 4 {
@@ -628,6 +630,42 @@ fn check_explanation(bytes: &[u8]) {
             assert_eq!(at, bytes.len(), "entries do not reach the end of {}", Hex(bytes));
         }
     }
+}
+
+/// Hears `data` as `yosemitech sniff` would, in chunks and at times the
+/// data itself chooses (a byte's low bits: where a chunk ends; its high
+/// bits: the silence after it), and checks that every byte is in exactly
+/// one entry, in order.
+fn check_sniffer(data: &[u8]) {
+    use std::time::Duration;
+    use yosemitech_cli::explain::sniff::{Sniffer, Timing};
+    use yosemitech_cli::explain::{Commands, Report};
+    use yosemitech_rtu::{CharFormat, LineTiming};
+    let commands = Commands::new(&spec().sensors);
+    let timing = Timing::of_line(LineTiming::new(9600, CharFormat::EIGHT_N_1), Duration::from_millis(300));
+    let mut sniffer = Sniffer::new(&commands, timing);
+    let (mut heard, mut at, mut start) = (Vec::new(), Duration::ZERO, 0);
+    for (i, byte) in data.iter().enumerate() {
+        if byte & 0x07 == 0 || i + 1 == data.len() {
+            at += Duration::from_micros(u64::from(byte >> 3) * 1_000);
+            heard.extend(sniffer.push(at, data.get(start..=i).unwrap_or(&[])));
+            start = i + 1;
+        }
+    }
+    heard.extend(sniffer.finish());
+    let mut pieces: Vec<(usize, &[u8])> = Vec::new();
+    for h in &heard {
+        match &h.report {
+            Report::Exchange(x) => {
+                pieces.extend(x.request.iter().map(|(f, _)| f).chain(&x.reply).map(|f| (f.place.offset, &f.bytes[..])));
+            }
+            Report::Noise(f) => pieces.push((f.place.offset, &f.bytes[..])),
+            Report::Unreadable { .. } => panic!("the sniffer heard an unreadable line"),
+        }
+    }
+    pieces.sort_unstable();
+    let joined: Vec<u8> = pieces.into_iter().flat_map(|(_, bytes)| bytes.iter().copied()).collect();
+    assert_eq!(joined, data, "the sniffer's entries are not the bytes heard");
 }
 
 // ---------------------------------------------------------------------------

@@ -18,6 +18,7 @@ use crate::commands::read::ReadArgs;
 use crate::commands::scan::ScanArgs;
 use crate::commands::set_address::SetAddressArgs;
 use crate::commands::simulate::SimulateArgs;
+use crate::commands::sniff::SniffArgs;
 use crate::commands::watch::WatchArgs;
 use crate::commands::write::WriteArgs;
 use clap::Parser;
@@ -166,7 +167,7 @@ every byte that comes back. It tells apart no byte at all (power, wiring, A/B, p
 adapter's echo of our own request, garbage (other serial settings: it tries the common baud
 rates in 8N1, 8N2, 8E1, 8O1 and says which answers), replies damaged at a rate (noise,
 termination), several probes on one address, a probe at another address (the wildcard 0xFF,
-then a scan) or only at 0xFF, a reply later than --timeout (it measures the turnaround),
+then a scan) or only at 0xFF, a reply later than --reply-timeout (it measures the turnaround),
 exceptions, and a refused Start Measurement. Ends with a verdict and the next thing to try,
 each finding with the bytes seen. A silent line takes about 40 s; Ctrl-C stops with what it
 found so far. --json for a machine-readable report.")]
@@ -188,6 +189,10 @@ It ends with the bus table (address in decimal and hex, serial number, model), f
     /// Decode frames from a log or a bus capture: command, fields with units, CRC.
     #[command(long_about = DECODE_ABOUT, after_help = DECODE_EXAMPLES)]
     Decode(DecodeCommandArgs),
+
+    /// Listen to a bus another master drives and decode its traffic live.
+    #[command(long_about = SNIFF_ABOUT, after_help = SNIFF_EXAMPLES)]
+    Sniff(SniffArgs),
 
     /// Build a request (or reply) frame offline.
     #[command(long_about = "\
@@ -289,6 +294,35 @@ Exit codes: 0 when every frame was decoded (a Modbus exception reply counts as d
 1 when a frame check fails (CRC, length, slave) or, for several frames, when some frame
 could not be paired or decoded, or was ambiguous; 2 for usage errors: malformed hex, an
 unreadable capture file, an ambiguous single frame or pair (choose with --sensor/--command).";
+
+const SNIFF_ABOUT: &str = "\
+Listen to a bus that another master (a data logger, a PLC, a display) drives, through a second
+adapter on the RS-485 pair, and decode what it hears as it hears it. The port is opened to read
+only: sniff never sends a byte, so it cannot disturb the bus.
+
+Bytes are timestamped as they arrive and framed by the line's silences and the spec's lengths
+together: frames back to back with short gaps are told apart by their lengths and CRCs, and a
+frame a slow adapter hands over in pieces is waited for and flagged (a silence inside a frame
+makes a probe drop it). Each request is paired with the reply that follows it. One line per
+exchange: the time since the start, the slave, the command and sensor it fits (narrowed to one
+sensor as the slave's traffic shows which it is), the values with their units, the reply's
+latency, and what breaks the rules: a silence inside a frame, a reply later than --reply-timeout, a
+wrong CRC or byte count, an exception, a request with no reply, a reply with no request. Noise
+is shown as noise and never ends the listening.
+
+--json prints JSON lines as `decode --capture --json` does, with `time_s`, `latency_ms`,
+`gap_before_ms` and `flags`; --csv one row per exchange. --raw FILE also records every byte with
+its arrival time; `sniff --replay FILE` hears it again, the same way, and `decode --capture
+FILE` reads it too. When it stops (Ctrl-C, --for, the end of a replay) it prints a summary per
+slave: requests, replies, requests without reply, CRC errors, exceptions, late replies, and the
+replies' latency (median, 90th percentile, longest).";
+
+const SNIFF_EXAMPLES: &str = "\
+Examples:
+  yosemitech sniff --port /dev/ttyUSB1
+  yosemitech sniff --port /dev/ttyUSB1 --raw bus.capture --for 10m
+  yosemitech sniff --replay bus.capture --json | jq 'select(.flags != [])'
+  yosemitech sniff --port /dev/ttyUSB1 --csv > bus.csv";
 
 const DECODE_EXAMPLES: &str = "\
 Examples:

@@ -122,6 +122,11 @@ pub fn fields_json(command: &CommandSpec, values: &[(String, Value)]) -> Json {
     )
 }
 
+/// A CSV field, quoted when it needs to be (RFC 4180).
+pub fn csv_field(text: &str) -> String {
+    if text.contains([',', '"', '\n', '\r']) { format!("\"{}\"", text.replace('"', "\"\"")) } else { text.to_owned() }
+}
+
 /// Bytes as `01 03 28 00`.
 pub fn hex(bytes: &[u8]) -> String {
     yosemitech_rtu::Hex(bytes).to_string()

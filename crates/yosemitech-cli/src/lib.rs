@@ -38,6 +38,7 @@ mod device;
 mod doctor;
 mod error;
 pub mod explain;
+mod explained;
 mod format;
 mod help;
 mod history;

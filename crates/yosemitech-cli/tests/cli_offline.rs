@@ -890,16 +890,20 @@ fn only_the_subcommands_that_open_a_port_take_its_timeout_and_retries() {
         .filter_map(|l| l.split_whitespace().next())
         .filter(|s| *s != "help")
         .collect();
-    let mut checked = 0;
+    let (mut checked, mut with_client) = (0, 0);
     for sub in subcommands {
         let help = YOSEMITECH.run(&[sub, "--help"]).ok().to_owned();
+        // The client's options come together, and only with a port (a
+        // listener, `sniff`, opens one without sending: it takes neither).
         let opens_a_port = help.contains("--port");
-        for option in ["--timeout", "--retries"] {
-            assert_eq!(help.contains(option), opens_a_port, "`{sub} --help` and {option}:\n{help}");
-        }
+        let (timeout, retries) = (help.contains("--timeout "), help.contains("--retries "));
+        assert_eq!(timeout, retries, "`{sub} --help`: --timeout and --retries go together:\n{help}");
+        assert!(!timeout || opens_a_port, "`{sub} --help` takes the client's options without a port:\n{help}");
+        with_client += usize::from(timeout);
         checked += 1;
     }
     assert!(checked > 0, "no subcommand in:\n{top}");
+    assert!(with_client > 0, "no subcommand takes the client's options");
 }
 
 #[test]

@@ -23,6 +23,7 @@ mod cli_read;
 mod cli_scan;
 mod cli_set_address;
 mod cli_simulate;
+mod cli_sniff;
 mod cli_spec_files;
 mod cli_station;
 mod cli_station_check;

@@ -20,6 +20,7 @@ pub mod read;
 pub mod scan;
 pub mod set_address;
 pub mod simulate;
+pub mod sniff;
 pub mod watch;
 pub mod write;
 
@@ -80,6 +81,7 @@ pub fn run(cli: &Cli) -> Result<()> {
         Subcommand::Doctor(args) => doctor::run(&catalog, args, &ctrl_c_flag(), &mut out),
         Subcommand::SetAddress(args) => set_address::run(&catalog, args, &mut out),
         Subcommand::Decode(args) => decode::run(&catalog, args, &mut out),
+        Subcommand::Sniff(args) => sniff::run(&catalog, args, &ctrl_c_flag(), &mut out),
         Subcommand::Encode(args) => encode::run(&catalog, args, &mut out),
         Subcommand::Simulate(args) => simulate::run(&catalog, args, &ctrl_c_flag(), &mut out),
         Subcommand::Log(args) if args.check => log::check(&catalog, args, &mut out),

@@ -18,7 +18,7 @@ use crate::catalog::Catalog;
 use crate::commands::read::derived_json;
 use crate::derived;
 use crate::error::{CliError, Result, short};
-use crate::format::parse_duration;
+use crate::format::{csv_field, parse_duration};
 use crate::format::{unit, value_json, value_text};
 use crate::port::AddressArg;
 use crate::port::PortArgs;
@@ -90,11 +90,6 @@ fn plain(value: &Value) -> String {
     }
 }
 
-/// A CSV field, quoted when it needs to be.
-fn csv(text: &str) -> String {
-    if text.contains([',', '"', '\n', '\r']) { format!("\"{}\"", text.replace('"', "\"\"")) } else { text.to_owned() }
-}
-
 /// Runs `poll` until `count` polls are done or `stop` is set (Ctrl-C).
 pub fn run(catalog: &Catalog, args: &PollArgs, stop: &Arc<AtomicBool>, out: &mut dyn Write) -> Result<()> {
     let sensor = catalog.sensor(&args.sensor)?;
@@ -164,10 +159,11 @@ pub fn run(catalog: &Catalog, args: &PollArgs, stop: &Arc<AtomicBool>, out: &mut
         PollFormat::Csv => {
             // A converted column names its unit: the spec's unit is no longer the column's.
             let head = |c: &Column<'_>| match (&c.unit, c.converted) {
-                (Some(u), true) => csv(&format!("{} [{u}]", c.field)),
-                _ => csv(c.field),
+                (Some(u), true) => csv_field(&format!("{} [{u}]", c.field)),
+                _ => csv_field(c.field),
             };
-            let names: Vec<String> = columns.iter().map(head).chain(derived_heads.iter().map(|h| csv(h))).collect();
+            let names: Vec<String> =
+                columns.iter().map(head).chain(derived_heads.iter().map(|h| csv_field(h))).collect();
             writeln!(out, "timestamp,{},error", names.join(","))?;
         }
         PollFormat::Json => {}
@@ -227,10 +223,10 @@ pub fn run(catalog: &Catalog, args: &PollArgs, stop: &Arc<AtomicBool>, out: &mut
             PollFormat::Csv => {
                 let cells: Vec<String> = columns
                     .iter()
-                    .map(|c| csv(&cell(c).as_ref().map(plain).unwrap_or_default()))
-                    .chain(computed.iter().map(|d| csv(&derived_cell(d).unwrap_or_default())))
+                    .map(|c| csv_field(&cell(c).as_ref().map(plain).unwrap_or_default()))
+                    .chain(computed.iter().map(|d| csv_field(&derived_cell(d).unwrap_or_default())))
                     .collect();
-                writeln!(out, "{timestamp},{},{}", cells.join(","), csv(&error))?;
+                writeln!(out, "{timestamp},{},{}", cells.join(","), csv_field(&error))?;
             }
             PollFormat::Json => {
                 let map: Map<String, Json> = columns

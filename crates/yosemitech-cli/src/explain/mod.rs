@@ -28,6 +28,7 @@ pub mod exchange;
 pub mod finding;
 pub mod frame;
 pub mod scan;
+pub mod sniff;
 
 use yosemitech_rtu::crc_ok;
 

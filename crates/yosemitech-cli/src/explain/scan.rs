@@ -76,6 +76,7 @@ struct Pending<'c> {
 }
 
 /// What the scanner found, in input order.
+#[derive(Clone)]
 pub enum Found<'c> {
     /// A request, with its reply if one followed (`intact` false: the reply
     /// is cut short or its CRC is wrong).
@@ -232,6 +233,26 @@ impl<'a, 'c> Scanner<'a, 'c> {
         }
         scanner.feed(&bytes, 0, &map);
         scanner.finish()
+    }
+
+    /// Scans bytes that came as one burst (silence before and after, as a
+    /// sniffer hears them): frames never span bursts, but a request pending
+    /// from an earlier burst takes its reply from this one. Returns what is
+    /// complete, in order; a request with no reply yet stays pending.
+    pub fn feed_burst(&mut self, burst: &[u8], start: usize) -> Vec<Found<'c>> {
+        self.feed(burst, start, &LineMap::default());
+        std::mem::take(&mut self.found)
+    }
+
+    /// The request waiting for its reply, if any.
+    pub fn pending_request(&self) -> Option<&Framed> {
+        self.pending.as_ref().map(|p| &p.request)
+    }
+
+    /// Stops waiting for the pending request's reply: the request without one.
+    pub fn give_up_pending(&mut self) -> Option<Found<'c>> {
+        let Pending { request, header, cands } = self.pending.take()?;
+        Some(Found::Pair { request, header, cands, reply: None, intact: true })
     }
 
     /// Scans one piece (a line, or the whole stream): frames never span pieces.

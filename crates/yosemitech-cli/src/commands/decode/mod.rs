@@ -19,7 +19,7 @@ use serde_json::{Value as Json, json};
 use crate::catalog::Catalog;
 use crate::error::{CliError, Kind as ErrorKind, Result};
 
-use crate::explain::{CaptureMode, Explanation, Finding, explain, explain_capture};
+use crate::explain::{CaptureMode, Explanation, explain, explain_capture};
 
 use self::filter::commands;
 use self::input::{Input, parse_hex, read_capture, read_lines};
@@ -57,11 +57,6 @@ pub struct DecodeCommandArgs {
 }
 
 /// The error as JSON: what `--json` prints instead of (and besides) the `error:` line.
-/// Findings as the words JSON carries.
-fn words(findings: &[Finding]) -> Vec<String> {
-    findings.iter().map(ToString::to_string).collect()
-}
-
 fn error_json(e: &CliError) -> Json {
     json!({
         "message": e.message,

@@ -10,8 +10,9 @@ use crate::error::{CliError, Result};
 use crate::explain::{Decoding, Frame, FrameStatus, Kind};
 use crate::format::{fields_json, hex, value_with_unit, values_json};
 
-use super::print::values_text;
-use super::{error_json, pretty, words};
+use crate::explained::{values_text, words};
+
+use super::{error_json, pretty};
 
 /// `conductivity/ph_orp get_sn (0x0900, 7 registers)`.
 fn candidate_label(d: &Decoding<'_>) -> String {
