@@ -21,9 +21,14 @@ use yosemitech_tests::tap::{Direction, serve_tapped};
 
 const YOSEMITECH: Binary = Binary(env!("CARGO_BIN_EXE_yosemitech"));
 
-/// The sniffer's reply timeout, and the simulator's delay (past it, within the client's).
-const SNIFF_TIMEOUT: &str = "300ms";
-const DELAY: Duration = Duration::from_millis(600);
+/// The sniffer's reply timeout, and the simulator's delay (past it, within
+/// the client's), far apart: a loaded machine delays a clean reply too.
+/// The sniffer's silence is as generous, so that a scheduler's pause
+/// between two chunks of a clean frame is not a silence inside it.
+const SNIFF_TIMEOUT: &str = "700ms";
+const SNIFF_SILENCE: &str = "200ms";
+const DELAY: Duration = Duration::from_millis(1500);
+const CLIENT_TIMEOUT: Duration = Duration::from_secs(3);
 
 /// What the master was told of an exchange, and the fault its probe drew.
 struct Sent {
@@ -112,10 +117,18 @@ fn the_sniffer_hears_every_exchange_and_flags_every_fault() {
         .with(Simulator::new(sensors[0].clone()).with_address(1).with_faults(faults))
         .with(Simulator::new(sensors[1].clone()).with_address(2));
     let tapped = serve_tapped(bus, ServeConfig::default()).unwrap();
-    let (sniffer, output) = start_sniffer(&["--port", &tapped.tap_path, "--json", "--reply-timeout", SNIFF_TIMEOUT]);
+    let (sniffer, output) = start_sniffer(&[
+        "--port",
+        &tapped.tap_path,
+        "--json",
+        "--reply-timeout",
+        SNIFF_TIMEOUT,
+        "--silence",
+        SNIFF_SILENCE,
+    ]);
 
     let config = ClientConfig {
-        timeout: Duration::from_secs(1),
+        timeout: CLIENT_TIMEOUT,
         retry: RetryPolicy { retries: 0, ..RetryPolicy::default() },
         ..ClientConfig::default()
     };
@@ -158,7 +171,7 @@ fn the_sniffer_hears_every_exchange_and_flags_every_fault() {
     assert!(tapped.server.device().collisions() > 0, "the bus saw a collision");
     assert!(sent.last().is_some_and(|s| s.reply.is_err()), "the collision garbled the reply");
 
-    // The sniffer gives up on a last request's reply, then stops on Ctrl-C.
+    // The sniffer has heard the last reply (its silence has passed), then stops on Ctrl-C.
     std::thread::sleep(Duration::from_secs(1));
     interrupt(sniffer);
     let out = output.join().unwrap();
