@@ -25,10 +25,13 @@
 //!
 //! ```
 //! let spec = yosemitech_spec::load_paths(&[concat!(env!("CARGO_MANIFEST_DIR"), "/../../spec").into()])?;
-//! let ph = spec.sensor("ph_orp").and_then(|s| s.command("get_ph")).expect("get_ph is in the spec");
-//! let reply = [0x01, 0x03, 0x04, 0x33, 0x33, 0xF3, 0x40, 0x40, 0x78];
-//! let values = ph.decode_response(1, &reply)?;
-//! assert_eq!(values[0].1, yosemitech_spec::Value::Float(7.6));
+//! // A read's reply as a manual prints it, decoded by the interpreter: one value per named field.
+//! let (read, reply) = (spec.sensors.iter().flat_map(|s| &s.commands))
+//!     .filter(|c| c.is_read())
+//!     .find_map(|c| Some((c, c.examples.iter().find_map(|e| e.true_response())?)))
+//!     .expect("the spec prints a read's reply");
+//! let values = read.decode_response(reply[0], reply)?;
+//! assert_eq!(values.len(), read.named_fields().count());
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 #![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used, clippy::panic))]
