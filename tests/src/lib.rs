@@ -25,7 +25,6 @@ pub mod portal;
 pub mod rtu;
 pub mod sim;
 pub mod slow;
-pub mod tap;
 pub mod values;
 
 /// The workspace's spec directory (`spec/`).

@@ -163,3 +163,20 @@ fn simulate_injects_faults_the_client_retries() {
         .unwrap_or_else(|| panic!("no fault count in: {err}"));
     assert!(injected > 0, "faults were injected: {err}");
 }
+
+#[test]
+fn more_probes_on_the_line_and_a_tap_are_asked_for_clearly() {
+    let sensor = &spec().sensors[0].name;
+    for (args, says) in [
+        (vec!["--also", "no_such_sensor@2"], "no_such_sensor"),
+        (vec!["--also", &**sensor], "SENSOR@ADDRESS"),
+        (vec!["--also", "x@two"], "not an address"),
+        (vec!["--address", "3", "--also", &format!("{sensor}@3")], "two probes at address 3"),
+        (vec!["--also", &format!("{sensor}@248")], "outside 1 to 247"),
+        (vec!["--tap", "--tcp", "127.0.0.1:0"], "--tcp"),
+    ] {
+        let run = YOSEMITECH.run(&[&["simulate", sensor.as_str()], args.as_slice()].concat());
+        assert!(run.stderr.contains(says), "{args:?}: {}", run.stderr);
+        run.fails(2);
+    }
+}

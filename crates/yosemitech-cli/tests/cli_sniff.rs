@@ -14,10 +14,10 @@ use std::time::{Duration, Instant};
 
 use serde_json::Value as Json;
 use yosemitech_rtu::{Client, ClientConfig, RetryPolicy, SerialConfig, SerialTransport};
+use yosemitech_sim::serve::tap::{Direction, serve_pty_tapped};
 use yosemitech_sim::{Bus, FaultConfig, FaultKind, FrameHandler, ServeConfig, Simulator};
 use yosemitech_spec::{CommandSpec, Sensor};
 use yosemitech_tests::cli::{Binary, interrupt, wait};
-use yosemitech_tests::tap::{Direction, serve_tapped};
 
 const YOSEMITECH: Binary = Binary(env!("CARGO_BIN_EXE_yosemitech"));
 
@@ -116,7 +116,7 @@ fn the_sniffer_hears_every_exchange_and_flags_every_fault() {
     let bus = Bus::new()
         .with(Simulator::new(sensors[0].clone()).with_address(1).with_faults(faults))
         .with(Simulator::new(sensors[1].clone()).with_address(2));
-    let tapped = serve_tapped(bus, ServeConfig::default()).unwrap();
+    let tapped = serve_pty_tapped(bus, ServeConfig::default(), true).unwrap();
     let (sniffer, output) = start_sniffer(&[
         "--port",
         &tapped.tap_path,
@@ -253,7 +253,8 @@ fn the_sniffer_hears_every_exchange_and_flags_every_fault() {
 fn a_raw_capture_replays_as_it_was_heard() {
     let spec = spec();
     let sensor = spec.sensors.iter().find(|s| !reads(s).is_empty()).unwrap();
-    let tapped = serve_tapped(Simulator::new(sensor.clone()).with_address(1), ServeConfig::default()).unwrap();
+    let tapped =
+        serve_pty_tapped(Simulator::new(sensor.clone()).with_address(1), ServeConfig::default(), true).unwrap();
     let dir = tempfile::tempdir().unwrap();
     let raw = dir.path().join("bus.capture");
     let raw_arg = raw.to_str().unwrap();
@@ -311,6 +312,81 @@ fn a_raw_capture_replays_as_it_was_heard() {
 }
 
 /// Misuse: no port, a TCP address, a capture that is not one.
+/// `simulate A --also B@2 --tap` started as a user starts it: the bus and
+/// the tap it prints.
+fn simulate_tapped(args: &[&str]) -> (Child, String, String) {
+    let mut child = YOSEMITECH
+        .command()
+        .arg("simulate")
+        .args(args)
+        .arg("--tap")
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut stdout = BufReader::new(child.stdout.take().unwrap());
+    let (mut bus, mut tap) = (String::new(), String::new());
+    stdout.read_line(&mut bus).unwrap();
+    stdout.read_line(&mut tap).unwrap();
+    (child, bus.trim().to_owned(), tap.trim().to_owned())
+}
+
+/// Replies each simulated probe sent, from `simulate`'s closing line
+/// (`address 1: 12 requests, 6 replies, ...; address 2: ...`; each probe
+/// counts every request on the line as its request).
+fn replies_served(stderr: &str) -> BTreeMap<u64, u64> {
+    let line = stderr.lines().find(|l| l.starts_with("stopped:")).expect("a closing line");
+    line.trim_start_matches("stopped:")
+        .split("; address ")
+        .filter_map(|part| {
+            let (address, rest) = part.trim().trim_start_matches("address ").split_once(':')?;
+            let replies = rest.split(", ").find_map(|count| count.trim().strip_suffix(" replies"))?;
+            Some((address.parse().ok()?, replies.parse().ok()?))
+        })
+        .collect()
+}
+
+/// The live view a technician gets: the CLI (scan, then polls) drives two
+/// simulated probes on one line while `sniff` listens on the simulator's
+/// tap. Every exchange is heard, as many per slave as the probe answered;
+/// each slave is named as scan names it, by the serial number overheard.
+#[test]
+fn the_cli_driving_two_simulated_probes_is_heard_live() {
+    let spec = spec();
+    let sensors: Vec<&Sensor> = spec.sensors.iter().filter(|s| !reads(s).is_empty()).take(2).collect();
+    assert_eq!(sensors.len(), 2, "the spec has two sensors with reads");
+    let also = format!("{}@2", sensors[1].name);
+    let (simulator, bus, tap) = simulate_tapped(&[&sensors[0].name, "--address", "1", "--also", &also]);
+    let (sniffer, output) = start_sniffer(&["--port", &tap, "--json"]);
+
+    let scan = YOSEMITECH.run(&["scan", "--port", &bus, "--addresses", "1-2", "--json"]);
+    let scanned = scan.json();
+    for (address, sensor) in [(1, sensors[0]), (2, sensors[1])] {
+        let read = reads(sensor)[0];
+        let run =
+            YOSEMITECH.run(&["read", &sensor.name, &read.name, "--port", &bus, "--address", &address.to_string()]);
+        run.ok();
+    }
+    std::thread::sleep(Duration::from_secs(1));
+    interrupt(sniffer);
+    let served = replies_served(&interrupt(simulator));
+    let (heard, summary) = entries(&output.join().unwrap());
+    assert!(heard.iter().all(|e| e["type"] == "transaction" && e["reply"]["crc_ok"] == true), "{summary}");
+    let slaves = summary["slaves"].as_array().unwrap();
+    for (address, sensor) in [(1u64, sensors[0]), (2, sensors[1])] {
+        let slave = slaves.iter().find(|s| s["slave"] == address).expect("the slave was heard");
+        assert_eq!(slave["replies"].as_u64(), served.get(&address).copied(), "address {address}: {slave}");
+        assert_eq!(slave["replies"], slave["requests"], "{slave}");
+        let device = scanned["devices"].as_array().unwrap().iter().find(|d| d["address"] == address).unwrap();
+        assert_eq!(slave["serial_number"], device["serial_number"], "{slave} / {device}");
+        assert_eq!(slave["model_code"], device["model_code"], "{slave} / {device}");
+        if device["sensor"] == sensor.name.as_str() {
+            assert_eq!(slave["sensor"], sensor.name.as_str(), "named as scan names it: {slave}");
+        }
+    }
+}
+
 #[test]
 fn sniff_misuse_is_a_usage_error() {
     let dir = tempfile::tempdir().unwrap();
@@ -337,7 +413,8 @@ fn a_soak_of_back_to_back_polling_loses_no_exchange() {
     const EXCHANGES: usize = 400;
     let spec = spec();
     let sensor = spec.sensors.iter().find(|s| !reads(s).is_empty()).unwrap();
-    let tapped = serve_tapped(Simulator::new(sensor.clone()).with_address(1), ServeConfig::default()).unwrap();
+    let tapped =
+        serve_pty_tapped(Simulator::new(sensor.clone()).with_address(1), ServeConfig::default(), true).unwrap();
     let (sniffer, output) = start_sniffer(&["--port", &tapped.tap_path, "--json", "--baud", "115200"]);
     let settings = yosemitech_rtu::LineSettings { baud: 115_200, ..yosemitech_rtu::LineSettings::default() };
     let mut client =

@@ -65,7 +65,7 @@ pub use fault::{FaultConfig, FaultCounts, FaultKind, Rng};
 pub use registers::RegisterMap;
 pub use serve::{Endpoint, ServeConfig, Server, serve_mbap, serve_memory, serve_tcp, serve_transport};
 #[cfg(all(unix, feature = "pty"))]
-pub use serve::{pty_keeps_parity, serve_pty};
+pub use serve::{pty_keeps_parity, serve_pty, tap::serve_pty_tapped};
 pub use simulator::{
     SimError, Simulator, Stats, UnknownRequestPolicy, Variation, WATER_TEMPERATURE_C, WATER_TEMPERATURE_SPAN_C,
     daily_span,

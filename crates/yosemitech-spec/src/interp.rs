@@ -393,6 +393,60 @@ fn encode_field_checked(field: &Field, value: &Value, ranges: bool) -> Result<Ve
     })
 }
 
+/// What a serial-number reply carries: the serial number and the model
+/// code, which real probes send in two places (the byte before the text
+/// when it is not 0, `0x09` for "09"; and the text's characters 3-4,
+/// `YL09...`). Which of the two to believe depends on the sensors loaded:
+/// see [`SerialNumberReply::model_code`].
+#[derive(Debug, Clone, PartialEq, Eq, Default)]
+pub struct SerialNumberReply {
+    /// The serial number, as the command's text field reads it.
+    pub text: Option<String>,
+    /// The model code in the reserved byte before the text.
+    pub code_before: Option<String>,
+    /// The model code as the text's characters 3-4.
+    pub code_in_text: Option<String>,
+}
+
+impl SerialNumberReply {
+    /// Reads `data` (the register data of `command`'s reply) as a
+    /// serial-number reply; a command without a text field carries none.
+    pub fn read(command: &CommandSpec, data: &[u8]) -> Self {
+        let Some(field) = command.named_fields().find(|f| matches!(f.kind, FieldKind::Ascii { .. })) else {
+            return Self::default();
+        };
+        let text = match data.get(field.offset..field.offset + field.size()).map(|b| decode_field(field, b)) {
+            Some(Value::Text(t)) => Some(t),
+            _ => None,
+        };
+        let code_before = field
+            .offset
+            .checked_sub(1)
+            .filter(|&at| command.fields.iter().any(|f| f.is_reserved() && f.offset <= at && at < f.offset + f.size()))
+            .and_then(|at| data.get(at).copied())
+            .filter(|&b| b != 0)
+            .map(|b| format!("{b:02X}"));
+        let code_in_text = text.as_deref().and_then(|t| {
+            let code: String = t.chars().skip(2).take(2).collect();
+            (code.chars().count() == 2 && code.chars().all(|c| c.is_ascii_alphanumeric())).then_some(code)
+        });
+        Self { text, code_before, code_in_text }
+    }
+
+    /// The model code to believe, `declared` saying whether a loaded
+    /// sensor declares a code: the byte before the text first, unless it
+    /// names no sensor and the text does.
+    pub fn model_code(&self, declared: impl Fn(&str) -> bool) -> Option<&str> {
+        let before = self.code_before.as_deref();
+        let in_text = self.code_in_text.as_deref();
+        if before.is_some() && (before.is_some_and(&declared) || !in_text.is_some_and(&declared)) {
+            before
+        } else {
+            in_text
+        }
+    }
+}
+
 /// Parses `major.minor` with each part 0..=255.
 pub fn parse_version(text: &str) -> Option<Version> {
     let (major, minor) = text.split_once('.')?;
@@ -441,6 +495,23 @@ impl CommandSpec {
 
 #[cfg(test)]
 mod tests {
+
+    #[test]
+    fn the_model_code_is_the_byte_before_the_text_unless_only_the_text_names_a_sensor() {
+        use super::SerialNumberReply;
+        let reply = |before: Option<&str>, in_text: Option<&str>| SerialNumberReply {
+            text: None,
+            code_before: before.map(str::to_owned),
+            code_in_text: in_text.map(str::to_owned),
+        };
+        let declared = |c: &str| c == "43";
+        assert_eq!(reply(Some("43"), Some("09")).model_code(declared), Some("43"));
+        assert_eq!(reply(Some("09"), Some("43")).model_code(declared), Some("43"));
+        assert_eq!(reply(Some("09"), Some("10")).model_code(declared), Some("09"));
+        assert_eq!(reply(Some("09"), None).model_code(declared), Some("09"));
+        assert_eq!(reply(None, Some("10")).model_code(declared), Some("10"));
+        assert_eq!(reply(None, None).model_code(declared), None);
+    }
     #[test]
     fn an_f32_is_its_shortest_decimal_as_f64() {
         assert_eq!(super::f32_decimal(15.8).to_string(), "15.8");

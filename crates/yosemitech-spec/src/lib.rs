@@ -54,7 +54,7 @@ pub mod units;
 mod yaml;
 
 pub use diag::{Diagnostic, Diagnostics, Pos};
-pub use interp::{Value, Values};
+pub use interp::{SerialNumberReply, Value, Values};
 pub use model::*;
 pub use resolve::{
     IMPORT_TODO, MAX_INCLUDE_DEPTH, MAX_READ_COUNT, MAX_TEXT_LEN, MAX_WRITE_COUNT, Summary, load_paths, load_with,

@@ -6,8 +6,8 @@ use std::time::Duration;
 
 use serde_json::json;
 use yosemitech_rtu::{Error as RtuError, FrameError, LineSettings, Version};
-use yosemitech_spec::interp::{decode_field, decode_fields};
-use yosemitech_spec::{CommandSpec, FieldKind, Manual, Role, Sensor, Value};
+use yosemitech_spec::interp::decode_fields;
+use yosemitech_spec::{CommandSpec, Manual, Role, Sensor, SerialNumberReply, Value};
 
 use crate::catalog::Catalog;
 use crate::commands::list::software_key;
@@ -139,32 +139,6 @@ fn in_load_order<'c>(catalog: &Catalog, mut sensors: Vec<&'c Sensor>) -> Vec<&'c
     sensors
 }
 
-/// The serial number and the model code a serial-number reply carries:
-/// the byte before the text when it is not 0 (real probes send the code
-/// there: 0x09 is "09"), and the text's characters 3-4 (`YL09...`).
-fn read_sn(command: &CommandSpec, data: &[u8]) -> (Option<String>, Option<String>, Option<String>) {
-    let Some(field) = command.named_fields().find(|f| matches!(f.kind, FieldKind::Ascii { .. })) else {
-        return (None, None, None);
-    };
-    let text = data.get(field.offset..field.offset + field.size()).map(|b| decode_field(field, b));
-    let text = match text {
-        Some(Value::Text(t)) => Some(t),
-        _ => None,
-    };
-    let before = field
-        .offset
-        .checked_sub(1)
-        .filter(|&at| command.fields.iter().any(|f| f.is_reserved() && f.offset <= at && at < f.offset + f.size()))
-        .and_then(|at| data.get(at).copied())
-        .filter(|&b| b != 0)
-        .map(|b| format!("{b:02X}"));
-    let in_text = text.as_deref().and_then(|t| {
-        let code: String = t.chars().skip(2).take(2).collect();
-        (code.chars().count() == 2 && code.chars().all(|c| c.is_ascii_alphanumeric())).then_some(code)
-    });
-    (text, before, in_text)
-}
-
 /// What answered at one address.
 struct Found<'c> {
     address: u8,
@@ -269,19 +243,12 @@ struct Reading<'c> {
 
 /// Reads a serial-number reply `read`'s way.
 fn read_reply<'c>(read: &SnRead<'c>, data: &[u8]) -> Reading<'c> {
-    let (text, before, in_text) = read_sn(read.command, data);
-    let matching = |code: &Option<String>| -> Vec<&'c Sensor> {
-        code.as_ref()
-            .map_or_else(Vec::new, |c| read.sensors.iter().copied().filter(|s| s.declares_model_code(c)).collect())
-    };
-    // The byte before the text first, unless it names no sensor and the text does.
-    let (by_before, by_text) = (matching(&before), matching(&in_text));
-    let (model_code, matches) = if before.is_some() && (!by_before.is_empty() || by_text.is_empty()) {
-        (before, by_before)
-    } else {
-        (in_text, by_text)
-    };
-    Reading { serial_number: text, model_code, matches }
+    let reply = SerialNumberReply::read(read.command, data);
+    let model_code = reply.model_code(|c| read.sensors.iter().any(|s| s.declares_model_code(c))).map(str::to_owned);
+    let matches = model_code
+        .as_deref()
+        .map_or_else(Vec::new, |c| read.sensors.iter().copied().filter(|s| s.declares_model_code(c)).collect());
+    Reading { serial_number: reply.text, model_code, matches }
 }
 
 /// Identifies the device at `address`; `None` when nothing answers.
@@ -667,6 +634,7 @@ fn found_line(f: &Found<'_>) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use yosemitech_spec::FieldKind;
 
     fn catalog() -> Catalog {
         Catalog::load(&[]).unwrap()
@@ -714,19 +682,21 @@ mod tests {
             let sn = format!("YL{code}14010022");
             let values = BTreeMap::from([(field.display_name().to_owned(), Value::Text(sn.clone()))]);
             let mut data = yosemitech_spec::interp::encode_fields(command, &values).unwrap();
-            assert_eq!(read_sn(command, &data), (Some(sn.clone()), None, Some(code.clone())), "{}", s.name);
+            let expected =
+                SerialNumberReply { text: Some(sn.clone()), code_before: None, code_in_text: Some(code.clone()) };
+            assert_eq!(SerialNumberReply::read(command, &data), expected, "{}", s.name);
             if field.offset > 0 {
                 data[field.offset - 1] = u8::from_str_radix(code, 16).unwrap();
-                assert_eq!(read_sn(command, &data).1.as_ref(), Some(code), "{}", s.name);
+                assert_eq!(SerialNumberReply::read(command, &data).code_before.as_ref(), Some(code), "{}", s.name);
             }
         }
         // Garbage is shown, never a panic.
         let catalog = catalog();
         let command = sn_reads(&catalog)[0].command;
         let garbage = vec![0xC3; 2 * usize::from(command.count)];
-        let (text, _, code) = read_sn(command, &garbage);
-        assert!(printable(&text.unwrap()).contains("\\x"));
-        assert_eq!(code, None);
+        let reply = SerialNumberReply::read(command, &garbage);
+        assert!(printable(&reply.text.unwrap()).contains("\\x"));
+        assert_eq!(reply.code_in_text, None);
     }
 
     #[test]

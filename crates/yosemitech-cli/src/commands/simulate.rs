@@ -6,16 +6,18 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Duration;
 
 use yosemitech_rtu::{CharFormat, DataBits, LineSettings, Parity, StopBits};
+#[cfg(unix)]
+use yosemitech_sim::serve::tap::TappedBus;
 use yosemitech_sim::{
     Bus, FaultConfig, FaultKind, FrameHandler, SerialNumberPolicy, ServeConfig, Server, Simulator,
     UnknownRequestPolicy, Variation, serve_mbap, serve_tcp,
 };
-use yosemitech_spec::{FieldKind, Role};
+use yosemitech_spec::{FieldKind, Role, Sensor};
 
 use crate::catalog::Catalog;
 use crate::error::{CliError, Result};
 use crate::format::parse_duration;
-use crate::port::AddressArg;
+use crate::port::{AddressArg, check_address};
 use clap::Args;
 use clap::ValueEnum;
 
@@ -39,6 +41,17 @@ pub struct SimulateArgs {
     /// Serve on a new pseudo-terminal (the default).
     #[arg(long, conflicts_with = "tcp")]
     pub pty: bool,
+    /// Another probe on the same line, SENSOR@ADDRESS (repeatable), e.g.
+    /// --also conductivity@2: a station's bus. The line runs at the first
+    /// sensor's serial settings.
+    #[arg(long, value_name = "SENSOR@ADDRESS", conflicts_with = "collide")]
+    pub also: Vec<String>,
+    /// Copy every byte of the line, both ways, to a second pseudo-terminal,
+    /// printed on the line after the first: what a second adapter on the
+    /// RS-485 pair hears (`yosemitech sniff --port` it). Bytes nobody reads
+    /// there are lost to the tap, never to the line.
+    #[arg(long, conflicts_with = "tcp")]
+    pub tap: bool,
     /// Serve over TCP on ADDR (127.0.0.1:5020; port 0 picks a free one).
     #[arg(long, value_name = "ADDR")]
     pub tcp: Option<String>,
@@ -197,25 +210,39 @@ fn colliding_pair(mut sim: Simulator) -> (Simulator, Simulator) {
     (sim, other)
 }
 
-/// Runs `simulate` until `stop` is set (Ctrl-C).
-pub fn run(catalog: &Catalog, args: &SimulateArgs, stop: &Arc<AtomicBool>, out: &mut dyn Write) -> Result<()> {
-    let sensor = Arc::clone(catalog.sensor(&args.sensor)?);
-    let address = args.address.get(sensor.default_address)?;
+/// Parses `conductivity@2`: a sensor of `catalog` and its address.
+fn parse_also(catalog: &Catalog, text: &str) -> Result<(Arc<Sensor>, u8)> {
+    let (name, address) = text.split_once('@').ok_or_else(|| {
+        CliError::usage(format!("`{text}` in --also is not SENSOR@ADDRESS"))
+            .hint("name a sensor and its address, e.g. --also conductivity@2")
+    })?;
+    let address: u32 = address.trim().parse().map_err(|_| {
+        CliError::usage(format!("`{address}` in --also {text} is not an address"))
+            .hint("name a sensor and its address, e.g. --also conductivity@2")
+    })?;
+    let address = check_address(address, "--also address")?;
+    Ok((Arc::clone(catalog.sensor(name.trim())?), address))
+}
+
+/// A simulated `sensor` at `address` as `args` ask (faults, noise, water,
+/// policies); `nth` tells the probes of one line apart in the seeds.
+fn simulator(sensor: Arc<Sensor>, address: u8, args: &SimulateArgs, nth: u64) -> Result<Simulator> {
+    let seed = args.seed.wrapping_add(nth);
     let mut faults = match &args.faults {
-        Some(spec) => parse_faults(spec, args.seed)?,
-        None => FaultConfig::seeded(args.seed),
+        Some(spec) => parse_faults(spec, seed)?,
+        None => FaultConfig::seeded(seed),
     };
     if args.line.mute {
         faults.drop = 1.0;
     }
-    let mut sim = Simulator::new(Arc::clone(&sensor)).with_address(address).with_faults(faults);
+    let mut sim = Simulator::new(sensor).with_address(address).with_faults(faults);
     if let Some(noise) = args.noise {
-        sim.set_variation(Some(Variation::noise(args.seed, noise, 0.0)));
+        sim.set_variation(Some(Variation::noise(seed, noise, 0.0)));
     }
     if !args.examples {
         sim.fill_with_water();
         let noise = args.noise.unwrap_or(0.0);
-        sim.set_variation(Some(Variation { noise, ..Variation::water(args.seed, 0.04, Duration::from_secs(86_400)) }));
+        sim.set_variation(Some(Variation { noise, ..Variation::water(seed, 0.04, Duration::from_secs(86_400)) }));
     }
     if args.exceptions {
         sim.set_unknown_request_policy(UnknownRequestPolicy::Exception);
@@ -224,8 +251,36 @@ pub fn run(catalog: &Catalog, args: &SimulateArgs, stop: &Arc<AtomicBool>, out: 
         sim.set_serial_number_policy(SerialNumberPolicy::AsPrinted);
     }
     sim.set_refuses_start(args.line.refuse_start);
+    Ok(sim)
+}
+
+/// Runs `simulate` until `stop` is set (Ctrl-C).
+pub fn run(catalog: &Catalog, args: &SimulateArgs, stop: &Arc<AtomicBool>, out: &mut dyn Write) -> Result<()> {
+    let sensor = Arc::clone(catalog.sensor(&args.sensor)?);
+    let address = args.address.get(sensor.default_address)?;
+    let sim = simulator(Arc::clone(&sensor), address, args, 0)?;
     let config = serve_config(args, &sensor.serial)?;
     let about = format!("{} ({}) at address {address}", sensor.title, sensor.name);
+    if !args.also.is_empty() {
+        let mut bus = Bus::new().with(sim);
+        let mut abouts = vec![about];
+        for (nth, text) in (1..).zip(&args.also) {
+            let (other, at) = parse_also(catalog, text)?;
+            if bus.device(at).is_some() {
+                return Err(CliError::usage(format!("two probes at address {at} (--also {text})"))
+                    .hint("give each probe of the line an address of its own (--collide simulates two at one)"));
+            }
+            abouts.push(format!("{} ({}) at address {at}", other.title, other.name));
+            bus.push(simulator(other, at, args, nth)?);
+        }
+        return serve_until_stopped(bus, args, config, &abouts.join(", "), stop, out, |bus| {
+            bus.devices()
+                .iter()
+                .map(|d| format!("address {}: {}", d.address(), counts_text(d)))
+                .collect::<Vec<_>>()
+                .join("; ")
+        });
+    }
     if args.line.collide {
         let (one, other) = colliding_pair(sim);
         let bus = Bus::new().with(one).with(other);
@@ -278,7 +333,7 @@ fn serve_until_stopped<D: FrameHandler + Send + 'static>(
     out: &mut dyn Write,
     counts: impl Fn(&D) -> String,
 ) -> Result<()> {
-    let (server, endpoint): (Server<D>, String) = match &args.tcp {
+    let (served, endpoint): (Served<D>, String) = match &args.tcp {
         Some(addr) => {
             let served = match args.protocol {
                 TcpProtocol::Rtu => serve_tcp(device, addr.as_str(), config),
@@ -289,40 +344,80 @@ fn serve_until_stopped<D: FrameHandler + Send + 'static>(
                     .hint("give a free local address, e.g. --tcp 127.0.0.1:5020 (port 0 picks one)")
             })?;
             let endpoint = server.endpoint().to_string();
-            (server, endpoint)
+            (Served::Plain(server), endpoint)
         }
-        None => serve_pty_or_explain(device, config)?,
+        None => serve_pty_or_explain(device, config, args.tap)?,
     };
     writeln!(out, "{endpoint}")?;
+    let tapped = match &served {
+        Served::Tapped(tapped) => format!("; the line is heard on {} (sniff --port it)", tapped.tap_path),
+        Served::Plain(_) => String::new(),
+    };
+    if let Served::Tapped(tapped) = &served {
+        writeln!(out, "{}", tapped.tap_path)?;
+    }
     out.flush()?;
     let mut err = std::io::stderr().lock();
-    let _ = writeln!(err, "simulating {about} on {endpoint}; Ctrl-C stops");
+    let _ = writeln!(err, "simulating {about} on {endpoint}{tapped}; Ctrl-C stops");
     drop(err);
-    while !stop.load(Ordering::SeqCst) && server.is_running() {
+    while !stop.load(Ordering::SeqCst) && served.server().is_running() {
         std::thread::sleep(Duration::from_millis(50));
     }
-    let done = counts(&server.device());
+    let done = counts(&served.server().device());
     let _ = writeln!(std::io::stderr().lock(), "stopped: {done}");
-    server.stop().map_err(|e| CliError::device(format!("the simulator stopped with an error: {e}")))
+    served.stop().map_err(|e| CliError::device(format!("the simulator stopped with an error: {e}")))
+}
+
+/// A server, with the tap its line is heard on where one was asked for.
+enum Served<D> {
+    Plain(Server<D>),
+    #[cfg(unix)]
+    Tapped(TappedBus<D>),
+}
+
+impl<D> Served<D> {
+    fn server(&self) -> &Server<D> {
+        match self {
+            Served::Plain(server) => server,
+            #[cfg(unix)]
+            Served::Tapped(tapped) => &tapped.server,
+        }
+    }
+
+    fn stop(self) -> std::io::Result<()> {
+        match self {
+            Served::Plain(server) => server.stop(),
+            #[cfg(unix)]
+            Served::Tapped(tapped) => tapped.stop(),
+        }
+    }
 }
 
 #[cfg(unix)]
 fn serve_pty_or_explain<D: FrameHandler + Send + 'static>(
     device: D,
     config: ServeConfig,
-) -> Result<(Server<D>, String)> {
-    let server = yosemitech_sim::serve_pty(device, config).map_err(|e| {
+    tap: bool,
+) -> Result<(Served<D>, String)> {
+    let failed = |e: std::io::Error| {
         CliError::device(format!("cannot create a pseudo-terminal: {e}")).hint("use --tcp 127.0.0.1:0 instead")
-    })?;
+    };
+    if tap {
+        let tapped = yosemitech_sim::serve_pty_tapped(device, config, false).map_err(failed)?;
+        let path = tapped.path.clone();
+        return Ok((Served::Tapped(tapped), path));
+    }
+    let server = yosemitech_sim::serve_pty(device, config).map_err(failed)?;
     let path = server.tty_path().unwrap_or_default().to_owned();
-    Ok((server, path))
+    Ok((Served::Plain(server), path))
 }
 
 #[cfg(not(unix))]
 fn serve_pty_or_explain<D: FrameHandler + Send + 'static>(
     _device: D,
     _config: ServeConfig,
-) -> Result<(Server<D>, String)> {
+    _tap: bool,
+) -> Result<(Served<D>, String)> {
     Err(CliError::usage("pseudo-terminals need a Unix system").hint("use --tcp 127.0.0.1:5020 instead"))
 }
 

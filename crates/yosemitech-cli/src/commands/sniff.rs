@@ -132,6 +132,8 @@ fn listen(
     // Only `read` is ever called on the transport: a sniffer must not drive the line.
     let mut transport = SerialTransport::open(&SerialConfig::with_settings(port.clone(), settings))
         .map_err(|e| open_failed(&port, &e))?;
+    // What the adapter held from before we listened has no times to frame it by.
+    transport.discard_input().map_err(|e| CliError::device(format!("clearing {port}'s input: {e}")))?;
     let mut raw = match &args.raw {
         Some(path) => Some(raw_file(path, &format!("{port} at {settings}"))?),
         None => None,
@@ -242,7 +244,7 @@ impl Printer<'_> {
     }
 
     fn finish(&mut self, sniffer: &Sniffer<'_, '_>) -> Result<()> {
-        let identified: Vec<(u8, &str)> = sniffer.identified().collect();
+        let identified = sniffer.identified();
         match self.output {
             Output::Json => {
                 writeln!(self.out, "{}", serde_json::to_string(&self.summary.json(&identified)).unwrap_or_default())?

@@ -32,6 +32,8 @@ pub struct Candidate<'c> {
 /// The commands frames are explained against: every loaded one frames
 /// (framing never depends on a choice), those the choice leaves decode.
 pub struct Commands<'c> {
+    /// Every loaded sensor, in load order.
+    pub sensors: Vec<&'c Sensor>,
     /// Every command of every loaded sensor, in load order.
     pub all: Vec<Candidate<'c>>,
     /// Only this sensor's commands decode.
@@ -43,11 +45,17 @@ pub struct Commands<'c> {
 impl<'c> Commands<'c> {
     /// Every command of `sensors`, none left out.
     pub fn new(sensors: impl IntoIterator<Item = &'c Sensor>) -> Self {
+        let sensors: Vec<&'c Sensor> = sensors.into_iter().collect();
         let all = sensors
-            .into_iter()
+            .iter()
             .flat_map(|s| s.commands.iter().map(move |command| Candidate { sensor: &s.name, command }))
             .collect();
-        Self { all, sensor: None, command: None }
+        Self { sensors, all, sensor: None, command: None }
+    }
+
+    /// The loaded sensor called `name`.
+    pub fn sensor_named(&self, name: &str) -> Option<&'c Sensor> {
+        self.sensors.iter().copied().find(|s| s.name == name)
     }
 
     /// Whether the choice leaves `c`.

@@ -16,19 +16,22 @@
 //! bursts; a request gets [`Timing::give_up`] for its reply.
 //!
 //! What is learnt of each slave: the sensors whose commands explain what
-//! it was asked and answered. Once one sensor alone explains a slave's
-//! traffic, its replies decode as that sensor's (an exchange that sensor
-//! cannot explain is decoded against every sensor again, and the learning
-//! starts over).
+//! it was asked and answered, narrowed further by the model code of a
+//! serial-number reply it is overheard sending (the code scan reads). Once
+//! one sensor alone is left, the slave's replies decode as that sensor's (an
+//! exchange that sensor cannot explain is decoded against every sensor
+//! again, and the learning starts over). The serial number and model code
+//! heard are kept per slave ([`Sniffer::identified`]).
 
 use std::collections::BTreeMap;
 use std::time::Duration;
 
 use yosemitech_rtu::LineTiming;
 use yosemitech_rtu::segment;
+use yosemitech_spec::{Role, SerialNumberReply};
 
 use super::candidates::Commands;
-use super::exchange::{self, Report, Status};
+use super::exchange::{self, Exchange, Report, Status};
 use super::scan::{Found, Framed, Scanner};
 
 /// How the sniffer reads the line's timing.
@@ -155,6 +158,28 @@ pub struct Sniffer<'a, 'c> {
     last_frame_end: Option<Duration>,
     /// Per slave, the sensor its traffic has shown it to be, as a choice of commands.
     learned: BTreeMap<u8, Learned<'c>>,
+    /// Per slave, the last serial-number reply heard from it.
+    serials: BTreeMap<u8, Serial>,
+}
+
+/// A serial-number reply heard from a slave.
+#[derive(Debug, Clone, PartialEq, Eq)]
+struct Serial {
+    number: Option<String>,
+    model_code: Option<String>,
+}
+
+/// What the sniffer has learnt of one slave.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Identity<'c> {
+    /// Its address.
+    pub slave: u8,
+    /// The sensor, where one alone explains its traffic and its model code.
+    pub sensor: Option<&'c str>,
+    /// The serial number it was heard sending.
+    pub serial_number: Option<String>,
+    /// The model code that serial-number reply carries.
+    pub model_code: Option<String>,
 }
 
 /// What a slave's traffic says it is.
@@ -178,6 +203,7 @@ impl<'a, 'c> Sniffer<'a, 'c> {
             pending: None,
             last_frame_end: None,
             learned: BTreeMap::new(),
+            serials: BTreeMap::new(),
         }
     }
 
@@ -333,6 +359,8 @@ impl<'a, 'c> Sniffer<'a, 'c> {
         }
         .filter(|slave| *slave != 0);
         let chosen = slave.and_then(|s| self.learned.get(&s)).and_then(|l| l.chosen.as_ref());
+        // Kept to decode again should this exchange itself name the sensor.
+        let undecided = chosen.is_none().then(|| found.clone());
         let report = match chosen {
             Some(chosen) => {
                 let as_chosen = exchange::report(chosen, found.clone());
@@ -350,14 +378,55 @@ impl<'a, 'c> Sniffer<'a, 'c> {
         };
         if let (Some(slave), Report::Exchange(x)) = (slave, &report)
             && matches!(x.status, Status::Decoded | Status::Ambiguous)
-            && self.commands.sensor.is_none()
         {
-            let mut sensors: Vec<&'c str> = x.decodings.iter().flat_map(|d| d.cands.iter().map(|c| c.sensor)).collect();
-            sensors.sort_unstable();
-            sensors.dedup();
-            self.learn(slave, sensors);
+            let by_code = self.hear_serial_number(slave, x);
+            if self.commands.sensor.is_none() {
+                let named = by_code.is_some();
+                let sensors = by_code.unwrap_or_else(|| {
+                    let mut sensors: Vec<&'c str> =
+                        x.decodings.iter().flat_map(|d| d.cands.iter().map(|c| c.sensor)).collect();
+                    sensors.sort_unstable();
+                    sensors.dedup();
+                    sensors
+                });
+                self.learn(slave, sensors);
+                // A serial number that names the sensor: its own reply is shown as that sensor's.
+                if named
+                    && let (Some(found), Some(chosen)) =
+                        (undecided, self.learned.get(&slave).and_then(|l| l.chosen.as_ref()))
+                {
+                    return exchange::report(chosen, found);
+                }
+            }
         }
         report
+    }
+
+    /// Keeps the serial number and model code of a serial-number reply in
+    /// `x`; returns the sensors among its decodings that declare that code,
+    /// when some do.
+    fn hear_serial_number(&mut self, slave: u8, x: &Exchange<'c>) -> Option<Vec<&'c str>> {
+        let reply = x.reply.as_ref()?;
+        let mut heard = None;
+        let mut by_code: Vec<&'c str> = Vec::new();
+        for decoding in &x.decodings {
+            let Some(command) = decoding.command().filter(|c| c.role == Some(Role::SerialNumber)) else { continue };
+            let Ok(data) = command.layout().decode_response(slave, &reply.bytes) else { continue };
+            let sensors: Vec<_> = decoding.cands.iter().filter_map(|c| self.commands.sensor_named(c.sensor)).collect();
+            let read = SerialNumberReply::read(command, data);
+            let code = read.model_code(|c| sensors.iter().any(|s| s.declares_model_code(c))).map(str::to_owned);
+            if let Some(code) = &code {
+                by_code.extend(sensors.iter().filter(|s| s.declares_model_code(code)).map(|s| s.name.as_str()));
+            }
+            // The reading that names a sensor is the one shown, else the first.
+            if heard.is_none() || code.as_deref().is_some_and(|c| sensors.iter().any(|s| s.declares_model_code(c))) {
+                heard = Some(Serial { number: read.text, model_code: code });
+            }
+        }
+        self.serials.insert(slave, heard?);
+        by_code.sort_unstable();
+        by_code.dedup();
+        (!by_code.is_empty()).then_some(by_code)
     }
 
     /// `sensors` explain the latest exchange with `slave`.
@@ -367,6 +436,7 @@ impl<'a, 'c> Sniffer<'a, 'c> {
         let sensors = if both.is_empty() { sensors } else { both };
         let chosen = match sensors.as_slice() {
             [one] => Some(Commands {
+                sensors: self.commands.sensors.clone(),
                 all: self.commands.all.clone(),
                 sensor: Some(one),
                 command: self.commands.command.clone(),
@@ -376,12 +446,29 @@ impl<'a, 'c> Sniffer<'a, 'c> {
         self.learned.insert(slave, Learned { sensors, chosen });
     }
 
-    /// The sensor each slave heard has shown itself to be, where one alone explains its traffic.
-    pub fn identified(&self) -> impl Iterator<Item = (u8, &'c str)> + '_ {
-        self.learned.iter().filter_map(|(slave, l)| match l.sensors.as_slice() {
-            [one] => Some((*slave, *one)),
-            _ => None,
-        })
+    /// What each slave heard has shown itself to be: the sensor, where one
+    /// alone explains its traffic, and the serial number it sent; slaves of
+    /// which neither is known are left out.
+    pub fn identified(&self) -> Vec<Identity<'c>> {
+        let mut slaves: Vec<u8> = self.learned.keys().chain(self.serials.keys()).copied().collect();
+        slaves.sort_unstable();
+        slaves.dedup();
+        slaves
+            .into_iter()
+            .filter_map(|slave| {
+                let sensor = self.learned.get(&slave).and_then(|l| match l.sensors.as_slice() {
+                    [one] => Some(*one),
+                    _ => None,
+                });
+                let serial = self.serials.get(&slave);
+                (sensor.is_some() || serial.is_some()).then(|| Identity {
+                    slave,
+                    sensor,
+                    serial_number: serial.and_then(|s| s.number.clone()),
+                    model_code: serial.and_then(|s| s.model_code.clone()),
+                })
+            })
+            .collect()
     }
 }
 
@@ -502,6 +589,62 @@ mod tests {
     /// A frame handed over in two pieces with a silence between them is
     /// still one frame, flagged; a reply past the timeout is flagged late;
     /// one past the wait for it is a request with no reply and a lone reply.
+    /// A serial-number reply as a probe of each sensor with a model code
+    /// sends it (`YL<code>...`): the slave is known by its serial number and
+    /// code, and as the sensor when that code is the sensor's alone.
+    #[test]
+    fn an_overheard_serial_number_identifies_the_slave() {
+        let catalog = catalog();
+        let commands = Commands::new(catalog.entries().iter().map(|e| &*e.sensor));
+        let mut heard_any = false;
+        for entry in catalog.entries() {
+            let s = &entry.sensor;
+            let (Some(command), Some(code)) = (s.command_with_role(Role::SerialNumber), &s.model_code) else {
+                continue;
+            };
+            let Some(field) =
+                command.named_fields().find(|f| matches!(f.kind, yosemitech_spec::FieldKind::Ascii { .. }))
+            else {
+                continue;
+            };
+            let slave = command.fixed_slave.unwrap_or(7);
+            let sn = format!("YL{code}14010022");
+            let values = std::collections::BTreeMap::from([(
+                field.display_name().to_owned(),
+                yosemitech_spec::Value::Text(sn.clone()),
+            )]);
+            let request = command.encode_request(slave, &std::collections::BTreeMap::new()).unwrap();
+            let reply = command.encode_response(slave, &values).unwrap();
+            let mut sniffer = Sniffer::new(&commands, timing());
+            let (mut heard, request_end) = send(&mut sniffer, false, Duration::from_secs(1), &request);
+            let (more, reply_end) = send(&mut sniffer, false, request_end + Duration::from_millis(20), &reply);
+            heard.extend(more);
+            heard.extend(sniffer.tick(reply_end + Duration::from_secs(1)));
+            assert_eq!(heard.len(), 1, "{}: one exchange", s.name);
+            let identified = sniffer.identified();
+            let identity = identified.iter().find(|i| i.slave == slave).expect("the slave is known");
+            assert_eq!(identity.serial_number.as_deref(), Some(sn.as_str()), "{}", s.name);
+            assert_eq!(identity.model_code.as_deref(), Some(code.as_str()), "{}", s.name);
+            let declaring: Vec<&str> = catalog
+                .entries()
+                .iter()
+                .filter(|e| e.sensor.declares_model_code(code))
+                .map(|e| e.sensor.name.as_str())
+                .collect();
+            if let Some(sensor) = identity.sensor {
+                assert!(declaring.contains(&sensor), "{}: {sensor} does not declare model code {code}", s.name);
+            }
+            if declaring == [s.name.as_str()] {
+                assert_eq!(identity.sensor, Some(s.name.as_str()), "{}: model code {code} is its alone", s.name);
+                // The reply that names it is shown as its own.
+                let sensors: Vec<&str> = exchange(&heard[0]).decodings.iter().flat_map(|d| d.sensors()).collect();
+                assert_eq!(sensors, [s.name.as_str()], "{}", s.name);
+            }
+            heard_any = true;
+        }
+        assert!(heard_any || catalog.entries().iter().all(|e| e.sensor.model_code.is_none()));
+    }
+
     #[test]
     fn split_frames_late_and_missing_replies_are_flagged() {
         let catalog = Catalog::load(&[]).unwrap();

@@ -56,6 +56,8 @@ use crate::fault::Rng;
 
 mod line;
 mod mbap;
+#[cfg(all(unix, feature = "pty"))]
+pub mod tap;
 
 pub use mbap::serve_mbap;
 

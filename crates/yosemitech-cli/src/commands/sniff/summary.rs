@@ -7,7 +7,8 @@ use std::time::Duration;
 use serde_json::{Value as Json, json};
 use yosemitech_rtu::crc_ok;
 
-use crate::explain::sniff::{Flag, Heard, millis};
+use crate::commands::scan::printable;
+use crate::explain::sniff::{Flag, Heard, Identity, millis};
 use crate::explain::{Report, Status};
 
 /// Counts of what was heard.
@@ -65,7 +66,7 @@ impl Summary {
     }
 
     /// The summary as text lines.
-    pub(super) fn lines(&self, identified: &[(u8, &str)]) -> Vec<String> {
+    pub(super) fn lines(&self, identified: &[Identity<'_>]) -> Vec<String> {
         let mut lines = vec![format!(
             "summary: {} entr{} heard, {} byte(s) of noise in {} run(s)",
             self.entries,
@@ -74,7 +75,7 @@ impl Summary {
             self.noise_runs
         )];
         for (address, s) in &self.slaves {
-            let sensor = sensor_of(identified, *address).map_or(String::new(), |name| format!(" ({name})"));
+            let sensor = identity_of(identified, *address).map_or(String::new(), identity_text);
             let mut line = format!(
                 "  address {address}{sensor}: {} request(s), {} repl(ies), {} without reply, {} CRC error(s), \
                  {} exception(s), {} late, {} with a silence inside, {} unpaired",
@@ -94,15 +95,18 @@ impl Summary {
     }
 
     /// The summary as the last JSON line.
-    pub(super) fn json(&self, identified: &[(u8, &str)]) -> Json {
+    pub(super) fn json(&self, identified: &[Identity<'_>]) -> Json {
         let ms = |d: Duration| (d.as_secs_f64() * 1e6).round() / 1e3;
         let slaves: Vec<Json> = self
             .slaves
             .iter()
             .map(|(address, s)| {
+                let identity = identity_of(identified, *address);
                 json!({
                     "slave": address,
-                    "sensor": sensor_of(identified, *address),
+                    "sensor": identity.and_then(|i| i.sensor),
+                    "serial_number": identity.and_then(|i| i.serial_number.as_deref()),
+                    "model_code": identity.and_then(|i| i.model_code.as_deref()),
                     "requests": s.requests,
                     "replies": s.replies,
                     "no_reply": s.no_reply,
@@ -126,8 +130,20 @@ impl Summary {
     }
 }
 
-fn sensor_of<'s>(identified: &[(u8, &'s str)], address: u8) -> Option<&'s str> {
-    identified.iter().find(|(a, _)| *a == address).map(|(_, name)| *name)
+fn identity_of<'i, 'c>(identified: &'i [Identity<'c>], address: u8) -> Option<&'i Identity<'c>> {
+    identified.iter().find(|i| i.slave == address)
+}
+
+/// ` (ph_orp, SN YL4314010022, model code 43)`; empty when nothing is known.
+fn identity_text(identity: &Identity<'_>) -> String {
+    let parts: Vec<String> = identity
+        .sensor
+        .map(str::to_owned)
+        .into_iter()
+        .chain(identity.serial_number.as_deref().map(|sn| format!("SN {}", printable(sn))))
+        .chain(identity.model_code.as_deref().map(|code| format!("model code {code}")))
+        .collect();
+    if parts.is_empty() { String::new() } else { format!(" ({})", parts.join(", ")) }
 }
 
 /// The median, the 90th percentile (nearest rank) and the longest; `None` for none.
