@@ -426,8 +426,8 @@ fn a_soak_of_back_to_back_polling_loses_no_exchange() {
         client.call_raw(&request, &command.layout()).unwrap();
     }
     // The sniffer has heard the whole line before it is stopped.
-    let on_the_line = tapped.line().iter().map(|(_, bytes)| bytes.len()).sum::<usize>();
     std::thread::sleep(Duration::from_secs(1));
+    let on_the_line = tapped.line().iter().map(|(_, bytes)| bytes.len()).sum::<usize>();
     interrupt(sniffer);
     let out = output.join().unwrap();
     let (heard, summary) = entries(&out);

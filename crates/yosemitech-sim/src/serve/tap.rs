@@ -114,9 +114,9 @@ impl Tapped {
 
 impl Transport for Tapped {
     fn write_all(&mut self, frame: &[u8]) -> io::Result<()> {
-        self.inner.write_all(frame)?;
+        // Heard as it goes on the line: recorded before the master can have it.
         self.heard(Direction::Probe, frame);
-        Ok(())
+        self.inner.write_all(frame)
     }
 
     fn read(&mut self, buf: &mut [u8], timeout: Duration) -> io::Result<usize> {
