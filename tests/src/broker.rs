@@ -519,6 +519,8 @@ pub fn reading(index: usize) -> ReadingMessage {
         ],
         retries: u32::try_from(index % 3).unwrap(),
         error: index.is_multiple_of(17).then(|| "probe did not answer".to_owned()),
+        bus: Some("river".into()),
+        calibration_id: index.is_multiple_of(2).then_some(7),
     }
 }
 

@@ -22,6 +22,8 @@ pub mod codec;
 pub mod counting_alloc;
 pub mod driver;
 pub mod portal;
+#[cfg(unix)]
+pub mod postgres;
 pub mod rtu;
 pub mod sim;
 pub mod slow;

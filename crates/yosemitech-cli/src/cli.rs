@@ -9,6 +9,7 @@ use crate::commands::demo::DemoArgs;
 use crate::commands::doctor::DoctorArgs;
 use crate::commands::encode::EncodeArgs;
 use crate::commands::export::ExportArgs;
+use crate::commands::ingest::IngestArgs;
 use crate::commands::list::ListArgs;
 use crate::commands::log::LogArgs;
 use crate::commands::measure::MeasureArgs;
@@ -228,7 +229,22 @@ form (one row per value, the reading's columns repeated) or one JSON object per 
 Times are UTC (2025-11-23 or 2025-11-23T18:00:00Z), a time ago (90m, 6h, 2d) or now; --from
 is inclusive, --to exclusive.")]
     Export(ExportArgs),
+
+    /// Store the readings of many stations, from their MQTT broker, in PostgreSQL.
+    #[command(long_about = INGEST_ABOUT)]
+    Ingest(IngestArgs),
 }
+
+const INGEST_ABOUT: &str = "\
+Subscribe to every station's reading topic on the broker the stations publish to (`log` with an
+[mqtt] section) and store each reading in PostgreSQL: readings, stations and probes (serial
+number, sensor, firmware, calibration in force), in a schema `ingest` creates and migrates
+itself (docs/postgres.md). A delivery is acknowledged to the broker only once its transaction is
+committed, and a reading is stored once however often it is delivered (its identity is the
+station's reading id), so a worker may be killed at any moment. Several workers with the same
+--group share the readings (an MQTT 5 shared subscription); each needs its own --client-id, its
+session on the broker, which must keep sessions across restarts (mosquitto: persistence true).
+`export --postgres` reads the readings back.";
 
 const CALIBRATE_LONG_ABOUT: &str = "\
 `calibrate SENSOR --standard VALUE ...` calibrates a probe's user calibration block (the

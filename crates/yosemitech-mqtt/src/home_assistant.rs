@@ -417,6 +417,8 @@ mod tests {
             values: names.iter().map(|n| MeasuredValue::new(*n, 1.0, None)).collect(),
             retries: 0,
             error: None,
+            bus: None,
+            calibration_id: None,
         }
     }
 

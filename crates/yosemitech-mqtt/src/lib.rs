@@ -58,3 +58,4 @@ pub use message::{MeasuredValue, PayloadError, ReadingMessage, SCHEMA_VERSION};
 pub use outbox::{MemoryOutbox, Outbox};
 pub use publisher::{Publisher, PublisherStatus, ShutdownReport, StartError};
 pub use secret::Secret;
+pub use tls::client_config as tls_client_config;

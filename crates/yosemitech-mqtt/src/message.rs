@@ -17,11 +17,14 @@
 //!     { "name": "<derived quantity>", "value": 8.9, "unit": "mg/L", "derived": true, "error": null }
 //!   ],
 //!   "retries": 0,
-//!   "error": null
+//!   "error": null,
+//!   "bus": "river",
+//!   "calibration_id": 7
 //! }
 //! ```
 //!
-//! Every key is always present (`null` when unknown). `reading_id` is the
+//! Every key is always present (`null` when unknown), except in payloads
+//! of stations that predate `bus` and `calibration_id` (read as `null`). `reading_id` is the
 //! station's store id: unique per station, increasing in the order readings
 //! were committed, and the same in every copy of a message, so a consumer
 //! deduplicates by `(station, reading_id)`. A consumer should refuse a
@@ -63,6 +66,13 @@ pub struct ReadingMessage {
     pub retries: u32,
     /// Why the reading failed or is incomplete; `None` for a good reading.
     pub error: Option<String>,
+    /// The station's name of the bus the probe is on.
+    #[serde(default)]
+    pub bus: Option<String>,
+    /// The station's id of the probe's calibration in force when the
+    /// reading was taken (its store's calibration history), if one is recorded.
+    #[serde(default)]
+    pub calibration_id: Option<i64>,
 }
 
 /// One quantity of a reading: measured by the probe, or derived by the
@@ -153,6 +163,8 @@ mod tests {
             values: vec![MeasuredValue::new("t", 18.25, Some("°C".into())), MeasuredValue::new("x", f64::NAN, None)],
             retries: 2,
             error: None,
+            bus: Some("b".into()),
+            calibration_id: Some(4),
         }
     }
 
@@ -175,6 +187,8 @@ mod tests {
             "values",
             "retries",
             "error",
+            "bus",
+            "calibration_id",
         ] {
             assert!(json.get(key).is_some(), "{key} missing from {json}");
         }
@@ -206,6 +220,12 @@ mod tests {
         }
         let parsed = ReadingMessage::from_payload(&serde_json::to_vec(&old).unwrap()).unwrap();
         assert!(parsed.values.iter().all(|v| !v.derived && v.error.is_none()));
+        // A station before the bus and the calibration sent neither key.
+        let object = old.as_object_mut().unwrap();
+        object.remove("bus");
+        object.remove("calibration_id");
+        let parsed = ReadingMessage::from_payload(&serde_json::to_vec(&old).unwrap()).unwrap();
+        assert_eq!((parsed.bus, parsed.calibration_id), (None, None));
     }
 
     #[test]

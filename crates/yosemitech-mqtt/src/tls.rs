@@ -9,7 +9,7 @@ use crate::config::{ConfigError, TlsConfig};
 
 /// A rustls client config (ring provider, TLS 1.2 and 1.3) trusting the CA
 /// file, or the operating system's roots when there is none.
-pub(crate) fn client_config(tls: &TlsConfig) -> Result<Arc<rustls::ClientConfig>, ConfigError> {
+pub fn client_config(tls: &TlsConfig) -> Result<Arc<rustls::ClientConfig>, ConfigError> {
     let mut roots = rustls::RootCertStore::empty();
     match &tls.ca_file {
         Some(path) => {

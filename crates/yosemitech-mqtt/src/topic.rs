@@ -73,7 +73,7 @@ pub fn unescape_level(level: &str) -> Option<String> {
 }
 
 /// Why `prefix` cannot start a topic, if it cannot.
-pub(crate) fn check_prefix(prefix: &str) -> Result<(), &'static str> {
+pub fn check_prefix(prefix: &str) -> Result<(), &'static str> {
     if prefix.is_empty() {
         return Err("must not be empty");
     }

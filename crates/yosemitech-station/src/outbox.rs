@@ -11,8 +11,8 @@
 
 use yosemitech_mqtt::{MeasuredValue, Outbox, ReadingMessage, SCHEMA_VERSION};
 
-use crate::store::{Datum, MQTT_PUBLISHER, Store, StoreError, StoredReading};
-use crate::time::unix_ms;
+use crate::store::{Datum, MQTT_PUBLISHER, Measurement, Reading, Store, StoreError, StoredReading};
+use crate::time::{from_unix_ms, unix_ms};
 
 /// A [`Store`] connection serving as the MQTT publisher's outbox: its
 /// cursor is the store's [`MQTT_PUBLISHER`] one, which no other publisher
@@ -59,6 +59,45 @@ pub fn message(stored: &StoredReading) -> ReadingMessage {
             .collect(),
         retries: r.retries,
         error: r.error.clone(),
+        bus: Some(r.bus.clone()),
+        calibration_id: stored.calibration_id,
+    }
+}
+
+/// A published reading as the station stored it (for `export` of a
+/// fleet's database): the inverse of [`message`], but for the text values
+/// a message does not carry. A value published as `null` without an error
+/// (the probe's NaN) is NaN again; a bus unknown to the message is empty.
+pub fn stored_of(message: &ReadingMessage) -> StoredReading {
+    StoredReading {
+        id: message.reading_id,
+        reading: Reading {
+            timestamp: from_unix_ms(message.timestamp_ms),
+            station: message.station.clone(),
+            bus: message.bus.clone().unwrap_or_default(),
+            probe: message.probe.clone(),
+            sensor: message.sensor.clone(),
+            address: message.address,
+            serial_number: message.serial_number.clone(),
+            firmware: message.firmware.clone(),
+            values: message
+                .values
+                .iter()
+                .map(|v| Measurement {
+                    name: v.name.clone(),
+                    value: match (&v.value, &v.error) {
+                        (Some(n), _) => Datum::Number(*n),
+                        (None, Some(why)) => Datum::NotComputable(why.clone()),
+                        (None, None) => Datum::Number(f64::NAN),
+                    },
+                    unit: v.unit.clone(),
+                    derived: v.derived,
+                })
+                .collect(),
+            retries: message.retries,
+            error: message.error.clone(),
+        },
+        calibration_id: message.calibration_id,
     }
 }
 

@@ -1,13 +1,17 @@
-//! `yosemitech export`: a station's stored readings as CSV or JSON lines.
+//! `yosemitech export`: a station's stored readings (or a fleet's, from
+//! the PostgreSQL database `ingest` writes) as CSV or JSON lines.
 
 use std::io::Write;
-use std::time::{Duration, UNIX_EPOCH};
+use std::path::PathBuf;
+use std::time::{Duration, SystemTime, UNIX_EPOCH};
 
 use yosemitech_station::export;
+use yosemitech_station::outbox::stored_of;
 
-use crate::args::StoredRange;
+use crate::commands::ingest::database_config;
 use crate::error::{CliError, Result};
 use crate::stored::open_existing;
+use crate::time::parse_instant_now as parse_instant;
 use clap::Args;
 use clap::ValueEnum;
 
@@ -24,9 +28,19 @@ pub enum ExportFormat {
 /// `export`.
 #[derive(Args, Debug)]
 pub struct ExportArgs {
-    /// The store and the time range.
-    #[command(flatten)]
-    pub range: StoredRange,
+    /// The station's store (the SQLite file `yosemitech log` writes).
+    #[arg(long, value_name = "FILE", required_unless_present = "postgres", conflicts_with = "postgres")]
+    pub db: Option<PathBuf>,
+    /// The fleet's database (`yosemitech ingest`), as a libpq connection string; its password
+    /// comes from PGPASSWORD.
+    #[arg(long, value_name = "CONNINFO")]
+    pub postgres: Option<String>,
+    /// First instant, inclusive (UTC) [default: the first reading].
+    #[arg(long, value_name = "TIME", value_parser = parse_instant)]
+    pub from: Option<SystemTime>,
+    /// Last instant, exclusive (UTC) [default: the last reading].
+    #[arg(long, value_name = "TIME", value_parser = parse_instant)]
+    pub to: Option<SystemTime>,
     /// Output format.
     #[arg(short, long, value_enum, default_value_t = ExportFormat::Csv)]
     pub format: ExportFormat,
@@ -34,15 +48,30 @@ pub struct ExportArgs {
 
 /// Runs `export`.
 pub fn run(args: &ExportArgs, out: &mut dyn Write) -> Result<()> {
-    let store = open_existing(&args.range.db)?;
-    let from = args.range.from.unwrap_or(UNIX_EPOCH);
+    let from = args.from.unwrap_or(UNIX_EPOCH);
     // The far future: every reading.
-    let to = args.range.to.unwrap_or(UNIX_EPOCH + Duration::from_secs(i64::MAX as u64 / 1000 / 2));
+    let to = args.to.unwrap_or(UNIX_EPOCH + Duration::from_secs(i64::MAX as u64 / 1000 / 2));
     if to < from {
         return Err(CliError::usage("--to is before --from").hint("--from is inclusive, --to exclusive"));
     }
-    let readings =
-        store.range(from, to).map_err(|e| CliError::device(format!("cannot read {}: {e}", args.range.db.display())))?;
+    let readings = match (&args.db, &args.postgres) {
+        (Some(db), _) => {
+            let store = open_existing(db)?;
+            store.range(from, to).map_err(|e| CliError::device(format!("cannot read {}: {e}", db.display())))?
+        }
+        (None, Some(conninfo)) => {
+            let config = database_config(conninfo)?;
+            // Times PostgreSQL can hold (the default `to` is far past them).
+            let to = to.min(UNIX_EPOCH + Duration::from_millis(253_402_300_800_000));
+            let mut database = yosemitech_ingest::Database::open(&config)
+                .map_err(|e| CliError::device(format!("cannot open the database: {e}")))?;
+            let messages = database
+                .readings_between(from, to)
+                .map_err(|e| CliError::device(format!("cannot read the database: {e}")))?;
+            messages.iter().map(stored_of).collect()
+        }
+        (None, None) => return Err(CliError::usage("give --db FILE or --postgres CONNINFO")),
+    };
     if args.format == ExportFormat::Csv {
         export::write_csv_header(out)?;
     }

@@ -11,6 +11,7 @@ pub mod demo;
 pub mod doctor;
 pub mod encode;
 pub mod export;
+pub mod ingest;
 pub mod list;
 pub mod log;
 pub mod measure;
@@ -87,6 +88,7 @@ pub fn run(cli: &Cli) -> Result<()> {
         Subcommand::Log(args) if args.check => log::check(&catalog, args, &mut out),
         Subcommand::Log(args) => log::run(&catalog, args, &ctrl_c_flag(), &mut out),
         Subcommand::Export(args) => export::run(args, &mut out),
+        Subcommand::Ingest(args) => ingest::run(args, &ctrl_c_flag(), &mut out),
     };
     // Output written before an error stays visible.
     let flushed = out.flush();

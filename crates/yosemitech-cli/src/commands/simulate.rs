@@ -41,9 +41,8 @@ pub struct SimulateArgs {
     /// Serve on a new pseudo-terminal (the default).
     #[arg(long, conflicts_with = "tcp")]
     pub pty: bool,
-    /// Another probe on the same line, SENSOR@ADDRESS (repeatable), e.g.
-    /// --also conductivity@2: a station's bus. The line runs at the first
-    /// sensor's serial settings.
+    /// Another probe on the same line, SENSOR@ADDRESS (repeatable): a
+    /// station's bus. The line runs at the first sensor's serial settings.
     #[arg(long, value_name = "SENSOR@ADDRESS", conflicts_with = "collide")]
     pub also: Vec<String>,
     /// Copy every byte of the line, both ways, to a second pseudo-terminal,
@@ -210,15 +209,15 @@ fn colliding_pair(mut sim: Simulator) -> (Simulator, Simulator) {
     (sim, other)
 }
 
-/// Parses `conductivity@2`: a sensor of `catalog` and its address.
+/// Parses `SENSOR@ADDRESS`: a sensor of `catalog` and its address.
 fn parse_also(catalog: &Catalog, text: &str) -> Result<(Arc<Sensor>, u8)> {
     let (name, address) = text.split_once('@').ok_or_else(|| {
         CliError::usage(format!("`{text}` in --also is not SENSOR@ADDRESS"))
-            .hint("name a sensor and its address, e.g. --also conductivity@2")
+            .hint("name a sensor of `yosemitech list` and its address, e.g. --also SENSOR@2")
     })?;
     let address: u32 = address.trim().parse().map_err(|_| {
         CliError::usage(format!("`{address}` in --also {text} is not an address"))
-            .hint("name a sensor and its address, e.g. --also conductivity@2")
+            .hint("name a sensor of `yosemitech list` and its address, e.g. --also SENSOR@2")
     })?;
     let address = check_address(address, "--also address")?;
     Ok((Arc::clone(catalog.sensor(name.trim())?), address))
