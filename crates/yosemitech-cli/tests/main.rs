@@ -13,6 +13,7 @@ mod cli_decode;
 mod cli_demo;
 mod cli_doctor;
 mod cli_home_assistant;
+mod cli_ingest;
 mod cli_inputs;
 mod cli_measure;
 mod cli_monitor_my_watershed;

@@ -81,8 +81,8 @@ pub struct Totals {
     pub batches: u64,
     /// Broker connections made (1 after the first, +1 per reconnection).
     pub connections: u64,
-    /// Whether the subscription is in place on the broker (acknowledged,
-    /// or kept by the worker's session).
+    /// Whether the subscription is in place on the broker (acknowledged
+    /// on the current connection).
     pub subscribed: bool,
 }
 
@@ -103,8 +103,8 @@ const RETRY_MOST: Duration = Duration::from_secs(5);
 
 /// Runs a worker until `stop` is set: connects to the database (migrating
 /// its schema) and to the broker, and stores what arrives. `progress` is
-/// called with the totals so far after each committed batch and when the
-/// subscription is in place. Broker and database failures after the start
+/// called with the totals so far after each committed batch, at each
+/// connection and when the subscription is in place. Broker and database failures after the start
 /// are retried, forever.
 pub fn run(
     config: &IngestConfig,
@@ -129,14 +129,13 @@ pub fn run(
                 totals.connections += 1;
                 retry = RETRY_FIRST;
                 tracing::info!(session_present = ack.session_present, "connected to the broker");
-                if ack.session_present {
-                    totals.subscribed = true;
-                    progress(&totals);
-                } else {
-                    // A new session: subscribe (a kept one holds the subscription).
-                    totals.subscribed = false;
-                    let _ = client.try_subscribe(config.filter(), QoS::AtLeastOnce);
-                }
+                // Subscribed again even when the session was kept: a broker
+                // restored from its persistence file may have kept the
+                // session's messages but not a shared subscription (mosquitto
+                // 2.0). Subscribing again to the same filter changes nothing else.
+                totals.subscribed = false;
+                let _ = client.try_subscribe(config.filter(), QoS::AtLeastOnce);
+                progress(&totals);
             }
             Ok(Ok(Event::Incoming(Packet::SubAck(_)))) => {
                 totals.subscribed = true;

@@ -50,7 +50,7 @@ pub struct IngestArgs {
     #[arg(long, value_name = "DURATION", default_value = "200ms", value_parser = parse_duration)]
     pub batch_wait: Duration,
     /// How long the broker keeps this worker's session (and its readings) while it is away.
-    #[arg(long, value_name = "DURATION", default_value = "7d", value_parser = parse_duration)]
+    #[arg(long, value_name = "DURATION", default_value = "168h", value_parser = parse_duration)]
     pub session_expiry: Duration,
 }
 
@@ -155,7 +155,13 @@ pub fn run(args: &IngestArgs, stop: &Arc<AtomicBool>, out: &mut dyn Write) -> Re
         args.group
     );
     let mut last_report = Instant::now();
+    let mut subscribed = false;
+    let filter = config.filter();
     let totals = yosemitech_ingest::run(&config, &database, stop, |totals| {
+        if totals.subscribed && !subscribed {
+            let _ = writeln!(std::io::stderr(), "ingest: subscribed to {filter}");
+        }
+        subscribed = totals.subscribed;
         // A line a few seconds at most, for a journal.
         if last_report.elapsed() >= Duration::from_secs(5) {
             last_report = Instant::now();
