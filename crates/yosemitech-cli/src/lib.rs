@@ -62,8 +62,9 @@ use tracing_subscriber::EnvFilter;
 /// `-vv` everything (trace); `RUST_LOG` overrides both.
 fn init_logging(verbose: u8) {
     let level = match verbose {
-        // The station logger's own notes (a full store, space back) and the portal's refusals show by default.
-        0 => "error,yosemitech_station=info,yosemitech_portal=info",
+        // The station logger's own notes (a full store, space back), the portal's refusals and
+        // ingest's lost connections show by default.
+        0 => "error,yosemitech_station=info,yosemitech_portal=info,yosemitech_ingest=warn",
         1 => "debug",
         _ => "trace",
     };

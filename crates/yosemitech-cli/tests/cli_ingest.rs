@@ -37,8 +37,19 @@ const DEADLINE: Duration = Duration::from_secs(240);
 
 /// An ingest worker, and a channel that hears each time it says it is subscribed.
 struct Worker {
-    child: Child,
+    /// `None` once stopped.
+    child: Option<Child>,
     subscribed: mpsc::Receiver<()>,
+}
+
+impl Drop for Worker {
+    /// A test that fails leaves no worker running.
+    fn drop(&mut self) {
+        if let Some(mut child) = self.child.take() {
+            let _ = child.kill();
+            let _ = child.wait();
+        }
+    }
 }
 
 impl Worker {
@@ -72,13 +83,14 @@ fn start_worker(broker: &Broker, cluster: &Postgres, client_id: &str) -> Worker 
             }
         }
     });
-    let worker = Worker { child, subscribed: said };
+    let worker = Worker { child: Some(child), subscribed: said };
     worker.wait_subscribed(client_id);
     worker
 }
 
 /// What a worker stopped with Ctrl-C says it did (its one stdout line).
-fn stop_worker(Worker { mut child, .. }: Worker) -> String {
+fn stop_worker(mut worker: Worker) -> String {
+    let mut child = worker.child.take().unwrap();
     let mut out = child.stdout.take().unwrap();
     interrupt(child);
     let mut said = String::new();
@@ -127,9 +139,9 @@ fn a_fleet_of_stations_lands_in_postgres_once_through_a_killed_worker_and_a_brok
         match round {
             KILL_AT => {
                 // SIGKILL: no chance to store or acknowledge what it holds.
-                let mut worker = first.take().unwrap();
-                worker.child.kill().unwrap();
-                worker.child.wait().unwrap();
+                let mut worker = first.take().unwrap().child.take().unwrap();
+                worker.kill().unwrap();
+                worker.wait().unwrap();
             }
             RESTART_WORKER_AT => restarted = Some(start_worker(&broker, &cluster, "ingest-a")),
             RESTART_BROKER_AT => {
@@ -166,7 +178,11 @@ fn a_fleet_of_stations_lands_in_postgres_once_through_a_killed_worker_and_a_brok
             for (_, id) in published.difference(&stored) {
                 *missing_by_id.entry(*id).or_insert(0) += 1;
             }
-            panic!("{} of {} readings stored; missing, by reading id: {missing_by_id:?}", stored.len(), published.len());
+            panic!(
+                "{} of {} readings stored; missing, by reading id: {missing_by_id:?}",
+                stored.len(),
+                published.len()
+            );
         }
         std::thread::sleep(Duration::from_millis(200));
     }

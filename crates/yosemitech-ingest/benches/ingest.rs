@@ -30,7 +30,9 @@ fn main() {
         println!("ingest: needs mosquitto and PostgreSQL (apt-get install mosquitto postgresql)");
         return;
     }
-    let (stations, per_station) = if measuring { (50, 400) } else { (2, 5) };
+    // The test kit's mosquitto queues 10,000 messages a client at most:
+    // the readings wait in the workers' sessions, so fewer than that.
+    let (stations, per_station) = if measuring { (40, 200) } else { (2, 5) };
     for workers in [1, 2] {
         let run = measure(workers, stations, per_station);
         println!(
@@ -52,6 +54,18 @@ struct Run {
     elapsed: Duration,
     latency_ms: [i64; 3],
     batches: u64,
+}
+
+/// Waits until `done`, or gives up (the benchmark exits, saying what it waited for).
+fn wait_for(what: &str, mut done: impl FnMut() -> bool) {
+    let deadline = Instant::now() + Duration::from_secs(300);
+    while !done() {
+        if Instant::now() > deadline {
+            eprintln!("ingest: gave up waiting for {what}");
+            std::process::exit(1);
+        }
+        std::thread::sleep(Duration::from_millis(5));
+    }
 }
 
 fn measure(workers: usize, stations: usize, per_station: usize) -> Run {
@@ -79,9 +93,7 @@ fn measure(workers: usize, stations: usize, per_station: usize) -> Run {
         let worker = std::thread::spawn(move || {
             run(&config, &database, &stopping, |t| flag.store(t.subscribed, Ordering::SeqCst)).expect("worker")
         });
-        while !subscribed.load(Ordering::SeqCst) {
-            std::thread::sleep(Duration::from_millis(10));
-        }
+        wait_for("a worker's subscription", || subscribed.load(Ordering::SeqCst));
         stop.store(true, Ordering::SeqCst);
         worker.join().expect("the worker stops");
     }
@@ -97,9 +109,9 @@ fn measure(workers: usize, stations: usize, per_station: usize) -> Run {
         .enumerate()
         .map(|(s, o)| Publisher::start(&broker.config(&format!("station-{s:03}"), 100), o.clone()).expect("publisher"))
         .collect();
-    while !outboxes.iter().all(|o| o.published_up_to() == i64::try_from(o.len()).ok()) {
-        std::thread::sleep(Duration::from_millis(20));
-    }
+    wait_for("the stations' readings to reach the broker", || {
+        outboxes.iter().all(|o| o.published_up_to() == i64::try_from(o.len()).ok())
+    });
     for publisher in publishers {
         publisher.shutdown(Duration::from_secs(5));
     }
@@ -120,9 +132,7 @@ fn measure(workers: usize, stations: usize, per_station: usize) -> Run {
     let stored = |t: &[Arc<Mutex<Totals>>]| -> u64 {
         t.iter().map(|t| t.lock().unwrap_or_else(|e| e.into_inner()).stored.new).sum()
     };
-    while stored(&totals) < total as u64 {
-        std::thread::sleep(Duration::from_millis(5));
-    }
+    wait_for("the queued readings to be stored", || stored(&totals) >= total as u64);
     let elapsed = started.elapsed();
     // Latency: stations publishing a reading every 20 ms while the workers run.
     let live: Vec<MemoryOutbox> = (0..stations.min(10)).map(|_| MemoryOutbox::new()).collect();
@@ -139,9 +149,7 @@ fn measure(workers: usize, stations: usize, per_station: usize) -> Run {
         }
         std::thread::sleep(Duration::from_millis(20));
     }
-    while stored(&totals) < (total + rounds * live.len()) as u64 {
-        std::thread::sleep(Duration::from_millis(5));
-    }
+    wait_for("the live readings to be stored", || stored(&totals) >= (total + rounds * live.len()) as u64);
     for publisher in publishers {
         publisher.shutdown(Duration::from_secs(5));
     }
@@ -157,12 +165,7 @@ fn measure(workers: usize, stations: usize, per_station: usize) -> Run {
         )
         .expect("latencies");
     let latencies: Vec<i64> = row.get(0);
-    Run {
-        readings: total,
-        elapsed,
-        latency_ms: [latencies[0], latencies[1], latencies[2]],
-        batches,
-    }
+    Run { readings: total, elapsed, latency_ms: [latencies[0], latencies[1], latencies[2]], batches }
 }
 
 fn unix_ms(at: SystemTime) -> i64 {

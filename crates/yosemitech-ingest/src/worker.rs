@@ -160,18 +160,14 @@ pub fn run(
             if !store(&mut db, database, &batch, stop, &mut totals) {
                 break;
             }
-            for publish in batch.drain(..) {
-                let _ = client.try_ack(&publish);
-            }
+            acknowledge(&client, batch.drain(..));
             batch_started = None;
             progress(&totals);
         }
     }
     // What is held is stored and acknowledged before leaving.
     if !batch.is_empty() && store(&mut db, database, &batch, stop, &mut totals) {
-        for publish in batch.drain(..) {
-            let _ = client.try_ack(&publish);
-        }
+        acknowledge(&client, batch.drain(..));
         progress(&totals);
     }
     disconnect(&client, &mut connection);
@@ -208,6 +204,17 @@ fn store(
                     *db = fresh;
                 }
             }
+        }
+    }
+}
+
+/// Acknowledges committed deliveries. The client's queue holds two
+/// batches, and the loop drains it between batches, so it has room; were
+/// it full, the delivery would come again on the next connection.
+fn acknowledge(client: &Client, committed: impl Iterator<Item = Publish>) {
+    for publish in committed {
+        if let Err(error) = client.try_ack(&publish) {
+            tracing::warn!(%error, "cannot queue an acknowledgement; the broker will deliver it again");
         }
     }
 }

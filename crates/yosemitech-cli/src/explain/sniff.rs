@@ -12,7 +12,9 @@
 //! frames back to back with short gaps are still told apart); a burst whose
 //! tail is a frame still arriving (a slow adapter hands it over in pieces)
 //! is held up to [`Timing::split_wait`] for the rest, and the gap inside the
-//! frame is flagged. Requests pair with the replies that follow them across
+//! frame is flagged. A line that is never quiet that long (a master polling
+//! back to back at a high baud rate) is framed as it goes, once the burst
+//! holds more than a frame's worth of bytes. Requests pair with the replies that follow them across
 //! bursts; a request gets [`Timing::give_up`] for its reply.
 //!
 //! What is learnt of each slave: the sensors whose commands explain what
@@ -49,6 +51,10 @@ pub struct Timing {
     /// taken to have arrived one such time apart, the last at the chunk's time.
     pub char_time: Duration,
 }
+
+/// A burst this long is framed before its silence comes (see [`Sniffer::push`]):
+/// longer than any frame, so the frames it holds are whole.
+const LONG_BURST: usize = 512;
 
 /// The floor of [`Timing::silence`]: what an operating system and a USB
 /// adapter add to the line's own silences between the chunks they hand over.
@@ -236,6 +242,12 @@ impl<'a, 'c> Sniffer<'a, 'c> {
             self.times.push((first + offset).min(at.max(first)));
             self.burst.push(*byte);
         }
+        // A line busy without a silence (a master polling back to back) is
+        // heard as it goes, whole frames at a time: the burst stays small.
+        if self.burst.len() >= LONG_BURST {
+            let complete = self.complete_prefix();
+            heard.extend(self.flush_prefix(complete));
+        }
         heard
     }
 
@@ -273,25 +285,39 @@ impl<'a, 'c> Sniffer<'a, 'c> {
     /// Whether the burst ends where a frame ends (nothing more is needed to
     /// frame it): otherwise a frame may still be arriving.
     fn tail_is_complete(&self) -> bool {
+        self.complete_prefix() == self.burst.len()
+    }
+
+    /// How many bytes at the burst's start are whole frames and noise; the
+    /// rest may be a frame still arriving.
+    fn complete_prefix(&self) -> usize {
         let mut at = 0;
         while let Some(rest) = self.burst.get(at..).filter(|rest| !rest.is_empty()) {
             match segment::next_span(rest) {
-                Ok(span) if span.kind.is_frame() => at += span.len(),
-                // Noise before a frame: the frame follows.
+                // A frame, or noise before one (the frame follows).
                 Ok(span) => at += span.len(),
-                Err(segment::Incomplete) => return false,
+                Err(segment::Incomplete) => break,
             }
         }
-        true
+        at
     }
 
     /// Frames the burst and decodes what it completes.
     fn flush(&mut self) -> Vec<Heard<'c>> {
-        if self.burst.is_empty() {
+        self.flush_prefix(self.burst.len())
+    }
+
+    /// Frames the first `len` bytes of the burst as a burst of their own
+    /// and decodes what they complete; the rest stays.
+    fn flush_prefix(&mut self, len: usize) -> Vec<Heard<'c>> {
+        if len == 0 || self.burst.is_empty() {
             return Vec::new();
         }
-        let burst = std::mem::take(&mut self.burst);
-        let times = std::mem::take(&mut self.times);
+        let len = len.min(self.burst.len());
+        let rest = self.burst.split_off(len);
+        let rest_times = self.times.split_off(len);
+        let burst = std::mem::replace(&mut self.burst, rest);
+        let times = std::mem::replace(&mut self.times, rest_times);
         let start = self.burst_start;
         self.burst_start += burst.len();
         let found = self.scanner.feed_burst(&burst, start);
@@ -589,6 +615,34 @@ mod tests {
     /// A frame handed over in two pieces with a silence between them is
     /// still one frame, flagged; a reply past the timeout is flagged late;
     /// one past the wait for it is a request with no reply and a lone reply.
+    /// A master polling back to back at 115200 baud, never quiet for a
+    /// silence: exchanges are heard as they go (not all at the end), each
+    /// once and whole.
+    #[test]
+    fn a_line_never_quiet_is_heard_as_it_goes() {
+        let catalog = catalog();
+        let commands = Commands::new(catalog.entries().iter().map(|e| &*e.sensor));
+        let line = LineTiming::new(115_200, CharFormat::EIGHT_N_1);
+        let mut sniffer = Sniffer::new(&commands, Timing::of_line(line, TIMEOUT));
+        let all = exchanges(catalog);
+        let (mut now, mut heard, mut heard_before_the_end) = (Duration::ZERO, Vec::new(), 0);
+        for (_, request, reply) in all.iter().cycle().take(all.len() * 3) {
+            for frame in [request, reply] {
+                now += line.t3_5() + line.char_time() * u32::try_from(frame.len()).unwrap();
+                heard.extend(sniffer.push(now, frame));
+            }
+            heard_before_the_end = heard.len();
+        }
+        heard.extend(sniffer.finish());
+        assert!(heard_before_the_end > 0, "nothing heard until the line went quiet");
+        assert_eq!(heard.len(), all.len() * 3, "each exchange once");
+        for (h, (what, request, reply)) in heard.iter().zip(all.iter().cycle()) {
+            let x = exchange(h);
+            assert_eq!(x.request.as_ref().map(|(f, _)| f.bytes.as_slice()), Some(request.as_slice()), "{what}");
+            assert_eq!(x.reply.as_ref().map(|f| f.bytes.as_slice()), Some(reply.as_slice()), "{what}");
+        }
+    }
+
     /// A serial-number reply as a probe of each sensor with a model code
     /// sends it (`YL<code>...`): the slave is known by its serial number and
     /// code, and as the sensor when that code is the sensor's alone.
