@@ -26,7 +26,7 @@ use std::time::{Duration, Instant};
 
 use rumqttc::Transport;
 use rumqttc::v5::mqttbytes::QoS;
-use rumqttc::v5::mqttbytes::v5::{Packet, Publish};
+use rumqttc::v5::mqttbytes::v5::{Packet, Publish, SubscribeReasonCode};
 use rumqttc::v5::{Client, Connection, Event, MqttOptions, RecvTimeoutError};
 use yosemitech_mqtt::{Credentials, TlsConfig, tls_client_config, topic};
 
@@ -104,8 +104,9 @@ const RETRY_MOST: Duration = Duration::from_secs(5);
 /// Runs a worker until `stop` is set: connects to the database (migrating
 /// its schema) and to the broker, and stores what arrives. `progress` is
 /// called with the totals so far after each committed batch, at each
-/// connection and when the subscription is in place. Broker and database failures after the start
-/// are retried, forever.
+/// connection and when the subscription is in place. Broker and database
+/// failures after the start are retried, forever; a subscription the
+/// broker refuses ends the worker with an error.
 pub fn run(
     config: &IngestConfig,
     database: &postgres::Config,
@@ -137,7 +138,16 @@ pub fn run(
                 let _ = client.try_subscribe(config.filter(), QoS::AtLeastOnce);
                 progress(&totals);
             }
-            Ok(Ok(Event::Incoming(Packet::SubAck(_)))) => {
+            Ok(Ok(Event::Incoming(Packet::SubAck(ack)))) => {
+                // A refusal (no shared subscriptions, not authorised) would
+                // leave the worker connected and idle: it stops instead.
+                if let Some(refused) = ack.return_codes.iter().find(|c| !matches!(c, SubscribeReasonCode::Success(_))) {
+                    disconnect(&client, &mut connection);
+                    return Err(IngestError::Broker(format!(
+                        "the broker refused the subscription to {}: {refused:?}",
+                        config.filter()
+                    )));
+                }
                 totals.subscribed = true;
                 progress(&totals);
             }

@@ -32,6 +32,8 @@
 //!     values: vec![],
 //!     retries: 0,
 //!     error: None,
+//!     bus: None,
+//!     calibration_id: None,
 //! });
 //! publisher.wake();
 //! let report = publisher.shutdown(std::time::Duration::from_secs(10));
