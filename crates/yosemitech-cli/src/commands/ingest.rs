@@ -74,14 +74,28 @@ fn parse_broker(url: &str) -> Result<(String, u16, bool)> {
         return Err(bad("a user name or password in the URL (anyone on the machine can read a command line)")
             .hint(format!("set {USERNAME_VAR} and {PASSWORD_VAR} instead")));
     }
-    let (host, port) = match rest.rsplit_once(':') {
-        Some((host, port)) if !host.ends_with(']') || rest.starts_with('[') => {
-            (host, port.parse::<u16>().map_err(|_| bad("the port is not a number from 1 to 65535"))?)
+    // `[v6 address]:port`, `host:port`, or either without the port.
+    let (host, port) = match rest.strip_prefix('[') {
+        Some(bracketed) => {
+            let (host, after) = bracketed.split_once(']').ok_or_else(|| bad("an unclosed [ in the host"))?;
+            (host, after.strip_prefix(':'))
         }
-        _ => (rest, if tls { 8883 } else { 1883 }),
+        None => match rest.rsplit_once(':') {
+            Some((host, port)) => (host, Some(port)),
+            None => (rest, None),
+        },
     };
-    let host = host.trim_start_matches('[').trim_end_matches(']');
-    if host.is_empty() || host.contains('/') || port == 0 {
+    let port = match port {
+        Some(port) => port.parse::<u16>().map_err(|_| bad("the port is not a number from 1 to 65535"))?,
+        None => {
+            if tls {
+                8883
+            } else {
+                1883
+            }
+        }
+    };
+    if host.is_empty() || host.contains(['/', '[', ']']) || port == 0 {
         return Err(bad("no host, or not a host and port"));
     }
     Ok((host.to_owned(), port, tls))
@@ -191,7 +205,16 @@ mod tests {
         assert_eq!(parse_broker("mqtts://broker.example").unwrap(), ("broker.example".into(), 8883, true));
         assert_eq!(parse_broker("mqtt://127.0.0.1").unwrap(), ("127.0.0.1".into(), 1883, false));
         assert_eq!(parse_broker("mqtt://[::1]:1883").unwrap(), ("::1".into(), 1883, false));
-        for bad in ["http://x", "mqtt://", "mqtt://host:port", "mqtt://host:0", "mqtt://a/b", "mqtt://user:pw@host"] {
+        assert_eq!(parse_broker("mqtts://[::1]").unwrap(), ("::1".into(), 8883, true));
+        for bad in [
+            "http://x",
+            "mqtt://",
+            "mqtt://host:port",
+            "mqtt://host:0",
+            "mqtt://a/b",
+            "mqtt://user:pw@host",
+            "mqtt://[::1",
+        ] {
             assert!(parse_broker(bad).is_err(), "{bad}");
         }
         let secret = parse_broker("mqtt://user:hunter2@host").unwrap_err();
