@@ -348,13 +348,13 @@ fn serve_until_stopped<D: FrameHandler + Send + 'static>(
         None => serve_pty_or_explain(device, config, args.tap)?,
     };
     writeln!(out, "{endpoint}")?;
-    let tapped = match &served {
-        Served::Tapped(tapped) => format!("; the line is heard on {} (sniff --port it)", tapped.tap_path),
-        Served::Plain(_) => String::new(),
+    let tapped = match served.tap_path() {
+        Some(tap) => {
+            writeln!(out, "{tap}")?;
+            format!("; the line is heard on {tap} (sniff --port it)")
+        }
+        None => String::new(),
     };
-    if let Served::Tapped(tapped) = &served {
-        writeln!(out, "{}", tapped.tap_path)?;
-    }
     out.flush()?;
     let mut err = std::io::stderr().lock();
     let _ = writeln!(err, "simulating {about} on {endpoint}{tapped}; Ctrl-C stops");
@@ -375,6 +375,15 @@ enum Served<D> {
 }
 
 impl<D> Served<D> {
+    /// Where the line is heard, when it is tapped.
+    fn tap_path(&self) -> Option<&str> {
+        match self {
+            Served::Plain(_) => None,
+            #[cfg(unix)]
+            Served::Tapped(tapped) => Some(&tapped.tap_path),
+        }
+    }
+
     fn server(&self) -> &Server<D> {
         match self {
             Served::Plain(server) => server,
