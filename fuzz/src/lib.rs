@@ -12,7 +12,7 @@
 //! | [`decode_response`] | slave byte + frame | typed decoding of every command of every sensor agrees with the reference interpreter; anything accepted re-encodes to the same frame |
 //! | [`frame_reader`] | header + stale bytes + reply stream, split into chunks | the client's reader never panics or hangs, returns a value only for a valid frame it was sent, and accepts a clean reply |
 //! | [`spec_loader`] | two YAML files | the loader never panics; what it accepts generates code that parses |
-//! | [`cli_decode`] | hex text | the decode library's explanation (`yosemitech_cli::explain`): segmenting, pairing, classification and interpretation against every spec command; its entries cover the bytes exactly, and so do the sniffer's (`explain::sniff`), the bytes heard in chunks and silences the data chooses |
+//! | [`cli_decode`] | hex text | the decode library's explanation (`yosemitech_explain`): segmenting, pairing, classification and interpretation against every spec command; its entries cover the bytes exactly, and so do the sniffer's (`explain::sniff`), the bytes heard in chunks and silences the data chooses |
 //! | [`segmenter`] | chunk size + bytes | the frame segmenter's spans cover the bytes exactly, frames hold their CRC, and chunked reads find the same spans |
 
 use std::io;
@@ -30,13 +30,28 @@ use yosemitech_spec::interp::decode_fields;
 use yosemitech_spec::sources::MemSources;
 use yosemitech_spec::{CommandSpec, Spec, Values, load_with, parse_hex};
 
-/// Every `spec/*.yaml` of the workspace as `spec/<file name>` and text: the
-/// files the CLI embeds (`yosemitech_cli::embedded_spec`), so the targets
-/// need no files at run time and a new spec file needs no change here.
+/// Every `spec/*.yaml` of the workspace as `spec/<file name>` and text, in
+/// name order, read once: a new spec file needs no change here.
 pub fn spec_files() -> &'static [(String, &'static str)] {
     static FILES: OnceLock<Vec<(String, &'static str)>> = OnceLock::new();
     FILES.get_or_init(|| {
-        yosemitech_cli::embedded_spec().iter().map(|(name, text)| (format!("spec/{name}"), *text)).collect()
+        let dir = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../spec"));
+        let mut paths: Vec<PathBuf> = std::fs::read_dir(&dir)
+            .unwrap_or_else(|e| panic!("cannot read {}: {e}", dir.display()))
+            .filter_map(|entry| entry.ok().map(|e| e.path()))
+            .filter(|path| path.extension().is_some_and(|e| e == "yaml"))
+            .collect();
+        paths.sort();
+        paths
+            .into_iter()
+            .map(|path| {
+                let text =
+                    std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("cannot read {}: {e}", path.display()));
+                let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+                // Kept for the process's life, as the targets' inputs are.
+                (format!("spec/{name}"), &*Box::leak(text.into_boxed_str()))
+            })
+            .collect()
     })
 }
 
@@ -552,7 +567,7 @@ pub fn spec_loader(data: &[u8]) {
 // cli_decode
 
 /// Input: text, as typed after `yosemitech decode`. Explains the bytes
-/// with the decode library ([`yosemitech_cli::explain`]: segmenting,
+/// with the decode library ([`yosemitech_explain`]: segmenting,
 /// pairing, classification and interpretation against every spec command,
 /// and a frame on its own) and checks that the explanation covers every
 /// byte exactly once (and so does the sniffer's, `check_sniffer`), then
@@ -566,7 +581,7 @@ pub fn cli_decode(data: &[u8]) {
         assert_eq!(parse_hex(&Hex(&bytes).to_string()).as_deref(), Ok(&bytes[..]), "hex does not round-trip");
     }
     // Text the parser refuses is explained as its raw bytes.
-    let parsed = yosemitech_cli::parse_frame(&text);
+    let parsed = yosemitech_explain::parse_frame(&text);
     check_explanation(parsed.as_deref().unwrap_or(data));
     check_sniffer(data);
     let Ok(frame) = parsed else { return };
@@ -597,7 +612,7 @@ pub fn cli_decode(data: &[u8]) {
 /// explanation says about them: a frame on its own is all the bytes, and a
 /// stream's entries cover every byte exactly once.
 fn check_explanation(bytes: &[u8]) {
-    use yosemitech_cli::explain::{Commands, Explanation, Report, explain};
+    use yosemitech_explain::{Commands, Explanation, Report, explain};
     let commands = Commands::new(&spec().sensors);
     match explain(&commands, bytes) {
         Explanation::TooShort(len) => assert!(len == bytes.len() && len < 4, "too short at {len} bytes"),
@@ -638,8 +653,8 @@ fn check_explanation(bytes: &[u8]) {
 /// one entry, in order.
 fn check_sniffer(data: &[u8]) {
     use std::time::Duration;
-    use yosemitech_cli::explain::sniff::{Sniffer, Timing};
-    use yosemitech_cli::explain::{Commands, Report};
+    use yosemitech_explain::sniff::{Sniffer, Timing};
+    use yosemitech_explain::{Commands, Report};
     use yosemitech_rtu::{CharFormat, LineTiming};
     let commands = Commands::new(&spec().sensors);
     let timing = Timing::of_line(LineTiming::new(9600, CharFormat::EIGHT_N_1), Duration::from_millis(300));

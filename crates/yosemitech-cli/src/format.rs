@@ -136,12 +136,7 @@ pub fn hex(bytes: &[u8]) -> String {
 /// commas, colons or dashes between bytes.
 pub fn parse_frame(text: &str) -> Result<Vec<u8>> {
     let hint = "give the frame as hex bytes, e.g. `01 03 28 00 00 02 CD AB`, `010328000002CDAB` or `0x01 0x03 ...`";
-    let mut compact = String::new();
-    for token in text.split(|c: char| c.is_whitespace() || matches!(c, ',' | ':' | '-' | ';')) {
-        let token = token.strip_prefix("0x").or_else(|| token.strip_prefix("0X")).unwrap_or(token);
-        compact.push_str(token);
-    }
-    yosemitech_spec::parse_hex(&compact)
+    yosemitech_explain::parse_frame(text)
         .map_err(|e| CliError::usage(format!("invalid frame `{}`: {e}", text.trim())).hint(hint))
 }
 

@@ -37,7 +37,8 @@ mod derived;
 mod device;
 mod doctor;
 mod error;
-pub mod explain;
+/// The decode library (the `yosemitech-explain` crate), as the commands name it.
+pub use yosemitech_explain as explain;
 mod explained;
 mod format;
 mod help;
@@ -111,7 +112,7 @@ pub fn main() -> ExitCode {
 
 /// The spec files compiled into the tool (every `spec/*.yaml` of the
 /// workspace at build time), by file name, in name order: what the tool
-/// serves without `--spec`, and what the fuzz targets load.
+/// serves without `--spec`.
 pub fn embedded_spec() -> &'static [(&'static str, &'static str)] {
     catalog::EMBEDDED_SPEC
 }

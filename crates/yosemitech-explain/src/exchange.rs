@@ -3,10 +3,8 @@
 
 use yosemitech_rtu::bytes::byte;
 use yosemitech_rtu::frame::EXCEPTION_LEN;
-use yosemitech_rtu::{ExceptionCode, Function, crc16};
+use yosemitech_rtu::{ExceptionCode, Function, Hex, crc16};
 use yosemitech_spec::Values;
-
-use crate::format::hex;
 
 use super::candidates::{Candidate, Commands, Decoding, by_equal_values, fits_slave, label, reply_lens};
 use super::finding::Finding;
@@ -204,7 +202,7 @@ pub fn transaction<'c>(
             } else {
                 let carried = bytes.get(n.saturating_sub(2)..).unwrap_or(&[]);
                 let computed = crc16(bytes.get(..n.saturating_sub(2)).unwrap_or(&[])).to_le_bytes();
-                Finding::ReplyCrc { carried: hex(carried), computed: hex(&computed) }
+                Finding::ReplyCrc { carried: Hex(carried).to_string(), computed: Hex(&computed).to_string() }
             });
         }
         (Some(reply), true) if Kind::of(&reply.bytes) == Kind::Exception => {

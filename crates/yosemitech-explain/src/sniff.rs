@@ -510,16 +510,15 @@ fn frame_time(times: &[Duration], at: usize, len: usize) -> Option<FrameTime> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::catalog::Catalog;
-    use crate::explain::{Explanation, explain};
+    use crate::{Explanation, explain};
     use yosemitech_rtu::CharFormat;
+    use yosemitech_spec::Spec;
 
     const TIMEOUT: Duration = Duration::from_millis(500);
 
     /// The built-in spec, loaded once for the property's many cases.
-    fn catalog() -> &'static Catalog {
-        static CATALOG: std::sync::OnceLock<Catalog> = std::sync::OnceLock::new();
-        CATALOG.get_or_init(|| Catalog::load(&[]).unwrap())
+    fn catalog() -> &'static Spec {
+        yosemitech_tests::spec()
     }
 
     fn timing() -> Timing {
@@ -527,13 +526,13 @@ mod tests {
     }
 
     /// Every printed example with a request and a reply, with its sensor.
-    fn exchanges(catalog: &Catalog) -> Vec<(String, Vec<u8>, Vec<u8>)> {
+    fn exchanges(catalog: &Spec) -> Vec<(String, Vec<u8>, Vec<u8>)> {
         let mut all = Vec::new();
-        for entry in catalog.entries() {
-            for c in &entry.sensor.commands {
+        for sensor in &catalog.sensors {
+            for c in &sensor.commands {
                 for e in &c.examples {
                     if let (Some(request), Some(reply)) = (e.true_request(), e.true_response()) {
-                        all.push((format!("{} {}", entry.sensor.name, c.name), request.to_vec(), reply.to_vec()));
+                        all.push((format!("{} {}", sensor.name, c.name), request.to_vec(), reply.to_vec()));
                     }
                 }
             }
@@ -575,10 +574,10 @@ mod tests {
     /// to fewer sensors once the slave's traffic shows which it is), with
     /// the latency it was given.
     fn hear_every_example(byte_by_byte: bool, latency: Duration) {
-        let catalog = Catalog::load(&[]).unwrap();
-        let commands = Commands::new(catalog.entries().iter().map(|e| &*e.sensor));
+        let catalog = catalog();
+        let commands = Commands::new(&catalog.sensors);
         let timing = timing();
-        for (what, request, reply) in exchanges(&catalog) {
+        for (what, request, reply) in exchanges(catalog) {
             let mut sniffer = Sniffer::new(&commands, timing);
             let (mut heard, request_end) = send(&mut sniffer, byte_by_byte, Duration::from_secs(1), &request);
             let (more, reply_end) = send(&mut sniffer, byte_by_byte, request_end + latency, &reply);
@@ -621,7 +620,7 @@ mod tests {
     #[test]
     fn a_line_never_quiet_is_heard_as_it_goes() {
         let catalog = catalog();
-        let commands = Commands::new(catalog.entries().iter().map(|e| &*e.sensor));
+        let commands = Commands::new(&catalog.sensors);
         let line = LineTiming::new(115_200, CharFormat::EIGHT_N_1);
         let mut sniffer = Sniffer::new(&commands, Timing::of_line(line, TIMEOUT));
         let all = exchanges(catalog);
@@ -649,10 +648,9 @@ mod tests {
     #[test]
     fn an_overheard_serial_number_identifies_the_slave() {
         let catalog = catalog();
-        let commands = Commands::new(catalog.entries().iter().map(|e| &*e.sensor));
+        let commands = Commands::new(&catalog.sensors);
         let mut heard_any = false;
-        for entry in catalog.entries() {
-            let s = &entry.sensor;
+        for s in &catalog.sensors {
             let (Some(command), Some(code)) = (s.command_with_role(Role::SerialNumber), &s.model_code) else {
                 continue;
             };
@@ -679,12 +677,8 @@ mod tests {
             let identity = identified.iter().find(|i| i.slave == slave).expect("the slave is known");
             assert_eq!(identity.serial_number.as_deref(), Some(sn.as_str()), "{}", s.name);
             assert_eq!(identity.model_code.as_deref(), Some(code.as_str()), "{}", s.name);
-            let declaring: Vec<&str> = catalog
-                .entries()
-                .iter()
-                .filter(|e| e.sensor.declares_model_code(code))
-                .map(|e| e.sensor.name.as_str())
-                .collect();
+            let declaring: Vec<&str> =
+                catalog.sensors.iter().filter(|x| x.declares_model_code(code)).map(|x| x.name.as_str()).collect();
             if let Some(sensor) = identity.sensor {
                 assert!(declaring.contains(&sensor), "{}: {sensor} does not declare model code {code}", s.name);
             }
@@ -696,15 +690,15 @@ mod tests {
             }
             heard_any = true;
         }
-        assert!(heard_any || catalog.entries().iter().all(|e| e.sensor.model_code.is_none()));
+        assert!(heard_any || catalog.sensors.iter().all(|s| s.model_code.is_none()));
     }
 
     #[test]
     fn split_frames_late_and_missing_replies_are_flagged() {
-        let catalog = Catalog::load(&[]).unwrap();
-        let commands = Commands::new(catalog.entries().iter().map(|e| &*e.sensor));
+        let catalog = catalog();
+        let commands = Commands::new(&catalog.sensors);
         let timing = timing();
-        let (what, request, reply) = exchanges(&catalog).into_iter().next().expect("the spec prints an exchange");
+        let (what, request, reply) = exchanges(catalog).into_iter().next().expect("the spec prints an exchange");
         let ms = Duration::from_millis;
 
         let mut sniffer = Sniffer::new(&commands, timing);
@@ -754,7 +748,7 @@ mod tests {
             seed in proptest::prelude::any::<usize>(),
         ) {
             let catalog = catalog();
-            let commands = Commands::new(catalog.entries().iter().map(|e| &*e.sensor));
+            let commands = Commands::new(&catalog.sensors);
             // Some chunks are printed frames, so that exchanges are heard too.
             let examples = exchanges(catalog);
             let mut sniffer = Sniffer::new(&commands, timing());

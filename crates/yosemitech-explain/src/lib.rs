@@ -1,7 +1,9 @@
 //! Frames explained: bytes (a frame, a request and its reply, a stream, a
 //! capture's lines) in, a value out that says what each frame is, which
 //! commands it fits, how requests pair with replies and which decodings
-//! agree. The `decode` subcommand renders it; the fuzzer drives it.
+//! agree. The `decode` and `sniff` subcommands render it; the fuzzer
+//! drives it. A library of its own, so that the fuzz targets build it
+//! without the CLI's dependencies.
 //!
 //! It works on the spec's model ([`yosemitech_spec::Sensor`]) rather than
 //! the generated tables, because the tool also explains frames of spec
@@ -31,6 +33,17 @@ pub mod scan;
 pub mod sniff;
 
 use yosemitech_rtu::crc_ok;
+
+/// A frame typed by a person: hex with or without spaces, `0x` prefixes,
+/// commas, colons, semicolons or dashes between bytes.
+pub fn parse_frame(text: &str) -> Result<Vec<u8>, String> {
+    let mut compact = String::new();
+    for token in text.split(|c: char| c.is_whitespace() || matches!(c, ',' | ':' | '-' | ';')) {
+        let token = token.strip_prefix("0x").or_else(|| token.strip_prefix("0X")).unwrap_or(token);
+        compact.push_str(token);
+    }
+    yosemitech_spec::parse_hex(&compact)
+}
 
 pub use self::candidates::{Candidate, Commands, Decoding};
 pub use self::exchange::{Exchange, Report, Status};
@@ -108,7 +121,6 @@ pub fn explain_capture<'c>(commands: &Commands<'c>, lines: &[Line<'_>]) -> (Vec<
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::catalog::Catalog;
 
     /// Where each piece of an explanation lies: (offset, length).
     fn pieces(explanation: &Explanation<'_>, len: usize) -> Vec<(usize, usize)> {
@@ -138,12 +150,12 @@ mod tests {
     /// frame is an entry's request or reply.
     #[test]
     fn a_stream_of_every_printed_frame_is_covered_exactly() {
-        let catalog = Catalog::load(&[]).unwrap();
-        let commands = Commands::new(catalog.entries().iter().map(|e| &*e.sensor));
-        for entry in catalog.entries() {
+        let spec = yosemitech_tests::spec();
+        let commands = Commands::new(&spec.sensors);
+        for sensor in &spec.sensors {
             let mut bytes = Vec::new();
             let mut starts = Vec::new();
-            for c in &entry.sensor.commands {
+            for c in &sensor.commands {
                 for e in &c.examples {
                     for frame in [e.true_request(), e.true_response()].into_iter().flatten() {
                         starts.push(bytes.len());
@@ -155,14 +167,14 @@ mod tests {
             let explanation = explain(&commands, &bytes);
             let mut at = 0;
             for (offset, len) in pieces(&explanation, bytes.len()) {
-                assert_eq!((offset, len > 0), (at, true), "{}: a gap or an overlap at byte {at}", entry.sensor.name);
+                assert_eq!((offset, len > 0), (at, true), "{}: a gap or an overlap at byte {at}", sensor.name);
                 at += len;
             }
-            assert_eq!(at, bytes.len(), "{}: the entries stop short", entry.sensor.name);
+            assert_eq!(at, bytes.len(), "{}: the entries stop short", sensor.name);
             if let Explanation::Stream(_) = explanation {
                 let framed: Vec<usize> = pieces(&explanation, bytes.len()).iter().map(|&(offset, _)| offset).collect();
                 for start in &starts {
-                    assert!(framed.contains(start), "{}: no entry starts at the frame at {start}", entry.sensor.name);
+                    assert!(framed.contains(start), "{}: no entry starts at the frame at {start}", sensor.name);
                 }
             }
         }
