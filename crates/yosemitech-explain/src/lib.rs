@@ -25,6 +25,8 @@
 //! pairs, [`exchange`] decodes what was found, [`frame`] explains a frame
 //! on its own.
 
+#![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used, clippy::panic))]
+
 pub mod candidates;
 pub mod exchange;
 pub mod finding;
