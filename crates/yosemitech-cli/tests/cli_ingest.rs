@@ -98,6 +98,12 @@ fn stop_worker(mut worker: Worker) -> String {
     said.trim().to_owned()
 }
 
+/// Every stored reading's identity, one per row (a reading stored twice twice).
+fn stored_ids(client: &mut postgres::Client) -> Vec<(String, i64)> {
+    let rows = client.query("SELECT station, reading_id FROM readings ORDER BY station, reading_id", &[]).unwrap();
+    rows.iter().map(|row| (row.get(0), row.get(1))).collect()
+}
+
 /// Repeated deliveries a worker's closing line counts.
 fn repeated(line: &str) -> u64 {
     line.split(", ").find_map(|part| part.strip_suffix(" repeated deliveries")?.parse().ok()).unwrap_or(0)
@@ -168,12 +174,7 @@ fn a_fleet_of_stations_lands_in_postgres_once_through_a_killed_worker_and_a_brok
     let deadline = Instant::now() + DEADLINE;
     while count(&mut client) < published.len() {
         if Instant::now() > deadline {
-            let stored: BTreeSet<(String, i64)> = client
-                .query("SELECT station, reading_id FROM readings", &[])
-                .unwrap()
-                .iter()
-                .map(|row| (row.get(0), row.get(1)))
-                .collect();
+            let stored: BTreeSet<(String, i64)> = stored_ids(&mut client).into_iter().collect();
             let mut missing_by_id = std::collections::BTreeMap::new();
             for (_, id) in published.difference(&stored) {
                 *missing_by_id.entry(*id).or_insert(0) += 1;
@@ -191,12 +192,7 @@ fn a_fleet_of_stations_lands_in_postgres_once_through_a_killed_worker_and_a_brok
     }
     let absorbed = repeated(&stop_worker(restarted.unwrap())) + repeated(&stop_worker(second));
 
-    let stored: Vec<(String, i64)> = client
-        .query("SELECT station, reading_id FROM readings ORDER BY station, reading_id", &[])
-        .unwrap()
-        .iter()
-        .map(|row| (row.get(0), row.get(1)))
-        .collect();
+    let stored = stored_ids(&mut client);
     let distinct: BTreeSet<(String, i64)> = stored.iter().cloned().collect();
     let lost = published.difference(&distinct).count();
     let duplicates = stored.len() - distinct.len();

@@ -34,16 +34,27 @@
 //! use std::collections::BTreeMap;
 //! use yosemitech_rtu::{Client, ResponderTransport};
 //! use yosemitech_sim::Simulator;
-//! use yosemitech_spec::Value;
+//! use yosemitech_spec::{FieldKind, Value};
 //!
-//! let sensor = spec.sensor("ph_orp").unwrap().clone();
-//! let get_ph = sensor.command("get_ph").unwrap().clone();
+//! // The first read of the spec with a float field: set it, read it over the wire.
+//! let (sensor, read, field) = spec
+//!     .sensors
+//!     .iter()
+//!     .find_map(|s| {
+//!         let c = s.commands.iter().find(|c| c.is_read() && !c.trigger && c.fixed_slave.is_none()
+//!             && c.named_fields().any(|f| matches!(f.kind, FieldKind::F32 { .. })))?;
+//!         let f = c.named_fields().find(|f| matches!(f.kind, FieldKind::F32 { .. }))?;
+//!         Some((s.clone(), c.clone(), f.display_name().to_owned()))
+//!     })
+//!     .ok_or("no read with a float field in the spec")?;
+//! let address = sensor.default_address;
 //! let mut sim = Simulator::new(sensor);
-//! sim.set("get_ph", "ph", Value::Float(6.5))?;
+//! sim.set(&read.name, &field, Value::Float(6.5))?;
 //! let mut client = Client::new(ResponderTransport::new(sim));
-//! let request = get_ph.encode_request(1, &BTreeMap::new())?;
-//! let reply = client.call_raw(&request, &get_ph.layout())?;
-//! assert_eq!(get_ph.decode_response(1, reply)?, [("ph".to_string(), Value::Float(6.5))]);
+//! let request = read.encode_request(address, &BTreeMap::new())?;
+//! let reply = client.call_raw(&request, &read.layout())?;
+//! let values = read.decode_response(address, reply)?;
+//! assert_eq!(values.iter().find(|(name, _)| *name == field).map(|(_, v)| v), Some(&Value::Float(6.5)));
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 #![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used, clippy::panic, clippy::indexing_slicing))]
