@@ -1,6 +1,7 @@
 //! `cargo xtask callgrind [--check]`: the client's own cost in instructions.
 //!
-//! Builds `callgrind-transaction` (crate `yosemitech-bench`) in release mode,
+//! Builds `callgrind-transaction` (crate `yosemitech-bench`, without the
+//! benchmarks' spec-loading harness) in release mode,
 //! runs each of its modes under `valgrind --tool=callgrind`, counting only
 //! inside the `measured_*` functions, and prints instructions per
 //! transaction. Counted instructions do not depend on the machine's load,
@@ -35,7 +36,7 @@ pub fn run(args: &[String]) -> anyhow::Result<ExitCode> {
     let Some(check) = crate::check_flag(args, USAGE)? else { return Ok(ExitCode::SUCCESS) };
     let root = root();
     let status = Command::new(env!("CARGO"))
-        .args(["build", "--release", "--quiet", "-p", "yosemitech-bench", "--bin", "callgrind-transaction"])
+        .args(["build", "--release", "--quiet", "-p", "yosemitech-bench", "--no-default-features", "--bin", "callgrind-transaction"])
         .current_dir(&root)
         .status()
         .context("running cargo build")?;

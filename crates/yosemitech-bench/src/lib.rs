@@ -13,7 +13,9 @@ use std::path::PathBuf;
 use std::time::Duration;
 
 use yosemitech_rtu::LineTiming;
+#[cfg(feature = "harness")]
 use yosemitech_sim::Simulator;
+#[cfg(feature = "harness")]
 use yosemitech_spec::Sensor;
 
 /// The pH manual's get_ph request (Fig 23): slave 1, read 2 registers at 0x2800.
@@ -53,6 +55,7 @@ pub fn criterion_dir() -> PathBuf {
 }
 
 /// The sensor `name` (`ph_orp`, `conductivity`) of the workspace's spec.
+#[cfg(feature = "harness")]
 pub fn sensor(name: &str) -> Result<Sensor, String> {
     let spec = yosemitech_spec::load_paths(&[spec_dir()]).map_err(|e| format!("the spec does not load: {e}"))?;
     spec.sensor(name).cloned().ok_or_else(|| format!("the spec has no sensor {name}"))
@@ -60,6 +63,7 @@ pub fn sensor(name: &str) -> Result<Sensor, String> {
 
 /// A simulated pH probe at its factory address (1), registers as the
 /// manual's examples show them (get_ph answers 7.6).
+#[cfg(feature = "harness")]
 pub fn ph_simulator() -> Result<Simulator, String> {
     sensor("ph_orp").map(Simulator::new)
 }
