@@ -36,7 +36,8 @@ pub fn run(args: &[String]) -> anyhow::Result<ExitCode> {
     let Some(check) = crate::check_flag(args, USAGE)? else { return Ok(ExitCode::SUCCESS) };
     let root = root();
     let status = Command::new(env!("CARGO"))
-        .args(["build", "--release", "--quiet", "-p", "yosemitech-bench", "--no-default-features", "--bin", "callgrind-transaction"])
+        .args(["build", "--release", "--quiet", "-p", "yosemitech-bench", "--bin", "callgrind-transaction"])
+        .arg("--no-default-features")
         .current_dir(&root)
         .status()
         .context("running cargo build")?;
