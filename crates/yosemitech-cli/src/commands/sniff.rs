@@ -148,11 +148,12 @@ fn listen(
     let mut buf = [0u8; 512];
     while !stop.load(Ordering::SeqCst) && args.duration.is_none_or(|d| started.elapsed() < d) {
         let n = transport.read(&mut buf, poll).map_err(|e| CliError::device(format!("reading {port}: {e}")))?;
-        let now = started.elapsed();
+        // Heard at the capture's resolution, so that its replay hears the same times.
+        let now = whole_micros(started.elapsed());
         let heard = match buf.get(..n).filter(|b| !b.is_empty()) {
             Some(bytes) => {
                 if let Some(raw) = &mut raw {
-                    writeln!(raw, "{:.6}: {}", now.as_secs_f64(), hex(bytes))
+                    writeln!(raw, "{}.{:06}: {}", now.as_secs(), now.subsec_micros(), hex(bytes))
                         .and_then(|()| raw.flush())
                         .map_err(|e| CliError::device(format!("writing the capture: {e}")))?;
                 }
@@ -193,12 +194,7 @@ fn replay(path: &Path, sniffer: &mut Sniffer<'_, '_>, printer: &mut Printer<'_>)
                 .hint("a capture line is `SECONDS: HEX BYTES`, as `sniff --raw` writes it")
         };
         let (time, bytes) = line.split_once(": ").ok_or_else(|| bad("no `SECONDS: ` before the bytes"))?;
-        let at = time
-            .trim()
-            .parse::<f64>()
-            .ok()
-            .and_then(|s| Duration::try_from_secs_f64(s).ok())
-            .ok_or_else(|| bad(&format!("`{time}` is not a time in seconds")))?;
+        let at = capture_time(time.trim()).ok_or_else(|| bad(&format!("`{time}` is not a time in seconds")))?;
         if at < last {
             return Err(bad(&format!("{time} s goes back in time")));
         }
@@ -210,6 +206,25 @@ fn replay(path: &Path, sniffer: &mut Sniffer<'_, '_>, printer: &mut Printer<'_>)
     // The line stays quiet after the capture's end.
     let heard = sniffer.tick(last + sniffer.timing().give_up + sniffer.timing().split_wait);
     printer.print(&heard)
+}
+
+/// A time cut to the microseconds a capture keeps.
+fn whole_micros(time: Duration) -> Duration {
+    Duration::new(time.as_secs(), time.subsec_micros() * 1_000)
+}
+
+/// A capture's `SECONDS[.FRACTION]`, read exactly (through a float, 1.000001
+/// would come back a nanosecond short and move a latency's last digit); digits
+/// past the microsecond are cut, as the capture cuts them.
+fn capture_time(text: &str) -> Option<Duration> {
+    let (whole, fraction) = text.split_once('.').unwrap_or((text, ""));
+    let digits = |s: &str| !s.is_empty() && s.bytes().all(|b| b.is_ascii_digit());
+    if !digits(whole) || !(fraction.is_empty() || digits(fraction)) {
+        return None;
+    }
+    let micros =
+        fraction.bytes().chain(std::iter::repeat(b'0')).take(6).fold(0u32, |n, b| n * 10 + u32::from(b - b'0'));
+    Some(Duration::new(whole.parse().ok()?, micros * 1_000))
 }
 
 /// Prints entries as they are heard, and counts them.
@@ -344,4 +359,24 @@ fn csv_row(h: &Heard<'_>) -> String {
     .map(|field| csv_field(field))
     .collect::<Vec<_>>()
     .join(",")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_capture_time_reads_back_as_written() {
+        for nanos in [0u64, 1, 999, 1_000, 1_000_001, 1_234_567_891, 86_399_999_999_999] {
+            let heard = whole_micros(Duration::from_nanos(nanos));
+            let written = format!("{}.{:06}", heard.as_secs(), heard.subsec_micros());
+            assert_eq!(capture_time(&written), Some(heard), "{written}");
+        }
+        assert_eq!(capture_time("2"), Some(Duration::from_secs(2)));
+        assert_eq!(capture_time("2.5"), Some(Duration::from_millis(2500)));
+        assert_eq!(capture_time("2.0000019"), Some(Duration::from_micros(2_000_001)));
+        for bad in ["", ".", "-1.0", "1e3", "1.2.3", " 1.0", "1,5", "18446744073709551616.0"] {
+            assert_eq!(capture_time(bad), None, "{bad:?}");
+        }
+    }
 }
