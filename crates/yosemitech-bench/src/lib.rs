@@ -54,7 +54,7 @@ pub fn criterion_dir() -> PathBuf {
     }
 }
 
-/// The sensor `name` (`ph_orp`, `conductivity`) of the workspace's spec.
+/// The sensor `name` of the workspace's spec.
 #[cfg(feature = "harness")]
 pub fn sensor(name: &str) -> Result<Sensor, String> {
     let spec = yosemitech_spec::load_paths(&[spec_dir()]).map_err(|e| format!("the spec does not load: {e}"))?;
@@ -62,10 +62,20 @@ pub fn sensor(name: &str) -> Result<Sensor, String> {
 }
 
 /// A simulated pH probe at its factory address (1), registers as the
-/// manual's examples show them (get_ph answers 7.6).
+/// manual's examples show them (get_ph answers 7.6): the sensor whose
+/// printed exchange is [`GET_PH_REQUEST`] and [`GET_PH_REPLY`], found by its
+/// frames rather than named.
 #[cfg(feature = "harness")]
 pub fn ph_simulator() -> Result<Simulator, String> {
-    sensor("ph_orp").map(Simulator::new)
+    let spec = yosemitech_spec::load_paths(&[spec_dir()]).map_err(|e| format!("the spec does not load: {e}"))?;
+    let prints_get_ph =
+        |sensor: &&Sensor| {
+            sensor.commands.iter().flat_map(|c| &c.examples).any(|e| {
+                e.true_pair().is_some_and(|(request, reply)| request == GET_PH_REQUEST && reply == GET_PH_REPLY)
+            })
+        };
+    let sensor = spec.sensors.iter().find(prints_get_ph).ok_or("no sensor of the spec prints the get_ph exchange")?;
+    Ok(Simulator::new(sensor.clone()))
 }
 
 /// A responder that answers [`GET_PH_REQUEST`] with [`GET_PH_REPLY`] and
