@@ -16,7 +16,9 @@ use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
-use rumqttc::{Client, Event, MqttOptions, Packet, QoS};
+use rumqttc::v5::mqttbytes::QoS;
+use rumqttc::v5::mqttbytes::v5::Packet;
+use rumqttc::v5::{Client, Event, MqttOptions};
 use yosemitech_mqtt::{CredentialsSource, MeasuredValue, MqttConfig, PublisherTuning, ReadingMessage, SCHEMA_VERSION};
 
 /// The environment variable that makes the mosquitto runs mandatory.
@@ -89,9 +91,9 @@ pub fn rumqttd_child_main() {
             "max_segment_size": 104857600,
             "max_segment_count": 10,
         },
-        "v4": {
+        "v5": {
             "1": {
-                "name": "v4-1",
+                "name": "v5-1",
                 "listen": format!("127.0.0.1:{port}"),
                 "next_connection_delay_ms": 1,
                 "connections": {
@@ -322,6 +324,7 @@ impl Broker {
             topic_prefix: yosemitech_mqtt::topic::DEFAULT_TOPIC_PREFIX.into(),
             tls: None,
             credentials: CredentialsSource::None,
+            require_subscriber: false,
             publisher: PublisherTuning {
                 max_in_flight,
                 poll_interval_ms: 50,
@@ -395,10 +398,13 @@ impl Subscriber {
         static COUNTER: AtomicU64 = AtomicU64::new(0);
         let id = format!("test-subscriber-{}-{}", std::process::id(), COUNTER.fetch_add(1, Ordering::Relaxed));
         let mut options = MqttOptions::new(id, "127.0.0.1", broker.port);
+        // A session the broker keeps for an hour: what arrives while the
+        // subscriber reconnects waits for it.
         options
             .set_keep_alive(Duration::from_secs(5))
-            .set_clean_session(false)
-            .set_max_packet_size(256 * 1024, 256 * 1024);
+            .set_clean_start(false)
+            .set_session_expiry_interval(Some(3600))
+            .set_max_packet_size(Some(256 * 1024));
         if let Some((user, password)) = &broker.auth {
             options.set_credentials(user, password);
         }
@@ -428,7 +434,7 @@ impl Subscriber {
                             let count = {
                                 let mut received = received.lock().unwrap();
                                 received.push(Received {
-                                    topic: publish.topic.clone(),
+                                    topic: String::from_utf8_lossy(&publish.topic).into_owned(),
                                     payload: publish.payload.to_vec(),
                                     redelivered: publish.dup,
                                 });

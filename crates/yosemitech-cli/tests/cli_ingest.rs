@@ -5,12 +5,12 @@
 //! once. Needs mosquitto (shared subscriptions, persistent sessions) and
 //! PostgreSQL: without them it skips with a note (`.ci/run` requires both).
 //!
-//! The broker is restarted once every station's last reading has reached
-//! it, and the stations publish again once the workers have subscribed
-//! again: mosquitto 2.0 does not restore a shared subscription from its
-//! persistence file, so a reading published between its restart and the
-//! workers' new subscription matches no subscriber and is dropped (MQTT
-//! 3.1.1 gives the station no way to know). docs/postgres.md says so.
+//! The broker is restarted while the stations publish. mosquitto 2.0 does
+//! not restore a shared subscription from its persistence file, so a reading
+//! published between its restart and the workers' new subscription matches
+//! no subscriber: the broker acknowledges it with reason 0x10 and drops it.
+//! The stations run with `require_subscriber` (docs/postgres.md) and send
+//! such readings again.
 
 use std::collections::BTreeSet;
 use std::io::{BufRead, BufReader, Read};
@@ -18,7 +18,7 @@ use std::process::{Child, Stdio};
 use std::sync::mpsc;
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
-use yosemitech_mqtt::{MemoryOutbox, Publisher, ReadingMessage};
+use yosemitech_mqtt::{MemoryOutbox, MqttConfig, Publisher, ReadingMessage};
 use yosemitech_tests::broker::{Broker, BrokerKind, available, reading};
 use yosemitech_tests::cli::{Binary, interrupt};
 use yosemitech_tests::postgres::Postgres;
@@ -126,7 +126,10 @@ fn a_fleet_of_stations_lands_in_postgres_once_through_a_killed_worker_and_a_brok
     let publishers: Vec<Publisher> = outboxes
         .iter()
         .enumerate()
-        .map(|(s, outbox)| Publisher::start(&broker.config(&format!("station-{s:03}"), 20), outbox.clone()).unwrap())
+        .map(|(s, outbox)| {
+            let config = MqttConfig { require_subscriber: true, ..broker.config(&format!("station-{s:03}"), 20) };
+            Publisher::start(&config, outbox.clone()).unwrap()
+        })
         .collect();
     let now_ms = i64::try_from(SystemTime::now().duration_since(UNIX_EPOCH).unwrap().as_millis()).unwrap();
     let mut published: BTreeSet<(String, i64)> = BTreeSet::new();
@@ -187,6 +190,7 @@ fn a_fleet_of_stations_lands_in_postgres_once_through_a_killed_worker_and_a_brok
         }
         std::thread::sleep(Duration::from_millis(200));
     }
+    let undelivered: u64 = publishers.iter().map(|p| p.status().undelivered).sum();
     for publisher in publishers {
         publisher.shutdown(Duration::from_secs(5));
     }
@@ -199,7 +203,8 @@ fn a_fleet_of_stations_lands_in_postgres_once_through_a_killed_worker_and_a_brok
     eprintln!(
         "    fleet: {} readings published by {STATIONS} stations, {} stored, {duplicates} stored twice, {lost} lost; \
          one worker SIGKILLed at round {KILL_AT} and restarted at {RESTART_WORKER_AT}, the broker restarted at \
-         {RESTART_BROKER_AT}; {absorbed} repeated deliveries absorbed by the surviving workers",
+         {RESTART_BROKER_AT}; {undelivered} publications the broker had no subscriber for, sent again; \
+         {absorbed} repeated deliveries absorbed by the surviving workers",
         published.len(),
         stored.len()
     );

@@ -58,6 +58,17 @@ pub struct MqttConfig {
     /// Where the user name and password come from. Default: none (anonymous).
     #[serde(default)]
     pub credentials: CredentialsSource,
+    /// Count a reading delivered only when the broker had a subscriber for
+    /// it. A broker acknowledges a reading that matches no subscription and
+    /// drops it (MQTT 5 PUBACK reason 0x10, "no matching subscribers"): with
+    /// this on, the reading stays in the outbox and is sent again after a
+    /// pause, until a subscriber takes it. For readings that must reach a
+    /// consumer, such as `yosemitech ingest`'s workers, whose shared
+    /// subscriptions a restarted broker may not restore before stations
+    /// publish. Off by default: where nobody subscribes to the readings,
+    /// they would wait forever.
+    #[serde(default)]
+    pub require_subscriber: bool,
     /// How the publisher paces itself.
     #[serde(default)]
     pub publisher: PublisherTuning,

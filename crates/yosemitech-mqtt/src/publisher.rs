@@ -1,11 +1,14 @@
-//! The publisher: drains an [`Outbox`] to the broker, in order, QoS 1.
+//! The publisher: drains an [`Outbox`] to the broker, in order, QoS 1, over MQTT 5.
 
 use std::collections::VecDeque;
 use std::sync::{Arc, Mutex, PoisonError};
 use std::thread::JoinHandle;
 use std::time::Duration;
 
-use rumqttc::{AsyncClient, ConnectionError, Event, LastWill, MqttOptions, Outgoing, Packet, QoS, Transport};
+use rumqttc::v5::mqttbytes::QoS;
+use rumqttc::v5::mqttbytes::v5::{LastWill, Packet, PubAck, PubAckReason};
+use rumqttc::v5::{AsyncClient, ConnectionError, Event, MqttOptions};
+use rumqttc::{Outgoing, Transport};
 use tokio::sync::{Notify, mpsc, watch};
 use tokio::time::Instant;
 
@@ -24,16 +27,23 @@ use crate::outbox::Outbox;
 ///   QoS 1 messages in order, so a subscriber sees the ids ascending, except
 ///   that resent readings (below) can follow readings it already has.
 /// * **Nothing lost.** A reading is marked published in the outbox
-///   ([`Outbox::mark_published`]) only after the broker's PUBACK for it and
-///   for every older reading. Whatever is not marked is sent again: after a
-///   broker outage (reconnection with exponential backoff, forever), after
+///   ([`Outbox::mark_published`]) only after the broker's PUBACK accepting
+///   it and every older reading. Whatever is not marked is sent again: after
+///   a broker outage (reconnection with exponential backoff, forever), after
 ///   [`Publisher::shutdown`] hit its deadline, after the publisher was
-///   dropped, after the process was killed.
+///   dropped, after the process was killed. A PUBACK that refuses a reading
+///   (an MQTT 5 reason code of 0x80 or above: not authorized, quota
+///   exceeded), or says nobody subscribed to it when
+///   [`MqttConfig::require_subscriber`] is on, leaves it and every later
+///   reading unpublished: they are sent again after a pause that doubles
+///   from `reconnect_min_ms` to `reconnect_max_ms` while the broker keeps
+///   refusing ([`PublisherStatus::undelivered`] counts these refusals).
 /// * **No reading under two ids, no acknowledged reading resent.** A
 ///   reading's payload is rebuilt from the outbox with its `reading_id`, so
 ///   every copy is identical. The only copies are resends of readings that
 ///   were in flight (sent, not yet acknowledged) when a connection dropped
-///   or a publisher stopped: at most `max_in_flight` per such event. MQTT
+///   or a publisher stopped, or that followed a refused reading: at most
+///   `max_in_flight` per such event. MQTT
 ///   QoS 1 is at-least-once; a consumer that keeps the first message per
 ///   `(station, reading_id)` sees every reading exactly once, in order.
 /// * **Credentials** are handed to the MQTT client and never logged;
@@ -75,6 +85,10 @@ pub struct PublisherStatus {
     pub published_up_to: Option<i64>,
     /// Readings sent and not yet acknowledged.
     pub in_flight: usize,
+    /// Readings the broker acknowledged without taking them (refused, or no
+    /// subscriber when [`MqttConfig::require_subscriber`] is on), each sent
+    /// again later: the count of such acknowledgements so far.
+    pub undelivered: u64,
     /// The last connection or outbox error, if any since the last
     /// successful connection. It names no credential.
     pub last_error: Option<String>,
@@ -142,6 +156,7 @@ struct Settings {
     tls: Option<Arc<rustls::ClientConfig>>,
     credentials: Option<Credentials>,
     tuning: PublisherTuning,
+    require_subscriber: bool,
     /// The logger's availability topic: last will `offline`, `online` after
     /// each connection, `offline` at a clean stop.
     status_topic: Option<String>,
@@ -183,6 +198,7 @@ impl Publisher {
             tls,
             credentials,
             tuning: config.publisher.clone(),
+            require_subscriber: config.require_subscriber,
             status_topic,
         };
         let runtime = tokio::runtime::Builder::new_current_thread().enable_all().build()?;
@@ -190,7 +206,17 @@ impl Publisher {
         let (stop, stop_rx) = watch::channel(Stop::Run);
         let thread_shared = Arc::clone(&shared);
         let thread = std::thread::Builder::new().name("mqtt-publisher".into()).spawn(move || {
-            runtime.block_on(Worker { outbox, settings, shared: thread_shared, stop: stop_rx, acked_up_to: None }.run())
+            let resend_pause = Duration::from_millis(settings.tuning.reconnect_min_ms);
+            let worker = Worker {
+                outbox,
+                settings,
+                shared: thread_shared,
+                stop: stop_rx,
+                acked_up_to: None,
+                resend_at: None,
+                resend_pause,
+            };
+            runtime.block_on(worker.run())
         })?;
         Ok(Self { shared, stop, thread: Some(thread) })
     }
@@ -261,7 +287,16 @@ struct InFlight {
     reading_id: Option<i64>,
     /// The MQTT packet id, once the client has sent the PUBLISH.
     packet_id: Option<u16>,
-    acknowledged: bool,
+    outcome: Outcome,
+}
+
+/// What the broker's PUBACK said of a message in flight.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Outcome {
+    Waiting,
+    Delivered,
+    /// Acknowledged but not taken, for this reason: the reading is sent again.
+    Undelivered(PubAckReason),
 }
 
 enum SessionEnd {
@@ -276,6 +311,11 @@ struct Worker<O> {
     stop: watch::Receiver<Stop>,
     /// The highest id marked published by this worker.
     acked_up_to: Option<i64>,
+    /// After the broker did not take a reading: when to send it again.
+    resend_at: Option<Instant>,
+    /// The next pause after an undelivered reading; doubles while the broker
+    /// keeps refusing, back to `reconnect_min_ms` once it takes one.
+    resend_pause: Duration,
 }
 
 impl<O: Outbox> Worker<O> {
@@ -315,14 +355,14 @@ impl<O: Outbox> Worker<O> {
         let mut options = MqttOptions::new(&settings.client_id, &settings.host, settings.port);
         options
             .set_keep_alive(settings.keep_alive)
-            .set_clean_session(true)
-            .set_inflight(settings.tuning.max_in_flight)
-            .set_max_packet_size(256 * 1024, 256 * 1024);
+            .set_clean_start(true)
+            .set_outgoing_inflight_upper_limit(settings.tuning.max_in_flight)
+            .set_max_packet_size(Some(256 * 1024));
         if let Some(credentials) = &settings.credentials {
             options.set_credentials(&credentials.username, credentials.password.expose());
         }
         if let Some(topic) = &settings.status_topic {
-            options.set_last_will(LastWill::new(topic, OFFLINE, QoS::AtLeastOnce, true));
+            options.set_last_will(LastWill::new(topic, OFFLINE, QoS::AtLeastOnce, true, None));
         }
         if let Some(tls) = &settings.tls {
             options.set_transport(Transport::tls_with_config(rumqttc::TlsConfiguration::Rustls(Arc::clone(tls))));
@@ -351,6 +391,8 @@ impl<O: Outbox> Worker<O> {
 
         let mut in_flight = VecDeque::new();
         let mut connected = false;
+        // A new connection may reach the subscriber the last one did not.
+        self.resend_at = None;
         let mut poll = tokio::time::interval(self.settings.tuning.poll_interval());
         poll.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
         let shared = Arc::clone(&self.shared);
@@ -458,13 +500,32 @@ impl<O: Outbox> Worker<O> {
                 }
             }
             Event::Incoming(Packet::PubAck(ack)) => {
-                match in_flight.iter_mut().find(|entry| !entry.acknowledged && entry.packet_id == Some(ack.pkid)) {
-                    Some(entry) => entry.acknowledged = true,
+                match in_flight.iter_mut().find(|e| e.outcome == Outcome::Waiting && e.packet_id == Some(ack.pkid)) {
+                    Some(entry) => entry.outcome = self.outcome(entry.reading_id, &ack),
                     None => tracing::warn!(packet_id = ack.pkid, "PUBACK for no message in flight"),
                 }
             }
             _ => {}
         }
+    }
+
+    /// Whether the broker took the message `ack` acknowledges. A retained
+    /// message of the station's own topics is kept by the broker whoever
+    /// subscribes, and one it refuses is sent again at the next connection.
+    fn outcome(&self, reading_id: Option<i64>, ack: &PubAck) -> Outcome {
+        let no_subscriber = ack.reason == PubAckReason::NoMatchingSubscribers;
+        if ack.reason == PubAckReason::Success || (no_subscriber && !self.settings.require_subscriber) {
+            return Outcome::Delivered;
+        }
+        let Some(reading_id) = reading_id else {
+            if !no_subscriber {
+                tracing::warn!(reason = ?ack.reason, "the MQTT broker refused a retained message");
+            }
+            return Outcome::Delivered;
+        };
+        tracing::debug!(reading_id, reason = ?ack.reason, "the MQTT broker did not take a reading");
+        self.shared.update(|status| status.undelivered += 1);
+        Outcome::Undelivered(ack.reason)
     }
 
     fn lost(&self, connected: bool, error: &ConnectionError) -> SessionEnd {
@@ -493,10 +554,13 @@ impl<O: Outbox> Worker<O> {
                 {
                     break;
                 }
-                in_flight.push_back(InFlight { reading_id: None, packet_id: None, acknowledged: false });
+                in_flight.push_back(InFlight { reading_id: None, packet_id: None, outcome: Outcome::Waiting });
                 sent += 1;
             }
             retained.pending.drain(..sent);
+        }
+        if self.resend_at.is_some_and(|at| Instant::now() < at) {
+            return;
         }
         let last_reading = |in_flight: &VecDeque<InFlight>| in_flight.iter().rev().find_map(|entry| entry.reading_id);
         while in_flight.len() < max_in_flight {
@@ -545,24 +609,50 @@ impl<O: Outbox> Worker<O> {
                 in_flight.push_back(InFlight {
                     reading_id: Some(message.reading_id),
                     packet_id: None,
-                    acknowledged: false,
+                    outcome: Outcome::Waiting,
                 });
             }
         }
     }
 
-    /// Marks the acknowledged prefix of `in_flight` published in the outbox.
+    /// Marks the delivered prefix of `in_flight` published in the outbox.
+    /// Once a reading the broker did not take heads what is left, and every
+    /// message sent after it is acknowledged too, they are all forgotten:
+    /// the next fill, after a pause, sends them again from that reading.
     fn mark_acknowledged(&mut self, in_flight: &mut VecDeque<InFlight>) {
-        let acknowledged = in_flight.iter().take_while(|entry| entry.acknowledged).count();
-        let Some(up_to) = in_flight.iter().take(acknowledged).filter_map(|entry| entry.reading_id).next_back() else {
+        self.mark_delivered(in_flight);
+        let Some(&InFlight { reading_id: Some(reading_id), outcome: Outcome::Undelivered(reason), .. }) =
+            in_flight.front()
+        else {
+            return;
+        };
+        if in_flight.iter().any(|entry| entry.outcome == Outcome::Waiting) {
+            return;
+        }
+        in_flight.clear();
+        let pause = self.resend_pause;
+        self.resend_at = Some(Instant::now() + pause);
+        self.resend_pause = (pause * 2).min(Duration::from_millis(self.settings.tuning.reconnect_max_ms));
+        let message = format!(
+            "the broker did not take reading {reading_id} ({reason:?}): it and those after it are sent again in {} ms",
+            pause.as_millis()
+        );
+        tracing::warn!("{message}");
+        self.shared.update(|status| status.last_error = Some(message));
+    }
+
+    fn mark_delivered(&mut self, in_flight: &mut VecDeque<InFlight>) {
+        let delivered = in_flight.iter().take_while(|entry| entry.outcome == Outcome::Delivered).count();
+        let Some(up_to) = in_flight.iter().take(delivered).filter_map(|entry| entry.reading_id).next_back() else {
             // Only retained messages (or nothing) acknowledged: no reading to mark.
-            in_flight.drain(..acknowledged);
+            in_flight.drain(..delivered);
             return;
         };
         match self.outbox.mark_published(up_to) {
             Ok(()) => {
-                in_flight.drain(..acknowledged);
+                in_flight.drain(..delivered);
                 self.acked_up_to = Some(up_to);
+                self.resend_pause = Duration::from_millis(self.settings.tuning.reconnect_min_ms);
                 self.shared.update(|status| status.published_up_to = Some(up_to));
             }
             Err(error) => self.outbox_error("mark published", &error),

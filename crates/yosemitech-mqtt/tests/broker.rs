@@ -15,7 +15,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Duration;
 
 use yosemitech_mqtt::topic::DEFAULT_TOPIC_PREFIX;
-use yosemitech_mqtt::{MemoryOutbox, Outbox, Publisher, ReadingMessage, ShutdownReport};
+use yosemitech_mqtt::{MemoryOutbox, MqttConfig, Outbox, Publisher, ReadingMessage, ShutdownReport};
 use yosemitech_tests::broker::{
     Broker, BrokerKind, DEADLINE, Received, Subscriber, available, capture_logs, credentials_file,
     ids_and_first_occurrences, reading, wait_until,
@@ -444,4 +444,47 @@ fn publishes_over_tls_and_refuses_a_broker_its_ca_did_not_sign() {
     assert_eq!(publisher.shutdown(DEADLINE).unacknowledged, 0);
     let received: Vec<ReadingMessage> = subscriber.received().iter().map(Received::message).collect();
     assert_eq!(received, sent);
+}
+
+/// A broker acknowledges a reading that matches no subscription and drops
+/// it (MQTT 5 reason 0x10). With `require_subscriber` the station keeps
+/// such readings and sends them again until a subscriber takes them; without
+/// it, as before, they count as published. mosquitto says 0x10; rumqttd
+/// never does, so this runs on mosquitto only.
+#[test]
+fn readings_nobody_subscribed_to_wait_for_a_subscriber_when_required() {
+    const COUNT: usize = 20;
+    const IN_FLIGHT: u16 = 4;
+    if !available(BrokerKind::Mosquitto) {
+        return;
+    }
+    let broker = Broker::start(BrokerKind::Mosquitto, None);
+
+    let dropped = MemoryOutbox::new();
+    push_readings(&dropped, 0..COUNT);
+    let publisher = Publisher::start(&broker.config("station-not-required", IN_FLIGHT), dropped.clone()).unwrap();
+    assert!(wait_until(|| dropped.published_up_to() == Some(COUNT as i64)), "without a subscriber, as acknowledged");
+    assert_eq!(publisher.status().undelivered, 0);
+    drop(publisher);
+
+    let kept = MemoryOutbox::new();
+    let sent = push_readings(&kept, 0..COUNT);
+    let config = MqttConfig { require_subscriber: true, ..broker.config("station-required", IN_FLIGHT) };
+    let publisher = Publisher::start(&config, kept.clone()).unwrap();
+    // The status says why, naming the oldest reading it keeps.
+    let says_why = || publisher.status().last_error.is_some_and(|e| e.contains("reading 1 (NoMatchingSubscribers)"));
+    assert!(wait_until(says_why), "{:?}", publisher.status());
+    assert!(wait_until(|| publisher.status().undelivered > u64::from(IN_FLIGHT)), "sent again while nobody subscribes");
+    assert_eq!(kept.published_up_to(), None, "no reading counts as published while nobody subscribes");
+
+    let subscriber = Subscriber::start(&broker, ALL_READINGS);
+    assert!(
+        wait_until(|| kept.published_up_to() == Some(COUNT as i64)),
+        "published once a subscriber came: up to {:?}",
+        kept.published_up_to()
+    );
+    assert!(wait_until(|| subscriber.count() >= COUNT), "{} of {COUNT} received", subscriber.count());
+    let (_, first_copies) = ids_and_first_occurrences(&subscriber.received());
+    assert_eq!(first_copies, sent.iter().map(|m| m.reading_id).collect::<Vec<_>>(), "every reading, in order");
+    assert_eq!(publisher.shutdown(DEADLINE).unacknowledged, 0);
 }

@@ -113,6 +113,9 @@ fn the_mqtt_section_parses_with_defaults_and_refuses_unknown_keys() {
     assert_eq!(mqtt.credentials, CredentialsSource::Environment);
     assert_eq!(mqtt.publisher.max_in_flight, 32);
     assert_eq!(mqtt.publisher.poll_interval_ms, 1000);
+    assert!(!mqtt.require_subscriber, "a reading nobody subscribed to counts as published unless asked");
+    let required: MqttConfig = toml::from_str("host = \"h\"\nclient_id = \"c\"\nrequire_subscriber = true\n").unwrap();
+    assert!(required.require_subscriber);
 
     let misspelt = toml::from_str::<MqttConfig>("host = \"h\"\nclient_id = \"c\"\nkeep_alive_sec = 5\n").unwrap_err();
     assert!(misspelt.to_string().contains("keep_alive_sec"), "{misspelt}");
