@@ -121,6 +121,11 @@ pub struct Broker {
     auth: Option<(String, String)>,
     /// A second, TLS listener (mosquitto only): its port.
     pub tls_port: Option<u16>,
+    tls: Option<(String, String)>,
+    /// mosquitto's access control list, if any ([`Broker::set_acl`]).
+    acl: Option<String>,
+    /// More lines of mosquitto's configuration ([`Broker::set_extra_config`]).
+    extra_config: String,
     process: Arc<Mutex<Process>>,
 }
 
@@ -213,16 +218,37 @@ impl Broker {
             dir: crate::scratch_dir("broker"),
             auth: auth.map(|(user, password)| (user.to_owned(), password.to_owned())),
             tls_port: tls.map(|_| free_port()),
+            tls: tls.map(|(chain, key)| (chain.to_owned(), key.to_owned())),
+            acl: None,
+            extra_config: String::new(),
             process: Arc::new(Mutex::new(Process::Stopped(None))),
         };
         if kind == BrokerKind::Mosquitto {
-            broker.write_mosquitto_config(tls);
+            broker.write_mosquitto_config();
         }
         broker.restart();
         broker
     }
 
-    fn write_mosquitto_config(&self, tls: Option<(&str, &str)>) {
+    /// Gives mosquitto an access control list (`None`: none, everything
+    /// allowed), in force from the next [`Broker::restart`]. Its lines
+    /// before any `user` line are the anonymous clients': `topic read #`
+    /// lets them subscribe to everything and publish nothing.
+    pub fn set_acl(&mut self, acl: Option<&str>) {
+        assert_eq!(self.kind, BrokerKind::Mosquitto, "access control lists are mosquitto's here");
+        self.acl = acl.map(str::to_owned);
+        self.write_mosquitto_config();
+    }
+
+    /// Adds `lines` to mosquitto's configuration (`max_qos 0`), in force
+    /// from the next [`Broker::restart`].
+    pub fn set_extra_config(&mut self, lines: &str) {
+        assert_eq!(self.kind, BrokerKind::Mosquitto, "configuration files are mosquitto's here");
+        self.extra_config = lines.to_owned();
+        self.write_mosquitto_config();
+    }
+
+    fn write_mosquitto_config(&self) {
         let mut config = format!(
             "per_listener_settings false\npersistence true\npersistence_location {}/\nautosave_interval 0\n\
              max_inflight_messages 20\nlog_dest stderr\nlog_type error\nlog_type warning\n\
@@ -230,7 +256,7 @@ impl Broker {
             self.dir.display(),
             self.port
         );
-        if let (Some((chain, key)), Some(port)) = (tls, self.tls_port) {
+        if let (Some((chain, key)), Some(port)) = (&self.tls, self.tls_port) {
             let (chain_path, key_path) = (self.dir.join("server.pem"), self.dir.join("server.key"));
             std::fs::write(&chain_path, chain).unwrap();
             std::fs::write(&key_path, key).unwrap();
@@ -253,6 +279,12 @@ impl Broker {
                 assert!(status.success(), "mosquitto_passwd failed");
                 config.push_str(&format!("allow_anonymous false\npassword_file {}\n", password_file.display()));
             }
+        }
+        config.push_str(&self.extra_config);
+        if let Some(acl) = &self.acl {
+            let acl_file = self.dir.join("acl");
+            std::fs::write(&acl_file, acl).unwrap();
+            config.push_str(&format!("acl_file {}\n", acl_file.display()));
         }
         std::fs::write(self.dir.join("mosquitto.conf"), config).unwrap();
     }

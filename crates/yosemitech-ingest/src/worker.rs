@@ -140,11 +140,16 @@ pub fn run(
             }
             Ok(Ok(Event::Incoming(Packet::SubAck(ack)))) => {
                 // A refusal (no shared subscriptions, not authorised) would
-                // leave the worker connected and idle: it stops instead.
-                if let Some(refused) = ack.return_codes.iter().find(|c| !matches!(c, SubscribeReasonCode::Success(_))) {
+                // leave the worker connected and idle, and a grant of QoS 0
+                // would deliver readings that no acknowledgement after the
+                // commit guards: it stops instead.
+                let at_least_once = |code: &&SubscribeReasonCode| {
+                    matches!(code, SubscribeReasonCode::Success(QoS::AtLeastOnce | QoS::ExactlyOnce))
+                };
+                if let Some(refused) = ack.return_codes.iter().find(|code| !at_least_once(code)) {
                     disconnect(&client, &mut connection);
                     return Err(IngestError::Broker(format!(
-                        "the broker refused the subscription to {}: {refused:?}",
+                        "the broker refused the subscription to {} at QoS 1: {refused:?}",
                         config.filter()
                     )));
                 }

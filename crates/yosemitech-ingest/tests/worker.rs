@@ -89,3 +89,40 @@ fn two_workers_of_a_group_share_the_readings_and_store_each_once() {
         client.query_one("SELECT count(DISTINCT (station, reading_id)) FROM readings", &[]).unwrap().get(0);
     assert_eq!(distinct, (STATIONS * READINGS) as i64);
 }
+
+/// A broker that grants the worker's subscription only at QoS 0 (mosquitto's
+/// `max_qos 0`) would deliver readings no acknowledgement guards: the worker
+/// stops with the broker's answer rather than store some and lose others.
+/// (mosquitto's access control lists never refuse a subscription: they
+/// filter what is delivered.)
+#[test]
+fn a_subscription_granted_below_qos_1_stops_the_worker_with_the_brokers_answer() {
+    if !available(BrokerKind::Mosquitto) {
+        eprintln!("    skipped: max_qos is mosquitto's");
+        return;
+    }
+    let Some(cluster) = Postgres::start("ingest-qos0", &[("fsync", "off")]) else { return };
+    let database = cluster.create_database("fleet");
+    let mut broker = Broker::start(BrokerKind::Mosquitto, None);
+    broker.stop();
+    broker.set_extra_config("max_qos 0\n");
+    broker.restart();
+    let config = config(&broker, "ingest-qos0");
+    let stop = Arc::new(AtomicBool::new(false));
+    let (done, result) = std::sync::mpsc::channel();
+    let worker = std::thread::spawn({
+        let (config, database, stop) = (config.clone(), database.clone(), Arc::clone(&stop));
+        move || {
+            let _ = done.send(run(&config, &database, &stop, |_| {}).map(|_| ()));
+        }
+    });
+    let result = result.recv_timeout(DEADLINE);
+    stop.store(true, Ordering::SeqCst);
+    let error = match result {
+        Ok(Err(error)) => error.to_string(),
+        other => panic!("the worker stops with an error: {other:?}"),
+    };
+    worker.join().unwrap();
+    assert!(error.contains("refused the subscription") && error.contains("AtMostOnce"), "{error}");
+    assert!(error.contains(&config.filter()), "names what it subscribed to: {error}");
+}

@@ -488,3 +488,39 @@ fn readings_nobody_subscribed_to_wait_for_a_subscriber_when_required() {
     assert_eq!(first_copies, sent.iter().map(|m| m.reading_id).collect::<Vec<_>>(), "every reading, in order");
     assert_eq!(publisher.shutdown(DEADLINE).unacknowledged, 0);
 }
+
+/// A broker that refuses a reading (an access control list without the
+/// station's write) acknowledges it with a reason (MQTT 5, 0x87): the
+/// station keeps it, says why, and sends it again until it is taken.
+/// mosquitto's access control lists; rumqttd has none.
+#[test]
+fn a_reading_the_broker_refuses_is_kept_until_the_broker_takes_it() {
+    const COUNT: usize = 10;
+    if !available(BrokerKind::Mosquitto) {
+        return;
+    }
+    let mut broker = Broker::start(BrokerKind::Mosquitto, None);
+    broker.stop();
+    broker.set_acl(Some("topic read #\n"));
+    broker.restart();
+    let subscriber = Subscriber::start(&broker, ALL_READINGS);
+    let outbox = MemoryOutbox::new();
+    let sent = push_readings(&outbox, 0..COUNT);
+    let publisher = Publisher::start(&broker.config("station-refused", 4), outbox.clone()).unwrap();
+    let says_why = || publisher.status().last_error.is_some_and(|e| e.contains("reading 1 (NotAuthorized)"));
+    assert!(wait_until(says_why), "{:?}", publisher.status());
+    assert_eq!(outbox.published_up_to(), None, "a refused reading is not published");
+
+    broker.stop();
+    broker.set_acl(None);
+    broker.restart();
+    assert!(
+        wait_until(|| outbox.published_up_to() == Some(COUNT as i64)),
+        "published once allowed: up to {:?}",
+        outbox.published_up_to()
+    );
+    assert!(wait_until(|| subscriber.count() >= COUNT), "{} of {COUNT} received", subscriber.count());
+    let (_, first_copies) = ids_and_first_occurrences(&subscriber.received());
+    assert_eq!(first_copies, sent.iter().map(|m| m.reading_id).collect::<Vec<_>>(), "every reading, in order");
+    drop(publisher);
+}
