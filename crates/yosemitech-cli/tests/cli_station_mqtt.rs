@@ -68,7 +68,13 @@ fn killed_and_restarted_logger_loses_nothing(kind: BrokerKind) {
     // the backlog and ten new readings, then stops cleanly. A clean stop
     // sends nothing new (what is stored later waits in the outbox for the
     // next run), so the test waits for the catch-up rather than assume it.
-    let mut logger = start_logger(&config);
+    let said = config.with_extension("stderr");
+    let mut logger = station::command()
+        .args(["log", "--config", config.to_str().unwrap()])
+        .stdout(std::process::Stdio::null())
+        .stderr(std::fs::File::create(&said).unwrap())
+        .spawn()
+        .unwrap();
     let target = after_kill.len() + 10;
     assert!(wait_until(|| stored_ids(&db).len() >= target), "{kind:?}: the second run logs");
     let caught_up = stored_ids(&db)[target - 1];
@@ -82,6 +88,8 @@ fn killed_and_restarted_logger_loses_nothing(kind: BrokerKind) {
     assert!(stored.starts_with(&after_kill), "{kind:?}: nothing committed before the kill is lost");
     let published = Store::open(&db).unwrap().published_up_to("mqtt").unwrap();
     assert!(published >= caught_up, "{kind:?}: marked up to {published}, {caught_up} was acknowledged");
+    let said = std::fs::read_to_string(&said).unwrap();
+    assert!(said.contains(&format!("mqtt: readings published up to id {published}; ")), "{kind:?}: {said}");
     // Marked published: acknowledged by the broker. Those acknowledged just
     // before it stopped may have died with it, and only those.
     let died_with_the_broker = |id: i64| id > acked_before_stop && id <= published_at_kill;

@@ -379,8 +379,18 @@ pub fn run(catalog: &Catalog, args: &LogArgs, stop: &Arc<AtomicBool>, out: &mut 
     }
     if let Some(p) = publisher {
         // What is not acknowledged in time stays in the outbox for the next run.
+        let not_taken = p.status().undelivered;
         let report = p.shutdown(Duration::from_secs(5));
-        let _ = writeln!(err, "mqtt: published up to reading {:?}", report.published_up_to);
+        let published = match report.published_up_to {
+            Some(id) => format!("readings published up to id {id}"),
+            None => "no reading published by this run".to_owned(),
+        };
+        let _ = writeln!(
+            err,
+            "mqtt: {published}; {} unacknowledged (sent again by the next run); \
+             {not_taken} publication(s) the broker did not take, sent again",
+            report.unacknowledged
+        );
     }
     if let Some(p) = portal {
         // A request under way finishes, so a 201 is recorded; the rest waits for the next run.
