@@ -131,14 +131,7 @@ pub fn show_duration(d: Duration) -> String {
 /// A failed request in a few words, for a log's error column; `reply` is
 /// what the client received (`Client::last_reply`).
 pub fn short(e: &RtuError, reply: &[u8]) -> String {
-    match e {
-        RtuError::Timeout { received: 0, .. } => "no reply".into(),
-        RtuError::Timeout { received, .. } => format!("incomplete reply ({received} bytes: {})", Hex(reply)),
-        RtuError::Frame { error: FrameError::Exception { code, .. } } => format!("exception {code}"),
-        RtuError::Frame { error } => format!("{error} (reply {})", Hex(reply)),
-        RtuError::Io(error) => format!("port error: {error}"),
-        other => other.to_string(),
-    }
+    yosemitech_ops::failure_text(e, reply)
 }
 
 /// A failed request, with what it was, where it went and what to try;

@@ -43,6 +43,7 @@ mod explained;
 mod format;
 mod help;
 mod history;
+mod identified;
 mod port;
 mod progress;
 mod readings;
@@ -142,7 +143,7 @@ pub fn shown_unit(unit: &str) -> &str {
 /// that read their serial number alike and declare the same model code
 /// (each has a read whose register block no other has).
 pub fn scan_tells_apart(candidates: &[&yosemitech_spec::Sensor]) -> bool {
-    commands::scan::can_tell_apart(candidates)
+    yosemitech_ops::identify::can_tell_apart(candidates)
 }
 
 /// The `decode` subcommand's hex parser: hex with or without spaces, `0x`

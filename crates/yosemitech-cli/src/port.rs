@@ -59,6 +59,34 @@ pub fn check_address(address: u32, what: &str) -> Result<u8> {
     }
 }
 
+/// Parses `1-247`, `1,5,10-20` or `3` into sorted, distinct addresses.
+pub fn parse_addresses(text: &str) -> Result<Vec<u8>> {
+    let bad = |part: &str| {
+        CliError::usage(format!("`{part}` in --addresses is not an address or a range"))
+            .hint("write addresses 1 to 247 as 1-247, 1,5,10-20 or 3")
+    };
+    let mut out = Vec::new();
+    for part in text.split(',').map(str::trim).filter(|p| !p.is_empty()) {
+        let (a, b) = match part.split_once('-') {
+            Some((a, b)) => (a.trim(), b.trim()),
+            None => (part, part),
+        };
+        let (a, b): (u32, u32) = (a.parse().map_err(|_| bad(part))?, b.parse().map_err(|_| bad(part))?);
+        if a > b {
+            return Err(bad(part));
+        }
+        for address in a..=b {
+            out.push(check_address(address, "address")?);
+        }
+    }
+    if out.is_empty() {
+        return Err(bad(text));
+    }
+    out.sort_unstable();
+    out.dedup();
+    Ok(out)
+}
+
 /// An open bus, and how to name it in messages.
 pub struct Opened {
     /// The client.
@@ -150,5 +178,22 @@ pub fn open_failed(port: &str, e: &io::Error) -> CliError {
             .hint("give the gateway as tcp://HOST:PORT, e.g. tcp://192.168.1.50:4001"),
         _ => CliError::device(e.to_string())
             .hint("is it a serial device? `ls /dev/ttyUSB* /dev/ttyACM*` lists USB serial ports"),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn parses_address_ranges() {
+        assert_eq!(parse_addresses("1-3").unwrap(), [1, 2, 3]);
+        assert_eq!(parse_addresses("5,1-2,2").unwrap(), [1, 2, 5]);
+        assert_eq!(parse_addresses("1-247").unwrap().len(), 247);
+        assert!(parse_addresses("0-3").is_err());
+        assert!(parse_addresses("1-248").is_err());
+        assert!(parse_addresses("3-1").is_err());
+        assert!(parse_addresses("x").is_err());
+        assert!(parse_addresses("").is_err());
     }
 }

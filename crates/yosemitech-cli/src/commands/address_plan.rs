@@ -17,14 +17,16 @@ use yosemitech::procedures::address::AddressChangeError;
 use yosemitech_rtu::Version;
 use yosemitech_spec::{CommandSpec, Sensor};
 
-use super::scan::{self, Identification};
 use super::set_address::{ChangeFrames, address_commands, explain, pick_commands};
 use crate::catalog::Catalog;
 use crate::commands::set_address::SetAddressArgs;
 use crate::confirm::{confirm, ensure_can_ask};
 use crate::error::{CliError, Result};
+use crate::identified::{Identification, identify_at};
+use crate::port::parse_addresses;
 use crate::port::{self, check_address};
 use crate::time;
+use yosemitech_ops::{common_serial, printable};
 
 /// One probe of the bus table.
 struct Addressed<'c> {
@@ -41,7 +43,7 @@ struct Addressed<'c> {
 /// where the next probe arrives.
 fn planned_addresses(args: &SetAddressArgs, from: u8) -> Result<Vec<u8>> {
     let plan = if let Some(list) = &args.addresses {
-        scan::parse_addresses(list)?
+        parse_addresses(list)?
     } else {
         if args.step == 0 {
             return Err(CliError::usage("--step 0 would give every probe one address").hint("use --step 2 or more"));
@@ -98,7 +100,11 @@ pub fn run(catalog: &Catalog, args: &SetAddressArgs, out: &mut dyn Write) -> Res
             .hint("give --station-toml a new file"));
     }
     let (sensor, _, _) = pick_commands(catalog, args.sensor.as_deref())?;
-    let serial = if args.sensor.is_some() { sensor.serial } else { scan::common_serial(catalog) };
+    let serial = if args.sensor.is_some() {
+        sensor.serial
+    } else {
+        common_serial(catalog.entries().iter().map(|e| e.sensor.as_ref()))
+    };
     ensure_can_ask(args.yes, "change addresses")?;
     let mut opened = port::open(&args.port, &serial)?;
     let shown: Vec<String> = plan.iter().take(wanted.min(4)).map(|&a| both_bases(a)).collect();
@@ -115,7 +121,7 @@ pub fn run(catalog: &Catalog, args: &SetAddressArgs, out: &mut dyn Write) -> Res
     let mut plan_left = plan.iter().copied();
     let mut outcome = Ok(());
     while table.len() < wanted && next_probe_connected(table.len() + 1, from)? {
-        let Some(found) = scan::identify_at(catalog, &mut opened, from)? else {
+        let Some(found) = identify_at(catalog, &mut opened, from)? else {
             writeln!(out, "nothing answers at address {from}: check power and wiring (A/B), then try again")?;
             continue;
         };
@@ -197,7 +203,7 @@ fn give_next_address(
         )?;
         match frames.send(opened) {
             Ok(sn_there) => {
-                let sn_there = sn_there.as_deref().map(scan::printable);
+                let sn_there = sn_there.as_deref().map(printable);
                 if let (Some(there), Some(here)) = (&sn_there, &found.serial_number)
                     && there != here
                 {

@@ -14,12 +14,14 @@ use yosemitech_sim::{Bus, FrameHandler, ServeConfig, Server, Simulator, Variatio
 use yosemitech_spec::beside;
 use yosemitech_spec::{CommandSpec, FieldKind, Role, Sensor, Value, Values};
 
+use yosemitech_ops::{common_serial, software_revision};
+
 use crate::catalog::Catalog;
-use crate::commands::list::software_key;
-use crate::commands::{measure, scan};
+use crate::commands::measure;
 use crate::device;
 use crate::error::{CliError, Result};
 use crate::format::{derived_text, field_value_text, unit};
+use crate::identified::identify_at;
 use crate::port::Opened;
 use clap::Args;
 
@@ -247,7 +249,7 @@ fn family(catalog: &Catalog, args: &DemoArgs, out: &mut dyn Write) -> Result<u64
     let (Some(&first), Some(&last)) = (addresses.first(), addresses.last()) else {
         return Ok(0);
     };
-    let serial = scan::common_serial(catalog);
+    let serial = common_serial(catalog.entries().iter().map(|e| e.sensor.as_ref()));
     let config = if args.line_timing { ServeConfig::emulating(serial.timing()) } else { ServeConfig::default() };
     let (server, port, transport) = serve(bus, config, serial.baud)?;
     let config = ClientConfig { timeout: BUS_TIMEOUT, retry: RetryPolicy::NONE, ..ClientConfig::default() };
@@ -260,7 +262,7 @@ fn family(catalog: &Catalog, args: &DemoArgs, out: &mut dyn Write) -> Result<u64
     let mut identified = 0;
     for (&address, entry) in addresses.iter().zip(catalog.entries()) {
         let simulated = &entry.sensor;
-        let line = match scan::identify_at(catalog, &mut opened, address)? {
+        let line = match identify_at(catalog, &mut opened, address)? {
             Some(found) if found.sensor.is_some_and(|s| s.name == simulated.name) => {
                 identified += 1;
                 found.line
@@ -321,7 +323,8 @@ fn run_newest_firmware(sim: &mut Simulator, sensor: &Sensor) -> Result<()> {
     let Some(field) = versions.iter().find(|f| f.display_name() == "software").or(versions.last()) else {
         return Ok(());
     };
-    let Some((major, minor)) = sensor.manuals().filter_map(|m| m.software.as_deref()).map(software_key).max() else {
+    let Some((major, minor)) = sensor.manuals().filter_map(|m| m.software.as_deref()).map(software_revision).max()
+    else {
         return Ok(());
     };
     let (Ok(major), Ok(minor)) = (u8::try_from(major), u8::try_from(minor)) else { return Ok(()) };

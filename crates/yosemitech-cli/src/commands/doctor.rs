@@ -10,7 +10,6 @@ use indicatif::ProgressBar;
 use yosemitech_spec::Sensor;
 
 use crate::catalog::Catalog;
-use crate::commands::scan::common_serial;
 use crate::doctor::{self, Plan, Probes, Progress, Report, SerialLine, VerdictCode, hex};
 use crate::error::{CliError, Result, show_duration};
 use crate::port::AddressArg;
@@ -18,6 +17,7 @@ use crate::port::PortArgs;
 use crate::port::{self, open_failed};
 use crate::progress;
 use clap::Args;
+use yosemitech_ops::common_serial;
 
 /// `doctor`.
 #[derive(Args, Debug)]
@@ -78,7 +78,7 @@ pub fn run(catalog: &Catalog, args: &DoctorArgs, stop: &Arc<AtomicBool>, out: &m
     })?;
     let mut settings = match sensors.as_slice() {
         [one] => one.serial,
-        _ => common_serial(catalog),
+        _ => common_serial(catalog.entries().iter().map(|e| e.sensor.as_ref())),
     };
     if let Some(baud) = args.port.baud {
         if baud == 0 {

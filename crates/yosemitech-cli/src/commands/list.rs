@@ -3,6 +3,7 @@
 use std::io::Write;
 
 use serde_json::{Value as Json, json};
+use yosemitech_ops::software_revision;
 use yosemitech_rtu::{LineSettings, StopBits};
 use yosemitech_spec::{CommandSpec, Field, LineSettingsJson, Manual, Sensor};
 
@@ -120,14 +121,8 @@ pub fn manuals(s: &Sensor) -> Vec<(&Manual, LineSettings, Option<&str>, bool)> {
         .chain(s.revisions.iter().map(|r| (&r.manual, r.doc.as_deref(), false)))
         .map(|(m, doc, main)| (m, m.software.as_deref().map_or(s.serial, |sw| s.serial_for(sw)), doc, main))
         .collect();
-    all.sort_by_key(|(m, ..)| m.software.as_deref().map_or((u16::MAX, u16::MAX), software_key));
+    all.sort_by_key(|(m, ..)| m.software.as_deref().map_or((u16::MAX, u16::MAX), software_revision));
     all
-}
-
-/// A software revision as a sortable key (`1.10` after `1.9`).
-pub fn software_key(text: &str) -> (u16, u16) {
-    let mut parts = text.trim().split('.').map(|p| p.trim().parse::<u16>().unwrap_or(0));
-    (parts.next().unwrap_or(0), parts.next().unwrap_or(0))
 }
 
 fn show_sensor(entry: &Entry, with_fields: bool, out: &mut dyn Write) -> Result<()> {

@@ -7,9 +7,9 @@ use std::time::Duration;
 use serde_json::{Value as Json, json};
 use yosemitech_rtu::crc_ok;
 
-use crate::commands::scan::printable;
 use crate::explain::sniff::{Flag, Heard, Identity, millis};
 use crate::explain::{Report, Status};
+use yosemitech_ops::printable;
 
 /// Counts of what was heard.
 #[derive(Default)]
