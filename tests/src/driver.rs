@@ -79,6 +79,14 @@ impl<T: Transport + AsyncLink> AnyClient<T> {
         }
     }
 
+    /// The attempts after the first that the last call took (`ClientCore::retries`).
+    pub fn retries(&self) -> u32 {
+        match self {
+            Self::Blocking(client) => client.core().retries(),
+            Self::Tokio(client, _) => client.core().retries(),
+        }
+    }
+
     /// The configuration, to change between calls.
     pub fn config_mut(&mut self) -> &mut ClientConfig {
         match self {

@@ -1,34 +1,33 @@
-//! Requests through the spec's interpreter, and errors of the typed procedures.
+//! Requests through the spec's interpreter (`yosemitech_ops::transaction`)
+//! as the CLI reports them, and errors of the typed procedures.
 
 use std::collections::BTreeMap;
 
 use yosemitech::procedures::ProcedureError;
+use yosemitech_ops::TransactionError;
 use yosemitech_spec::{CommandSpec, Value, Values};
 
 use crate::catalog::{Entry, Origin};
 use crate::error::{CliError, Context, Result, request_failed};
 use crate::port::Opened;
 
-/// The slave a request of `command` goes to: its fixed address (get_slave_id: 0xFF) or `slave`.
-pub fn target(command: &CommandSpec, slave: u8) -> u8 {
-    command.fixed_slave.unwrap_or(slave)
-}
+pub use yosemitech_ops::target;
 
 /// Encodes `command` for `slave` with `values` (a write's fields), sends it
 /// with the client's timing and retries, and decodes the reply (a read's values).
 pub fn call(opened: &mut Opened, command: &CommandSpec, slave: u8, values: &BTreeMap<String, Value>) -> Result<Values> {
     let slave = target(command, slave);
-    let request = command
-        .encode_request(slave, values)
-        .map_err(|e| CliError::usage(format!("cannot build the {} request: {e}", command.name)))?;
-    let ctx = opened.context(slave, &command.name);
-    let reply = match opened.bus.call_raw(&request, &command.layout()) {
-        Ok(reply) => reply,
-        Err(e) => return Err(request_failed(&e, opened.bus.last_reply(), &ctx)),
-    };
-    command.decode_response(slave, reply).map_err(|e| {
-        CliError::device(format!("cannot decode the reply to {}: {e}", command.name))
-            .hint("the device may not be the sensor type you named; -v shows the frames")
+    yosemitech_ops::call(&mut opened.bus, command, slave, values).map_err(|e| match e {
+        TransactionError::Request { message, .. } => {
+            CliError::usage(format!("cannot build the {} request: {message}", command.name))
+        }
+        TransactionError::Bus { error, .. } => {
+            request_failed(&error, opened.bus.last_reply(), &opened.context(slave, &command.name))
+        }
+        TransactionError::Decode { message, .. } => {
+            CliError::device(format!("cannot decode the reply to {}: {message}", command.name))
+                .hint("the device may not be the sensor type you named; -v shows the frames")
+        }
     })
 }
 
@@ -39,14 +38,15 @@ pub fn try_read(
     command: &CommandSpec,
     slave: u8,
 ) -> Result<std::result::Result<Values, yosemitech_rtu::Error>> {
-    let slave = target(command, slave);
-    let request = command
-        .encode_request(slave, &BTreeMap::new())
-        .map_err(|e| CliError::usage(format!("cannot build the {} request: {e}", command.name)))?;
-    Ok(opened
-        .bus
-        .call_raw(&request, &command.layout())
-        .map(|reply| command.decode_response(slave, reply).unwrap_or_default()))
+    match yosemitech_ops::call(&mut opened.bus, command, target(command, slave), &BTreeMap::new()) {
+        Ok(values) => Ok(Ok(values)),
+        Err(TransactionError::Bus { error, .. }) => Ok(Err(error)),
+        // A reply that does not decode has no values to show.
+        Err(TransactionError::Decode { .. }) => Ok(Ok(Values::default())),
+        Err(TransactionError::Request { message, .. }) => {
+            Err(CliError::usage(format!("cannot build the {} request: {message}", command.name)))
+        }
+    }
 }
 
 /// A read with no values.

@@ -11,6 +11,7 @@ use yosemitech_spec::interp::decode_fields;
 use yosemitech_spec::{CommandSpec, Manual, Role, Sensor, SerialNumberReply, Value};
 
 use crate::failure_text;
+use crate::transaction::{TransactionError, call_data};
 
 /// Identifies probes with the reads of the sensors loaded, in load order
 /// (the order breaks ties: which read goes first, which sensor is named first).
@@ -230,22 +231,27 @@ enum Answer {
 
 /// Sends a read with no values to `address`.
 fn probe<T: Transport>(client: &mut Client<T>, command: &CommandSpec, address: u8) -> Result<Answer, IdentifyError> {
-    let request = command
-        .encode_request(address, &BTreeMap::new())
-        .map_err(|e| IdentifyError::Request { command: command.name.clone(), message: e.to_string() })?;
-    let layout = command.layout();
-    match client.call_raw(&request, &layout) {
-        Ok(reply) => Ok(match layout.decode_response(address, reply) {
-            Ok(data) => Answer::Data(data.to_vec()),
-            Err(e) => Answer::Other(format!("answers {}, but not as specified: {e}", command.name)),
-        }),
-        Err(error @ RtuError::Io(_)) => Err(IdentifyError::Bus { command: command.name.clone(), error }),
-        Err(RtuError::Timeout { received: 0, .. }) => Ok(Answer::Silent),
-        Err(e @ RtuError::Frame { error: FrameError::Exception { .. }, .. }) => {
-            Ok(Answer::Other(format!("refuses {} ({})", command.name, failure_text(&e, client.last_reply()))))
+    let error = match call_data(client, command, address, &BTreeMap::new()) {
+        Ok(data) => return Ok(Answer::Data(data.to_vec())),
+        Err(error) => error,
+    };
+    let name = &command.name;
+    Ok(match error {
+        TransactionError::Request { command, message } => return Err(IdentifyError::Request { command, message }),
+        TransactionError::Bus { command, error: error @ RtuError::Io(_) } => {
+            return Err(IdentifyError::Bus { command, error });
         }
-        Err(e) => Ok(Answer::Other(format!("answers {} with {}", command.name, failure_text(&e, client.last_reply())))),
-    }
+        TransactionError::Bus { error: RtuError::Timeout { received: 0, .. }, .. } => Answer::Silent,
+        TransactionError::Bus { error: e @ RtuError::Frame { error: FrameError::Exception { .. }, .. }, .. } => {
+            Answer::Other(format!("refuses {name} ({})", failure_text(&e, client.last_reply())))
+        }
+        TransactionError::Bus { error, .. } => {
+            Answer::Other(format!("answers {name} with {}", failure_text(&error, client.last_reply())))
+        }
+        TransactionError::Decode { message, .. } => {
+            Answer::Other(format!("answers {name}, but not as specified: {message}"))
+        }
+    })
 }
 
 /// What one read of a serial-number request makes of the reply: the

@@ -5,14 +5,18 @@
 //! ([`yosemitech_spec::Sensor`]), so that spec files loaded at run time
 //! work as the built-in ones do, over the runtime's blocking client.
 //!
+//! - [`transaction`]: one request of a spec command, encoded, sent with the
+//!   client's retries and decoded;
 //! - [`identify`]: which probe answers at an address, and which manual
 //!   covers its firmware.
 
 #![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used, clippy::panic))]
 
 pub mod identify;
+pub mod transaction;
 
 pub use identify::{Identification, Identifier, IdentifyError, common_serial, printable, software_revision};
+pub use transaction::{TransactionError, call, call_data, target};
 
 use yosemitech_rtu::{Error as RtuError, FrameError, Hex};
 

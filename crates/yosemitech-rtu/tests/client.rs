@@ -111,6 +111,7 @@ behaviour! {
         assert_eq!(err.frame_error(), Some(FrameError::WrongSlave { expected: 1, actual: 2 }), "{err}");
         assert_eq!(client.last_reply().first(), Some(&2));
         assert_eq!(requests(&log), 3, "first attempt and two retries");
+        assert_eq!(client.retries(), 2, "the retries are counted");
 
         // A foreign reply once, then ours.
         let (mut client, log) = client_with(driver, config(1), |i, req, out| {
@@ -122,6 +123,9 @@ behaviour! {
         });
         assert_eq!(client.call(1, &ReadFloat).unwrap(), 7.6);
         assert_eq!(requests(&log), 2);
+        assert_eq!(client.retries(), 1, "a call answered after a retry counts it");
+        assert_eq!(client.call(1, &ReadFloat).unwrap(), 7.6);
+        assert_eq!(client.retries(), 0, "each call counts its own");
     }
 
     fn truncated_reply_times_out_with_the_partial_bytes(driver) {

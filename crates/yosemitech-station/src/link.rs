@@ -1,5 +1,6 @@
 //! One bus's master: the transport opened from the station file, and
-//! requests through the spec interpreter with counted retries.
+//! requests through the spec interpreter (`yosemitech_ops::transaction`)
+//! with the client's retries, counted.
 
 use std::collections::BTreeMap;
 use std::time::Duration;
@@ -13,8 +14,8 @@ use crate::config::{Gap, Link};
 pub type Master = Client<Box<dyn Transport + Send>>;
 
 /// Opens `link` with `timeout` per attempt and `gap` before each request.
-/// The client never retries on its own: [`transact`] does, so that it can
-/// count.
+/// The client retries as [`RetryPolicy::default`] says, as many times as
+/// each [`transact`] asks.
 ///
 /// # Errors
 ///
@@ -28,7 +29,7 @@ pub fn open(link: &Link, timeout: Duration, gap: Gap) -> std::io::Result<Master>
             Box::new(TcpTransport::connect(address.as_str(), timeout.max(Duration::from_millis(500)))?)
         }
     };
-    let mut config = ClientConfig { timeout, retry: RetryPolicy::NONE, ..ClientConfig::default() };
+    let mut config = ClientConfig { timeout, retry: RetryPolicy::default(), ..ClientConfig::default() };
     match gap {
         Gap::Default => {}
         Gap::T35 => config.min_inter_frame_delay = Duration::ZERO,
@@ -57,33 +58,17 @@ pub struct Failure {
     pub timeout: bool,
 }
 
-/// Sends `command` (no values) to `slave`, repeating retryable failures
-/// (timeouts, corrupt and foreign frames) up to `retries` times, and
-/// decodes the reply through the spec interpreter.
+/// Sends `command` (no values) to `slave`, the client repeating retryable
+/// failures (timeouts, corrupt and foreign frames) up to `retries` times,
+/// and decodes the reply through the spec interpreter.
 pub fn transact(master: &mut Master, command: &CommandSpec, slave: u8, retries: u32) -> Outcome {
-    let slave = command.fixed_slave.unwrap_or(slave);
-    let fail = |message: String, timeout: bool| Failure { command: command.name.clone(), message, timeout };
-    let request = match command.encode_request(slave, &BTreeMap::new()) {
-        Ok(r) => r,
-        Err(e) => return Outcome { result: Err(fail(format!("cannot build the request: {e}"), false)), retries: 0 },
-    };
-    let policy = RetryPolicy::default();
-    let mut attempt = 0;
-    loop {
-        match master.call_raw(&request, &command.layout()) {
-            Ok(reply) => {
-                let result = command
-                    .decode_response(slave, reply)
-                    .map_err(|e| fail(format!("cannot decode the reply: {e}"), false));
-                return Outcome { result, retries: attempt };
-            }
-            Err(e) if attempt < retries && policy.should_retry(&e) => {
-                attempt += 1;
-                std::thread::sleep(policy.backoff);
-            }
-            Err(e) => {
-                return Outcome { result: Err(fail(e.to_string(), e.is_timeout())), retries: attempt };
-            }
-        }
-    }
+    master.config_mut().retry.retries = retries;
+    let result = yosemitech_ops::call(master, command, yosemitech_ops::target(command, slave), &BTreeMap::new());
+    let retries = master.core().retries();
+    let result = result.map_err(|e| Failure {
+        command: command.name.clone(),
+        timeout: e.bus_error().is_some_and(yosemitech_rtu::Error::is_timeout),
+        message: e.to_string(),
+    });
+    Outcome { result, retries }
 }

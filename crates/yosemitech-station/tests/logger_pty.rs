@@ -288,3 +288,25 @@ fn a_probe_that_refuses_start_measurement_is_read_all_the_same() {
     let error = row.reading.error.as_deref().unwrap_or_default();
     assert!(error.contains("refused"), "{}: the reading says the start was refused: {row:?}", sensor.name);
 }
+
+/// A corrupt reply is retried by the client, and the retry is counted: a
+/// request with no valid reply in the bus's report, no reading lost.
+#[test]
+fn a_corrupt_reply_is_retried_and_counted() {
+    let dir = tempfile::tempdir().unwrap();
+    let sensors = measuring_sensors(1);
+    let probes = vec![("probe".to_owned(), sensors[0].as_ref(), 1)];
+    let mut faults = yosemitech_sim::FaultConfig::seeded(1);
+    faults.script.push_back(Some(yosemitech_sim::FaultKind::CorruptCrc));
+    let sim = Simulator::new(Arc::clone(&sensors[0])).with_address(1).with_faults(faults);
+    let server = serve_pty(sim, ServeConfig::default()).unwrap();
+    let port = server.tty_path().unwrap().to_owned();
+    let config = load(dir.path(), &station_toml(dir.path(), &port, &probes, "1s"), &sensors);
+    let store = Mutex::new(Store::open(&config.storage).unwrap());
+
+    let reports = run_until(&config, &store, || all_rows(&store).len() >= 2);
+    let rows = all_rows(&store);
+    assert!(rows.len() >= 2 && rows.iter().all(|r| r.reading.error.is_none()), "{rows:?}");
+    assert_eq!(reports[0].failed_transactions, 1, "the corrupt reply, retried: {reports:?}");
+    assert_eq!(server.device().faults().get(yosemitech_sim::FaultKind::CorruptCrc), 1, "one reply corrupted");
+}

@@ -747,6 +747,14 @@ impl ClientCore {
         Sent { slave, function, register: u16::from_be_bytes([hi, lo]), command: self.command }
     }
 
+    /// The attempts after the first that the current or last transaction
+    /// took ([`RetryPolicy::retries`](crate::RetryPolicy::retries) at most):
+    /// what a logger counts as a request's retries.
+    #[inline]
+    pub fn retries(&self) -> u32 {
+        self.attempt
+    }
+
     /// The latest time a driver reported.
     #[inline]
     pub fn now(&self) -> Instant {
