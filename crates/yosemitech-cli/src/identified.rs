@@ -1,10 +1,8 @@
 //! Probes identified as `scan` identifies them (`yosemitech_ops::identify`),
-//! rendered: the line `scan` prints, its JSON, and the summary other
-//! commands (the demo, `set-address --plan`) act on.
+//! with the CLI's errors, and rendered: the line `scan` prints and its JSON.
 
 use serde_json::json;
 use yosemitech_ops::{Identification as Found, Identifier, IdentifyError, printable};
-use yosemitech_rtu::Version;
 use yosemitech_spec::Sensor;
 
 use crate::catalog::Catalog;
@@ -22,39 +20,14 @@ pub fn identify<'c>(identifier: &Identifier<'c>, opened: &mut Opened, address: u
     })
 }
 
-/// A device identified as `scan` identifies it, for other commands (the
-/// demo, `set-address --plan`).
-pub struct Identification<'c> {
-    /// The line `scan` prints for it.
-    pub line: String,
-    /// The sensor, when exactly one loaded sensor matches.
-    pub sensor: Option<&'c Sensor>,
-    /// The loaded sensors it may be (one when identified).
-    pub candidates: Vec<&'c Sensor>,
-    /// Its serial number as printed (control characters escaped), if it answered one.
-    pub serial_number: Option<String>,
-    /// The models it is: one, or several that no read tells apart.
-    pub models: Vec<String>,
-    /// Its software revision, if it answered the version read.
-    pub software: Option<Version>,
+/// Identifies the device at `address` on `opened` with every loaded
+/// sensor's reads, as `scan` does (for the demo, `set-address --plan`);
+/// `None` when nothing answers (or no loaded sensor has a serial-number read).
+pub fn identify_at<'c>(catalog: &'c Catalog, opened: &mut Opened, address: u8) -> Result<Option<Found<'c>>> {
+    identify(&Identifier::new(catalog.entries().iter().map(|e| e.sensor.as_ref())), opened, address)
 }
 
-/// Identifies the device at `address` on `opened` with the reads `scan`
-/// makes; `None` when nothing answers (or no loaded sensor has a
-/// serial-number read).
-pub fn identify_at<'c>(catalog: &'c Catalog, opened: &mut Opened, address: u8) -> Result<Option<Identification<'c>>> {
-    let identifier = Identifier::new(catalog.entries().iter().map(|e| e.sensor.as_ref()));
-    let found = identify(&identifier, opened, address)?;
-    Ok(found.map(|f| Identification {
-        line: found_line(&f),
-        sensor: f.identified,
-        candidates: f.candidates.clone(),
-        serial_number: f.serial_number.as_deref().map(printable),
-        models: f.models.clone(),
-        software: f.software,
-    }))
-}
-
+/// What `scan --json` prints of a device.
 pub fn found_json(f: &Found<'_>) -> serde_json::Value {
     json!({
         "address": f.address,
@@ -79,6 +52,7 @@ pub fn found_json(f: &Found<'_>) -> serde_json::Value {
     })
 }
 
+/// The line `scan` prints for a device.
 pub fn found_line(f: &Found<'_>) -> String {
     let sn = f.serial_number.as_deref().map_or_else(|| "?".to_owned(), printable);
     let mut line = format!("address {:3}  SN {sn:12}  ", f.address);

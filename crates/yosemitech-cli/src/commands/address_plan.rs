@@ -22,11 +22,11 @@ use crate::catalog::Catalog;
 use crate::commands::set_address::SetAddressArgs;
 use crate::confirm::{confirm, ensure_can_ask};
 use crate::error::{CliError, Result};
-use crate::identified::{Identification, identify_at};
+use crate::identified::{found_line, identify_at};
 use crate::port::parse_addresses;
 use crate::port::{self, check_address};
 use crate::time;
-use yosemitech_ops::{common_serial, printable};
+use yosemitech_ops::{Identification, common_serial, printable};
 
 /// One probe of the bus table.
 struct Addressed<'c> {
@@ -125,22 +125,23 @@ pub fn run(catalog: &Catalog, args: &SetAddressArgs, out: &mut dyn Write) -> Res
             writeln!(out, "nothing answers at address {from}: check power and wiring (A/B), then try again")?;
             continue;
         };
-        writeln!(out, "found: {}", found.line)?;
+        writeln!(out, "found: {}", found_line(&found))?;
+        let serial_number = found.serial_number.as_deref().map(printable);
         match give_next_address(catalog, &mut opened, &found, from, &mut plan_left, args, out) {
             Ok(address) => {
                 writeln!(
                     out,
                     "probe {}: SN {} now answers at address {}, verified",
                     table.len() + 1,
-                    found.serial_number.as_deref().unwrap_or("?"),
+                    serial_number.as_deref().unwrap_or("?"),
                     both_bases(address)
                 )?;
                 table.push(Addressed {
                     address,
-                    serial_number: found.serial_number,
+                    serial_number,
                     models: found.models,
                     software: found.software,
-                    sensor: found.sensor,
+                    sensor: found.identified,
                     candidates: found.candidates,
                 });
             }
@@ -180,7 +181,7 @@ fn give_next_address(
     // The probe's own address commands when it is identified, or when every
     // sensor it may be changes its address alike; else the ones most
     // sensors share.
-    let own: Vec<_> = found.sensor.map_or_else(|| found.candidates.clone(), |s| vec![s]);
+    let own: Vec<_> = found.identified.map_or_else(|| found.candidates.clone(), |s| vec![s]);
     let pairs: Vec<_> = own.into_iter().filter_map(address_commands).collect();
     let alike = |(w, p): &(&CommandSpec, &CommandSpec)| {
         pairs.first().is_some_and(|(w0, p0)| w.layout() == w0.layout() && p.layout() == p0.layout())
@@ -192,6 +193,8 @@ fn give_next_address(
             (write, probe)
         }
     };
+    // Serial numbers as printed (control characters escaped), on both sides.
+    let sn_here = found.serial_number.as_deref().map(printable);
     loop {
         let Some(to) = plan.next() else {
             return Err(CliError::usage("the plan has no address left").hint("give more --addresses"));
@@ -199,12 +202,12 @@ fn give_next_address(
         let frames = ChangeFrames::build(write, probe, from, to)?;
         confirm(
             args.yes,
-            &format!("Give the probe SN {} address {}?", found.serial_number.as_deref().unwrap_or("?"), both_bases(to)),
+            &format!("Give the probe SN {} address {}?", sn_here.as_deref().unwrap_or("?"), both_bases(to)),
         )?;
         match frames.send(opened) {
             Ok(sn_there) => {
                 let sn_there = sn_there.as_deref().map(printable);
-                if let (Some(there), Some(here)) = (&sn_there, &found.serial_number)
+                if let (Some(there), Some(here)) = (&sn_there, &sn_here)
                     && there != here
                 {
                     return Err(CliError::device(format!(

@@ -21,7 +21,7 @@ use crate::commands::measure;
 use crate::device;
 use crate::error::{CliError, Result};
 use crate::format::{derived_text, field_value_text, unit};
-use crate::identified::identify_at;
+use crate::identified::{found_line, identify_at};
 use crate::port::Opened;
 use clap::Args;
 
@@ -263,11 +263,11 @@ fn family(catalog: &Catalog, args: &DemoArgs, out: &mut dyn Write) -> Result<u64
     for (&address, entry) in addresses.iter().zip(catalog.entries()) {
         let simulated = &entry.sensor;
         let line = match identify_at(catalog, &mut opened, address)? {
-            Some(found) if found.sensor.is_some_and(|s| s.name == simulated.name) => {
+            Some(found) if found.identified.is_some_and(|s| s.name == simulated.name) => {
                 identified += 1;
-                found.line
+                found_line(&found)
             }
-            Some(found) => format!("{}  {}", found.line, simulated_note(simulated)),
+            Some(found) => format!("{}  {}", found_line(&found), simulated_note(simulated)),
             None if own_serial_number_read(simulated).is_none() => {
                 format!("address {address:3}  not identified: no serial number read  {}", simulated_note(simulated))
             }
