@@ -2,7 +2,7 @@
 //! with the CLI's errors, and rendered: the line `scan` prints and its JSON.
 
 use serde_json::json;
-use yosemitech_ops::{Identification as Found, Identifier, IdentifyError, printable};
+use yosemitech_ops::{Identification as Found, Identifier, TransactionError, printable};
 use yosemitech_spec::Sensor;
 
 use crate::catalog::Catalog;
@@ -13,10 +13,10 @@ use crate::port::Opened;
 /// the CLI's error for a failed request.
 pub fn identify<'c>(identifier: &Identifier<'c>, opened: &mut Opened, address: u8) -> Result<Option<Found<'c>>> {
     identifier.identify(&mut opened.bus, address).map_err(|e| match e {
-        IdentifyError::Request { .. } => CliError::usage(e.to_string()),
-        IdentifyError::Bus { command, error } => {
+        TransactionError::Bus { command, error } => {
             request_failed(&error, opened.bus.last_reply(), &opened.context(address, &command))
         }
+        other => CliError::usage(format!("{}: {other}", other.command())),
     })
 }
 

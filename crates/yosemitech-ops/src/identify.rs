@@ -20,27 +20,6 @@ pub struct Identifier<'c> {
     requests: Vec<SnRequest<'c>>,
 }
 
-/// Why identification stopped: the bus failed, not a probe.
-#[derive(Debug, thiserror::Error)]
-pub enum IdentifyError {
-    /// A read could not be built (a spec the interpreter cannot encode).
-    #[error("cannot build the {command} request: {message}")]
-    Request {
-        /// The command.
-        command: String,
-        /// Why.
-        message: String,
-    },
-    /// The port failed while reading `command`.
-    #[error("{command}: {error}")]
-    Bus {
-        /// The command being read.
-        command: String,
-        /// The port's error.
-        error: RtuError,
-    },
-}
-
 impl<'c> Identifier<'c> {
     /// The reads of `loaded`, in their load order.
     pub fn new(loaded: impl IntoIterator<Item = &'c Sensor>) -> Self {
@@ -58,13 +37,15 @@ impl<'c> Identifier<'c> {
     }
 
     /// Identifies the device at `address`; `None` when nothing answers.
-    /// Only a failing port is an error: silence, exceptions and garbled
-    /// replies are what a bus scan meets, and are said in the result.
+    /// Only a read that cannot be built ([`TransactionError::Request`]) or
+    /// a failing port ([`TransactionError::Bus`] with an I/O error) is an
+    /// error: silence, exceptions and garbled replies are what a bus scan
+    /// meets, and are said in the result.
     pub fn identify<T: Transport>(
         &self,
         client: &mut Client<T>,
         address: u8,
-    ) -> Result<Option<Identification<'c>>, IdentifyError> {
+    ) -> Result<Option<Identification<'c>>, TransactionError> {
         identify(&self.loaded, &self.requests, client, address)
     }
 }
@@ -230,16 +211,15 @@ enum Answer {
 }
 
 /// Sends a read with no values to `address`.
-fn probe<T: Transport>(client: &mut Client<T>, command: &CommandSpec, address: u8) -> Result<Answer, IdentifyError> {
+fn probe<T: Transport>(client: &mut Client<T>, command: &CommandSpec, address: u8) -> Result<Answer, TransactionError> {
     let error = match call_data(client, command, address, &BTreeMap::new()) {
         Ok(data) => return Ok(Answer::Data(data.to_vec())),
         Err(error) => error,
     };
     let name = &command.name;
     Ok(match error {
-        TransactionError::Request { command, message } => return Err(IdentifyError::Request { command, message }),
-        TransactionError::Bus { command, error: error @ RtuError::Io(_) } => {
-            return Err(IdentifyError::Bus { command, error });
+        error @ (TransactionError::Request { .. } | TransactionError::Bus { error: RtuError::Io(_), .. }) => {
+            return Err(error);
         }
         TransactionError::Bus { error: RtuError::Timeout { received: 0, .. }, .. } => Answer::Silent,
         TransactionError::Bus { error: e @ RtuError::Frame { error: FrameError::Exception { .. }, .. }, .. } => {
@@ -279,7 +259,7 @@ fn identify<'c, T: Transport>(
     requests: &[SnRequest<'c>],
     client: &mut Client<T>,
     address: u8,
-) -> Result<Option<Identification<'c>>, IdentifyError> {
+) -> Result<Option<Identification<'c>>, TransactionError> {
     let mut found = Identification {
         address,
         serial_number: None,
@@ -466,7 +446,7 @@ fn tell_apart<'c, T: Transport>(
     address: u8,
     candidates: &[&'c Sensor],
     sent: &mut Vec<String>,
-) -> Result<Option<&'c Sensor>, IdentifyError> {
+) -> Result<Option<&'c Sensor>, TransactionError> {
     let mut left: Vec<&'c Sensor> = candidates.to_vec();
     while left.len() > 1 {
         let Some((i, read)) = left.iter().enumerate().find_map(|(i, s)| {

@@ -15,7 +15,7 @@
 pub mod identify;
 pub mod transaction;
 
-pub use identify::{Identification, Identifier, IdentifyError, common_serial, printable, software_revision};
+pub use identify::{Identification, Identifier, common_serial, printable, software_revision};
 pub use transaction::{TransactionError, call, call_data, target};
 
 use yosemitech_rtu::{Error as RtuError, FrameError, Hex};
