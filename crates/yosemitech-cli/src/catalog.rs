@@ -8,21 +8,15 @@
 //! its own. A `--spec` sensor with a built-in sensor's name replaces it (and
 //! is then served through the interpreter, not the typed crate).
 
-use std::io;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::sync::Arc;
 
+use yosemitech_ops::built_in;
 use yosemitech_spec::lookup::{Lookup, find_sensor};
-use yosemitech_spec::sources::{FsSources, MemSources, Sources};
 use yosemitech_spec::suggest::closest;
-use yosemitech_spec::{CommandSpec, Sensor, load_with};
+use yosemitech_spec::{CommandSpec, Sensor};
 
 use crate::error::{CliError, Result};
-
-include!(concat!(env!("OUT_DIR"), "/embedded_spec.rs"));
-
-/// The virtual directory of the built-in spec files.
-const BUILT_IN_DIR: &str = "<built-in spec>";
 
 /// Where a sensor's spec came from.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -64,43 +58,10 @@ pub struct Catalog {
     spec_paths: Vec<PathBuf>,
 }
 
-/// The built-in files as a [`Sources`].
-fn built_in_sources() -> MemSources {
-    EMBEDDED_SPEC
-        .iter()
-        .fold(MemSources::default(), |sources, (name, text)| sources.with(Path::new(BUILT_IN_DIR).join(name), *text))
-}
-
-/// The file system, with the built-in files as a fallback for includes.
-struct Overlay<'a> {
-    built_in: &'a MemSources,
-}
-
-impl Sources for Overlay<'_> {
-    fn read(&self, path: &Path) -> io::Result<String> {
-        match FsSources.read(path) {
-            Err(e) if e.kind() == io::ErrorKind::NotFound => {
-                let fallback = path.file_name().map(|name| Path::new(BUILT_IN_DIR).join(name));
-                fallback.and_then(|p| self.built_in.read(&p).ok()).ok_or(e)
-            }
-            other => other,
-        }
-    }
-
-    fn yaml_files(&self, dir: &Path) -> io::Result<Vec<PathBuf>> {
-        FsSources.yaml_files(dir)
-    }
-
-    fn is_dir(&self, path: &Path) -> bool {
-        FsSources.is_dir(path)
-    }
-}
-
 impl Catalog {
     /// The built-in sensors, then those of each `--spec` path.
     pub fn load(extra: &[PathBuf]) -> Result<Self> {
-        let built_in = built_in_sources();
-        let spec = load_with(&built_in, &[PathBuf::from(BUILT_IN_DIR)]).map_err(|d| {
+        let spec = built_in::load().map_err(|d| {
             CliError::device(format!("the built-in spec does not load ({} problems)", d.len()))
                 .hint("this is a bug in the build; rebuild from a clean checkout")
         })?;
@@ -111,7 +72,7 @@ impl Catalog {
                 return Err(CliError::usage(format!("--spec {}: no such file or directory", path.display()))
                     .hint("give a directory of spec YAML files (like the repository's spec/) or one file"));
             }
-            let loaded = load_with(&Overlay { built_in: &built_in }, std::slice::from_ref(path)).map_err(|d| {
+            let loaded = built_in::load_file(path).map_err(|d| {
                 let mut e = CliError::usage(format!(
                     "the spec in {} has {} problem{}",
                     path.display(),
@@ -250,7 +211,7 @@ mod tests {
         let names: Vec<&str> = catalog.entries().iter().map(|e| e.sensor.name.as_str()).collect();
         let want: Vec<String> = spec().sensors.iter().map(|s| s.name.clone()).collect();
         assert_eq!(names, want);
-        assert!(EMBEDDED_SPEC.iter().any(|(n, _)| *n == "yosemitech-common.yaml"));
+        assert!(built_in::EMBEDDED_SPEC.iter().any(|(n, _)| *n == "yosemitech-common.yaml"));
         assert!(catalog.entries().iter().all(|e| e.origin == Origin::BuiltIn));
     }
 

@@ -115,7 +115,7 @@ pub fn main() -> ExitCode {
 /// workspace at build time), by file name, in name order: what the tool
 /// serves without `--spec`.
 pub fn embedded_spec() -> &'static [(&'static str, &'static str)] {
-    catalog::EMBEDDED_SPEC
+    yosemitech_ops::built_in::EMBEDDED_SPEC
 }
 
 /// The name of the sensor `yosemitech calibrate ph` drives: the built-in

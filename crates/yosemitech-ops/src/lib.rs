@@ -5,6 +5,7 @@
 //! ([`yosemitech_spec::Sensor`]), so that spec files loaded at run time
 //! work as the built-in ones do, over the runtime's blocking client.
 //!
+//! - [`built_in`]: the spec compiled in, and spec files loaded at run time;
 //! - [`transaction`]: one request of a spec command, encoded, sent with the
 //!   client's retries and decoded;
 //! - [`identify`]: which probe answers at an address, and which manual
@@ -12,6 +13,7 @@
 
 #![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used, clippy::panic))]
 
+pub mod built_in;
 pub mod identify;
 pub mod transaction;
 

@@ -27,7 +27,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
 
     let mut code = String::from(
         "/// The spec files compiled into the binary, by file name, in name order.\n\
-         pub(crate) static EMBEDDED_SPEC: &[(&str, &str)] = &[\n",
+         pub static EMBEDDED_SPEC: &[(&str, &str)] = &[\n",
     );
     for path in &files {
         println!("cargo::rerun-if-changed={}", path.display());
