@@ -6,15 +6,11 @@ use std::path::Path;
 use std::time::Duration;
 
 use clap::Args;
-use yosemitech_rtu::{
-    Client, ClientConfig, LineSettings, RetryPolicy, SerialConfig, SerialTransport, TcpTransport, Transport,
-};
+pub use yosemitech_ops::bus::AnyClient;
+use yosemitech_rtu::{ClientConfig, LineSettings, RetryPolicy};
 
 use crate::error::{CliError, Context, Result};
 use crate::format::parse_duration;
-
-/// A client on any transport.
-pub type AnyClient = Client<Box<dyn Transport + Send>>;
 
 /// The port options every device command takes.
 #[derive(Args, Debug, Clone, Default)]
@@ -141,17 +137,9 @@ pub fn open_with(
             CliError::usage("--baud 0 is not a baud rate").hint("Yosemitech probes use 9600 unless reconfigured")
         );
     }
-    let transport: Box<dyn Transport + Send> = match port.strip_prefix("tcp://") {
-        Some(address) => Box::new(
-            TcpTransport::connect(address, config.timeout.max(Duration::from_millis(500)))
-                .map_err(|e| open_failed(&port, &e))?,
-        ),
-        None => {
-            let config = SerialConfig::with_settings(port.clone(), LineSettings { baud, ..*serial });
-            Box::new(SerialTransport::open(&config).map_err(|e| open_failed(&port, &e))?)
-        }
-    };
-    Ok(Opened { bus: Client::with_config(transport, config), port, timeout: config.timeout })
+    let bus = yosemitech_ops::bus::open(&port, LineSettings { baud, ..*serial }, config)
+        .map_err(|e| open_failed(&port, &e))?;
+    Ok(Opened { bus, port, timeout: config.timeout })
 }
 
 /// Why a port could not be opened, with what to do about it.

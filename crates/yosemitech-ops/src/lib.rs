@@ -5,6 +5,7 @@
 //! ([`yosemitech_spec::Sensor`]), so that spec files loaded at run time
 //! work as the built-in ones do, over the runtime's blocking client.
 //!
+//! - [`bus`]: a serial port or an RTU-over-TCP gateway opened for a client;
 //! - [`built_in`]: the spec compiled in, and spec files loaded at run time;
 //! - [`transaction`]: one request of a spec command, encoded, sent with the
 //!   client's retries and decoded;
@@ -14,6 +15,7 @@
 #![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used, clippy::panic))]
 
 pub mod built_in;
+pub mod bus;
 pub mod identify;
 pub mod transaction;
 
