@@ -17,6 +17,7 @@ mod layering;
 mod manual_revision;
 mod no_sensor_names;
 mod procedures;
+mod python_package;
 mod roundtrip;
 mod segment_examples;
 mod sim_behaviour;
