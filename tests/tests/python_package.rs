@@ -57,6 +57,8 @@ fn the_wheel_installed_in_a_venv_passes_the_python_tests() {
         "pytest",
         Command::new(&python)
             .args(["-m", "pytest", "-q", "-p", "no:cacheprovider"])
+            // Nothing written into the source tree.
+            .env("PYTHONDONTWRITEBYTECODE", "1")
             .arg(package_dir().join("tests"))
             .current_dir(wheels.path()),
     );
