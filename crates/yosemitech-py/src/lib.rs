@@ -209,24 +209,22 @@ impl Bus {
         Ok(Self { client: Mutex::new(client) })
     }
 
-    /// Sends `command` of `sensor` to `address` (a write with `values`) and
-    /// returns the reply's fields by name.
-    #[pyo3(signature = (sensor, command, address, values = None))]
-    fn call<'py>(
-        &self,
-        py: Python<'py>,
-        sensor: &str,
-        command: &str,
-        address: u8,
-        values: Option<BTreeMap<String, f64>>,
-    ) -> PyResult<Bound<'py, PyDict>> {
+    /// Reads `command` of `sensor` at `address` and returns the reply's
+    /// fields by name. Writes are refused here: a write to a probe comes
+    /// with range checks, a backup and a read-back, which the calibration
+    /// session of the library will bring to Python.
+    fn read<'py>(&self, py: Python<'py>, sensor: &str, command: &str, address: u8) -> PyResult<Bound<'py, PyDict>> {
         let spec = self::sensor(sensor)?;
         let command = self::command(&spec, command)?;
-        let values: BTreeMap<String, Value> =
-            values.unwrap_or_default().into_iter().map(|(k, v)| (k, field_value(command, v))).collect();
+        if !command.is_read() {
+            return Err(RequestError::new_err(format!(
+                "{} is a write: this package reads only (the yosemitech tool writes, with a backup and a read-back)",
+                command.name
+            )));
+        }
         let result = py.detach(|| {
             let mut client = self.client();
-            yosemitech_ops::call(&mut client, command, target(command, address), &values)
+            yosemitech_ops::call(&mut client, command, target(command, address), &BTreeMap::new())
                 .map_err(|e| (e, client.last_reply().to_vec()))
         });
         let fields = result.map_err(|(e, reply)| transaction_error(e, &reply))?;
@@ -235,11 +233,6 @@ impl Bus {
             dict.set_item(name, value_to_py(py, value)?)?;
         }
         Ok(dict)
-    }
-
-    /// A read: [`Bus::call`] with no values.
-    fn read<'py>(&self, py: Python<'py>, sensor: &str, command: &str, address: u8) -> PyResult<Bound<'py, PyDict>> {
-        self.call(py, sensor, command, address, None)
     }
 
     /// Identifies what answers at each of `addresses` as `yosemitech scan`
@@ -304,18 +297,6 @@ struct Found {
     software: Option<String>,
     manual: Option<String>,
     reason: Option<String>,
-}
-
-/// A number given for a field, as the field's kind takes it.
-fn field_value(command: &CommandSpec, value: f64) -> Value {
-    let float = command.named_fields().any(|f| matches!(f.kind, yosemitech_spec::FieldKind::F32 { .. }));
-    if float || value.fract() != 0.0 {
-        #[allow(clippy::cast_possible_truncation)] // a field's f32, as the probe stores it
-        Value::Float(value as f32)
-    } else {
-        #[allow(clippy::cast_possible_truncation)] // an integral value; the encoder checks its range
-        Value::Int(value as i64)
-    }
 }
 
 /// A probe simulated from its spec, served over TCP (RTU frames, as a

@@ -1,7 +1,7 @@
 """Yosemitech water-quality probes over Modbus RTU, from Python.
 
-Every sensor of the spec (``sensors()``), one request of any command
-(``Bus.read``, ``Bus.call``), the probes on a bus identified as
+Every sensor of the spec (``sensors()``), a read of any command
+(``Bus.read``), the probes on a bus identified as
 ``yosemitech scan`` does (``Bus.scan``), and a probe simulated from its spec
 (``Simulator``) so that code written for a probe runs without one. The
 work is done by the Rust library the ``yosemitech`` tools share; this

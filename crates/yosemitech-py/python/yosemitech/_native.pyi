@@ -21,11 +21,8 @@ class Bus:
 
     def __init__(self, port: str, baud: Optional[int] = None, timeout: float = 1.0, retries: int = 2) -> None: ...
     def read(self, sensor: str, command: str, address: int) -> Dict[str, Value]:
-        """The fields of ``command``'s reply, by name."""
-    def call(
-        self, sensor: str, command: str, address: int, values: Optional[Dict[str, float]] = None
-    ) -> Dict[str, Value]:
-        """Sends ``command`` (a write with ``values``) and returns the reply's fields."""
+        """The fields of ``command``'s reply, by name. A write raises
+        RequestError: this package reads only."""
     def scan(self, addresses: Optional[Sequence[int]] = None) -> List[dict]:
         """What answers at each address (1-247 by default), identified as
         ``yosemitech scan`` does: address, sensor, candidates, serial_number,
