@@ -327,3 +327,86 @@ fn every_test_file_is_in_a_test_binary() {
     assert!(shared > 0, "no package shares a test binary");
     assert!(problems.is_empty(), "{}", problems.join("\n"));
 }
+
+/// The command a line of command `own`'s source reaches, if another:
+/// `crate::commands::X`, or, in a command's top-level file, `super::X`.
+fn imported_command(line: &str, own: &str, top_level: bool) -> Option<String> {
+    let line = line.trim();
+    if line.starts_with("//") {
+        return None;
+    }
+    let mut names = Vec::new();
+    if let Some(at) = line.find("crate::commands::") {
+        names.push(&line[at + "crate::commands::".len()..]);
+    }
+    if top_level && let Some(at) = line.find("super::") {
+        names.push(&line[at + "super::".len()..]);
+    }
+    names
+        .into_iter()
+        .map(|rest| rest.split(|c: char| !(c.is_ascii_alphanumeric() || c == '_')).next().unwrap_or_default())
+        .find(|name| !name.is_empty() && *name != own && *name != "self" && *name != "super")
+        .map(str::to_owned)
+}
+
+/// Imports of one command by another still to be moved out, each with why
+/// it remains. One that is gone fails the test too: take it off.
+const COMMAND_IMPORTS_LEFT: &[(&str, &str, &str)] = &[(
+    "demo",
+    "measure",
+    "the procedure runner (run_procedure, show) is still the measure command's; it belongs in yosemitech-ops",
+)];
+
+/// cargo's layout: each command parses its arguments, calls the library
+/// and renders; what two commands share lives outside `commands/` (in the
+/// CLI's modules or `yosemitech-ops`), so no command imports another. A
+/// command's own sub-modules (`commands/decode/*.rs`) may use their parent;
+/// `commands/mod.rs` is the dispatcher.
+#[test]
+fn no_command_imports_another() {
+    let dir = root().join("crates/yosemitech-cli/src/commands");
+    let mut sources = Vec::new();
+    files(&dir, &[".rs"], &mut sources);
+    assert!(sources.len() > 10, "the commands are found");
+    let mut problems = Vec::new();
+    let mut left = std::collections::BTreeSet::new();
+    for path in &sources {
+        let relative_path = path.strip_prefix(&dir).unwrap_or(path);
+        let mut parts = relative_path.iter().map(|p| p.to_string_lossy().into_owned());
+        let first = parts.next().unwrap_or_default();
+        if first == "mod.rs" {
+            continue;
+        }
+        let own = first.trim_end_matches(".rs").to_owned();
+        let top_level = first.ends_with(".rs") || relative_path.ends_with("mod.rs");
+        let text = std::fs::read_to_string(path).unwrap_or_default();
+        for (number, line) in text.lines().enumerate() {
+            if let Some(other) = imported_command(line, &own, top_level) {
+                if COMMAND_IMPORTS_LEFT.iter().any(|(a, b, _)| *a == own && *b == other) {
+                    left.insert((own.clone(), other));
+                } else {
+                    problems.push(format!("{}:{}: `{own}` imports the command `{other}`", relative(path), number + 1));
+                }
+            }
+        }
+    }
+    for (a, b, why) in COMMAND_IMPORTS_LEFT {
+        if !left.contains(&((*a).to_owned(), (*b).to_owned())) {
+            problems.push(format!("`{a}` no longer imports `{b}` ({why}): take it off COMMAND_IMPORTS_LEFT"));
+        }
+    }
+    assert!(problems.is_empty(), "{}", problems.join("\n"));
+}
+
+#[test]
+fn the_command_import_rule_catches_what_it_is_for() {
+    assert_eq!(imported_command("use crate::commands::read::derived_json;", "poll", true).as_deref(), Some("read"));
+    assert_eq!(imported_command("use super::scan::{self, Found};", "demo", true).as_deref(), Some("scan"));
+    assert_eq!(
+        imported_command("        return super::plan::run(catalog, args, out);", "set_address", true).as_deref(),
+        Some("plan")
+    );
+    assert_eq!(imported_command("use super::{error_json, pretty};", "decode", false), None);
+    assert_eq!(imported_command("use crate::commands::decode::DecodeArgs;", "decode", false), None);
+    assert_eq!(imported_command("use crate::derived::derived_json;", "poll", true), None);
+}

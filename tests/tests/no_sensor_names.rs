@@ -43,12 +43,12 @@ const EXEMPT: &[(&str, &str)] = &[
     ),
     ("crates/yosemitech/src/procedures/mod.rs", "declares the one-manual procedure modules above"),
     (
-        "crates/yosemitech-cli/src/commands/calibrate.rs",
+        "crates/yosemitech-cli/src/commands/calibrate/mod.rs",
         "`calibrate ph`, the command line of the pH manual's three-point calibration above: it hands that \
          procedure the manual's typed device (its backup and restore go through the spec's coefficient blocks)",
     ),
     (
-        "crates/yosemitech-cli/src/commands/calibrate_electrode.rs",
+        "crates/yosemitech-cli/src/commands/calibrate/electrode.rs",
         "`calibrate ph --compute`, the command line of the pH electrode model above, on the pH probe's typed device",
     ),
     ("crates/yosemitech/examples/", "examples show the typed API of named sensors"),

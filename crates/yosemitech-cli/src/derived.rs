@@ -5,10 +5,12 @@
 
 use std::collections::BTreeMap;
 
+use serde_json::json;
 use yosemitech_spec::Sensor;
 use yosemitech_spec::beside::{self, DerivedValue, station_inputs};
 
 use crate::error::{CliError, Result};
+use crate::format::f32_json;
 
 /// Parses `NAME=VALUE` of `--input` (the sensor is checked later, when known).
 pub fn parse_input(text: &str) -> std::result::Result<(String, f64), String> {
@@ -73,4 +75,23 @@ pub fn defaults_note(sensor: &Sensor, derived: &[DerivedValue<'_>]) -> Option<St
         })
         .collect();
     Some(format!("station inputs at the spec's default: {} (give --input NAME=VALUE)", parts.join(", ")))
+}
+
+/// Derived quantities as JSON: `{name: {value, unit, defaults}}` or
+/// `{name: {error, unit, defaults}}`, `defaults` the station inputs that
+/// took the spec's default (`{name: value}`).
+pub fn derived_json(derived: &[DerivedValue<'_>]) -> serde_json::Value {
+    let map: serde_json::Map<String, serde_json::Value> = derived
+        .iter()
+        .map(|d| {
+            let defaults: serde_json::Map<String, serde_json::Value> =
+                d.defaulted.iter().map(|(n, v)| ((*n).to_owned(), json!(v))).collect();
+            let v = match &d.value {
+                Ok(v) => json!({"value": f32_json(*v), "unit": d.quantity.unit, "defaults": defaults}),
+                Err(why) => json!({"error": why, "unit": d.quantity.unit, "defaults": defaults}),
+            };
+            (d.quantity.name.clone(), v)
+        })
+        .collect();
+    serde_json::Value::Object(map)
 }

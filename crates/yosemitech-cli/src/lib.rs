@@ -33,6 +33,7 @@ mod cli;
 mod commands;
 mod confirm;
 mod dashboard;
+mod database;
 mod derived;
 mod device;
 mod doctor;
@@ -130,7 +131,7 @@ pub fn calibrate_ph_sensor() -> &'static str {
 /// `(command, field)`: the electrode potential, then the temperature. Tests
 /// set these on a simulated probe instead of naming the pH manual's reads.
 pub fn electrode_reads() -> [(&'static str, &'static str); 2] {
-    commands::calibrate_electrode::READS
+    commands::calibrate::electrode::READS
 }
 
 /// A unit as the tool shows it to people (`degC` is `°C`): what `read`,

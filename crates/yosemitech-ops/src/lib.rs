@@ -9,6 +9,7 @@
 //! - [`built_in`]: the spec compiled in, and spec files loaded at run time;
 //! - [`transaction`]: one request of a spec command, encoded, sent with the
 //!   client's retries and decoded;
+//! - [`procedure`]: a spec procedure's timing, and the procedure in a line;
 //! - [`identify`]: which probe answers at an address, and which manual
 //!   covers its firmware.
 
@@ -17,6 +18,7 @@
 pub mod built_in;
 pub mod bus;
 pub mod identify;
+pub mod procedure;
 pub mod transaction;
 
 pub use identify::{Identification, Identifier, common_serial, printable, software_revision};

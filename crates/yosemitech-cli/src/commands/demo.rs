@@ -14,9 +14,11 @@ use yosemitech_sim::{Bus, FrameHandler, ServeConfig, Server, Simulator, Variatio
 use yosemitech_spec::beside;
 use yosemitech_spec::{CommandSpec, FieldKind, Role, Sensor, Value, Values};
 
+use yosemitech_ops::procedure::{Timing, describe};
 use yosemitech_ops::{common_serial, software_revision};
 
 use crate::catalog::Catalog;
+// The procedure runner is still the measure command's (tests/tests/layering.rs lists it).
 use crate::commands::measure;
 use crate::device;
 use crate::error::{CliError, Result};
@@ -161,9 +163,8 @@ fn show_probe(probe: &mut Probe, out: &mut dyn Write) -> Result<()> {
 /// Runs every probe's measuring procedure (its spec's `procedure`), the
 /// waits shortened by one factor so that together they fit [`WAIT_BUDGET`].
 fn run_procedures(probes: &mut [Probe], out: &mut dyn Write) -> Result<()> {
-    let timings: Vec<Option<measure::Timing>> =
-        probes.iter().map(|p| p.sensor.procedure.as_ref().map(measure::Timing::of)).collect();
-    let waited = |t: &measure::Timing| t.warm_up + t.interval * t.readings.saturating_sub(1);
+    let timings: Vec<Option<Timing>> = probes.iter().map(|p| p.sensor.procedure.as_ref().map(Timing::of)).collect();
+    let waited = |t: &Timing| t.warm_up + t.interval * t.readings.saturating_sub(1);
     let total: Duration = timings.iter().flatten().map(waited).sum();
     let scale = if total > WAIT_BUDGET { WAIT_BUDGET.as_secs_f64() / total.as_secs_f64() } else { 1.0 };
     writeln!(
@@ -173,7 +174,7 @@ fn run_procedures(probes: &mut [Probe], out: &mut dyn Write) -> Result<()> {
     )?;
     for (probe, timing) in probes.iter_mut().zip(timings) {
         let (Some(procedure), Some(timing)) = (probe.sensor.procedure.as_ref(), timing) else { continue };
-        writeln!(out, "\n{}: {}", probe.sensor.name, measure::describe(procedure, timing))?;
+        writeln!(out, "\n{}: {}", probe.sensor.name, describe(procedure, timing))?;
         out.flush()?;
         let mut sleep = |d: Duration| std::thread::sleep(d.mul_f64(scale));
         let sensor = Arc::clone(&probe.sensor);

@@ -8,7 +8,7 @@ use std::time::{Duration, SystemTime, UNIX_EPOCH};
 use yosemitech_station::export;
 use yosemitech_station::outbox::stored_of;
 
-use crate::commands::ingest::database_config;
+use crate::database::database_config;
 use crate::error::{CliError, Result};
 use crate::stored::open_existing;
 use crate::time::parse_instant_now as parse_instant;

@@ -3,7 +3,6 @@
 
 use std::io::Write;
 use std::path::PathBuf;
-use std::str::FromStr;
 use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
 use std::time::{Duration, Instant};
@@ -12,11 +11,9 @@ use clap::Args;
 use yosemitech_ingest::{IngestConfig, Totals};
 use yosemitech_mqtt::{Credentials, PASSWORD_VAR, Secret, TlsConfig, USERNAME_VAR, topic};
 
+use crate::database::database_config;
 use crate::error::{CliError, Result};
 use crate::format::parse_duration;
-
-/// The environment variable of the database password (libpq's own).
-pub const DATABASE_PASSWORD_VAR: &str = "PGPASSWORD";
 
 /// `ingest`.
 #[derive(Args, Debug)]
@@ -99,22 +96,6 @@ fn parse_broker(url: &str) -> Result<(String, u16, bool)> {
         return Err(bad("no host, or not a host and port"));
     }
     Ok((host.to_owned(), port, tls))
-}
-
-/// The database configuration: the connection string, the password from the environment.
-pub fn database_config(conninfo: &str) -> Result<postgres::Config> {
-    let mut config = postgres::Config::from_str(conninfo).map_err(|e| {
-        CliError::usage(format!("--postgres: not a connection string: {e}"))
-            .hint("write \"host=/run/postgresql dbname=fleet\" or postgresql://user@host/fleet")
-    })?;
-    if config.get_password().is_some() {
-        return Err(CliError::usage("--postgres holds a password (anyone on the machine can read a command line)")
-            .hint(format!("leave it out and set {DATABASE_PASSWORD_VAR}")));
-    }
-    if let Ok(password) = std::env::var(DATABASE_PASSWORD_VAR) {
-        config.password(password);
-    }
-    Ok(config)
 }
 
 /// The broker credentials from the environment: both variables, or neither.
@@ -220,13 +201,5 @@ mod tests {
         let secret = parse_broker("mqtt://user:hunter2@host").unwrap_err();
         let said = format!("{secret} {}", secret.hint.as_deref().unwrap_or_default());
         assert!(!said.contains("hunter2") && said.contains(USERNAME_VAR), "{said}");
-    }
-
-    #[test]
-    fn a_password_on_the_command_line_is_refused() {
-        assert!(database_config("host=/tmp dbname=fleet password=hunter2").is_err());
-        assert!(database_config("postgresql://user:hunter2@host/fleet").is_err());
-        assert!(database_config("host=/tmp dbname=fleet").is_ok());
-        assert!(database_config("not a = = conninfo '").is_err());
     }
 }

@@ -152,11 +152,11 @@ fn show_sensor(entry: &Entry, with_fields: bool, out: &mut dyn Write) -> Result<
         s.default_address
     )?;
     if let Some(p) = &s.procedure {
-        let timing = crate::commands::measure::Timing::of(p);
+        let timing = yosemitech_ops::procedure::Timing::of(p);
         writeln!(
             out,
             "  procedure: {} (`yosemitech measure {}`)",
-            crate::commands::measure::describe(p, timing),
+            yosemitech_ops::procedure::describe(p, timing),
             s.name
         )?;
     }

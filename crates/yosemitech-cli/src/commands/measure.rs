@@ -15,7 +15,7 @@ use yosemitech_spec::beside::{self, DerivedValue};
 
 use crate::args::InputArgs;
 use crate::catalog::Catalog;
-use crate::commands::read::derived_json;
+use crate::derived::derived_json;
 use crate::error::{CliError, Result};
 use crate::format::parse_duration;
 use crate::format::{derived_text, f32_json, field_value_text, unit, value_json};
@@ -24,6 +24,7 @@ use crate::port::PortArgs;
 use crate::port::{self, Opened};
 use crate::{derived, device, progress, time};
 use clap::Args;
+use yosemitech_ops::procedure::{Timing, describe};
 
 /// `measure`.
 #[derive(Args, Debug)]
@@ -51,28 +52,6 @@ pub struct MeasureArgs {
     pub fast: bool,
     #[command(flatten)]
     pub inputs: InputArgs,
-}
-
-/// The waits and the number of readings of one run.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct Timing {
-    /// Wait after the `before` commands.
-    pub warm_up: Duration,
-    /// Wait between two readings.
-    pub interval: Duration,
-    /// Readings taken (at least 1).
-    pub readings: u32,
-}
-
-impl Timing {
-    /// The procedure's own timing.
-    pub fn of(procedure: &Procedure) -> Self {
-        Self {
-            warm_up: Duration::from_millis(u64::from(procedure.warm_up_ms)),
-            interval: Duration::from_millis(u64::from(procedure.interval_ms)),
-            readings: procedure.readings.max(1),
-        }
-    }
 }
 
 /// What the readings of one field came to.
@@ -347,31 +326,6 @@ fn timing(procedure: &Procedure, args: &MeasureArgs) -> Result<Timing> {
         timing.readings = n;
     }
     Ok(timing)
-}
-
-/// `10 s`, `1.5 s`, `250 ms`.
-fn seconds(d: Duration) -> String {
-    if d.as_millis() < 1000 && !d.is_zero() {
-        format!("{} ms", d.as_millis())
-    } else {
-        format!("{} s", d.as_secs_f64())
-    }
-}
-
-/// The procedure in a line: `start_measurement, wait 10 s, 10 readings of get_x 3 s apart`.
-pub fn describe(procedure: &Procedure, timing: Timing) -> String {
-    let mut steps: Vec<String> = procedure.before.clone();
-    if !timing.warm_up.is_zero() {
-        steps.push(format!("wait {}", seconds(timing.warm_up)));
-    }
-    let reads = procedure.read.join(" + ");
-    steps.push(match timing.readings {
-        1 => format!("1 reading of {reads}"),
-        n if timing.interval.is_zero() => format!("{n} readings of {reads} back to back"),
-        n => format!("{n} readings of {reads} {} apart", seconds(timing.interval)),
-    });
-    steps.extend(procedure.after.iter().cloned());
-    steps.join(", ")
 }
 
 /// Runs `measure`.

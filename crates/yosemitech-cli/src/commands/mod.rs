@@ -1,10 +1,6 @@
 //! One module per subcommand.
 
-pub mod address_plan;
 pub mod calibrate;
-pub mod calibrate_electrode;
-pub mod calibrate_linear;
-pub mod calibration_history;
 pub mod coefficients;
 pub mod decode;
 pub mod demo;
@@ -68,9 +64,9 @@ pub fn run(cli: &Cli) -> Result<()> {
         Subcommand::Plot(args) => plot::run(args, &mut out),
         Subcommand::Calibrate(args) => match &args.command {
             Some(CalibrateSubcommand::Ph(args)) => calibrate::run(&catalog, args, &mut out),
-            Some(CalibrateSubcommand::History(args)) => calibration_history::list(&catalog, args, &mut out),
-            Some(CalibrateSubcommand::Restore(args)) => calibration_history::restore(&catalog, args, &mut out),
-            None => calibrate_linear::run(&catalog, &args.linear, &ctrl_c_flag(), &mut out),
+            Some(CalibrateSubcommand::History(args)) => calibrate::recorded::list(&catalog, args, &mut out),
+            Some(CalibrateSubcommand::Restore(args)) => calibrate::recorded::restore(&catalog, args, &mut out),
+            None => calibrate::linear::run(&catalog, &args.linear, &ctrl_c_flag(), &mut out),
         },
         Subcommand::Coefficients(CoefficientsSubcommand::Backup(args)) => {
             coefficients::backup(&catalog, args, &mut out)

@@ -15,8 +15,8 @@ use yosemitech_station::plan;
 
 use crate::args::InputArgs;
 use crate::catalog::Catalog;
-use crate::commands::read::derived_json;
 use crate::derived;
+use crate::derived::derived_json;
 use crate::error::{CliError, Result, short};
 use crate::format::{csv_field, parse_duration};
 use crate::format::{unit, value_json, value_text};

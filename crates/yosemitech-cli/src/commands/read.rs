@@ -11,7 +11,7 @@ use crate::catalog::{self, Catalog};
 use crate::derived;
 use crate::device;
 use crate::error::{CliError, Result};
-use crate::format::{derived_text, f32_json, fields_json, value_with_unit, values_json};
+use crate::format::{derived_text, fields_json, value_with_unit, values_json};
 use crate::port::AddressArg;
 use crate::port::PortArgs;
 use crate::units::{self, Chosen};
@@ -90,7 +90,7 @@ pub fn run(catalog: &Catalog, args: &ReadArgs, out: &mut dyn Write) -> Result<()
             "timestamp": time::rfc3339(SystemTime::now()),
             "values": values_json(&values),
             "fields": fields_json(command, &values),
-            "derived": derived_json(&derived),
+            "derived": derived::derived_json(&derived),
         });
         writeln!(out, "{}", serde_json::to_string_pretty(&doc).unwrap_or_default())?;
     } else {
@@ -110,25 +110,6 @@ pub fn show_derived(derived: &[DerivedValue<'_>], out: &mut dyn Write) -> Result
         writeln!(out, "{:width$}  {}", d.quantity.name, derived_text(d, None))?;
     }
     Ok(())
-}
-
-/// Derived quantities as JSON: `{name: {value, unit, defaults}}` or
-/// `{name: {error, unit, defaults}}`, `defaults` the station inputs that
-/// took the spec's default (`{name: value}`).
-pub fn derived_json(derived: &[DerivedValue<'_>]) -> serde_json::Value {
-    let map: serde_json::Map<String, serde_json::Value> = derived
-        .iter()
-        .map(|d| {
-            let defaults: serde_json::Map<String, serde_json::Value> =
-                d.defaulted.iter().map(|(n, v)| ((*n).to_owned(), json!(v))).collect();
-            let v = match &d.value {
-                Ok(v) => json!({"value": f32_json(*v), "unit": d.quantity.unit, "defaults": defaults}),
-                Err(why) => json!({"error": why, "unit": d.quantity.unit, "defaults": defaults}),
-            };
-            (d.quantity.name.clone(), v)
-        })
-        .collect();
-    serde_json::Value::Object(map)
 }
 
 /// Values as aligned `name  value unit` lines.

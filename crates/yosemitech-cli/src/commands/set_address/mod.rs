@@ -1,5 +1,7 @@
 //! `yosemitech set-address`: change a probe's slave address, verified at the new one.
 
+mod plan;
+
 use std::collections::BTreeMap;
 use std::io::Write;
 
@@ -99,10 +101,10 @@ pub(crate) fn pick_commands<'c>(
     })
 }
 
-/// Runs `set-address` (`--plan`: [`super::address_plan`]).
+/// Runs `set-address` (`--plan`: [`plan`]).
 pub fn run(catalog: &Catalog, args: &SetAddressArgs, out: &mut dyn Write) -> Result<()> {
     if args.plan {
-        return super::address_plan::run(catalog, args, out);
+        return plan::run(catalog, args, out);
     }
     let (Some(from), Some(to)) = (args.from, args.to) else {
         return Err(CliError::usage("set-address needs --from and --to").hint("or --plan to address a bus of probes"));

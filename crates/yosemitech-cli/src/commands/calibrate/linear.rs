@@ -24,7 +24,7 @@ use yosemitech_spec::{CommandSpec, Sensor, Value};
 use serde_json::{Map, json};
 use yosemitech_station::Calibration;
 
-use super::calibrate::stdin_lines;
+use super::stdin_lines;
 use crate::args::BackupDir;
 use crate::args::HistoryArgs;
 use crate::backup::{self, Backup};

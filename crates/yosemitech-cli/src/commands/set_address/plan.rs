@@ -17,9 +17,8 @@ use yosemitech::procedures::address::AddressChangeError;
 use yosemitech_rtu::Version;
 use yosemitech_spec::{CommandSpec, Sensor};
 
-use super::set_address::{ChangeFrames, address_commands, explain, pick_commands};
+use super::{ChangeFrames, SetAddressArgs, address_commands, explain, pick_commands};
 use crate::catalog::Catalog;
-use crate::commands::set_address::SetAddressArgs;
 use crate::confirm::{confirm, ensure_can_ask};
 use crate::error::{CliError, Result};
 use crate::identified::{found_line, identify_at};

@@ -6,6 +6,10 @@
 //! the spec's coefficient blocks like every other backup, so the file
 //! restores with `coefficients restore` like any other.
 
+pub mod electrode;
+pub mod linear;
+pub mod recorded;
+
 use std::io::{self, BufRead, IsTerminal, Write};
 use std::sync::mpsc::{self, Receiver, TryRecvError};
 use std::time::Duration;
@@ -15,13 +19,12 @@ use yosemitech::procedures::coefficients::PhOrpCoefficients;
 use yosemitech::procedures::ph::{CalibrationConfig, CalibrationGuide, calibrate, explain};
 use yosemitech::procedures::{ProcedureError, RealSleep, Sleep};
 
+use self::linear::CalibrateLinearArgs;
+use self::recorded::{CalibrateHistoryArgs, CalibrateRestoreArgs};
 use crate::args::BackupDir;
 use crate::args::HistoryArgs;
 use crate::backup::{self, Backup};
 use crate::catalog::{Catalog, Entry};
-use crate::commands::calibrate_linear::CalibrateLinearArgs;
-use crate::commands::calibration_history::CalibrateHistoryArgs;
-use crate::commands::calibration_history::CalibrateRestoreArgs;
 use crate::confirm::{confirm, ensure_can_ask};
 use crate::device::{is_typed, procedure_failed};
 use crate::error::{CliError, Result, show_duration};
@@ -223,7 +226,7 @@ impl CalibrationGuide for Guide<'_> {
 /// Runs `calibrate ph`.
 pub fn run(catalog: &Catalog, args: &CalibratePhArgs, out: &mut dyn Write) -> Result<()> {
     if args.compute || args.readings.is_some() {
-        return super::calibrate_electrode::run(catalog, args, out);
+        return electrode::run(catalog, args, out);
     }
     if args.json {
         return Err(CliError::usage("`calibrate ph --json` prints computed coefficients: add --compute"));

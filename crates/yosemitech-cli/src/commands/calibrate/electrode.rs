@@ -16,9 +16,8 @@ use yosemitech::procedures::ph_electrode::{BufferReading, compute};
 use yosemitech::procedures::{RealSleep, Sleep, same_bits};
 use yosemitech::{Command, ph_orp};
 
-use super::calibrate::{SENSOR, save_backup, stdin_lines};
+use super::{CalibratePhArgs, SENSOR, save_backup, stdin_lines};
 use crate::catalog::Catalog;
-use crate::commands::calibrate::CalibratePhArgs;
 use crate::confirm::ensure_can_ask;
 use crate::device::is_typed;
 use crate::error::{CliError, Result, request_failed, show_duration};
