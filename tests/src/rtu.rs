@@ -158,3 +158,15 @@ pub fn float_probe(address: u8, ph: f32, request: &[u8], reply: &mut Vec<u8>) {
     };
     reply.extend_from_slice(&out[..len.unwrap()]);
 }
+
+/// A client configuration for a device in memory or behind a socket, where
+/// no line timing applies: no inter-frame wait, no retries, `timeout` for a
+/// reply (a silence costs only that).
+pub fn unpaced_config(timeout: std::time::Duration) -> yosemitech_rtu::ClientConfig {
+    yosemitech_rtu::ClientConfig {
+        timeout,
+        retry: yosemitech_rtu::RetryPolicy::NONE,
+        inter_frame_delay: Some(std::time::Duration::ZERO),
+        ..yosemitech_rtu::ClientConfig::default()
+    }
+}

@@ -8,18 +8,13 @@ use std::time::Duration;
 
 use yosemitech_ops::identify::{can_tell_apart, manual_for};
 use yosemitech_ops::{Identifier, common_serial};
-use yosemitech_rtu::{Client, ClientConfig, ResponderTransport, RetryPolicy};
+use yosemitech_rtu::{Client, ClientConfig, ResponderTransport};
 use yosemitech_sim::Simulator;
 use yosemitech_spec::{Role, Sensor};
+use yosemitech_tests::rtu::unpaced_config;
 
-/// No line timing in memory; a silence is a short timeout, not a retry.
 fn config() -> ClientConfig {
-    ClientConfig {
-        timeout: Duration::from_millis(50),
-        retry: RetryPolicy::NONE,
-        inter_frame_delay: Some(Duration::ZERO),
-        ..ClientConfig::default()
-    }
+    unpaced_config(Duration::from_millis(50))
 }
 
 /// The loaded sensors `scan` cannot tell from `sensor` by its serial number:

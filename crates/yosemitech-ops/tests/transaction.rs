@@ -6,16 +6,12 @@ use std::collections::BTreeMap;
 use std::time::Duration;
 
 use yosemitech_ops::{TransactionError, call, target};
-use yosemitech_rtu::{Client, ClientConfig, Error as RtuError, ResponderTransport, RetryPolicy};
+use yosemitech_rtu::{Client, ClientConfig, Error as RtuError, ResponderTransport};
 use yosemitech_sim::Simulator;
+use yosemitech_tests::rtu::unpaced_config;
 
 fn config() -> ClientConfig {
-    ClientConfig {
-        timeout: Duration::from_millis(50),
-        retry: RetryPolicy::NONE,
-        inter_frame_delay: Some(Duration::ZERO),
-        ..ClientConfig::default()
-    }
+    unpaced_config(Duration::from_millis(50))
 }
 
 #[test]

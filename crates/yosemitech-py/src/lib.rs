@@ -19,6 +19,7 @@ use yosemitech_ops::bus::AnyClient;
 use yosemitech_ops::{Identifier, TransactionError, printable, target};
 use yosemitech_rtu::{ClientConfig, Error as RtuError, FrameError, RetryPolicy};
 use yosemitech_sim::{ServeConfig, Server, serve_tcp};
+use yosemitech_spec::lookup::{Lookup, find_sensor};
 use yosemitech_spec::{CommandSpec, Sensor, Value};
 
 create_exception!(_native, YosemitechError, PyException, "Every error of this package.");
@@ -64,13 +65,24 @@ fn catalog() -> PyResult<MutexGuard<'static, Vec<Arc<Sensor>>>> {
     Ok(sensors)
 }
 
+/// The loaded sensor `name` names, as the CLI finds it: by name (`-` for
+/// `_`) or by model, with the closest name suggested.
 fn sensor(name: &str) -> PyResult<Arc<Sensor>> {
-    let wanted = name.replace('-', "_");
-    catalog()?
-        .iter()
-        .find(|s| s.name == wanted)
-        .cloned()
-        .ok_or_else(|| UnknownError::new_err(format!("no sensor `{name}` in the loaded spec")))
+    let sensors = catalog()?;
+    let refs: Vec<&Sensor> = sensors.iter().map(|s| s.as_ref()).collect();
+    match find_sensor(&refs, name) {
+        Lookup::Found { index, .. } => {
+            sensors.get(index).cloned().ok_or_else(|| UnknownError::new_err(format!("no sensor `{name}`")))
+        }
+        Lookup::SameModel(indices) => {
+            let names: Vec<&str> = indices.iter().filter_map(|&i| refs.get(i).map(|s| s.name.as_str())).collect();
+            Err(UnknownError::new_err(format!("model `{name}` is {} sensors: {}", names.len(), names.join(", "))))
+        }
+        Lookup::Unknown { closest } => Err(UnknownError::new_err(match closest {
+            Some(closest) => format!("no sensor `{name}` in the loaded spec; did you mean `{closest}`?"),
+            None => format!("no sensor `{name}` in the loaded spec"),
+        })),
+    }
 }
 
 fn command<'s>(sensor: &'s Sensor, name: &str) -> PyResult<&'s CommandSpec> {
@@ -241,24 +253,13 @@ impl Bus {
     fn scan<'py>(&self, py: Python<'py>, addresses: Option<Vec<u8>>) -> PyResult<Bound<'py, PyList>> {
         let loaded: Vec<Arc<Sensor>> = catalog()?.clone();
         let addresses = addresses.unwrap_or_else(|| (1..=247).collect());
+        let identifier = Identifier::new(loaded.iter().map(|s| s.as_ref()));
         let found = py.detach(|| {
-            let identifier = Identifier::new(loaded.iter().map(|s| s.as_ref()));
             let mut client = self.client();
             let mut found = Vec::new();
             for &address in &addresses {
                 match identifier.identify(&mut client, address) {
-                    Ok(Some(f)) => found.push(Found {
-                        address,
-                        sensor: f.identified.map(|s| s.name.clone()),
-                        candidates: f.candidates.iter().map(|s| s.name.clone()).collect(),
-                        serial_number: f.serial_number.as_deref().map(printable),
-                        model_code: f.model_code,
-                        models: f.models,
-                        hardware: f.hardware.map(|v| v.to_string()),
-                        software: f.software.map(|v| v.to_string()),
-                        manual: f.manual.and_then(|m| m.software.clone()),
-                        reason: f.reason,
-                    }),
+                    Ok(Some(f)) => found.push(f),
                     Ok(None) => {}
                     Err(e) => return Err((e, client.last_reply().to_vec())),
                 }
@@ -270,33 +271,19 @@ impl Bus {
         for f in found {
             let d = PyDict::new(py);
             d.set_item("address", f.address)?;
-            d.set_item("sensor", f.sensor)?;
-            d.set_item("candidates", f.candidates)?;
-            d.set_item("serial_number", f.serial_number)?;
+            d.set_item("sensor", f.identified.map(|s| &s.name))?;
+            d.set_item("candidates", f.candidates.iter().map(|s| &s.name).collect::<Vec<_>>())?;
+            d.set_item("serial_number", f.serial_number.as_deref().map(printable))?;
             d.set_item("model_code", f.model_code)?;
             d.set_item("models", f.models)?;
-            d.set_item("hardware", f.hardware)?;
-            d.set_item("software", f.software)?;
-            d.set_item("manual_software", f.manual)?;
+            d.set_item("hardware", f.hardware.map(|v| v.to_string()))?;
+            d.set_item("software", f.software.map(|v| v.to_string()))?;
+            d.set_item("manual_software", f.manual.and_then(|m| m.software.as_deref()))?;
             d.set_item("reason", f.reason)?;
             list.append(d)?;
         }
         Ok(list)
     }
-}
-
-/// What a scan found at one address, owned, to cross back into Python.
-struct Found {
-    address: u8,
-    sensor: Option<String>,
-    candidates: Vec<String>,
-    serial_number: Option<String>,
-    model_code: Option<String>,
-    models: Vec<String>,
-    hardware: Option<String>,
-    software: Option<String>,
-    manual: Option<String>,
-    reason: Option<String>,
 }
 
 /// A probe simulated from its spec, served over TCP (RTU frames, as a
